@@ -1,12 +1,64 @@
-"""Geometrically exact (Simo–Reissner) planar beam on scikit-fem.  (API stub; solver in progress)"""
+"""Geometrically exact (Simo–Reissner) planar beam on scikit-fem.
+
+The beam is a line mesh in arc length ``s`` (a scikit-fem :class:`~skfem.MeshLine`) carrying three
+quadratic (P2) fields: the displacements ``u(s), v(s)`` of the centreline and the section rotation
+``phi(s)``. With ``X'(s) = (cos theta0, sin theta0)`` the unit tangent of the reference centreline
+and ``theta = theta0 + phi`` the current section angle, the strains are measured in the section
+frame (Reissner 1972, Simo & Vu-Quoc 1986)::
+
+    Gamma1 = cos(theta) x1' + sin(theta) x2' - 1      axial strain
+    Gamma2 = -sin(theta) x1' + cos(theta) x2'         shear strain
+    kappa  = phi'                                     change of curvature
+    x' = X' + (u', v')
+
+Because ``theta0`` enters only through ``X'``, a straight, a kinked-polyline (``phi`` continuous
+across the kink keeps the kink angle) and a circular-arc reference (``theta0`` linear in ``s``) are
+all exact, stress-free references. The stored energy is
+``1/2 int (EA Gamma1^2 + k G A Gamma2^2 + EI kappa^2) ds`` with ``A = b t(s)``,
+``I = b t(s)^3 / 12`` and the thickness ``t`` linear in arc length between profile points.
+
+Discretisation and speed
+------------------------
+* P2 elements with the 2-point Gauss rule passed explicitly (uniform reduced integration: rank
+  sufficient, 2 points x 3 strains = 6 = 9 DOFs - 3 rigid modes, and free of shear and membrane
+  locking; a silently raised rule would lock).
+* The reference-element tables (shape values and derivatives at the Gauss points and at the stress
+  sampling points) come from scikit-fem once per process and are rescaled by the element lengths;
+  the mesh is a :class:`skfem.MeshLine` in ``s``. DOFs are numbered node by node along ``s``
+  (scikit-fem numbers the P2 interior DOFs after all vertex DOFs, which would destroy the band), so
+  the tangent is banded with half-bandwidth 8 and is factorised with LAPACK ``dgbsv``.
+* All element integrals are batched numpy over elements x Gauss points; assembly is one
+  ``np.bincount`` into band storage with precomputed indices.
+
+Loading
+-------
+The ``start`` end (first profile point) is clamped or pinned. The ``end`` (last point) is driven
+along ``direction`` under displacement or force control; its motion perpendicular to ``direction``
+and its rotation are each held or free. The end node's two translations are expressed in the
+(direction, normal) frame, so the driven and the transverse components are plain DOFs. Under
+displacement control the increment is imposed inside the linear solve (its column of the tangent
+moves to the right-hand side), not by jumping the prescribed value and iterating.
+
+Steps are adaptive: each requested step is reached through sub-steps that start very small at the
+first step (so buckling-type problems stay on the branch selected by the geometry), grow when
+Newton converges fast, and are cut back when it does not. After two converged states the predictor
+extrapolates along the path (secant), which keeps the solution on its branch through sharp turns.
+Failure to converge is returned as data (``converged`` flags and ``message``), never raised.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Literal
 
 import numpy as np
+from scipy.linalg.lapack import dgbsv
+from skfem import CellBasis, ElementLineP2, MeshLine
+from skfem.quadrature import get_quadrature
+from skfem.refdom import RefLine
 
+from fea.errors import FeaError
 from fea.materials import Material
 from geometry.profile import BeamProfile
 
@@ -17,11 +69,14 @@ __all__ = ["EndDrive", "BeamSettings", "BeamResponse", "BeamModel", "solve_beam"
 class EndDrive:
     """How the ``end`` of the beam (last centreline point) is driven.
 
-    control : "displacement" (max_value in mm) or "force" (max_value in N).
-    direction : unit-normalised internally; the driven component is along it.
-    steps : number of response rows after the initial row (rows at k*max/steps).
-    rotation : "fixed" (end rotation held at 0) or "free".
-    transverse : "fixed" (end motion perpendicular to direction held at 0) or "free".
+    Attributes
+    ----------
+    control : "displacement" (``max_value`` in mm) or "force" (``max_value`` in N).
+    direction : (2,) float — the driven component is along it (normalised internally).
+    max_value : float, mm or N — value reached at the last step.
+    steps : int — number of response rows after the undeformed row; row k is at k*max/steps.
+    rotation : "fixed" (end section rotation held at 0) or "free".
+    transverse : "fixed" (end motion perpendicular to ``direction`` held at 0) or "free".
     """
 
     control: Literal["displacement", "force"] = "displacement"
@@ -31,29 +86,79 @@ class EndDrive:
     rotation: Literal["fixed", "free"] = "fixed"
     transverse: Literal["fixed", "free"] = "fixed"
 
+    def __post_init__(self) -> None:
+        if self.control not in ("displacement", "force"):
+            raise FeaError(f"control = {self.control!r}; use 'displacement' or 'force'")
+        for name in ("rotation", "transverse"):
+            if getattr(self, name) not in ("fixed", "free"):
+                raise FeaError(f"{name} = {getattr(self, name)!r}; use 'fixed' or 'free'")
+        d = np.asarray(self.direction, dtype=float)
+        if d.shape != (2,) or not np.all(np.isfinite(d)) or np.hypot(*d) < 1e-12:
+            raise FeaError(f"direction = {self.direction!r} must be a non-zero [dx, dy] pair")
+        if int(self.steps) < 1:
+            raise FeaError(f"steps = {self.steps} must be >= 1")
+        if not np.isfinite(self.max_value):
+            raise FeaError(f"max_value = {self.max_value} must be finite")
+
 
 @dataclass(frozen=True)
 class BeamSettings:
+    """Discretisation and solver tolerances (one place for each number, with its reason).
+
+    Attributes
+    ----------
+    n_elements : target number of P2 elements, spread over the segments by length (at least one
+        per segment, so the count can exceed the target for profiles with many short segments).
+    shear_factor : k of k G A; 5/6 for a rectangular section.
+    rtol : Newton stops when the free-DOF residual norm is below rtol x the force scale (load or
+        reactions); 1e-9 leaves the force error to the mesh, not to the iteration.
+    max_iterations : Newton iterations per sub-step before the sub-step is cut back; quadratic
+        convergence needs 3-6, so 25 only tolerates a poor predictor.
+    first_substep : first sub-step as a fraction of the first requested step; small so that a
+        buckling-type start follows the branch that the geometry selects.
+    min_substep : smallest sub-step as a fraction of a requested step before giving up.
+    fast_iterations : a sub-step converged in at most this many iterations doubles the next one.
+    dtol : a Newton correction below dtol x max(L, 1) is round-off: 1e-12 is 10^4 x machine
+        epsilon, far below any mesh error.
+    predictor : "secant" extrapolates the last two converged states (fewer iterations, stays on
+        the branch); "tangent" solves the linearised problem from the last state.
+    max_rotation_step : largest section rotation (rad) one Newton correction may apply; larger ones
+        are scaled down (see _newton). 0.5 rad is a large step on any smooth path.
+    """
+
     n_elements: int = 20
     shear_factor: float = 5.0 / 6.0
+    rtol: float = 1e-9
+    max_iterations: int = 25
+    first_substep: float = 1.0 / 16.0
+    min_substep: float = 1e-5
+    fast_iterations: int = 5
+    dtol: float = 1e-12
+    max_rotation_step: float = 0.5
+    predictor: Literal["secant", "tangent"] = "secant"
 
 
 @dataclass(frozen=True)
 class BeamResponse:
-    """One row per requested step (row 0 = undeformed). All arrays shape (steps + 1,) unless noted.
+    """One row per requested step (row 0 = undeformed). Arrays have shape (steps + 1,) unless noted.
 
-    displacement_mm : driven end displacement projected on direction.
-    force_N : force applied at the driven end, projected on direction.
-    transverse_displacement_mm, transverse_force_N : the same, perpendicular (left of direction).
+    Attributes
+    ----------
+    displacement_mm : driven end displacement projected on ``direction``.
+    force_N : force applied at the driven end, projected on ``direction``.
+    transverse_displacement_mm, transverse_force_N : the same, along the normal (``direction``
+        turned 90 degrees counter-clockwise).
     moment_Nmm : moment applied at the driven end (counter-clockwise positive).
     end_rotation_rad : rotation of the driven end section.
     peak_stress_MPa : max over the beam of |N|/A + |M| c / I.
     peak_stress_s_mm : arc length where it occurs.
-    iterations : (steps+1,) int, Newton iterations spent reaching each row.
-    converged : (steps+1,) bool.
-    shapes_mm : (steps+1, n_nodes, 2) deformed centreline node positions.
-    ok : bool — every row converged.
-    message : str — why not, when not ok.
+    iterations : int — Newton iterations spent reaching each row (all sub-steps).
+    converged : bool — the row is an equilibrium state.
+    shapes_mm : (steps + 1, n_nodes, 2) float, mm — deformed positions of the mesh nodes (P2
+        vertices and mid-points, ordered along ``s``).
+    ok : every row converged.
+    message : why not, when not ``ok``.
+    extra : n_elements, n_dofs, substeps.
     """
 
     displacement_mm: np.ndarray
@@ -72,7 +177,56 @@ class BeamResponse:
     extra: dict = field(default_factory=dict)
 
 
+# -- reference element tables (computed by scikit-fem once per process) -------------------------
+
+#: half-bandwidth of the node-by-node numbering: an element couples 3 nodes x 3 fields
+_BAND = 8
+
+
+@cache
+def _reference_tables(points: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Shape values and d/dxi of the P2 line element at reference points ``xi`` in [0, 1].
+
+    Returns ``(N, dN)``, each (n_points, 3), local nodes ordered (start, middle, end) along ``s``.
+    scikit-fem orders the local DOFs (vertex 0, vertex 1, interior); the reorder makes the local
+    index equal the offset along ``s``.
+    """
+    xi = np.array([points])
+    basis = CellBasis(
+        MeshLine(np.array([0.0, 1.0])),
+        ElementLineP2(),
+        quadrature=(xi, np.full(xi.shape[1], 1.0 / xi.shape[1])),
+    )
+    order = (0, 2, 1)
+    n = np.array([np.asarray(basis.basis[i][0])[0] for i in order]).T
+    dn = np.array([basis.basis[i][0].grad[0, 0] for i in order]).T
+    return n, dn
+
+
+def _gauss_rule() -> tuple[np.ndarray, np.ndarray]:
+    """2-point Gauss rule on [0, 1], asked for explicitly (intorder 3 -> 2 points)."""
+    x, w = get_quadrature(RefLine, 3)
+    assert x.shape[1] == 2, "the P2 beam needs exactly the 2-point rule (reduced integration)"
+    return x[0], w
+
+
+# -- the model ------------------------------------------------------------------------------------
+
+
 class BeamModel:
+    """A meshed planar beam, ready to trace responses under different drives.
+
+    Everything that does not depend on the deformation (mesh, section properties at the Gauss
+    points, reference angles, assembly indices) is computed here once.
+
+    Parameters
+    ----------
+    profile : BeamProfile — centreline, thickness (mm) and width (mm).
+    material : Material — E_MPa, nu (yield_MPa is not used by the solver).
+    start : "clamped" or "pinned" — support of the first profile point.
+    settings : BeamSettings.
+    """
+
     def __init__(
         self,
         profile: BeamProfile,
@@ -80,10 +234,496 @@ class BeamModel:
         start: Literal["clamped", "pinned"] = "clamped",
         settings: BeamSettings = BeamSettings(),
     ) -> None:
-        raise NotImplementedError
+        if start not in ("clamped", "pinned"):
+            raise FeaError(f"start = {start!r}; use 'clamped' or 'pinned'")
+        if int(settings.n_elements) < 1:
+            raise FeaError(f"n_elements = {settings.n_elements} must be >= 1")
+        self.profile = profile
+        self.material = material
+        self.start = start
+        self.settings = settings
+
+        seg_len = profile.segment_lengths_mm
+        s_pts = profile.arc_length_mm
+        n_seg = np.maximum(1, np.rint(settings.n_elements * seg_len / seg_len.sum())).astype(int)
+        s_vert = np.concatenate(
+            [np.linspace(s_pts[i], s_pts[i + 1], n_seg[i] + 1)[:-1] for i in range(len(seg_len))]
+            + [s_pts[-1:]]
+        )
+        self.mesh = MeshLine(s_vert)
+        seg_of_el = np.repeat(np.arange(len(seg_len)), n_seg)
+        n_el = len(seg_of_el)
+        self.n_elements = n_el
+        self.n_nodes = 2 * n_el + 1
+        self.n_dofs = 3 * self.n_nodes
+        h = np.diff(s_vert)
+        self._h = h
+
+        xg, wg = _gauss_rule()
+        ng, dng = _reference_tables(tuple(xg))
+        self._N = ng  # (Q, 3)
+        self._dN = dng[None, :, :] / h[:, None, None]  # (E, Q, 3), 1/mm
+        self._w = wg[None, :] * h[:, None]  # (E, Q), mm
+        s_gauss = s_vert[:-1, None] + xg[None, :] * h[:, None]  # (E, Q), mm
+
+        # Reference tangent angle at the Gauss points: constant on straight segments, linear on arcs
+        theta_seg = profile.segment_start_angles_rad()
+        kappa_seg = profile.curvature_per_mm
+        # Weighted shape-function products for the tangent, (E, Q * 4, 9) -> transposed, and
+        # for the residual (E, 3, 2 Q); see _element_arrays.
+        Nb = np.broadcast_to(ng[None], self._dN.shape)
+        wq = self._w[..., None, None]
+        S = (
+            np.stack(
+                [
+                    self._dN[..., :, None] * self._dN[..., None, :],
+                    self._dN[..., :, None] * Nb[..., None, :],
+                    Nb[..., :, None] * self._dN[..., None, :],
+                    Nb[..., :, None] * Nb[..., None, :],
+                ],
+                axis=2,
+            )
+            * wq[:, :, None]
+        )  # (E, Q, 4, 3, 3)
+        self._nq = len(wg)
+        self._St = np.ascontiguousarray(S.reshape(n_el, self._nq * 4, 9).transpose(0, 2, 1))
+        self._W_shape = (n_el, self._nq, 4, 3, 3)
+        self._Rw = np.ascontiguousarray(
+            np.concatenate(
+                [self._dN * self._w[..., None], Nb * self._w[..., None]], axis=1
+            ).transpose(0, 2, 1)
+        )  # (E, 3, 2Q)
+        self._rr_shape = (n_el, 2 * self._nq, 3)
+        self._theta0 = theta_seg[seg_of_el, None] + kappa_seg[seg_of_el, None] * (
+            s_gauss - s_pts[seg_of_el, None]
+        )
+        self._c0 = np.cos(self._theta0)
+        self._s0 = np.sin(self._theta0)
+
+        b = profile.width_mm
+        t_g = np.interp(s_gauss, s_pts, profile.thickness_mm)
+        E, G = material.E_MPa, material.G_MPa
+        self._D = np.stack(
+            [E * b * t_g, settings.shear_factor * G * b * t_g, E * b * t_g**3 / 12.0], axis=-1
+        )  # (E, Q, 3): EA [N], kGA [N], EI [N mm^2]
+        length = profile.length_mm
+        # Force below which residuals are meaningless: a tiny fraction of the bending force level
+        # EI/L^2, and the round-off of the axial force EA * strain (1e3 machine epsilons).
+        self._force_floor = max(
+            1e-9 * float(self._D[..., 2].max()) / length**2,
+            2e-13 * float(self._D[..., 0].max()),
+        )
+        # DOF scale for the correction test: translations ~ L, rotations ~ 1 (max of both).
+        self._length_scale = max(length, 1.0)
+
+        # Stress sampling at both element ends and the middle (the bending moment is largest at
+        # supports and kinks, which are element ends; Gauss points alone would miss the peak).
+        xs = np.array([0.0, 0.5, 1.0])
+        ns, dns = _reference_tables(tuple(xs))
+        self._Ns = ns
+        self._dNs = dns[None, :, :] / h[:, None, None]
+        s_samp = s_vert[:-1, None] + xs[None, :] * h[:, None]
+        self._s_samp = s_samp
+        self._theta0_s = theta_seg[seg_of_el, None] + kappa_seg[seg_of_el, None] * (
+            s_samp - s_pts[seg_of_el, None]
+        )
+        t_s = np.interp(s_samp, s_pts, profile.thickness_mm)
+        self._EA_s = E * b * t_s
+        self._EI_s = E * b * t_s**3 / 12.0
+        self._area_s = b * t_s
+        self._section_modulus_s = b * t_s**2 / 6.0
+
+        # Node positions along s (vertices and mid-points) on the reference centreline.
+        s_nodes = np.empty(self.n_nodes)
+        s_nodes[0::2] = s_vert
+        s_nodes[1::2] = 0.5 * (s_vert[:-1] + s_vert[1:])
+        self.s_nodes = s_nodes
+        self.reference_nodes_mm = _centreline_points(profile, s_nodes)
+
+        # Assembly indices: element e owns DOFs 6e .. 6e+8 (3 nodes x (u, v, phi)).
+        self._edofs = 6 * np.arange(n_el)[:, None] + np.arange(9)[None, :]  # (E, 9)
+        n = self.n_dofs
+        kl = ku = _BAND
+        self._ldab = 2 * kl + ku + 1
+        rows = self._edofs[:, :, None]
+        cols = self._edofs[:, None, :]
+        self._band_index = ((kl + ku + rows - cols) * n + cols).ravel()
+
+    # ---------------------------------------------------------------- element kernels (batched)
+
+    def _element_arrays(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Element residuals (E, 9) and tangents (E, 9, 9) for physical DOFs ``q`` (n_dofs,).
+
+        Every strain row of the B matrix has the form ``a_f dN_k + b_f N_k`` (field f, node k), so
+        the tangent is a sum of four shape-function products weighted by 3 x 3 field kernels::
+
+            K[kf, lg] = sum_q A_fg dN_k dN_l + C_fg dN_k N_l + C_gf N_k dN_l + P_fg N_k N_l
+
+        The weighted products are precomputed per model (``self._S``); per call only the kernels
+        (material part B^T D B plus the geometric part N d2Gamma1 + Q d2Gamma2) are built, and one
+        batched matrix product gives all element tangents.
+        """
+        qe = q[self._edofs].reshape(-1, 3, 3)  # (E, node, field)
+        grad = self._dN @ qe  # (E, Q, field): u', v', phi'
+        phi = self._N @ qe[:, :, 2].T  # (Q, E)
+        theta = self._theta0 + phi.T
+        c, s = np.cos(theta), np.sin(theta)
+        x1 = self._c0 + grad[..., 0]
+        x2 = self._s0 + grad[..., 1]
+        g1 = c * x1 + s * x2 - 1.0  # axial strain
+        g2 = -s * x1 + c * x2  # shear strain
+        ea, kga, ei = self._D[..., 0], self._D[..., 1], self._D[..., 2]
+        nf = ea * g1  # axial force N
+        qf = kga * g2  # shear force Q
+        mf = ei * grad[..., 2]  # bending moment M
+        h1 = 1.0 + g1
+
+        # Residual: R[k, f] = sum_q w (ra_f dN_k + rb_f N_k)
+        rr = np.zeros(self._rr_shape)
+        rr[:, : self._nq, 0] = nf * c - qf * s
+        rr[:, : self._nq, 1] = nf * s + qf * c
+        rr[:, : self._nq, 2] = mf
+        rr[:, self._nq :, 2] = nf * g2 - qf * h1
+        re = (self._Rw @ rr).reshape(-1, 9)
+
+        # Kernels W[e, q, term, f, g], term = (dN dN, dN N, N dN, N N)
+        W = np.zeros(self._W_shape)
+        ccs = ea * c * s - kga * s * c
+        W[..., 0, 0, 0] = ea * c * c + kga * s * s
+        W[..., 0, 0, 1] = ccs
+        W[..., 0, 1, 0] = ccs
+        W[..., 0, 1, 1] = ea * s * s + kga * c * c
+        W[..., 0, 2, 2] = ei
+        cu = ea * c * g2 + kga * s * h1 - nf * s - qf * c
+        cv = ea * s * g2 - kga * c * h1 + nf * c - qf * s
+        W[..., 1, 0, 2] = cu
+        W[..., 1, 1, 2] = cv
+        W[..., 2, 2, 0] = cu
+        W[..., 2, 2, 1] = cv
+        W[..., 3, 2, 2] = ea * g2 * g2 + kga * h1 * h1 - nf * h1 - qf * g2
+        n_el = W.shape[0]
+        kt = self._St @ W.reshape(n_el, -1, 9)  # (E, kl, fg)
+        ke = kt.reshape(n_el, 3, 3, 3, 3).transpose(0, 1, 3, 2, 4).reshape(n_el, 9, 9)
+        return re, ke
+
+    # ---------------------------------------------------------------- global operators
+
+    def _physical(self, q: np.ndarray, frame: np.ndarray) -> np.ndarray:
+        """Physical DOFs from generalised ones (end-node translations are in ``frame``)."""
+        u = q.copy()
+        i = self.n_dofs - 3
+        u[i : i + 2] = frame.T @ q[i : i + 2]
+        return u
+
+    def _assemble(self, q: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Internal force (n_dofs,) and tangent in LAPACK band storage, generalised DOFs."""
+        re, ke = self._element_arrays(self._physical(q, frame))
+        # Rotate the end node's translations of the last element into (direction, normal).
+        T = np.eye(9)
+        T[6:8, 6:8] = frame.T
+        re[-1] = T.T @ re[-1]
+        ke[-1] = T.T @ ke[-1] @ T
+        r = np.bincount(self._edofs.ravel(), re.ravel(), minlength=self.n_dofs)
+        ab = np.bincount(self._band_index, ke.ravel(), minlength=self._ldab * self.n_dofs)
+        return r, ab.reshape(self._ldab, self.n_dofs)
+
+    def _stress(self, q: np.ndarray) -> tuple[float, float]:
+        """Peak |N|/A + |M| c/I (MPa) over the sampling points and its arc length (mm)."""
+        qe = q[self._edofs].reshape(-1, 3, 3)
+        du = np.einsum("eqk,ek->eq", self._dNs, qe[:, :, 0])
+        dv = np.einsum("eqk,ek->eq", self._dNs, qe[:, :, 1])
+        phi = qe[:, :, 2] @ self._Ns.T
+        kappa = np.einsum("eqk,ek->eq", self._dNs, qe[:, :, 2])
+        theta = self._theta0_s + phi
+        g1 = (
+            np.cos(theta) * (np.cos(self._theta0_s) + du)
+            + np.sin(theta) * (np.sin(self._theta0_s) + dv)
+            - 1.0
+        )
+        sigma = (
+            np.abs(self._EA_s * g1) / self._area_s
+            + np.abs(self._EI_s * kappa) / self._section_modulus_s
+        )
+        k = int(np.argmax(sigma))
+        return float(sigma.flat[k]), float(self._s_samp.flat[k])
+
+    # ---------------------------------------------------------------- tracing
 
     def solve(self, drive: EndDrive) -> BeamResponse:
-        raise NotImplementedError
+        """Trace the response under ``drive``; see :class:`BeamResponse` for the rows."""
+        st = self.settings
+        n = self.n_dofs
+        d = np.asarray(drive.direction, dtype=float)
+        d = d / np.hypot(*d)
+        normal = np.array([-d[1], d[0]])
+        frame = np.array([d, normal])  # rows: generalised axes in physical coordinates
+        ia, it, ir = n - 3, n - 2, n - 1
+
+        fixed = [0, 1] + ([2] if self.start == "clamped" else [])
+        if drive.control == "displacement":
+            fixed.append(ia)
+        if drive.transverse == "fixed":
+            fixed.append(it)
+        if drive.rotation == "fixed":
+            fixed.append(ir)
+        fixed = np.array(sorted(fixed))
+        free = np.setdiff1d(np.arange(n), fixed)
+        zero_idx = _band_zero_index(fixed, n, _BAND, _BAND)
+        diag_idx = (2 * _BAND) * n + fixed
+        is_disp = drive.control == "displacement"
+
+        steps = int(drive.steps)
+        targets = drive.max_value * np.arange(steps + 1) / steps
+        rows = _Rows(steps + 1, self.n_nodes)
+        q = np.zeros(n)
+        r, ab = self._assemble(q, frame)
+        rows.store(0, self, q, r, frame, 0, ia, it, ir)
+
+        value = 0.0
+        history: list[tuple[float, np.ndarray]] = [(0.0, q.copy())]
+        step_size = abs(targets[1] - targets[0])
+        h = st.first_substep * step_size
+        substeps = 0
+        message = ""
+        ok = True
+        for k in range(1, steps + 1):
+            target = targets[k]
+            iters_row = 0
+            direction_sign = np.sign(target - value) or 1.0
+            while abs(target - value) > 1e-12 * max(1.0, abs(drive.max_value)):
+                inc = direction_sign * min(h, abs(target - value))
+                new_value = value + inc
+                q_try, iters, ok_sub, why = self._newton(
+                    q,
+                    r,
+                    ab,
+                    value,
+                    new_value,
+                    history,
+                    is_disp,
+                    fixed,
+                    free,
+                    zero_idx,
+                    diag_idx,
+                    ia,
+                    frame,
+                )
+                iters_row += iters
+                substeps += 1
+                if ok_sub:
+                    q = q_try
+                    value = new_value
+                    history.append((value, q.copy()))
+                    history = history[-2:]
+                    r, ab = self._assemble(q, frame)
+                    if iters <= st.fast_iterations:
+                        h = min(2.0 * h, step_size)
+                    continue
+                h = abs(inc) / 4.0
+                if h < st.min_substep * step_size:
+                    quantity = "displacement_mm" if is_disp else "force_N"
+                    message = (
+                        f"no convergence at {quantity} = {new_value:.6g} (last converged "
+                        f"{value:.6g}) after cutting the sub-step to {abs(inc):.3g}: {why}"
+                    )
+                    ok = False
+                    break
+                # Restart the secant predictor from the current state after a failure.
+                history = history[-1:]
+            if not ok:
+                break
+            rows.store(k, self, q, r, frame, iters_row, ia, it, ir)
+
+        return rows.response(
+            ok,
+            message,
+            {
+                "n_elements": self.n_elements,
+                "n_dofs": self.n_dofs,
+                "substeps": substeps,
+            },
+        )
+
+    def _newton(
+        self,
+        q0,
+        r0,
+        ab0,
+        value0,
+        value,
+        history,
+        is_disp,
+        fixed,
+        free,
+        zero_idx,
+        diag_idx,
+        ia,
+        frame,
+    ):
+        """One sub-step from converged ``q0`` at ``value0`` to ``value``.
+
+        Returns (q, iterations, converged, reason).
+        """
+        st = self.settings
+        n = self.n_dofs
+        inc = value - value0
+        f_ext = np.zeros(n)
+        if not is_disp:
+            f_ext[ia] = value
+
+        if st.predictor == "secant" and len(history) >= 2 and history[-1][0] != history[-2][0]:
+            # Secant predictor along the path.
+            (v1, q1), (v2, q2) = history[-2], history[-1]
+            q = q2 + (q2 - q1) * (inc / (v2 - v1))
+            r, ab = self._assemble(q, frame)
+            iters = 0
+        else:
+            # Tangent predictor: impose the increment inside the linear solve.
+            rhs = f_ext - r0
+            ab = ab0.copy()
+            if is_disp:
+                col = _band_column(ab, ia, n, _BAND, _BAND)
+                rhs[col[0]] -= col[1] * inc
+            delta, info = _solve_constrained(
+                ab, rhs, zero_idx, diag_idx, fixed, ia if is_disp else -1, inc
+            )
+            if info != 0:
+                return q0, 1, False, "singular tangent (a mechanism: check the supports)"
+            q = q0 + delta
+            r, ab = self._assemble(q, frame)
+            iters = 1
+
+        ref = None
+        for _ in range(st.max_iterations):
+            res = r - f_ext
+            res_free = res[free]
+            norm = float(np.sqrt(res_free @ res_free))
+            if not np.isfinite(norm):
+                return q0, iters, False, "the residual became NaN or infinite"
+            scale = max(float(np.sqrt(r[fixed] @ r[fixed])), abs(f_ext).max(), self._force_floor)
+            if ref is None:
+                ref = norm
+            if norm <= st.rtol * scale and iters > 0:
+                return q, iters, True, ""
+            if iters > 3 and norm > 1e6 * max(ref, st.rtol * scale):
+                return q0, iters, False, "Newton diverged"
+            delta, info = _solve_constrained(ab, -res, zero_idx, diag_idx, fixed, -1, 0.0)
+            if info != 0:
+                return q0, iters, False, "singular tangent (a mechanism or a limit point)"
+            # Damp corrections that turn a section by more than max_rotation_step: in slender
+            # beams (EA L^2 / EI ~ 1e5..1e7) undamped Newton can throw a node's rotation by ~2 pi,
+            # an equivalent angle for the axial and shear strains, and then crawl back.
+            big = np.abs(delta[2::3]).max() / st.max_rotation_step
+            if big > 1.0:
+                delta = delta / big
+            q = q + delta
+            iters += 1
+            r, ab = self._assemble(q, frame)
+            # A correction at round-off level means equilibrium to machine precision even when the
+            # load is so small that the residual test sits below the round-off of EA * strain.
+            if norm <= st.rtol * scale or np.abs(delta).max() <= st.dtol * self._length_scale:
+                return q, iters, True, ""
+        return q0, iters, False, f"Newton did not converge in {st.max_iterations} iterations"
+
+
+class _Rows:
+    """Collects the response rows."""
+
+    def __init__(self, n_rows: int, n_nodes: int) -> None:
+        nan = np.full(n_rows, np.nan)
+        self.a = {
+            k: nan.copy()
+            for k in (
+                "displacement_mm",
+                "force_N",
+                "transverse_displacement_mm",
+                "transverse_force_N",
+                "moment_Nmm",
+                "end_rotation_rad",
+                "peak_stress_MPa",
+                "peak_stress_s_mm",
+            )
+        }
+        self.iterations = np.zeros(n_rows, dtype=int)
+        self.converged = np.zeros(n_rows, dtype=bool)
+        self.shapes = np.full((n_rows, n_nodes, 2), np.nan)
+
+    def store(self, k, model: BeamModel, q, r, frame, iters, ia, it, ir) -> None:
+        a = self.a
+        a["displacement_mm"][k] = q[ia]
+        a["transverse_displacement_mm"][k] = q[it]
+        a["end_rotation_rad"][k] = q[ir]
+        a["force_N"][k] = r[ia]
+        a["transverse_force_N"][k] = r[it]
+        a["moment_Nmm"][k] = r[ir]
+        u = model._physical(q, frame)
+        a["peak_stress_MPa"][k], a["peak_stress_s_mm"][k] = model._stress(u)
+        self.iterations[k] = iters
+        self.converged[k] = True
+        self.shapes[k] = model.reference_nodes_mm + u.reshape(-1, 3)[:, :2]
+
+    def response(self, ok: bool, message: str, extra: dict) -> BeamResponse:
+        return BeamResponse(
+            **self.a,
+            iterations=self.iterations,
+            converged=self.converged,
+            shapes_mm=self.shapes,
+            ok=ok,
+            message=message,
+            extra=extra,
+        )
+
+
+# -- band-storage helpers (LAPACK gbsv layout: A[i, j] = ab[kl + ku + i - j, j]) ---------------
+
+
+def _band_zero_index(dofs: np.ndarray, n: int, kl: int, ku: int) -> np.ndarray:
+    """Flat indices of the band entries in the rows and columns of ``dofs``."""
+    idx = []
+    for c in dofs:
+        j = np.arange(max(0, c - ku), min(n, c + kl + 1))
+        idx.append((kl + ku + c - j) * n + j)  # row c
+        i = np.arange(max(0, c - ku), min(n, c + kl + 1))
+        idx.append((kl + ku + i - c) * n + c)  # column c
+    return np.unique(np.concatenate(idx))
+
+
+def _band_column(ab: np.ndarray, c: int, n: int, kl: int, ku: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and values of column ``c`` of the banded matrix."""
+    i = np.arange(max(0, c - ku), min(n, c + kl + 1))
+    return i, ab[kl + ku + i - c, c].copy()
+
+
+def _solve_constrained(ab, rhs, zero_idx, diag_idx, fixed, driven, increment):
+    """Solve the banded system with the ``fixed`` DOFs set to 0 (``driven`` to ``increment``).
+
+    ``ab`` is overwritten. The column of a prescribed non-zero increment must already have been
+    moved to ``rhs`` by the caller.
+    """
+    flat = ab.reshape(-1)
+    flat[zero_idx] = 0.0
+    flat[diag_idx] = 1.0
+    rhs = rhs.copy()
+    rhs[fixed] = 0.0
+    if driven >= 0:
+        rhs[driven] = increment
+    _, _, x, info = dgbsv(_BAND, _BAND, ab, rhs, overwrite_ab=1, overwrite_b=1)
+    return x, info
+
+
+def _centreline_points(profile: BeamProfile, s: np.ndarray) -> np.ndarray:
+    """(m, 2) positions (mm) on the reference centreline at arc lengths ``s`` (m,)."""
+    s_pts = profile.arc_length_mm
+    seg = np.clip(np.searchsorted(s_pts, s, side="right") - 1, 0, profile.n_points - 2)
+    sigma = s - s_pts[seg]
+    th = profile.segment_start_angles_rad()[seg]
+    kap = profile.curvature_per_mm[seg]
+    p0 = profile.points_mm[seg]
+    straight = np.abs(kap) < 1e-14
+    safe = np.where(straight, 1.0, kap)
+    dx = np.where(straight, sigma * np.cos(th), (np.sin(th + kap * sigma) - np.sin(th)) / safe)
+    dy = np.where(straight, sigma * np.sin(th), (np.cos(th) - np.cos(th + kap * sigma)) / safe)
+    return p0 + np.stack([dx, dy], axis=-1)
 
 
 def solve_beam(

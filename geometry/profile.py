@@ -72,9 +72,7 @@ class BeamProfile:
             )
         bad = np.flatnonzero(t <= 0)
         if bad.size:
-            raise GeometryError(
-                f"thickness_mm[{bad[0]}] = {t[bad[0]]:g} must be > 0 mm"
-            )
+            raise GeometryError(f"thickness_mm[{bad[0]}] = {t[bad[0]]:g} must be > 0 mm")
         if not self.width_mm > 0:
             raise GeometryError(f"width_mm = {self.width_mm:g} must be > 0 mm")
         bad = np.flatnonzero(np.abs(kappa) * chord / 2 >= 1.0)
