@@ -544,6 +544,10 @@ class BeamModel:
             },
         )
 
+    def _is_sane(self, delta: np.ndarray) -> bool:
+        """False for a correction only a (numerically) singular tangent produces."""
+        return bool(np.all(np.isfinite(delta)) and np.abs(delta).max() < 1e3 * self._length_scale)
+
     def _newton(
         self,
         q0,
@@ -587,7 +591,7 @@ class BeamModel:
             delta, info = _solve_constrained(
                 ab, rhs, zero_idx, diag_idx, fixed, ia if is_disp else -1, inc
             )
-            if info != 0:
+            if info != 0 or not self._is_sane(delta):
                 return q0, 1, False, "singular tangent (a mechanism: check the supports)"
             q = q0 + delta
             r, ab = self._assemble(q, frame)
@@ -608,7 +612,7 @@ class BeamModel:
             if iters > 3 and norm > 1e6 * max(ref, st.rtol * scale):
                 return q0, iters, False, "Newton diverged"
             delta, info = _solve_constrained(ab, -res, zero_idx, diag_idx, fixed, -1, 0.0)
-            if info != 0:
+            if info != 0 or not self._is_sane(delta):
                 return q0, iters, False, "singular tangent (a mechanism or a limit point)"
             # Damp corrections that turn a section by more than max_rotation_step: in slender
             # beams (EA L^2 / EI ~ 1e5..1e7) undamped Newton can throw a node's rotation by ~2 pi,

@@ -242,3 +242,83 @@ def test_circular_arc_beam_matches_solve_bvp():
     exact = _continued_bvp(profile, F)
     assert np.linalg.norm(exact - pts[-1]) > 10  # large displacement
     assert np.allclose(res.shapes_mm[-1][-1], exact, rtol=0, atol=1e-4 * profile.length_mm)
+
+
+def test_axial_bar_force_is_exact_and_signed_along_direction():
+    """Uniform stretch is exact in the Reissner model: N = EA d / L, along ``direction``."""
+    L, t, b = 50.0, 2.0, 3.0
+    for direction, d in (((1.0, 0.0), 0.5), ((-1.0, 0.0), -0.5)):
+        res = solve_beam(straight(L, t, b), MAT, EndDrive("displacement", direction, d, steps=2))
+        assert res.ok
+        # pulling the bar (stretch of +0.5 mm) needs a force along +x
+        expected = MAT.E_MPa * b * t * 0.5 / L
+        assert res.force_N[-1] * np.sign(direction[0]) == pytest.approx(expected, rel=1e-9)
+        assert res.peak_stress_MPa[-1] == pytest.approx(MAT.E_MPa * 0.5 / L, rel=1e-9)
+
+
+def test_force_and_displacement_control_agree():
+    L, t, b = 80.0, 0.8, 2.0
+    P = 2.0 * ei_of(t, b) / L**2
+    common = dict(rotation="free", transverse="free")
+    by_force = solve_beam(straight(L, t, b), MAT, EndDrive("force", (0.0, 1.0), P, 8, **common))
+    d = by_force.displacement_mm[-1]
+    by_disp = solve_beam(
+        straight(L, t, b), MAT, EndDrive("displacement", (0.0, 1.0), d, 8, **common)
+    )
+    assert by_force.ok and by_disp.ok
+    assert by_disp.force_N[-1] == pytest.approx(P, rel=1e-7)
+    assert by_disp.end_rotation_rad[-1] == pytest.approx(by_force.end_rotation_rad[-1], rel=1e-7)
+
+
+def test_root_stress_of_a_lightly_loaded_cantilever():
+    L, t, b = 100.0, 1.0, 4.0
+    P = 1e-3 * ei_of(t, b) / L**2  # linear range
+    res = solve_beam(
+        straight(L, t, b),
+        MAT,
+        EndDrive("force", (0.0, 1.0), P, 1, rotation="free", transverse="free"),
+    )
+    assert res.peak_stress_s_mm[-1] == pytest.approx(0.0, abs=1e-12)
+    assert res.peak_stress_MPa[-1] == pytest.approx(6 * P * L / (b * t**2), rel=1e-4)
+
+
+def test_postbuckled_pinned_column_follows_the_elastica_on_the_imperfection_side():
+    """Pinned-pinned column with a tiny initial bow, shortened by 20 % under displacement control.
+
+    Exact perfect-column elastica: end shortening Delta/L = 2 (1 - E(k)/K(k)) and
+    P / P_E = (2 K(k) / pi)^2 with P_E = pi^2 EI / L^2. The bow of L/5000 changes P by < 0.5 %.
+    The column must buckle towards its bow (the physical branch) at every step: positive curvature
+    turns left walking from start to end, so this bow lies at -y.
+    """
+    L, t, b = 100.0, 0.5, 2.0
+    sagitta = L / 5000.0
+    R = (L**2 / 4 + sagitta**2) / (2 * sagitta)
+    profile = BeamProfile([[0.0, 0.0], [L, 0.0]], [t, t], b, curvature_per_mm=[1.0 / R])
+    res = solve_beam(
+        profile,
+        MAT,
+        EndDrive("displacement", (-1.0, 0.0), 0.2 * L, 20, rotation="free", transverse="fixed"),
+        start="pinned",
+        settings=BeamSettings(n_elements=30),
+    )
+    assert res.ok, res.message
+    mid = res.shapes_mm[:, res.shapes_mm.shape[1] // 2, 1]
+    assert mid[0] == pytest.approx(-sagitta)
+    assert np.all(mid[1:] < mid[0])
+    m = brentq(lambda m: 2 * (1 - ellipe(m) / ellipk(m)) - 0.2, 1e-9, 0.999)
+    P_exact = (2 * ellipk(m) / np.pi) ** 2 * np.pi**2 * ei_of(t, b) / L**2
+    assert res.force_N[-1] == pytest.approx(P_exact, rel=5e-3)
+
+
+def test_a_mechanism_is_reported_as_data_not_raised():
+    """Pinned start, free end rotation and transverse motion: rigid rotation is a mechanism."""
+    res = solve_beam(
+        straight(),
+        MAT,
+        EndDrive("force", (0.0, 1.0), 1.0, 4, rotation="free", transverse="free"),
+        start="pinned",
+    )
+    assert not res.ok
+    assert "singular" in res.message
+    assert res.converged[0] and not res.converged[-1]
+    assert np.isnan(res.force_N[-1])
