@@ -1,0 +1,388 @@
+"""flexopt's nonlinear beam against OpenSees on three large-deflection problems with exact answers.
+
+Run from the repository root::
+
+    python benchmarks/beam_vs_opensees.py [--repeat 7] [--elements 20 50 100]
+
+Problems (L = 100 mm, rectangular section t = 0.1 mm x b = 5 mm, ABS E = 1800 MPa, nu = 0.35;
+every curve is 20 equal steps):
+
+* ``cantilever-force``: clamped cantilever, dead tip force perpendicular to the axis raised to
+  alpha = P L^2 / EI = 10. Error: tip deflection at the last step against the exact elastica.
+* ``cantilever-disp``: the same cantilever with the tip's vertical displacement driven to
+  0.6 L (tip rotation and horizontal motion free). Error: tip force at the last step.
+* ``fixed-guided``: clamped at x = 0; the other end keeps zero rotation, slides axially freely and
+  is pushed transversely to d = 0.8 L. Error: end force at the last step.
+
+The exact answers (fea/elastica.py) are for an inextensible, unshearable beam. flexopt's
+Simo–Reissner beam is extensible and shearable and OpenSees' elasticBeamColumn is extensible; with
+t / L = 1e-3 those effects move the answers by ~1e-6 (cantilevers) and ~2e-5 (fixed–guided,
+where the sensitivity of the force to the geometry is high), well below the discretisation errors
+compared here. Times are medians of ``--repeat`` runs after a warm-up, both codes in this process,
+runs interleaved so both see the same machine load; each run builds its model from scratch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+# Allow `python benchmarks/beam_vs_opensees.py` from a source checkout without installing.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from fea.beam import BeamModel, BeamSettings, EndDrive  # noqa: E402
+from fea.elastica import (  # noqa: E402
+    cantilever_load_for_deflection,
+    cantilever_tip_load,
+    fixed_guided,
+)
+from fea.materials import get_material  # noqa: E402
+from geometry.profile import BeamProfile  # noqa: E402
+
+LENGTH_MM = 100.0
+THICKNESS_MM = 0.1
+WIDTH_MM = 5.0
+MATERIAL = get_material("ABS")
+AREA_MM2 = WIDTH_MM * THICKNESS_MM
+INERTIA_MM4 = WIDTH_MM * THICKNESS_MM**3 / 12.0
+EI_NMM2 = MATERIAL.E_MPa * INERTIA_MM4
+STEPS = 20
+# OpenSees convergence: Newton converges quadratically, so once the displacement increment is
+# below 1e-10 L the unbalance (hence the force) is converged to round-off, far below 1e-6.
+OPS_DISP_TOL_MM = 1e-10 * LENGTH_MM
+OPS_MAX_ITER = 50
+OPS_SYSTEMS = ("BandSPD", "ProfileSPD", "BandGeneral", "SparseGeneral", "UmfPack")
+# Meshes tried for the "matched accuracy" line (flexopt's P2 elements may need few).
+MATCH_LADDER = (2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 25, 32, 40, 50, 64, 80, 100)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One benchmark curve and its exact end value.
+
+    Attributes
+    ----------
+    key : str
+    control : "force" (max_value in N; the tip deflection is compared) or "displacement"
+        (max_value in mm; the end force is compared).
+    rotation : "free" or "fixed" — the driven end's rotation.
+    max_value : float, N or mm
+    exact : float, mm or N — the compared quantity at the last step.
+    """
+
+    key: str
+    control: Literal["force", "displacement"]
+    rotation: Literal["free", "fixed"]
+    max_value: float
+    exact: float
+
+
+def make_problems() -> list[Problem]:
+    """The three curves of the module docstring with their exact elastica answers."""
+    force_scale = EI_NMM2 / LENGTH_MM**2  # N per unit of P L^2 / EI
+    alpha = 10.0
+    return [
+        Problem(
+            "cantilever-force",
+            "force",
+            "free",
+            alpha * force_scale,
+            cantilever_tip_load(alpha).deflection_over_L * LENGTH_MM,
+        ),
+        Problem(
+            "cantilever-disp",
+            "displacement",
+            "free",
+            0.6 * LENGTH_MM,
+            cantilever_load_for_deflection(0.6).alpha * force_scale,
+        ),
+        Problem(
+            "fixed-guided",
+            "displacement",
+            "fixed",
+            0.8 * LENGTH_MM,
+            fixed_guided(0.8).load * force_scale,
+        ),
+    ]
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one run of one code returned.
+
+    Attributes
+    ----------
+    value : float, mm or N — the compared quantity at the last step (nan when it failed).
+    ok : bool — every step converged.
+    iterations : int — Newton iterations over the whole curve.
+    message : str — why not ok.
+    """
+
+    value: float
+    ok: bool
+    iterations: int
+    message: str = ""
+
+
+def run_flexopt(problem: Problem, n_elements: int) -> Outcome:
+    """Build flexopt's beam model and trace the 20-step curve."""
+    profile = BeamProfile(
+        points_mm=np.array([[0.0, 0.0], [LENGTH_MM, 0.0]]),
+        thickness_mm=np.array([THICKNESS_MM, THICKNESS_MM]),
+        width_mm=WIDTH_MM,
+    )
+    drive = EndDrive(
+        control=problem.control,
+        direction=(0.0, 1.0),
+        max_value=problem.max_value,
+        steps=STEPS,
+        rotation=problem.rotation,
+        transverse="free",
+    )
+    model = BeamModel(profile, MATERIAL, "clamped", BeamSettings(n_elements=n_elements))
+    response = model.solve(drive)
+    column = response.displacement_mm if problem.control == "force" else response.force_N
+    value = float(column[-1]) if response.ok else float("nan")
+    return Outcome(value, bool(response.ok), int(np.sum(response.iterations)), response.message)
+
+
+def run_opensees(problem: Problem, n_elements: int, system: str) -> Outcome:
+    """Build the same beam in OpenSees (corotational elasticBeamColumn) and trace the curve."""
+    import openseespy.opensees as ops
+
+    ops.wipe()
+    ops.model("basic", "-ndm", 2, "-ndf", 3)
+    for i in range(n_elements + 1):
+        ops.node(i + 1, LENGTH_MM * i / n_elements, 0.0)
+    tip = n_elements + 1
+    ops.fix(1, 1, 1, 1)
+    if problem.rotation == "fixed":
+        # Guided end: rotation held, both translations free (the push is a displacement control
+        # on y, x slides without an axial force) -- no equalDOF needed.
+        ops.fix(tip, 0, 0, 1)
+    ops.geomTransf("Corotational", 1)
+    for e in range(n_elements):
+        ops.element(
+            "elasticBeamColumn", e + 1, e + 1, e + 2, AREA_MM2, MATERIAL.E_MPa, INERTIA_MM4, 1
+        )
+    ops.timeSeries("Linear", 1)
+    ops.pattern("Plain", 1, 1)
+    # Nodal loads in OpenSees stay in the global frame: a dead force, as in the elastica.
+    if problem.control == "force":
+        ops.load(tip, 0.0, problem.max_value, 0.0)
+    else:
+        ops.load(tip, 0.0, 1.0, 0.0)  # reference load; the load factor is the end force in N
+    ops.constraints("Plain")
+    ops.numberer("RCM")
+    ops.system(system)
+    ops.test("NormDispIncr", OPS_DISP_TOL_MM, OPS_MAX_ITER)
+    ops.algorithm("Newton")
+    if problem.control == "force":
+        ops.integrator("LoadControl", 1.0 / STEPS)
+    else:
+        ops.integrator("DisplacementControl", tip, 2, problem.max_value / STEPS)
+    ops.analysis("Static")
+    iterations = 0
+    for step in range(STEPS):
+        if ops.analyze(1) != 0:
+            return Outcome(float("nan"), False, iterations, f"no convergence in step {step + 1}")
+        iterations += ops.testIter()
+    value = ops.nodeDisp(tip, 2) if problem.control == "force" else ops.getLoadFactor(1)
+    return Outcome(float(value), True, iterations)
+
+
+def relative_error(outcome: Outcome, problem: Problem) -> float:
+    return abs(outcome.value - problem.exact) / abs(problem.exact) if outcome.ok else float("nan")
+
+
+def time_pair(runs: list[Callable[[], Outcome]], repeat: int) -> tuple[list[float], list[Outcome]]:
+    """Median wall time (s) of each run, interleaved over ``repeat`` rounds after a warm-up."""
+    outcomes = [run() for run in runs]  # warm-up: imports, caches, first-touch allocations
+    samples: list[list[float]] = [[] for _ in runs]
+    for _ in range(repeat):
+        for run, sample in zip(runs, samples, strict=True):
+            start = time.perf_counter()
+            run()
+            sample.append(time.perf_counter() - start)
+    return [statistics.median(s) for s in samples], outcomes
+
+
+def pick_opensees_system(problems: list[Problem], n_elements: int) -> tuple[str, list[str]]:
+    """Fastest OpenSees linear solver that converges and agrees with BandGeneral on every problem.
+
+    Returns the choice and one report line per candidate.
+    """
+    reference = {p.key: run_opensees(p, n_elements, "BandGeneral").value for p in problems}
+    lines, best, best_time = [], "BandGeneral", float("inf")
+    for system in OPS_SYSTEMS:
+        total, note = 0.0, ""
+        for problem in problems:
+            try:
+                times, (outcome,) = time_pair(
+                    [lambda p=problem, s=system: run_opensees(p, n_elements, s)], 3
+                )
+            except Exception as exc:  # an unavailable solver raises from the C++ layer
+                note = f"unavailable ({exc})"
+                break
+            if not outcome.ok or abs(outcome.value - reference[problem.key]) > 1e-9 * abs(
+                reference[problem.key]
+            ):
+                note = f"rejected on {problem.key} ({outcome.message or 'different answer'})"
+                break
+            total += times[0]
+        if note:
+            lines.append(f"  {system:<14} {note}")
+            continue
+        lines.append(
+            f"  {system:<14} {total * 1e3:8.1f} ms for the three curves at {n_elements} el."
+        )
+        if total < best_time:
+            best, best_time = system, total
+    return best, lines
+
+
+def environment_lines() -> list[str]:
+    import openseespy.opensees as ops
+    import scipy
+
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=Path(__file__).resolve().parent,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown"
+    return [
+        f"date      {datetime.datetime.now().astimezone():%Y-%m-%d %H:%M %Z}",
+        f"machine   {platform.machine()}, {os.cpu_count()} cores, {platform.system()} "
+        f"{platform.release()}",
+        f"software  Python {platform.python_version()}, numpy {np.__version__}, scipy "
+        f"{scipy.__version__}, OpenSees {ops.version()}, flexopt commit {commit}",
+    ]
+
+
+def format_pct(error: float) -> str:
+    return "FAIL" if np.isnan(error) else f"{100.0 * error:.2e}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--repeat", type=int, default=7, help="timed runs per case (median)")
+    parser.add_argument("--elements", type=int, nargs="+", default=[20, 50, 100])
+    parser.add_argument(
+        "--opensees-system",
+        default="auto",
+        choices=("auto", *OPS_SYSTEMS),
+        help="OpenSees linear solver; auto times them all and keeps the fastest that works",
+    )
+    args = parser.parse_args(argv)
+    import openseespy.opensees as ops
+
+    # OpenSees writes warnings and banners through its own streams; send them to the null device.
+    ops.logFile(os.devnull, "-noEcho")
+
+    problems = make_problems()
+    print("\n".join(environment_lines()))
+    print(
+        f"beam      L = {LENGTH_MM:g} mm, t = {THICKNESS_MM:g} mm, b = {WIDTH_MM:g} mm, "
+        f"E = {MATERIAL.E_MPa:g} MPa, nu = {MATERIAL.nu:g}, EI = {EI_NMM2:.6g} N mm^2, "
+        f"{STEPS} steps"
+    )
+    for p in problems:
+        unit, what = ("mm", "tip deflection") if p.control == "force" else ("N", "end force")
+        driven = "N" if p.control == "force" else "mm"
+        print(
+            f"          {p.key:<17} drive {p.max_value:.6g} {driven}, exact {what} "
+            f"{p.exact:.10g} {unit}"
+        )
+
+    system = args.opensees_system
+    if system == "auto":
+        system, lines = pick_opensees_system(problems, max(args.elements))
+        print("OpenSees linear solvers (3 runs each, summed medians):")
+        print("\n".join(lines))
+    print(f"OpenSees system: {system}; test NormDispIncr {OPS_DISP_TOL_MM:g} mm; Newton; RCM")
+    print(f"times: median of {args.repeat} runs (model build + 20-step curve), after a warm-up\n")
+
+    header = (
+        f"{'problem':<17} {'el.':>4} | {'flexopt ms':>10} {'err %':>9} {'iters':>5} | "
+        f"{'OpenSees ms':>11} {'err %':>9} {'iters':>5} | {'OpenSees/flexopt':>16}"
+    )
+    print(header)
+    print("-" * len(header))
+    ops_at_max: dict[str, tuple[float, float]] = {}
+    failures: list[str] = []
+    for problem in problems:
+        for n in args.elements:
+            (t_fx, t_os), (fx, os_) = time_pair(
+                [
+                    lambda p=problem, n=n: run_flexopt(p, n),
+                    lambda p=problem, n=n: run_opensees(p, n, system),
+                ],
+                args.repeat,
+            )
+            e_fx, e_os = relative_error(fx, problem), relative_error(os_, problem)
+            for name, out in (("flexopt", fx), ("OpenSees", os_)):
+                if not out.ok:
+                    failures.append(f"{name} {problem.key} {n} el.: {out.message}")
+            print(
+                f"{problem.key:<17} {n:>4} | {t_fx * 1e3:>10.1f} {format_pct(e_fx):>9} "
+                f"{fx.iterations:>5} | {t_os * 1e3:>11.1f} {format_pct(e_os):>9} "
+                f"{os_.iterations:>5} | {t_os / t_fx:>16.2f}"
+            )
+            if n == max(args.elements):
+                ops_at_max[problem.key] = (e_os, t_os)
+        print()
+
+    n_max = max(args.elements)
+    print(f"matched accuracy (smallest flexopt mesh with error <= OpenSees at {n_max} el.):")
+    for problem in problems:
+        target, t_os = ops_at_max[problem.key]
+        match = next(
+            (n for n in MATCH_LADDER if relative_error(run_flexopt(problem, n), problem) <= target),
+            None,
+        )
+        if match is None or np.isnan(target):
+            print(
+                f"  {problem.key:<17} none up to {MATCH_LADDER[-1]} el. "
+                f"(target {format_pct(target)} %)"
+            )
+            continue
+        (t_fx,), (fx,) = time_pair([lambda p=problem, n=match: run_flexopt(p, n)], args.repeat)
+        print(
+            f"  {problem.key:<17} flexopt {match:>3} el.: "
+            f"{format_pct(relative_error(fx, problem))} % "
+            f"in {t_fx * 1e3:.1f} ms vs OpenSees {n_max} el.: {format_pct(target)} % in "
+            f"{t_os * 1e3:.1f} ms -> OpenSees/flexopt time {t_os / t_fx:.2f}"
+        )
+    if failures:
+        print("\nconvergence failures:")
+        print("\n".join(f"  {line}" for line in failures))
+    return 0
+
+
+if __name__ == "__main__":
+    status = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    # OpenSees prints "Process 0 Terminating" from a C++ destructor at exit; point the process's
+    # stdout and stderr at the null device so the table stays the last thing printed.
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
+    sys.exit(status)
