@@ -4,8 +4,8 @@ Run from the repository root::
 
     python benchmarks/beam_vs_opensees.py [--repeat 7] [--elements 20 50 100]
 
-Problems (L = 100 mm, rectangular section t = 0.1 mm x b = 5 mm, ABS E = 1800 MPa, nu = 0.35;
-every curve is 20 equal steps):
+Problems (L = 100 mm, rectangular section t = 0.1 mm (``--thickness``) x b = 5 mm, ABS
+E = 1800 MPa, nu = 0.35; every curve is 20 equal steps, both codes are asked for the same rows):
 
 * ``cantilever-force``: clamped cantilever, dead tip force perpendicular to the axis raised to
   alpha = P L^2 / EI = 10. Error: tip deflection at the last step against the exact elastica.
@@ -16,9 +16,10 @@ every curve is 20 equal steps):
 
 The exact answers (fea/elastica.py) are for an inextensible, unshearable beam. flexopt's
 Simo–Reissner beam is extensible and shearable and OpenSees' elasticBeamColumn is extensible; with
-t / L = 1e-3 those effects move the answers by ~1e-6 (cantilevers) and ~2e-5 (fixed–guided,
-where the sensitivity of the force to the geometry is high), well below the discretisation errors
-compared here. Times are medians of ``--repeat`` runs after a warm-up, both codes in this process,
+t / L = 1e-3 those effects move the answers by ~1e-6 (cantilevers) and ~4e-5 (fixed–guided,
+where the force is very sensitive to the geometry): below OpenSees' discretisation error at 100
+elements, but not below flexopt's from ~20 elements on (run ``--thickness 0.02`` to push the floor
+down 25 times). Times are medians of ``--repeat`` runs after a warm-up, both codes in this process,
 runs interleaved so both see the same machine load; each run builds its model from scratch.
 """
 
@@ -52,12 +53,11 @@ from fea.materials import get_material  # noqa: E402
 from geometry.profile import BeamProfile  # noqa: E402
 
 LENGTH_MM = 100.0
-THICKNESS_MM = 0.1
 WIDTH_MM = 5.0
+# t / L = 1e-3 keeps the extensibility and shear the elastica ignores at ~(t/L)^2 ~ 1e-6; see the
+# module docstring. --thickness changes it (the exact answers are dimensionless and follow).
+DEFAULT_THICKNESS_MM = 0.1
 MATERIAL = get_material("ABS")
-AREA_MM2 = WIDTH_MM * THICKNESS_MM
-INERTIA_MM4 = WIDTH_MM * THICKNESS_MM**3 / 12.0
-EI_NMM2 = MATERIAL.E_MPa * INERTIA_MM4
 STEPS = 20
 # OpenSees convergence: Newton converges quadratically, so once the displacement increment is
 # below 1e-10 L the unbalance (hence the force) is converged to round-off, far below 1e-6.
@@ -69,12 +69,39 @@ MATCH_LADDER = (2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 25, 32, 40, 50, 64, 80, 100)
 
 
 @dataclass(frozen=True)
+class Section:
+    """The rectangular section both codes use.
+
+    Attributes
+    ----------
+    thickness_mm : float, mm — in-plane thickness t.
+    width_mm : float, mm — out-of-plane width b.
+    """
+
+    thickness_mm: float
+    width_mm: float = WIDTH_MM
+
+    @property
+    def area_mm2(self) -> float:
+        return self.width_mm * self.thickness_mm
+
+    @property
+    def inertia_mm4(self) -> float:
+        return self.width_mm * self.thickness_mm**3 / 12.0
+
+    @property
+    def ei_Nmm2(self) -> float:
+        return MATERIAL.E_MPa * self.inertia_mm4
+
+
+@dataclass(frozen=True)
 class Problem:
     """One benchmark curve and its exact end value.
 
     Attributes
     ----------
     key : str
+    section : Section
     control : "force" (max_value in N; the tip deflection is compared) or "displacement"
         (max_value in mm; the end force is compared).
     rotation : "free" or "fixed" — the driven end's rotation.
@@ -83,19 +110,21 @@ class Problem:
     """
 
     key: str
+    section: Section
     control: Literal["force", "displacement"]
     rotation: Literal["free", "fixed"]
     max_value: float
     exact: float
 
 
-def make_problems() -> list[Problem]:
+def make_problems(section: Section) -> list[Problem]:
     """The three curves of the module docstring with their exact elastica answers."""
-    force_scale = EI_NMM2 / LENGTH_MM**2  # N per unit of P L^2 / EI
+    force_scale = section.ei_Nmm2 / LENGTH_MM**2  # N per unit of P L^2 / EI
     alpha = 10.0
     return [
         Problem(
             "cantilever-force",
+            section,
             "force",
             "free",
             alpha * force_scale,
@@ -103,6 +132,7 @@ def make_problems() -> list[Problem]:
         ),
         Problem(
             "cantilever-disp",
+            section,
             "displacement",
             "free",
             0.6 * LENGTH_MM,
@@ -110,6 +140,7 @@ def make_problems() -> list[Problem]:
         ),
         Problem(
             "fixed-guided",
+            section,
             "displacement",
             "fixed",
             0.8 * LENGTH_MM,
@@ -140,8 +171,8 @@ def run_flexopt(problem: Problem, n_elements: int) -> Outcome:
     """Build flexopt's beam model and trace the 20-step curve."""
     profile = BeamProfile(
         points_mm=np.array([[0.0, 0.0], [LENGTH_MM, 0.0]]),
-        thickness_mm=np.array([THICKNESS_MM, THICKNESS_MM]),
-        width_mm=WIDTH_MM,
+        thickness_mm=np.full(2, problem.section.thickness_mm),
+        width_mm=problem.section.width_mm,
     )
     drive = EndDrive(
         control=problem.control,
@@ -173,9 +204,17 @@ def run_opensees(problem: Problem, n_elements: int, system: str) -> Outcome:
         # on y, x slides without an axial force) -- no equalDOF needed.
         ops.fix(tip, 0, 0, 1)
     ops.geomTransf("Corotational", 1)
+    sec = problem.section
     for e in range(n_elements):
         ops.element(
-            "elasticBeamColumn", e + 1, e + 1, e + 2, AREA_MM2, MATERIAL.E_MPa, INERTIA_MM4, 1
+            "elasticBeamColumn",
+            e + 1,
+            e + 1,
+            e + 2,
+            sec.area_mm2,
+            MATERIAL.E_MPa,
+            sec.inertia_mm4,
+            1,
         )
     ops.timeSeries("Linear", 1)
     ops.pattern("Plain", 1, 1)
@@ -271,6 +310,7 @@ def environment_lines() -> list[str]:
         f"date      {datetime.datetime.now().astimezone():%Y-%m-%d %H:%M %Z}",
         f"machine   {platform.machine()}, {os.cpu_count()} cores, {platform.system()} "
         f"{platform.release()}",
+        f"load avg  {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min) at start",
         f"software  Python {platform.python_version()}, numpy {np.__version__}, scipy "
         f"{scipy.__version__}, OpenSees {ops.version()}, flexopt commit {commit}",
     ]
@@ -285,6 +325,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeat", type=int, default=7, help="timed runs per case (median)")
     parser.add_argument("--elements", type=int, nargs="+", default=[20, 50, 100])
     parser.add_argument(
+        "--thickness",
+        type=float,
+        default=DEFAULT_THICKNESS_MM,
+        help="section thickness t in mm (L = 100 mm); the elastica ignores O((t/L)^2) effects",
+    )
+    parser.add_argument(
         "--opensees-system",
         default="auto",
         choices=("auto", *OPS_SYSTEMS),
@@ -296,12 +342,13 @@ def main(argv: list[str] | None = None) -> int:
     # OpenSees writes warnings and banners through its own streams; send them to the null device.
     ops.logFile(os.devnull, "-noEcho")
 
-    problems = make_problems()
+    section = Section(args.thickness)
+    problems = make_problems(section)
     print("\n".join(environment_lines()))
     print(
-        f"beam      L = {LENGTH_MM:g} mm, t = {THICKNESS_MM:g} mm, b = {WIDTH_MM:g} mm, "
-        f"E = {MATERIAL.E_MPa:g} MPa, nu = {MATERIAL.nu:g}, EI = {EI_NMM2:.6g} N mm^2, "
-        f"{STEPS} steps"
+        f"beam      L = {LENGTH_MM:g} mm, t = {section.thickness_mm:g} mm, "
+        f"b = {section.width_mm:g} mm, E = {MATERIAL.E_MPa:g} MPa, nu = {MATERIAL.nu:g}, "
+        f"EI = {section.ei_Nmm2:.6g} N mm^2, {STEPS} steps"
     )
     for p in problems:
         unit, what = ("mm", "tip deflection") if p.control == "force" else ("N", "end force")
@@ -370,6 +417,7 @@ def main(argv: list[str] | None = None) -> int:
             f"in {t_fx * 1e3:.1f} ms vs OpenSees {n_max} el.: {format_pct(target)} % in "
             f"{t_os * 1e3:.1f} ms -> OpenSees/flexopt time {t_os / t_fx:.2f}"
         )
+    print(f"load avg  {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min) at end")
     if failures:
         print("\nconvergence failures:")
         print("\n".join(f"  {line}" for line in failures))
