@@ -1,0 +1,134 @@
+"""``flexopt evaluate``: solve one study once and write its run folder."""
+
+from __future__ import annotations
+
+import logging
+import platform
+import statistics
+from dataclasses import dataclass
+from datetime import datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from pipeline.plots import plot_response
+from pipeline.runfolder import (
+    check_out_dir,
+    make_run_dir,
+    new_run_dir_path,
+    table_to_csv,
+    to_json,
+    write_atomic,
+)
+from pipeline.studies import EvaluationResult, get_kind
+from pipeline.study import Study, study_to_yaml
+
+__all__ = ["EVALUATE_FILES", "EvaluateOutcome", "evaluate_study", "versions"]
+
+log = logging.getLogger(__name__)
+
+#: The files an evaluate run folder holds; evaluation.json is written last, so its presence marks
+#: a complete folder.
+EVALUATE_FILES = ("response.csv", "study.yaml", "force_displacement.png", "evaluation.json")
+
+_DISTRIBUTIONS = {
+    "flexopt": "flexopt",
+    "numpy": "numpy",
+    "scipy": "scipy",
+    "skfem": "scikit-fem",
+    "pydantic": "pydantic",
+    "matplotlib": "matplotlib",
+}
+
+
+@dataclass(frozen=True)
+class EvaluateOutcome:
+    """Where the results went and what they say."""
+
+    run_dir: Path
+    result: EvaluationResult
+    record: dict[str, Any]
+
+
+def versions() -> dict[str, str | None]:
+    """Versions of Python, flexopt and the numerical stack (None when not installed)."""
+    found: dict[str, str | None] = {"python": platform.python_version()}
+    for key, dist in _DISTRIBUTIONS.items():
+        try:
+            found[key] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            found[key] = None  # e.g. flexopt run from a source checkout without installing
+    return found
+
+
+def evaluate_study(
+    study: Study,
+    out: Path | None = None,
+    repeat: int = 1,
+    source: str = "",
+    runs_root: Path = Path("runs"),
+) -> EvaluateOutcome:
+    """Solve ``study`` and write response.csv, study.yaml, the plot and evaluation.json.
+
+    Nothing is written unless the solve returns (converged or not), so a refused input leaves no
+    folder behind.
+
+    Parameters
+    ----------
+    study : Study
+        A validated study (see :func:`pipeline.study.load_study`).
+    out : Path, optional
+        Run folder; default ``runs_root/<name>-evaluate-<timestamp>``.
+    repeat : int
+        Solve this many times; ``solve_time_s`` is the median (s).
+    source : str
+        Where the study came from, recorded in evaluation.json.
+
+    Raises
+    ------
+    StudyError
+        When ``out`` cannot be a folder or the solver refuses the inputs.
+    """
+    if out is not None:
+        check_out_dir(out)
+    kind = get_kind(study.kind)
+    started = datetime.now().astimezone()
+    log.info("evaluating %s (%s), %d repeat(s)", study.name, study.kind, repeat)
+    result = kind.evaluate(study, repeat)
+
+    run_dir = make_run_dir(out or new_run_dir_path(runs_root, study.name, "evaluate", started))
+    record = {
+        "study": study.name,
+        "kind": study.kind,
+        "command": "evaluate",
+        "source": source,
+        "started": started.isoformat(timespec="seconds"),
+        "converged": result.converged,
+        "message": result.message,
+        "solve_time_s": statistics.median(result.solve_times_s),
+        "solve_times_s": list(result.solve_times_s),
+        "repeat": len(result.solve_times_s),
+        "summary": result.summary,
+        "inputs": {"study": study.model_dump(mode="json"), **result.inputs},
+        "solver": result.diagnostics,
+        "columns": list(result.table),
+        "versions": versions(),
+    }
+    header = (
+        f"Resolved study written by flexopt evaluate on {record['started']}\n"
+        f"from {source or 'memory'}; re-run with: flexopt evaluate {run_dir / 'study.yaml'}"
+    )
+    write_atomic(run_dir / "response.csv", table_to_csv(result.table))
+    write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
+    png = plot_response(
+        result.table,
+        x=result.plot.get("x", "displacement_mm"),
+        left=result.plot.get("left", "force_N"),
+        right=result.plot.get("right", "peak_stress_MPa"),
+        allowable_MPa=result.plot.get("allowable_MPa"),
+        title=f"{study.name} ({study.kind})",
+    )
+    write_atomic(run_dir / "force_displacement.png", png)
+    write_atomic(run_dir / "evaluation.json", to_json(record))
+    log.info("wrote %s", run_dir)
+    return EvaluateOutcome(run_dir, result, record)

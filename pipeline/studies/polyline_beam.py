@@ -1,0 +1,434 @@
+"""Study kind ``polyline_beam``: one planar beam along a polyline, driven at its end.
+
+YAML (units in the key names; see docs/usage.md)::
+
+    geometry: {kind: polyline_beam, points_mm: [[0, 0], [60, 0]], thickness_mm: [1.5, 1.5],
+               width_mm: 8, curvature_per_mm: [0.0], elements: 40}
+    boundary:
+      start: clamped                     # or pinned
+      end: {control: displacement, direction: [0, 1], max_mm: 20, steps: 20,
+            rotation: free, transverse: free}
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import asdict
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field, ValidationInfo, field_validator
+
+from fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
+from fea.errors import FeaError
+from fea.materials import Material
+from geometry.errors import GeometryError
+from geometry.profile import BeamProfile
+from pipeline.errors import StudyError
+from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.study import STUDY_CONFIG, Study, material_record
+
+__all__ = [
+    "BeamBoundary",
+    "EndSpec",
+    "PolylineBeamGeometry",
+    "PolylineBeamStudy",
+    "build_drive",
+    "build_profile",
+    "response_table",
+    "summarise",
+]
+
+PositiveFloat = Annotated[float, Field(gt=0)]
+
+
+class PolylineBeamGeometry(BaseModel):
+    """The ``geometry:`` block of a ``polyline_beam`` study (mm)."""
+
+    model_config = STUDY_CONFIG
+
+    kind: Literal["polyline_beam"] = Field(description="polyline_beam")
+    points_mm: tuple[tuple[float, float], ...] = Field(
+        min_length=2, description="centreline points [x, y] from start to end, mm"
+    )
+    thickness_mm: tuple[PositiveFloat, ...] = Field(
+        description="in-plane thickness at each point, mm (one per point)"
+    )
+    width_mm: float = Field(gt=0, description="out-of-plane width of the section, mm")
+    curvature_per_mm: tuple[float, ...] | None = Field(
+        None, description="signed curvature of each segment, 1/mm (one per segment; 0 = straight)"
+    )
+    elements: int = Field(
+        20,
+        ge=1,
+        le=5000,
+        description="target number of beam elements, at least 1 per segment",
+    )
+
+    @field_validator("points_mm")
+    @classmethod
+    def _no_zero_length_segment(
+        cls, points: tuple[tuple[float, float], ...]
+    ) -> tuple[tuple[float, float], ...]:
+        for i in range(len(points) - 1):
+            if math.dist(points[i], points[i + 1]) <= 1e-9:
+                raise ValueError(
+                    f"points [{i}] and [{i + 1}] coincide at {list(points[i])} (zero-length "
+                    "segment); remove the duplicate point"
+                )
+        return points
+
+    @field_validator("thickness_mm")
+    @classmethod
+    def _one_thickness_per_point(
+        cls, thickness: tuple[float, ...], info: ValidationInfo
+    ) -> tuple[float, ...]:
+        points = info.data.get("points_mm")
+        if points is not None and len(thickness) != len(points):
+            raise ValueError(
+                f"needs one value per point: {len(points)} points but {len(thickness)} "
+                f"thickness values; give {len(points)} values"
+            )
+        return thickness
+
+    @field_validator("curvature_per_mm")
+    @classmethod
+    def _one_curvature_per_segment(
+        cls, curvature: tuple[float, ...] | None, info: ValidationInfo
+    ) -> tuple[float, ...] | None:
+        points = info.data.get("points_mm")
+        if curvature is not None and points is not None and len(curvature) != len(points) - 1:
+            raise ValueError(
+                f"needs one value per segment: {len(points)} points make {len(points) - 1} "
+                f"segments but {len(curvature)} curvature values were given"
+            )
+        return curvature
+
+
+class EndSpec(BaseModel):
+    """The ``boundary.end:`` block: how the end (last point) is driven."""
+
+    model_config = STUDY_CONFIG
+
+    control: Literal["displacement", "force"] = Field(
+        "displacement", description="displacement (give max_mm) or force (give max_N)"
+    )
+    direction: tuple[float, float] = Field(
+        description="[dx, dy] of the driven direction (normalised; its length does not matter)"
+    )
+    max_mm: float | None = Field(
+        None, validate_default=True, description="end displacement at the last step, mm"
+    )
+    max_N: float | None = Field(
+        None, validate_default=True, description="end force at the last step, N"
+    )
+    steps: int = Field(20, ge=1, le=2000, description="number of load steps = rows after row 0")
+    rotation: Literal["fixed", "free"] = Field(
+        "free", description="fixed holds the end section's rotation at 0"
+    )
+    transverse: Literal["fixed", "free"] = Field(
+        "free", description="fixed holds the end motion perpendicular to direction at 0"
+    )
+
+    @field_validator("direction")
+    @classmethod
+    def _direction_has_length(cls, direction: tuple[float, float]) -> tuple[float, float]:
+        if math.hypot(*direction) < 1e-12:
+            raise ValueError(f"{list(direction)} has no length; give e.g. [0, 1] for +y")
+        return direction
+
+    @field_validator("max_mm", "max_N")
+    @classmethod
+    def _max_matches_control(cls, value: float | None, info: ValidationInfo) -> float | None:
+        control = info.data.get("control")
+        key = info.field_name
+        wanted = {"displacement": "max_mm", "force": "max_N"}.get(control or "")
+        if wanted is None:  # control itself is invalid and reported on its own
+            return value
+        if key != wanted and value is not None:
+            raise ValueError(
+                f"{key} does not go with control: {control}; give {wanted} instead "
+                f"or set control: {'force' if key == 'max_N' else 'displacement'}"
+            )
+        if key == wanted and value is None:
+            unit = "mm" if key == "max_mm" else "N"
+            raise ValueError(
+                f"control: {control} needs {key} (the value at the last step, {unit}); add it"
+            )
+        if value is not None and not value > 0:
+            raise ValueError(
+                f"{key} = {value:g} must be > 0; reverse direction for the opposite sense"
+            )
+        return value
+
+
+class BeamBoundary(BaseModel):
+    """The ``boundary:`` block of a beam study."""
+
+    model_config = STUDY_CONFIG
+
+    start: Literal["clamped", "pinned"] = Field(
+        "clamped", description="support of the first point: clamped or pinned"
+    )
+    end: EndSpec = Field(description="how the last point is driven")
+
+
+class PolylineBeamStudy(Study):
+    """A whole ``polyline_beam`` study file."""
+
+    geometry: PolylineBeamGeometry = Field(
+        description="kind: polyline_beam, points_mm, thickness_mm, width_mm"
+    )
+    boundary: BeamBoundary = Field(description="start support and end drive: {start, end}")
+
+
+# --------------------------------------------------------------------------------------------
+# From the study to the solver's inputs
+
+_GEOMETRY_KEYS = ("points_mm", "thickness_mm", "width_mm", "curvature_per_mm")
+
+# Words in a FeaError message → the key path a user can change. The earliest match wins.
+_FEA_WORDS = {
+    "n_elements": "geometry.elements",
+    "elements": "geometry.elements",
+    "direction": "boundary.end.direction",
+    "max_value": "boundary.end",
+    "steps": "boundary.end.steps",
+    "rotation": "boundary.end.rotation",
+    "transverse": "boundary.end.transverse",
+    "start": "boundary.start",
+    "E_MPa": "material.E_MPa",
+    "nu": "material.nu",
+    "yield_MPa": "material.yield_MPa",
+    "thickness": "geometry.thickness_mm",
+    "width": "geometry.width_mm",
+    "points": "geometry.points_mm",
+    "curvature": "geometry.curvature_per_mm",
+}
+
+
+def fea_error_path(message: str) -> str:
+    """The key path a :class:`FeaError` message is most likely about (``study`` if unsure)."""
+    best: tuple[int, str] | None = None
+    for word, path in _FEA_WORDS.items():
+        match = re.search(rf"\b{re.escape(word)}", message)
+        if match and (best is None or match.start() < best[0]):
+            best = (match.start(), path)
+    return best[1] if best else "study"
+
+
+def build_profile(geometry: PolylineBeamGeometry) -> BeamProfile:
+    """The :class:`BeamProfile` of a validated geometry block.
+
+    Raises
+    ------
+    StudyError
+        At ``geometry.<key>`` when the profile refuses the numbers.
+    """
+    try:
+        return BeamProfile(
+            points_mm=np.array(geometry.points_mm, dtype=float),
+            thickness_mm=np.array(geometry.thickness_mm, dtype=float),
+            width_mm=geometry.width_mm,
+            curvature_per_mm=None
+            if geometry.curvature_per_mm is None
+            else np.array(geometry.curvature_per_mm, dtype=float),
+        )
+    except GeometryError as exc:
+        match = re.match(r"(\w+)(\[\d+\])?", str(exc))
+        path = "geometry"
+        if match and match.group(1) in _GEOMETRY_KEYS:
+            path = f"geometry.{match.group(1)}{match.group(2) or ''}"
+        raise StudyError(path, str(exc)) from exc
+
+
+def build_material(study: PolylineBeamStudy) -> Material:
+    """The solver's material record; :class:`FeaError` becomes a StudyError at ``material``."""
+    try:
+        return study.material.to_material()
+    except FeaError as exc:
+        raise StudyError(fea_error_path(str(exc)), str(exc)) from exc
+
+
+def build_drive(end: EndSpec) -> EndDrive:
+    """The solver's :class:`EndDrive` for a validated ``boundary.end`` block.
+
+    Raises
+    ------
+    StudyError
+        At ``boundary.end.<key>`` if the solver refuses what the study model let through.
+    """
+    max_value = end.max_mm if end.control == "displacement" else end.max_N
+    try:
+        return EndDrive(
+            control=end.control,
+            direction=(float(end.direction[0]), float(end.direction[1])),
+            max_value=float(max_value),  # type: ignore[arg-type]  # EndSpec guarantees it
+            steps=end.steps,
+            rotation=end.rotation,
+            transverse=end.transverse,
+        )
+    except FeaError as exc:
+        raise StudyError(fea_error_path(str(exc)), str(exc)) from exc
+
+
+def build_settings(geometry: PolylineBeamGeometry) -> BeamSettings:
+    """Solver settings: the study sets the element count, the solver's defaults do the rest."""
+    return BeamSettings(n_elements=geometry.elements)
+
+
+def check(study: PolylineBeamStudy) -> None:
+    """Build geometry, material and drive once so every refusal is reported before a solve."""
+    build_profile(study.geometry)
+    build_material(study)
+    build_drive(study.boundary.end)
+
+
+# --------------------------------------------------------------------------------------------
+# Solve and summarise
+
+
+def response_table(response: BeamResponse) -> dict[str, np.ndarray]:
+    """The response as named columns, one row per requested step (row 0 undeformed).
+
+    Returns
+    -------
+    dict of str to (steps + 1,) array
+        ``step, displacement_mm, force_N, transverse_displacement_mm, transverse_force_N,
+        moment_Nmm, end_rotation_deg, peak_stress_MPa, peak_stress_s_mm, iterations, converged``.
+    """
+    n = len(response.displacement_mm)
+    return {
+        "step": np.arange(n),
+        "displacement_mm": np.asarray(response.displacement_mm, dtype=float),
+        "force_N": np.asarray(response.force_N, dtype=float),
+        "transverse_displacement_mm": np.asarray(response.transverse_displacement_mm, dtype=float),
+        "transverse_force_N": np.asarray(response.transverse_force_N, dtype=float),
+        "moment_Nmm": np.asarray(response.moment_Nmm, dtype=float),
+        "end_rotation_deg": np.degrees(np.asarray(response.end_rotation_rad, dtype=float)),
+        "peak_stress_MPa": np.asarray(response.peak_stress_MPa, dtype=float),
+        "peak_stress_s_mm": np.asarray(response.peak_stress_s_mm, dtype=float),
+        "iterations": np.asarray(response.iterations, dtype=int),
+        "converged": np.asarray(response.converged, dtype=bool),
+    }
+
+
+def _max_abs(values: np.ndarray) -> float | None:
+    finite = values[np.isfinite(values)]
+    return float(np.max(np.abs(finite))) if finite.size else None
+
+
+def summarise(
+    table: dict[str, np.ndarray], material: Material, profile: BeamProfile
+) -> dict[str, Any]:
+    """Scalar metrics of a response table, over its converged rows.
+
+    Returns
+    -------
+    dict
+        Maxima of |force| (N), |displacement| (mm), |moment| (N mm), |end rotation| (deg) and peak
+        stress (MPa, with where and when), stress/yield ratio, initial stiffness (N/mm, from the
+        first step), rows converged, Newton iterations, length (mm), volume (mm^3), mass (g).
+    """
+    ok = table["converged"]
+    rows = {key: np.asarray(col)[ok] for key, col in table.items()}
+    stress = rows["peak_stress_MPa"]
+    i_peak = int(np.nanargmax(stress)) if np.isfinite(stress).any() else None
+    peak = float(stress[i_peak]) if i_peak is not None else None
+
+    stiffness = None
+    if ok.size > 1 and ok[0] and ok[1]:
+        du = table["displacement_mm"][1] - table["displacement_mm"][0]
+        if abs(du) > 0:
+            stiffness = float((table["force_N"][1] - table["force_N"][0]) / du)
+
+    seg = profile.segment_lengths_mm
+    t = profile.thickness_mm
+    volume = float(np.sum(0.5 * (t[:-1] + t[1:]) * seg) * profile.width_mm)
+    density = material.density_kg_m3
+    return {
+        "rows_converged": int(ok.sum()),
+        "rows": int(ok.size),
+        "max_abs_force_N": _max_abs(rows["force_N"]),
+        "max_abs_displacement_mm": _max_abs(rows["displacement_mm"]),
+        "initial_stiffness_N_per_mm": stiffness,
+        "max_abs_transverse_force_N": _max_abs(rows["transverse_force_N"]),
+        "max_abs_moment_Nmm": _max_abs(rows["moment_Nmm"]),
+        "max_abs_end_rotation_deg": _max_abs(rows["end_rotation_deg"]),
+        "max_peak_stress_MPa": peak,
+        "max_peak_stress_s_mm": None if i_peak is None else float(rows["peak_stress_s_mm"][i_peak]),
+        "max_peak_stress_step": None if i_peak is None else int(rows["step"][i_peak]),
+        "yield_MPa": material.yield_MPa,
+        "stress_yield_ratio": peak / material.yield_MPa if peak is not None else None,
+        "total_iterations": int(np.sum(table["iterations"])),
+        "length_mm": profile.length_mm,
+        "volume_mm3": volume,
+        "mass_g": volume * density * 1e-6 if math.isfinite(density) else None,
+    }
+
+
+def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
+    """Solve the study ``repeat`` times (for timing) and summarise the last solve.
+
+    The time of each repeat covers building the :class:`BeamModel` and solving; nothing else.
+
+    Raises
+    ------
+    StudyError
+        When the solver refuses the inputs (:class:`FeaError`), naming the likely key path.
+        Non-convergence is not an error: it comes back as ``converged=False`` with the message.
+    """
+    profile = build_profile(study.geometry)
+    material = build_material(study)
+    drive = build_drive(study.boundary.end)
+    settings = build_settings(study.geometry)
+    times = []
+    response: BeamResponse | None = None
+    for _ in range(max(1, repeat)):
+        start = time.perf_counter()
+        try:
+            response = BeamModel(profile, material, study.boundary.start, settings).solve(drive)
+        except FeaError as exc:
+            raise StudyError(fea_error_path(str(exc)), str(exc)) from exc
+        times.append(time.perf_counter() - start)
+    assert response is not None
+    table = response_table(response)
+    converged = bool(response.ok)
+    message = response.message or ("" if converged else "not every step converged")
+    return EvaluationResult(
+        table=table,
+        summary=summarise(table, material, profile),
+        converged=converged,
+        message=message,
+        solve_times_s=tuple(times),
+        inputs={
+            "material": material_record(material) | {"G_MPa": material.G_MPa},
+            "drive": {
+                "control": drive.control,
+                "direction": list(drive.direction),
+                "max_value": drive.max_value,
+                "max_unit": "mm" if drive.control == "displacement" else "N",
+                "steps": drive.steps,
+                "rotation": drive.rotation,
+                "transverse": drive.transverse,
+            },
+            "start": study.boundary.start,
+            "settings": asdict(settings),
+            "profile": {
+                "length_mm": profile.length_mm,
+                "arc_length_mm": profile.arc_length_mm.tolist(),
+            },
+        },
+        diagnostics=dict(response.extra),
+        plot={
+            "x": "displacement_mm",
+            "left": "force_N",
+            "right": "peak_stress_MPa",
+            "allowable_MPa": material.yield_MPa,
+        },
+    )
+
+
+register(StudyKind("polyline_beam", PolylineBeamStudy, check, evaluate))  # type: ignore[arg-type]
