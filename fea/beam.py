@@ -49,7 +49,7 @@ Failure to converge is returned as data (``converged`` flags and ``message``), n
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cache
+from functools import cache, lru_cache
 from typing import Literal
 
 import numpy as np
@@ -111,7 +111,7 @@ class BeamSettings:
         per segment, so the count can exceed the target for profiles with many short segments).
     shear_factor : k of k G A; 5/6 for a rectangular section.
     rtol : Newton stops when the free-DOF residual norm is below rtol x the force scale (load or
-        reactions); 1e-9 leaves the force error to the mesh, not to the iteration.
+        reactions); 1e-8 leaves the force error (~1e-8 relative) to the mesh, not the iteration.
     max_iterations : Newton iterations per sub-step before the sub-step is cut back; quadratic
         convergence needs 3-6, so 25 only tolerates a poor predictor.
     first_substep : first sub-step as a fraction of the first requested step; small so that a
@@ -128,9 +128,9 @@ class BeamSettings:
 
     n_elements: int = 20
     shear_factor: float = 5.0 / 6.0
-    rtol: float = 1e-9
+    rtol: float = 1e-8
     max_iterations: int = 25
-    first_substep: float = 1.0 / 16.0
+    first_substep: float = 1.0 / 8.0
     min_substep: float = 1e-5
     fast_iterations: int = 5
     dtol: float = 1e-12
@@ -269,31 +269,6 @@ class BeamModel:
         # Reference tangent angle at the Gauss points: constant on straight segments, linear on arcs
         theta_seg = profile.segment_start_angles_rad()
         kappa_seg = profile.curvature_per_mm
-        # Weighted shape-function products for the tangent, (E, Q * 4, 9) -> transposed, and
-        # for the residual (E, 3, 2 Q); see _element_arrays.
-        Nb = np.broadcast_to(ng[None], self._dN.shape)
-        wq = self._w[..., None, None]
-        S = (
-            np.stack(
-                [
-                    self._dN[..., :, None] * self._dN[..., None, :],
-                    self._dN[..., :, None] * Nb[..., None, :],
-                    Nb[..., :, None] * self._dN[..., None, :],
-                    Nb[..., :, None] * Nb[..., None, :],
-                ],
-                axis=2,
-            )
-            * wq[:, :, None]
-        )  # (E, Q, 4, 3, 3)
-        self._nq = len(wg)
-        self._St = np.ascontiguousarray(S.reshape(n_el, self._nq * 4, 9).transpose(0, 2, 1))
-        self._W_shape = (n_el, self._nq, 4, 3, 3)
-        self._Rw = np.ascontiguousarray(
-            np.concatenate(
-                [self._dN * self._w[..., None], Nb * self._w[..., None]], axis=1
-            ).transpose(0, 2, 1)
-        )  # (E, 3, 2Q)
-        self._rr_shape = (n_el, 2 * self._nq, 3)
         self._theta0 = theta_seg[seg_of_el, None] + kappa_seg[seg_of_el, None] * (
             s_gauss - s_pts[seg_of_el, None]
         )
@@ -315,6 +290,11 @@ class BeamModel:
         )
         # DOF scale for the correction test: translations ~ L, rotations ~ 1 (max of both).
         self._length_scale = max(length, 1.0)
+        self._ea, self._kga, self._ei = (np.ascontiguousarray(self._D[..., i]) for i in range(3))
+        self._dk = self._ea - self._kga
+        self._rbuf = np.empty((n_el, len(wg), 4))
+        self._kbuf = np.empty((n_el, len(wg), 6))
+        self._precompute_kernels(ng)
 
         # Stress sampling at both element ends and the middle (the bending moment is largest at
         # supports and kinks, which are element ends; Gauss points alone would miss the peak).
@@ -342,69 +322,102 @@ class BeamModel:
 
         # Assembly indices: element e owns DOFs 6e .. 6e+8 (3 nodes x (u, v, phi)).
         self._edofs = 6 * np.arange(n_el)[:, None] + np.arange(9)[None, :]  # (E, 9)
-        n = self.n_dofs
+        self._edofs3 = self._edofs.reshape(n_el, 3, 3)
         kl = ku = _BAND
         self._ldab = 2 * kl + ku + 1
         rows = self._edofs[:, :, None]
         cols = self._edofs[:, None, :]
-        self._band_index = ((kl + ku + rows - cols) * n + cols).ravel()
+        # Band storage is kept Fortran-ordered (what LAPACK reads, so f2py does not copy it): the
+        # flat index of A[i, j] = ab[kl + ku + i - j, j] is j * ldab + kl + ku + i - j.
+        self._band_index = (cols * self._ldab + kl + ku + rows - cols).ravel()
 
     # ---------------------------------------------------------------- element kernels (batched)
+
+    def _precompute_kernels(self, n_gauss: np.ndarray) -> None:
+        """Maps from the per-Gauss-point scalars to element residuals and tangents.
+
+        Every strain row of the B matrix has the form ``a_f dN_k + b_f N_k`` (field f, node k), so
+        an element tangent is a sum over Gauss points of products of shape functions weighted by
+        six deformation-dependent scalars (see :meth:`_element_arrays`) plus the constant bending
+        part ``EI dN_k dN_l``. The weighted products are fixed for a mesh: they are built here once,
+        and each call needs one batched matrix product.
+
+        Sets ``_Kmap`` (E, Q * 6, 81), ``_Kbend`` (E, 81), ``_Rmap`` (E, Q * 4, 9).
+        """
+        dN, w = self._dN, self._w
+        n_el, n_q, _ = dN.shape
+        N = np.broadcast_to(n_gauss[None], dN.shape)
+        dd = dN[..., :, None] * dN[..., None, :] * w[..., None, None]  # (E, Q, k, l)
+        dn = dN[..., :, None] * N[..., None, :] * w[..., None, None]
+        nn = N[..., :, None] * N[..., None, :] * w[..., None, None]
+        U, V, P = 0, 1, 2
+        K = np.zeros((n_el, n_q, 6, 3, 3, 3, 3))  # (E, Q, scalar, k, f, l, g)
+        K[:, :, 0, :, U, :, U] = dd  # a_uu
+        K[:, :, 1, :, U, :, V] = dd  # a_uv
+        K[:, :, 1, :, V, :, U] = dd
+        K[:, :, 2, :, V, :, V] = dd  # a_vv
+        K[:, :, 3, :, U, :, P] = dn  # c_u
+        K[:, :, 3, :, P, :, U] = dn.transpose(0, 1, 3, 2)
+        K[:, :, 4, :, V, :, P] = dn  # c_v
+        K[:, :, 4, :, P, :, V] = dn.transpose(0, 1, 3, 2)
+        K[:, :, 5, :, P, :, P] = nn  # p
+        self._Kmap = K.reshape(n_el, n_q * 6, 81)
+        kb = np.zeros((n_el, 3, 3, 3, 3))
+        kb[:, :, P, :, P] = np.einsum("eq,eqkl->ekl", self._D[..., 2], dd)
+        self._Kbend = kb.reshape(n_el, 81)
+        R = np.zeros((n_el, n_q, 4, 3, 3))  # (E, Q, scalar, k, f)
+        R[:, :, 0, :, U] = dN * w[..., None]
+        R[:, :, 1, :, V] = dN * w[..., None]
+        R[:, :, 2, :, P] = dN * w[..., None]
+        R[:, :, 3, :, P] = N * w[..., None]
+        self._Rmap = R.reshape(n_el, n_q * 4, 9)
+        self._NgT = np.ascontiguousarray(n_gauss.T)  # (3, Q)
 
     def _element_arrays(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Element residuals (E, 9) and tangents (E, 9, 9) for physical DOFs ``q`` (n_dofs,).
 
-        Every strain row of the B matrix has the form ``a_f dN_k + b_f N_k`` (field f, node k), so
-        the tangent is a sum of four shape-function products weighted by 3 x 3 field kernels::
+        With N = EA Gamma1, Q = kGA Gamma2, M = EI kappa and h = 1 + Gamma1, the residual scalars
+        are (N c - Q s, N s + Q c) against dN for (u, v), M against dN and N Gamma2 - Q h against
+        N for phi; the tangent scalars are the material part B^T D B plus the geometric part
+        N d2Gamma1 + Q d2Gamma2::
 
-            K[kf, lg] = sum_q A_fg dN_k dN_l + C_fg dN_k N_l + C_gf N_k dN_l + P_fg N_k N_l
-
-        The weighted products are precomputed per model (``self._S``); per call only the kernels
-        (material part B^T D B plus the geometric part N d2Gamma1 + Q d2Gamma2) are built, and one
-        batched matrix product gives all element tangents.
+            a_uu = EA c^2 + kGA s^2,  a_uv = (EA - kGA) c s,  a_vv = EA s^2 + kGA c^2
+            c_u  = EA c Gamma2 + kGA s h - N s - Q c
+            c_v  = EA s Gamma2 - kGA c h + N c - Q s
+            p    = EA Gamma2^2 + kGA h^2 - N h - Q Gamma2
         """
-        qe = q[self._edofs].reshape(-1, 3, 3)  # (E, node, field)
+        qe = q[self._edofs3]  # (E, node, field)
         grad = self._dN @ qe  # (E, Q, field): u', v', phi'
-        phi = self._N @ qe[:, :, 2].T  # (Q, E)
-        theta = self._theta0 + phi.T
+        theta = self._theta0 + qe[:, :, 2] @ self._NgT
         c, s = np.cos(theta), np.sin(theta)
         x1 = self._c0 + grad[..., 0]
         x2 = self._s0 + grad[..., 1]
-        g1 = c * x1 + s * x2 - 1.0  # axial strain
-        g2 = -s * x1 + c * x2  # shear strain
-        ea, kga, ei = self._D[..., 0], self._D[..., 1], self._D[..., 2]
-        nf = ea * g1  # axial force N
-        qf = kga * g2  # shear force Q
-        mf = ei * grad[..., 2]  # bending moment M
-        h1 = 1.0 + g1
-
-        # Residual: R[k, f] = sum_q w (ra_f dN_k + rb_f N_k)
-        rr = np.zeros(self._rr_shape)
-        rr[:, : self._nq, 0] = nf * c - qf * s
-        rr[:, : self._nq, 1] = nf * s + qf * c
-        rr[:, : self._nq, 2] = mf
-        rr[:, self._nq :, 2] = nf * g2 - qf * h1
-        re = (self._Rw @ rr).reshape(-1, 9)
-
-        # Kernels W[e, q, term, f, g], term = (dN dN, dN N, N dN, N N)
-        W = np.zeros(self._W_shape)
-        ccs = ea * c * s - kga * s * c
-        W[..., 0, 0, 0] = ea * c * c + kga * s * s
-        W[..., 0, 0, 1] = ccs
-        W[..., 0, 1, 0] = ccs
-        W[..., 0, 1, 1] = ea * s * s + kga * c * c
-        W[..., 0, 2, 2] = ei
-        cu = ea * c * g2 + kga * s * h1 - nf * s - qf * c
-        cv = ea * s * g2 - kga * c * h1 + nf * c - qf * s
-        W[..., 1, 0, 2] = cu
-        W[..., 1, 1, 2] = cv
-        W[..., 2, 2, 0] = cu
-        W[..., 2, 2, 1] = cv
-        W[..., 3, 2, 2] = ea * g2 * g2 + kga * h1 * h1 - nf * h1 - qf * g2
-        n_el = W.shape[0]
-        kt = self._St @ W.reshape(n_el, -1, 9)  # (E, kl, fg)
-        ke = kt.reshape(n_el, 3, 3, 3, 3).transpose(0, 1, 3, 2, 4).reshape(n_el, 9, 9)
-        return re, ke
+        h1 = c * x1 + s * x2  # 1 + Gamma1
+        g2 = c * x2 - s * x1  # Gamma2
+        ea, dk = self._ea, self._dk  # EA and EA - kGA
+        nf = ea * (h1 - 1.0)  # N
+        qf = self._kga * g2  # Q
+        rs, ks = self._rbuf, self._kbuf  # (E, Q, 4), (E, Q, 6) work buffers
+        np.subtract(nf * c, qf * s, out=rs[..., 0])
+        np.add(nf * s, qf * c, out=rs[..., 1])
+        np.multiply(self._ei, grad[..., 2], out=rs[..., 2])
+        np.subtract(nf * g2, qf * h1, out=rs[..., 3])
+        # Tangent scalars, factored with A = EA Gamma2 - Q = (EA - kGA) Gamma2 and
+        # B = kGA h - N = EA - (EA - kGA) h; see the docstring.
+        dkc2 = dk * (c * c)
+        np.add(self._kga, dkc2, out=ks[..., 0])
+        np.multiply(dk, c * s, out=ks[..., 1])
+        np.subtract(ea, dkc2, out=ks[..., 2])
+        A = dk * g2
+        B = ea - dk * h1
+        np.add(c * A, s * B, out=ks[..., 3])
+        np.subtract(s * A, c * B, out=ks[..., 4])
+        np.add(g2 * A, h1 * B, out=ks[..., 5])
+        n_el = theta.shape[0]
+        re = (rs.reshape(n_el, 1, -1) @ self._Rmap).reshape(n_el, 9)
+        ke = (ks.reshape(n_el, 1, -1) @ self._Kmap).reshape(n_el, 81)
+        ke += self._Kbend
+        return re, ke.reshape(n_el, 9, 9)
 
     # ---------------------------------------------------------------- global operators
 
@@ -419,13 +432,12 @@ class BeamModel:
         """Internal force (n_dofs,) and tangent in LAPACK band storage, generalised DOFs."""
         re, ke = self._element_arrays(self._physical(q, frame))
         # Rotate the end node's translations of the last element into (direction, normal).
-        T = np.eye(9)
-        T[6:8, 6:8] = frame.T
+        T = _end_rotation(frame[0, 0], frame[0, 1])
         re[-1] = T.T @ re[-1]
         ke[-1] = T.T @ ke[-1] @ T
         r = np.bincount(self._edofs.ravel(), re.ravel(), minlength=self.n_dofs)
         ab = np.bincount(self._band_index, ke.ravel(), minlength=self._ldab * self.n_dofs)
-        return r, ab.reshape(self._ldab, self.n_dofs)
+        return r, ab.reshape(self.n_dofs, self._ldab).T
 
     def _stress(self, q: np.ndarray) -> tuple[float, float]:
         """Peak |N|/A + |M| c/I (MPa) over the sampling points and its arc length (mm)."""
@@ -469,7 +481,7 @@ class BeamModel:
         fixed = np.array(sorted(fixed))
         free = np.setdiff1d(np.arange(n), fixed)
         zero_idx = _band_zero_index(fixed, n, _BAND, _BAND)
-        diag_idx = (2 * _BAND) * n + fixed
+        diag_idx = fixed * (3 * _BAND + 1) + 2 * _BAND
         is_disp = drive.control == "displacement"
 
         steps = int(drive.steps)
@@ -493,7 +505,7 @@ class BeamModel:
             while abs(target - value) > 1e-12 * max(1.0, abs(drive.max_value)):
                 inc = direction_sign * min(h, abs(target - value))
                 new_value = value + inc
-                q_try, iters, ok_sub, why = self._newton(
+                q_try, r_try, ab_try, iters, ok_sub, why = self._newton(
                     q,
                     r,
                     ab,
@@ -515,7 +527,7 @@ class BeamModel:
                     value = new_value
                     history.append((value, q.copy()))
                     history = history[-2:]
-                    r, ab = self._assemble(q, frame)
+                    r, ab = r_try, ab_try
                     if iters <= st.fast_iterations:
                         h = min(2.0 * h, step_size)
                     continue
@@ -546,7 +558,8 @@ class BeamModel:
 
     def _is_sane(self, delta: np.ndarray) -> bool:
         """False for a correction only a (numerically) singular tangent produces."""
-        return bool(np.all(np.isfinite(delta)) and np.abs(delta).max() < 1e3 * self._length_scale)
+        # NaN compares False, so one comparison also rejects non-finite corrections
+        return bool(np.abs(delta).max() < 1e3 * self._length_scale)
 
     def _newton(
         self,
@@ -566,7 +579,7 @@ class BeamModel:
     ):
         """One sub-step from converged ``q0`` at ``value0`` to ``value``.
 
-        Returns (q, iterations, converged, reason).
+        Returns (q, internal force at q, band tangent at q, iterations, converged, reason).
         """
         st = self.settings
         n = self.n_dofs
@@ -584,7 +597,7 @@ class BeamModel:
         else:
             # Tangent predictor: impose the increment inside the linear solve.
             rhs = f_ext - r0
-            ab = ab0.copy()
+            ab = ab0.copy(order="F")
             if is_disp:
                 col = _band_column(ab, ia, n, _BAND, _BAND)
                 rhs[col[0]] -= col[1] * inc
@@ -592,7 +605,14 @@ class BeamModel:
                 ab, rhs, zero_idx, diag_idx, fixed, ia if is_disp else -1, inc
             )
             if info != 0 or not self._is_sane(delta):
-                return q0, 1, False, "singular tangent (a mechanism: check the supports)"
+                return (
+                    q0,
+                    None,
+                    None,
+                    1,
+                    False,
+                    "singular tangent (a mechanism: check the supports)",
+                )
             q = q0 + delta
             r, ab = self._assemble(q, frame)
             iters = 1
@@ -603,20 +623,28 @@ class BeamModel:
             res_free = res[free]
             norm = float(np.sqrt(res_free @ res_free))
             if not np.isfinite(norm):
-                return q0, iters, False, "the residual became NaN or infinite"
+                return q0, None, None, iters, False, "the residual became NaN or infinite"
             scale = max(float(np.sqrt(r[fixed] @ r[fixed])), abs(f_ext).max(), self._force_floor)
             if ref is None:
                 ref = norm
             if norm <= st.rtol * scale and iters > 0:
-                return q, iters, True, ""
+                return q, r, ab, iters, True, ""
             if iters > 3 and norm > 1e6 * max(ref, st.rtol * scale):
-                return q0, iters, False, "Newton diverged"
+                return q0, None, None, iters, False, "Newton diverged"
             delta, info = _solve_constrained(ab, -res, zero_idx, diag_idx, fixed, -1, 0.0)
             if info != 0 or not self._is_sane(delta):
-                return q0, iters, False, "singular tangent (a mechanism or a limit point)"
-            # Damp corrections that turn a section by more than max_rotation_step: in slender
-            # beams (EA L^2 / EI ~ 1e5..1e7) undamped Newton can throw a node's rotation by ~2 pi,
-            # an equivalent angle for the axial and shear strains, and then crawl back.
+                return (
+                    q0,
+                    None,
+                    None,
+                    iters,
+                    False,
+                    "singular tangent (a mechanism or a limit point)",
+                )
+            # Damp corrections that turn a section by more than max_rotation_step: far from
+            # equilibrium (a poor predictor in a slender beam, EA L^2 / EI ~ 1e5..1e7) a full
+            # Newton step can turn sections by radians, towards an equivalent angle 2 pi away or
+            # onto another branch; a smooth path never needs such a correction.
             big = np.abs(delta[2::3]).max() / st.max_rotation_step
             if big > 1.0:
                 delta = delta / big
@@ -626,8 +654,15 @@ class BeamModel:
             # A correction at round-off level means equilibrium to machine precision even when the
             # load is so small that the residual test sits below the round-off of EA * strain.
             if norm <= st.rtol * scale or np.abs(delta).max() <= st.dtol * self._length_scale:
-                return q, iters, True, ""
-        return q0, iters, False, f"Newton did not converge in {st.max_iterations} iterations"
+                return q, r, ab, iters, True, ""
+        return (
+            q0,
+            None,
+            None,
+            iters,
+            False,
+            f"Newton did not converge in {st.max_iterations} iterations",
+        )
 
 
 class _Rows:
@@ -682,13 +717,13 @@ class _Rows:
 
 
 def _band_zero_index(dofs: np.ndarray, n: int, kl: int, ku: int) -> np.ndarray:
-    """Flat indices of the band entries in the rows and columns of ``dofs``."""
+    """Flat (Fortran-order) indices of the band entries in the rows and columns of ``dofs``."""
+    ldab = 2 * kl + ku + 1
     idx = []
     for c in dofs:
         j = np.arange(max(0, c - ku), min(n, c + kl + 1))
-        idx.append((kl + ku + c - j) * n + j)  # row c
-        i = np.arange(max(0, c - ku), min(n, c + kl + 1))
-        idx.append((kl + ku + i - c) * n + c)  # column c
+        idx.append(j * ldab + kl + ku + c - j)  # row c
+        idx.append(c * ldab + kl + ku + j - c)  # column c
     return np.unique(np.concatenate(idx))
 
 
@@ -704,7 +739,8 @@ def _solve_constrained(ab, rhs, zero_idx, diag_idx, fixed, driven, increment):
     ``ab`` is overwritten. The column of a prescribed non-zero increment must already have been
     moved to ``rhs`` by the caller.
     """
-    flat = ab.reshape(-1)
+    assert ab.flags.f_contiguous, "band storage must be Fortran-ordered (zeroing works on a view)"
+    flat = ab.T.reshape(-1)  # a view: ab is Fortran-ordered
     flat[zero_idx] = 0.0
     flat[diag_idx] = 1.0
     rhs = rhs.copy()
@@ -713,6 +749,14 @@ def _solve_constrained(ab, rhs, zero_idx, diag_idx, fixed, driven, increment):
         rhs[driven] = increment
     _, _, x, info = dgbsv(_BAND, _BAND, ab, rhs, overwrite_ab=1, overwrite_b=1)
     return x, info
+
+
+@lru_cache(maxsize=64)
+def _end_rotation(dx: float, dy: float) -> np.ndarray:
+    """(9, 9) map from (physical, with the end node in (direction, normal)) to physical DOFs."""
+    T = np.eye(9)
+    T[6:8, 6:8] = np.array([[dx, -dy], [dy, dx]])
+    return T
 
 
 def _centreline_points(profile: BeamProfile, s: np.ndarray) -> np.ndarray:
