@@ -99,8 +99,12 @@ def _print_summary(outcome: EvaluateOutcome, console: Console) -> None:
     table = Table(title=f"{record['study']} ({record['kind']})", title_justify="left")
     table.add_column("quantity")
     table.add_column("value", justify="right")
-    table.add_row("converged", _format_value(result.converged))
-    for key, value in result.summary.items():
+    converged = _format_value(result.converged)
+    if "rows" in result.summary:
+        converged += f" ({result.summary['rows_converged']} of {result.summary['rows']} rows)"
+    table.add_row("converged", converged)
+    for key in result.headline or tuple(result.summary):
+        value = result.summary.get(key)
         if value is not None:
             table.add_row(key, _format_value(value))
     table.add_row(

@@ -45,6 +45,8 @@ class EvaluationResult:
         What the solver reports about itself (element and DOF counts, sub-steps, ...).
     plot : dict
         Names of the columns to plot: ``x``, ``left``, ``right`` and the ``allowable_MPa`` line.
+    headline : tuple of str
+        The summary keys worth a line in the CLI's table (all of them when empty).
     """
 
     table: dict[str, np.ndarray]
@@ -55,6 +57,7 @@ class EvaluationResult:
     inputs: dict[str, Any] = field(default_factory=dict)
     diagnostics: dict[str, Any] = field(default_factory=dict)
     plot: dict[str, Any] = field(default_factory=dict)
+    headline: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

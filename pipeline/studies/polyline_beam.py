@@ -428,6 +428,16 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
             "right": "peak_stress_MPa",
             "allowable_MPa": material.yield_MPa,
         },
+        headline=(
+            "max_abs_force_N",
+            "max_abs_displacement_mm",
+            "initial_stiffness_N_per_mm",
+            "max_abs_moment_Nmm",
+            "max_abs_end_rotation_deg",
+            "max_peak_stress_MPa",
+            "stress_yield_ratio",
+            "mass_g",
+        ),
     )
 
 
