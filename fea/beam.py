@@ -50,10 +50,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cache, lru_cache
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
-from scipy.linalg.lapack import dgbsv
+from scipy.linalg.lapack import dgbsv, dpbtrf
 from skfem import CellBasis, ElementLineP2, MeshLine
 from skfem.quadrature import get_quadrature
 from skfem.refdom import RefLine
@@ -122,6 +122,12 @@ class BeamSettings:
         epsilon, far below any mesh error.
     predictor : "secant" extrapolates the last two converged states (fewer iterations, stays on
         the branch); "tangent" solves the linearised problem from the last state.
+    min_critical_substep : a sub-step that leads from a stable state (positive definite tangent)
+        to an unstable one crossed a bifurcation or limit point; it is retried smaller until it is
+        this fraction of a requested step, then the crossing is accepted as genuine.
+    min_path_cosine : a converged sub-step whose increment makes an angle with the predicted
+        increment whose cosine is below this is retried smaller (it jumped to another branch);
+        0.8 (37 degrees) keeps sub-steps small where the path turns sharply, as at buckling.
     max_rotation_step : largest section rotation (rad) one Newton correction may apply; larger ones
         are scaled down (see _newton). 0.5 rad is a large step on any smooth path.
     """
@@ -136,6 +142,8 @@ class BeamSettings:
     dtol: float = 1e-12
     max_rotation_step: float = 0.5
     predictor: Literal["secant", "tangent"] = "secant"
+    min_critical_substep: float = 1e-3
+    min_path_cosine: float = 0.8
 
 
 @dataclass(frozen=True)
@@ -467,22 +475,27 @@ class BeamModel:
         n = self.n_dofs
         d = np.asarray(drive.direction, dtype=float)
         d = d / np.hypot(*d)
-        normal = np.array([-d[1], d[0]])
-        frame = np.array([d, normal])  # rows: generalised axes in physical coordinates
+        frame = np.array([d, [-d[1], d[0]]])  # rows: generalised axes in physical coordinates
         ia, it, ir = n - 3, n - 2, n - 1
+        is_disp = drive.control == "displacement"
 
         fixed = [0, 1] + ([2] if self.start == "clamped" else [])
-        if drive.control == "displacement":
+        if is_disp:
             fixed.append(ia)
         if drive.transverse == "fixed":
             fixed.append(it)
         if drive.rotation == "fixed":
             fixed.append(ir)
         fixed = np.array(sorted(fixed))
-        free = np.setdiff1d(np.arange(n), fixed)
-        zero_idx = _band_zero_index(fixed, n, _BAND, _BAND)
-        diag_idx = fixed * (3 * _BAND + 1) + 2 * _BAND
-        is_disp = drive.control == "displacement"
+        bc = _Constraints(
+            fixed=fixed,
+            free=np.setdiff1d(np.arange(n), fixed),
+            zero_idx=_band_zero_index(fixed, n, _BAND, _BAND),
+            diag_idx=fixed * (3 * _BAND + 1) + 2 * _BAND,
+            zero_idx_sym=_sym_band_zero_index(fixed, n, _BAND),
+            driven=ia if is_disp else -1,
+            loaded=-1 if is_disp else ia,
+        )
 
         steps = int(drive.steps)
         targets = drive.max_value * np.arange(steps + 1) / steps
@@ -490,6 +503,7 @@ class BeamModel:
         q = np.zeros(n)
         r, ab = self._assemble(q, frame)
         rows.store(0, self, q, r, frame, 0, ia, it, ir)
+        stable = _is_positive_definite(ab, bc)
 
         value = 0.0
         history: list[tuple[float, np.ndarray]] = [(0.0, q.copy())]
@@ -504,39 +518,33 @@ class BeamModel:
             direction_sign = np.sign(target - value) or 1.0
             while abs(target - value) > 1e-12 * max(1.0, abs(drive.max_value)):
                 inc = direction_sign * min(h, abs(target - value))
-                new_value = value + inc
-                q_try, r_try, ab_try, iters, ok_sub, why = self._newton(
-                    q,
-                    r,
-                    ab,
-                    value,
-                    new_value,
-                    history,
-                    is_disp,
-                    fixed,
-                    free,
-                    zero_idx,
-                    diag_idx,
-                    ia,
-                    frame,
-                )
-                iters_row += iters
+                sub = self._newton(q, r, ab, value, value + inc, history, bc, frame)
+                iters_row += sub.iterations
                 substeps += 1
-                if ok_sub:
-                    q = q_try
-                    value = new_value
-                    history.append((value, q.copy()))
-                    history = history[-2:]
-                    r, ab = r_try, ab_try
-                    if iters <= st.fast_iterations:
+                is_stable = stable
+                if sub.converged and stable:
+                    is_stable = _is_positive_definite(sub.ab, bc)
+                    if not is_stable and abs(inc) > st.min_critical_substep * step_size:
+                        # A stable state led to an unstable one: the sub-step crossed a
+                        # bifurcation or limit point. Along a displacement-controlled path through
+                        # an imperfect structure this means Newton jumped onto the unstable
+                        # (perfect) path; retry smaller so the physical path is followed around
+                        # its turn. Only a genuine critical point survives the smallest step.
+                        sub = sub._replace(converged=False, reason="crossed a critical point")
+                if sub.converged:
+                    q, r, ab = sub.q, sub.r, sub.ab
+                    value += inc
+                    stable = is_stable
+                    history = [*history[-1:], (value, q.copy())]
+                    if sub.iterations <= st.fast_iterations:
                         h = min(2.0 * h, step_size)
                     continue
                 h = abs(inc) / 4.0
                 if h < st.min_substep * step_size:
                     quantity = "displacement_mm" if is_disp else "force_N"
                     message = (
-                        f"no convergence at {quantity} = {new_value:.6g} (last converged "
-                        f"{value:.6g}) after cutting the sub-step to {abs(inc):.3g}: {why}"
+                        f"no convergence at {quantity} = {value + inc:.6g} (last converged "
+                        f"{value:.6g}) after cutting the sub-step to {abs(inc):.3g}: {sub.reason}"
                     )
                     ok = False
                     break
@@ -546,15 +554,21 @@ class BeamModel:
                 break
             rows.store(k, self, q, r, frame, iters_row, ia, it, ir)
 
-        return rows.response(
-            ok,
-            message,
-            {
-                "n_elements": self.n_elements,
-                "n_dofs": self.n_dofs,
-                "substeps": substeps,
-            },
-        )
+        extra = {"n_elements": self.n_elements, "n_dofs": self.n_dofs, "substeps": substeps}
+        return rows.response(ok, message, extra)
+
+    def _checked(self, q0: np.ndarray, q_pred: np.ndarray, sub: _SubStep) -> _SubStep:
+        """Reject a converged sub-step whose increment turned away from the predicted one.
+
+        Near a bifurcation Newton may converge onto the mirror-image branch: the lateral motion,
+        which dominates the increment there, then has the opposite sign to the predictor's (set
+        by the imperfection or by the path so far). A smaller sub-step keeps to the branch.
+        """
+        dp = q_pred - q0
+        dc = sub.q - q0
+        if dp @ dc < self.settings.min_path_cosine * np.sqrt((dp @ dp) * (dc @ dc)):
+            return sub._replace(converged=False, reason="the sub-step left the path")
+        return sub
 
     def _is_sane(self, delta: np.ndarray) -> bool:
         """False for a correction only a (numerically) singular tangent produces."""
@@ -563,83 +577,62 @@ class BeamModel:
 
     def _newton(
         self,
-        q0,
-        r0,
-        ab0,
-        value0,
-        value,
-        history,
-        is_disp,
-        fixed,
-        free,
-        zero_idx,
-        diag_idx,
-        ia,
-        frame,
-    ):
-        """One sub-step from converged ``q0`` at ``value0`` to ``value``.
-
-        Returns (q, internal force at q, band tangent at q, iterations, converged, reason).
-        """
+        q0: np.ndarray,
+        r0: np.ndarray,
+        ab0: np.ndarray,
+        value0: float,
+        value: float,
+        history: list[tuple[float, np.ndarray]],
+        bc: _Constraints,
+        frame: np.ndarray,
+    ) -> _SubStep:
+        """One sub-step from the converged state ``q0`` at ``value0`` to ``value``."""
         st = self.settings
-        n = self.n_dofs
         inc = value - value0
-        f_ext = np.zeros(n)
-        if not is_disp:
-            f_ext[ia] = value
+        f_ext = np.zeros(self.n_dofs)
+        if bc.loaded >= 0:
+            f_ext[bc.loaded] = value
+        fail = _SubStep(q0, None, None, 0, False, "")
 
         if st.predictor == "secant" and len(history) >= 2 and history[-1][0] != history[-2][0]:
             # Secant predictor along the path.
             (v1, q1), (v2, q2) = history[-2], history[-1]
             q = q2 + (q2 - q1) * (inc / (v2 - v1))
-            r, ab = self._assemble(q, frame)
             iters = 0
         else:
-            # Tangent predictor: impose the increment inside the linear solve.
+            # Tangent predictor: the prescribed increment is imposed inside the linear solve.
             rhs = f_ext - r0
             ab = ab0.copy(order="F")
-            if is_disp:
-                col = _band_column(ab, ia, n, _BAND, _BAND)
-                rhs[col[0]] -= col[1] * inc
-            delta, info = _solve_constrained(
-                ab, rhs, zero_idx, diag_idx, fixed, ia if is_disp else -1, inc
-            )
+            if bc.driven >= 0:
+                rows, col = _band_column(ab, bc.driven, self.n_dofs, _BAND, _BAND)
+                rhs[rows] -= col * inc
+            delta, info = _solve_constrained(ab, rhs, bc, inc)
             if info != 0 or not self._is_sane(delta):
-                return (
-                    q0,
-                    None,
-                    None,
-                    1,
-                    False,
-                    "singular tangent (a mechanism: check the supports)",
-                )
+                return fail._replace(iterations=1, reason="singular tangent (check the supports)")
             q = q0 + delta
-            r, ab = self._assemble(q, frame)
             iters = 1
+        q_pred = q
+        r, ab = self._assemble(q, frame)
 
         ref = None
         for _ in range(st.max_iterations):
             res = r - f_ext
-            res_free = res[free]
+            res_free = res[bc.free]
             norm = float(np.sqrt(res_free @ res_free))
             if not np.isfinite(norm):
-                return q0, None, None, iters, False, "the residual became NaN or infinite"
-            scale = max(float(np.sqrt(r[fixed] @ r[fixed])), abs(f_ext).max(), self._force_floor)
+                return fail._replace(iterations=iters, reason="the residual became NaN or inf")
+            scale = max(float(np.sqrt(r[bc.fixed] @ r[bc.fixed])), abs(value), self._force_floor)
             if ref is None:
                 ref = norm
-            if norm <= st.rtol * scale and iters > 0:
-                return q, r, ab, iters, True, ""
             if iters > 3 and norm > 1e6 * max(ref, st.rtol * scale):
-                return q0, None, None, iters, False, "Newton diverged"
-            delta, info = _solve_constrained(ab, -res, zero_idx, diag_idx, fixed, -1, 0.0)
+                return fail._replace(iterations=iters, reason="Newton diverged")
+            converged = norm <= st.rtol * scale
+            if converged and iters > 0:
+                return self._checked(q0, q_pred, _SubStep(q, r, ab, iters, True, ""))
+            delta, info = _solve_constrained(ab, -res, bc, 0.0)
             if info != 0 or not self._is_sane(delta):
-                return (
-                    q0,
-                    None,
-                    None,
-                    iters,
-                    False,
-                    "singular tangent (a mechanism or a limit point)",
+                return fail._replace(
+                    iterations=iters, reason="singular tangent (a mechanism or a limit point)"
                 )
             # Damp corrections that turn a section by more than max_rotation_step: far from
             # equilibrium (a poor predictor in a slender beam, EA L^2 / EI ~ 1e5..1e7) a full
@@ -653,16 +646,34 @@ class BeamModel:
             r, ab = self._assemble(q, frame)
             # A correction at round-off level means equilibrium to machine precision even when the
             # load is so small that the residual test sits below the round-off of EA * strain.
-            if norm <= st.rtol * scale or np.abs(delta).max() <= st.dtol * self._length_scale:
-                return q, r, ab, iters, True, ""
-        return (
-            q0,
-            None,
-            None,
-            iters,
-            False,
-            f"Newton did not converge in {st.max_iterations} iterations",
+            if converged or np.abs(delta).max() <= st.dtol * self._length_scale:
+                return self._checked(q0, q_pred, _SubStep(q, r, ab, iters, True, ""))
+        return fail._replace(
+            iterations=iters, reason=f"Newton did not converge in {st.max_iterations} iterations"
         )
+
+
+class _Constraints(NamedTuple):
+    """Constrained DOFs of one solve (generalised numbering)."""
+
+    fixed: np.ndarray  # (n_fixed,) int, held or prescribed DOFs
+    free: np.ndarray  # (n_free,) int
+    zero_idx: np.ndarray  # flat band indices of the fixed rows and columns
+    diag_idx: np.ndarray  # flat band indices of their diagonal entries
+    zero_idx_sym: np.ndarray  # the same in upper symmetric band storage
+    driven: int  # DOF under displacement control, or -1
+    loaded: int  # DOF under force control, or -1
+
+
+class _SubStep(NamedTuple):
+    """Outcome of one Newton sub-step."""
+
+    q: np.ndarray
+    r: np.ndarray | None  # internal force at q
+    ab: np.ndarray | None  # band tangent at q
+    iterations: int
+    converged: bool
+    reason: str
 
 
 class _Rows:
@@ -727,28 +738,56 @@ def _band_zero_index(dofs: np.ndarray, n: int, kl: int, ku: int) -> np.ndarray:
     return np.unique(np.concatenate(idx))
 
 
+def _sym_band_zero_index(dofs: np.ndarray, n: int, k: int) -> np.ndarray:
+    """Flat (Fortran-order) indices, in upper symmetric band storage, of rows/columns ``dofs``."""
+    ldab = k + 1
+    idx = []
+    for c in dofs:
+        i = np.arange(max(0, c - k), c + 1)  # column c: A[i, c], i <= c
+        idx.append(c * ldab + k + i - c)
+        j = np.arange(c, min(n, c + k + 1))  # row c: A[c, j], j >= c
+        idx.append(j * ldab + k + c - j)
+    return np.unique(np.concatenate(idx))
+
+
 def _band_column(ab: np.ndarray, c: int, n: int, kl: int, ku: int) -> tuple[np.ndarray, np.ndarray]:
     """Rows and values of column ``c`` of the banded matrix."""
     i = np.arange(max(0, c - ku), min(n, c + kl + 1))
     return i, ab[kl + ku + i - c, c].copy()
 
 
-def _solve_constrained(ab, rhs, zero_idx, diag_idx, fixed, driven, increment):
-    """Solve the banded system with the ``fixed`` DOFs set to 0 (``driven`` to ``increment``).
+def _solve_constrained(
+    ab: np.ndarray, rhs: np.ndarray, bc: _Constraints, increment: float
+) -> tuple[np.ndarray, int]:
+    """Solve the banded system with the fixed DOFs held (the driven one moved by ``increment``).
 
     ``ab`` is overwritten. The column of a prescribed non-zero increment must already have been
-    moved to ``rhs`` by the caller.
+    moved to ``rhs`` by the caller. Returns the solution and LAPACK's info.
     """
     assert ab.flags.f_contiguous, "band storage must be Fortran-ordered (zeroing works on a view)"
     flat = ab.T.reshape(-1)  # a view: ab is Fortran-ordered
-    flat[zero_idx] = 0.0
-    flat[diag_idx] = 1.0
+    flat[bc.zero_idx] = 0.0
+    flat[bc.diag_idx] = 1.0
     rhs = rhs.copy()
-    rhs[fixed] = 0.0
-    if driven >= 0:
-        rhs[driven] = increment
+    rhs[bc.fixed] = 0.0
+    if bc.driven >= 0:
+        rhs[bc.driven] = increment
     _, _, x, info = dgbsv(_BAND, _BAND, ab, rhs, overwrite_ab=1, overwrite_b=1)
     return x, info
+
+
+def _is_positive_definite(ab: np.ndarray, bc: _Constraints) -> bool:
+    """Is the constrained tangent positive definite (a stable equilibrium)?
+
+    The tangent is symmetric: rows kl.. of the general band storage are LAPACK's upper symmetric
+    band storage, so a banded Cholesky factorisation (dpbtrf) answers, at O(n b^2).
+    """
+    up = np.array(ab[_BAND:], order="F")
+    flat = up.T.reshape(-1)
+    flat[bc.zero_idx_sym] = 0.0
+    flat[bc.fixed * (_BAND + 1) + _BAND] = 1.0
+    _, info = dpbtrf(up, lower=0, overwrite_ab=1)
+    return info == 0
 
 
 @lru_cache(maxsize=64)

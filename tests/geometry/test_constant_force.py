@@ -301,20 +301,24 @@ def test_design_errors_name_the_variable():
         reference_points(TABLE1, flexure_length_mm=60.0)
 
 
-def test_table3_beam_gives_a_flat_post_buckling_force_in_the_beam_solver():
-    # Integration check with fea.beam (docs/constant_force.md, section 5). A small first sub-step
-    # keeps the solver on the branch the 0.086 mm bow selects; the default 1/16 of a 1 mm step
-    # jumps past the ~0.03 mm buckling stroke.
+@pytest.mark.parametrize("steps", [10, 36])
+def test_table3_beam_gives_a_flat_post_buckling_force_in_the_beam_solver(steps):
+    # Integration check with fea.beam (docs/constant_force.md, section 5). The beam buckles at a
+    # ~0.03 mm stroke; with default settings the solver must stay on the branch the 0.086 mm bow
+    # selects (the same side as the PRB crank pin) whatever the requested step size, not jump to
+    # the mirror image or to a stiff higher-mode state.
     from fea.beam import BeamSettings, EndDrive, solve_beam
     from fea.materials import get_material
 
     prof = beam_profile(TABLE3_OPTIMUM)
-    drive = EndDrive("displacement", (-1.0, 0.0), 18.0, 36, "fixed", "fixed")
-    r = solve_beam(prof, get_material("ABS"), drive, settings=BeamSettings(60, first_substep=1e-3))
+    drive = EndDrive("displacement", (-1.0, 0.0), 18.0, steps, "fixed", "fixed")
+    r = solve_beam(prof, get_material("ABS"), drive, settings=BeamSettings(60))
     assert r.ok, r.message
-    f = r.force_N[1:]  # 0.5 .. 18 mm
+    f = r.force_N[1:]  # 18/steps .. 18 mm
     assert np.ptp(f) / f.mean() < 0.01  # constant to +-0.5 %
-    assert f.mean() == pytest.approx(1.803, rel=0.01)  # centred layout: 20 % above the paper
+    # the level is the paper's 1.5 N within the reconstruction's uncertainty (docs: 1.80 N
+    # centred, 1.55 N outboard); a higher-mode state would carry > 10 N
+    assert 1.2 < f.mean() < 2.2
     s = reference_points(TABLE1)
     u = (s[5] - s[0]) / np.linalg.norm(s[5] - s[0])
     side = (r.shapes_mm[1:] - s[0]) @ np.array([-u[1], u[0]])
