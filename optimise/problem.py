@@ -1,0 +1,69 @@
+"""The contract between a study kind and the optimisers / the run pipeline.
+
+A :class:`DesignProblem` is built once from a validated study and then called for every design.
+It must be picklable (it is sent once to each worker process or Dask worker, not with every
+design) and deterministic (the same ``x`` gives the same :class:`~optimise.Evaluation`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from optimise.evaluation import Evaluation
+from optimise.space import DesignSpace
+
+__all__ = ["DesignProblem", "DesignDetail"]
+
+
+@dataclass(frozen=True)
+class DesignDetail:
+    """Everything a report needs about one design (computed for the best design, not every one).
+
+    Attributes
+    ----------
+    evaluation : the design's Evaluation.
+    table : dict of str to (n_rows,) array — response columns, units in the names
+        (``displacement_mm``, ``force_N``, ``peak_stress_MPa``); written as CSV.
+    plot : dict — how to plot ``table``: ``x`` and ``y`` column names, optional ``stress``
+        column, ``target`` value and ``tolerance`` (band), ``allowable_MPa`` line, axis labels.
+    shapes_mm : (n_rows, n_nodes, 2) float, mm, optional — deformed centrelines to draw.
+    outline : shapely Polygon, optional — the printable outline (mm), extruded by ``height_mm``.
+    height_mm : float, optional — extrusion height of the outline (the out-of-plane width).
+    info : dict — anything else worth reporting (derived geometry, checks, notes).
+    """
+
+    evaluation: Evaluation
+    table: dict[str, np.ndarray] = field(default_factory=dict)
+    plot: dict[str, Any] = field(default_factory=dict)
+    shapes_mm: np.ndarray | None = None
+    outline: Any = None
+    height_mm: float | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+@runtime_checkable
+class DesignProblem(Protocol):
+    """What a study kind hands to ``flexopt run``.
+
+    Attributes
+    ----------
+    space : the design space (variable names carry units where they have one).
+    objective_names : (n_obj,) names of the minimised objectives, with units.
+    constraint_names : (n_con,) names of the constraints g <= 0, with units.
+    """
+
+    space: DesignSpace
+    objective_names: tuple[str, ...]
+    constraint_names: tuple[str, ...]
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        """Evaluate one design vector (n_var,). Never raises for a bad design: a design that
+        cannot be built, meshed or solved comes back as ``Evaluation.failed(..., reason)``."""
+        ...
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        """Full response of one design for plots, report and STL."""
+        ...
