@@ -17,7 +17,7 @@ import re
 from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
@@ -29,6 +29,7 @@ from pipeline.errors import StudyError
 __all__ = [
     "STUDY_CONFIG",
     "MaterialSpec",
+    "OptimiserSpec",
     "Study",
     "list_examples",
     "load_study",
@@ -74,6 +75,23 @@ def material_record(material: Material) -> dict[str, Any]:
     if not math.isfinite(record["density_kg_m3"]):
         record["density_kg_m3"] = None
     return record
+
+
+class OptimiserSpec(BaseModel):
+    """The ``optimiser:`` block of a study that ``flexopt run`` optimises.
+
+    ``--quick`` replaces ``pop_size`` and ``n_gen`` by ``quick_pop_size`` and ``quick_n_gen`` (a
+    small smoke run for CI and first tries).
+    """
+
+    model_config = STUDY_CONFIG
+
+    algorithm: Literal["ga", "nsga2"] = Field("ga", description="ga: one objective; nsga2: several")
+    pop_size: int = Field(40, ge=2, le=10000, description="designs per generation")
+    n_gen: int = Field(30, ge=1, le=100000, description="generations, the first included")
+    seed: int = Field(1, ge=0, description="random seed; the same seed gives the same run")
+    quick_pop_size: int = Field(8, ge=2, description="pop_size under --quick")
+    quick_n_gen: int = Field(3, ge=1, description="n_gen under --quick")
 
 
 class Study(BaseModel):

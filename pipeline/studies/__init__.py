@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from optimise.problem import DesignProblem
 from pipeline.errors import StudyError
 from pipeline.study import Study
 
@@ -74,12 +75,17 @@ class StudyKind:
         Builds geometry and material once; raises :class:`StudyError` naming the key path.
     evaluate : callable(study, repeat) -> EvaluationResult
         Solves the study ``repeat`` times (for timing) and summarises the last solve.
+    problem : callable(study) -> optimise.DesignProblem, optional
+        For kinds that ``flexopt run`` optimises: the picklable problem built once from the study
+        (its ``optimiser:`` block is an :class:`pipeline.study.OptimiserSpec` at
+        ``study.optimiser``).
     """
 
     name: str
     model: type[Study]
     check: Callable[[Study], None]
-    evaluate: Callable[[Study, int], EvaluationResult]
+    evaluate: Callable[[Study, int], EvaluationResult] | None = None
+    problem: Callable[[Study], DesignProblem] | None = None
 
 
 _KINDS: dict[str, StudyKind] = {}
