@@ -330,22 +330,55 @@ def mesh_polygon(
     return mesh
 
 
-def to_skfem(mesh: TriMesh):
+def to_skfem(
+    mesh: TriMesh,
+    boundaries: dict[str, BaseGeometry] | None = None,
+    tol_mm: float | None = None,
+):
     """The mesh as a scikit-fem ``MeshTri`` (linear geometry; use ElementTriP2 on it for P2).
 
     Parameters
     ----------
     mesh : TriMesh
+    boundaries : dict of name -> shapely geometry, optional
+        Named boundary parts: each becomes a scikit-fem boundary (``skmesh.boundaries[name]``,
+        usable as ``basis.get_dofs(name)`` or ``FacetBasis(skmesh, e, facets=name)``) holding
+        the boundary facets that lie on or inside the geometry.
+    tol_mm : float, mm, optional
+        Selection tolerance (default ``MeshSettings.select_tol_mm``).
 
     Returns
     -------
     skfem.MeshTri
         Same nodes and triangles, transposed to scikit-fem's (2, n) and (3, m) layout.
+
+    Raises
+    ------
+    FeaError
+        A named boundary selects no boundary facet.
     """
     from skfem import MeshTri
 
     # sort_t=False keeps the counter-clockwise node order of each triangle.
-    return MeshTri(mesh.points.T.copy(), mesh.triangles.T.copy(), sort_t=False)
+    skmesh = MeshTri(mesh.points.T.copy(), mesh.triangles.T.copy(), sort_t=False)
+    if not boundaries:
+        return skmesh
+    tol = MeshSettings().select_tol_mm if tol_mm is None else float(tol_mm)
+    facets = skmesh.boundary_facets()
+    ends = skmesh.p[:, skmesh.facets[:, facets]]  # (2 coords, 2 ends, k)
+    probes = np.stack([ends[:, 0], 0.5 * (ends[:, 0] + ends[:, 1]), ends[:, 1]], axis=-1)
+    probes = probes.transpose(1, 2, 0).reshape(-1, 2)  # (k * 3, 2)
+    named = {}
+    for name, geom in boundaries.items():
+        d = shapely.distance(geom, shapely.points(probes)).reshape(-1, 3)
+        hit = facets[np.all(d <= tol, axis=1)]
+        if hit.size == 0:
+            raise FeaError(
+                f"boundary '{name}' selects no boundary facet (tolerance {tol:g} mm); put its "
+                "geometry on the outline"
+            )
+        named[name] = hit
+    return skmesh.with_boundaries(named)
 
 
 def select_nodes(

@@ -100,6 +100,19 @@ def test_to_skfem_integrates_exactly():
     assert second_moment.assemble(basis) == pytest.approx(exact, rel=1e-10)
 
 
+def test_to_skfem_named_boundaries():
+    mesh = mesh_polygon(box(0.0, 0.0, 10.0, 2.0), 0.5)
+    right = LineString([(10.0, 0.0), (10.0, 2.0)])
+    skmesh = to_skfem(mesh, boundaries={"drive": right, "clamp": box(-1, -1, 0, 3)})
+    basis = Basis(skmesh, ElementTriP2())
+    for name, x in (("drive", 10.0), ("clamp", 0.0)):
+        dofs = basis.get_dofs(name).all()
+        assert np.allclose(basis.doflocs[0, dofs], x)
+        assert len(dofs) == 2 * 4 + 1  # 4 edges of 0.5 mm: 5 vertices + 4 midpoints
+    with pytest.raises(FeaError, match="selects no boundary facet"):
+        to_skfem(mesh, boundaries={"nowhere": Point(5.0, 1.0)})
+
+
 def test_select_boundary_edges_on_a_line():
     mesh = mesh_polygon(box(0.0, 0.0, 10.0, 2.0), 0.5)
     right = LineString([(10.0, 0.0), (10.0, 2.0)])
