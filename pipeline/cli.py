@@ -1,8 +1,11 @@
-"""The ``flexopt`` command line: one subcommand per verb (``evaluate`` for now).
+"""The ``flexopt`` command line: one subcommand per verb (``evaluate``, ``run``, ``export``).
 
-Exit codes: 0 done (also when a solve did not converge: that is a result, reported by a warning
-line and ``converged: false`` in evaluation.json), 1 the run folder could not be written,
-2 bad command line or bad study file (one line on stderr naming the key path), 130 interrupted.
+Exit codes: 0 done (also when a solve did not converge or no feasible design was found: those are
+results, reported by a warning line and in the run folder), 1 the run folder could not be written,
+the run failed, or the design could not be exported, 2 bad command line or bad study file (one line
+on stderr naming the key path; nothing is written), 130 interrupted (Ctrl-C).
+
+Only this module prints; progress goes to stderr, results to stdout.
 """
 
 from __future__ import annotations
@@ -10,17 +13,23 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
 from pipeline.errors import StudyError
 from pipeline.evaluate import EvaluateOutcome, evaluate_study, versions
 from pipeline.study import list_examples, load_study, resolve_study_path
+
+if TYPE_CHECKING:  # pipeline.run imports pymoo (~1 s): only `run` and `export` pay for it
+    from optimise.ga import GAConfig
+    from pipeline.run import GenerationReport, RunOutcome
 
 __all__ = ["build_parser", "main"]
 
@@ -41,6 +50,16 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} must be >= 1")
+    return value
+
+
+def _nonnegative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} must be >= 0")
     return value
 
 
@@ -83,6 +102,66 @@ def build_parser() -> argparse.ArgumentParser:
         help="solve N times and record the median solve time (default 1)",
     )
     evaluate.set_defaults(handler=_evaluate)
+
+    run = commands.add_parser(
+        "run",
+        help="optimise a study: best design, every evaluation, plots, STL and a report",
+        description=(
+            "Optimise the study's design problem with a genetic algorithm and write every "
+            "evaluation, the history, the best design, its response and plots, best.stl and "
+            "report.md into a run folder."
+        ),
+    )
+    run.add_argument(
+        "study",
+        metavar="STUDY",
+        help="a study YAML file, or a built-in example: " + ", ".join(list_examples()),
+    )
+    run.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="run folder (created; must not hold a run yet; default runs/<name>-run-<timestamp>)",
+    )
+    run.add_argument(
+        "--quick",
+        action="store_true",
+        help="a small smoke run: optimiser.quick_pop_size designs for optimiser.quick_n_gen "
+        "generations",
+    )
+    run.add_argument(
+        "--seed",
+        type=_nonnegative_int,
+        metavar="N",
+        help="random seed, replacing optimiser.seed (the same seed gives the same run)",
+    )
+    run.add_argument(
+        "-q", "--quiet", action="store_true", help="no progress bar and no line per generation"
+    )
+    run.set_defaults(handler=_run)
+
+    export = commands.add_parser(
+        "export",
+        help="write one design of a run as an STL file",
+        description=(
+            "Rebuild a design of a finished run (from its study.yaml) and write it as a binary "
+            "STL: the outline extruded by its height, lying flat, in mm."
+        ),
+    )
+    export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a folder of flexopt run")
+    export.add_argument(
+        "--design",
+        default="best",
+        metavar="best|INDEX",
+        help="best (best.json, the default) or the index of a row of evaluations.csv",
+    )
+    export.add_argument(
+        "--out",
+        type=Path,
+        metavar="FILE.stl",
+        help="STL file (default RUN_DIR/best.stl or RUN_DIR/design-INDEX.stl)",
+    )
+    export.set_defaults(handler=_export)
     return parser
 
 
@@ -138,13 +217,193 @@ def _evaluate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+class _RunProgress:
+    """A progress bar over generations (TTY only) and one line per generation on stderr."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.console = Console(stderr=True, highlight=False)
+        self.lines = not quiet
+        self.bar_enabled = not quiet and self.console.is_terminal
+        self.progress: Progress | None = None
+        self.task: Any = None
+        self.run_dir: Path | None = None
+        self.step = 0.0
+
+    def start(self, run_dir: Path, config: GAConfig) -> None:
+        self.run_dir = run_dir
+        self.step = 1.0 / config.pop_size
+        if self.lines:
+            self._say(
+                f"run folder {run_dir}\n{config.algorithm}: {config.pop_size} designs x "
+                f"{config.n_gen} generations, seed {config.seed}"
+            )
+        if self.bar_enabled:
+            self.progress = Progress(
+                TextColumn("[progress.description]{task.description}"),
+                BarColumn(),
+                TextColumn("{task.completed:.0f}/{task.total:.0f} generations"),
+                TimeElapsedColumn(),
+                TimeRemainingColumn(),
+                console=self.console,
+                transient=True,
+            )
+            self.task = self.progress.add_task("optimising", total=config.n_gen)
+            self.progress.start()
+
+    def result(self) -> None:
+        """One design solved: creep forward within the generation (never past its end)."""
+        if self.progress is not None:
+            task = self.progress.tasks[0]
+            ceiling = math.floor(task.completed) + 1.0 - 1e-9
+            self.progress.update(self.task, completed=min(task.completed + self.step, ceiling))
+
+    def generation(self, report: GenerationReport) -> None:
+        if self.progress is not None:
+            self.progress.update(self.task, completed=report.generation)
+        if self.lines:
+            self._say(format_generation(report))
+        if report.generation == report.n_gen:
+            self.stop()
+            if self.lines:
+                self._say("writing the best design's response, plots, STL and report")
+
+    def _say(self, text: str) -> None:
+        if self.progress is not None:
+            self.progress.console.print(text, soft_wrap=True)
+        else:
+            print(text, file=sys.stderr, flush=True)
+
+    def stop(self) -> None:
+        if self.progress is not None:
+            self.progress.stop()
+            self.progress = None
+
+
+def format_generation(report: GenerationReport) -> str:
+    """``gen 3/30  best 0.0123  feasible 85%  12.3 eval/s``."""
+    best = report.best
+    value = ", ".join(f"{v:.4g}" for v in best.f) if best.feasible else "none feasible"
+    return (
+        f"gen {report.generation}/{report.n_gen}  best {value}  "
+        f"feasible {100 * report.feasible_fraction:.0f}%  {report.evaluations_per_s:.3g} eval/s"
+    )
+
+
+def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
+    record, best = outcome.record, outcome.result.best
+    problem_names = (record["variables"], record["objectives"], record["constraints"])
+    table = Table(title=f"{record['study']} ({record['kind']}): best design", title_justify="left")
+    table.add_column("")
+    table.add_column("name")
+    table.add_column("value", justify="right")
+    for label, names, values in zip(
+        ("variable", "objective", "constraint"),
+        problem_names,
+        (best.x, best.f, best.g),
+        strict=True,
+    ):
+        for name, value in zip(names, values, strict=True):
+            table.add_row(label, name, _format_value(float(value)))
+    table.add_row("", "feasible", _format_value(best.feasible))
+    console.print(table)
+    rate = record.get("evaluations_per_s")
+    console.print(
+        f"{record['n_evaluations']} designs solved ({record['n_cache_hits']} repeats from the "
+        f"cache, {record['n_failed']} failed) in {record['wall_s']:.3g} s"
+        + (f", {rate:.3g} eval/s" if rate else ""),
+        soft_wrap=True,
+    )
+    console.print(f"wrote {outcome.run_dir}", soft_wrap=True)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from pipeline.run import prepare_run, run_study
+
+    prog = "flexopt run"
+    try:
+        path = resolve_study_path(args.study)
+        study = load_study(path)
+        setup = prepare_run(study, quick=args.quick, seed=args.seed)
+    except StudyError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    progress = _RunProgress(args.quiet)
+    try:
+        outcome = run_study(
+            setup,
+            out=args.out,
+            source=str(path),
+            command_line=shlex.join(["flexopt", *args.argv]),
+            on_start=progress.start,
+            on_generation=progress.generation,
+            on_result=progress.result,
+        )
+    except StudyError as exc:
+        progress.stop()
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        progress.stop()
+        print(f"{prog}: error: cannot write the run folder: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    except KeyboardInterrupt:
+        progress.stop()
+        where = f"; what was done is in {progress.run_dir}" if progress.run_dir else ""
+        print(f"{prog}: interrupted{where} (run.json status: interrupted)", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as exc:
+        progress.stop()
+        where = f"; see {progress.run_dir / 'run.json'}" if progress.run_dir else ""
+        print(f"{prog}: error: the run failed: {type(exc).__name__}: {exc}{where}", file=sys.stderr)
+        return EXIT_WRITE
+    progress.stop()
+    _print_run_summary(outcome, Console(highlight=False))
+    for note in outcome.notes:
+        print(f"{prog}: warning: {note}", file=sys.stderr)
+    if not outcome.result.best.feasible:
+        print(
+            f"{prog}: warning: no feasible design found; best.json holds the least violating "
+            "one. Widen the design space, relax the constraints or run longer (no --quick)",
+            file=sys.stderr,
+        )
+    return EXIT_OK
+
+
+def _export(args: argparse.Namespace) -> int:
+    from pipeline.run import ExportError, export_design
+
+    prog = "flexopt export"
+    try:
+        outcome = export_design(args.run_dir, args.design, args.out)
+    except StudyError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except ExportError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    except OSError as exc:
+        print(f"{prog}: error: cannot write the STL: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    size = " x ".join(f"{v:.4g}" for v in outcome.size_mm)
+    print(
+        f"wrote {outcome.path} (design {outcome.design}: {outcome.triangles} triangles, "
+        f"volume {outcome.volume_mm3:.6g} mm^3, {size} mm)"
+    )
+    if not outcome.evaluation.feasible:
+        reason = f": {outcome.evaluation.reason}" if outcome.evaluation.reason else ""
+        print(f"{prog}: warning: this design is not feasible{reason}", file=sys.stderr)
+    return EXIT_OK
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``flexopt`` with ``argv`` (default ``sys.argv[1:]``) and return the exit code."""
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version and usage errors
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    args.argv = argv
     if args.verbose:
         logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     try:

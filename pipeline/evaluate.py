@@ -11,6 +11,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from pipeline.errors import StudyError
 from pipeline.plots import plot_response
 from pipeline.runfolder import (
     check_out_dir,
@@ -87,11 +88,19 @@ def evaluate_study(
     Raises
     ------
     StudyError
-        When ``out`` cannot be a folder or the solver refuses the inputs.
+        When ``out`` cannot be a folder, the kind has no ``evaluate`` (it is only optimised:
+        ``flexopt run``) or the solver refuses the inputs.
     """
     if out is not None:
         check_out_dir(out)
     kind = get_kind(study.kind)
+    if kind.evaluate is None:
+        raise StudyError(
+            "geometry.kind",
+            f"kind '{kind.name}' is only optimised, not evaluated on its own; "
+            f"run it with `flexopt run {source or 'STUDY'}`",
+            source=source or None,
+        )
     started = datetime.now().astimezone()
     log.info("evaluating %s (%s), %d repeat(s)", study.name, study.kind, repeat)
     result = kind.evaluate(study, repeat)

@@ -5,17 +5,40 @@ from __future__ import annotations
 import io
 from collections.abc import Mapping
 
+import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
-__all__ = ["plot_response"]
+__all__ = [
+    "plot_convergence",
+    "plot_curve",
+    "plot_response",
+    "plot_shapes",
+    "plot_stress",
+]
 
 _LABELS = {
     "displacement_mm": "end displacement along direction (mm)",
     "force_N": "end force along direction (N)",
     "peak_stress_MPa": "peak stress (MPa)",
 }
+
+
+def _png(fig: Figure) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=120)
+    return buffer.getvalue()
+
+
+def _converged(table: Mapping[str, np.ndarray], x: str) -> np.ndarray:
+    n = len(np.asarray(table[x]))
+    return np.asarray(table.get("converged", np.ones(n, bool)), dtype=bool)
+
+
+def _label(name: str, given: str | None) -> str:
+    return given or _LABELS.get(name, name)
 
 
 def plot_response(
@@ -66,3 +89,203 @@ def plot_response(
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=120)
     return buffer.getvalue()
+
+
+def plot_curve(
+    table: Mapping[str, np.ndarray],
+    x: str = "displacement_mm",
+    y: str = "force_N",
+    target: float | None = None,
+    tolerance: float | None = None,
+    band_x: tuple[float, float] | None = None,
+    x_label: str | None = None,
+    y_label: str | None = None,
+    title: str = "",
+) -> bytes:
+    """One response curve (force against displacement), with the target and its tolerance band.
+
+    Parameters
+    ----------
+    table : mapping of str to (n,) array
+        Response columns including ``x`` and ``y`` (and ``converged``, when some rows are not).
+    target : float, optional
+        Target value of ``y`` (same unit), drawn as a dashed line.
+    tolerance : float, optional
+        Half-width of the band around ``target`` (same unit as ``y``), shaded.
+    band_x : (float, float), optional
+        Range of ``x`` over which the target applies (default: the whole curve).
+
+    Returns
+    -------
+    bytes
+        The PNG file.
+    """
+    ok = _converged(table, x)
+    xs = np.asarray(table[x], dtype=float)
+    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.plot(xs[ok], np.asarray(table[y], dtype=float)[ok], "o-", ms=3, color="tab:blue")
+    if target is not None:
+        lo, hi = band_x if band_x is not None else (float(np.nanmin(xs)), float(np.nanmax(xs)))
+        label = f"target {target:g}"
+        if tolerance is not None and tolerance > 0:
+            ax.fill_between(
+                [lo, hi], target - tolerance, target + tolerance, color="tab:green", alpha=0.2
+            )
+            label += f" ± {tolerance:g}"
+        ax.plot([lo, hi], [target, target], "--", color="tab:green", lw=1.2, label=label)
+        ax.legend(loc="best")
+    ax.set_xlabel(_label(x, x_label))
+    ax.set_ylabel(_label(y, y_label))
+    ax.grid(True, alpha=0.3)
+    note = "" if ok.all() else f"  ({int((~ok).sum())} of {ok.size} rows not converged)"
+    if title or note:
+        ax.set_title(title + note)
+    return _png(fig)
+
+
+def plot_stress(
+    table: Mapping[str, np.ndarray],
+    x: str = "displacement_mm",
+    stress: str = "peak_stress_MPa",
+    allowable_MPa: float | None = None,
+    x_label: str | None = None,
+    title: str = "",
+) -> bytes:
+    """Peak stress along the stroke, with the allowable stress as a dashed line.
+
+    Parameters
+    ----------
+    table : mapping of str to (n,) array
+        Response columns including ``x`` and ``stress`` (MPa).
+    allowable_MPa : float, MPa, optional
+
+    Returns
+    -------
+    bytes
+        The PNG file.
+    """
+    ok = _converged(table, x)
+    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    xs = np.asarray(table[x], dtype=float)[ok]
+    ax.plot(xs, np.asarray(table[stress], dtype=float)[ok], "o-", ms=3, color="tab:red")
+    if allowable_MPa is not None:
+        ax.axhline(
+            allowable_MPa, ls="--", color="k", lw=1, label=f"allowable {allowable_MPa:g} MPa"
+        )
+        ax.legend(loc="best")
+    ax.set_xlabel(_label(x, x_label))
+    ax.set_ylabel(_label(stress, None))
+    ax.grid(True, alpha=0.3)
+    if title:
+        ax.set_title(title)
+    return _png(fig)
+
+
+def plot_convergence(
+    generation: np.ndarray,
+    best: np.ndarray,
+    best_feasible: np.ndarray,
+    feasible_fraction: np.ndarray,
+    objective_names: tuple[str, ...],
+    title: str = "",
+) -> bytes:
+    """Best objective(s) per generation and the fraction of feasible designs.
+
+    Parameters
+    ----------
+    generation : (n_gen,) int
+        Generation numbers (1-based).
+    best : (n_gen, n_obj) float
+        Objectives of the best design so far after each generation.
+    best_feasible : (n_gen,) bool
+        That design is feasible; generations without a feasible design are not drawn.
+    feasible_fraction : (n_gen,) float in [0, 1]
+        Share of the generation's designs that are feasible.
+    objective_names : (n_obj,) str
+
+    Returns
+    -------
+    bytes
+        The PNG file.
+    """
+    generation = np.asarray(generation)
+    best = np.asarray(best, dtype=float).reshape(len(generation), -1)
+    ok = np.asarray(best_feasible, dtype=bool)
+    n_obj = best.shape[1]
+    fig = Figure(figsize=(6.4, 2.4 * (n_obj + 1)), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(n_obj + 1, 1, sharex=True, squeeze=False)[:, 0]
+    for k, ax in enumerate(axes[:n_obj]):
+        values = np.where(ok, best[:, k], np.nan)
+        ax.plot(generation, values, "o-", ms=3, color="tab:blue")
+        finite = values[np.isfinite(values)]
+        if finite.size and np.all(finite > 0) and finite.max() > 100 * finite.min():
+            ax.set_yscale("log")
+        if not ok.any():
+            ax.text(0.5, 0.5, "no feasible design yet", transform=ax.transAxes, ha="center")
+        ax.set_ylabel(f"best {objective_names[k]}")
+        ax.grid(True, alpha=0.3)
+    ax_f = axes[-1]
+    ax_f.plot(
+        generation, 100 * np.asarray(feasible_fraction, dtype=float), "s-", ms=3, color="tab:green"
+    )
+    ax_f.set_ylim(-5, 105)
+    ax_f.set_ylabel("feasible designs (%)")
+    ax_f.set_xlabel("generation")
+    ax_f.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax_f.grid(True, alpha=0.3)
+    if title:
+        axes[0].set_title(title)
+    return _png(fig)
+
+
+def plot_shapes(
+    shapes_mm: np.ndarray,
+    values: np.ndarray | None = None,
+    value_label: str = "",
+    max_shapes: int = 6,
+    title: str = "",
+) -> bytes:
+    """Deformed centrelines at several points of the stroke, undeformed first.
+
+    Parameters
+    ----------
+    shapes_mm : (n_rows, n_nodes, 2) float, mm
+        One centreline per response row.
+    values : (n_rows,) float, optional
+        The driven quantity of each row (e.g. displacement, mm), shown in the legend.
+    value_label : str
+        Name and unit of ``values``.
+    max_shapes : int
+        At most this many rows are drawn, evenly spread from the first to the last.
+
+    Returns
+    -------
+    bytes
+        The PNG file.
+    """
+    shapes = np.asarray(shapes_mm, dtype=float)
+    if shapes.ndim != 3 or shapes.shape[2] != 2:
+        raise ValueError(f"shapes_mm has shape {shapes.shape}; expected (n_rows, n_nodes, 2)")
+    rows = np.unique(np.linspace(0, len(shapes) - 1, min(max_shapes, len(shapes))).round())
+    fig = Figure(figsize=(6.4, 5.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    colours = matplotlib.colormaps["viridis"](np.linspace(0, 0.9, len(rows)))
+    for colour, row in zip(colours, rows.astype(int), strict=True):
+        label = f"row {row}"
+        if values is not None:
+            label = f"{value_label or 'value'} = {float(np.asarray(values)[row]):.3g}"
+        ax.plot(shapes[row, :, 0], shapes[row, :, 1], "-", color=colour, lw=1.5, label=label)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    return _png(fig)

@@ -8,7 +8,7 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -21,6 +21,8 @@ __all__ = [
     "check_out_dir",
     "make_run_dir",
     "new_run_dir_path",
+    "read_records_csv",
+    "records_to_csv",
     "table_to_csv",
     "to_json",
     "write_atomic",
@@ -95,6 +97,60 @@ def table_to_csv(table: Mapping[str, np.ndarray]) -> str:
     return out.getvalue()
 
 
+def _record_cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, bool | np.bool_ | int | np.integer | float | np.floating):
+        return _cell(value)
+    return json.dumps(_jsonable(value), allow_nan=False, default=str)  # a list or mapping
+
+
+def records_to_csv(
+    records: Sequence[Mapping[str, Any]],
+    columns: Sequence[str],
+    exact: Collection[str] = (),
+) -> str:
+    """Rows of mixed values → CSV text with a header row.
+
+    Parameters
+    ----------
+    records : sequence of mappings
+        One per row; a key missing from a row is an empty cell.
+    columns : sequence of str
+        Header, in order; keys of a record not in it are left out.
+    exact : collection of str
+        Columns whose floats are written with every digit (``repr``: they read back to the same
+        bits, as design variables must); other floats get 10 significant digits.
+
+    Returns
+    -------
+    str
+        ``true``/``false`` for booleans, ``nan`` for NaN, empty for ``None`` or a missing key,
+        JSON for a list or mapping.
+    """
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(list(columns))
+    for record in records:
+        row = []
+        for column in columns:
+            value = record.get(column)
+            if column in exact and isinstance(value, float | np.floating):
+                row.append(repr(float(value)))
+            else:
+                row.append(_record_cell(value))
+        writer.writerow(row)
+    return out.getvalue()
+
+
+def read_records_csv(path: Path) -> list[dict[str, str]]:
+    """The rows of a CSV file with a header, as dicts of text."""
+    with path.open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
 def _jsonable(value: Any) -> Any:
     if isinstance(value, Mapping):
         return {str(k): _jsonable(v) for k, v in value.items()}
@@ -108,5 +164,5 @@ def _jsonable(value: Any) -> Any:
 
 
 def to_json(data: Mapping[str, Any]) -> str:
-    """Strict JSON text (NaN and inf become null), indented for people."""
-    return json.dumps(_jsonable(data), indent=2, allow_nan=False) + "\n"
+    """Strict JSON text (NaN and inf become null, other objects their ``str``), indented."""
+    return json.dumps(_jsonable(data), indent=2, allow_nan=False, default=str) + "\n"

@@ -1,0 +1,440 @@
+"""`flexopt run` and `flexopt export` end to end, on an analytic toy kind registered here.
+
+The toy kind ``toy_quadratic`` minimises (a - 1.2)^2 + (b - 0.7)^2 subject to a + b <= 1.5 over
+[0, 2]^2 (optimum a = 1.0, b = 0.5, f = 0.08) and describes its best design with a synthetic
+force table, deformed shapes and a rectangle outline, so every file of a run folder is exercised
+in well under a second per run.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pytest
+import trimesh
+from pydantic import BaseModel, Field
+from shapely.geometry import box
+
+from optimise import DesignDetail, DesignSpace, Evaluation
+from pipeline.cli import format_generation, main
+from pipeline.report import render_info
+from pipeline.run import (
+    RUN_FILES,
+    Evaluator,
+    GenerationReport,
+    evaluate_batch,
+    evaluate_one,
+    prepare_run,
+    run_study,
+)
+from pipeline.runfolder import read_records_csv
+from pipeline.studies import StudyKind, register
+from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
+
+# --------------------------------------------------------------------------------------------
+# The toy kind
+
+
+class ToyGeometry(BaseModel):
+    model_config = STUDY_CONFIG
+
+    kind: Literal["toy_quadratic"]
+    height_mm: float = Field(4.0, gt=0)
+    fail_above_a: float | None = None  # evaluate raises for a > this
+    interrupt_after: int | None = None  # evaluate raises KeyboardInterrupt at this call
+    two_objectives: bool = False  # also minimise the area of the outline
+
+
+class ToyStudy(Study):
+    geometry: ToyGeometry
+    optimiser: OptimiserSpec = OptimiserSpec()
+
+
+@dataclass
+class ToyProblem:
+    geometry: ToyGeometry
+    space: DesignSpace = field(
+        default_factory=lambda: DesignSpace(("a_mm", "b_mm"), np.zeros(2), np.full(2, 2.0))
+    )
+    objective_names: tuple[str, ...] = ("error_N",)
+    constraint_names: tuple[str, ...] = ("sum_excess_mm",)
+    calls: int = 0
+
+    @classmethod
+    def from_study(cls, study: ToyStudy) -> ToyProblem:
+        if study.geometry.two_objectives:
+            return cls(study.geometry, objective_names=("error_N", "area_mm2"))
+        return cls(study.geometry)
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        self.calls += 1
+        if self.geometry.interrupt_after is not None and self.calls > self.geometry.interrupt_after:
+            raise KeyboardInterrupt
+        a, b = x
+        if self.geometry.fail_above_a is not None and a > self.geometry.fail_above_a:
+            raise RuntimeError(f"cannot build: a_mm = {a:.3f} too large")
+        f = (a - 1.2) ** 2 + (b - 0.7) ** 2
+        # "error_N" is also an objective name: the CSV must keep both columns apart
+        metrics = {"sum_mm": a + b, "error_N": f, "label": "ok"}
+        objectives = [f, (10 + 5 * a) * (3 + 2 * b)][: len(self.objective_names)]
+        return Evaluation(np.array(x), np.array(objectives), np.array([a + b - 1.5]), metrics)
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        a, b = x
+        d = np.linspace(0.0, 10.0, 11)
+        table = {
+            "displacement_mm": d,
+            "force_N": 2.0 * (1.0 - np.exp(-d / (0.5 + a))),
+            "peak_stress_MPa": 2.5 * d,
+        }
+        s = np.linspace(0.0, 20.0, 5)
+        shapes = np.array([np.column_stack([s, k * 0.02 * s**2 / 20]) for k in d])
+        info = {
+            "fidelity_ratio": 1.01,
+            "notes": "analytic toy problem, no physics",
+            "checks": {"mesh_ok": True, "dofs": 123},
+            "steps": [{"k": 0, "F_N": 0.0}, {"k": 1, "F_N": 1.5}],
+            "warnings": ["first warning", "second warning"],
+            "big": np.zeros((500, 3)),
+        }
+        return DesignDetail(
+            self.evaluate(x),
+            table,
+            {
+                "x": "displacement_mm",
+                "y": "force_N",
+                "stress": "peak_stress_MPa",
+                "target": 2.0,
+                "tolerance": 0.2,
+                "band_x": [3.0, 10.0],
+                "allowable_MPa": 20.0,
+            },
+            shapes,
+            box(0.0, 0.0, 10.0 + 5.0 * a, 3.0 + 2.0 * b),
+            self.geometry.height_mm,
+            info,
+        )
+
+
+register(
+    StudyKind(
+        "toy_quadratic",
+        ToyStudy,
+        check=lambda study: None,
+        evaluate=None,
+        problem=ToyProblem.from_study,  # type: ignore[arg-type]
+    )
+)
+
+TOY = {
+    "name": "toy",
+    "geometry": {"kind": "toy_quadratic"},
+    "material": "PLA",
+    "optimiser": {"pop_size": 8, "n_gen": 4, "seed": 3, "quick_pop_size": 4, "quick_n_gen": 2},
+}
+
+
+def write_study(tmp_path: Path, **geometry: Any) -> Path:
+    data = json.loads(json.dumps(TOY))
+    data["geometry"].update(geometry)
+    path = tmp_path / "toy.yaml"
+    path.write_text(json.dumps(data))  # JSON is YAML
+    return path
+
+
+def run_toy(tmp_path: Path, name: str = "run", seed: int | None = None, **geometry: Any):
+    study = validate_study(
+        json.loads(json.dumps({**TOY, "geometry": {**TOY["geometry"], **geometry}}))
+    )
+    return run_study(prepare_run(study, seed=seed), out=tmp_path / name)
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluating designs
+
+
+def test_evaluator_never_solves_a_design_twice():
+    problem = ToyProblem(ToyGeometry(kind="toy_quadratic"))
+    evaluator = Evaluator(problem)
+    X = np.array([[1.0, 0.5], [0.2, 0.3], [1.0, 0.5]])
+    first = evaluator.map(X)
+    assert problem.calls == 2 and evaluator.n_cache_hits == 1 and len(evaluator.solved) == 2
+    assert first[0] is first[2]
+    again = evaluator.map(X[:2])
+    assert problem.calls == 2 and evaluator.n_cache_hits == 3
+    assert [e.f[0] for e in again] == [e.f[0] for e in first[:2]]
+    assert first[0].f[0] == pytest.approx(0.08) and first[0].feasible and first[0].time_s > 0
+
+
+def test_failures_become_infeasible_evaluations_with_a_reason():
+    class Broken:
+        space = DesignSpace(("a",), np.zeros(1), np.ones(1))
+        objective_names = ("f",)
+        constraint_names = ("g1", "g2")
+
+        def evaluate(self, x):
+            if x[0] < 0.25:
+                raise ValueError("mesh\nfailed")
+            if x[0] < 0.5:
+                return Evaluation(x, np.array([np.nan]), np.zeros(2))
+            if x[0] < 0.75:
+                return Evaluation(x, np.array([1.0]), np.zeros(3))
+            return "not an evaluation"
+
+        def detail(self, x):
+            raise NotImplementedError
+
+    out = evaluate_batch(Broken(), np.array([[0.1], [0.3], [0.6], [0.9]]))
+    assert [e.reason.split(":")[0] for e in out] == [
+        "ValueError",
+        "non-finite result (f = [nan], g = [0.0, 0.0])",
+        "ValueError",
+        "TypeError",
+    ]
+    assert out[0].reason == "ValueError: mesh failed"  # one line
+    assert all(not e.feasible and e.f.shape == (1,) and e.g.shape == (2,) for e in out)
+    assert evaluate_one(Broken(), np.array([0.1])).reason == out[0].reason
+
+
+# --------------------------------------------------------------------------------------------
+# flexopt run
+
+
+def test_run_writes_every_file(tmp_path, capsys):
+    study = write_study(tmp_path)
+    out = tmp_path / "run"
+    assert main(["run", str(study), "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert str(out) in captured.out and "a_mm" in captured.out
+    gen_lines = [line for line in captured.err.splitlines() if line.startswith("gen ")]
+    assert len(gen_lines) == 4 and gen_lines[-1].startswith("gen 4/4  best ")
+    assert "eval/s" in gen_lines[-1] and "feasible" in gen_lines[-1]
+    assert "warning" not in captured.err
+    assert sorted(p.name for p in out.iterdir()) == sorted(RUN_FILES)  # no temp files either
+
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "finished" and record["error"] == ""
+    assert record["seed"] == 3 and record["quick"] is False
+    assert record["optimiser"] == {"algorithm": "ga", "pop_size": 8, "n_gen": 4, "seed": 3}
+    assert record["command_line"].startswith("flexopt run ")
+    assert record["evaluations_per_s"] > 0 and record["wall_s"] > 0
+    assert {"pymoo", "numpy", "python"} <= set(record["versions"])
+    assert record["started"] <= record["finished"]
+
+    rows = read_records_csv(out / "evaluations.csv")
+    header = list(rows[0])
+    assert header[:4] == ["generation", "index", "a_mm", "b_mm"]
+    assert header[4:7] == ["error_N", "sum_excess_mm", "feasible"]
+    assert header[-2:] == ["reason", "time_s"]
+    assert {"sum_mm", "metric_error_N", "label"} <= set(header)
+    assert len(rows) == record["n_evaluations"] == 8 * 4 - record["n_cache_hits"]
+    assert [int(r["index"]) for r in rows] == list(range(len(rows)))
+    assert sorted({int(r["generation"]) for r in rows}) == [1, 2, 3, 4]
+    for r in rows:
+        a, b = float(r["a_mm"]), float(r["b_mm"])
+        assert float(r["error_N"]) == pytest.approx((a - 1.2) ** 2 + (b - 0.7) ** 2, rel=1e-8)
+        assert r["feasible"] == ("true" if a + b <= 1.5 else "false")
+
+    history = read_records_csv(out / "history.csv")
+    assert [int(h["generation"]) for h in history] == [1, 2, 3, 4]
+    assert list(history[0]) == [
+        "generation",
+        "n_evaluations",
+        "n_cache_hits",
+        "best_error_N",
+        "best_feasible",
+        "feasible_fraction",
+        "evaluations_per_s",
+        "wall_s",
+    ]
+    best_per_gen = [float(h["best_error_N"]) for h in history if h["best_feasible"] == "true"]
+    assert best_per_gen == sorted(best_per_gen, reverse=True)  # elitist: never worse
+
+    best = json.loads((out / "best.json").read_text())
+    assert set(best["parameters"]) == {"a_mm", "b_mm"} and best["feasible"] is True
+    assert best["objectives"]["error_N"] == pytest.approx(min(best_per_gen))
+    row = rows[best["index"]]
+    assert float(row["a_mm"]) == best["parameters"]["a_mm"]  # full precision in the CSV
+    assert best["info"]["checks"] == {"mesh_ok": True, "dofs": 123}
+
+    response = read_records_csv(out / "best_response.csv")
+    assert list(response[0]) == ["displacement_mm", "force_N", "peak_stress_MPa"]
+    assert len(response) == 11
+    for png in ("force_displacement.png", "stress.png", "convergence.png", "shapes.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    mesh = trimesh.load(out / "best.stl")
+    assert mesh.is_watertight
+
+    report = (out / "report.md").read_text()
+    for needle in (
+        "# toy — flexopt run",
+        "![Force–displacement of the best design](force_displacement.png)",
+        "(stress.png)",
+        "(convergence.png)",
+        "(shapes.png)",
+        "| fidelity_ratio | 1.01 |",
+        "analytic toy problem, no physics",
+        "| mesh_ok | yes |",
+        "| k | F_N |",
+        "- second warning",
+        "`big` (array of shape (500, 3)",
+        "evaluations per second",
+        "[best.stl](best.stl)",
+        "| variable | a_mm |",
+    ):
+        assert needle in report, needle
+
+
+def test_same_seed_same_best_and_quick_and_seed_options(tmp_path):
+    first = run_toy(tmp_path, "one")
+    second = run_toy(tmp_path, "two")
+    assert np.array_equal(first.result.best.x, second.result.best.x)
+    rows = [read_records_csv(r.run_dir / "evaluations.csv") for r in (first, second)]
+    for row in (*rows[0], *rows[1]):
+        del row["time_s"]
+    assert rows[0] == rows[1]  # bit-identical designs in the same order
+    other = run_toy(tmp_path, "three", seed=11)
+    assert not np.array_equal(first.result.best.x, other.result.best.x)
+    assert "seed: 11" in (other.run_dir / "study.yaml").read_text()
+
+    study = write_study(tmp_path)
+    assert main(["run", str(study), "--out", str(tmp_path / "q"), "--quick", "-q"]) == 0
+    record = json.loads((tmp_path / "q" / "run.json").read_text())
+    assert record["quick"] is True and record["optimiser"]["pop_size"] == 4
+    assert record["generations_done"] == 2
+
+
+def test_a_design_that_raises_is_an_infeasible_row_and_the_run_finishes(tmp_path, capsys):
+    outcome = run_toy(tmp_path, fail_above_a=1.0)
+    rows = read_records_csv(outcome.run_dir / "evaluations.csv")
+    failed = [r for r in rows if r["reason"]]
+    assert failed and len(failed) == sum(float(r["a_mm"]) > 1.0 for r in rows)
+    for r in failed:
+        assert r["reason"].startswith("RuntimeError: cannot build: a_mm = ")
+        assert r["feasible"] == "false" and r["sum_mm"] == ""
+    assert outcome.record["status"] == "finished"
+    assert outcome.record["n_failed"] == len(failed)
+    assert outcome.result.best.x[0] <= 1.0
+    assert "Most frequent failure reasons" in (outcome.run_dir / "report.md").read_text()
+
+
+def test_two_objectives_need_nsga2_and_give_a_front(tmp_path, capsys):
+    study = write_study(tmp_path, two_objectives=True)
+    assert main(["run", str(study), "--out", str(tmp_path / "ga"), "-q"]) == 2
+    assert "set algorithm: nsga2" in capsys.readouterr().err
+    data = json.loads(study.read_text())
+    data["optimiser"]["algorithm"] = "nsga2"
+    study.write_text(json.dumps(data))
+    out = tmp_path / "nsga2"
+    assert main(["run", str(study), "--out", str(out), "-q"]) == 0
+    best = json.loads((out / "best.json").read_text())
+    assert len(best["front"]) > 1 and set(best["objectives"]) == {"error_N", "area_mm2"}
+    assert "best_area_mm2" in read_records_csv(out / "history.csv")[0]
+    assert "### Pareto front" in (out / "report.md").read_text()
+
+
+def test_ctrl_c_leaves_an_interrupted_run(tmp_path, capsys):
+    study = write_study(tmp_path, interrupt_after=13)
+    out = tmp_path / "run"
+    assert main(["run", str(study), "--out", str(out), "-q"]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "interrupted" and record["n_evaluations"] == 13
+    rows = read_records_csv(out / "evaluations.csv")
+    assert len(rows) == 13 and rows[-1]["generation"] == "2"
+    assert not (out / "best.json").exists()
+
+
+def test_bad_study_is_one_line_exit_2_and_nothing_is_written(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    data = json.loads(json.dumps(TOY))
+    data["optimiser"]["pop_size"] = 1
+    bad.write_text(json.dumps(data))
+    out = tmp_path / "never"
+    assert main(["run", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "optimiser.pop_size" in err
+    assert not out.exists()
+
+    assert main(["run", "cantilever", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "nothing to optimise" in err and "toy_quadratic" in err and not out.exists()
+
+    good = write_study(tmp_path)
+    assert main(["evaluate", str(good), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "flexopt run" in err and not out.exists()
+
+
+def test_out_holding_a_run_is_refused(tmp_path, capsys):
+    study = write_study(tmp_path)
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "run.json").write_text("{}")
+    assert main(["run", str(study), "--out", str(out), "-q"]) == 2
+    assert "already holds a run" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["run.json"]
+
+
+# --------------------------------------------------------------------------------------------
+# flexopt export
+
+
+def test_export_writes_a_watertight_stl(tmp_path, capsys):
+    outcome = run_toy(tmp_path)
+    run_dir = outcome.run_dir
+    stl = tmp_path / "best.stl"
+    assert main(["export", str(run_dir), "--out", str(stl)]) == 0
+    assert str(stl) in capsys.readouterr().out
+    mesh = trimesh.load(stl)
+    a, b = outcome.result.best.x
+    assert mesh.is_watertight
+    assert mesh.volume == pytest.approx((10 + 5 * a) * (3 + 2 * b) * 4.0, rel=1e-6)
+    assert stl.read_bytes() == (run_dir / "best.stl").read_bytes()
+
+    assert main(["export", str(run_dir), "--design", "3"]) == 0
+    rows = read_records_csv(run_dir / "evaluations.csv")
+    a3, b3 = float(rows[3]["a_mm"]), float(rows[3]["b_mm"])
+    mesh3 = trimesh.load(run_dir / "design-3.stl")
+    assert mesh3.volume == pytest.approx((10 + 5 * a3) * (3 + 2 * b3) * 4.0, rel=1e-6)
+
+    capsys.readouterr()
+    assert main(["export", str(run_dir), "--design", str(len(rows))]) == 2
+    assert f"the run has {len(rows)}" in capsys.readouterr().err
+    assert main(["export", str(tmp_path / "nope")]) == 2
+    assert main(["export", str(run_dir), "--design", "first"]) == 2
+
+
+# --------------------------------------------------------------------------------------------
+# Pieces
+
+
+def test_generation_line():
+    best = Evaluation(np.zeros(2), np.array([0.0123]), np.array([-1.0]))
+    report = GenerationReport(3, 30, 24, 0, best, 0.85, 12.34, 2.0)
+    assert format_generation(report) == "gen 3/30  best 0.0123  feasible 85%  12.3 eval/s"
+    failed = Evaluation.failed(np.zeros(2), 1, 1, "x")
+    line = format_generation(GenerationReport(1, 30, 8, 0, failed, 0.0, 1.0, 1.0))
+    assert "best none feasible" in line
+
+
+def test_info_rendering_keeps_scalars_and_small_tables():
+    lines = "\n".join(
+        render_info(
+            {
+                "n": 3,
+                "ok": False,
+                "ratios": [1.0, 2.5],
+                "table": {"x_mm": [0.0, 1.0], "F_N": [0.5, 0.7]},
+                "deep": {"a": {"b": {"c": {"d": 1}}}},
+                "obj": object(),
+            }
+        )
+    )
+    assert "| n | 3 |" in lines and "| ok | no |" in lines and "| ratios | [1, 2.5] |" in lines
+    assert "| x_mm | F_N |" in lines and "| 1 | 0.7 |" in lines
+    assert "`obj` (object)" in lines
