@@ -47,6 +47,7 @@ class ToyGeometry(BaseModel):
     fail_above_a: float | None = None  # evaluate raises for a > this
     interrupt_after: int | None = None  # evaluate raises KeyboardInterrupt at this call
     two_objectives: bool = False  # also minimise the area of the outline
+    detail_fails: bool = False  # detail raises (a kind bug must not lose the run)
 
 
 class ToyStudy(Study):
@@ -84,6 +85,8 @@ class ToyProblem:
         return Evaluation(np.array(x), np.array(objectives), np.array([a + b - 1.5]), metrics)
 
     def detail(self, x: np.ndarray) -> DesignDetail:
+        if self.geometry.detail_fails:
+            raise ZeroDivisionError("detail is broken")
         a, b = x
         d = np.linspace(0.0, 10.0, 11)
         table = {
@@ -335,6 +338,18 @@ def test_two_objectives_need_nsga2_and_give_a_front(tmp_path, capsys):
     assert len(best["front"]) > 1 and set(best["objectives"]) == {"error_N", "area_mm2"}
     assert "best_area_mm2" in read_records_csv(out / "history.csv")[0]
     assert "### Pareto front" in (out / "report.md").read_text()
+
+
+def test_a_failing_detail_is_a_note_not_the_loss_of_the_run(tmp_path, capsys):
+    study = write_study(tmp_path, detail_fails=True)
+    out = tmp_path / "run"
+    assert main(["run", str(study), "--out", str(out), "-q"]) == 0
+    assert "warning: the best design's detail failed: ZeroDivisionError" in capsys.readouterr().err
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "finished" and "detail failed" in record["notes"][0]
+    assert {"best.json", "convergence.png", "report.md"} <= set(record["files"])
+    assert not (out / "best.stl").exists()
+    assert "## Notes" in (out / "report.md").read_text()
 
 
 def test_ctrl_c_leaves_an_interrupted_run(tmp_path, capsys):
