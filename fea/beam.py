@@ -590,8 +590,10 @@ class BeamModel:
         st = self.settings
         inc = value - value0
         f_ext = np.zeros(self.n_dofs)
+        load = 0.0
         if bc.loaded >= 0:
             f_ext[bc.loaded] = value
+            load = abs(value)
         fail = _SubStep(q0, None, None, 0, False, "")
 
         if st.predictor == "secant" and len(history) >= 2 and history[-1][0] != history[-2][0]:
@@ -621,7 +623,8 @@ class BeamModel:
             norm = float(np.sqrt(res_free @ res_free))
             if not np.isfinite(norm):
                 return fail._replace(iterations=iters, reason="the residual became NaN or inf")
-            scale = max(float(np.sqrt(r[bc.fixed] @ r[bc.fixed])), abs(value), self._force_floor)
+            # force scale: the reactions, and the applied load under force control (N)
+            scale = max(float(np.sqrt(r[bc.fixed] @ r[bc.fixed])), load, self._force_floor)
             if ref is None:
                 ref = norm
             if iters > 3 and norm > 1e6 * max(ref, st.rtol * scale):

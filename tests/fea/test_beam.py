@@ -322,3 +322,21 @@ def test_a_mechanism_is_reported_as_data_not_raised():
     assert "singular" in res.message
     assert res.converged[0] and not res.converged[-1]
     assert np.isnan(res.force_N[-1])
+
+
+@pytest.mark.parametrize("n", [20, 50, 100])
+def test_displacement_controlled_thin_cantilever_force_on_fine_meshes(n):
+    """Tip displacement driven to 0.6 L, tip free to rotate and slide: the force converges to the
+    elastica at every mesh (regression: the Newton force scale once mixed in the driven mm)."""
+    L, t, b = 100.0, 0.1, 5.0
+    ei = ei_of(t, b)
+    delta = 0.6
+    alpha = brentq(lambda a: elastica_cantilever(a)[0] - delta, 0.1, 50.0, xtol=1e-14)
+    res = solve_beam(
+        straight(L, t, b),
+        MAT,
+        EndDrive("displacement", (0.0, 1.0), delta * L, 20, rotation="free", transverse="free"),
+        settings=BeamSettings(n_elements=n),
+    )
+    assert res.ok, res.message
+    assert res.force_N[-1] == pytest.approx(alpha * ei / L**2, rel=1e-4)
