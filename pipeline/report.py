@@ -149,23 +149,49 @@ def _array_table(value: np.ndarray) -> list[str] | None:
     return _table(["row", *map(str, range(value.shape[1]))], [[i, *r] for i, r in enumerate(value)])
 
 
+def _parallel_columns(info: Mapping[str, Any]) -> dict[str, list[Any]]:
+    """The lists of numbers in ``info`` that share the most common length (at least two lists of
+    3 … MAX_TABLE_ROWS items): values at the same points (``stroke_mm``, ``force_N``, …). Pairs
+    are left inline: they are usually ranges (``band_N: [1.47, 1.53]``), not columns."""
+    lists = {
+        str(k): list(np.asarray(v, dtype=object).ravel())
+        for k, v in info.items()
+        if isinstance(v, list | tuple | np.ndarray)
+        and np.ndim(v) == 1
+        and 3 <= len(v) <= MAX_TABLE_ROWS
+        and all(_is_scalar(x) and not isinstance(x, str) for x in v)
+    }
+    lengths = [len(v) for v in lists.values()]
+    if not lengths:
+        return {}
+    common = max(set(lengths), key=lengths.count)
+    if lengths.count(common) < 2:
+        return {}
+    return {k: v for k, v in lists.items() if len(v) == common}
+
+
 def render_info(info: Mapping[str, Any], level: int = 3) -> list[str]:
     """Markdown lines for the ``info`` a study kind reports.
 
-    Scalars and short lists of numbers go in one key/value table first; then, under a heading of
+    Scalars and short lists of numbers go in one key/value table first, lists of numbers of the
+    same length side by side in a second table; then, under a heading of
     their key, long texts as paragraphs, lists of text as bullets, mappings recursively (up to
     :data:`MAX_DEPTH` levels), columns or records as tables. Anything else (a large array, an
     object) is named with its type or shape.
     """
     lines: list[str] = []
+    columns = _parallel_columns(info)
     simple = [
         (k, v)
         for k, v in info.items()
-        if (_is_scalar(v) and not (isinstance(v, str) and len(v) > 80)) or _is_short_list(v)
+        if k not in columns
+        and ((_is_scalar(v) and not (isinstance(v, str) and len(v) > 80)) or _is_short_list(v))
     ]
     if simple:
         lines += _table(["item", "value"], simple)
-    shown = {k for k, _ in simple}
+    if columns:
+        lines += _table(list(columns), list(zip(*columns.values(), strict=True)))
+    shown = {k for k, _ in simple} | set(columns)
     omitted: list[str] = []
     heading = "#" * min(level, 6)
     for key, value in info.items():

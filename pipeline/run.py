@@ -293,12 +293,15 @@ class RunSetup:
     problem : the kind's design problem, built once.
     config : GA settings (``--quick`` applied).
     quick : whether ``--quick`` was given.
+    initial : (k, n_var) designs seeded into the first population, from the problem's optional
+        ``initial_designs()`` (e.g. a published optimum), or None.
     """
 
     study: Study
     problem: DesignProblem
     config: GAConfig
     quick: bool
+    initial: np.ndarray | None = None
 
 
 def _optimisable() -> str:
@@ -376,7 +379,24 @@ def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> R
         config = GAConfig(spec.algorithm, pop_size, n_gen, spec.seed)
     except OptimiseError as exc:
         raise StudyError("optimiser", str(exc)) from None
-    return RunSetup(study, problem, config, quick)
+    return RunSetup(study, problem, config, quick, initial_designs(problem))
+
+
+def initial_designs(problem: DesignProblem) -> np.ndarray | None:
+    """The designs a problem asks to seed the first population with (optional
+    ``initial_designs()`` method beyond the DesignProblem protocol), as (k, n_var), or None."""
+    method = getattr(problem, "initial_designs", None)
+    if not callable(method):
+        return None
+    initial = method()
+    if initial is None:
+        return None
+    initial = np.atleast_2d(np.asarray(initial, dtype=float))
+    if initial.ndim != 2 or initial.shape[1] != problem.space.n_var or not len(initial):
+        raise TypeError(
+            f"initial_designs() returned shape {initial.shape}; expected (k, {problem.space.n_var})"
+        )
+    return initial
 
 
 # --------------------------------------------------------------------------------------------
@@ -677,7 +697,7 @@ class _Run:
                     x,
                     stress,
                     allowable_MPa=_float_or_none(spec.get("allowable_MPa")),
-                    x_label=spec.get("x_label"),
+                    x_label=_spec_label(spec, "x"),
                     title=title,
                 ),
             )
@@ -691,9 +711,7 @@ class _Run:
                 values = None
             self.artefact(
                 "shapes.png",
-                lambda: plots.plot_shapes(
-                    shapes, values, value_label=spec.get("x_label") or x, title=title
-                ),
+                lambda: plots.plot_shapes(shapes, values, value_label=x, title=title),
             )
         if detail is not None and detail.outline is not None and detail.height_mm:
             self.artefact("best.stl", lambda: self._stl(detail))
@@ -718,6 +736,11 @@ class _Run:
         return stl_bytes(mesh)
 
 
+def _spec_label(spec: Mapping[str, Any], axis: str) -> str | None:
+    """Axis label of a DesignDetail.plot: ``x_label`` or ``xlabel`` (both are in use)."""
+    return spec.get(f"{axis}_label") or spec.get(f"{axis}label")
+
+
 def _float_or_none(value: Any) -> float | None:
     return None if value is None else float(value)
 
@@ -735,8 +758,8 @@ def _curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: 
         target=target,
         tolerance=tolerance,
         band_x=(float(band[0]), float(band[1])) if band is not None else None,
-        x_label=spec.get("x_label"),
-        y_label=spec.get("y_label"),
+        x_label=_spec_label(spec, "x"),
+        y_label=_spec_label(spec, "y"),
         title=title,
     )
 
@@ -887,6 +910,7 @@ def run_study(
             len(setup.problem.constraint_names),
             config,
             on_generation=run.generation_done,
+            initial=setup.initial,
         )
         record["optimise_wall_s"] = time.perf_counter() - t_start
         run.files += ["evaluations.csv", "history.csv"]

@@ -48,6 +48,7 @@ class ToyGeometry(BaseModel):
     interrupt_after: int | None = None  # evaluate raises KeyboardInterrupt at this call
     two_objectives: bool = False  # also minimise the area of the outline
     detail_fails: bool = False  # detail raises (a kind bug must not lose the run)
+    seed_optimum: bool = False  # initial_designs() puts the optimum into the first population
 
 
 class ToyStudy(Study):
@@ -70,6 +71,9 @@ class ToyProblem:
         if study.geometry.two_objectives:
             return cls(study.geometry, objective_names=("error_N", "area_mm2"))
         return cls(study.geometry)
+
+    def initial_designs(self) -> np.ndarray | None:
+        return np.array([[1.0, 0.5]]) if self.geometry.seed_optimum else None
 
     def evaluate(self, x: np.ndarray) -> Evaluation:
         self.calls += 1
@@ -115,6 +119,7 @@ class ToyProblem:
                 "tolerance": 0.2,
                 "band_x": [3.0, 10.0],
                 "allowable_MPa": 20.0,
+                "xlabel": "stroke (mm)",
             },
             shapes,
             box(0.0, 0.0, 10.0 + 5.0 * a, 3.0 + 2.0 * b),
@@ -311,6 +316,13 @@ def test_same_seed_same_best_and_quick_and_seed_options(tmp_path):
     assert record["generations_done"] == 2
 
 
+def test_initial_designs_of_the_problem_seed_the_first_population(tmp_path):
+    outcome = run_toy(tmp_path, seed_optimum=True)
+    rows = read_records_csv(outcome.run_dir / "evaluations.csv")
+    assert (float(rows[0]["a_mm"]), float(rows[0]["b_mm"])) == (1.0, 0.5)
+    assert outcome.result.best.f[0] == pytest.approx(0.08)
+
+
 def test_a_design_that_raises_is_an_infeasible_row_and_the_run_finishes(tmp_path, capsys):
     outcome = run_toy(tmp_path, fail_above_a=1.0)
     rows = read_records_csv(outcome.run_dir / "evaluations.csv")
@@ -445,6 +457,7 @@ def test_info_rendering_keeps_scalars_and_small_tables():
                 "ok": False,
                 "ratios": [1.0, 2.5],
                 "table": {"x_mm": [0.0, 1.0], "F_N": [0.5, 0.7]},
+                "check": {"model": "m", "stroke_mm": [1, 2, 3], "F_N": [4, 5, 6], "band": [1, 2]},
                 "deep": {"a": {"b": {"c": {"d": 1}}}},
                 "obj": object(),
             }
@@ -453,3 +466,24 @@ def test_info_rendering_keeps_scalars_and_small_tables():
     assert "| n | 3 |" in lines and "| ok | no |" in lines and "| ratios | [1, 2.5] |" in lines
     assert "| x_mm | F_N |" in lines and "| 1 | 0.7 |" in lines
     assert "`obj` (object)" in lines
+    assert "| stroke_mm | F_N |\n|---|---|\n| 1 | 4 |" in lines and "| band | [1, 2] |" in lines
+
+
+def test_constant_force_quick_smoke(tmp_path):
+    """The shipped optimisable example runs end to end (`flexopt run constant-force --quick`)."""
+    from pipeline.studies import kinds
+    from pipeline.study import list_examples
+
+    if "constant_force" not in kinds() or "constant-force" not in list_examples():
+        pytest.skip("the constant_force kind or its example is not in this tree yet")
+    out = tmp_path / "cf"
+    assert main(["run", "constant-force", "--quick", "--out", str(out), "-q"]) == 0
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "finished" and record["quick"] is True
+    pop, n_gen = record["optimiser"]["pop_size"], record["optimiser"]["n_gen"]
+    assert 0 < record["n_evaluations"] <= pop * n_gen
+    assert len(read_records_csv(out / "evaluations.csv")) == record["n_evaluations"]
+    expected = {"best.json", "best_response.csv", "force_displacement.png", "convergence.png"}
+    assert expected | {"stress.png", "shapes.png", "best.stl", "report.md"} <= set(record["files"])
+    assert trimesh.load(out / "best.stl").is_watertight
+    assert "## From the study kind" in (out / "report.md").read_text()
