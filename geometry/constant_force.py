@@ -44,7 +44,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 import shapely
 from scipy.optimize import lsq_linear, minimize
-from shapely.geometry import Point, Polygon
+from shapely.geometry import Polygon
 
 from geometry.errors import GeometryError
 from geometry.profile import BeamProfile
@@ -994,18 +994,36 @@ def beam_profile(
     )
 
 
-#: Precision grid of the outline union, mm (1 nm: far below any printable feature).
-_SNAP_MM = 1e-6
+#: Largest miter factor 1/cos(kink/2) accepted at a centreline vertex (a kink of 120 degrees);
+#: the centreline of any design lies close to the line S1->S6, with kinks of a few mrad.
+_MAX_MITER = 2.0
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def _pad(end: np.ndarray, outward: np.ndarray, length: float, thickness: float) -> Polygon:
-    n = np.array([-outward[1], outward[0]]) * (0.5 * thickness)
-    far = end + outward * length
-    return Polygon([end - n, far - n, far + n, end + n])
+def _side_offsets(points: np.ndarray, thickness: np.ndarray) -> np.ndarray:
+    """(n, 2) mm: offset ``+t/2`` to the left of the centreline, mitred at interior vertices.
+
+    At a vertex the offset point lies on the bisector of the two segment normals, at ``t / 2 /
+    cos(kink / 2)`` from the vertex, so that for constant thickness each offset edge is exactly
+    parallel to its segment (the area is ``int t ds`` to second order in the kink).
+    """
+    d = np.diff(points, axis=0)
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    normals = np.column_stack([-d[:, 1], d[:, 0]])  # left of each segment
+    vertex_n = np.vstack([normals[:1], normals[:-1] + normals[1:], normals[-1:]])
+    vertex_n /= np.linalg.norm(vertex_n, axis=1)[:, None]
+    # cos(kink / 2) between the bisector and either adjacent normal.
+    cos_half = np.concatenate([[1.0], np.einsum("ij,ij->i", vertex_n[1:-1], normals[1:]), [1.0]])
+    if np.any(cos_half < 1.0 / _MAX_MITER):
+        i = int(np.argmin(cos_half))
+        raise GeometryError(
+            f"the centreline turns by {np.degrees(2 * np.arccos(cos_half[i])):.0f} degrees at "
+            f"vertex {i}; the outline supports kinks up to 120 degrees"
+        )
+    return points + (0.5 * thickness / cos_half)[:, None] * vertex_n
 
 
 def outline(
@@ -1013,62 +1031,65 @@ def outline(
     prb_params: PRBParams = TABLE1,
     pad_length_mm: float = 8.0,
     pad_thickness_mm: float = 4.0,
-    quad_segs: int = 16,
     end_flexures: Literal["centred", "outboard"] = "centred",
 ) -> Polygon:
     """Printable planar outline: the tapered beam plus a clamping pad at each end.
 
-    The beam is the union of one trapezoid per segment (offset ``+-t/2`` along the segment
-    normal, ``t`` linear between the vertex thicknesses) and a disc of diameter ``t`` at every
-    interior vertex (round joints fill the wedge a kink opens on its outer side). Each pad is a
-    ``pad_length_mm x pad_thickness_mm`` rectangle continuing the end segment outward from S1 and
-    from S6, centred on the centreline.
+    The beam's two sides are the centreline offset by ``+-t/2`` (``t`` linear between the vertex
+    thicknesses), mitred at the vertices; each pad is a ``pad_length_mm x pad_thickness_mm``
+    rectangle continuing the end segment outward from S1 and from S6, centred on the centreline.
+    The polygon is built as one ring, not as a union of pieces: a boolean union of per-segment
+    trapezoids leaves micro-notches (edges of 1e-6 to 1e-3 mm where the pieces meet at a
+    near-straight vertex) that a plane-stress mesh resolves into spurious stress peaks twice the
+    real ones.
 
     Parameters
     ----------
     design : ConstantForceDesign
     prb_params : PRBParams
     pad_length_mm, pad_thickness_mm : float, mm
-    quad_segs : int — segments per quarter circle of the joint discs.
+        The pads must be at least as thick as the beam ends (T1, T6) so they hold the whole end
+        section.
     end_flexures : "centred" or "outboard" — see :func:`reference_points`.
 
     Returns
     -------
     shapely.Polygon
-        One valid polygon, mm, in the PRB frame.
+        One valid polygon, mm, in the PRB frame; area ``int t ds + 2 pad_length pad_thickness``.
     """
     if not pad_length_mm > 0 or not pad_thickness_mm > 0:
         raise GeometryError(
             f"pad_length_mm = {pad_length_mm:g} and pad_thickness_mm = {pad_thickness_mm:g} "
             "must both be > 0"
         )
+    if pad_thickness_mm < max(design.T1, design.T6):
+        raise GeometryError(
+            f"pad_thickness_mm = {pad_thickness_mm:g} is thinner than the beam end it holds "
+            f"(T1 = {design.T1:g}, T6 = {design.T6:g} mm); use a pad at least "
+            f"{max(design.T1, design.T6):g} mm thick"
+        )
     pts = centreline_points(design, prb_params, end_flexures)
     t = design.vertex_thickness_mm
-    parts: list[Polygon] = []
-    for i in range(len(pts) - 1):
-        d = _unit(pts[i + 1] - pts[i])
-        n = np.array([-d[1], d[0]])
-        parts.append(
-            Polygon(
-                [
-                    pts[i] - 0.5 * t[i] * n,
-                    pts[i + 1] - 0.5 * t[i + 1] * n,
-                    pts[i + 1] + 0.5 * t[i + 1] * n,
-                    pts[i] + 0.5 * t[i] * n,
-                ]
-            )
-        )
-    joints = zip(pts[1:-1], t[1:-1], strict=True)
-    parts += [Point(p).buffer(0.5 * ti, quad_segs=quad_segs) for p, ti in joints]
-    parts.append(_pad(pts[0], _unit(pts[0] - pts[1]), pad_length_mm, pad_thickness_mm))
-    parts.append(_pad(pts[-1], _unit(pts[-1] - pts[-2]), pad_length_mm, pad_thickness_mm))
-    # Adjacent parts share edges that round-off can split by ~1e-15 mm; snapping the union to a
-    # 1 nm grid closes those slivers so the result is one polygon.
-    shape = shapely.union_all(parts, grid_size=_SNAP_MM)
-    if not isinstance(shape, Polygon) or not shape.is_valid:
+    left = _side_offsets(pts, t)
+    right = _side_offsets(pts, -t)
+    half = 0.5 * pad_thickness_mm
+
+    def pad(end: np.ndarray, outward: np.ndarray) -> list[np.ndarray]:
+        # Corners of the pad, counter-clockwise when walked from the beam's right side.
+        n = np.array([-outward[1], outward[0]])
+        far = end + outward * pad_length_mm
+        return [end + half * n, far + half * n, far - half * n, end - half * n]
+
+    # Counter-clockwise: right side S1 -> S6, the S6 pad, left side S6 -> S1, the S1 pad. A pad's
+    # corners come out of pad() starting on the left of its outward direction, so they are
+    # reversed to continue from the side the ring arrives on.
+    end_pad = pad(pts[-1], _unit(pts[-1] - pts[-2]))[::-1]
+    start_pad = pad(pts[0], _unit(pts[0] - pts[1]))[::-1]
+    shape = Polygon([*right, *end_pad, *left[::-1], *start_pad])
+    if not shape.is_valid:
         raise GeometryError(
-            f"the outline is a {shape.geom_type} (valid={shape.is_valid}), not one valid polygon; "
-            "check that the centreline does not cross itself"
+            f"the outline is not a valid polygon ({shapely.is_valid_reason(shape)}); check that "
+            "the centreline does not cross itself and that the pads clear the beam"
         )
     return shape
 

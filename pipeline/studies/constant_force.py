@@ -1,0 +1,1232 @@
+"""Study kind ``constant_force``: the long-stroke constant-force beam of paper 003.
+
+The paper's beam-based design (Bilancia, Geraci, Berselli, SMASIS 2019; reconstruction in
+``docs/constant_force.md``): a tapered beam through the reference points S1..S6 of the Table-1
+PRB slider-crank, 23 design variables (a1..a10, t1..t10, T1, T6, B), S1 clamped, S6 driven along
+the work direction with its transverse motion (and, by default, its rotation) held. A design is
+good when its output force stays at ``target.force_N`` within ``target.tolerance_percent`` over a
+long stroke without the peak stress passing the allowable.
+
+YAML (every key optional but ``name``, ``geometry.kind`` and ``material``; see
+``docs/constant_force.md``, section "Study")::
+
+    geometry: {kind: constant_force, end_flexures: centred, elements: 60, min_feature_mm: 0.8}
+    material: ABS
+    boundary: {stroke_mm: 30, rows: 60, rotation: fixed}
+    target: {force_N: 1.5, tolerance_percent: 2, samples: 10, allowable_stress_MPa: 42.5}
+    objective: rms_error                # or operative_stroke
+    design_space: {B: [4, 12]}          # Table 3 bounds unless overridden, by variable name
+    initial: table3                     # seed the GA with the paper's optimum (or design, none)
+    optimiser: {pop_size: 40, n_gen: 60}
+    prb: {target_force_N: 1.5, stroke_mm: 35}
+    fidelity: {points: 4, max_edge_mm: 0.5}
+
+``problem(study)`` returns a picklable :class:`ConstantForceProblem` (the
+:class:`optimise.DesignProblem` that ``flexopt run`` optimises); ``evaluate(study)`` analyses one
+design (the study's ``design:``, by default Table 3) for ``flexopt evaluate``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field, field_validator, model_validator
+
+from fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
+from fea.errors import FeaError
+from fea.materials import Material, get_material
+from geometry.constant_force import (
+    DESIGN_VARIABLE_NAMES,
+    TABLE1,
+    TABLE3_BOUNDS,
+    TABLE3_OPTIMUM,
+    WORK_DIRECTION,
+    ConstantForceDesign,
+    beam_profile,
+    design_from_vector,
+    design_to_vector,
+    flexure_width_mm,
+    optimise_prb,
+    outline,
+    prb_force_N,
+    stress_limited_stroke_mm,
+)
+from geometry.constant_force import min_feature_mm as design_min_feature_mm
+from geometry.errors import GeometryError
+from optimise.evaluation import Evaluation
+from optimise.problem import DesignDetail
+from optimise.space import DesignSpace
+from pipeline.errors import StudyError
+from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+
+__all__ = [
+    "ConstantForceGeometry",
+    "ConstantForceBoundary",
+    "ForceTarget",
+    "PRBSpec",
+    "FidelitySpec",
+    "ConstantForceStudy",
+    "ConstantForceProblem",
+    "CurveMetrics",
+    "curve_metrics",
+    "design_space",
+    "design_vector",
+    "fidelity_check",
+    "prb_report",
+    "prb_synthesis",
+    "problem",
+    "evaluate",
+    "check",
+]
+
+log = logging.getLogger(__name__)
+
+#: Variables that are fractions of an interval S_i -> S_{i+1} (Eq. 13); the rest are lengths, mm.
+_FRACTIONS = tuple(f"a{j}" for j in range(1, 11))
+
+
+# --------------------------------------------------------------------------------------------
+# The study file
+
+
+class ConstantForceGeometry(BaseModel):
+    """The ``geometry:`` block: layout, beam mesh, printability and clamping pads (mm)."""
+
+    model_config = STUDY_CONFIG
+
+    kind: Literal["constant_force"] = Field(description="constant_force")
+    end_flexures: Literal["centred", "outboard"] = Field(
+        "centred",
+        description="layout of the ground and slider flexures: centred on the PRB joints (the "
+        "paper's text) or outboard of them (a 10.8 mm longer beam)",
+    )
+    elements: int = Field(
+        60, ge=11, le=5000, description="beam elements (at least one per segment: 11)"
+    )
+    min_feature_mm: float = Field(
+        0.8,
+        gt=0,
+        description="thinnest printable section, mm; thinner designs are infeasible before FEA",
+    )
+    pad_length_mm: float = Field(8.0, gt=0, description="clamping pad length beyond S1 and S6, mm")
+    pad_thickness_mm: float = Field(4.0, gt=0, description="clamping pad thickness, mm")
+
+
+class ConstantForceBoundary(BaseModel):
+    """The ``boundary:`` block. S1 is clamped and S6 is driven along the work direction with its
+    transverse motion held (the paper's set-up, not options); its rotation is an option."""
+
+    model_config = STUDY_CONFIG
+
+    stroke_mm: float = Field(30.0, gt=0, le=100, description="drive of S6 along the work direction")
+    rows: int = Field(
+        60,
+        ge=2,
+        le=2000,
+        description="rows of the traced response (metrics interpolate between them)",
+    )
+    rotation: Literal["fixed", "free"] = Field(
+        "fixed", description="rotation of S6: fixed (the slider is guided) or free"
+    )
+
+
+class ForceTarget(BaseModel):
+    """The ``target:`` block: the force to hold and the stress not to pass."""
+
+    model_config = STUDY_CONFIG
+
+    force_N: float = Field(1.5, gt=0, description="force to hold, N")
+    tolerance_percent: float = Field(
+        2.0, gt=0, lt=100, description="band around force_N, percent of force_N"
+    )
+    samples: int = Field(
+        10, ge=1, le=1000, description="r: strokes stroke_mm*i/r of the RMS objective (Eq. 8)"
+    )
+    allowable_stress_MPa: float | None = Field(
+        None, gt=0, description="peak stress allowed, MPa (default: the material's yield)"
+    )
+    min_operative_stroke_mm: float = Field(
+        0.0,
+        ge=0,
+        description="if > 0, a constraint: the operative stroke must be at least this long, mm",
+    )
+
+
+class PRBSpec(BaseModel):
+    """The ``prb:`` block: re-synthesise the PRB slider-crank (paper Sec. 2) for a target."""
+
+    model_config = STUDY_CONFIG
+
+    target_force_N: float | None = Field(None, gt=0, description="default: target.force_N")
+    stroke_mm: float | None = Field(None, gt=0, le=60, description="default: boundary.stroke_mm")
+    x_in_mm: float = Field(100.0, gt=0, description="slider abscissa of the stretched state, mm")
+    e_mm: float = Field(60.0, gt=0, description="eccentricity of the slider axis, mm")
+
+
+class FidelitySpec(BaseModel):
+    """The ``fidelity:`` block: the plane-stress check of the best design."""
+
+    model_config = STUDY_CONFIG
+
+    enabled: bool = Field(True, description="run the plane-stress check in the report")
+    points: int = Field(4, ge=1, le=20, description="strokes compared over the operative window")
+    max_edge_mm: float = Field(
+        0.5, gt=0.05, le=5, description="triangle edge length of the plane-stress mesh, mm"
+    )
+
+
+class ConstantForceStudy(Study):
+    """A whole ``constant_force`` study file."""
+
+    geometry: ConstantForceGeometry = Field(description="kind: constant_force and its options")
+    boundary: ConstantForceBoundary = Field(
+        default_factory=ConstantForceBoundary, description="stroke_mm, rows, rotation"
+    )
+    target: ForceTarget = Field(
+        default_factory=ForceTarget,
+        description="force_N, tolerance_percent, samples, allowable_stress_MPa",
+    )
+    objective: Literal["rms_error", "operative_stroke"] = Field(
+        "rms_error",
+        description="rms_error: the paper's RMS(F - target) over the samples, stress checked "
+        "over the whole stroke; operative_stroke: maximise the stroke held in the band",
+    )
+    design_space: dict[str, list[float]] = Field(
+        default_factory=dict,
+        description="bounds [lower, upper] by variable name (a1..a10, t1..t10, T1, T6, B); "
+        "unlisted variables keep the paper's Table 3 bounds",
+    )
+    initial: Literal["table3", "design", "none"] = Field(
+        "table3",
+        description="seed the first population with the paper's Table 3 optimum, with the "
+        "study's design, or not at all",
+    )
+    design: str | dict[str, float] = Field(
+        "table3",
+        description="the design flexopt evaluate analyses: table3, or values by variable name "
+        "(unlisted ones from Table 3)",
+    )
+    optimiser: OptimiserSpec = Field(
+        default_factory=lambda: OptimiserSpec(pop_size=40, n_gen=60, quick_pop_size=8),
+        description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
+    )
+    prb: PRBSpec | None = Field(None, description="PRB synthesis reported beside the best design")
+    fidelity: FidelitySpec = Field(
+        default_factory=FidelitySpec, description="plane-stress check of the best design"
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _allowable_defaults_to_yield(cls, data: Any) -> Any:
+        # A resolved study carries the number it was run with, so the default is filled in here
+        # (from the material's yield) rather than left as null. An unusable material is left for
+        # the material validator to report.
+        if not isinstance(data, dict):
+            return data
+        target = data.get("target", {})
+        if target is None:
+            target = {}
+        if not isinstance(target, dict) or target.get("allowable_stress_MPa") is not None:
+            return data
+        yield_MPa = _yield_of(data.get("material"))
+        if yield_MPa is None:
+            return data
+        return {**data, "target": {**target, "allowable_stress_MPa": yield_MPa}}
+
+    @field_validator("design", mode="before")
+    @classmethod
+    def _design_is_table3_or_numbers(cls, value: Any) -> Any:
+        # Checked by hand: pydantic would report a union mismatch at a path like
+        # design.literal['table3'], which names no key of the file.
+        if isinstance(value, str):
+            if value != "table3":
+                raise ValueError(
+                    f"got '{value}'; use table3 or values by variable name, e.g. {{B: 5.5}}"
+                )
+            return value
+        if not isinstance(value, dict):
+            raise ValueError(f"got {value!r}; use table3 or a mapping {{variable: value}}")
+        for name, v in value.items():
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise ValueError(
+                    f"{name}: got {v!r}; give a number (mm, or a fraction for a1..a10)"
+                )
+        return {str(k): float(v) for k, v in value.items()}
+
+    @property
+    def allowable_MPa(self) -> float:
+        """The allowable stress, MPa (always set after validation)."""
+        value = self.target.allowable_stress_MPa
+        return float(value if value is not None else self.material.yield_MPa)
+
+
+def _yield_of(material: Any) -> float | None:
+    try:
+        if isinstance(material, str):
+            return float(get_material(material).yield_MPa)
+        if isinstance(material, dict) and isinstance(material.get("yield_MPa"), int | float):
+            return float(material["yield_MPa"])
+    except Exception:  # an unknown name: reported by the material validator
+        return None
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# From the study to the optimiser's inputs
+
+
+def _unknown_variable(name: str, path: str) -> StudyError:
+    close = [n for n in DESIGN_VARIABLE_NAMES if n.lower() == name.lower()]
+    close = close or difflib.get_close_matches(name, DESIGN_VARIABLE_NAMES, n=1)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    return StudyError(
+        f"{path}.{name}",
+        f"unknown design variable '{name}'; {hint}use a1..a10, t1..t10, T1, T6 or B "
+        "(names are case-sensitive: T1/T6 are the end thicknesses, t1..t10 the design points)",
+    )
+
+
+def design_space(study: ConstantForceStudy) -> DesignSpace:
+    """The 23-variable design space: Table 3 bounds, overridden by ``design_space:``.
+
+    Raises
+    ------
+    StudyError
+        At ``design_space.<name>`` for an unknown name, swapped or equal bounds, a position
+        fraction outside (0, 1), a non-positive length, or position ranges of one interval that
+        overlap (a design in the overlap would fold back on itself).
+    """
+    lower = np.array(TABLE3_BOUNDS.lower, dtype=float)
+    upper = np.array(TABLE3_BOUNDS.upper, dtype=float)
+    for name, bounds in study.design_space.items():
+        path = f"design_space.{name}"
+        if name not in DESIGN_VARIABLE_NAMES:
+            raise _unknown_variable(name, "design_space")
+        if len(bounds) != 2:
+            raise StudyError(
+                path, f"got {list(bounds)}; give two bounds [lower, upper], e.g. [4.0, 12.0]"
+            )
+        lo, hi = bounds
+        if lo > hi:
+            raise StudyError(
+                path,
+                f"lower bound {lo:g} > upper bound {hi:g}; did you swap them? [{hi:g}, {lo:g}]",
+            )
+        if lo == hi:
+            raise StudyError(
+                path,
+                f"equal bounds [{lo:g}, {hi:g}]; give a range, or fix the value with "
+                "a narrow range such as "
+                f"[{lo * 0.999:g}, {lo * 1.001:g}]",
+            )
+        if name in _FRACTIONS and not (0 < lo and hi < 1):
+            raise StudyError(
+                path,
+                f"[{lo:g}, {hi:g}] leaves (0, 1): {name} is the position of a design point as a "
+                "fraction of its interval S_i -> S_i+1 (Eq. 13); keep both bounds inside (0, 1)",
+            )
+        if name not in _FRACTIONS and not lo > 0:
+            raise StudyError(path, f"lower bound {lo:g} must be > 0 mm (a thickness or width)")
+        i = DESIGN_VARIABLE_NAMES.index(name)
+        lower[i], upper[i] = lo, hi
+    for k in range(5):  # a_{2k+1} < a_{2k+2} for every design: the two ranges must not overlap
+        first, second = 2 * k, 2 * k + 1
+        if upper[first] >= lower[second]:
+            n1, n2 = DESIGN_VARIABLE_NAMES[first], DESIGN_VARIABLE_NAMES[second]
+            raise StudyError(
+                f"design_space.{n1 if n1 in study.design_space else n2}",
+                f"{n1} may reach {upper[first]:g} but {n2} may go down to {lower[second]:g}: both "
+                f"lie on S{k + 1}->S{k + 2} and {n1} must stay below {n2}, or the beam folds "
+                f"back; make {n1}'s upper bound smaller than {n2}'s lower bound",
+            )
+    names = tuple(n if n in _FRACTIONS else f"{n}_mm" for n in DESIGN_VARIABLE_NAMES)
+    return DesignSpace(names, lower, upper)
+
+
+def design_vector(study: ConstantForceStudy) -> np.ndarray:
+    """(23,) the study's ``design:`` (Table 3 for ``table3``; unlisted names from Table 3).
+
+    Raises
+    ------
+    StudyError
+        At ``design.<name>`` for an unknown variable name.
+    """
+    x = design_to_vector(TABLE3_OPTIMUM)
+    if isinstance(study.design, dict):
+        for name, value in study.design.items():
+            if name not in DESIGN_VARIABLE_NAMES:
+                raise _unknown_variable(name, "design")
+            x[DESIGN_VARIABLE_NAMES.index(name)] = value
+    return x
+
+
+def check(study: ConstantForceStudy) -> None:
+    """Build the design space, the study's design and its beam once, so that every refusal is
+    reported (with its key path) before any run folder exists."""
+    space = design_space(study)
+    x = design_vector(study)
+    try:
+        design = design_from_vector(x)
+    except GeometryError as exc:
+        raise StudyError("design", f"{exc}") from exc
+    try:
+        outline(
+            design,
+            pad_length_mm=study.geometry.pad_length_mm,
+            pad_thickness_mm=study.geometry.pad_thickness_mm,
+            end_flexures=study.geometry.end_flexures,
+        )
+    except GeometryError as exc:
+        raise StudyError("geometry.pad_thickness_mm", str(exc)) from exc
+    upper_t = space.upper[[DESIGN_VARIABLE_NAMES.index("T1"), DESIGN_VARIABLE_NAMES.index("T6")]]
+    if study.geometry.pad_thickness_mm < upper_t.max():
+        raise StudyError(
+            "geometry.pad_thickness_mm",
+            f"{study.geometry.pad_thickness_mm:g} mm is thinner than the beam ends may be "
+            f"(T1/T6 up to {upper_t.max():g} mm); make the pads at least that thick",
+        )
+    if study.target.min_operative_stroke_mm > study.boundary.stroke_mm:
+        raise StudyError(
+            "target.min_operative_stroke_mm",
+            f"{study.target.min_operative_stroke_mm:g} mm is longer than the drive "
+            f"(boundary.stroke_mm = {study.boundary.stroke_mm:g}); lengthen the stroke or lower it",
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# Metrics of one force-stroke curve
+
+
+@dataclass(frozen=True)
+class CurveMetrics:
+    """What the response of one design says about constant force (see :func:`curve_metrics`).
+
+    Attributes
+    ----------
+    rms_error_N : float, N — RMS of F - target over the objective samples (Eq. 8).
+    operative_stroke_mm : float, mm — length of the longest window where the force is in the band
+        and the stress is allowable; 0 when there is none.
+    window_mm : (float, float), mm — that window (``(nan, nan)`` when there is none).
+    mean_force_N, flatness_percent : float or None — mean of F over the window and max |F - mean|
+        / mean in percent; None without a window.
+    peak_stress_MPa : float, MPa — over the whole stroke.
+    window_peak_stress_MPa : float, MPa — over ``[0, window end]`` (0 without a window).
+    stress_limit_stroke_mm : float or None, mm — first stroke where the stress reaches the
+        allowable; None when it never does.
+    plateau_mean_force_N, plateau_flatness_percent : float or None — the same as mean_force and
+        flatness, over the stress-admissible part of the stroke from the first row on, whatever
+        the target (how constant the force is, not whether it is the right one).
+    """
+
+    rms_error_N: float
+    operative_stroke_mm: float
+    window_mm: tuple[float, float]
+    mean_force_N: float | None
+    flatness_percent: float | None
+    peak_stress_MPa: float
+    window_peak_stress_MPa: float
+    stress_limit_stroke_mm: float | None
+    plateau_mean_force_N: float | None
+    plateau_flatness_percent: float | None
+
+
+def _interval(y0: float, y1: float, lo: float, hi: float) -> tuple[float, float] | None:
+    """Part ``[u0, u1]`` of [0, 1] where ``lo <= y0 + u (y1 - y0) <= hi`` (or None)."""
+    dy = y1 - y0
+    if dy == 0.0:
+        return (0.0, 1.0) if lo <= y0 <= hi else None
+    a, b = (lo - y0) / dy, (hi - y0) / dy
+    u0, u1 = max(0.0, min(a, b)), min(1.0, max(a, b))
+    return (u0, u1) if u0 <= u1 else None
+
+
+def _windows(
+    s: np.ndarray,
+    force: np.ndarray,
+    stress: np.ndarray,
+    band: tuple[float, float],
+    allowable: float,
+) -> list[tuple[float, float]]:
+    """Stroke intervals where the piecewise-linear force is in ``band`` and the piecewise-linear
+    stress is at most ``allowable``, merged where they touch, in stroke order."""
+    out: list[list[float]] = []
+    for k in range(len(s) - 1):
+        fi = _interval(force[k], force[k + 1], *band)
+        si = _interval(stress[k], stress[k + 1], -np.inf, allowable)
+        if fi is None or si is None:
+            continue
+        u0, u1 = max(fi[0], si[0]), min(fi[1], si[1])
+        if u0 > u1:
+            continue
+        a = s[k] + u0 * (s[k + 1] - s[k])
+        b = s[k] + u1 * (s[k + 1] - s[k])
+        if out and abs(out[-1][1] - a) <= 1e-12 * max(1.0, abs(a)):
+            out[-1][1] = b
+        else:
+            out.append([a, b])
+    return [(a, b) for a, b in out]
+
+
+def _piecewise_stats(
+    s: np.ndarray, force: np.ndarray, a: float, b: float
+) -> tuple[float | None, float | None]:
+    """Mean (integral / length) and max |F - mean| / mean in percent of the piecewise-linear
+    force over [a, b]; its extremes sit at the rows inside and the interpolated ends."""
+    if not b > a:
+        return None, None
+    inner = (s > a) & (s < b)
+    ss = np.concatenate([[a], s[inner], [b]])
+    ff = np.interp(ss, s, force)
+    mean = float(np.trapezoid(ff, ss) / (b - a))
+    if mean == 0.0:
+        return mean, None
+    return mean, float(np.max(np.abs(ff - mean)) / abs(mean) * 100.0)
+
+
+def curve_metrics(
+    stroke_mm: np.ndarray,
+    force_N: np.ndarray,
+    stress_MPa: np.ndarray,
+    target_N: float,
+    tolerance: float,
+    allowable_MPa: float,
+    samples: int,
+) -> CurveMetrics:
+    """Constant-force metrics of one traced response.
+
+    The response is taken as piecewise linear between its rows; every crossing (band edges,
+    allowable stress) is found exactly on that interpolant, so the metrics are finer than the
+    objective's ``samples`` and need no extra solve. Row 0 is the unloaded state (F = 0) and the
+    beam buckles within a fraction of a millimetre after it, so the straight line from row 0 to
+    row 1 says nothing about the force in between (it would cross any band on the way up): the
+    windows are searched from row 1 on. A window therefore starts at the earliest at
+    ``stroke / rows``, up to one row spacing later than the physical plateau (conservative).
+
+    Parameters
+    ----------
+    stroke_mm : (n,) float, mm — increasing from 0.
+    force_N : (n,) float, N — output force at those strokes.
+    stress_MPa : (n,) float, MPa — peak stress over the beam at those strokes.
+    target_N : float, N.
+    tolerance : float — half-width of the band as a fraction of ``target_N`` (0.02 = 2 %).
+    allowable_MPa : float, MPa.
+    samples : int — r; the RMS objective uses the strokes ``stroke_max * i / r``, i = 1..r.
+
+    Returns
+    -------
+    CurveMetrics
+    """
+    s = np.asarray(stroke_mm, dtype=float)
+    f = np.asarray(force_N, dtype=float)
+    sig = np.asarray(stress_MPa, dtype=float)
+    probes = s[-1] * np.arange(1, samples + 1) / samples
+    rms = float(np.sqrt(np.mean((np.interp(probes, s, f) - target_N) ** 2)))
+    band = (target_N * (1.0 - tolerance), target_N * (1.0 + tolerance))
+    windows = _windows(s[1:], f[1:], sig[1:], band, allowable_MPa)
+    if windows:
+        a, b = max(windows, key=lambda w: (w[1] - w[0], -w[0]))
+        mean, flat = _piecewise_stats(s, f, a, b)
+        window_stress = float(np.max(np.interp(np.append(s[s <= b], b), s, sig)))
+    else:
+        a = b = math.nan
+        mean = flat = None
+        window_stress = 0.0
+    over = np.flatnonzero(sig >= allowable_MPa)
+    if over.size == 0:
+        limit = None
+    elif over[0] == 0:
+        limit = 0.0
+    else:
+        k = int(over[0])
+        u = (allowable_MPa - sig[k - 1]) / (sig[k] - sig[k - 1])
+        limit = float(s[k - 1] + u * (s[k] - s[k - 1]))
+    plateau_end = s[-1] if limit is None else limit
+    plateau_mean, plateau_flat = _piecewise_stats(s, f, float(s[1]), float(plateau_end))
+    return CurveMetrics(
+        rms_error_N=rms,
+        operative_stroke_mm=float(b - a) if windows else 0.0,
+        window_mm=(float(a), float(b)),
+        mean_force_N=mean,
+        flatness_percent=flat,
+        peak_stress_MPa=float(np.max(sig)),
+        window_peak_stress_MPa=window_stress,
+        stress_limit_stroke_mm=limit,
+        plateau_mean_force_N=plateau_mean,
+        plateau_flatness_percent=plateau_flat,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# The design problem
+
+
+def _thinnest(design: ConstantForceDesign) -> tuple[str, float]:
+    names = ("T1", *(f"t{j}" for j in range(1, 11)), "T6")
+    t = design.vertex_thickness_mm
+    i = int(np.argmin(t))
+    return names[i], float(t[i])
+
+
+class ConstantForceProblem:
+    """The :class:`optimise.DesignProblem` of a ``constant_force`` study.
+
+    Holds only the validated study and plain numbers, so it pickles small and each worker
+    rebuilds nothing but the beam of the design it evaluates. ``evaluate`` is deterministic and
+    never raises for a bad design.
+
+    Objectives (minimised)
+    ----------------------
+    ``rms_error``: ``rms_error_N`` — the paper's Eq. 8 over ``target.samples`` strokes.
+    ``operative_stroke``: ``negative_operative_stroke_mm`` = ``-operative_stroke_mm + stroke_mm *
+    rms_error_N / force_N``. The second term is a tie-breaker: it orders the many designs that
+    have no window at all (most of a random population) by how close they are to the target, and
+    among designs with equal windows prefers the flatter one; it is worth ~0.1 mm for a design
+    that holds the band.
+
+    Constraints (g <= 0)
+    --------------------
+    ``stress_ratio_minus_1`` = peak stress / allowable - 1, over the whole drive for
+    ``rms_error`` (the paper's constraint: the mechanism must survive the stroke it is driven
+    through) and over ``[0, window end]`` for ``operative_stroke`` (the window is the stroke used;
+    a stop ends the travel there). ``operative_stroke_shortfall_mm`` = ``min_operative_stroke_mm
+    - operative_stroke_mm`` when ``target.min_operative_stroke_mm > 0``.
+    """
+
+    def __init__(self, study: ConstantForceStudy) -> None:
+        self.study = study
+        self.space = design_space(study)
+        self.material: Material = study.material.to_material()
+        self.allowable_MPa = study.allowable_MPa
+        self.objective_names: tuple[str, ...] = (
+            ("rms_error_N",)
+            if study.objective == "rms_error"
+            else ("negative_operative_stroke_mm",)
+        )
+        names = ["stress_ratio_minus_1"]
+        if study.target.min_operative_stroke_mm > 0:
+            names.append("operative_stroke_shortfall_mm")
+        self.constraint_names: tuple[str, ...] = tuple(names)
+
+    # ---- what the run pipeline may ask besides evaluate/detail
+
+    def initial_designs(self) -> np.ndarray | None:
+        """(k, 23) designs for the first population (``initial:``), or None."""
+        if self.study.initial == "none":
+            return None
+        if self.study.initial == "table3":
+            x = design_to_vector(TABLE3_OPTIMUM)
+        else:
+            x = design_vector(self.study)
+        # Table 3 lies outside a narrowed space; the nearest design in it seeds instead.
+        return self.space.clip(x)[None, :]
+
+    # ---- building and solving
+
+    def _design(self, x: np.ndarray) -> ConstantForceDesign:
+        return design_from_vector(np.asarray(x, dtype=float))
+
+    def _drive(self, max_mm: float, steps: int) -> EndDrive:
+        return EndDrive(
+            "displacement",
+            WORK_DIRECTION,
+            float(max_mm),
+            int(steps),
+            self.study.boundary.rotation,
+            "fixed",
+        )
+
+    def _beam(self, design: ConstantForceDesign) -> BeamModel:
+        profile = beam_profile(design, end_flexures=self.study.geometry.end_flexures)
+        settings = BeamSettings(n_elements=self.study.geometry.elements)
+        return BeamModel(profile, self.material, "clamped", settings)
+
+    def _printability(self, design: ConstantForceDesign) -> str:
+        """Empty when printable, else the reason (a check on the design vector: exact, as the
+        thickness is linear between vertices, and far cheaper than a solve)."""
+        limit = self.study.geometry.min_feature_mm
+        name, t = _thinnest(design)
+        if t < limit:
+            return f"not printable: {name} = {t:.4g} mm is thinner than min_feature_mm = {limit:g}"
+        if design.B < limit:
+            return (
+                f"not printable: B = {design.B:.4g} mm is thinner than min_feature_mm = {limit:g}"
+            )
+        return ""
+
+    def _solve(self, x: np.ndarray) -> tuple[ConstantForceDesign | None, BeamResponse | None, str]:
+        try:
+            design = self._design(x)
+        except GeometryError as exc:
+            return None, None, f"cannot build: {exc}"
+        reason = self._printability(design)
+        if reason:
+            return design, None, reason
+        drive = self._drive(self.study.boundary.stroke_mm, self.study.boundary.rows)
+        try:
+            response = self._beam(design).solve(drive)
+        except (GeometryError, FeaError) as exc:
+            return design, None, f"cannot build: {exc}"
+        if not response.ok:
+            return design, response, f"did not converge: {response.message}"
+        return design, response, ""
+
+    def _metrics(self, design: ConstantForceDesign, response: BeamResponse) -> CurveMetrics:
+        t = self.study.target
+        return curve_metrics(
+            response.displacement_mm,
+            response.force_N,
+            response.peak_stress_MPa,
+            t.force_N,
+            t.tolerance_percent / 100.0,
+            self.allowable_MPa,
+            t.samples,
+        )
+
+    def _evaluation(
+        self, x: np.ndarray, design: ConstantForceDesign, m: CurveMetrics, time_s: float
+    ) -> Evaluation:
+        study = self.study
+        if study.objective == "rms_error":
+            f = [m.rms_error_N]
+            stress = m.peak_stress_MPa
+        else:
+            f = [
+                -m.operative_stroke_mm
+                + study.boundary.stroke_mm * m.rms_error_N / study.target.force_N
+            ]
+            stress = m.window_peak_stress_MPa
+        g = [stress / self.allowable_MPa - 1.0]
+        if study.target.min_operative_stroke_mm > 0:
+            g.append(study.target.min_operative_stroke_mm - m.operative_stroke_mm)
+        metrics: dict[str, Any] = {
+            "mean_force_N": m.mean_force_N,
+            "flatness_percent": m.flatness_percent,
+            "operative_stroke_mm": m.operative_stroke_mm,
+            "operative_start_mm": None if math.isnan(m.window_mm[0]) else m.window_mm[0],
+            "operative_end_mm": None if math.isnan(m.window_mm[1]) else m.window_mm[1],
+            "peak_stress_MPa": m.peak_stress_MPa,
+            "window_peak_stress_MPa": m.window_peak_stress_MPa,
+            "stress_limit_stroke_mm": m.stress_limit_stroke_mm,
+            "rms_error_N": m.rms_error_N,
+            "plateau_mean_force_N": m.plateau_mean_force_N,
+            "plateau_flatness_percent": m.plateau_flatness_percent,
+            "min_feature_mm": design_min_feature_mm(design),
+        }
+        return Evaluation(np.asarray(x, dtype=float), np.array(f), np.array(g), metrics, "", time_s)
+
+    def _failed(self, x: np.ndarray, reason: str, t0: float, design: Any = None) -> Evaluation:
+        metrics = {} if design is None else {"min_feature_mm": design_min_feature_mm(design)}
+        return Evaluation.failed(
+            x,
+            len(self.objective_names),
+            len(self.constraint_names),
+            reason,
+            time.perf_counter() - t0,
+            metrics,
+        )
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        """Evaluate one design vector (23,); a bad design comes back infeasible with a reason."""
+        t0 = time.perf_counter()
+        x = np.asarray(x, dtype=float)
+        try:
+            design, response, reason = self._solve(x)
+            if reason or response is None or design is None:
+                return self._failed(x, reason or "failed", t0, design)
+            m = self._metrics(design, response)
+            return self._evaluation(x, design, m, time.perf_counter() - t0)
+        except Exception as exc:  # never let one design end the run
+            log.exception("constant_force: evaluating %s raised", x)
+            return self._failed(x, f"raised {type(exc).__name__}: {exc}", t0)
+
+    # ---- the report of one design
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        """Full response, outline, plane-stress fidelity check and PRB comparison of a design.
+
+        ``table``: the traced rows (``displacement_mm``, ``force_N``, ``force_error_percent``,
+        ``transverse_force_N``, ``moment_Nmm``, ``end_rotation_deg``, ``peak_stress_MPa``,
+        ``peak_stress_s_mm``, ``in_window``); ``shapes_mm``: deformed beam nodes per row;
+        ``outline``: the printable polygon with its clamping pads, extruded by ``height_mm`` = B;
+        ``plot``: target force and its band half-width ``tolerance`` (N), allowable stress;
+        ``info``: the design by name, the plane-stress ``fidelity`` check, the ``prb_frame``
+        comparison and, with a ``prb:`` block, the ``prb`` synthesis.
+        """
+        x = np.asarray(x, dtype=float)
+        evaluation = self.evaluate(x)
+        study = self.study
+        info: dict[str, Any] = {
+            "design": {n: float(v) for n, v in zip(DESIGN_VARIABLE_NAMES, x, strict=True)},
+            "objective": study.objective,
+            "end_flexures": study.geometry.end_flexures,
+            "allowable_stress_MPa": self.allowable_MPa,
+            "band_N": [
+                study.target.force_N * (1 - study.target.tolerance_percent / 100),
+                study.target.force_N * (1 + study.target.tolerance_percent / 100),
+            ],
+        }
+        try:
+            design = self._design(x)
+        except GeometryError as exc:
+            info["problem"] = f"cannot build: {exc}"
+            return DesignDetail(evaluation, info=info)
+        g = study.geometry
+        shape = outline(design, TABLE1, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+        profile = beam_profile(design, end_flexures=g.end_flexures)
+        info["beam_length_mm"] = profile.length_mm
+        info["outline_area_mm2"] = shape.area
+        _, response, reason = self._solve(x)
+        if response is None:
+            info["problem"] = reason
+            return DesignDetail(evaluation, outline=shape, height_mm=design.B, info=info)
+        table = _response_table(response, study.target.force_N)
+        m = self._metrics(design, response)
+        a, b = m.window_mm
+        table["in_window"] = (
+            (table["displacement_mm"] >= a) & (table["displacement_mm"] <= b)
+            if m.operative_stroke_mm > 0
+            else np.zeros(len(table["displacement_mm"]), dtype=bool)
+        )
+        # The checks compare over the operative window; a window shorter than a quarter of the
+        # drive (or none) says little, so they then compare over the whole drive instead.
+        if m.operative_stroke_mm >= 0.25 * study.boundary.stroke_mm:
+            lo, hi = a, b
+        else:
+            lo, hi = 0.0, study.boundary.stroke_mm
+        info["compared_over_mm"] = [lo, hi]
+        info["prb_frame"] = _prb_frame_comparison(table, lo, hi)
+        # The checks are reported, never fatal: a report without them beats no report.
+        if study.fidelity.enabled:
+            info["fidelity"] = _guarded(fidelity_check, self, design, response, lo, hi)
+        else:
+            info["fidelity"] = {"skipped": "fidelity.enabled is false"}
+        if study.prb is not None:
+            info["prb"] = _guarded(prb_synthesis, study)
+        tol_N = study.target.force_N * study.target.tolerance_percent / 100.0
+        plot = {
+            "x": "displacement_mm",
+            "y": "force_N",
+            "stress": "peak_stress_MPa",
+            "target": study.target.force_N,
+            "tolerance": tol_N,
+            "allowable_MPa": self.allowable_MPa,
+            "xlabel": "stroke of S6 along the work direction (mm)",
+            "ylabel": "output force (N)",
+        }
+        return DesignDetail(
+            evaluation=evaluation,
+            table=table,
+            plot=plot,
+            shapes_mm=np.asarray(response.shapes_mm),
+            outline=shape,
+            height_mm=design.B,
+            info=info,
+        )
+
+
+def _guarded(check: Any, *args: Any) -> dict[str, Any]:
+    try:
+        return check(*args)
+    except Exception as exc:
+        log.exception("constant_force: %s raised", check.__name__)
+        return {"skipped": f"raised {type(exc).__name__}: {exc}"}
+
+
+def _response_table(response: BeamResponse, target_N: float) -> dict[str, np.ndarray]:
+    """The traced response as named columns (row 0 unloaded). The output force is the force
+    that pushes S6 along the work direction, positive in compression like the paper's plots."""
+    force = np.asarray(response.force_N, dtype=float)
+    return {
+        "displacement_mm": np.asarray(response.displacement_mm, dtype=float),
+        "force_N": force,
+        "force_error_percent": (force - target_N) / target_N * 100.0,
+        "transverse_force_N": np.asarray(response.transverse_force_N, dtype=float),
+        "moment_Nmm": np.asarray(response.moment_Nmm, dtype=float),
+        "end_rotation_deg": np.degrees(np.asarray(response.end_rotation_rad, dtype=float)),
+        "peak_stress_MPa": np.asarray(response.peak_stress_MPa, dtype=float),
+        "peak_stress_s_mm": np.asarray(response.peak_stress_s_mm, dtype=float),
+    }
+
+
+def _prb_frame_comparison(table: dict[str, np.ndarray], lo: float, hi: float) -> dict[str, Any]:
+    """The beam against the PRB model whose joints it is laid out on (Table 1): the beam is the
+    paper's 'smoothed' PRB mechanism, so this shows how far the smoothing moved the force."""
+    strokes = np.linspace(lo, hi, 5)[1:] if hi > lo else np.array([hi])
+    prb = prb_force_N(TABLE1, strokes)
+    beam = np.interp(strokes, table["displacement_mm"], table["force_N"])
+    return {
+        "model": "PRB slider-crank of paper Table 1 (r1 = 54 mm, theta10 = 0.542 rad)",
+        "stroke_mm": strokes.tolist(),
+        "prb_force_N": prb.tolist(),
+        "beam_force_N": beam.tolist(),
+        "beam_over_prb": (beam / prb).tolist(),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Independent checks
+
+
+def _beam_to_mesh(beam: BeamModel, shape_mm: np.ndarray, points_mm: np.ndarray) -> np.ndarray:
+    """Displacement (k, 2) mm of plane-stress nodes ``points_mm`` (k, 2) that follows the beam.
+
+    Each node is located on the reference centreline (arc length ``s``, normal offset ``eta``)
+    and carried to the deformed centreline point at ``s`` plus ``eta`` along the deformed normal
+    (plane sections stay plane and normal: the beam's kinematics without shear). Nodes beyond the
+    ends (the pads) take the end's motion; their values are replaced by the supports anyway.
+    """
+    import shapely
+    from shapely.geometry import LineString
+
+    s_nodes = beam.s_nodes
+    ref = beam.reference_nodes_mm
+    s = shapely.line_locate_point(LineString(ref), shapely.points(points_mm))
+
+    def frame(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        angle = np.unwrap(
+            np.arctan2(np.gradient(xy[:, 1], s_nodes), np.gradient(xy[:, 0], s_nodes))
+        )
+        a = np.interp(s, s_nodes, angle)
+        base = np.column_stack([np.interp(s, s_nodes, xy[:, 0]), np.interp(s, s_nodes, xy[:, 1])])
+        return base, np.column_stack([-np.sin(a), np.cos(a)])
+
+    base0, n0 = frame(ref)
+    eta = np.einsum("ij,ij->i", points_mm - base0, n0)
+    base, n = frame(np.asarray(shape_mm, dtype=float))
+    return base + eta[:, None] * n - points_mm
+
+
+def fidelity_check(
+    problem: ConstantForceProblem,
+    design: ConstantForceDesign,
+    response: BeamResponse,
+    lo: float,
+    hi: float,
+) -> dict[str, Any]:
+    """Check the beam model against a plane-stress, geometrically nonlinear FEA of the outline.
+
+    The outline (beam plus pads) is meshed with quadratic triangles; the S1 pad is clamped and
+    the S6 pad translated along the work direction as a rigid body (transverse motion and
+    rotation held: the beam's boundary conditions). At ``fidelity.points`` strokes spread over
+    ``[lo, hi]`` (the operative window; the rows of ``response`` nearest to them) the plane-stress
+    equilibrium is solved by Newton's method **started from the beam's deformed shape** mapped
+    onto the mesh, and its force and peak stress are compared with the beam's.
+
+    Why start from the beam: the post-buckled beam is one of several equilibria at a given
+    stroke (higher buckling modes carry 5-10x the force). The plane-stress solver's own path
+    following (uniform load steps from the straight state, no stability check) lands on such a
+    higher branch for some designs even with 1 mm steps. The beam's shape only selects the branch;
+    the force is the plane-stress model's own equilibrium, and the smallest eigenvalue of its
+    tangent (``stable``) confirms that equilibrium is stable, i.e. the physical one.
+    ``max_shape_change_mm`` is how far Newton moved the mesh from the beam's shape.
+
+    Stresses in elements touching the pads are left out: the re-entrant pad corners are singular
+    in 2D elasticity and have no counterpart in the beam. The plane-stress stress is the nodal
+    (vertex-averaged) von Mises stress; the beam's is ``|N|/A + |M| c / I``.
+
+    Returns
+    -------
+    dict
+        ``stroke_mm``, ``beam_force_N``, ``plane_stress_force_N``, ``relative_difference``
+        (plane stress / beam - 1), ``max_abs_relative_difference``, ``within_5_percent``, peak
+        stresses and transverse forces of both, ``stable``, Newton iterations, mesh size and
+        time; or ``skipped`` with the reason.
+    """
+    import scipy.sparse.linalg as spla
+    from shapely.geometry import Polygon
+
+    from fea.mesh import mesh_polygon
+    from fea.plane_stress import Clamp, PlaneStressModel, Translate
+
+    study = problem.study
+    spec = study.fidelity
+    g = study.geometry
+    if study.boundary.rotation != "fixed":
+        return {
+            "skipped": "boundary.rotation is free: a rigid drive pad holds the rotation, so the "
+            "plane-stress model cannot represent a free end rotation"
+        }
+    t0 = time.perf_counter()
+    stroke_rows = np.asarray(response.displacement_mm, dtype=float)
+    ideal = lo + (hi - lo) * np.arange(1, spec.points + 1) / spec.points
+    inside = np.flatnonzero((stroke_rows >= lo - 1e-9) & (stroke_rows <= hi + 1e-9))
+    inside = inside[inside > 0]
+    if inside.size == 0:
+        inside = np.arange(1, len(stroke_rows))
+    rows = np.unique([int(inside[np.argmin(np.abs(stroke_rows[inside] - v))]) for v in ideal])
+    try:
+        shape = outline(design, TABLE1, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+        beam = problem._beam(design)
+        pts = beam.profile.points_mm
+
+        def pad(end: np.ndarray, outward: np.ndarray) -> Polygon:
+            # The pad, grown by a hair so that nodes on its edges are inside it for the selection.
+            outward = outward / np.linalg.norm(outward)
+            n = np.array([-outward[1], outward[0]]) * (0.5 * g.pad_thickness_mm + 1e-3)
+            far = end + outward * (g.pad_length_mm + 1e-3)
+            return Polygon([end - n, far - n, far + n, end + n])
+
+        clamp = pad(pts[0], pts[0] - pts[1])
+        driven = pad(pts[-1], pts[-1] - pts[-2])
+        mesh = mesh_polygon(shape, spec.max_edge_mm)
+        # The drive's max_mm and steps are not used: each stroke is prescribed directly.
+        model = PlaneStressModel(
+            mesh,
+            problem.material,
+            design.B,
+            Clamp(clamp),
+            Translate(driven, WORK_DIRECTION, hi, 1, "fixed"),
+            stress_ignore=clamp.union(driven),
+        )
+    except (GeometryError, FeaError) as exc:
+        return {"skipped": f"could not build the plane-stress model: {exc}"}
+    cfg = model.settings
+    direction = np.asarray(WORK_DIRECTION, dtype=float)
+    normal = np.array([-direction[1], direction[0]])
+    out: dict[str, list] = {
+        "force": [],
+        "transverse": [],
+        "stress": [],
+        "iterations": [],
+        "converged": [],
+        "stable": [],
+        "eig": [],
+        "moved": [],
+    }
+    for k in rows:
+        guess = _beam_to_mesh(beam, response.shapes_mm[k], model.xy)
+        u = np.zeros(model.n_dofs)
+        u[model.ix], u[model.iy] = guess[:, 0], guess[:, 1]
+        u = model.P @ (model.PT @ u) + model.prescribed(float(stroke_rows[k]), "nonlinear")
+        u_start = u.copy()
+        converged = False
+        iterations = 0
+        for it in range(1, cfg.max_newton_iter + 1):
+            iterations = it
+            state = model.state(u, "nonlinear")
+            residual = model.PT @ state.f
+            scale = float(np.linalg.norm(state.f))
+            if float(np.linalg.norm(residual)) <= cfg.rtol_residual * scale + cfg.atol_residual_N:
+                converged = state.min_det_F >= cfg.min_det_F
+                break
+            reduced = (model.PT @ state.K @ model.P).tocsc()
+            u = u + model.P @ spla.splu(reduced, permc_spec="MMD_AT_PLUS_A").solve(-residual)
+        reaction = np.array([state.f[model.drive_dofs_x].sum(), state.f[model.drive_dofs_y].sum()])
+        reduced = (model.PT @ state.K @ model.P).tocsc()
+        # The eigenvalue nearest to zero (shift-invert): negative means an unstable equilibrium.
+        eig = float(spla.eigsh(reduced, k=1, sigma=-1e-9, which="LM", return_eigenvectors=False)[0])
+        moved = np.hypot(*(u - u_start)[np.stack([model.ix, model.iy])]).max()
+        out["force"].append(float(reaction @ direction))
+        out["transverse"].append(float(reaction @ normal))
+        out["stress"].append(float(model.peak_stress(u, "nonlinear")[2]))
+        out["iterations"].append(iterations)
+        out["converged"].append(bool(converged))
+        out["eig"].append(eig)
+        out["stable"].append(bool(eig > 0))
+        out["moved"].append(float(moved))
+    beam_f = np.asarray(response.force_N)[rows]
+    ps_f = np.array(out["force"])
+    rel = ps_f / beam_f - 1.0
+    ok = all(out["converged"])
+    return {
+        "model": "plane stress, total Lagrangian SVK, P2 triangles (fea.plane_stress), "
+        "Newton from the beam's deformed shape",
+        "stroke_mm": stroke_rows[rows].tolist(),
+        "beam_force_N": beam_f.tolist(),
+        "plane_stress_force_N": ps_f.tolist(),
+        "relative_difference": rel.tolist(),
+        "max_abs_relative_difference": float(np.max(np.abs(rel))),
+        "within_5_percent": bool(ok and np.max(np.abs(rel)) <= 0.05),
+        "beam_peak_stress_MPa": np.asarray(response.peak_stress_MPa)[rows].tolist(),
+        "plane_stress_peak_nodal_von_mises_MPa": out["stress"],
+        "beam_transverse_force_N": np.asarray(response.transverse_force_N)[rows].tolist(),
+        "plane_stress_transverse_force_N": out["transverse"],
+        "converged": out["converged"],
+        "stable": out["stable"],
+        "min_tangent_eigenvalue_N_per_mm": out["eig"],
+        "newton_iterations": out["iterations"],
+        "max_shape_change_mm": out["moved"],
+        "mesh": {
+            "max_edge_mm": spec.max_edge_mm,
+            "triangles": mesh.n_triangles,
+            "dofs": model.n_dofs,
+        },
+        "time_s": time.perf_counter() - t0,
+    }
+
+
+def prb_report(
+    target_force_N: float,
+    stroke_mm: float,
+    E_MPa: float = 1800.0,
+    allowable_MPa: float = 42.5,
+    flexure_thickness_mm: float = 0.8,
+    x_in_mm: float = 100.0,
+    e_mm: float = 60.0,
+) -> dict[str, Any]:
+    """The paper's first stage for any target: Table-1-like PRB parameters and lumped flexures.
+
+    :func:`geometry.constant_force.optimise_prb` finds ``r1, theta10, K1..K3`` whose force stays
+    at ``target_force_N`` over ``stroke_mm`` (Eq. 8, ~1 s). The flexures that realise the K are
+    sized at ``flexure_thickness_mm`` (the printable minimum gives the narrowest pivots and so the
+    longest stroke before a pivot reaches ``allowable_MPa``, as ``sigma = E h |Psi| / (2 L)``)
+    and the paper's 10.8 mm length: ``b = 12 K L / (E h^3)`` (Eq. 12).
+
+    Parameters
+    ----------
+    target_force_N : float, N
+    stroke_mm : float, mm
+    E_MPa : float, MPa — Young's modulus of the flexures (ABS: 1800).
+    allowable_MPa : float, MPa
+    flexure_thickness_mm : float, mm
+    x_in_mm, e_mm : float, mm — the fixed slider position (Eq. 10; paper: 100 and 60).
+
+    Returns
+    -------
+    dict
+        ``r1_mm``, ``theta10_rad``, ``K_Nmm_per_rad``, ``r2_mm``, ``rms_error_N``,
+        ``relative_rms_error``, ``force_range_N``, ``lumped_flexures`` (thickness, length, widths,
+        ``stress_limited_stroke_mm``), the paper's ``table1`` for comparison; or ``skipped``.
+    """
+    t0 = time.perf_counter()
+    try:
+        fit = optimise_prb(target_force_N, stroke_mm, x_in_mm, e_mm)
+    except GeometryError as exc:
+        return {"skipped": str(exc)}
+    p = fit.params
+    h, length = flexure_thickness_mm, 10.8
+    K = p.stiffness_Nmm
+    widths = [float(flexure_width_mm(k, E_MPa, h, length)) if k > 0 else 0.0 for k in K]
+    limit = stress_limited_stroke_mm(p, E_MPa, allowable_MPa, h, length, max_stroke_mm=60.0)
+    return {
+        "target_force_N": float(target_force_N),
+        "stroke_mm": float(stroke_mm),
+        "r1_mm": p.r1_mm,
+        "theta10_rad": p.theta10_rad,
+        "K_Nmm_per_rad": K.tolist(),
+        "r2_mm": p.r2_mm,
+        "rms_error_N": fit.rms_error_N,
+        "relative_rms_error": fit.relative_rms_error,
+        "force_range_N": [float(fit.force_N.min()), float(fit.force_N.max())],
+        "lumped_flexures": {
+            "thickness_mm": h,
+            "length_mm": length,
+            "width_mm": widths,
+            "stress_limited_stroke_mm": None if math.isinf(limit) else limit,
+        },
+        "table1": {
+            "r1_mm": TABLE1.r1_mm,
+            "theta10_rad": TABLE1.theta10_rad,
+            "K_Nmm_per_rad": TABLE1.stiffness_Nmm.tolist(),
+        },
+        "time_s": time.perf_counter() - t0,
+    }
+
+
+def prb_synthesis(study: ConstantForceStudy) -> dict[str, Any]:
+    """:func:`prb_report` for the study's ``prb:`` block (defaults: the study's target force and
+    drive stroke, its material, allowable stress and printable minimum thickness)."""
+    spec = study.prb or PRBSpec()
+    return prb_report(
+        spec.target_force_N or study.target.force_N,
+        spec.stroke_mm or study.boundary.stroke_mm,
+        study.material.E_MPa,
+        study.allowable_MPa,
+        study.geometry.min_feature_mm,
+        spec.x_in_mm,
+        spec.e_mm,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Registry hooks
+
+
+def problem(study: ConstantForceStudy) -> ConstantForceProblem:
+    """The design problem ``flexopt run`` optimises (built once per run)."""
+    return ConstantForceProblem(study)
+
+
+def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
+    """``flexopt evaluate``: trace the study's ``design:`` (Table 3 by default) once per repeat.
+
+    Raises
+    ------
+    StudyError
+        When the design cannot be built or is not printable, naming ``design``.
+    """
+    prob = ConstantForceProblem(study)
+    x = design_vector(study)
+    times: list[float] = []
+    evaluation = None
+    response = None
+    design = None
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        design, response, reason = prob._solve(x)
+        times.append(time.perf_counter() - t0)
+        if response is None:
+            raise StudyError("design", reason)
+    evaluation = prob.evaluate(x)
+    assert response is not None and design is not None
+    table = _response_table(response, study.target.force_N)
+    table["converged"] = np.asarray(response.converged, dtype=bool)
+    summary = dict(evaluation.metrics)
+    peak = float(np.max(response.peak_stress_MPa))
+    summary["stress_yield_ratio"] = peak / study.material.yield_MPa
+    summary["feasible"] = evaluation.feasible
+    summary.update(
+        {name: float(v) for name, v in zip(prob.objective_names, evaluation.f, strict=True)}
+    )
+    summary.update(
+        {name: float(v) for name, v in zip(prob.constraint_names, evaluation.g, strict=True)}
+    )
+    profile = beam_profile(design, end_flexures=study.geometry.end_flexures)
+    return EvaluationResult(
+        table=table,
+        summary=summary,
+        converged=bool(response.ok),
+        message=response.message,
+        solve_times_s=tuple(times),
+        inputs={
+            "material": material_record(prob.material) | {"G_MPa": prob.material.G_MPa},
+            "design": {n: float(v) for n, v in zip(DESIGN_VARIABLE_NAMES, x, strict=True)},
+            "beam_length_mm": profile.length_mm,
+            "allowable_stress_MPa": prob.allowable_MPa,
+        },
+        diagnostics=dict(response.extra),
+        plot={
+            "x": "displacement_mm",
+            "left": "force_N",
+            "right": "peak_stress_MPa",
+            "allowable_MPa": prob.allowable_MPa,
+        },
+        headline=(
+            "mean_force_N",
+            "flatness_percent",
+            "operative_stroke_mm",
+            "plateau_mean_force_N",
+            "plateau_flatness_percent",
+            "stress_limit_stroke_mm",
+            "peak_stress_MPa",
+            "rms_error_N",
+        ),
+    )
+
+
+register(
+    StudyKind(
+        "constant_force",
+        ConstantForceStudy,
+        check,  # type: ignore[arg-type]
+        evaluate,  # type: ignore[arg-type]
+        problem,  # type: ignore[arg-type]
+    )
+)
