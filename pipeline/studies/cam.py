@@ -1,0 +1,702 @@
+"""Study kind ``cam``: the cam–follower torque generator of paper 000 (V2SOM) for a target curve.
+
+The study names a torque target (``target:``, any :class:`optimise.targets.TargetSpec` of torque;
+the paper's threshold ``T = Tmax (1 - exp(-s γ))`` by default), the followers' springs and the
+layout. ``flexopt evaluate`` synthesises the cam (:func:`geometry.cam.synthesise_cam`), builds the
+plate, and checks it by virtual work: the torque of the *plate* (follower motion read off its
+outline) against the target, with the contact pressure along the way. ``flexopt run`` sizes the
+springs and the rest radius for the smallest mechanism within the pressure-angle and
+contact-pressure limits, and writes the plate as ``best.stl``.
+
+YAML (units in the key names; see docs/threshold_torque.md)::
+
+    geometry: {kind: cam, rest_radius_mm: 20, roller_radius_mm: 5, followers: 2,
+               max_rotation_deg: 90, thickness_mm: 10, bore_diameter_mm: 6}
+    material: PLA                              # the plate
+    springs: {stiffness_N_per_mm: 4, free_length_mm: 18, offset_mm: 10, count: 4}
+    friction: 0.0
+    target: {kind: threshold, max_torque_Nm: 2.05, rate_per_rad: 50, measure: max_normalised,
+             window_deg: [1, 85]}
+    correction: {coefficients: [1.001, -0.0369, 2.588]}     # Eq. 17, optional (or fit: true)
+    sab: {a_mm: 15, R_mm: 30, R1_over_R2: 7.5}             # Eqs. 15-16, optional
+    limits: {max_pressure_angle_deg: 45}
+    design_space: {rest_radius_mm: [12, 30], stiffness_N_per_mm: [0.5, 10]}
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field, model_validator
+
+from geometry.cam import (
+    PAPER_CORRECTION,
+    CamLayout,
+    CamProfile,
+    CamSprings,
+    CorrectedCurve,
+    cam_outline,
+    contact_pressure_MPa,
+    fit_correction,
+    onset_pressure_MPa,
+    sab_limits,
+    sab_ratio,
+    sab_ratio_ideal,
+    sab_ratio_series,
+    sab_rotation,
+    synthesise_cam,
+    torque_from_outline,
+)
+from geometry.errors import GeometryError
+from optimise.errors import OptimiseError
+from optimise.evaluation import Evaluation
+from optimise.problem import DesignDetail
+from optimise.space import DesignSpace
+from optimise.targets import TargetCurve, TargetSpec, ThresholdTarget, curve_error, measure_key
+from pipeline.errors import StudyError
+from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+
+__all__ = [
+    "CamGeometry",
+    "CamStudy",
+    "CamProblem",
+    "SpringsSpec",
+    "build_cam",
+    "read_table_csv",
+    "resolve_target",
+]
+
+_EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+# --------------------------------------------------------------------------------------------
+# Target curves from a study (shared with the collision kind)
+
+
+def read_table_csv(
+    file: str, columns: tuple[str, str] | None, key: str = "target.file"
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[str, str]]:
+    """Read two numeric columns of a CSV file with a header row.
+
+    ``file`` is taken relative to the working directory, else to the built-in examples folder.
+    Columns are chosen by name (``columns``) or are the first two.
+
+    Raises
+    ------
+    StudyError
+        At ``key`` when the file is missing, has no such columns, or holds a non-number.
+    """
+    path = Path(file)
+    if not path.is_file() and (_EXAMPLES / file).is_file():
+        path = _EXAMPLES / file
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            rows = list(csv.reader(handle))
+    except OSError as exc:
+        raise StudyError(
+            key, f"cannot read '{file}' ({exc.strerror}); give the path of a CSV file"
+        ) from None
+    rows = [r for r in rows if r and not r[0].lstrip().startswith("#")]
+    if len(rows) < 3:
+        raise StudyError(key, f"'{file}' needs a header row and at least 2 rows of numbers")
+    header = [h.strip() for h in rows[0]]
+    names = columns or (header[0], header[1]) if len(header) >= 2 else None
+    if names is None:
+        raise StudyError(key, f"'{file}' needs at least two columns")
+    missing = [n for n in names if n not in header]
+    if missing:
+        raise StudyError(
+            "target.columns",
+            f"'{file}' has no column {', '.join(missing)}; its columns are {', '.join(header)}",
+        )
+    idx = [header.index(n) for n in names]
+    try:
+        data = np.array([[float(r[i]) for i in idx] for r in rows[1:]])
+    except (ValueError, IndexError):
+        raise StudyError(
+            key, f"'{file}' has a row that is not two numbers in columns {list(names)}"
+        ) from None
+    return (data[:, 0], data[:, 1]), (names[0], names[1])
+
+
+def resolve_target(spec: TargetSpec, key: str = "target") -> TargetCurve:
+    """The :class:`TargetCurve` of a spec, reading a table's file when it has one.
+
+    Raises
+    ------
+    StudyError
+        At ``key`` when the file cannot be read or the curve refuses the values.
+    """
+    table = columns = None
+    if spec.kind == "table" and spec.file is not None:
+        table, columns = read_table_csv(spec.file, spec.columns, f"{key}.file")
+    try:
+        return spec.to_curve(table, columns)
+    except OptimiseError as exc:
+        raise StudyError(key, str(exc)) from exc
+
+
+# --------------------------------------------------------------------------------------------
+# The study file
+
+
+class CamGeometry(BaseModel):
+    """The ``geometry:`` block: where the followers run and the plate (mm, degrees)."""
+
+    model_config = STUDY_CONFIG
+
+    kind: Literal["cam"] = Field(description="cam")
+    rest_radius_mm: float = Field(gt=0, description="r0: follower centre at zero rotation, mm")
+    roller_radius_mm: float = Field(gt=0, description="r1: follower roller radius, mm")
+    followers: int = Field(2, ge=2, le=8, description="followers evenly around the cam (paper 2)")
+    max_rotation_deg: float = Field(
+        90.0, gt=0, le=90, description="synthesised range, degrees (at most 180/followers)"
+    )
+    thickness_mm: float = Field(10.0, gt=0, description="plate thickness = contact width, mm")
+    bore_diameter_mm: float = Field(6.0, ge=0, description="shaft bore, mm (0: none)")
+    points: int = Field(361, ge=11, le=20001, description="synthesis grid points over the range")
+
+
+class SpringsSpec(BaseModel):
+    """The ``springs:`` block (paper Eq. 13): count springs of rate K per follower."""
+
+    model_config = STUDY_CONFIG
+
+    stiffness_N_per_mm: float = Field(gt=0, description="K of one extension spring, N/mm")
+    free_length_mm: float = Field(ge=0, description="l0, initial length, mm")
+    offset_mm: float = Field(0.0, ge=0, description="b, lateral anchor offset, mm")
+    count: int = Field(4, ge=1, le=32, description="springs per follower (paper 4)")
+
+
+class CorrectionSpec(BaseModel):
+    """The ``correction:`` block (Eq. 17): given coefficients or a fit through the SAB."""
+
+    model_config = STUDY_CONFIG
+
+    coefficients: tuple[float, float, float] | None = Field(
+        None, description="[a0, a1, a2] of T_cor = T (a0 + a1 γ + a2 γ²), γ in rad"
+    )
+    fit: bool = Field(False, description="fit [a0, a1, a2] by least squares through sab:")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> CorrectionSpec:
+        if (self.coefficients is None) == (not self.fit):
+            raise ValueError("give coefficients: [a0, a1, a2] or fit: true (needs sab:), not both")
+        return self
+
+
+class SABSpec(BaseModel):
+    """The ``sab:`` block: the stiffness-adjusting block of Eqs. 15–16."""
+
+    model_config = STUDY_CONFIG
+
+    a_mm: float = Field(gt=0, description="lever distance a, mm (Eq. 15a range)")
+    R_mm: float = Field(gt=0, description="ring radius R, mm")
+    R1_over_R2: float = Field(gt=1, description="gear ratio R1/R2 (paper's illustration: 7.5)")
+    max_output_deg: float | None = Field(
+        None, gt=0, description="output range for the fit, degrees (default Eq. 15b's limit)"
+    )
+
+
+class RollerSpec(BaseModel):
+    """The ``roller:`` block: the follower roller's material (for the contact pressure)."""
+
+    model_config = STUDY_CONFIG
+
+    E_MPa: float = Field(210_000.0, gt=0, description="roller Young's modulus (steel), MPa")
+    nu: float = Field(0.3, gt=-1, lt=0.5, description="roller Poisson's ratio")
+
+
+class LimitsSpec(BaseModel):
+    """The ``limits:`` block: what a usable cam must keep to."""
+
+    model_config = STUDY_CONFIG
+
+    max_pressure_angle_deg: float = Field(
+        45.0, gt=0, lt=90, description="largest angle between contact normal and guide, degrees"
+    )
+    max_diameter_mm: float | None = Field(
+        None, gt=0, description="largest mechanism diameter 2 (r_max + r1), mm (optional)"
+    )
+
+
+_VARIABLES = ("rest_radius_mm", "stiffness_N_per_mm", "free_length_mm", "offset_mm")
+
+
+class CamStudy(Study):
+    """A whole ``cam`` study file."""
+
+    geometry: CamGeometry = Field(description="kind: cam, rest_radius_mm, roller_radius_mm, ...")
+    springs: SpringsSpec = Field(description="stiffness_N_per_mm, free_length_mm, offset_mm, count")
+    friction: float = Field(0.0, ge=0, lt=1, description="μ of the follower guides (Eq. 3)")
+    target: TargetSpec = Field(
+        default_factory=lambda: TargetSpec(
+            kind="threshold", max_torque_Nm=2.05, rate_per_rad=50.0, measure="max_normalised"
+        ),
+        description="the torque-rotation curve to make (default the paper's prototype)",
+    )
+    correction: CorrectionSpec | None = Field(None, description="Eq. 17 profile correction")
+    sab: SABSpec | None = Field(None, description="stiffness-adjusting block, Eqs. 15-16")
+    roller: RollerSpec = Field(default_factory=RollerSpec, description="roller E_MPa and nu")
+    limits: LimitsSpec = Field(default_factory=LimitsSpec, description="max_pressure_angle_deg")
+    rows: int = Field(91, ge=3, le=2001, description="rows of the response table over the range")
+    design_space: dict[str, tuple[float, float]] = Field(
+        default_factory=dict,
+        description="bounds by name for flexopt run: " + ", ".join(_VARIABLES),
+    )
+    objective: Literal["diameter", "pressure_angle"] = Field(
+        "diameter", description="minimise the mechanism diameter or the largest pressure angle"
+    )
+    optimiser: OptimiserSpec = Field(
+        default_factory=lambda: OptimiserSpec(pop_size=24, n_gen=20),
+        description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Build
+
+
+def _layout(study: CamStudy) -> CamLayout:
+    g = study.geometry
+    try:
+        return CamLayout(
+            rest_radius_mm=g.rest_radius_mm,
+            roller_radius_mm=g.roller_radius_mm,
+            followers=g.followers,
+            max_rotation_rad=math.radians(g.max_rotation_deg),
+            friction=study.friction,
+            thickness_mm=g.thickness_mm,
+            bore_diameter_mm=g.bore_diameter_mm,
+        )
+    except GeometryError as exc:
+        raise StudyError("geometry", str(exc)) from exc
+
+
+def _springs(spec: SpringsSpec) -> CamSprings:
+    return CamSprings(spec.stiffness_N_per_mm, spec.free_length_mm, spec.offset_mm, spec.count)
+
+
+def _design_curve(study: CamStudy, target: TargetCurve) -> tuple[Any, dict[str, Any]]:
+    """The curve the cam is cut for: the target, or the target times the Eq. 17 factor."""
+    info: dict[str, Any] = {}
+    spec = study.correction
+    gmax = math.radians(study.geometry.max_rotation_deg)
+    if spec is None:
+        return target, info
+    if spec.coefficients is not None:
+        coefficients = spec.coefficients
+        info["source"] = "given"
+    else:
+        sab = study.sab
+        assert sab is not None  # checked
+        top = None if sab.max_output_deg is None else math.radians(sab.max_output_deg)
+        coefficients, fit = fit_correction(target, sab.a_mm, sab.R_mm, sab.R1_over_R2, top)
+        info["source"] = "least-squares fit through the SAB (Eq. 15)"
+        info["max_relative_error_uncorrected"] = fit["max_relative_error_uncorrected"]
+        info["max_relative_error_corrected"] = fit["max_relative_error_corrected"]
+    info["coefficients"] = list(coefficients)
+    info["paper_coefficients"] = list(PAPER_CORRECTION)
+    return CorrectedCurve(target, coefficients, gmax), info
+
+
+def build_cam(study: CamStudy) -> tuple[TargetCurve, Any, CamProfile, dict[str, Any]]:
+    """Target, design curve, synthesised profile and correction info of a study.
+
+    Raises
+    ------
+    StudyError
+        Naming the key path when the target, springs or layout cannot make a cam.
+    """
+    target = resolve_target(study.target)
+    if target.quantity != "torque":
+        raise StudyError(
+            "target",
+            "a cam makes a torque-rotation curve; give torque keys (torque_Nm, "
+            "stiffness_Nm_per_rad, max_torque_Nm + rate_per_rad, or table columns "
+            "[rotation_deg, torque_Nm])",
+        )
+    layout = _layout(study)
+    try:
+        springs = _springs(study.springs)
+    except GeometryError as exc:
+        raise StudyError("springs", str(exc)) from exc
+    curve, info = _design_curve(study, target)
+    try:
+        profile = synthesise_cam(curve, springs, layout, study.geometry.points)
+    except GeometryError as exc:
+        raise StudyError(_geometry_path(str(exc)), str(exc)) from exc
+    except OptimiseError as exc:  # a table target asked beyond its rows
+        raise StudyError("target", str(exc)) from exc
+    return target, curve, profile, info
+
+
+def _geometry_path(message: str) -> str:
+    if "slack" in message or "self-lock" in message:
+        return "springs"
+    if "target" in message:
+        return "target"
+    return "geometry"
+
+
+def check(study: CamStudy) -> None:
+    """Build the target, the cam and its plate once, so that every refusal names its key."""
+    for name, (lo, hi) in study.design_space.items():
+        if name not in _VARIABLES:
+            raise StudyError(
+                f"design_space.{name}", f"unknown variable; use one of {', '.join(_VARIABLES)}"
+            )
+        if not lo < hi:
+            raise StudyError(
+                f"design_space.{name}", f"[{lo:g}, {hi:g}] needs lower < upper; swap or widen them"
+            )
+    if study.correction is not None and study.correction.fit and study.sab is None:
+        raise StudyError("correction.fit", "fitting Eq. 17 needs the sab: block (a_mm, R_mm, ...)")
+    if study.sab is not None:
+        try:
+            sab_limits(study.sab.a_mm, study.sab.R_mm, study.sab.R1_over_R2)
+        except GeometryError as exc:
+            raise StudyError("sab.a_mm", str(exc)) from exc
+    _, _, profile, _ = build_cam(study)
+    try:
+        cam_outline(profile)
+    except GeometryError as exc:
+        raise StudyError("geometry.roller_radius_mm", str(exc)) from exc
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluate
+
+
+def _table(
+    study: CamStudy, target: TargetCurve, curve: Any, profile: CamProfile
+) -> dict[str, np.ndarray]:
+    lay = profile.layout
+    gamma = np.linspace(0.0, lay.max_rotation_rad, study.rows)
+    plate = cam_outline(profile)
+    vw = torque_from_outline(plate, profile.springs, lay, gamma)
+    pressure = contact_pressure_MPa(
+        profile, study.material.E_MPa, study.material.nu, **_roller(study)
+    )
+
+    def at(values: np.ndarray) -> np.ndarray:
+        return np.interp(gamma, profile.rotation_rad, values)
+
+    table = {
+        "rotation_deg": np.degrees(gamma),
+        "target_torque_Nm": target(gamma) / 1000.0,
+        "cam_torque_Nm": np.asarray(curve(gamma)) / 1000.0,
+        "virtual_work_torque_Nm": vw / 1000.0,
+        "follower_radius_mm": at(profile.follower_radius_mm),
+        "pressure_angle_deg": np.degrees(at(profile.pressure_angle_rad)),
+        "spring_force_N": at(profile.spring_force_N),
+        "contact_force_N": at(profile.contact_force_N),
+        "contact_pressure_MPa": at(np.where(np.isfinite(pressure), pressure, 1e9)),
+    }
+    if isinstance(target, ThresholdTarget):
+        table["mode"] = target.mode(gamma)
+    table["converged"] = np.ones(gamma.size, dtype=bool)
+    return table
+
+
+def _roller(study: CamStudy) -> dict[str, float]:
+    return {"roller_E_MPa": study.roller.E_MPa, "roller_nu": study.roller.nu}
+
+
+def _metrics(study: CamStudy, profile: CamProfile) -> dict[str, Any]:
+    lay = profile.layout
+    pressure = contact_pressure_MPa(
+        profile, study.material.E_MPa, study.material.nu, **_roller(study)
+    )
+    onset = onset_pressure_MPa(study.material.yield_MPa)
+    peak = float(np.max(pressure))
+    radius = profile.profile_radius_mm
+    convex = radius[(radius > 0) & np.isfinite(radius)]
+    return {
+        "max_follower_radius_mm": profile.max_radius_mm,
+        "follower_stroke_mm": profile.max_radius_mm - lay.rest_radius_mm,
+        "mechanism_diameter_mm": 2.0 * (profile.max_radius_mm + lay.roller_radius_mm),
+        "max_pressure_angle_deg": math.degrees(float(np.max(profile.pressure_angle_rad))),
+        "max_contact_force_N": float(np.max(profile.contact_force_N)),
+        "max_spring_force_N": float(np.max(profile.spring_force_N)),
+        "preload_N": float(profile.spring_force_N[0]),
+        "min_convex_profile_radius_mm": float(np.min(convex)) if convex.size else None,
+        "undercut": profile.undercut,
+        "max_contact_pressure_MPa": peak,
+        "onset_pressure_MPa": onset,
+        "stress_yield_ratio": peak / onset,
+    }
+
+
+def _summary(
+    study: CamStudy,
+    target: TargetCurve,
+    curve: Any,
+    table: dict[str, np.ndarray],
+    profile: CamProfile,
+) -> dict[str, Any]:
+    """Scalar results: the plate's torque (by virtual work) against the target with the study's
+    measure (``target_<measure>``; with a correction the cam is cut for ``T_cor``, so this one
+    shows the correction, and ``virtual_work_*`` compares the plate with what it was cut for),
+    the cam's size, angles, forces and contact pressure, and the SAB check."""
+    gamma = np.radians(table["rotation_deg"])
+    window = study.target.window
+    if window is None:  # the plate's torque drops where the follower rolls over the lobe
+        window = (0.0, math.radians(study.geometry.max_rotation_deg) * 0.95)
+    cam_t = table["cam_torque_Nm"] * 1000.0
+    vw = table["virtual_work_torque_Nm"] * 1000.0
+    measure = study.target.measure
+    try:
+        err = curve_error(target, gamma, vw, measure, window)
+        err_design = float(np.max(np.abs(vw - cam_t)[(gamma >= window[0]) & (gamma <= window[1])]))
+    except OptimiseError as exc:
+        raise StudyError("target.window_deg", str(exc)) from exc
+    summary: dict[str, Any] = {
+        f"target_{measure_key(measure, target)}": err,
+        "virtual_work_max_abs_error_Nm": err_design / 1000.0,
+        "virtual_work_max_relative_error": err_design / float(np.max(np.abs(cam_t))),
+        "window_deg": [math.degrees(window[0]), math.degrees(window[1])],
+    }
+    if measure_key(measure, target).endswith("_Nmm"):
+        key = f"target_{measure_key(measure, target)}"
+        summary[key.replace("_Nmm", "_Nm")] = summary.pop(key) / 1000.0
+    summary.update(_metrics(study, profile))
+    if study.sab is not None:
+        summary.update(_joint_errors(study, target, curve))
+    area = cam_outline(profile).area
+    summary["plate_area_mm2"] = area
+    density = study.material.density_kg_m3
+    summary["plate_mass_g"] = (
+        area * study.geometry.thickness_mm * density * 1e-6 if density else None
+    )
+    if isinstance(target, ThresholdTarget):
+        summary.update(
+            {
+                "mode_split_deg": math.degrees(target.split_x),
+                "mode_split_torque_Nm": target.split_y / 1000.0,
+                "equivalent_stiffness_Nm_per_rad": target.equivalent_stiffness / 1000.0,
+                "initial_stiffness_Nm_per_rad": target.max_value * target.rate / 1000.0,
+            }
+        )
+    return summary
+
+
+def _joint_errors(study: CamStudy, target: TargetCurve, curve: Any) -> dict[str, Any]:
+    """The joint torque through the SAB, ``N(θ) T_cam(γ(θ))``, against the ideal reducer's
+    ``N0 T(N0 θ)`` (what Eq. 17 is for), up to Eq. 15b's limit or 95 % of the cam's range.
+    ``T_cam`` is the curve the cam is cut for (the plate reproduces it: see the virtual-work
+    error)."""
+    sab = study.sab
+    assert sab is not None
+    a, R, q = sab.a_mm, sab.R_mm, sab.R1_over_R2
+    top = sab_limits(a, R, q) if sab.max_output_deg is None else math.radians(sab.max_output_deg)
+    gmax = 0.95 * math.radians(study.geometry.max_rotation_deg)
+    theta = np.linspace(top / 200, top, 200)
+    gamma = sab_rotation(theta, a, R, q)
+    theta, gamma = theta[gamma <= gmax], gamma[gamma <= gmax]
+    joint = sab_ratio(theta, a, R, q) * np.asarray(curve(gamma), dtype=float)
+    n0 = sab_ratio_ideal(a, R, q)
+    ideal = n0 * target(n0 * theta)
+    return {
+        "sab_joint_max_relative_error": float(np.max(np.abs(joint / ideal - 1.0))),
+        "sab_checked_output_deg": math.degrees(float(theta[-1])) if theta.size else None,
+    }
+
+
+def _sab_info(study: CamStudy) -> dict[str, Any]:
+    sab = study.sab
+    if sab is None:
+        return {}
+    theta_max = sab_limits(sab.a_mm, sab.R_mm, sab.R1_over_R2)
+    theta = np.linspace(0.0, theta_max, 9)
+    return {
+        "ratio_at_zero_eq15": float(sab_ratio(0.0, sab.a_mm, sab.R_mm, sab.R1_over_R2)),
+        "ratio_ideal_with_R1_over_R2": sab_ratio_ideal(sab.a_mm, sab.R_mm, sab.R1_over_R2),
+        "ratio_eq16_as_printed": sab.a_mm / (sab.R_mm - sab.a_mm),
+        "max_output_deg_eq15b": math.degrees(theta_max),
+        "theta_deg": np.degrees(theta).tolist(),
+        "ratio_eq15": sab_ratio(theta, sab.a_mm, sab.R_mm, sab.R1_over_R2).tolist(),
+        "ratio_series_2nd_order": sab_ratio_series(
+            theta, sab.a_mm, sab.R_mm, sab.R1_over_R2
+        ).tolist(),
+    }
+
+
+def evaluate(study: CamStudy, repeat: int = 1) -> EvaluationResult:
+    """Synthesise the cam, build its plate and check it by virtual work (``repeat`` times)."""
+    times = []
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        target, curve, profile, correction = build_cam(study)
+        table = _table(study, target, curve, profile)
+        times.append(time.perf_counter() - t0)
+    summary = _summary(study, target, curve, table, profile)
+    inputs: dict[str, Any] = {
+        "material": material_record(study.material.to_material()),
+        "target_curve": repr(target),
+        "notes": list(profile.notes),
+    }
+    if correction:
+        inputs["correction"] = correction
+    if study.sab is not None:
+        inputs["sab"] = _sab_info(study)
+    return EvaluationResult(
+        table=table,
+        summary=summary,
+        converged=True,
+        message="",
+        solve_times_s=tuple(times),
+        inputs=inputs,
+        diagnostics={"synthesis_points": study.geometry.points},
+        plot={
+            "x": "rotation_deg",
+            "left": "virtual_work_torque_Nm",
+            "right": "contact_pressure_MPa",
+            "allowable_MPa": summary["onset_pressure_MPa"],
+        },
+        headline=tuple(
+            k
+            for k in summary
+            if k.startswith("target_")
+            or k
+            in (
+                "virtual_work_max_relative_error",
+                "mechanism_diameter_mm",
+                "max_pressure_angle_deg",
+                "max_contact_pressure_MPa",
+                "stress_yield_ratio",
+                "undercut",
+                "sab_joint_max_relative_error",
+                "mode_split_deg",
+                "equivalent_stiffness_Nm_per_rad",
+            )
+        ),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Optimise: size the springs and rest radius
+
+
+class CamProblem:
+    """Smallest (or flattest) cam for the target within the pressure-angle and contact limits.
+
+    Variables: the study's ``design_space`` (default: rest radius and spring rate, ±50 % around
+    the study's values). Constraints ``g <= 0``: pressure angle / limit - 1, contact pressure /
+    onset - 1, ``κ r1 - 0.9`` (roller 10 % inside every convex bend: no undercut), and the
+    diameter limit when given.
+    """
+
+    def __init__(self, study: CamStudy) -> None:
+        self.study = study
+        bounds = dict(study.design_space) or {
+            "rest_radius_mm": (
+                0.5 * study.geometry.rest_radius_mm,
+                1.5 * study.geometry.rest_radius_mm,
+            ),
+            "stiffness_N_per_mm": (
+                0.5 * study.springs.stiffness_N_per_mm,
+                1.5 * study.springs.stiffness_N_per_mm,
+            ),
+        }
+        names = tuple(n for n in _VARIABLES if n in bounds)
+        try:
+            self.space = DesignSpace(
+                names,
+                np.array([bounds[n][0] for n in names]),
+                np.array([bounds[n][1] for n in names]),
+            )
+        except OptimiseError as exc:
+            raise StudyError("design_space", str(exc)) from exc
+        self.objective_names = (
+            ("mechanism_diameter_mm",)
+            if study.objective == "diameter"
+            else ("max_pressure_angle_deg",)
+        )
+        self.constraint_names = (
+            "pressure_angle_ratio",
+            "contact_pressure_ratio",
+            "undercut_margin",
+        ) + (("diameter_ratio",) if study.limits.max_diameter_mm else ())
+
+    def _study(self, x: np.ndarray) -> CamStudy:
+        values = dict(zip(self.space.names, (float(v) for v in x), strict=True))
+        geometry = self.study.geometry
+        if "rest_radius_mm" in values:
+            geometry = geometry.model_copy(update={"rest_radius_mm": values.pop("rest_radius_mm")})
+        springs = self.study.springs.model_copy(update=values)
+        return self.study.model_copy(update={"geometry": geometry, "springs": springs})
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        t0 = time.perf_counter()
+        n_obj, n_con = len(self.objective_names), len(self.constraint_names)
+        try:
+            study = self._study(x)
+            _, _, profile, _ = build_cam(study)
+            metrics = _metrics(study, profile)
+        except (StudyError, GeometryError, OptimiseError) as exc:
+            return Evaluation.failed(x, n_obj, n_con, str(exc), time.perf_counter() - t0)
+        lim = study.limits
+        f = [metrics[self.objective_names[0]]]
+        g = [
+            metrics["max_pressure_angle_deg"] / lim.max_pressure_angle_deg - 1.0,
+            min(metrics["stress_yield_ratio"], 1e6) - 1.0,
+            float(np.max(profile.pitch_curvature_per_mm)) * study.geometry.roller_radius_mm - 0.9,
+        ]
+        if lim.max_diameter_mm:
+            g.append(metrics["mechanism_diameter_mm"] / lim.max_diameter_mm - 1.0)
+        return Evaluation(
+            np.asarray(x, float), np.array(f), np.array(g), metrics, "", time.perf_counter() - t0
+        )
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        study = self._study(x)
+        target, curve, profile, correction = build_cam(study)
+        table = _table(study, target, curve, profile)
+        info = _summary(study, target, curve, table, profile)
+        info["design"] = dict(zip(self.space.names, (float(v) for v in x), strict=True))
+        if correction:
+            info["correction"] = correction
+        return DesignDetail(
+            evaluation=self.evaluate(x),
+            table=table,
+            plot={
+                "x": "rotation_deg",
+                "y": "virtual_work_torque_Nm",
+                "stress": "contact_pressure_MPa",
+                "allowable_MPa": info["onset_pressure_MPa"],
+                "x_label": "cam rotation γ (deg)",
+                "y_label": "torque of the plate by virtual work (N·m)",
+            },
+            outline=cam_outline(profile),
+            height_mm=study.geometry.thickness_mm,
+            info=info,
+        )
+
+    def initial_designs(self) -> np.ndarray | None:
+        """The study's own values, when they lie in the design space."""
+        g, s = self.study.geometry, self.study.springs
+        values = {
+            "rest_radius_mm": g.rest_radius_mm,
+            "stiffness_N_per_mm": s.stiffness_N_per_mm,
+            "free_length_mm": s.free_length_mm,
+            "offset_mm": s.offset_mm,
+        }
+        x = np.array([values[n] for n in self.space.names])
+        if np.all(x >= self.space.lower) and np.all(x <= self.space.upper):
+            return x[None, :]
+        return None
+
+
+def problem(study: CamStudy) -> CamProblem:
+    """The design problem ``flexopt run`` optimises."""
+    return CamProblem(study)
+
+
+register(StudyKind("cam", CamStudy, check, evaluate, problem))  # type: ignore[arg-type]
