@@ -1,0 +1,519 @@
+"""Study kind ``collision``: head impact of a robot arm through a series spring (paper 000, Sec. 4).
+
+``flexopt evaluate`` simulates the impact of Fig. 14 (:mod:`fea.collision`) once with the study's
+spring and once with the constant-stiffness (CS) reference spring, then sweeps the rotor inertia
+and the rotor torque (the paper's Figs. 16–17) for both. The response table is the nominal impact
+over time for both springs; the sweeps go to ``evaluation.json`` (``inputs.sweeps``) and, through
+:func:`extra_files`, to ``sweeps.png``. An optional ``cam:`` block realises the threshold spring
+as the V2SOM cam behind an ideal reducer and checks it against the impact: whether the impact
+drives the cam past its range, and the contact pressure at the largest cam torque.
+
+YAML (SI in the impact block, as the paper; see docs/threshold_torque.md)::
+
+    geometry: {kind: collision}
+    spring: {kind: threshold, max_torque_Nm: 15, rate_per_rad: 37}
+    reference: equal_deflection   # or e.g. {kind: linear, stiffness_Nm_per_rad: 276}
+    impact: {rotor_inertia_kg_m2: 0.175, rotor_torque_Nm: 15, initial_spring: unloaded}
+    sweeps: {rotor_inertia_kg_m2: [0.05, 0.1, 0.175, 0.3, 0.5], rotor_torque_Nm: [7.5, 15, 30]}
+    cam: {ratio: 7.5, geometry: {...cam kind's geometry...}, springs: {...}}
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import time
+from typing import Any, Literal
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from pydantic import BaseModel, Field
+
+from fea.collision import (
+    CollisionModel,
+    CollisionResponse,
+    CollisionSettings,
+    LinearSpring,
+    TabulatedSpring,
+    ThresholdSpring,
+    equivalent_linear_spring,
+    metrics_until,
+    simulate_cases,
+    sweep_result,
+)
+from fea.errors import FeaError
+from fea.materials import get_material
+from geometry.cam import contact_pressure_MPa, onset_pressure_MPa
+from optimise.targets import LinearTarget, TableTarget, TargetCurve, TargetSpec, ThresholdTarget
+from pipeline.errors import StudyError
+from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies.cam import CamGeometry, CamStudy, SpringsSpec, build_cam, resolve_target
+from pipeline.study import STUDY_CONFIG, MaterialSpec, Study, material_record
+
+__all__ = [
+    "CollisionGeometry",
+    "CollisionStudy",
+    "ImpactSpec",
+    "build_springs",
+    "evaluate",
+    "extra_files",
+]
+
+
+class CollisionGeometry(BaseModel):
+    """The ``geometry:`` block (the impact's numbers are in ``impact:``)."""
+
+    model_config = STUDY_CONFIG
+
+    kind: Literal["collision"] = Field(description="collision")
+
+
+class ImpactSpec(BaseModel):
+    """The ``impact:`` block: Fig. 14's parameters, SI, paper defaults (l. 252–258, Fig. 17)."""
+
+    model_config = STUDY_CONFIG
+
+    neck_damping_N_s_per_m: float = Field(12.0, ge=0, description="d_N")
+    neck_stiffness_N_per_m: float = Field(3300.0, ge=0, description="k_N")
+    head_mass_kg: float = Field(5.09, gt=0, description="M_head")
+    contact_damping_N_s_per_m: float = Field(10.0, ge=0, description="d_c")
+    contact_stiffness_N_per_m: float = Field(1500.0, gt=0, description="k_c")
+    arm_length_m: float = Field(0.6, gt=0, description="l, contact point on the arm")
+    arm_inertia_kg_m2: float = Field(0.14, gt=0, description="I_arm")
+    rotor_inertia_kg_m2: float = Field(0.175, gt=0, description="I_rotor (Fig. 17)")
+    rotor_torque_Nm: float = Field(15.0, ge=0, description="rotor torque during the impact")
+    speed_rad_per_s: float = Field(math.pi, gt=0, description="joint speed at impact")
+    initial_spring: Literal["unloaded", "accelerating", "held"] = Field(
+        "unloaded",
+        description="spring state at impact: unloaded, accelerating (carries the arm's share of "
+        "the rotor torque) or held (carries all of it)",
+    )
+    dt_s: float = Field(2e-4, gt=0, le=1e-3, description="RK4 and output step, s")
+    duration_s: float = Field(0.25, gt=0, le=5, description="simulated time, s")
+
+    def model(self) -> CollisionModel:
+        keys = (
+            "neck_damping_N_s_per_m",
+            "neck_stiffness_N_per_m",
+            "head_mass_kg",
+            "contact_damping_N_s_per_m",
+            "contact_stiffness_N_per_m",
+            "arm_length_m",
+            "arm_inertia_kg_m2",
+            "rotor_inertia_kg_m2",
+            "rotor_torque_Nm",
+            "speed_rad_per_s",
+            "initial_spring",
+        )
+        return CollisionModel(**{k: getattr(self, k) for k in keys})
+
+    def settings(self) -> CollisionSettings:
+        return CollisionSettings(dt_s=self.dt_s, duration_s=self.duration_s)
+
+
+class SweepSpec(BaseModel):
+    """The ``sweeps:`` block: values of the rotor inertia and torque to sweep (Figs. 16–17)."""
+
+    model_config = STUDY_CONFIG
+
+    rotor_inertia_kg_m2: tuple[float, ...] = Field(
+        (0.05, 0.1, 0.175, 0.3, 0.5, 1.0), description="kg m^2 (at impact.rotor_torque_Nm)"
+    )
+    rotor_torque_Nm: tuple[float, ...] = Field(
+        (7.5, 11.25, 15.0, 22.5, 30.0), description="N m (at impact.rotor_inertia_kg_m2)"
+    )
+
+
+class CamCheckSpec(BaseModel):
+    """The ``cam:`` block: the spring realised as a V2SOM cam behind an ideal reducer."""
+
+    model_config = STUDY_CONFIG
+
+    ratio: float = Field(
+        gt=0, description="joint torque / cam torque = cam rotation / joint rotation"
+    )
+    geometry: CamGeometry = Field(description="the cam kind's geometry block (kind: cam)")
+    springs: SpringsSpec = Field(description="the cam kind's springs block")
+    friction: float = Field(0.0, ge=0, lt=1, description="μ of the follower guides")
+
+
+def _default_material() -> MaterialSpec:
+    return MaterialSpec(**material_record(get_material("PLA")))
+
+
+class CollisionStudy(Study):
+    """A whole ``collision`` study file."""
+
+    geometry: CollisionGeometry = Field(description="kind: collision")
+    material: MaterialSpec = Field(
+        default_factory=_default_material, description="cam plate material (for cam:), PLA"
+    )
+    spring: TargetSpec = Field(
+        default_factory=lambda: TargetSpec(kind="threshold", max_torque_Nm=15.0, rate_per_rad=37.0),
+        description="the spring between rotor and arm (a torque target: threshold, linear, table)",
+    )
+    reference: Literal["equal_deflection"] | TargetSpec = Field(
+        "equal_deflection",
+        description="the CS spring: equal_deflection (same deflection at the split torque) or a "
+        "linear torque target",
+    )
+    split: float = Field(
+        0.8, gt=0, lt=1, description="fraction of the spring's top torque for equal_deflection"
+    )
+    impact: ImpactSpec = Field(default_factory=ImpactSpec, description="Fig. 14's parameters")
+    sweeps: SweepSpec = Field(default_factory=SweepSpec, description="rotor inertia and torque")
+    early_window_ms: float = Field(
+        50.0,
+        gt=0,
+        description="also report HIC and force over the first this many ms (the first impact)",
+    )
+    cam: CamCheckSpec | None = Field(None, description="realise the spring as a cam and check it")
+
+
+# --------------------------------------------------------------------------------------------
+# Build
+
+
+def _spring_of(curve: TargetCurve, key: str) -> Any:
+    if curve.quantity != "torque":
+        raise StudyError(
+            key, "needs a torque-rotation spring (N·m keys, or table [rotation, torque])"
+        )
+    if isinstance(curve, ThresholdTarget):
+        return ThresholdSpring(curve.max_value / 1000.0, curve.rate)
+    if isinstance(curve, LinearTarget):
+        if curve.preload != 0.0:
+            raise StudyError(key, "a preloaded spring is not modelled; drop preload_Nm")
+        return LinearSpring(curve.stiffness / 1000.0)
+    if isinstance(curve, TableTarget):
+        try:
+            return TabulatedSpring(curve.x, curve.y / 1000.0)
+        except FeaError as exc:
+            raise StudyError(key, str(exc)) from exc
+    raise StudyError(
+        key, f"kind {type(curve).__name__} is not a spring; use threshold, linear or table"
+    )
+
+
+def build_springs(study: CollisionStudy) -> tuple[Any, LinearSpring, TargetCurve]:
+    """The study's spring, its CS reference (N·m, rad) and the spring's target curve."""
+    curve = resolve_target(study.spring, "spring")
+    spring = _spring_of(curve, "spring")
+    if study.reference == "equal_deflection":
+        top = spring.sup_torque_Nm
+        if not math.isfinite(top):
+            raise StudyError(
+                "reference",
+                "equal_deflection needs a spring with a top torque (threshold or table); give "
+                "reference: {kind: linear, stiffness_Nm_per_rad: ...}",
+            )
+        try:
+            reference = equivalent_linear_spring(spring, study.split * top)
+        except FeaError as exc:
+            raise StudyError("reference", str(exc)) from exc
+    else:
+        ref_curve = resolve_target(study.reference, "reference")
+        reference = _spring_of(ref_curve, "reference")
+        if not isinstance(reference, LinearSpring):
+            raise StudyError("reference", "the reference must be kind: linear (a CS spring)")
+    return spring, reference, curve
+
+
+def _cam_study(study: CollisionStudy, curve: TargetCurve) -> CamStudy:
+    """The cam kind's study for the cam side of the reducer: ``T_γ(γ) = T(γ/N)/N``."""
+    cam = study.cam
+    assert cam is not None
+    n = cam.ratio
+    if isinstance(curve, ThresholdTarget):
+        target = TargetSpec(
+            kind="threshold",
+            max_torque_Nm=curve.max_value / 1000.0 / n,
+            rate_per_rad=curve.rate / n,
+        )
+    elif isinstance(curve, LinearTarget):
+        target = TargetSpec(kind="linear", stiffness_Nm_per_rad=curve.stiffness / 1000.0 / n**2)
+    else:
+        raise StudyError("cam", "the cam check handles threshold and linear springs")
+    return CamStudy(
+        name=f"{study.name}-cam",
+        geometry=cam.geometry,
+        material=study.material,
+        springs=cam.springs,
+        friction=cam.friction,
+        target=target,
+    )
+
+
+def check(study: CollisionStudy) -> None:
+    """Build the springs (and the cam), and check the initial condition is possible."""
+    spring, reference, curve = build_springs(study)
+    model = study.impact.model()
+    from fea.collision import initial_deflection_rad
+
+    for label, sp in (("spring", spring), ("reference", reference)):
+        try:
+            initial_deflection_rad(sp, model)
+        except FeaError as exc:
+            raise StudyError("impact.initial_spring", f"{label}: {exc}") from exc
+    if study.cam is not None:
+        build_cam(_cam_study(study, curve))
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluate
+
+
+def _series(r: CollisionResponse, prefix: str) -> dict[str, np.ndarray]:
+    return {
+        f"{prefix}head_acceleration_g": r.head_acceleration_m_per_s2 / 9.80665,
+        f"{prefix}contact_force_N": r.contact_force_N,
+        f"{prefix}deflection_deg": np.degrees(r.deflection_rad),
+        f"{prefix}spring_torque_Nm": r.spring_torque_Nm,
+    }
+
+
+def _cam_check(
+    study: CollisionStudy, curve: TargetCurve, response: CollisionResponse
+) -> dict[str, Any]:
+    cam = study.cam
+    assert cam is not None
+    _, _, profile, _ = build_cam(_cam_study(study, curve))
+    reach = cam.ratio * response.max_deflection_rad
+    gmax = profile.layout.max_rotation_rad
+    pressure = contact_pressure_MPa(profile, study.material.E_MPa, study.material.nu)
+    within = profile.rotation_rad <= min(reach, gmax) + 1e-12
+    peak = float(np.max(pressure[within]))
+    onset = onset_pressure_MPa(study.material.yield_MPa)
+    return {
+        "ratio": cam.ratio,
+        "cam_max_torque_Nm": float(np.max(profile.torque_Nmm)) / 1000.0,
+        "cam_range_deg": math.degrees(gmax),
+        "joint_range_deg": math.degrees(gmax / cam.ratio),
+        "impact_cam_rotation_deg": math.degrees(reach),
+        "range_exceeded": bool(reach > gmax),
+        "mechanism_diameter_mm": 2 * (profile.max_radius_mm + profile.layout.roller_radius_mm),
+        "max_contact_pressure_MPa": peak,
+        "onset_pressure_MPa": onset,
+        "stress_yield_ratio": peak / onset,
+    }
+
+
+def _sweep_record(
+    result: Any, runs: dict[str, list[CollisionResponse | None]], early_s: float
+) -> dict[str, Any]:
+    early: dict[str, dict[str, list[float]]] = {"hic15": {}, "peak_force_N": {}}
+    for label, responses in runs.items():
+        values = [
+            (math.nan, math.nan) if r is None else metrics_until(r, early_s) for r in responses
+        ]
+        early["hic15"][label] = [v[0] for v in values]
+        early["peak_force_N"][label] = [v[1] for v in values]
+    a, b = list(runs)[:2]
+    return {
+        "early_window_ms": early_s * 1000.0,
+        "early_hic15": early["hic15"],
+        "early_peak_force_N": early["peak_force_N"],
+        "early_hic_reduction": [
+            1.0 - x / y for x, y in zip(early["hic15"][a], early["hic15"][b], strict=True)
+        ],
+        "early_force_reduction": [
+            1.0 - x / y
+            for x, y in zip(early["peak_force_N"][a], early["peak_force_N"][b], strict=True)
+        ],
+        "parameter": result.parameter,
+        "values": result.values.tolist(),
+        "hic15": {k: v.tolist() for k, v in result.hic15.items()},
+        "peak_force_N": {k: v.tolist() for k, v in result.peak_force_N.items()},
+        "max_deflection_deg": {
+            k: np.degrees(v).tolist() for k, v in result.max_deflection_rad.items()
+        },
+        "hic_reduction": result.hic_reduction.tolist(),
+        "force_reduction": result.force_reduction.tolist(),
+    }
+
+
+def _range(values: list[float]) -> list[float | None]:
+    finite = [v for v in values if v is not None and math.isfinite(v)]
+    return [min(finite), max(finite)] if finite else [None, None]
+
+
+def evaluate(study: CollisionStudy, repeat: int = 1) -> EvaluationResult:
+    """Nominal impact for both springs, then the inertia and torque sweeps."""
+    spring, reference, curve = build_springs(study)
+    model = study.impact.model()
+    settings = study.impact.settings()
+    # One integration per spring covers the nominal case and both sweeps (a batch costs about
+    # what one case does): case 0 is nominal, then the inertia sweep, then the torque sweep.
+    inertia_values = np.asarray(study.sweeps.rotor_inertia_kg_m2, dtype=float)
+    torque_values = np.asarray(study.sweeps.rotor_torque_Nm, dtype=float)
+    inertia = np.concatenate(
+        [
+            [model.rotor_inertia_kg_m2],
+            inertia_values,
+            np.full(torque_values.size, model.rotor_inertia_kg_m2),
+        ]
+    )
+    torque = np.concatenate(
+        [
+            [model.rotor_torque_Nm],
+            np.full(inertia_values.size, model.rotor_torque_Nm),
+            torque_values,
+        ]
+    )
+    early_s = study.early_window_ms / 1000.0
+    times = []
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        runs = {
+            label: simulate_cases(sp, model, inertia, torque, settings)
+            for label, sp in (("spring", spring), ("reference", reference))
+        }
+        times.append(time.perf_counter() - t0)
+    mine, ref = runs["spring"][0], runs["reference"][0]
+    if mine is None or ref is None:  # check() refuses this; keep the message for API callers
+        raise StudyError("impact.initial_spring", "the spring cannot carry the initial torque")
+    sweeps = {}
+    start = 1
+    for parameter, values in (
+        ("rotor_inertia_kg_m2", inertia_values),
+        ("rotor_torque_Nm", torque_values),
+    ):
+        part = slice(start, start + values.size)
+        start += values.size
+        if values.size:
+            part_runs = {k: v[part] for k, v in runs.items()}
+            sweeps[parameter] = _sweep_record(
+                sweep_result(parameter, values, part_runs), part_runs, early_s
+            )
+    table = {"time_ms": mine.time_s * 1000.0}
+    table.update(_series(mine, ""))
+    table.update(_series(ref, "reference_"))
+    table["converged"] = np.ones(mine.time_s.size, dtype=bool)
+    summary: dict[str, Any] = {
+        "hic15": mine.hic15,
+        "reference_hic15": ref.hic15,
+        "hic_reduction": 1.0 - mine.hic15 / ref.hic15,
+        "peak_force_N": mine.peak_force_N,
+        "reference_peak_force_N": ref.peak_force_N,
+        "force_reduction": 1.0 - mine.peak_force_N / ref.peak_force_N,
+        "peak_force_time_ms": mine.peak_force_time_s * 1000.0,
+        "reference_peak_force_time_ms": ref.peak_force_time_s * 1000.0,
+        "hic_window_ms": [1000.0 * t for t in mine.hic_window_s],
+        "max_deflection_deg": math.degrees(mine.max_deflection_rad),
+        "reference_max_deflection_deg": math.degrees(ref.max_deflection_rad),
+        "initial_deflection_deg": math.degrees(mine.initial_deflection_rad),
+        "reference_stiffness_Nm_per_rad": reference.stiffness_Nm_per_rad,
+        "initial_spring": model.initial_spring,
+    }
+    early_mine = metrics_until(mine, early_s)
+    early_ref = metrics_until(ref, early_s)
+    summary.update(
+        {
+            "early_hic15": early_mine[0],
+            "reference_early_hic15": early_ref[0],
+            "early_hic_reduction": 1.0 - early_mine[0] / early_ref[0],
+            "early_peak_force_N": early_mine[1],
+            "reference_early_peak_force_N": early_ref[1],
+            "early_force_reduction": 1.0 - early_mine[1] / early_ref[1],
+            "reference_hic_window_ms": [1000.0 * t for t in ref.hic_window_s],
+        }
+    )
+    for parameter, record in sweeps.items():
+        short = "inertia_sweep" if parameter == "rotor_inertia_kg_m2" else "torque_sweep"
+        for what in ("hic_reduction", "force_reduction"):
+            lo, hi = _range(record[what])
+            summary[f"{what}_min_{short}"] = lo
+            summary[f"{what}_max_{short}"] = hi
+    if isinstance(spring, TabulatedSpring):
+        summary["beyond_table"] = mine.max_deflection_rad > spring.max_rotation_rad
+    inputs: dict[str, Any] = {
+        "sweeps": sweeps,
+        "spring": repr(spring),
+        "reference": repr(reference),
+    }
+    if study.cam is not None:
+        check = _cam_check(study, curve, mine)
+        inputs["cam_check"] = check
+        summary["cam_range_exceeded"] = check["range_exceeded"]
+        summary["cam_contact_pressure_MPa"] = check["max_contact_pressure_MPa"]
+        summary["stress_yield_ratio"] = check["stress_yield_ratio"]
+    return EvaluationResult(
+        table=table,
+        summary=summary,
+        converged=True,
+        message="",
+        solve_times_s=tuple(times),
+        inputs=inputs,
+        diagnostics={"dt_s": settings.dt_s, "samples": int(mine.time_s.size)},
+        plot={"x": "time_ms", "left": "contact_force_N", "right": "head_acceleration_g"},
+        headline=(
+            "hic15",
+            "reference_hic15",
+            "hic_reduction",
+            "peak_force_N",
+            "reference_peak_force_N",
+            "force_reduction",
+            "early_hic_reduction",
+            "early_force_reduction",
+            "max_deflection_deg",
+            "hic_reduction_min_inertia_sweep",
+            "hic_reduction_max_inertia_sweep",
+            "force_reduction_min_inertia_sweep",
+            "force_reduction_max_inertia_sweep",
+            "hic_reduction_min_torque_sweep",
+            "hic_reduction_max_torque_sweep",
+            "force_reduction_min_torque_sweep",
+            "force_reduction_max_torque_sweep",
+            "cam_range_exceeded",
+            "stress_yield_ratio",
+        ),
+    )
+
+
+def extra_files(study: CollisionStudy, result: EvaluationResult) -> dict[str, bytes]:
+    """Files beyond the standard run folder: ``sweeps.png`` (Figs. 16–17) and ``impact.png``
+    (both springs over time). For a pipeline hook that writes kind-specific files."""
+    files = {}
+    sweeps = result.inputs.get("sweeps", {})
+    if sweeps:
+        fig = Figure(figsize=(10, 7), layout="constrained")
+        FigureCanvasAgg(fig)
+        axes = fig.subplots(2, len(sweeps), squeeze=False)
+        for col, (parameter, rec) in enumerate(sweeps.items()):
+            x = np.asarray(rec["values"], dtype=float)
+            for row, (key, label) in enumerate((("hic15", "HIC15"), ("peak_force_N", "ImpF (N)"))):
+                ax = axes[row, col]
+                for name, style in (("spring", "o-"), ("reference", "s--")):
+                    ax.plot(x, np.asarray(rec[key][name], dtype=float), style, ms=4, label=name)
+                ax.set_xlabel(parameter)
+                ax.set_ylabel(label)
+                ax.grid(True, alpha=0.3)
+                ax.legend(loc="best")
+        fig.suptitle(f"{study.name}: spring vs constant stiffness ({study.impact.initial_spring})")
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=110)
+        files["sweeps.png"] = buffer.getvalue()
+    table = result.table
+    fig = Figure(figsize=(10, 4), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 3)
+    for ax, key, label in zip(
+        axes,
+        ("contact_force_N", "head_acceleration_g", "deflection_deg"),
+        ("contact force (N)", "head acceleration (g)", "spring deflection (deg)"),
+        strict=True,
+    ):
+        ax.plot(table["time_ms"], table[key], label="spring")
+        ax.plot(table["time_ms"], table[f"reference_{key}"], "--", label="reference")
+        ax.set_xlabel("time (ms)")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best")
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=110)
+    files["impact.png"] = buffer.getvalue()
+    return files
+
+
+register(StudyKind("collision", CollisionStudy, check, evaluate))  # type: ignore[arg-type]
