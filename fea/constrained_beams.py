@@ -1,0 +1,450 @@
+"""Beams tied together and to moving supports by linear constraints (Lagrange multipliers).
+
+:class:`fea.beam.BeamModel` drives the end of one beam along a fixed direction. Flexure pivots and
+the leaf-spring joint need more: an end section turned by a prescribed angle while its position
+is free (a pure moment), two leaves joined to one rigid block (a cross-axis pivot), the tip of a
+leaf kept on a line that turns with a joint arm. All of these are *linear* constraints on the
+beams' degrees of freedom whose coefficients may change along the load path::
+
+    C(p) z = d(p)          z = [q_1, ..., q_B, e]   (every beam's DOFs, then extra unknowns)
+
+with ``p`` a path parameter (a joint angle, a block rotation). Extra unknowns ``e`` are DOFs of no
+beam, such as the translation of a rigid block, which appear only in constraints (and in applied
+loads). Loads may follow the deformation (a force that stays normal to a beam's end), with their
+derivative in the tangent. Equilibrium at each ``p`` is found by Newton's method on the KKT system::
+
+    r(z) - f(p, z) - C^T lam = 0     (internal force = applied load + constraint forces)
+    C(p) z - d(p)            = 0
+
+    [ K - df/dz   -C^T ] [dz  ]     [ r - f - C^T lam ]
+    [ C            0   ] [dlam] = - [ C z - d         ]
+
+so ``lam`` are the constraint forces (N, or N·mm for a rotation row) acting on the beams along the
+constraint rows. Starting Newton from the last converged state at a new ``p``, the first
+iteration is the linearised predictor: it meets the (linear) constraints exactly, so a prescribed
+motion is never jumped and then iterated.
+
+Everything about one beam (its internal force and tangent, stress recovery) comes from
+:class:`~fea.beam.BeamModel`; this module only adds the constraints and the stepping. It uses the
+model's ``_assemble`` and ``_stress`` (internal to fea.beam, so a change there shows up in
+``tests/geometry/test_flexures.py``). The systems are small (a few hundred unknowns) and solved
+with a sparse LU.
+
+Failure to converge is data (``converged`` flags, ``ok``, ``message``), never raised.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from fea.beam import BeamModel
+from fea.errors import FeaError
+
+__all__ = [
+    "ConstrainedSettings",
+    "ConstrainedResponse",
+    "ConstraintFunction",
+    "LoadFunction",
+    "ConstrainedBeams",
+]
+
+ConstraintFunction = Callable[[float], tuple[np.ndarray, np.ndarray]]
+"""``p -> (C, d)``: constraint matrix (m, N) and right-hand side (m,) at path parameter ``p``."""
+
+LoadFunction = Callable[[float, np.ndarray], tuple[np.ndarray, "sp.spmatrix | None"]]
+"""``(p, z) -> (f, dfdz)``: applied loads (N,) and their derivative (N, N) or None."""
+
+#: half-bandwidth of BeamModel's band storage (node-by-node numbering, 3 nodes x 3 fields)
+_BAND = 8
+
+
+@dataclass(frozen=True)
+class ConstrainedSettings:
+    """Tolerances of the constrained solver, each with its reason.
+
+    Attributes
+    ----------
+    rtol : equilibrium when the residual norm is below rtol x the force scale (constraint forces
+        and applied loads); 1e-9 leaves the force error to the mesh, as in fea.beam.
+    ctol : constraints met when |C z - d| is below ctol x the length scale (mm): the constraints
+        are linear, so after one Newton iteration they hold to round-off; 1e-10 only guards it.
+    max_iterations : Newton iterations per sub-step before the sub-step is cut back; the
+        linearised predictor plus quadratic convergence needs 3-6.
+    min_substep : smallest sub-step as a fraction of a row's step before giving up.
+    fast_iterations : a sub-step converged in at most this many iterations doubles the next one.
+    max_rotation_step : largest section rotation (rad) one Newton correction may apply (larger ones
+        are scaled down), for the reason given in fea.beam: far from equilibrium a slender beam's
+        full Newton step can turn sections by radians.
+    dtol : a Newton correction below dtol x the length scale is round-off (converged).
+    """
+
+    rtol: float = 1e-9
+    ctol: float = 1e-10
+    max_iterations: int = 25
+    min_substep: float = 1e-4
+    fast_iterations: int = 5
+    max_rotation_step: float = 0.5
+    dtol: float = 1e-13
+
+
+@dataclass(frozen=True)
+class ConstrainedResponse:
+    """One row per requested path parameter (row 0 is the start state).
+
+    Attributes
+    ----------
+    params : (rows,) float — the path parameter of each row.
+    states : (rows, N) float — z = [q_1, ..., q_B, e] (beam DOFs node by node (u, v, phi) in mm,
+        mm, rad; extra unknowns in their own units). NaN where a row did not converge.
+    internal : (rows, N) float — internal force r(z) (N, N·mm); at a constrained DOF it is the
+        force the constraints apply there (reaction).
+    multipliers : (rows, m) float — constraint forces lam (N or N·mm) along the constraint rows.
+    peak_stress_MPa : (rows, B) float — per beam, max |N|/A + |M| c / I.
+    peak_stress_s_mm : (rows, B) float — where (arc length of that beam).
+    shapes_mm : tuple of (rows, n_nodes_i, 2) float — deformed node positions of each beam.
+    iterations : (rows,) int — Newton iterations spent reaching each row.
+    converged : (rows,) bool.
+    ok : bool — every row converged.
+    message : str — why not, when not ok.
+    offsets : (B + 1,) int — beam i owns z[offsets[i]:offsets[i + 1]]; extra unknowns follow.
+    """
+
+    params: np.ndarray
+    states: np.ndarray
+    internal: np.ndarray
+    multipliers: np.ndarray
+    peak_stress_MPa: np.ndarray
+    peak_stress_s_mm: np.ndarray
+    shapes_mm: tuple[np.ndarray, ...]
+    iterations: np.ndarray
+    converged: np.ndarray
+    ok: bool
+    message: str = ""
+    offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=int))
+
+    def beam_state(self, i: int) -> np.ndarray:
+        """(rows, n_dofs_i) DOFs of beam ``i``."""
+        return self.states[:, self.offsets[i] : self.offsets[i + 1]]
+
+    def beam_internal(self, i: int) -> np.ndarray:
+        """(rows, n_dofs_i) internal force of beam ``i``."""
+        return self.internal[:, self.offsets[i] : self.offsets[i + 1]]
+
+    def end(self, i: int) -> np.ndarray:
+        """(rows, 3) end DOFs (u mm, v mm, phi rad) of beam ``i`` (its last node)."""
+        return self.beam_state(i)[:, -3:]
+
+    def end_force(self, i: int) -> np.ndarray:
+        """(rows, 3) force (Fx N, Fy N, M N·mm) applied to the end node of beam ``i``."""
+        return self.beam_internal(i)[:, -3:]
+
+    def start_force(self, i: int) -> np.ndarray:
+        """(rows, 3) force (Fx N, Fy N, M N·mm) applied to the start node of beam ``i``."""
+        return self.beam_internal(i)[:, :3]
+
+    @property
+    def extra(self) -> np.ndarray:
+        """(rows, n_extra) the extra unknowns."""
+        return self.states[:, self.offsets[-1] :]
+
+
+class ConstrainedBeams:
+    """Several :class:`~fea.beam.BeamModel` s, extra unknowns and path-dependent linear constraints.
+
+    The beams' own ``start`` supports are ignored: every support is a constraint (see
+    :meth:`clamp_start`), so that a beam may also start on a moving block.
+
+    Parameters
+    ----------
+    beams : sequence of BeamModel
+        Meshed beams (their settings set the mesh; the tolerances here are this solver's).
+    n_extra : int
+        Extra unknowns beyond the beams' DOFs.
+    constraints : callable p -> (C (m, N), d (m,))
+        The constraints at path parameter p; m must not change with p.
+    loads : callable (p, z) -> (f, dfdz), optional
+        Applied loads on z at p (N or N·mm), ``f`` (N,); ``dfdz`` (N, N) sparse or None is their
+        derivative with respect to z, non-zero for loads that follow the deformation (a
+        follower force). Default none.
+    settings : ConstrainedSettings
+
+    Raises
+    ------
+    FeaError
+        When the constraint function returns arrays of the wrong shape.
+    """
+
+    def __init__(
+        self,
+        beams: Sequence[BeamModel],
+        n_extra: int,
+        constraints: ConstraintFunction,
+        loads: LoadFunction | None = None,
+        settings: ConstrainedSettings = ConstrainedSettings(),
+    ) -> None:
+        if not beams:
+            raise FeaError("ConstrainedBeams needs at least one beam")
+        if n_extra < 0:
+            raise FeaError(f"n_extra = {n_extra} must be >= 0")
+        self.beams = tuple(beams)
+        self.offsets = np.concatenate([[0], np.cumsum([b.n_dofs for b in self.beams])])
+        self.n_extra = int(n_extra)
+        self.n = int(self.offsets[-1]) + self.n_extra
+        self.constraints = constraints
+        self.loads = loads
+        self.settings = settings
+        self._frame = np.eye(2)  # end-node translations stay physical (x, y)
+        self._rot = np.concatenate(
+            [np.arange(self.offsets[i] + 2, self.offsets[i + 1], 3) for i in range(len(beams))]
+        )
+        self._length = max(max(b.profile.length_mm for b in self.beams), 1.0)
+        self._force_floor = max(b._force_floor for b in self.beams)
+        # Band -> sparse (row, col) of each beam's tangent (rows kl.. of LAPACK gbsv storage).
+        rows, cols, self._band_src = [], [], []
+        for i, beam in enumerate(self.beams):
+            r_i, c_i, src = _band_entries(beam.n_dofs)
+            rows.append(r_i + self.offsets[i])
+            cols.append(c_i + self.offsets[i])
+            self._band_src.append(src)
+        self._k_rows = np.concatenate(rows)
+        self._k_cols = np.concatenate(cols)
+
+    # ---- helpers for building constraints --------------------------------------------------
+
+    def dof(self, beam: int, node: int, field: int) -> int:
+        """Global index of ``field`` (0 = u, 1 = v, 2 = phi) of ``node`` (negative from the end)
+        of beam ``beam``."""
+        n_nodes = self.beams[beam].n_nodes
+        node = node % n_nodes
+        return int(self.offsets[beam] + 3 * node + field)
+
+    def extra_dof(self, k: int) -> int:
+        """Global index of extra unknown ``k``."""
+        if not 0 <= k < self.n_extra:
+            raise FeaError(f"extra unknown {k} does not exist (n_extra = {self.n_extra})")
+        return int(self.offsets[-1] + k)
+
+    def rows(self, m: int) -> np.ndarray:
+        """A zero constraint matrix (m, N) to fill in."""
+        return np.zeros((m, self.n))
+
+    def clamp_start(self, C: np.ndarray, row: int, beam: int, pinned: bool = False) -> int:
+        """Write rows holding the start of ``beam`` (u = v = 0, and phi = 0 unless pinned) from
+        row ``row`` on; returns the next free row (the right-hand side stays 0)."""
+        for f in (0, 1) if pinned else (0, 1, 2):
+            C[row, self.dof(beam, 0, f)] = 1.0
+            row += 1
+        return row
+
+    # ---- physics -----------------------------------------------------------------------------
+
+    def _assemble(self, z: np.ndarray) -> tuple[np.ndarray, sp.coo_matrix]:
+        """Internal force (N,) and sparse tangent (N, N) at z."""
+        r = np.zeros(self.n)
+        vals = []
+        for i, beam in enumerate(self.beams):
+            a, b = self.offsets[i], self.offsets[i + 1]
+            ri, ab = beam._assemble(z[a:b], self._frame)
+            r[a:b] = ri
+            vals.append(ab[_BAND:][self._band_src[i]])
+        K = sp.coo_matrix(
+            (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
+        )
+        return r, K
+
+    def _stresses(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        peak = np.empty(len(self.beams))
+        where = np.empty(len(self.beams))
+        for i, beam in enumerate(self.beams):
+            peak[i], where[i] = beam._stress(z[self.offsets[i] : self.offsets[i + 1]])
+        return peak, where
+
+    def _newton(
+        self, z0: np.ndarray, lam0: np.ndarray, p: float
+    ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, int, str]:
+        """Equilibrium at p from (z0, lam0): (converged, z, lam, r, iterations, reason)."""
+        st = self.settings
+        C, d = self._constraint_arrays(p)
+        z, lam = z0.copy(), lam0.copy()
+        r, K = self._assemble(z)
+        f, Kf = self._loads(p, z)
+        for it in range(1, st.max_iterations + 1):
+            res = r - f - C.T @ lam
+            gap = C @ z - d
+            Cs = sp.csr_matrix(C)
+            Kt = K if Kf is None else K - sp.csr_matrix(Kf)
+            J = sp.bmat([[Kt, -Cs.T], [Cs, None]], format="csc")
+            try:
+                # Sparse LU: the beams' tangents are banded and the constraints are a few rows,
+                # so this costs far less than a dense solve (and no BLAS threads).
+                step = splu(J, permc_spec="MMD_AT_PLUS_A").solve(-np.concatenate([res, gap]))
+            except RuntimeError:
+                return False, z0, lam0, r, it, "singular system (a mechanism: add a constraint)"
+            if not np.all(np.isfinite(step)):
+                return False, z0, lam0, r, it, "the correction became NaN or inf"
+            dz, dlam = step[: self.n], step[self.n :]
+            # Damp corrections that turn a section by more than max_rotation_step (see settings).
+            big = np.abs(dz[self._rot]).max(initial=0.0) / st.max_rotation_step
+            if big > 1.0:
+                dz, dlam = dz / big, dlam / big
+            z = z + dz
+            lam = lam + dlam
+            r, K = self._assemble(z)
+            f, Kf = self._loads(p, z)
+            if not np.all(np.isfinite(r)):
+                return False, z0, lam0, r, it, "the internal force became NaN or inf"
+            res = r - f - C.T @ lam
+            scale = max(
+                float(np.linalg.norm(C.T @ lam)), float(np.linalg.norm(f)), self._force_floor
+            )
+            gap_ok = float(np.abs(C @ z - d).max(initial=0.0)) <= st.ctol * self._length
+            res_ok = float(np.linalg.norm(res)) <= st.rtol * scale
+            tiny = float(np.abs(dz).max()) <= st.dtol * self._length
+            if gap_ok and (res_ok or tiny):
+                return True, z, lam, r, it, ""
+        return (
+            False,
+            z0,
+            lam0,
+            r,
+            st.max_iterations,
+            (f"Newton did not converge in {st.max_iterations} iterations"),
+        )
+
+    def _loads(self, p: float, z: np.ndarray) -> tuple[np.ndarray, sp.spmatrix | None]:
+        if self.loads is None:
+            return np.zeros(self.n), None
+        f, dfdz = self.loads(float(p), z)
+        return np.asarray(f, dtype=float), dfdz
+
+    def _constraint_arrays(self, p: float) -> tuple[np.ndarray, np.ndarray]:
+        C, d = self.constraints(float(p))
+        C = np.asarray(C, dtype=float)
+        d = np.asarray(d, dtype=float).ravel()
+        if C.ndim != 2 or C.shape[1] != self.n or d.shape != (C.shape[0],):
+            raise FeaError(
+                f"constraints({p:g}) returned C {C.shape} and d {d.shape}; expected (m, {self.n}) "
+                "and (m,)"
+            )
+        return C, d
+
+    # ---- tracing -----------------------------------------------------------------------------
+
+    def solve(
+        self,
+        params: Sequence[float] | np.ndarray,
+        start: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> ConstrainedResponse:
+        """Trace equilibria at ``params`` (rows), starting from the undeformed state (or ``start``
+        = (z, lam), an equilibrium at ``params[0]``).
+
+        Row 0 is solved at ``params[0]`` from the start state; each later row is reached through
+        adaptive sub-steps in p (halved on failure, doubled after fast convergence).
+
+        Parameters
+        ----------
+        params : (rows,) float — path parameter of each row, monotonic or not.
+        start : (z (N,), lam (m,)), optional.
+
+        Returns
+        -------
+        ConstrainedResponse
+        """
+        st = self.settings
+        params = np.asarray(params, dtype=float).ravel()
+        if params.size < 1:
+            raise FeaError("params needs at least one value")
+        C0, _ = self._constraint_arrays(params[0])
+        m = C0.shape[0]
+        rows = params.size
+        n_nodes = [b.n_nodes for b in self.beams]
+        states = np.full((rows, self.n), np.nan)
+        internal = np.full((rows, self.n), np.nan)
+        mult = np.full((rows, m), np.nan)
+        peak = np.full((rows, len(self.beams)), np.nan)
+        peak_s = np.full((rows, len(self.beams)), np.nan)
+        shapes = [np.full((rows, k, 2), np.nan) for k in n_nodes]
+        iterations = np.zeros(rows, dtype=int)
+        converged = np.zeros(rows, dtype=bool)
+
+        if start is None:
+            z, lam = np.zeros(self.n), np.zeros(m)
+        else:
+            z, lam = np.asarray(start[0], dtype=float).copy(), np.asarray(start[1], float).copy()
+        message = ""
+        p_now = params[0]
+        ok, z, lam, r, it, reason = self._newton(z, lam, p_now)
+        iterations[0] = it
+        if not ok:
+            message = f"no equilibrium at the start, p = {p_now:.6g}: {reason}"
+        else:
+            self._store(0, z, lam, r, states, internal, mult, peak, peak_s, shapes)
+            converged[0] = True
+            h = 1.0  # sub-step as a fraction of the current row's step
+            for k in range(1, rows):
+                target = params[k]
+                step = target - p_now
+                done = 0.0
+                while done < 1.0 - 1e-12:
+                    frac = min(h, 1.0 - done)
+                    p_try = p_now + (done + frac) * step
+                    ok, z_new, lam_new, r_new, it, reason = self._newton(z, lam, p_try)
+                    iterations[k] += it
+                    if ok:
+                        z, lam, r = z_new, lam_new, r_new
+                        done += frac
+                        if it <= st.fast_iterations:
+                            h = min(2.0 * h, 1.0)
+                        continue
+                    h = frac / 2.0
+                    if h < st.min_substep:
+                        message = (
+                            f"no convergence at p = {p_try:.6g} (row {k}, last converged "
+                            f"p = {p_now + done * step:.6g}): {reason}"
+                        )
+                        break
+                if message:
+                    break
+                p_now = target
+                self._store(k, z, lam, r, states, internal, mult, peak, peak_s, shapes)
+                converged[k] = True
+        return ConstrainedResponse(
+            params=params,
+            states=states,
+            internal=internal,
+            multipliers=mult,
+            peak_stress_MPa=peak,
+            peak_stress_s_mm=peak_s,
+            shapes_mm=tuple(shapes),
+            iterations=iterations,
+            converged=converged,
+            ok=bool(converged.all()),
+            message=message,
+            offsets=self.offsets.copy(),
+        )
+
+    def _store(self, k, z, lam, r, states, internal, mult, peak, peak_s, shapes) -> None:
+        states[k] = z
+        internal[k] = r
+        mult[k] = lam
+        peak[k], peak_s[k] = self._stresses(z)
+        for i, beam in enumerate(self.beams):
+            q = z[self.offsets[i] : self.offsets[i + 1]].reshape(-1, 3)
+            shapes[i][k] = beam.reference_nodes_mm + q[:, :2]
+
+
+def _band_entries(n: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """(row, col) and band-storage indices of the entries of an (n, n) banded tangent.
+
+    The model's tangent is in LAPACK gbsv storage, A[i, j] = ab[kl + ku + i - j, j]; its rows
+    kl.. are the plain band (A[i, j] = ab[ku + i - j, j] of ``ab[kl:]``).
+    """
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    inside = np.abs(i - j) <= _BAND
+    rows, cols = i[inside], j[inside]
+    return rows, cols, (_BAND + rows - cols, cols)

@@ -1,0 +1,779 @@
+"""Study kind ``flexure_pivot``: choose a flexure pivot type and its dimensions for a target
+rotational stiffness, range of motion, material and envelope (see docs/flexures.md).
+
+YAML (units in the key names)::
+
+    geometry: {kind: flexure_pivot, candidates: [leaf, circular_notch, ...], width_mm: 6,
+               block_length_mm: 5, min_feature_mm: 0.8, max_length_mm: 40, max_height_mm: 20}
+    material: PETG
+    target: {stiffness_Nmm_per_rad: 300, tolerance_percent: 5, range_of_motion_deg: 15,
+             allowable_stress_MPa: 50, max_centre_shift_mm: null}
+    design_space: {length_mm: [2, 30], thickness_mm: [0.8, 3], shape: [0, 1]}
+    fidelity: {plane_stress: true, steps: 3}
+    optimiser: {pop_size: 40, n_gen: 25}
+    design: {type: leaf, length_mm: 12, thickness_mm: 1.2}      # what `flexopt evaluate` traces
+
+The pivot type is a categorical design variable (``type_index``, floored into ``candidates``), so
+one GA compares the types; the other three variables mean, per type:
+
+==================  ============================  ==================  =============================
+type                length_mm                     thickness_mm        shape in [0, 1]
+==================  ============================  ==================  =============================
+leaf                leaf length L                 t                   unused
+variable_leaf       leaf length L                 t in the middle     end thickness t (1 + 2 shape)
+circular_notch      notch length 2R               web t               unused
+elliptical_notch    notch length 2a               web t               depth c = a / 4 x 8^shape
+corner_filleted     notch length L + 2r           web t               r = (length / 2)(0.1 + 0.8
+                                                                      shape)
+cross_axis          leaf length L (leaves at 90)  t                   unused
+==================  ============================  ==================  =============================
+
+Each design is loaded the way rotational stiffness is defined: a pure moment on the moving block
+(the stiffness target is the small-angle stiffness M / theta). The objective is the stress ratio
+sigma_peak / sigma_allowable at the full range of motion (its inverse is the safety factor, which
+the GA thus maximises); constraints keep the stiffness in its band, the stress allowable, the part
+inside the envelope and, optionally, the centre shift small. Leaves and the cross-axis pivot are
+solved with the large-deflection beam model in the GA (40 ms); notch hinges by their closed forms
+(Paros–Weisbord, Lobontiu) with the stress concentration estimate, and the best design is checked
+by plane stress in ``detail``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field, model_validator
+from scipy.optimize import brentq
+
+from fea.closed_forms import PivotClosedForm, pivot_closed_form
+from fea.errors import FeaError
+from fea.materials import Material, get_material
+from fea.pivot import PivotResponse, beam_pivot, plane_stress_pivot, pure_moment_centre
+from geometry.errors import GeometryError
+from geometry.flexures import (
+    CircularNotch,
+    CornerFilleted,
+    CrossAxis,
+    EllipticalNotch,
+    Flexure,
+    Leaf,
+    VariableLeaf,
+)
+from optimise.evaluation import Evaluation
+from optimise.problem import DesignDetail
+from optimise.space import DesignSpace
+from pipeline.errors import StudyError
+from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+
+__all__ = [
+    "PIVOT_TYPES",
+    "BEAM_TYPES",
+    "VARIABLES",
+    "FlexurePivotGeometry",
+    "PivotTarget",
+    "PivotDesignSpace",
+    "PivotFidelity",
+    "PivotDesign",
+    "FlexurePivotStudy",
+    "FlexurePivotProblem",
+    "build_flexure",
+    "design_space",
+    "check",
+    "problem",
+    "evaluate",
+]
+
+PivotType = Literal[
+    "leaf", "variable_leaf", "circular_notch", "elliptical_notch", "corner_filleted", "cross_axis"
+]
+PIVOT_TYPES: tuple[str, ...] = (
+    "leaf",
+    "variable_leaf",
+    "circular_notch",
+    "elliptical_notch",
+    "corner_filleted",
+    "cross_axis",
+)
+#: Types solved with the beam model inside the GA (the rest by closed forms).
+BEAM_TYPES = ("leaf", "variable_leaf", "cross_axis")
+VARIABLES = ("type_index", "length_mm", "thickness_mm", "shape")
+
+
+# --------------------------------------------------------------------------------------------
+# The study file
+
+
+class FlexurePivotGeometry(BaseModel):
+    """The ``geometry:`` block: candidate types, the fixed dimensions and the envelope (mm)."""
+
+    model_config = STUDY_CONFIG
+
+    kind: Literal["flexure_pivot"] = Field(description="flexure_pivot")
+    candidates: tuple[PivotType, ...] = Field(
+        PIVOT_TYPES, min_length=1, description="pivot types the optimiser may choose"
+    )
+    width_mm: float = Field(6.0, gt=0, description="out-of-plane width (print height), mm")
+    block_length_mm: float = Field(5.0, gt=0, description="length of each clamping block, mm")
+    block_height_mm: float | None = Field(
+        None, gt=0, description="height of the leaf types' blocks, mm (default max(3, 3 t))"
+    )
+    min_feature_mm: float = Field(0.8, gt=0, description="thinnest printable section, mm")
+    max_length_mm: float = Field(40.0, gt=0, description="envelope: overall length, mm")
+    max_height_mm: float = Field(20.0, gt=0, description="envelope: overall height, mm")
+    elements: int = Field(40, ge=4, le=2000, description="beam elements per member")
+
+    @model_validator(mode="after")
+    def _unique_candidates(self) -> FlexurePivotGeometry:
+        seen = [c for i, c in enumerate(self.candidates) if c in self.candidates[:i]]
+        if seen:
+            raise ValueError(f"candidates lists '{seen[0]}' twice; give each type once")
+        return self
+
+
+class PivotTarget(BaseModel):
+    """The ``target:`` block: stiffness band, range of motion, stress and centre limits."""
+
+    model_config = STUDY_CONFIG
+
+    stiffness_Nmm_per_rad: float | None = Field(
+        None, gt=0, description="target small-angle stiffness M/theta, N·mm/rad"
+    )
+    stiffness_Nm_per_rad: float | None = Field(
+        None, gt=0, description="the same in N·m/rad (give one of the two)"
+    )
+    tolerance_percent: float = Field(5.0, gt=0, lt=100, description="stiffness band, percent")
+    range_of_motion_deg: float = Field(
+        15.0, gt=0, le=90, description="rotation at which the stress is checked, deg"
+    )
+    allowable_stress_MPa: float | None = Field(
+        None, gt=0, description="allowable stress, MPa (default: the material's yield)"
+    )
+    max_centre_shift_mm: float | None = Field(
+        None, gt=0, description="if set, a constraint on the centre shift at full range, mm"
+    )
+
+    @model_validator(mode="after")
+    def _one_stiffness(self) -> PivotTarget:
+        given = [k for k in ("stiffness_Nmm_per_rad", "stiffness_Nm_per_rad") if getattr(self, k)]
+        if len(given) != 1:
+            raise ValueError(
+                "give exactly one of stiffness_Nmm_per_rad or stiffness_Nm_per_rad "
+                f"(got {', '.join(given) or 'neither'})"
+            )
+        return self
+
+    @property
+    def stiffness_Nmm(self) -> float:
+        """Target stiffness, N·mm/rad."""
+        if self.stiffness_Nmm_per_rad is not None:
+            return float(self.stiffness_Nmm_per_rad)
+        return 1000.0 * float(self.stiffness_Nm_per_rad)  # type: ignore[arg-type]
+
+
+class PivotDesignSpace(BaseModel):
+    """The ``design_space:`` block: bounds of the shared variables (see the module docstring)."""
+
+    model_config = STUDY_CONFIG
+
+    length_mm: tuple[float, float] | None = Field(
+        None, description="[lower, upper] compliant length, mm (default [2, envelope])"
+    )
+    thickness_mm: tuple[float, float] | None = Field(
+        None, description="[lower, upper] thinnest section, mm (default [min_feature, 4x])"
+    )
+    shape: tuple[float, float] = Field((0.0, 1.0), description="[lower, upper] in [0, 1]")
+
+
+class PivotFidelity(BaseModel):
+    """The ``fidelity:`` block: how the best design is checked in the report."""
+
+    model_config = STUDY_CONFIG
+
+    steps: int = Field(10, ge=2, le=200, description="rows of the beam sweep in the report")
+    ga_steps: int = Field(3, ge=1, le=50, description="rows of the beam solve of each GA design")
+    plane_stress: bool = Field(True, description="check the best planar design by plane stress")
+    plane_stress_steps: int = Field(3, ge=1, le=50, description="nonlinear plane-stress rows")
+    web_elements: float = Field(
+        4.0, ge=1.0, le=16.0, description="plane-stress elements through the thinnest section"
+    )
+
+
+class PivotDesign(BaseModel):
+    """The ``design:`` block: one design for ``flexopt evaluate``."""
+
+    model_config = STUDY_CONFIG
+
+    type: PivotType = Field(description="pivot type")
+    length_mm: float = Field(gt=0, description="compliant length, mm (see the table)")
+    thickness_mm: float = Field(gt=0, description="thinnest section, mm")
+    shape: float = Field(0.5, ge=0, le=1, description="type-specific shape in [0, 1]")
+
+
+class FlexurePivotStudy(Study):
+    """A whole ``flexure_pivot`` study file."""
+
+    geometry: FlexurePivotGeometry = Field(description="kind: flexure_pivot and its options")
+    target: PivotTarget = Field(description="stiffness_Nmm_per_rad, range_of_motion_deg, ...")
+    design_space: PivotDesignSpace = Field(
+        default_factory=PivotDesignSpace, description="length_mm, thickness_mm, shape bounds"
+    )
+    fidelity: PivotFidelity = Field(
+        default_factory=PivotFidelity, description="report checks: steps, plane_stress, ..."
+    )
+    optimiser: OptimiserSpec = Field(
+        default_factory=lambda: OptimiserSpec(pop_size=40, n_gen=25, quick_pop_size=12),
+        description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
+    )
+    design: PivotDesign | None = Field(
+        None, description="the design flexopt evaluate traces (default: the best closed-form seed)"
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _allowable_defaults_to_yield(cls, data: Any) -> Any:
+        # The resolved study carries the allowable it was run with, not null.
+        if not isinstance(data, dict):
+            return data
+        target = data.get("target")
+        if not isinstance(target, dict) or target.get("allowable_stress_MPa") is not None:
+            return data
+        yield_MPa = _yield_of(data.get("material"))
+        if yield_MPa is None:
+            return data
+        return {**data, "target": {**target, "allowable_stress_MPa": yield_MPa}}
+
+    @property
+    def allowable_MPa(self) -> float:
+        value = self.target.allowable_stress_MPa
+        return float(value if value is not None else self.material.yield_MPa)
+
+
+def _yield_of(material: Any) -> float | None:
+    try:
+        if isinstance(material, str):
+            return float(get_material(material).yield_MPa)
+        if isinstance(material, dict) and isinstance(material.get("yield_MPa"), int | float):
+            return float(material["yield_MPa"])
+    except FeaError:
+        return None
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# From a design vector to a flexure
+
+
+def build_flexure(
+    kind: str, length: float, thickness: float, shape: float, geometry: FlexurePivotGeometry
+) -> Flexure:
+    """The flexure of type ``kind`` for the shared variables (see the module docstring).
+
+    Raises
+    ------
+    GeometryError
+        When the generator refuses the dimensions.
+    """
+    common = {"width_mm": geometry.width_mm, "block_length_mm": geometry.block_length_mm}
+    shape = min(max(float(shape), 0.0), 1.0)
+    if kind == "leaf":
+        return Leaf(
+            length_mm=length,
+            thickness_mm=thickness,
+            block_height_mm=geometry.block_height_mm,
+            **common,
+        )
+    if kind == "variable_leaf":
+        return VariableLeaf(
+            length_mm=length,
+            thickness_mm=thickness,
+            end_thickness_mm=thickness * (1.0 + 2.0 * shape),
+            block_height_mm=geometry.block_height_mm,
+            **common,
+        )
+    if kind == "circular_notch":
+        return CircularNotch(radius_mm=0.5 * length, thickness_mm=thickness, **common)
+    if kind == "elliptical_notch":
+        a = 0.5 * length
+        return EllipticalNotch(
+            half_length_mm=a, depth_mm=0.25 * a * 8.0**shape, thickness_mm=thickness, **common
+        )
+    if kind == "corner_filleted":
+        r = 0.5 * length * (0.1 + 0.8 * shape)
+        return CornerFilleted(
+            length_mm=length - 2.0 * r, fillet_radius_mm=r, thickness_mm=thickness, **common
+        )
+    if kind == "cross_axis":
+        return CrossAxis(
+            length_mm=length,
+            thickness_mm=thickness,
+            block_height_mm=geometry.block_height_mm,
+            **common,
+        )
+    raise GeometryError(f"unknown pivot type '{kind}'; use one of {', '.join(PIVOT_TYPES)}")
+
+
+def design_space(study: FlexurePivotStudy) -> DesignSpace:
+    """(type_index, length_mm, thickness_mm, shape) with the study's bounds.
+
+    Raises
+    ------
+    StudyError
+        At ``design_space.<name>`` for swapped or equal bounds, a thickness below the printable
+        minimum, or a shape outside [0, 1].
+    """
+    g, ds = study.geometry, study.design_space
+    length = ds.length_mm or (2.0, max(g.max_length_mm - 2.0 * g.block_length_mm, 3.0))
+    thickness = ds.thickness_mm or (g.min_feature_mm, 4.0 * g.min_feature_mm)
+    for name, (lo, hi) in (("length_mm", length), ("thickness_mm", thickness), ("shape", ds.shape)):
+        path = f"design_space.{name}"
+        if lo > hi:
+            raise StudyError(
+                path, f"lower bound {lo:g} > upper {hi:g}; swap them: [{hi:g}, {lo:g}]"
+            )
+        if lo == hi:
+            raise StudyError(path, f"equal bounds [{lo:g}, {hi:g}]; give a range")
+        if name != "shape" and not lo > 0:
+            raise StudyError(path, f"lower bound {lo:g} must be > 0 mm")
+    if thickness[0] < g.min_feature_mm:
+        raise StudyError(
+            "design_space.thickness_mm",
+            f"lower bound {thickness[0]:g} mm is thinner than geometry.min_feature_mm = "
+            f"{g.min_feature_mm:g}; raise it to at least {g.min_feature_mm:g}",
+        )
+    if not (0.0 <= ds.shape[0] and ds.shape[1] <= 1.0):
+        raise StudyError("design_space.shape", f"{list(ds.shape)} must lie within [0, 1]")
+    n = len(g.candidates)
+    return DesignSpace(
+        VARIABLES,
+        np.array([0.0, length[0], thickness[0], ds.shape[0]]),
+        np.array([float(n), length[1], thickness[1], ds.shape[1]]),
+    )
+
+
+def type_of(study: FlexurePivotStudy, index: float) -> str:
+    """The candidate type a (continuous) type_index falls in."""
+    n = len(study.geometry.candidates)
+    return study.geometry.candidates[min(max(int(math.floor(index)), 0), n - 1)]
+
+
+def check(study: FlexurePivotStudy) -> None:
+    """Build the design space, the material and the study's design once, so every refusal names
+    its key path before a run folder exists."""
+    design_space(study)
+    material = study.material.to_material()
+    if study.design is not None:
+        d = study.design
+        if d.type not in study.geometry.candidates:
+            raise StudyError(
+                "design.type",
+                f"'{d.type}' is not among geometry.candidates "
+                f"({', '.join(study.geometry.candidates)}); add it there",
+            )
+        try:
+            f = build_flexure(d.type, d.length_mm, d.thickness_mm, d.shape, study.geometry)
+            f.outline()
+        except GeometryError as exc:
+            raise StudyError("design", str(exc)) from exc
+        if d.thickness_mm < study.geometry.min_feature_mm:
+            raise StudyError(
+                "design.thickness_mm",
+                f"{d.thickness_mm:g} mm is thinner than geometry.min_feature_mm = "
+                f"{study.geometry.min_feature_mm:g}",
+            )
+    if not material.E_MPa > 0:  # pragma: no cover - the material model guarantees it
+        raise StudyError("material.E_MPa", "must be > 0")
+
+
+# --------------------------------------------------------------------------------------------
+# The design problem
+
+
+class FlexurePivotProblem:
+    """The :class:`optimise.DesignProblem` of a ``flexure_pivot`` study (picklable)."""
+
+    objective_names = ("stress_ratio",)
+
+    def __init__(self, study: FlexurePivotStudy) -> None:
+        self.study = study
+        self.space = design_space(study)
+        self.material: Material = study.material.to_material()
+        self.allowable_MPa = study.allowable_MPa
+        self.target_Nmm = study.target.stiffness_Nmm
+        self.tolerance = study.target.tolerance_percent / 100.0
+        self.rom_rad = math.radians(study.target.range_of_motion_deg)
+        names = ["stiffness_band", "stress", "envelope_length", "envelope_height"]
+        if study.target.max_centre_shift_mm is not None:
+            names.append("centre_shift")
+        self.constraint_names = tuple(names)
+
+    # -- helpers -------------------------------------------------------------------------------
+
+    def flexure(self, x: np.ndarray) -> tuple[str, Flexure]:
+        """(type, flexure) of a design vector (4,)."""
+        x = np.asarray(x, dtype=float)
+        kind = type_of(self.study, x[0])
+        return kind, build_flexure(kind, x[1], x[2], x[3], self.study.geometry)
+
+    def _beam(self, flexure: Flexure, steps: int) -> PivotResponse:
+        return beam_pivot(
+            flexure, self.material, self.rom_rad, steps, n_elements=self.study.geometry.elements
+        )
+
+    def _fail(self, x: np.ndarray, reason: str, t0: float) -> Evaluation:
+        return Evaluation.failed(x, 1, len(self.constraint_names), reason, time.perf_counter() - t0)
+
+    # -- protocol ------------------------------------------------------------------------------
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        t0 = time.perf_counter()
+        x = np.asarray(x, dtype=float)
+        try:
+            kind, flex = self.flexure(x)
+            length, height = flex.envelope_mm()
+        except GeometryError as exc:
+            return self._fail(x, f"cannot build: {exc}", t0)
+        cf = pivot_closed_form(flex, self.material.E_MPa)
+        shift = float("nan")
+        if kind in BEAM_TYPES:
+            res = self._beam(flex, self.study.fidelity.ga_steps)
+            if not res.ok:
+                return self._fail(x, f"beam model: {res.message}", t0)
+            K = res.small_angle_stiffness_Nmm_per_rad
+            sigma = float(np.nanmax(res.peak_stress_MPa)) * cf.stress_concentration
+            shift = float(res.centre_shift_mm[-1])
+            model = "beam"
+        else:
+            K = cf.stiffness_Nmm_per_rad
+            sigma = float(cf.stress_MPa(self.rom_rad))
+            model = "closed form"
+            if self.study.target.max_centre_shift_mm is not None:
+                res = self._beam(flex, self.study.fidelity.ga_steps)
+                shift = float(res.centre_shift_mm[-1]) if res.ok else float("inf")
+        ratio = sigma / self.allowable_MPa
+        g = [
+            abs(K / self.target_Nmm - 1.0) - self.tolerance,
+            ratio - 1.0,
+            length / self.study.geometry.max_length_mm - 1.0,
+            height / self.study.geometry.max_height_mm - 1.0,
+        ]
+        if self.study.target.max_centre_shift_mm is not None:
+            g.append(shift / self.study.target.max_centre_shift_mm - 1.0)
+        metrics = {
+            "type": kind,
+            "model": model,
+            "stiffness_Nmm_per_rad": K,
+            "closed_form_stiffness_Nmm_per_rad": cf.stiffness_Nmm_per_rad,
+            "peak_stress_MPa": sigma,
+            "safety_factor": 1.0 / ratio if ratio > 0 else float("inf"),
+            "centre_shift_mm": shift,
+            "envelope_length_mm": length,
+            "envelope_height_mm": height,
+        }
+        return Evaluation(x, np.array([ratio]), np.array(g), metrics, "", time.perf_counter() - t0)
+
+    def initial_designs(self) -> np.ndarray | None:
+        """One closed-form design per candidate type that meets the target stiffness (the
+        thickness and shape on a small grid, the length solved from the closed form), the one
+        with the largest closed-form safety factor inside the envelope; types that cannot meet
+        the target inside the bounds are left out."""
+        seeds = []
+        for i, kind in enumerate(self.study.geometry.candidates):
+            best = self._closed_form_seed(kind)
+            if best is not None:
+                seeds.append([i + 0.5, *best])
+        return np.array(seeds) if seeds else None
+
+    def _closed_form_seed(self, kind: str) -> list[float] | None:
+        lo, hi = self.space.lower, self.space.upper
+        g = self.study.geometry
+        best: tuple[float, list[float]] | None = None
+        for t in np.linspace(lo[2], hi[2], 9):
+            for s in np.linspace(lo[3], hi[3], 3):
+
+                def gap(length: float, t: float = t, s: float = s) -> float:
+                    f = build_flexure(kind, length, t, s, g)
+                    K = pivot_closed_form(f, self.material.E_MPa).stiffness_Nmm_per_rad
+                    return math.log(K / self.target_Nmm)
+
+                try:
+                    g_lo, g_hi = gap(lo[1]), gap(hi[1])
+                    if not g_lo >= 0.0 >= g_hi:
+                        continue
+                    length = brentq(gap, lo[1], hi[1], xtol=1e-6)
+                    f = build_flexure(kind, length, t, s, g)
+                    envelope = f.envelope_mm()
+                except (GeometryError, ValueError):
+                    continue
+                if envelope[0] > g.max_length_mm or envelope[1] > g.max_height_mm:
+                    continue
+                cf = pivot_closed_form(f, self.material.E_MPa)
+                sf = self.allowable_MPa / float(cf.stress_MPa(self.rom_rad))
+                if best is None or sf > best[0]:
+                    best = (sf, [float(length), float(t), float(s)])
+        return None if best is None else best[1]
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        evaluation = self.evaluate(x)
+        study = self.study
+        kind, flex = self.flexure(x)
+        cf = pivot_closed_form(flex, self.material.E_MPa)
+        steps = study.fidelity.steps
+        res = self._beam(flex, steps)
+        table = _pivot_table(res, cf)
+        info: dict[str, Any] = {
+            "type": kind,
+            "parameters": {k: v for k, v in flex.params().items() if v is not None},
+            "design_vector": {n: float(v) for n, v in zip(VARIABLES, x, strict=True)},
+            "target_stiffness_Nmm_per_rad": self.target_Nmm,
+            "allowable_stress_MPa": self.allowable_MPa,
+            "range_of_motion_deg": study.target.range_of_motion_deg,
+            "stiffness_Nmm_per_rad": {
+                "beam_small_angle": res.small_angle_stiffness_Nmm_per_rad,
+                "beam_secant_at_range": float(res.torque_Nmm[-1] / res.rotation_rad[-1])
+                if res.ok
+                else None,
+                "closed_form": cf.stiffness_Nmm_per_rad,
+                **{f"closed_form_{k}": v for k, v in cf.alternatives.items()},
+            },
+            "closed_form": {
+                "formula": cf.formula,
+                "reference": cf.reference,
+                "stress_concentration": cf.stress_concentration,
+            },
+            "stress_at_range_MPa": {
+                "beam_times_Kt": float(np.nanmax(table["peak_stress_MPa"])),
+                "closed_form": float(cf.stress_MPa(self.rom_rad)),
+            },
+            "safety_factor": evaluation.metrics.get("safety_factor"),
+            "centre_shift_at_range_mm": float(res.centre_shift_mm[-1]) if res.ok else None,
+            "envelope_mm": list(flex.envelope_mm()),
+            "beam": {"ok": res.ok, "message": res.message, **res.extra},
+        }
+        notes = []
+        outline = flex.outline()
+        if flex.is_planar:
+            try:
+                from geometry.solid import min_feature_mm
+
+                info["outline_min_feature_mm"] = min_feature_mm(outline)
+            except (GeometryError, ValueError) as exc:  # pragma: no cover - defensive
+                notes.append(f"min feature check failed: {exc}")
+            if study.fidelity.plane_stress:
+                info["plane_stress"] = _plane_stress_check(self, flex, cf, res)
+        else:
+            notes.append(
+                "cross_axis: the leaves of a cross-axis pivot pass each other in separate layers, "
+                "so one extrusion of the planar outline (which joins them at the crossing) is not "
+                "this pivot; no STL is written and no plane-stress check is made"
+            )
+        if kind not in BEAM_TYPES:
+            notes.append(
+                "notch hinge: the GA used the closed form; the table is the equivalent "
+                "variable-thickness beam (its stress times K_t), the plane-stress check is the "
+                "reference"
+            )
+        if notes:
+            info["notes"] = notes
+        plot = {
+            "x": "rotation_deg",
+            "y": "stiffness_Nmm_per_rad",
+            "stress": "peak_stress_MPa",
+            "target": self.target_Nmm,
+            "tolerance": self.target_Nmm * self.tolerance,
+            "allowable_MPa": self.allowable_MPa,
+            "xlabel": "rotation of the moving block (deg)",
+            "ylabel": "tangent stiffness dM/dtheta (N·mm/rad)",
+        }
+        return DesignDetail(
+            evaluation=evaluation,
+            table=table,
+            plot=plot,
+            shapes_mm=res.shapes_mm,
+            outline=outline if flex.is_planar else None,
+            height_mm=flex.width_mm if flex.is_planar else None,
+            info=info,
+        )
+
+
+def _pivot_table(res: PivotResponse, cf: PivotClosedForm) -> dict[str, np.ndarray]:
+    """One row per beam row: beam response, design stress (x K_t) and the closed forms."""
+    angle = res.rotation_rad
+    with np.errstate(invalid="ignore", divide="ignore"):
+        secant = np.where(angle != 0, res.torque_Nmm / angle, res.small_angle_stiffness_Nmm_per_rad)
+    return {
+        "rotation_deg": np.degrees(angle),
+        "torque_Nmm": res.torque_Nmm,
+        "stiffness_Nmm_per_rad": res.stiffness_Nmm_per_rad,
+        "secant_stiffness_Nmm_per_rad": secant,
+        "peak_stress_MPa": res.peak_stress_MPa * cf.stress_concentration,
+        "beam_stress_MPa": res.peak_stress_MPa,
+        "centre_shift_mm": res.centre_shift_mm,
+        "closed_form_torque_Nmm": cf.torque_Nmm(angle),
+        "closed_form_stress_MPa": cf.stress_MPa(angle),
+        "converged": res.converged,
+    }
+
+
+def _plane_stress_check(
+    problem: FlexurePivotProblem, flex: Flexure, cf: PivotClosedForm, beam: PivotResponse
+) -> dict[str, Any]:
+    """Plane-stress stiffness (linear, about the nominal centre) and the state at the range of
+    motion (nonlinear), the moving block turned about the point that puts it where the beam
+    model's pure moment does (so that a wandering rotation centre does not stretch the part)."""
+    spec = problem.study.fidelity
+    web = flex.min_thickness_mm / spec.web_elements
+    rom = problem.rom_rad
+    t0 = time.perf_counter()
+    try:
+        lin = plane_stress_pivot(flex, problem.material, rom / 10.0, 1, "linear", web_edge_mm=web)
+        centre = flex.centre_mm
+        if beam.ok:
+            centre = pure_moment_centre(flex.centre_mm, rom, beam.centre_displacement_mm[-1])
+        non = plane_stress_pivot(
+            flex,
+            problem.material,
+            rom,
+            spec.plane_stress_steps,
+            "nonlinear",
+            web_edge_mm=web,
+            centre_mm=centre,
+        )
+    except (FeaError, GeometryError) as exc:
+        return {"skipped": f"could not build the plane-stress model: {exc}"}
+    K = lin.small_angle_stiffness_Nmm_per_rad
+    out: dict[str, Any] = {
+        "model": "plane stress, P2 triangles; ground block clamped, moving block turned as a "
+        "rigid body (linear: about the nominal centre; nonlinear: about the point that reproduces "
+        "the beam model's pure-moment motion at the range of motion)",
+        "linear_stiffness_Nmm_per_rad": K,
+        "over_closed_form": K / cf.stiffness_Nmm_per_rad,
+        "turned_about_mm": [float(v) for v in centre],
+        "torque_at_range_Nmm": float(non.torque_Nmm[-1]),
+        "beam_torque_at_range_Nmm": float(beam.torque_Nmm[-1]),
+        "peak_von_mises_at_range_MPa": float(non.peak_stress_MPa[-1]),
+        "centre_force_at_range_N": float(non.centre_force_N[-1]),
+        "ok": non.ok,
+        "message": non.message,
+        "dofs": non.extra.get("dofs"),
+        "time_s": time.perf_counter() - t0,
+    }
+    if non.ok:
+        out["safety_factor"] = problem.allowable_MPa / float(non.peak_stress_MPa[-1])
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Registry hooks
+
+
+def problem(study: FlexurePivotStudy) -> FlexurePivotProblem:
+    """The design problem ``flexopt run`` optimises."""
+    return FlexurePivotProblem(study)
+
+
+def design_vector(study: FlexurePivotStudy, prob: FlexurePivotProblem) -> np.ndarray:
+    """(4,) the study's ``design:``, or the closed-form seed of the first candidate that has one.
+
+    Raises
+    ------
+    StudyError
+        At ``design`` when there is no design and no candidate meets the target in the bounds.
+    """
+    cands = study.geometry.candidates
+    if study.design is not None:
+        d = study.design
+        index = cands.index(d.type) + 0.5 if d.type in cands else None
+        if index is None:
+            raise StudyError(
+                "design.type",
+                f"'{d.type}' is not among geometry.candidates ({', '.join(cands)}); add it",
+            )
+        return np.array([index, d.length_mm, d.thickness_mm, d.shape])
+    seeds = prob.initial_designs()
+    if seeds is None:
+        raise StudyError(
+            "design",
+            "no design given, and no candidate meets target.stiffness within design_space by its "
+            "closed form; give a design: {type, length_mm, thickness_mm} or widen the bounds",
+        )
+    ratios = [prob.evaluate(s).f[0] for s in seeds]
+    return seeds[int(np.argmin(ratios))]
+
+
+def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
+    """``flexopt evaluate``: the study's design (or the best closed-form seed) turned to its range
+    of motion by the beam model, with the closed forms beside it."""
+    prob = FlexurePivotProblem(study)
+    x = design_vector(study, prob)
+    times = []
+    detail = None
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        detail = prob.detail(x)
+        times.append(time.perf_counter() - t0)
+    assert detail is not None
+    ev = detail.evaluation
+    table = dict(detail.table)
+    summary: dict[str, Any] = {
+        "type": detail.info["type"],
+        "small_angle_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"][
+            "beam_small_angle"
+        ],
+        "closed_form_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"]["closed_form"],
+        "target_stiffness_Nmm_per_rad": prob.target_Nmm,
+        "peak_stress_MPa": ev.metrics.get("peak_stress_MPa"),
+        "stress_yield_ratio": float(ev.metrics.get("peak_stress_MPa", np.nan))
+        / prob.material.yield_MPa,
+        "safety_factor": ev.metrics.get("safety_factor"),
+        "centre_shift_at_range_mm": detail.info["centre_shift_at_range_mm"],
+        "feasible": ev.feasible,
+    }
+    ps = detail.info.get("plane_stress")
+    if isinstance(ps, dict) and "linear_stiffness_Nmm_per_rad" in ps:
+        summary["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]
+        summary["plane_stress_safety_factor"] = ps.get("safety_factor")
+    converged = bool(np.all(table["converged"]))
+    return EvaluationResult(
+        table=table,
+        summary=summary,
+        converged=converged,
+        message=detail.info["beam"]["message"],
+        solve_times_s=tuple(times),
+        inputs={
+            "material": material_record(prob.material),
+            "design": {n: float(v) for n, v in zip(VARIABLES, x, strict=True)},
+            "flexure": detail.info["parameters"],
+            "closed_form": detail.info["closed_form"],
+        },
+        diagnostics=dict(detail.info["beam"]),
+        plot={
+            "x": "rotation_deg",
+            "left": "torque_Nmm",
+            "right": "peak_stress_MPa",
+            "allowable_MPa": prob.allowable_MPa,
+        },
+        headline=(
+            "type",
+            "small_angle_stiffness_Nmm_per_rad",
+            "closed_form_stiffness_Nmm_per_rad",
+            "plane_stress_stiffness_Nmm_per_rad",
+            "peak_stress_MPa",
+            "safety_factor",
+            "centre_shift_at_range_mm",
+        ),
+    )
+
+
+register(
+    StudyKind(
+        "flexure_pivot",
+        FlexurePivotStudy,
+        check,  # type: ignore[arg-type]
+        evaluate,  # type: ignore[arg-type]
+        problem,  # type: ignore[arg-type]
+    )
+)

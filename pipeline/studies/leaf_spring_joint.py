@@ -1,0 +1,601 @@
+"""Study kind ``leaf_spring_joint``: the leaf-spring variable-stiffness joint of paper 002.
+
+Two modes share one study file (see docs/leaf_joint.md):
+
+* ``flexopt evaluate`` — analysis: joint torque, stiffness and leaf stress against deflection for
+  every effective length in ``geometry.effective_lengths_mm`` and every structure in
+  ``geometry.structures`` (paper Figs. 7, 8, 10, 11), by the large-deflection beam model, with the
+  elastic limit of each curve and the stiffness range the joint reaches elastically.
+* ``flexopt run`` — design: the joint arm l_j, leaf thickness and width that give the requested
+  small-deflection stiffness range (``target.stiffness_range_Nm_per_rad``, set by moving the
+  support between the two effective lengths that give its ends) with the largest safety factor
+  at ``target.max_deflection_deg``, inside the mechanism's limits (shortest free length, the hub
+  the support cannot enter).
+
+YAML (units in the key names)::
+
+    geometry: {kind: leaf_spring_joint, arm_mm: 56, effective_lengths_mm: [28, 38, 48],
+               thickness_mm: 0.5, width_mm: 11, n_leaves: 2, structures: [sliding, fixed],
+               min_effective_length_mm: 15, min_support_offset_mm: 8}
+    material: 65Mn
+    boundary: {max_deflection_deg: 4, steps: 20, check_deflection_deg: 50}
+    target: {stiffness_range_Nm_per_rad: [4, 20], max_deflection_deg: 8, structure: sliding}
+    design_space: {arm_mm: [30, 80], thickness_mm: [0.3, 1.0], width_mm: [6, 16]}
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field, model_validator
+
+from fea.errors import FeaError
+from fea.leaf_joint import (
+    JointResponse,
+    joint_elastic_limit,
+    joint_response,
+    linear_joint_stiffness_Nmm,
+)
+from fea.materials import Material, get_material
+from geometry.errors import GeometryError
+from geometry.leaf_joint import LeafJoint
+from optimise.evaluation import Evaluation
+from optimise.problem import DesignDetail
+from optimise.space import DesignSpace
+from pipeline.errors import StudyError
+from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+
+__all__ = [
+    "LeafJointGeometry",
+    "LeafJointBoundary",
+    "LeafJointTarget",
+    "LeafJointDesignSpace",
+    "LeafSpringJointStudy",
+    "LeafJointProblem",
+    "length_range_mm",
+    "curve_summary",
+    "check",
+    "problem",
+    "evaluate",
+]
+
+Structure = Literal["sliding", "fixed"]
+VARIABLES = ("arm_mm", "thickness_mm", "width_mm")
+
+
+class LeafJointGeometry(BaseModel):
+    """The ``geometry:`` block (mm)."""
+
+    model_config = STUDY_CONFIG
+
+    kind: Literal["leaf_spring_joint"] = Field(description="leaf_spring_joint")
+    arm_mm: float = Field(56.0, gt=0, description="joint arm l_j = |OB|, mm")
+    effective_lengths_mm: tuple[float, ...] = Field(
+        (28.0, 38.0, 48.0), min_length=1, description="free leaf lengths l analysed, mm"
+    )
+    thickness_mm: float = Field(0.5, gt=0, description="leaf thickness, mm")
+    width_mm: float = Field(11.0, gt=0, description="leaf width, mm")
+    n_leaves: int = Field(2, ge=1, le=16, description="leaves acting together")
+    structures: tuple[Structure, ...] = Field(
+        ("sliding", "fixed"),
+        min_length=1,
+        description="sliding: rod on the leaf slides in the arm (paper Fig. 5a); fixed: rod on "
+        "the arm, the leaf slides past it (Fig. 5b)",
+    )
+    clamp_mm: float = Field(10.0, gt=0, description="leaf held behind the support (outline), mm")
+    overhang_mm: float = Field(
+        30.0,
+        ge=0,
+        description="leaf beyond the load point at rest (the fixed rod runs onto it), mm",
+    )
+    min_effective_length_mm: float = Field(
+        10.0, gt=0, description="design mode: shortest free length the support allows, mm"
+    )
+    min_support_offset_mm: float = Field(
+        8.0, ge=0, description="design mode: closest the support may come to the centre O, mm"
+    )
+    elements: int = Field(40, ge=4, le=2000, description="beam elements along the leaf")
+
+    @model_validator(mode="after")
+    def _lengths_inside_arm(self) -> LeafJointGeometry:
+        for i, l in enumerate(self.effective_lengths_mm):
+            if not 0 < l < self.arm_mm:
+                raise ValueError(
+                    f"effective_lengths_mm[{i}] = {l:g} must lie in (0, arm_mm = {self.arm_mm:g}): "
+                    "the support sits between the centre O and the load point B"
+                )
+        if len(set(self.structures)) != len(self.structures):
+            raise ValueError("structures lists a structure twice; give each once")
+        return self
+
+
+class LeafJointBoundary(BaseModel):
+    """The ``boundary:`` block of the analysis."""
+
+    model_config = STUDY_CONFIG
+
+    max_deflection_deg: float = Field(
+        4.0, gt=0, lt=90, description="joint deflection of the last table row, deg"
+    )
+    steps: int = Field(20, ge=2, le=500, description="rows after the rest row")
+    check_deflection_deg: float | None = Field(
+        50.0,
+        gt=0,
+        lt=90,
+        description="also trace each curve to this deflection (paper: 50) and report the torque "
+        "and stress it would take; past the elastic limit these are elastic fiction",
+    )
+
+
+class LeafJointTarget(BaseModel):
+    """The ``target:`` block of the design mode."""
+
+    model_config = STUDY_CONFIG
+
+    stiffness_range_Nm_per_rad: tuple[float, float] = Field(
+        (4.0, 20.0), description="[lowest, highest] small-deflection joint stiffness, N·m/rad"
+    )
+    max_deflection_deg: float = Field(
+        8.0, gt=0, lt=90, description="deflection the joint must survive elastically, deg"
+    )
+    structure: Structure = Field("sliding", description="leaf-tip structure of the design")
+    allowable_stress_MPa: float | None = Field(
+        None, gt=0, description="allowable leaf stress, MPa (default: the material's yield)"
+    )
+
+    @model_validator(mode="after")
+    def _ordered_range(self) -> LeafJointTarget:
+        lo, hi = self.stiffness_range_Nm_per_rad
+        if not 0 < lo < hi:
+            raise ValueError(
+                f"stiffness_range_Nm_per_rad = [{lo:g}, {hi:g}] needs 0 < lowest < highest"
+            )
+        return self
+
+
+class LeafJointDesignSpace(BaseModel):
+    """The ``design_space:`` block of the design mode: [lower, upper] per variable."""
+
+    model_config = STUDY_CONFIG
+
+    arm_mm: tuple[float, float] = Field((30.0, 80.0), description="joint arm l_j, mm")
+    thickness_mm: tuple[float, float] = Field((0.3, 1.0), description="leaf thickness, mm")
+    width_mm: tuple[float, float] = Field((6.0, 16.0), description="leaf width, mm")
+
+
+class LeafSpringJointStudy(Study):
+    """A whole ``leaf_spring_joint`` study file."""
+
+    geometry: LeafJointGeometry = Field(description="kind: leaf_spring_joint and the joint")
+    boundary: LeafJointBoundary = Field(
+        default_factory=LeafJointBoundary, description="max_deflection_deg, steps"
+    )
+    target: LeafJointTarget = Field(
+        default_factory=LeafJointTarget,
+        description="design mode: stiffness_range_Nm_per_rad, max_deflection_deg, structure",
+    )
+    design_space: LeafJointDesignSpace = Field(
+        default_factory=LeafJointDesignSpace, description="arm_mm, thickness_mm, width_mm bounds"
+    )
+    optimiser: OptimiserSpec = Field(
+        default_factory=lambda: OptimiserSpec(pop_size=30, n_gen=20, quick_pop_size=8),
+        description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _allowable_defaults_to_yield(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        target = data.get("target") or {}
+        if not isinstance(target, dict) or target.get("allowable_stress_MPa") is not None:
+            return data
+        material = data.get("material")
+        try:
+            if isinstance(material, str):
+                y = get_material(material).yield_MPa
+            elif isinstance(material, dict) and isinstance(material.get("yield_MPa"), int | float):
+                y = float(material["yield_MPa"])
+            else:
+                return data
+        except FeaError:
+            return data
+        return {**data, "target": {**target, "allowable_stress_MPa": float(y)}}
+
+    @property
+    def allowable_MPa(self) -> float:
+        value = self.target.allowable_stress_MPa
+        return float(value if value is not None else self.material.yield_MPa)
+
+
+# --------------------------------------------------------------------------------------------
+# Building and checking
+
+
+def _joint(
+    study: LeafSpringJointStudy, length: float, structure: str, **changes: float
+) -> LeafJoint:
+    g = study.geometry
+    params = {
+        "arm_mm": g.arm_mm,
+        "effective_length_mm": length,
+        "thickness_mm": g.thickness_mm,
+        "width_mm": g.width_mm,
+        "n_leaves": g.n_leaves,
+        "structure": structure,
+        "clamp_mm": g.clamp_mm,
+        "overhang_mm": g.overhang_mm,
+    }
+    params.update(changes)
+    return LeafJoint(**params)  # type: ignore[arg-type]
+
+
+def design_space(study: LeafSpringJointStudy) -> DesignSpace:
+    """(arm_mm, thickness_mm, width_mm) with the study's bounds.
+
+    Raises
+    ------
+    StudyError
+        At ``design_space.<name>`` for swapped, equal or non-positive bounds.
+    """
+    bounds = {}
+    for name in VARIABLES:
+        lo, hi = getattr(study.design_space, name)
+        path = f"design_space.{name}"
+        if not lo > 0:
+            raise StudyError(path, f"lower bound {lo:g} must be > 0 mm")
+        if lo > hi:
+            raise StudyError(
+                path, f"lower bound {lo:g} > upper {hi:g}; swap them: [{hi:g}, {lo:g}]"
+            )
+        if lo == hi:
+            raise StudyError(path, f"equal bounds [{lo:g}, {hi:g}]; give a range")
+        bounds[name] = (lo, hi)
+    return DesignSpace.from_bounds(bounds)
+
+
+def check(study: LeafSpringJointStudy) -> None:
+    """Build every analysed joint and the design space once (errors name the key path)."""
+    design_space(study)
+    for i, l in enumerate(study.geometry.effective_lengths_mm):
+        for s in study.geometry.structures:
+            try:
+                _joint(study, l, s)
+            except GeometryError as exc:
+                raise StudyError(f"geometry.effective_lengths_mm[{i}]", str(exc)) from exc
+
+
+def length_range_mm(
+    E_MPa: float,
+    arm_mm: float,
+    thickness_mm: float,
+    width_mm: float,
+    n_leaves: int,
+    stiffness_range_Nmm: tuple[float, float],
+) -> tuple[float, float]:
+    """(l_min, l_max): free lengths whose small-deflection stiffness n 3 E I l_j^2 / l^3 is the
+    top and the bottom of the range, mm."""
+    c = n_leaves * 3.0 * E_MPa * width_mm * thickness_mm**3 / 12.0 * arm_mm**2
+    lo, hi = stiffness_range_Nmm
+    return (c / hi) ** (1.0 / 3.0), (c / lo) ** (1.0 / 3.0)
+
+
+def curve_summary(
+    joint: LeafJoint,
+    resp: JointResponse,
+    material: Material,
+    allowable_MPa: float,
+    n_elements: int,
+) -> dict[str, Any]:
+    """Scalars of one torque-deflection curve: small-deflection stiffness (closed form and FE),
+    the elastic limit (traced on its own, whatever range ``resp`` covers) with the torque and
+    stiffness there, and the state at the last converged row of ``resp``."""
+    a = resp.deflection_rad
+    ok = resp.converged
+    limit, trace = joint_elastic_limit(joint, material, allowable_MPa, n_elements)
+    out: dict[str, Any] = {
+        "linear_stiffness_Nm_per_rad": resp.linear_stiffness_Nmm_per_rad / 1000.0,
+        "fe_initial_stiffness_Nm_per_rad": float(resp.stiffness_Nmm_per_rad[0]) / 1000.0,
+        "elastic_limit_deg": None if limit is None else math.degrees(limit),
+    }
+    if limit is not None:
+        t_ok = trace.converged
+        x = trace.deflection_rad[t_ok]
+        out["torque_at_elastic_limit_Nm"] = float(np.interp(limit, x, trace.torque_Nmm[t_ok])) / 1e3
+        out["stiffness_at_elastic_limit_Nm_per_rad"] = (
+            float(np.interp(limit, x, trace.stiffness_Nmm_per_rad[t_ok])) / 1e3
+        )
+    if ok.any():
+        out["last_row_deg"] = float(np.degrees(a[ok][-1]))
+        out["torque_at_last_row_Nm"] = float(resp.torque_Nmm[ok][-1]) / 1e3
+        out["stiffness_at_last_row_Nm_per_rad"] = float(resp.stiffness_Nmm_per_rad[ok][-1]) / 1e3
+        out["peak_stress_at_last_row_MPa"] = float(resp.peak_stress_MPa[ok][-1])
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Analysis: flexopt evaluate
+
+
+def _rows(study: LeafSpringJointStudy) -> np.ndarray:
+    b = study.boundary
+    return math.radians(b.max_deflection_deg) * np.arange(b.steps + 1) / b.steps
+
+
+def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
+    """Every structure x effective length of the study, to ``boundary.max_deflection_deg``.
+
+    The table has one row per deflection and, per curve ``<structure>_l<l>``, the joint torque
+    (N·m), tangent stiffness (N·m/rad), leaf stress (MPa) and loaded length (mm); rows past a
+    curve's last equilibrium are NaN and ``converged`` is True where every curve converged. The
+    summary gives each curve's elastic limit (traced on its own), the stiffness range the joint
+    passes through while its leaves stay elastic, and what ``boundary.check_deflection_deg``
+    (the paper's 50 deg) would take.
+    """
+    g = study.geometry
+    material = study.material.to_material()
+    allowable = study.allowable_MPa
+    angles = _rows(study)
+    times: list[float] = []
+    curves: dict[str, tuple[LeafJoint, JointResponse]] = {}
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        for s in g.structures:
+            for l in g.effective_lengths_mm:
+                joint = _joint(study, l, s)
+                resp = joint_response(
+                    joint, material, float(angles[-1]), study.boundary.steps, g.elements
+                )
+                curves[f"{s}_l{l:g}"] = (joint, resp)
+        times.append(time.perf_counter() - t0)
+    table: dict[str, np.ndarray] = {"deflection_deg": np.degrees(angles)}
+    for name, (_, r) in curves.items():
+        table[f"torque_Nm_{name}"] = r.torque_Nmm / 1000.0
+        table[f"stiffness_Nm_per_rad_{name}"] = r.stiffness_Nmm_per_rad / 1000.0
+        table[f"stress_MPa_{name}"] = r.peak_stress_MPa
+        table[f"loaded_length_mm_{name}"] = r.loaded_length_mm
+    table["converged"] = np.all([r.converged for _, r in curves.values()], axis=0)
+    peak = max(float(np.nanmax(r.peak_stress_MPa)) for _, r in curves.values())
+    summary: dict[str, Any] = {
+        "allowable_stress_MPa": allowable,
+        "max_peak_stress_MPa": peak,
+        "stress_yield_ratio": peak / material.yield_MPa,
+    }
+    ranges: dict[str, list[float]] = {s: [] for s in g.structures}
+    check = study.boundary.check_deflection_deg
+    for name, (joint, r) in curves.items():
+        cs = curve_summary(joint, r, material, allowable, g.elements)
+        summary.update({f"{name}_{key}": value for key, value in cs.items()})
+        # the joint's stiffness from rest to the elastic limit (or the last row)
+        ranges[r.structure].append(cs["linear_stiffness_Nm_per_rad"])
+        if "stiffness_at_elastic_limit_Nm_per_rad" in cs:
+            ranges[r.structure].append(cs["stiffness_at_elastic_limit_Nm_per_rad"])
+        if check is not None:
+            far = joint_response(joint, material, math.radians(check), 10, g.elements)
+            key = f"{name}_at_{check:g}deg"
+            if far.converged[-1]:
+                summary[f"{key}_torque_Nm"] = float(far.torque_Nmm[-1]) / 1e3
+                summary[f"{key}_stiffness_Nm_per_rad"] = float(far.stiffness_Nmm_per_rad[-1]) / 1e3
+                summary[f"{key}_stress_MPa"] = float(far.peak_stress_MPa[-1])
+            else:
+                summary[f"{key}_unreachable"] = far.message
+    for s, values in ranges.items():
+        if values:
+            summary[f"{s}_elastic_stiffness_range_Nm_per_rad"] = [min(values), max(values)]
+    messages = [f"{n}: {r.message}" for n, (_, r) in curves.items() if not r.ok]
+    first = next(iter(curves))
+    return EvaluationResult(
+        table=table,
+        summary=summary,
+        converged=not messages,
+        message="; ".join(messages),
+        solve_times_s=tuple(times),
+        inputs={
+            "material": material_record(material),
+            "second_moment_mm4": g.width_mm * g.thickness_mm**3 / 12.0,
+            "curves": list(curves),
+        },
+        diagnostics={n: r.extra for n, (_, r) in curves.items()},
+        plot={
+            "x": "deflection_deg",
+            "left": f"torque_Nm_{first}",
+            "right": f"stress_MPa_{first}",
+            "allowable_MPa": allowable,
+        },
+        headline=tuple(
+            f"{n}_{k}"
+            for n in curves
+            for k in (
+                "linear_stiffness_Nm_per_rad",
+                "elastic_limit_deg",
+                "torque_at_elastic_limit_Nm",
+            )
+        )
+        + ("stress_yield_ratio",),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Design: flexopt run
+
+
+class LeafJointProblem:
+    """Design the joint arm, leaf thickness and width for a stiffness range (picklable).
+
+    For a design x = (l_j, t, b) the support travels between l_min and l_max, the free lengths
+    whose small-deflection stiffness is the top and bottom of the range. The objective is the
+    leaf's stress ratio at ``target.max_deflection_deg`` with the stiffest setting l_min (the
+    bending stress ~ l_j theta / l^2 is largest there), traced by the beam model.
+    """
+
+    objective_names = ("stress_ratio",)
+    constraint_names = ("min_length", "hub", "stress")
+
+    def __init__(self, study: LeafSpringJointStudy) -> None:
+        self.study = study
+        self.space = design_space(study)
+        self.material: Material = study.material.to_material()
+        self.allowable_MPa = study.allowable_MPa
+        lo, hi = study.target.stiffness_range_Nm_per_rad
+        self.range_Nmm = (1000.0 * lo, 1000.0 * hi)
+        self.max_rad = math.radians(study.target.max_deflection_deg)
+
+    def lengths(self, x: np.ndarray) -> tuple[float, float]:
+        """(l_min, l_max) of design x, mm."""
+        arm, t, b = (float(v) for v in x)
+        return length_range_mm(
+            self.material.E_MPa, arm, t, b, self.study.geometry.n_leaves, self.range_Nmm
+        )
+
+    def joint(self, x: np.ndarray, length: float) -> LeafJoint:
+        arm, t, b = (float(v) for v in x)
+        return _joint(
+            self.study,
+            length,
+            self.study.target.structure,
+            arm_mm=arm,
+            thickness_mm=t,
+            width_mm=b,
+        )
+
+    def _constraints(self, x: np.ndarray) -> tuple[float, float]:
+        l_min, l_max = self.lengths(x)
+        g = self.study.geometry
+        return (
+            g.min_effective_length_mm / l_min - 1.0,
+            (l_max + g.min_support_offset_mm) / float(x[0]) - 1.0,
+        )
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        t0 = time.perf_counter()
+        x = np.asarray(x, dtype=float)
+        l_min, l_max = self.lengths(x)
+        g_len, g_hub = self._constraints(x)
+        metrics: dict[str, Any] = {"l_min_mm": l_min, "l_max_mm": l_max}
+        if g_hub > 0 or l_min >= x[0]:
+            # the support cannot reach the soft end: no solve (its stress would mean nothing)
+            return Evaluation(
+                x,
+                np.array([10.0 + g_hub]),
+                np.array([g_len, g_hub, 10.0 + g_hub]),
+                metrics | {"skipped": "l_max does not fit between the hub and the load point"},
+                "",
+                time.perf_counter() - t0,
+            )
+        try:
+            resp = joint_response(
+                self.joint(x, l_min), self.material, self.max_rad, 4, self.study.geometry.elements
+            )
+        except (FeaError, GeometryError) as exc:
+            return Evaluation.failed(x, 1, 3, f"cannot build: {exc}", time.perf_counter() - t0)
+        if not resp.ok:
+            return Evaluation.failed(
+                x, 1, 3, f"beam model: {resp.message}", time.perf_counter() - t0, metrics
+            )
+        sigma = float(np.max(resp.peak_stress_MPa))
+        ratio = sigma / self.allowable_MPa
+        metrics |= {
+            "peak_stress_MPa": sigma,
+            "safety_factor": 1.0 / ratio,
+            "stiffness_at_max_deflection_Nm_per_rad": float(resp.stiffness_Nmm_per_rad[-1]) / 1e3,
+        }
+        return Evaluation(
+            x,
+            np.array([ratio]),
+            np.array([g_len, g_hub, ratio - 1.0]),
+            metrics,
+            "",
+            time.perf_counter() - t0,
+        )
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        evaluation = self.evaluate(x)
+        x = np.asarray(x, dtype=float)
+        l_min, l_max = self.lengths(x)
+        steps = self.study.boundary.steps
+        elements = self.study.geometry.elements
+        stiff = joint_response(self.joint(x, l_min), self.material, self.max_rad, steps, elements)
+        soft = joint_response(self.joint(x, l_max), self.material, self.max_rad, steps, elements)
+        table = {
+            "deflection_deg": np.degrees(stiff.deflection_rad),
+            "torque_Nm_lmin": stiff.torque_Nmm / 1e3,
+            "stiffness_Nm_per_rad_lmin": stiff.stiffness_Nmm_per_rad / 1e3,
+            "stress_MPa_lmin": stiff.peak_stress_MPa,
+            "torque_Nm_lmax": soft.torque_Nmm / 1e3,
+            "stiffness_Nm_per_rad_lmax": soft.stiffness_Nmm_per_rad / 1e3,
+            "stress_MPa_lmax": soft.peak_stress_MPa,
+            "converged": stiff.converged & soft.converged,
+        }
+        needed = float(np.nanmax(stiff.loaded_length_mm)) - l_min
+        info: dict[str, Any] = {
+            "structure": self.study.target.structure,
+            "arm_mm": float(x[0]),
+            "thickness_mm": float(x[1]),
+            "width_mm": float(x[2]),
+            "effective_length_range_mm": [l_min, l_max],
+            "support_offset_range_mm": [float(x[0]) - l_max, float(x[0]) - l_min],
+            "target_stiffness_range_Nm_per_rad": list(self.study.target.stiffness_range_Nm_per_rad),
+            "closed_form_stiffness_range_Nm_per_rad": [
+                linear_joint_stiffness_Nmm(self.joint(x, l_max), self.material.E_MPa) / 1e3,
+                linear_joint_stiffness_Nmm(self.joint(x, l_min), self.material.E_MPa) / 1e3,
+            ],
+            "fe_initial_stiffness_range_Nm_per_rad": [
+                float(soft.stiffness_Nmm_per_rad[0]) / 1e3,
+                float(stiff.stiffness_Nmm_per_rad[0]) / 1e3,
+            ],
+            "stiff_setting": curve_summary(
+                self.joint(x, l_min), stiff, self.material, self.allowable_MPa, elements
+            ),
+            "soft_setting": curve_summary(
+                self.joint(x, l_max), soft, self.material, self.allowable_MPa, elements
+            ),
+            "allowable_stress_MPa": self.allowable_MPa,
+            "safety_factor": evaluation.metrics.get("safety_factor"),
+        }
+        if self.study.target.structure == "fixed":
+            info["leaf_needed_beyond_rod_mm"] = needed
+        plot = {
+            "x": "deflection_deg",
+            "y": "stiffness_Nm_per_rad_lmin",
+            "stress": "stress_MPa_lmin",
+            "target": self.study.target.stiffness_range_Nm_per_rad[1],
+            "allowable_MPa": self.allowable_MPa,
+            "xlabel": "joint deflection (deg)",
+            "ylabel": "joint stiffness at the stiff setting l_min (N·m/rad)",
+        }
+        joint = self.joint(x, l_max)
+        overhang = (
+            max(joint.overhang_mm, needed) if joint.structure == "fixed" else joint.overhang_mm
+        )
+        outline = LeafJoint(
+            **{**joint.__dict__, "overhang_mm": overhang}  # type: ignore[arg-type]
+        ).leaf_outline()
+        return DesignDetail(
+            evaluation=evaluation,
+            table=table,
+            plot=plot,
+            shapes_mm=stiff.shapes_mm,
+            outline=outline,
+            height_mm=float(x[2]),
+            info=info,
+        )
+
+
+def problem(study: LeafSpringJointStudy) -> LeafJointProblem:
+    """The design problem ``flexopt run`` optimises."""
+    return LeafJointProblem(study)
+
+
+register(
+    StudyKind(
+        "leaf_spring_joint",
+        LeafSpringJointStudy,
+        check,  # type: ignore[arg-type]
+        evaluate,  # type: ignore[arg-type]
+        problem,  # type: ignore[arg-type]
+    )
+)
