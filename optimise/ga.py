@@ -24,7 +24,7 @@ from pymoo.problems.static import StaticProblem
 from pymoo.termination import get_termination
 
 from optimise.errors import OptimiseError
-from optimise.evaluation import Evaluation
+from optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from optimise.space import DesignSpace
 
 __all__ = ["GAConfig", "Generation", "GAResult", "run_ga", "best_of"]
@@ -172,9 +172,15 @@ def run_ga(
                 f"evaluate returned {len(evaluations)} results for {len(X)} designs"
             )
         F = np.array([e.f for e in evaluations], dtype=float).reshape(len(X), n_obj)
+        G = np.array([e.g for e in evaluations], dtype=float).reshape(len(X), n_con)
+        # A design with a reason was not (fully) evaluated, whatever values it carries: pymoo
+        # must rank it below every evaluated design, and never as feasible.
+        failed = np.array([bool(e.reason) for e in evaluations])
+        F[failed] = INFEASIBLE_VALUE
+        G[failed] = INFEASIBLE_VALUE
         kwargs = {"F": F}
         if n_con:
-            kwargs["G"] = np.array([e.g for e in evaluations], dtype=float).reshape(len(X), n_con)
+            kwargs["G"] = G
         Evaluator().eval(StaticProblem(problem, **kwargs), pop)
         algorithm.tell(infills=pop)
         everything.extend(evaluations)

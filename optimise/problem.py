@@ -28,7 +28,9 @@ class DesignDetail:
     table : dict of str to (n_rows,) array — response columns, units in the names
         (``displacement_mm``, ``force_N``, ``peak_stress_MPa``); written as CSV.
     plot : dict — how to plot ``table``: ``x`` and ``y`` column names, optional ``stress``
-        column, ``target`` value and ``tolerance`` (band), ``allowable_MPa`` line, axis labels.
+        column, ``target`` value with ``tolerance`` (absolute, unit of ``y``) or
+        ``tolerance_rel`` (band), ``band_x`` (x-range of the band), ``allowable_MPa`` line,
+        ``xlabel`` / ``ylabel``.
     shapes_mm : (n_rows, n_nodes, 2) float, mm, optional — deformed centrelines to draw.
     outline : shapely Polygon, optional — the printable outline (mm), extruded by ``height_mm``.
     height_mm : float, optional — extrusion height of the outline (the out-of-plane width).
@@ -67,3 +69,6 @@ class DesignProblem(Protocol):
     def detail(self, x: np.ndarray) -> DesignDetail:
         """Full response of one design for plots, report and STL."""
         ...
+
+    # Optional: ``initial_designs() -> (k, n_var) array | None`` seeds the first population
+    # (e.g. a published optimum); ``flexopt run`` calls it when the problem has it.

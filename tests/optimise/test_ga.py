@@ -72,3 +72,18 @@ def test_initial_designs_are_evaluated_first():
 def test_swapped_bounds_are_named():
     with pytest.raises(OptimiseError, match="swap"):
         DesignSpace(("t1",), np.array([2.0]), np.array([1.0]))
+
+
+def test_a_design_with_a_reason_is_never_ranked_feasible():
+    """Values that come with a failure reason are not trusted (pymoo sees the worst values)."""
+
+    def lying(X):
+        return [
+            Evaluation(x.copy(), np.array([-1.0]), np.array([-1.0]), reason="timed out")
+            if x[2] > 0.5
+            else e
+            for x, e in zip(X, sphere_with_constraint(X), strict=True)
+        ]
+
+    r = run_ga(SPACE, lying, 1, 1, GAConfig(pop_size=20, n_gen=8, seed=2))
+    assert r.best.feasible and not r.best.reason and r.best.x[2] <= 0.5
