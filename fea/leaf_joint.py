@@ -131,7 +131,15 @@ def _model(joint: LeafJoint, material: Material, n_elements: int) -> BeamModel:
     return BeamModel(joint.leaf_profile(), material, settings=BeamSettings(n_elements=n_elements))
 
 
-def _check(max_rad: float, steps: int) -> np.ndarray:
+def _check(max_rad: float, steps: int, deflections_rad: np.ndarray | None = None) -> np.ndarray:
+    """The rows: ``deflections_rad`` if given (0 first, increasing), else k max_rad / steps."""
+    if deflections_rad is not None:
+        a = np.asarray(deflections_rad, dtype=float).ravel()
+        if a.size < 2 or a[0] != 0.0 or np.any(np.diff(a) <= 0) or a[-1] >= 0.5 * math.pi:
+            raise FeaError(
+                f"deflections_rad must start at 0 and increase, staying below pi/2; got {a[:4]}..."
+            )
+        return a
     if steps < 1:
         raise FeaError(f"steps = {steps} must be >= 1")
     if not (math.isfinite(max_rad) and 0.0 < max_rad < 0.5 * math.pi):
@@ -142,7 +150,12 @@ def _check(max_rad: float, steps: int) -> np.ndarray:
 
 
 def sliding_response(
-    joint: LeafJoint, material: Material, max_rad: float, steps: int = 20, n_elements: int = 40
+    joint: LeafJoint,
+    material: Material,
+    max_rad: float,
+    steps: int = 20,
+    n_elements: int = 40,
+    deflections_rad: np.ndarray | None = None,
 ) -> JointResponse:
     """Structure (a): the leaf tip slides in a slot along the arm (force normal to the arm).
 
@@ -153,13 +166,16 @@ def sliding_response(
     max_rad : float, rad — deflection of the last row, in (0, pi/2).
     steps : int — rows after row 0, at k max_rad / steps.
     n_elements : int — beam elements along the leaf.
+    deflections_rad : (rows,) float, rad, optional — explicit rows (0 first, increasing) instead
+        of max_rad and steps; the stiffness is differentiated on them (second order, uneven rows
+        allowed), so two close rows give an accurate stiffness there.
 
     Returns
     -------
     JointResponse
     """
     t0 = time.perf_counter()
-    angles = _check(max_rad, steps)
+    angles = _check(max_rad, steps, deflections_rad)
     model = _model(joint, material, n_elements)
     lj = joint.arm_mm
 
@@ -263,13 +279,15 @@ def fixed_response(
     max_rad: float,
     steps: int = 20,
     n_elements: int = 40,
+    deflections_rad: np.ndarray | None = None,
     tol_rad: float = 1e-10,
 ) -> JointResponse:
     """Structure (b): a rod fixed to the arm presses on the leaf, which slides past it.
 
     Parameters
     ----------
-    joint, material, max_rad, steps, n_elements : as :func:`sliding_response`.
+    joint, material, max_rad, steps, n_elements, deflections_rad : as
+        :func:`sliding_response`.
     tol_rad : float, rad — the deflection of each row is met to this.
 
     Returns
@@ -279,7 +297,7 @@ def fixed_response(
         at rest (compare ``joint.overhang_mm``).
     """
     t0 = time.perf_counter()
-    angles = _check(max_rad, steps)
+    angles = _check(max_rad, steps, deflections_rad)
     system = _follower_system(joint, material, n_elements)
     l, lj = joint.effective_length_mm, joint.arm_mm
     EI = material.E_MPa * joint.second_moment_mm4
@@ -445,11 +463,16 @@ def _response(
 
 
 def joint_response(
-    joint: LeafJoint, material: Material, max_rad: float, steps: int = 20, n_elements: int = 40
+    joint: LeafJoint,
+    material: Material,
+    max_rad: float,
+    steps: int = 20,
+    n_elements: int = 40,
+    deflections_rad: np.ndarray | None = None,
 ) -> JointResponse:
     """The response of ``joint.structure``: :func:`sliding_response` or :func:`fixed_response`."""
     fn = sliding_response if joint.structure == "sliding" else fixed_response
-    return fn(joint, material, max_rad, steps, n_elements)
+    return fn(joint, material, max_rad, steps, n_elements, deflections_rad)
 
 
 def joint_elastic_limit(

@@ -375,12 +375,16 @@ def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
         if "stiffness_at_elastic_limit_Nm_per_rad" in cs:
             ranges[r.structure].append(cs["stiffness_at_elastic_limit_Nm_per_rad"])
         if check is not None:
-            far = joint_response(joint, material, math.radians(check), 10, g.elements)
+            # ten rows to the check deflection, then two rows 1e-3 rad either side of it: the
+            # stiffness there is a central difference, not a one-sided one over a long step
+            c = math.radians(check)
+            rows = np.concatenate([np.linspace(0.0, c - 1e-3, 11), [c, c + 1e-3]])
+            far = joint_response(joint, material, c, 10, g.elements, deflections_rad=rows)
             key = f"{name}_at_{check:g}deg"
-            if far.converged[-1]:
-                summary[f"{key}_torque_Nm"] = float(far.torque_Nmm[-1]) / 1e3
-                summary[f"{key}_stiffness_Nm_per_rad"] = float(far.stiffness_Nmm_per_rad[-1]) / 1e3
-                summary[f"{key}_stress_MPa"] = float(far.peak_stress_MPa[-1])
+            if far.converged[-2]:
+                summary[f"{key}_torque_Nm"] = float(far.torque_Nmm[-2]) / 1e3
+                summary[f"{key}_stiffness_Nm_per_rad"] = float(far.stiffness_Nmm_per_rad[-2]) / 1e3
+                summary[f"{key}_stress_MPa"] = float(far.peak_stress_MPa[-2])
             else:
                 summary[f"{key}_unreachable"] = far.message
     for s, values in ranges.items():
