@@ -56,7 +56,8 @@ class PivotResponse:
     rotation_rad : (rows,) float, rad.
     torque_Nmm : (rows,) float, N·mm — couple on the moving block (counter-clockwise +).
     stiffness_Nmm_per_rad : (rows,) float — tangent dM/dtheta (finite differences of the rows).
-    small_angle_stiffness_Nmm_per_rad : float — M/theta at 1e-4 rad (the linear stiffness).
+    small_angle_stiffness_Nmm_per_rad : float — beam: M/theta at 1e-4 rad (the linear
+        stiffness); plane stress: M/theta of the first row (exact for linear kinematics).
     peak_stress_MPa : (rows,) float — beam: max |N|/A + |M| c/I; plane stress: von Mises at the
         mesh vertices (surface value).
     centre_shift_mm : (rows,) float, mm — displacement of the moving block's point that started on

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from typing import Any, Literal
 
 import numpy as np
@@ -575,9 +576,7 @@ class LeafJointProblem:
         overhang = (
             max(joint.overhang_mm, needed) if joint.structure == "fixed" else joint.overhang_mm
         )
-        outline = LeafJoint(
-            **{**joint.__dict__, "overhang_mm": overhang}  # type: ignore[arg-type]
-        ).leaf_outline()
+        outline = replace(joint, overhang_mm=overhang).leaf_outline()
         return DesignDetail(
             evaluation=evaluation,
             table=table,
