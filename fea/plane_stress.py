@@ -159,6 +159,31 @@ class PlaneStressSettings:
     min_det_F: float = 0.05
     # Distance under which a DOF location counts as on a clamp / drive geometry, mm.
     select_tol_mm: float = 1e-6
+    # "vectorised": residual and tangent from basis-gradient tables precomputed once per mesh,
+    # contracted with numpy and summed into a sparsity pattern found once (about 10x faster
+    # than scikit-fem's per-basis-pair loop on P2). "skfem": the module-level forms through
+    # skfem.asm, kept as the readable reference (the tests check that both agree).
+    assembly: Literal["vectorised", "skfem"] = "vectorised"
+    # "direct" factorises every tangent (SuperLU). "krylov" solves each Newton system by
+    # conjugate gradients preconditioned with the last factorisation (at first the linear
+    # stiffness's, which the linear solve made anyway) and factorises the tangent only when CG
+    # stalls. The tangent of a hyperelastic law under displacement control is symmetric, so CG
+    # applies up to a limit point. Measured on an 11 degree step of a 30k-DOF torsion spring
+    # (docs/plane_stress.md) it saves little: members turn by 20 degrees and more, the tangent
+    # moves far from any earlier factorisation and CG needs 10-30 solves per iteration, each
+    # ~1/20 of a factorisation. "pardiso": Intel MKL PARDISO through the optional package
+    # pypardiso, symmetric indefinite, with the symbolic analysis of the (fixed) sparsity
+    # pattern done once per model and only the numerical factorisation per tangent: 5-8x faster
+    # than SuperLU on the spring (docs/plane_stress.md). "auto": pardiso when pypardiso and MKL
+    # load, else "direct".
+    solver: Literal["auto", "pardiso", "direct", "krylov"] = "auto"
+    # CG stops at this residual relative to the right-hand side: Newton then keeps its
+    # quadratic rate down to ~1e-10 of the force (an inexact solve of 1e-10 costs 2-3 more CG
+    # iterations than 1e-6 and spares Newton iterations).
+    krylov_rtol: float = 1e-10
+    # CG iterations before the preconditioner counts as stale (and the tangent is factorised):
+    # a good preconditioner converges in 5-30; 60 means the tangent moved too far from it.
+    krylov_max_iter: int = 60
 
 
 @dataclass(frozen=True)
@@ -297,6 +322,203 @@ def tangent_stiffness(du, v, w):
 
 
 # --------------------------------------------------------------------------------------------
+# Vectorised assembly and the preconditioned solver
+# --------------------------------------------------------------------------------------------
+
+
+class _VectorAssembly:
+    """Residual and tangent of a vector P1/P2 basis by whole-mesh numpy contractions.
+
+    The same weak forms as :data:`internal_force` and :data:`tangent_stiffness`, written out for
+    a vector element whose every local function is a scalar function times a unit vector:
+    ``grad(phi_(c,a)) = e_c (x) grad(N_a)``. So only the scalar gradients are tabulated,
+    ``g`` (nel, nqp, ns, 2), once per mesh, and
+
+        f_(c,a) = b sum_q dx P_cJ g_aJ
+        K_(c,a)(d,b) = b sum_q dx g_aJ A_cJdL g_bL
+
+    The sparsity pattern (CSR indices and the position of every element entry in it) is found
+    once; each assembly is then a ``bincount`` of the element entries into the CSR data.
+
+    Parameters
+    ----------
+    basis : skfem Basis of ElementVector(ElementTriP1 / ElementTriP2).
+    """
+
+    def __init__(self, basis: Basis) -> None:
+        nb = int(basis.Nbfun)
+        G = np.stack([np.asarray(basis.basis[j][0].grad) for j in range(nb)])  # (nb,2,2,E,Q)
+        comp = np.argmax(np.abs(G).sum(axis=(2, 3, 4)), axis=1)
+        idx = [np.flatnonzero(comp == c) for c in (0, 1)]
+        if idx[0].size != idx[1].size or not np.allclose(G[idx[0], 0], G[idx[1], 1]):
+            raise FeaError("vectorised assembly needs a vector element of one scalar element")
+        self.ns = int(idx[0].size)
+        self.g = np.ascontiguousarray(G[idx[0], 0].transpose(2, 3, 0, 1))  # (E, Q, ns, 2)
+        self.gT = np.ascontiguousarray(self.g.transpose(0, 1, 3, 2))  # (E, Q, 2, ns)
+        self.dx = np.asarray(basis.dx)  # (E, Q): quadrature weight times Jacobian
+        self.dofs = np.asarray(basis.element_dofs).T[:, np.concatenate(idx)]  # (E, 2 ns)
+        self.N = int(basis.N)
+        m = 2 * self.ns
+        rows = np.repeat(self.dofs, m, axis=1).ravel().astype(np.int64)
+        cols = np.tile(self.dofs, (1, m)).ravel().astype(np.int64)
+        # Sorted unique (row, col) keys are exactly CSR order; the inverse places each element
+        # entry in the data array.
+        keys, self._map = np.unique(rows * self.N + cols, return_inverse=True)
+        self._map = self._map.ravel()
+        self._rows, self._cols = keys // self.N, keys % self.N
+        self.indices = self._cols.astype(np.int32)
+        self.indptr = np.searchsorted(self._rows, np.arange(self.N + 1)).astype(np.int32)
+        self.nnz = int(keys.size)
+        self._keep: np.ndarray | None = None
+
+    def reduce_to(self, free: np.ndarray) -> None:
+        """Also write the sub-matrix K[free][:, free] with every tangent (free sorted)."""
+        pos = np.full(self.N, -1)
+        pos[free] = np.arange(free.size)
+        self._keep = (pos[self._rows] >= 0) & (pos[self._cols] >= 0)
+        # pos is increasing on free, so the kept entries stay in CSR order.
+        r, c = pos[self._rows[self._keep]], pos[self._cols[self._keep]]
+        self._r_indices = c.astype(np.int32)
+        self._r_indptr = np.searchsorted(r, np.arange(free.size + 1)).astype(np.int32)
+        self._n_free = int(free.size)
+
+    def deformation_gradient(self, u: np.ndarray) -> np.ndarray:
+        """F = I + grad u, (2, 2, nel, nqp)."""
+        ue = u[self.dofs].reshape(-1, 2, self.ns)
+        F = np.einsum("eca,eqaJ->cJeq", ue, self.g)
+        F[0, 0] += 1.0
+        F[1, 1] += 1.0
+        return F
+
+    def internal_force(self, P: np.ndarray, thickness: float) -> np.ndarray:
+        """(N,) internal force of a first Piola-Kirchhoff field P (2, 2, nel, nqp)."""
+        fe = np.einsum("cJeq,eqaJ->eca", P * (self.dx * thickness), self.g)
+        return np.bincount(self.dofs.ravel(), weights=fe.ravel(), minlength=self.N)
+
+    def tangent(self, A: np.ndarray, thickness: float) -> sp.csr_matrix:
+        """(N, N) stiffness of a tangent tensor A_iJkL, (2, 2, 2, 2, nel or 1, nqp or 1)."""
+        E, Q = self.g.shape[:2]
+        W = np.broadcast_to(A * (self.dx * thickness), (2, 2, 2, 2, E, Q))
+        W = np.moveaxis(W, (4, 5), (0, 1))  # (E, Q, c, J, d, L)
+        # H[e,q,c,a,d,L] = sum_J g[e,q,a,J] W[e,q,c,J,d,L]: two broadcast products, no loop.
+        g = self.g
+        H = (
+            g[:, :, None, :, 0, None, None] * W[:, :, :, None, 0, :, :]
+            + g[:, :, None, :, 1, None, None] * W[:, :, :, None, 1, :, :]
+        )  # (E, Q, c, a, d, L)
+        # Ke[e,(c,a,d),b] = sum_(q,L) H[e,q,c,a,d,L] g[e,q,b,L]: one batched matmul per mesh.
+        Hm = np.moveaxis(H, 1, 4).reshape(E, 4 * self.ns, 2 * Q)  # (E, c a d, q L)
+        Ke = np.matmul(Hm, self.gT.reshape(E, 2 * Q, self.ns))  # (E, c a d, b)
+        data = np.bincount(self._map, weights=Ke.ravel(), minlength=self.nnz)
+        K = sp.csr_matrix((data, self.indices, self.indptr), shape=(self.N, self.N))
+        if self._keep is not None:
+            n = self._n_free
+            K._reduced = sp.csr_matrix(  # read by PlaneStressModel._reduced
+                (data[self._keep], self._r_indices, self._r_indptr), shape=(n, n)
+            )
+        return K
+
+
+def _pcg(
+    A: sp.csr_matrix,
+    b: np.ndarray,
+    precondition: Callable[[np.ndarray], np.ndarray],
+    rtol: float,
+    max_iter: int,
+) -> tuple[np.ndarray | None, int]:
+    """Preconditioned conjugate gradients for A x = b (A symmetric).
+
+    Returns ``(x, iterations)``, or ``(None, iterations)`` when the residual did not fall below
+    ``rtol * |b|`` within ``max_iter`` iterations or A showed a non-positive curvature (CG does
+    not apply; the caller factorises instead).
+    """
+    x = np.zeros_like(b)
+    bnorm = float(np.linalg.norm(b))
+    if bnorm == 0.0:
+        return x, 0
+    r = b.copy()
+    z = precondition(r)
+    p = z.copy()
+    rz = float(r @ z)
+    for k in range(1, max_iter + 1):
+        Ap = A @ p
+        curvature = float(p @ Ap)
+        if not curvature > 0.0:
+            return None, k
+        alpha = rz / curvature
+        x += alpha * p
+        r -= alpha * Ap
+        if np.linalg.norm(r) <= rtol * bnorm:
+            return x, k
+        z = precondition(r)
+        rz_new = float(r @ z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return None, max_iter
+
+
+class _Pardiso:
+    """Intel MKL PARDISO (optional package pypardiso) on a fixed sparsity pattern.
+
+    The matrix type is real symmetric indefinite (-2): the tangent is symmetric, positive
+    definite until a limit point, and Bunch-Kaufman pivoting keeps the factorisation going past
+    it. The fill-reducing analysis (phase 11) runs on the first matrix only; every later matrix
+    has the same pattern (the vectorised assembly writes a fixed CSR structure), so only the
+    numerical factorisation (phase 22) is repeated. Errors become RuntimeError, which the
+    Newton loop treats like SuperLU's "singular" failure.
+
+    Raises
+    ------
+    ImportError
+        pypardiso is not installed or MKL's runtime library is not found.
+    """
+
+    def __init__(self) -> None:
+        import pypardiso
+
+        self._solver = pypardiso.PyPardisoSolver(mtype=-2)
+        self._error = pypardiso.pardiso_wrapper.PyPardisoError
+        self._pattern: tuple | None = None
+        self._A: sp.csr_matrix | None = None
+
+    def _upper(self, K: sp.csr_matrix) -> sp.csr_matrix:
+        K = K.tocsr()
+        if not K.has_sorted_indices:
+            K = K.sorted_indices()
+        key = (K.shape, K.indptr.tobytes(), K.indices.tobytes())
+        if self._pattern is None or self._pattern[0] != key:
+            rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+            keep = K.indices >= rows
+            indptr = np.concatenate([[0], np.cumsum(np.bincount(rows[keep], minlength=K.shape[0]))])
+            self._pattern = (key, keep, K.indices[keep].copy(), indptr, False)
+        _, keep, indices, indptr, _ = self._pattern
+        return sp.csr_matrix((K.data[keep], indices, indptr), shape=K.shape)
+
+    def factorise(self, K: sp.csr_matrix) -> None:
+        A = self._upper(K)
+        key, keep, indices, indptr, analysed = self._pattern
+        rhs = np.zeros((A.shape[0], 1))
+        try:
+            if not analysed:
+                self._solver.set_phase(11)
+                self._solver._call_pardiso(A, rhs)
+                self._pattern = (key, keep, indices, indptr, True)
+            self._solver.set_phase(22)
+            self._solver._call_pardiso(A, rhs)
+        except self._error as exc:
+            raise RuntimeError(f"PARDISO factorisation failed: {exc}") from exc
+        self._A = A
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        self._solver.set_phase(33)
+        try:
+            x = self._solver._call_pardiso(self._A, np.asarray(rhs, dtype=float).reshape(-1, 1))
+        except self._error as exc:
+            raise RuntimeError(f"PARDISO solve failed: {exc}") from exc
+        return np.asarray(x).ravel()
+
+
+# --------------------------------------------------------------------------------------------
 # Model
 # --------------------------------------------------------------------------------------------
 
@@ -401,6 +623,31 @@ class PlaneStressModel:
         self._stress_mask = self._stress_elements(stress_ignore)
         self._K_lin: sp.csr_matrix | None = None  # linear stiffness, assembled on first use
         self._lu_lin = None  # and its factorisation
+        self._lu_pre = None  # the factorisation CG is preconditioned with (krylov solver)
+        self.counters = {"factorisations": 0, "cg_iterations": 0, "tangents": 0}
+        if settings.assembly not in ("vectorised", "skfem"):
+            raise FeaError(f"assembly '{settings.assembly}' unknown; use 'vectorised' or 'skfem'")
+        if settings.solver not in ("auto", "pardiso", "direct", "krylov"):
+            raise FeaError(
+                f"solver '{settings.solver}' unknown; use 'auto', 'pardiso', 'direct' or 'krylov'"
+            )
+        self._pardiso = None  # PARDISO handle (symbolic analysis kept) and what it holds
+        self._pardiso_K = None
+        if settings.solver in ("auto", "pardiso"):
+            try:
+                self._pardiso = _Pardiso()
+            except ImportError as exc:
+                if settings.solver == "pardiso":
+                    raise FeaError(
+                        f"solver 'pardiso' needs pypardiso and Intel MKL ({exc}); "
+                        "pip install pypardiso mkl, or use solver 'direct'"
+                    ) from exc
+        self.solver = (
+            "pardiso"
+            if self._pardiso is not None
+            else ("direct" if settings.solver == "auto" else settings.solver)
+        )
+        self._asm = _VectorAssembly(self.basis) if settings.assembly == "vectorised" else None
         self._build_constraints()
 
     # ---- setup ------------------------------------------------------------------------------
@@ -464,6 +711,12 @@ class PlaneStressModel:
                 cols.append(slide)
         self.P = sp.hstack(cols).tocsr()
         self.PT = self.P.T.tocsr()
+        self.free = free
+        # With a pure selection (no shared sliding unknown) the reduced matrix is a sub-matrix,
+        # which the vectorised assembly writes directly instead of forming P^T K P.
+        self._selection_only = len(cols) == 1
+        if self._asm is not None and self._selection_only:
+            self._asm.reduce_to(free)
 
     def _direction(self) -> np.ndarray:
         if isinstance(self.drive, Rotate):
@@ -501,11 +754,18 @@ class PlaneStressModel:
 
     # ---- physics ----------------------------------------------------------------------------
 
+    def _linear_stiffness(self) -> sp.csr_matrix:
+        return self._state_linear(np.zeros(self.n_dofs)).K
+
     def _state_linear(self, u: np.ndarray) -> _State:
         if self._K_lin is None:
-            self._K_lin = (
-                asm(linear_stiffness, self.basis, lam=self.lam, mu=self.mu) * self.thickness_mm
-            ).tocsr()
+            if self._asm is not None:
+                C = _material_tensor(self.lam, self.mu)[:, :, :, :, None, None]
+                self._K_lin = self._asm.tangent(C, self.thickness_mm)
+            else:
+                self._K_lin = (
+                    asm(linear_stiffness, self.basis, lam=self.lam, mu=self.mu) * self.thickness_mm
+                ).tocsr()
         return _State(self._K_lin @ u, self._K_lin, 1.0)
 
     def _deformation(self, u: np.ndarray, basis: Basis) -> tuple[np.ndarray, np.ndarray]:
@@ -515,9 +775,18 @@ class PlaneStressModel:
         return F, _svk_stress(E, self.lam, self.mu)
 
     def _state_nonlinear(self, u: np.ndarray) -> _State:
+        b = self.thickness_mm
+        self.counters["tangents"] += 1
+        if self._asm is not None:
+            F = self._asm.deformation_gradient(u)
+            E = 0.5 * (_matmul(transpose(F), F) - _eye_like(F))
+            S = _svk_stress(E, self.lam, self.mu)
+            det = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+            f = self._asm.internal_force(_matmul(F, S), b)
+            K = self._asm.tangent(_tangent_tensor(F, S, self.lam, self.mu), b)
+            return _State(f, K, float(det.min()))
         F, S = self._deformation(u, self.basis)
         det = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
-        b = self.thickness_mm
         f = asm(internal_force, self.basis, F=F, S=S) * b
         A = _tangent_tensor(F, S, self.lam, self.mu)
         K = asm(tangent_stiffness, self.basis, A=A) * b
@@ -572,16 +841,47 @@ class PlaneStressModel:
 
     # ---- solver -----------------------------------------------------------------------------
 
-    def _reduced_solve(self, K: sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:
-        if self._lu_lin is not None and K is self._K_lin:
-            return self._lu_lin.solve(rhs)  # the linear stiffness is factorised once
-        Kr = (self.PT @ K @ self.P).tocsc()
+    def _reduced(self, K: sp.csr_matrix) -> sp.csr_matrix:
+        """P^T K P: a sub-matrix written by the assembly when P is a selection."""
+        Kr = getattr(K, "_reduced", None)
+        return Kr if Kr is not None else (self.PT @ K @ self.P).tocsr()
+
+    def _factorise(self, Kr: sp.csr_matrix):
+        self.counters["factorisations"] += 1
         # A minimum-degree ordering of A^T + A suits these symmetric tangents: 30 % less fill and
         # ~15 % less time than SuperLU's default COLAMD on a 25k-DOF strip.
-        lu = splu(Kr, permc_spec="MMD_AT_PLUS_A")
+        return splu(Kr.tocsc(), permc_spec="MMD_AT_PLUS_A")
+
+    def _reduced_solve(self, K: sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:
+        if self._pardiso is not None:
+            # One handle: the pattern's analysis is kept, the numbers refactorised on a new K.
+            if self._pardiso_K is not K:
+                self.counters["factorisations"] += 1
+                self._pardiso.factorise(self._reduced(K))
+                self._pardiso_K = K
+            return self._pardiso.solve(rhs)
         if K is self._K_lin:
-            self._lu_lin = lu
-        return lu.solve(rhs)
+            if self._lu_lin is None:  # the linear stiffness is factorised once
+                self._lu_lin = self._factorise(self._reduced(K))
+            return self._lu_lin.solve(rhs)
+        Kr = self._reduced(K)
+        if self.solver == "direct":
+            return self._factorise(Kr).solve(rhs)
+        pre = self._lu_pre
+        if pre is None:
+            if self._lu_lin is None:
+                self._lu_lin = self._factorise(self._reduced(self._linear_stiffness()))
+            pre = self._lu_pre = self._lu_lin
+        x, n_iter = _pcg(
+            Kr, rhs, pre.solve, self.settings.krylov_rtol, self.settings.krylov_max_iter
+        )
+        self.counters["cg_iterations"] += n_iter
+        if x is not None:
+            return x
+        # The tangent has moved away from the preconditioner (large rotation, stress
+        # stiffening, a limit point near): factorise it and precondition with it from now on.
+        self._lu_pre = self._factorise(Kr)
+        return self._lu_pre.solve(rhs)
 
     def _increment(
         self, u0: np.ndarray, s0: _State, ubar_step: np.ndarray, kinematics: str

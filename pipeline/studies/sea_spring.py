@@ -1,0 +1,1152 @@
+"""Study kind ``sea_spring``: the compact torsional SEA spring of paper 004 (Ardakanian et al.).
+
+Two stages, as in the paper (docs/sea_spring.md):
+
+1. **Taguchi screening** (paper section 5, Tables 6-8): an L25 array over the six shape factors
+   RP, RR, ST, A, RT, D (:data:`geometry.sea_spring.TABLE6_LEVELS`), each run a linear
+   plane-stress FEA at a fifth of the design torque (10 N m, target 2.08 degrees); cost
+   ``C = 0.5 sigma_n + 0.5 |theta_T - theta|_n`` (Eq. 27, each term divided by its largest value
+   over the array), S/N smaller-the-better, pooled ANOVA, the predicted optimum and its
+   confirmation run, and the additivity check with extra runs off the array. It runs once, when
+   the design problem is built (about 25 + 6 linear solves, under a minute), fixes RP for stage 2
+   and seeds its first population; its results are recorded in ``detail().info["taguchi"]``.
+2. **NSGA-II** over the 18 variables of Table 9 (:data:`geometry.sea_spring.GA_VARIABLES`):
+   objectives the peak von Mises stress at the design torque and ``|K - K_target| / K_target``;
+   constraints the envelope, the thinnest member, the narrowest slot, the link reach (all from
+   :func:`geometry.sea_spring.clearances`) and the stiffness band (``tolerance_percent``). The
+   run's best design is therefore the least-stressed spring inside the stiffness band; the front
+   shows what a looser stiffness buys in stress.
+
+Each design is evaluated by a linear solve (stiffness ``K_lin``) and a geometrically nonlinear
+solve in one step to ``theta_T = torque / K_target`` (11.04 degrees for 53 N m and 275 N m/rad):
+``K = T(theta_T) / theta_T`` is the secant stiffness at the design torque. The hub's flange
+footprint is turned rigidly about the axis, the pads' washer footprints are held.
+
+YAML (every key optional but ``name``, ``geometry.kind`` and ``material``)::
+
+    geometry: {kind: sea_spring, envelope_diameter_mm: 72, n_sets: null, fillet_mm: 0.3}
+    material: maraging-300
+    target: {stiffness_Nm_per_rad: 275, torque_Nm: 53, tolerance_percent: 2,
+             allowable_stress_MPa: 800}
+    stiffness_window: null          # or {required_bandwidth_Hz: 4, impact_speed_rpm: 46.86, ...}
+    taguchi: {enabled: true, torque_Nm: 10}
+    design_space: {S1: [0.8, 3.0]}  # Table 9 bounds unless overridden
+    mesh: {max_edge_mm: 3.0, elements_through: 1.0, curve_steps: 4}
+    optimiser: {algorithm: nsga2, pop_size: 20, n_gen: 20}
+"""
+
+from __future__ import annotations
+
+import difflib
+import io
+import logging
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, Field, model_validator
+
+from fea.errors import FeaError
+from fea.materials import Material
+from fea.mesh import mesh_polygon
+from fea.plane_stress import (
+    Clamp,
+    PlaneStressModel,
+    PlaneStressSettings,
+    Rotate,
+)
+from geometry.errors import GeometryError
+from geometry.sea_spring import (
+    GA_VARIABLES,
+    TABLE6_LEVELS,
+    TABLE9_BOUNDS,
+    SpringFrame,
+    SpringGeometry,
+    SpringParams,
+    build_spring,
+    clearances,
+    params_from_vector,
+    taguchi_params,
+)
+from optimise.evaluation import INFEASIBLE_VALUE, Evaluation
+from optimise.problem import DesignDetail
+from optimise.space import DesignSpace
+from pipeline.errors import StudyError
+from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+
+__all__ = [
+    "PUBLISHED_SPRINGS",
+    "SeaSpringStudy",
+    "SeaSpringProblem",
+    "SpringResponse",
+    "analyse_spring",
+    "run_taguchi",
+    "stress_map_png",
+    "design_space",
+    "target_stiffness_Nm_per_rad",
+    "problem",
+    "evaluate",
+    "check",
+]
+
+log = logging.getLogger(__name__)
+
+#: Paper 004, Table 1: published SEA springs (stiffness N m/rad, max torque N m, thickness mm,
+#: diameter mm; None where the paper gives none). Row "t" is the template the paper follows.
+_TABLE1 = (  # ref, stiffness N m/rad, max torque N m, thickness mm, diameter mm
+    ("a [5]", 46, 15, 2.75, 60),
+    ("b [8]", 219, 100, 15, 75),
+    ("p [7]", 98, 7.7, 3, 85),
+    ("t [11] (template)", 500, 60, 11, 90),
+    ("s [12]", 110, 25, 12, 80),
+    ("j [13]", 84, 15, 6, 125),
+    ("ch [14]", 645, 45, None, None),
+    ("h [15]", 9.7, 7.5, 10, 71),
+    ("kh [16]", 172, 12, None, None),
+)
+PUBLISHED_SPRINGS: tuple[dict[str, Any], ...] = tuple(
+    dict(zip(("ref", "stiffness_Nm_per_rad", "torque_Nm", "thickness_mm", "diameter_mm"), row,
+             strict=True))
+    for row in _TABLE1
+)  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------------
+# The study file
+
+
+class SeaSpringGeometry(BaseModel):
+    """The ``geometry:`` block: envelope, mounting and manufacturing limits (mm)."""
+
+    model_config = STUDY_CONFIG
+
+    kind: Literal["sea_spring"] = Field(description="sea_spring")
+    envelope_diameter_mm: float = Field(72.0, gt=0, description="the spring fits this circle")
+    n_sets: int | None = Field(
+        None,
+        ge=1,
+        le=12,
+        description="RP of the GA stage; default: the Taguchi stage's choice (4 without it)",
+    )
+    hub_radius_mm: float = Field(9.0, gt=0, description="hub disc radius")
+    bore_diameter_mm: float = Field(6.0, ge=0, description="hub bore")
+    hub_holes: int = Field(4, ge=0, le=12, description="hub bolt holes")
+    hub_hole_diameter_mm: float = Field(2.7, ge=0, description="hub bolt hole diameter")
+    hub_hole_circle_diameter_mm: float = Field(12.0, gt=0, description="hub bolt circle")
+    pad_radius_mm: float = Field(3.5, gt=0, description="outer mounting boss radius")
+    pad_hole_diameter_mm: float = Field(3.2, ge=0, description="outer bolt hole diameter")
+    fillet_mm: float = Field(0.3, ge=0, description="fillet radius at concave corners")
+    min_slot_mm: float = Field(0.8, gt=0, description="narrowest slot (cutting)")
+    min_feature_mm: float = Field(0.5, gt=0, description="thinnest member (machining)")
+
+    def frame(self) -> SpringFrame:
+        """The :class:`geometry.sea_spring.SpringFrame` of these values."""
+        return SpringFrame(
+            envelope_diameter_mm=self.envelope_diameter_mm,
+            hub_radius_mm=self.hub_radius_mm,
+            bore_diameter_mm=self.bore_diameter_mm,
+            hub_holes=self.hub_holes,
+            hub_hole_diameter_mm=self.hub_hole_diameter_mm,
+            hub_hole_circle_diameter_mm=self.hub_hole_circle_diameter_mm,
+            hub_clamp_radius_mm=max(self.hub_radius_mm - 1.0, 0.5 * self.hub_radius_mm),
+            pad_radius_mm=self.pad_radius_mm,
+            pad_hole_diameter_mm=self.pad_hole_diameter_mm,
+            pad_clamp_radius_mm=0.8 * self.pad_radius_mm,
+            fillet_mm=self.fillet_mm,
+            min_slot_mm=self.min_slot_mm,
+            min_feature_mm=self.min_feature_mm,
+        )
+
+
+class SpringTarget(BaseModel):
+    """The ``target:`` block: the stiffness at the design torque and the stress not to pass."""
+
+    model_config = STUDY_CONFIG
+
+    stiffness_Nm_per_rad: float | None = Field(
+        275.0, gt=0, description="secant stiffness at torque_Nm (null: from stiffness_window)"
+    )
+    torque_Nm: float = Field(53.0, gt=0, description="design torque (paper: 53 N m)")
+    tolerance_percent: float = Field(2.0, gt=0, lt=100, description="stiffness band, percent")
+    allowable_stress_MPa: float = Field(800.0, gt=0, description="peak von Mises allowed, MPa")
+    max_asymmetry_percent: float | None = Field(
+        None,
+        gt=0,
+        description="if set, a constraint: each direction's secant stiffness within this "
+        "percentage of their mean (null: reported only)",
+    )
+    directions: Literal["both", "positive"] = Field(
+        "both",
+        description="both: load the hub both ways (an SEA spring works in both; a serpentine "
+        "is chiral, so the two secant stiffnesses differ); positive: counter-clockwise only",
+    )
+
+
+class WindowSpec(BaseModel):
+    """The ``stiffness_window:`` block: take the target from fea.sea_window (paper section 4)."""
+
+    model_config = STUDY_CONFIG
+
+    required_bandwidth_Hz: float = Field(4.0, gt=0, description="torque bandwidth at torque_Nm")
+    impact_speed_rpm: float = Field(46.86, gt=0, description="output speed at the collision")
+    impact_spring_torque_Nm: float = Field(0.0, ge=0, description="spring torque at collision")
+    criterion: Literal["spring", "gearbox"] = Field("spring", description="K_max criterion")
+    pick: Literal["k_max", "k_min", "middle"] = Field(
+        "k_max", description="which stiffness of the window becomes the target"
+    )
+
+
+class TaguchiSpec(BaseModel):
+    """The ``taguchi:`` block: stage 1 (L25 over Table 6)."""
+
+    model_config = STUDY_CONFIG
+
+    enabled: bool = Field(True, description="run stage 1 when the problem is built")
+    torque_Nm: float | None = Field(
+        None, gt=0, description="screening torque (default: a fifth of target.torque_Nm)"
+    )
+    pool_below_percent: float = Field(5.0, ge=0, lt=100, description="ANOVA pooling threshold")
+    min_error_dof: int = Field(4, ge=0, le=20, description="pool until this many error dof")
+    extra_runs: int = Field(5, ge=0, le=50, description="off-array runs for the additivity check")
+    seed: int = Field(1, ge=0, description="seed of the extra runs")
+
+
+class MeshSpec(BaseModel):
+    """The ``mesh:`` block: discretisation of every FE run."""
+
+    model_config = STUDY_CONFIG
+
+    max_edge_mm: float = Field(3.0, gt=0.1, le=10, description="largest triangle edge, mm")
+    elements_through: float = Field(
+        1.0, ge=0.5, le=6, description="P2 triangles across a member (1: stiffness to 0.1 %)"
+    )
+    fillet_segments: int = Field(4, ge=1, le=16, description="segments per quarter fillet")
+    curve_steps: int = Field(4, ge=1, le=40, description="rows of the reported torque curve")
+
+
+class SeaSpringStudy(Study):
+    """A whole ``sea_spring`` study file."""
+
+    geometry: SeaSpringGeometry = Field(description="kind: sea_spring and its limits")
+    target: SpringTarget = Field(default_factory=SpringTarget, description="stiffness, torque")
+    stiffness_window: WindowSpec | None = Field(
+        None, description="take the stiffness target from the SEA stiffness window"
+    )
+    taguchi: TaguchiSpec = Field(default_factory=TaguchiSpec, description="stage 1")
+    design_space: dict[str, list[float]] = Field(
+        default_factory=dict,
+        description="bounds [lower, upper] by Table 9 name (R1..R5, S1..S5, W1..W4, P1, P2, "
+        "alpha, ST); unlisted variables keep Table 9",
+    )
+    thickness: Literal["solve", "search"] = Field(
+        "solve",
+        description="solve: ST follows from the stiffness target (plane-stress torque is "
+        "proportional to ST), objectives stress and mass; search: ST is a GA variable and the "
+        "stiffness error an objective (the paper's formulation)",
+    )
+    design: dict[str, float] | None = Field(
+        None, description="the design flexopt evaluate analyses (Table 9 mid-range if null)"
+    )
+    mesh: MeshSpec = Field(default_factory=MeshSpec, description="FE discretisation")
+    optimiser: OptimiserSpec = Field(
+        default_factory=lambda: OptimiserSpec(
+            algorithm="nsga2", pop_size=20, n_gen=20, quick_pop_size=6, quick_n_gen=2
+        ),
+        description="algorithm (nsga2), pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
+    )
+
+    @model_validator(mode="after")
+    def _target_or_window(self) -> SeaSpringStudy:
+        if self.target.stiffness_Nm_per_rad is None and self.stiffness_window is None:
+            raise ValueError(
+                "target.stiffness_Nm_per_rad is null and there is no stiffness_window block; "
+                "give one of them (e.g. stiffness_Nm_per_rad: 275)"
+            )
+        return self
+
+
+# --------------------------------------------------------------------------------------------
+# From the study to the optimiser's inputs
+
+
+def spring_frame(study: SeaSpringStudy) -> SpringFrame:
+    """The geometry frame of a study (its ``geometry:`` limits and ``mesh.fillet_segments``)."""
+    return replace(study.geometry.frame(), fillet_segments=study.mesh.fillet_segments)
+
+
+def target_stiffness_Nm_per_rad(study: SeaSpringStudy) -> tuple[float, dict[str, Any]]:
+    """The stiffness target and where it came from (``stiffness_window`` wins when given)."""
+    if study.stiffness_window is None:
+        return float(study.target.stiffness_Nm_per_rad), {"source": "target.stiffness_Nm_per_rad"}
+    from fea.sea_window import Gearbox, Motor, rpm_to_rad_per_s, stiffness_window
+
+    w = study.stiffness_window
+    window = stiffness_window(
+        Motor(),
+        Gearbox(),
+        required_torque_Nm=study.target.torque_Nm,
+        impact_speed_rad_per_s=rpm_to_rad_per_s(w.impact_speed_rpm),
+        required_bandwidth_Hz=w.required_bandwidth_Hz,
+        impact_spring_torque_Nm=w.impact_spring_torque_Nm,
+        criterion=w.criterion,
+    )
+    if window.is_empty:
+        raise StudyError(
+            "stiffness_window",
+            f"the window is empty (K_min {window.k_min_Nm_per_rad:.4g} > K_max "
+            f"{window.k_max_Nm_per_rad:.4g} N m/rad); lower required_bandwidth_Hz or "
+            "impact_speed_rpm, or give target.stiffness_Nm_per_rad",
+        )
+    lo, hi = window.k_min_Nm_per_rad, window.k_max_Nm_per_rad
+    k = {"k_max": hi, "k_min": lo, "middle": 0.5 * (lo + hi)}[w.pick]
+    return float(k), {"source": f"stiffness_window ({w.pick})", "k_min": lo, "k_max": hi}
+
+
+def _unknown(name: str, path: str) -> StudyError:
+    close = [n for n in GA_VARIABLES if n.lower() == name.lower()]
+    close = close or difflib.get_close_matches(name, GA_VARIABLES, n=1)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    return StudyError(
+        f"{path}.{name}",
+        f"unknown design variable '{name}'; {hint}use {', '.join(GA_VARIABLES)} (Table 9)",
+    )
+
+
+def design_space(study: SeaSpringStudy) -> DesignSpace:
+    """Table 9 bounds overridden by ``design_space:`` (names carry units: ``R1_mm``, ``alpha_deg``).
+
+    Raises
+    ------
+    StudyError
+        At ``design_space.<name>``: unknown name, not two numbers, swapped, equal or non-positive
+        bounds, ST above ``geometry`` limits or alpha outside (0, 360 / RP).
+    """
+    bounds = {k: list(v) for k, v in TABLE9_BOUNDS.items()}
+    for name, b in study.design_space.items():
+        path = f"design_space.{name}"
+        if name not in bounds:
+            raise _unknown(name, "design_space")
+        if len(b) != 2:
+            raise StudyError(path, f"got {list(b)}; give two bounds [lower, upper]")
+        lo, hi = float(b[0]), float(b[1])
+        if lo > hi:
+            raise StudyError(path, f"lower {lo:g} > upper {hi:g}; did you swap them?")
+        if lo == hi:
+            raise StudyError(path, f"equal bounds [{lo:g}, {hi:g}]; give a range")
+        if not lo > 0:
+            raise StudyError(path, f"lower bound {lo:g} must be > 0")
+        if name == "alpha" and hi >= 360:
+            raise StudyError(path, f"alpha up to {hi:g} degrees leaves no room; keep it < 360 / RP")
+        bounds[name] = [lo, hi]
+    names = tuple(f"{n}_deg" if n == "alpha" else f"{n}_mm" for n in GA_VARIABLES)
+    return DesignSpace(
+        names,
+        np.array([bounds[n][0] for n in GA_VARIABLES]),
+        np.array([bounds[n][1] for n in GA_VARIABLES]),
+    )
+
+
+def design_vector(study: SeaSpringStudy) -> np.ndarray:
+    """(18,) the study's ``design:`` (unlisted variables at the middle of their range)."""
+    space = design_space(study)
+    x = 0.5 * (space.lower + space.upper)
+    for name, value in (study.design or {}).items():
+        if name not in GA_VARIABLES:
+            raise _unknown(name, "design")
+        x[GA_VARIABLES.index(name)] = float(value)
+    return x
+
+
+def check(study: SeaSpringStudy) -> None:
+    """Refuse what would stop a run, before any folder exists (no FE here)."""
+    try:
+        frame = study.geometry.frame()
+    except GeometryError as exc:
+        raise StudyError("geometry", str(exc)) from exc
+    space = design_space(study)
+    st = space.upper[GA_VARIABLES.index("ST")]
+    if st > 20.0 + 1e-9:
+        log.info("design_space.ST reaches %.3g mm, beyond the paper's 20 mm", st)
+    n_sets = study.geometry.n_sets or 4
+    if space.upper[GA_VARIABLES.index("alpha")] >= 360.0 / n_sets:
+        raise StudyError(
+            "design_space.alpha",
+            f"alpha may reach {space.upper[GA_VARIABLES.index('alpha')]:g} degrees but {n_sets} "
+            f"sets leave {360.0 / n_sets:g} degrees each; lower its upper bound",
+        )
+    if study.design is not None:
+        x = design_vector(study)
+        try:
+            build_spring(params_from_vector(x, n_sets), frame)
+        except GeometryError as exc:
+            raise StudyError("design", str(exc)) from exc
+    target_stiffness_Nm_per_rad(study)
+
+
+# --------------------------------------------------------------------------------------------
+# One FE analysis of a spring
+
+
+@dataclass(frozen=True)
+class SpringResponse:
+    """What one analysis of a spring gives (N m, degrees at the edges; see :func:`analyse_spring`).
+
+    Attributes
+    ----------
+    rotation_deg : (k + 1,) float, degrees — the hub rotation rows (0 ... theta).
+    torque_Nm : (k + 1,) float, N m — nonlinear torque on the hub (nan where not converged).
+    peak_stress_MPa : (k + 1,) float, MPa — nonlinear peak vertex-averaged von Mises.
+    linear_stiffness_Nm_per_rad : float — K_lin.
+    stiffness_Nm_per_rad : float — secant T(theta) / theta of the nonlinear model.
+    linear_peak_stress_MPa : float — linear peak at theta.
+    ok : bool; message : str
+    n_dofs, n_triangles, iterations : int
+    solve_time_s : float — model build, linear and nonlinear solves.
+    model : PlaneStressModel or None — kept only when asked (for maps).
+    u : (N,) float or None — the last nonlinear state when the model is kept.
+    """
+
+    rotation_deg: np.ndarray
+    torque_Nm: np.ndarray
+    peak_stress_MPa: np.ndarray
+    peak_stress_xy_mm: np.ndarray
+    linear_stiffness_Nm_per_rad: float
+    stiffness_Nm_per_rad: float
+    linear_peak_stress_MPa: float
+    ok: bool
+    message: str
+    n_dofs: int
+    n_triangles: int
+    iterations: int
+    solve_time_s: float
+    model: Any = None
+    u: np.ndarray | None = None
+    reverse_torque_Nm: np.ndarray | None = None
+    reverse_peak_stress_MPa: np.ndarray | None = None
+    reverse_stiffness_Nm_per_rad: float = math.nan
+
+    @property
+    def mean_stiffness_Nm_per_rad(self) -> float:
+        """Mean of the two secant stiffnesses (the forward one alone without a reverse solve)."""
+        if self.reverse_torque_Nm is None:
+            return self.stiffness_Nm_per_rad
+        return 0.5 * (self.stiffness_Nm_per_rad + self.reverse_stiffness_Nm_per_rad)
+
+    @property
+    def worst_peak_stress_MPa(self) -> float:
+        """Peak stress at the last row, the worse of the two directions."""
+        peak = float(self.peak_stress_MPa[-1])
+        if self.reverse_peak_stress_MPa is not None:
+            peak = max(peak, float(self.reverse_peak_stress_MPa[-1]))
+        return peak
+
+    def scaled(self, factor: float) -> SpringResponse:
+        """The same response for a thickness ``factor`` times larger (torques scale with ST)."""
+        rev = None if self.reverse_torque_Nm is None else self.reverse_torque_Nm * factor
+        return replace(
+            self,
+            torque_Nm=self.torque_Nm * factor,
+            stiffness_Nm_per_rad=self.stiffness_Nm_per_rad * factor,
+            linear_stiffness_Nm_per_rad=self.linear_stiffness_Nm_per_rad * factor,
+            reverse_torque_Nm=rev,
+            reverse_stiffness_Nm_per_rad=self.reverse_stiffness_Nm_per_rad * factor,
+        )
+
+
+def analyse_spring(
+    geom: SpringGeometry,
+    material: Material,
+    theta_rad: float,
+    mesh: MeshSpec | None = None,
+    steps: int = 1,
+    nonlinear: bool = True,
+    keep_model: bool = False,
+    settings: PlaneStressSettings | None = None,
+    both_directions: bool = False,
+) -> SpringResponse:
+    """Linear stiffness and (optionally) the nonlinear torque curve of a spring up to theta.
+
+    The hub's flange footprint is turned rigidly about the axis, the pads' washer footprints are
+    held; elements touching those rigid regions are left out of the peak stress (their edges are
+    where the rigid body meets steel, not a feature of the part).
+
+    Parameters
+    ----------
+    geom : SpringGeometry
+    material : Material
+    theta_rad : float, rad — the largest hub rotation.
+    mesh : MeshSpec
+    steps : int — nonlinear load steps (rows) to theta.
+    nonlinear : bool — skip the nonlinear solve when False (stage 1).
+    keep_model : bool — keep the model and last state (for stress maps).
+    settings : PlaneStressSettings, optional — solver tolerances.
+    both_directions : bool — also turn the hub by -theta (a second nonlinear solve on the same
+        model and factorisation pattern).
+
+    Raises
+    ------
+    FeaError
+        When the mesh or model cannot be built (a geometry problem, not a convergence one).
+    """
+    t0 = time.perf_counter()
+    rev_torque = rev_stress = None
+    mesh = mesh or MeshSpec()
+    m = mesh_polygon(geom.fe_outline, mesh.max_edge_mm, refine=geom.mesh_regions(
+        mesh.elements_through, mesh.max_edge_mm))  # fmt: skip
+    # The nonlinear solve needs only the torque to ~1e-5; 1e-7 of the force saves an iteration.
+    cfg = settings or PlaneStressSettings(rtol_residual=1e-7)
+    ignore = geom.hub_region.union(geom.pad_region).buffer(0.05)
+    model = PlaneStressModel(
+        m,
+        material,
+        geom.thickness_mm,
+        Clamp(geom.pad_region),
+        Rotate(geom.hub_region, (0.0, 0.0), theta_rad, steps),
+        settings=cfg,
+        stress_ignore=ignore,
+    )
+    lin = model.solve("linear")
+    k_lin = float(lin.torque_Nmm[-1] / theta_rad) * 1e-3
+    rows = np.degrees(lin.drive_value)
+    if nonlinear:
+        nl = model.solve("nonlinear")
+        torque = np.asarray(nl.torque_Nmm) * 1e-3
+        stress = np.asarray(nl.peak_nodal_stress_MPa)
+        where = np.asarray(nl.peak_nodal_stress_xy_mm)
+        ok, message, its, u = nl.ok, nl.message, int(nl.iterations.sum()), nl.dofs
+        rows = np.degrees(nl.drive_value)
+        if both_directions and ok:
+            # Same regions, opposite rotation: the model's constraint maps and the solver's
+            # symbolic analysis are reused.
+            model.drive = replace(model.drive, max_rad=-theta_rad)
+            back = model.solve("nonlinear")
+            model.drive = replace(model.drive, max_rad=theta_rad)
+            rev_torque = np.asarray(back.torque_Nmm) * 1e-3
+            rev_stress = np.asarray(back.peak_nodal_stress_MPa)
+            its += int(back.iterations.sum())
+            if not back.ok:
+                ok, message = False, f"reverse direction: {back.message}"
+    else:
+        torque = np.asarray(lin.torque_Nmm) * 1e-3
+        stress = np.asarray(lin.peak_nodal_stress_MPa)
+        where = np.asarray(lin.peak_nodal_stress_xy_mm)
+        ok, message, its, u = lin.ok, lin.message, 0, lin.dofs
+    return SpringResponse(
+        rotation_deg=rows,
+        torque_Nm=torque,
+        peak_stress_MPa=stress,
+        peak_stress_xy_mm=where,
+        linear_stiffness_Nm_per_rad=k_lin,
+        stiffness_Nm_per_rad=float(torque[-1] / theta_rad),
+        linear_peak_stress_MPa=float(lin.peak_nodal_stress_MPa[-1]),
+        ok=bool(ok),
+        message=message,
+        n_dofs=int(model.n_dofs),
+        n_triangles=int(m.n_triangles),
+        iterations=its,
+        solve_time_s=time.perf_counter() - t0,
+        model=model if keep_model else None,
+        u=u if keep_model else None,
+        reverse_torque_Nm=rev_torque,
+        reverse_peak_stress_MPa=rev_stress,
+        reverse_stiffness_Nm_per_rad=(
+            float(rev_torque[-1] / -theta_rad) if rev_torque is not None else math.nan
+        ),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Stage 1: Taguchi L25 (paper section 5, Tables 6-8)
+
+
+def _levels_to_values(levels: np.ndarray | tuple[int, ...]) -> dict[str, float]:
+    return {
+        n: float(TABLE6_LEVELS[n][int(lv)]) for n, lv in zip(TABLE6_LEVELS, levels, strict=True)
+    }
+
+
+def _screen_one(
+    levels: tuple[int, ...], frame: SpringFrame, material: Material, mesh: MeshSpec
+) -> tuple[float, float, str]:
+    """(stiffness N m/rad, peak stress per radian MPa/rad, reason) of one level combination."""
+    v = _levels_to_values(levels)
+    try:
+        p = taguchi_params(v["RP"], v["RR"], v["ST"], v["A"], v["RT"], v["D"], frame)
+        geom = build_spring(p, frame)
+        theta = math.radians(1.0)  # linear: any angle; 1 degree keeps the numbers readable
+        r = analyse_spring(geom, material, theta, mesh, nonlinear=False)
+    except (GeometryError, FeaError) as exc:
+        return math.nan, math.nan, str(exc)
+    return r.linear_stiffness_Nm_per_rad, r.linear_peak_stress_MPa / theta, ""
+
+
+def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
+    """Stage 1: the paper's L25 screening of Table 6, reproduced step by step.
+
+    Each run is a linear plane-stress analysis: at 2 degrees the nonlinear model differs from the
+    linear one by far less than the factor effects (docs/sea_spring.md), so the screening torque
+    ``T_s`` gives ``theta = T_s / K_lin`` and ``sigma = sigma'(theta)`` from one solve.
+
+    Returns
+    -------
+    dict
+        Plain data: the runs (levels, values, theta, sigma, C, S/N), the pooled ANOVA, the best
+        levels and predicted S/N, the confirmation, the additivity check, the chosen design
+        (``chosen``: the better of the confirmed optimum and the best tested run) and timings.
+    """
+    from optimise.taguchi import Pool, analyse, confirm, select_array
+
+    t0 = time.perf_counter()
+    frame = spring_frame(study)
+    material = study.material.to_material()
+    k_target, _ = target_stiffness_Nm_per_rad(study)
+    torque = study.taguchi.torque_Nm or study.target.torque_Nm / 5.0
+    theta_t = math.degrees(torque / k_target)
+    lay = select_array({n: len(v) for n, v in TABLE6_LEVELS.items()})
+    runs = [_screen_one(tuple(row), frame, material, study.mesh) for row in lay.design]
+    k = np.array([r[0] for r in runs])
+    sig_per_rad = np.array([r[1] for r in runs])
+    theta = np.degrees(torque / k)
+    sigma = sig_per_rad * np.radians(theta)
+    failed = ~np.isfinite(theta)
+    # A run that cannot be built keeps the array balanced with the worst observed values.
+    theta_err = np.abs(theta - theta_t)
+    if failed.any():
+        theta_err[failed] = np.nanmax(theta_err)
+        sigma[failed] = np.nanmax(sigma)
+    s_max, e_max = float(sigma.max()), float(theta_err.max())
+
+    def cost(sig: float, err: float) -> float:
+        # Eq. 27 on values divided by their largest over the array (positive, so S/N is finite)
+        return 0.5 * sig / s_max + 0.5 * err / e_max
+
+    C = np.array([cost(s, e) for s, e in zip(sigma, theta_err, strict=True)])
+    spec = study.taguchi
+    kw = dict(factor_names=lay.factor_names, columns=lay.columns)
+    result = analyse(
+        lay.array,
+        C,
+        "smaller",
+        pool=Pool(below_percent=spec.pool_below_percent, min_error_dof=spec.min_error_dof),
+        **kw,
+    )
+    best = tuple(int(v) for v in result.best_levels)
+
+    def measure(levels: tuple[int, ...]) -> tuple[float, float, float, float]:
+        kk, sp, _ = _screen_one(levels, frame, material, study.mesh)
+        if not math.isfinite(kk):
+            return math.nan, math.nan, math.nan, float(C.max())
+        th = math.degrees(torque / kk)
+        sg = sp * math.radians(th)
+        return kk, th, sg, cost(sg, abs(th - theta_t))
+
+    kb, thb, sgb, cb = measure(best)
+    conf = confirm(result, responses=[cb])
+    rng = np.random.default_rng(spec.seed)
+    extra = rng.integers(0, 5, size=(spec.extra_runs, len(TABLE6_LEVELS)))
+    extra_c = np.array([measure(tuple(int(v) for v in row))[3] for row in extra])
+    additivity = (
+        result.additivity(extra_levels=extra, extra_sn=-10.0 * np.log10(extra_c**2))
+        if spec.extra_runs
+        else result.additivity()
+    )
+    i_run = int(np.argmin(C))
+    if cb <= C[i_run]:
+        chosen_levels, chosen_from = best, "S/N optimum (confirmed run)"
+    else:
+        chosen_levels, chosen_from = tuple(int(v) for v in lay.design[i_run]), f"array run {i_run}"
+    anova_rows = [
+        {k2: (float(v) if isinstance(v, float | np.floating) else v) for k2, v in row.items()}
+        for row in result.anova.rows()
+    ]
+    return {
+        "array": lay.array_name,
+        "torque_Nm": torque,
+        "target_rotation_deg": theta_t,
+        "cost": "C = 0.5 sigma/max(sigma) + 0.5 |theta_T - theta|/max|theta_T - theta| (Eq. 27)",
+        "runs": {
+            **{
+                n: [float(TABLE6_LEVELS[n][lv]) for lv in lay.design[:, j]]
+                for j, n in enumerate(TABLE6_LEVELS)
+            },  # fmt: skip
+            "stiffness_Nm_per_rad": k.tolist(),
+            "rotation_deg": theta.tolist(),
+            "stress_MPa": sigma.tolist(),
+            "C": C.tolist(),
+            "sn_dB": np.asarray(result.sn).tolist(),
+            "failed": [r[2] for r in runs],
+        },
+        "anova": anova_rows,
+        "best_levels": dict(zip(lay.factor_names, best, strict=True)),
+        "best_values": _levels_to_values(best),
+        "predicted_sn_dB": float(result.predicted_sn),
+        "confirmation": {
+            "stiffness_Nm_per_rad": kb,
+            "rotation_deg": thb,
+            "stress_MPa": sgb,
+            "C": cb,
+            "measured_sn_dB": float(conf.measured_sn),
+            "difference_dB": float(conf.difference),
+            "half_width_dB": float(conf.half_width),
+            "within": bool(conf.within),
+        },
+        "additivity": {
+            "extra_levels": extra.tolist(),
+            "extra_residuals_dB": np.asarray(additivity.extra_residuals).tolist(),
+            "rms_extra_residual_dB": (
+                float(np.sqrt(np.mean(np.square(additivity.extra_residuals))))
+                if spec.extra_runs
+                else None
+            ),
+            "largest_pair": (
+                f"{additivity.pairs[0].a}x{additivity.pairs[0].b}" if additivity.pairs else None
+            ),
+            "notes": list(additivity.notes),
+        },
+        "best_run": {"index": i_run, "C": float(C[i_run]), **_levels_to_values(lay.design[i_run])},
+        "chosen": {"from": chosen_from, **_levels_to_values(chosen_levels)},
+        "time_s": time.perf_counter() - t0,
+    }
+
+
+def seed_from_taguchi(
+    chosen: dict[str, float], space: DesignSpace, frame: SpringFrame
+) -> np.ndarray:
+    """The stage-1 spring as an 18-variable GA vector (five arcs, clipped into the space)."""
+    p = taguchi_params(chosen["RP"], 2, chosen["ST"], chosen["A"], chosen["RT"], chosen["D"], frame)
+    R = np.linspace(frame.inner_radius_mm, frame.outer_radius_mm, 5)
+    x = np.array(
+        [*R, *(chosen["RT"],) * 5, *(chosen["D"],) * 4, chosen["D"], max(chosen["D"], chosen["RT"]),
+         p.span_deg, chosen["ST"]]
+    )  # fmt: skip
+    return space.clip(x)
+
+
+# --------------------------------------------------------------------------------------------
+# Stage 2: the design problem
+
+
+class SeaSpringProblem:
+    """The NSGA-II problem of stage 2 (picklable; stage 1 runs in the constructor).
+
+    With ``thickness: solve`` (default) the variables are the 17 planform variables of Table 9
+    (ST left out) and ST is computed: under displacement control the plane-stress displacement
+    field does not depend on the thickness and the torque is proportional to it, so one solve at
+    a reference thickness gives the ST at which ``T(theta_T) = torque_Nm`` exactly (the secant
+    stiffness is then the target to solver precision). Objectives: ``peak_stress_MPa`` (which
+    does not depend on ST either) and ``mass_g``; constraints: the four geometric margins of
+    :func:`geometry.sea_spring.clearances` and the ST range (``thickness_over_mm``,
+    ``thickness_under_mm``). With ``target.directions: both`` the hub is turned both ways: the
+    stiffness is the mean of the two secant stiffnesses, the stress the worse direction, and
+    ``asymmetry_percent`` (each direction against the mean) is reported, or constrained when
+    ``target.max_asymmetry_percent`` is set.
+
+    With ``thickness: search`` (the paper's formulation) ST is the 18th variable; objectives
+    ``peak_stress_MPa`` and ``stiffness_error_percent`` (|K/K_target - 1| 100), constraints the
+    geometric margins and ``stiffness_band_percent`` (error minus ``tolerance_percent``).
+    """
+
+    #: thickness at which the "solve" mode's single solve is made, mm (any value gives the
+    #: same ST; 10 mm keeps the forces in a familiar range)
+    REFERENCE_THICKNESS_MM = 10.0
+
+    def __init__(self, study: SeaSpringStudy, stage1: dict[str, Any] | None = None) -> None:
+        self.study = study
+        self.material = study.material.to_material()
+        self.frame = spring_frame(study)
+        self.k_target, self.target_source = target_stiffness_Nm_per_rad(study)
+        self.theta = study.target.torque_Nm / self.k_target  # rad
+        self.full_space = design_space(study)
+        self.solve_st = study.thickness == "solve"
+        i_st = GA_VARIABLES.index("ST")
+        self.st_range = (float(self.full_space.lower[i_st]), float(self.full_space.upper[i_st]))
+        if self.solve_st:
+            keep = [i for i in range(len(GA_VARIABLES)) if i != i_st]
+            self.space = DesignSpace(
+                tuple(self.full_space.names[i] for i in keep),
+                self.full_space.lower[keep],
+                self.full_space.upper[keep],
+            )
+            self.objective_names = ("peak_stress_MPa", "mass_g")
+            extra: tuple[str, ...] = ("thickness_over_mm", "thickness_under_mm")
+        else:
+            self.space = self.full_space
+            self.objective_names = ("peak_stress_MPa", "stiffness_error_percent")
+            extra = ("stiffness_band_percent",)
+        if study.target.max_asymmetry_percent is not None:
+            extra = (*extra, "asymmetry_percent")
+        self.constraint_names = (*_GEOMETRY_CONSTRAINTS, *extra)
+        if stage1 is None and study.taguchi.enabled:
+            stage1 = run_taguchi(study)
+        self.stage1 = stage1
+        chosen_rp = int(stage1["chosen"]["RP"]) if stage1 else 4
+        self.n_sets = int(study.geometry.n_sets or chosen_rp)
+
+    # -- helpers ---------------------------------------------------------------------------
+
+    def full_vector(self, x: np.ndarray, st_mm: float | None = None) -> np.ndarray:
+        """(18,) Table 9 vector of a design vector (ST inserted in solve mode)."""
+        x = np.asarray(x, dtype=float).ravel()
+        if not self.solve_st:
+            return x
+        st = self.REFERENCE_THICKNESS_MM if st_mm is None else st_mm
+        return np.insert(x, GA_VARIABLES.index("ST"), st)
+
+    def params(self, x: np.ndarray, st_mm: float | None = None) -> SpringParams:
+        return params_from_vector(self.full_vector(x, st_mm), self.n_sets)
+
+    def initial_designs(self) -> np.ndarray | None:
+        """The stage-1 spring (five-arc version) or else the study's ``design:``, seeded into
+        the first population."""
+        if self.stage1:
+            x = seed_from_taguchi(self.stage1["chosen"], self.full_space, self.frame)
+        elif self.study.design is not None:
+            x = self.full_space.clip(design_vector(self.study))
+        else:
+            return None
+        if self.solve_st:
+            x = np.delete(x, GA_VARIABLES.index("ST"))
+        return x[None, :]
+
+    def _margins_g(self, p: SpringParams) -> np.ndarray:
+        m = clearances(p, self.frame)
+        return -np.array([m[k] for k in _GEOMETRY_CONSTRAINTS])
+
+    def solve(self, x: np.ndarray, steps: int = 1, keep_model: bool = False):
+        """Build and analyse a design; returns (params, geometry, response, ST mm) or raises.
+
+        In solve mode the analysis is made at the reference thickness and ST is the thickness
+        whose torque at theta_T is the target torque; the returned response is rescaled to it
+        (torques scale with ST, displacements and stresses do not).
+
+        Raises
+        ------
+        GeometryError, FeaError
+        """
+        p = self.params(x)
+        geom = build_spring(p, self.frame)
+        both = self.study.target.directions == "both"
+        r = analyse_spring(geom, self.material, self.theta, self.study.mesh, steps, True,
+                           keep_model, both_directions=both)  # fmt: skip
+        if not self.solve_st or not r.ok:
+            return p, geom, r, p.thickness_mm
+        # The thickness at which the (mean) secant stiffness is the target.
+        scale = self.k_target / r.mean_stiffness_Nm_per_rad
+        st = p.thickness_mm * scale
+        p = self.params(x, st)
+        geom = build_spring(p, self.frame)
+        r = r.scaled(scale)
+        if r.model is not None:
+            r.model.thickness_mm = st  # only the stress map reads it; stresses do not change
+        return p, geom, r, st
+
+    # -- the contract ----------------------------------------------------------------------
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        t0 = time.perf_counter()
+        x = np.asarray(x, dtype=float)
+        n_obj, n_con = len(self.objective_names), len(self.constraint_names)
+        try:
+            p = self.params(x)
+        except GeometryError as exc:
+            return Evaluation.failed(x, n_obj, n_con, f"cannot build: {exc}")
+        g_geo = self._margins_g(p)
+        n_extra = n_con - g_geo.size
+        if np.any(g_geo > 1e-9):
+            # Not buildable: no FE, but graded violations lead the GA back.
+            g = np.append(g_geo, np.full(n_extra, INFEASIBLE_VALUE))
+            f = np.full(n_obj, INFEASIBLE_VALUE)
+            return Evaluation(x, f, g, {"buildable": False}, "", time.perf_counter() - t0)
+        try:
+            p, geom, r, st = self.solve(x)
+        except (GeometryError, FeaError) as exc:
+            return Evaluation.failed(x, n_obj, n_con, f"cannot build: {exc}")
+        if not r.ok:
+            return Evaluation.failed(
+                x, n_obj, n_con, f"nonlinear solve: {r.message}", time.perf_counter() - t0
+            )
+        mass_g = geom.mass_kg(self.material.density_kg_m3) * 1e3
+        k_mean = r.mean_stiffness_Nm_per_rad
+        err = abs(k_mean / self.k_target - 1.0) * 100.0
+        asym = abs(r.stiffness_Nm_per_rad / k_mean - 1.0) * 100.0
+        peak = r.worst_peak_stress_MPa
+        if self.solve_st:
+            f = np.array([peak, mass_g])
+            g = np.append(g_geo, [st - self.st_range[1], self.st_range[0] - st])
+        else:
+            f = np.array([peak, err])
+            g = np.append(g_geo, err - self.study.target.tolerance_percent)
+        if self.study.target.max_asymmetry_percent is not None:
+            g = np.append(g, asym - self.study.target.max_asymmetry_percent)
+        metrics = {
+            "ST_mm": st,
+            "stiffness_Nm_per_rad": r.mean_stiffness_Nm_per_rad,
+            "stiffness_ccw_Nm_per_rad": r.stiffness_Nm_per_rad,
+            "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
+            "asymmetry_percent": asym,
+            "linear_stiffness_Nm_per_rad": r.linear_stiffness_Nm_per_rad,
+            "torque_Nm": float(r.torque_Nm[-1]),
+            "peak_stress_MPa": peak,
+            "mass_g": mass_g,
+            "n_dofs": r.n_dofs,
+            "newton_iterations": r.iterations,
+            "fe_time_s": r.solve_time_s,
+        }
+        return Evaluation(x, f, g, metrics, "", time.perf_counter() - t0)
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        x = np.asarray(x, dtype=float)
+        evaluation = self.evaluate(x)
+        study = self.study
+        info: dict[str, Any] = {
+            "thickness": study.thickness,
+            "n_sets": self.n_sets,
+            "material": {
+                "name": self.material.name,
+                "why": "maraging 300: highest yield (2000 MPa) and yield/E of the library's "
+                "steels, so the 800 MPa cap is 40 % of yield and about its fatigue limit",
+            },
+            "target": {
+                "stiffness_Nm_per_rad": self.k_target,
+                "torque_Nm": study.target.torque_Nm,
+                "rotation_deg": math.degrees(self.theta),
+                **self.target_source,
+            },
+        }
+        if self.stage1:
+            info["taguchi"] = _stage1_summary(self.stage1)
+        steps = study.mesh.curve_steps
+        try:
+            p, geom, r, st = self.solve(x, steps, keep_model=True)
+        except (GeometryError, FeaError) as exc:
+            info["problem"] = f"cannot build: {exc}"
+            return DesignDetail(evaluation, info=info)
+        info["design"] = dict(zip(GA_VARIABLES, map(float, self.full_vector(x, st)), strict=True))
+        if self.solve_st:
+            # ST was computed from a solve at the reference thickness; solving again at ST
+            # shows the proportionality (the stiffness must be the target to solver precision).
+            check = analyse_spring(geom, self.material, self.theta, study.mesh,
+                                   both_directions=study.target.directions == "both")  # fmt: skip
+            info["thickness_solved"] = {
+                "ST_mm": st,
+                "stiffness_resolved_at_ST_Nm_per_rad": check.mean_stiffness_Nm_per_rad,
+                "peak_stress_resolved_at_ST_MPa": check.worst_peak_stress_MPa,
+            }
+        small = analyse_spring(geom, self.material, math.radians(1.0), study.mesh)
+        table = _curve_table(r)
+        volume = geom.volume_mm3
+        mass = geom.mass_kg(self.material.density_kg_m3)
+        disc_cm3 = math.pi * (0.5 * study.geometry.envelope_diameter_mm) ** 2 * p.thickness_mm
+        disc_cm3 *= 1e-3
+        k_mean = r.mean_stiffness_Nm_per_rad
+        info.update(
+            {
+                "stiffness_Nm_per_rad": k_mean,
+                "stiffness_ccw_Nm_per_rad": r.stiffness_Nm_per_rad,
+                "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
+                "stiffness_error_percent": (k_mean / self.k_target - 1) * 100,
+                "peak_stress_MPa": r.worst_peak_stress_MPa,
+                "peak_stress_ccw_xy_mm": r.peak_stress_xy_mm[-1].tolist(),
+                "allowable_stress_MPa": study.target.allowable_stress_MPa,
+                "stress_ok": bool(r.worst_peak_stress_MPa <= study.target.allowable_stress_MPa),
+                "linear_vs_nonlinear": {
+                    "at_1_deg_percent": (
+                        small.stiffness_Nm_per_rad / small.linear_stiffness_Nm_per_rad - 1
+                    )
+                    * 100,
+                    "at_design_percent": (
+                        r.stiffness_Nm_per_rad / r.linear_stiffness_Nm_per_rad - 1
+                    )
+                    * 100,
+                },  # fmt: skip
+                "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
+                "thickness_mm": p.thickness_mm,
+                "mass_g": mass * 1e3,
+                "volume_mm3": volume,
+                "stiffness_per_volume_Nm_per_rad_cm3": k_mean / (volume * 1e-3),
+                "stiffness_per_disc_volume_Nm_per_rad_cm3": k_mean / disc_cm3,
+                "max_torque_per_mass_Nm_per_kg": study.target.torque_Nm / mass,
+                "checks": geom.checks,
+                "mesh": {"dofs": r.n_dofs, "triangles": r.n_triangles},
+                "published_springs": _published_comparison(),
+                "stress_map": _stress_map_data(r),
+            }
+        )
+        tol = study.target.tolerance_percent / 100.0 * study.target.torque_Nm
+        plot = {
+            "x": "rotation_deg",
+            "y": "torque_Nm",
+            "stress": "peak_stress_MPa",
+            "target": study.target.torque_Nm,
+            "tolerance": tol,
+            "allowable_MPa": study.target.allowable_stress_MPa,
+            "xlabel": "hub rotation (deg)",
+            "ylabel": "torque on the hub (N m)",
+        }
+        return DesignDetail(
+            evaluation=evaluation,
+            table=table,
+            plot=plot,
+            outline=geom.outline,
+            height_mm=p.thickness_mm,
+            info=info,
+        )
+
+
+_GEOMETRY_CONSTRAINTS = ("envelope_mm", "thinnest_mm", "slot_mm", "link_reach_mm")
+
+
+def _curve_table(r: SpringResponse) -> dict[str, np.ndarray]:
+    """Torque-rotation rows, clockwise (negative) rows first when there are any."""
+    rot, torque, stress = r.rotation_deg, r.torque_Nm, r.peak_stress_MPa
+    if r.reverse_torque_Nm is not None:
+        rot = np.concatenate([-rot[:0:-1], rot])
+        torque = np.concatenate([r.reverse_torque_Nm[:0:-1], torque])
+        stress = np.concatenate([r.reverse_peak_stress_MPa[:0:-1], stress])
+    return {
+        "rotation_deg": rot,
+        "torque_Nm": torque,
+        "torque_linear_Nm": r.linear_stiffness_Nm_per_rad * np.radians(rot),
+        "peak_stress_MPa": stress,
+    }
+
+
+def _stage1_summary(stage1: dict[str, Any]) -> dict[str, Any]:
+    keys = (
+        "array", "torque_Nm", "target_rotation_deg", "cost", "runs", "anova", "best_values",
+        "predicted_sn_dB", "confirmation", "additivity", "best_run", "chosen", "time_s",
+    )  # fmt: skip
+    return {k: stage1[k] for k in keys if k in stage1}
+
+
+def _published_comparison() -> list[dict[str, Any]]:
+    rows = []
+    for s in PUBLISHED_SPRINGS:
+        t, d = s["thickness_mm"], s["diameter_mm"]
+        vol = math.pi * (0.5 * d) ** 2 * t * 1e-3 if t and d else None  # cm^3, full disc
+        rows.append(
+            {
+                **s,
+                "stiffness_per_disc_volume_Nm_per_rad_cm3": (
+                    s["stiffness_Nm_per_rad"] / vol if vol else None
+                ),
+            }
+        )
+    return rows
+
+
+def _stress_map_data(r: SpringResponse) -> dict[str, Any]:
+    """Vertex-averaged von Mises at the last row on the undeformed mesh (for a PNG)."""
+    model = r.model
+    if model is None or r.u is None:
+        return {}
+    kinematics = "nonlinear" if r.iterations > 0 else "linear"
+    vc = model.von_mises(r.u, kinematics, model.corner_basis)
+    t = model.skmesh.t.T
+    n = model.mesh.n_points
+    total = np.bincount(t.ravel(), weights=vc.ravel(), minlength=n)
+    count = np.bincount(t.ravel(), minlength=n)
+    return {
+        "points_mm": np.round(model.mesh.points, 4).tolist(),
+        "triangles": model.mesh.triangles.tolist(),
+        "von_mises_MPa": np.round(total / np.maximum(count, 1), 2).tolist(),
+    }
+
+
+def stress_map_png(stress_map: dict[str, Any], allowable_MPa: float | None = None,
+                   title: str = "") -> bytes:  # fmt: skip
+    """PNG of the von Mises map of :func:`SeaSpringProblem.detail` (``info["stress_map"]``).
+
+    Pipeline modules may draw; this is offered for ``flexopt run`` to write ``stress_map.png``.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.tri import Triangulation
+
+    p = np.asarray(stress_map["points_mm"])
+    tri = Triangulation(p[:, 0], p[:, 1], np.asarray(stress_map["triangles"]))
+    vm = np.asarray(stress_map["von_mises_MPa"])
+    fig, ax = plt.subplots(figsize=(6.5, 5.5))
+    vmax = max(float(vm.max()), allowable_MPa or 0.0)
+    cs = ax.tripcolor(tri, vm, shading="gouraud", cmap="viridis", vmin=0.0, vmax=vmax)
+    fig.colorbar(cs, ax=ax, label="von Mises stress (MPa)")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(title or "von Mises stress at the design torque")
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return buf.getvalue()
+
+
+# --------------------------------------------------------------------------------------------
+# Registry hooks
+
+
+def problem(study: SeaSpringStudy) -> SeaSpringProblem:
+    """The design problem ``flexopt run`` optimises (stage 1 runs here)."""
+    return SeaSpringProblem(study)
+
+
+def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
+    """``flexopt evaluate``: the torque curve of the study's ``design:`` (no Taguchi stage)."""
+    prob = SeaSpringProblem(study, stage1={})
+    x = design_vector(study)
+    if prob.solve_st:  # ST follows from the target (the design's ST is ignored)
+        x = np.delete(x, GA_VARIABLES.index("ST"))
+    times = []
+    r = geom = None
+    st = math.nan
+    for _ in range(max(1, repeat)):
+        t0 = time.perf_counter()
+        try:
+            _, geom, r, st = prob.solve(x, study.mesh.curve_steps)
+        except (GeometryError, FeaError) as exc:
+            raise StudyError("design", str(exc)) from exc
+        times.append(time.perf_counter() - t0)
+    assert r is not None and geom is not None
+    table = _curve_table(r)
+    summary = {
+        "ST_mm": st,
+        "stiffness_Nm_per_rad": r.mean_stiffness_Nm_per_rad,
+        "stiffness_ccw_Nm_per_rad": r.stiffness_Nm_per_rad,
+        "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
+        "linear_stiffness_Nm_per_rad": r.linear_stiffness_Nm_per_rad,
+        "stiffness_error_percent": (r.mean_stiffness_Nm_per_rad / prob.k_target - 1) * 100,
+        "peak_stress_MPa": r.worst_peak_stress_MPa,
+        "mass_g": geom.mass_kg(prob.material.density_kg_m3) * 1e3,
+        "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
+    }
+    return EvaluationResult(
+        table=table,
+        summary=summary,
+        converged=r.ok,
+        message=r.message,
+        solve_times_s=tuple(times),
+        inputs={"material": material_record(prob.material), "n_sets": prob.n_sets},
+        diagnostics={"dofs": r.n_dofs, "triangles": r.n_triangles, "newton": r.iterations},
+        plot={
+            "x": "rotation_deg",
+            "left": "torque_Nm",
+            "right": "peak_stress_MPa",
+            "allowable_MPa": study.target.allowable_stress_MPa,
+        },  # fmt: skip
+        headline=tuple(summary),
+    )
+
+
+register(
+    StudyKind(
+        "sea_spring",
+        SeaSpringStudy,
+        check,  # type: ignore[arg-type]
+        evaluate,  # type: ignore[arg-type]
+        problem,  # type: ignore[arg-type]
+    )
+)
