@@ -313,18 +313,15 @@ class BeamModel:
         # Stress sampling at both element ends and the middle (the bending moment is largest at
         # supports and kinks, which are element ends; Gauss points alone would miss the peak).
         xs = np.array([0.0, 0.5, 1.0])
-        ns, dns = _reference_tables(tuple(xs))
-        self._Ns = ns
+        _, dns = _reference_tables(tuple(xs))
+        # linear extrapolation from the two Gauss points to the sampling points, (Q, 3)
+        xa, xb = xg
+        self._gauss_to_samples = np.array([(xs - xb) / (xa - xb), (xs - xa) / (xb - xa)])
         self._dNs = dns[None, :, :] / h[:, None, None]
         s_samp = s_vert[:-1, None] + xs[None, :] * h[:, None]
         self._s_samp = s_samp
-        self._theta0_s = theta_seg[seg_of_el, None] + kappa_seg[seg_of_el, None] * (
-            s_samp - s_pts[seg_of_el, None]
-        )
         t_s = np.interp(s_samp, s_pts, profile.thickness_mm)
-        self._EA_s = E * b * t_s
         self._EI_s = E * b * t_s**3 / 12.0
-        self._area_s = b * t_s
         self._section_modulus_s = b * t_s**2 / 6.0
 
         # Node positions along s (vertices and mid-points) on the reference centreline.
@@ -454,21 +451,25 @@ class BeamModel:
         return r, ab.reshape(self.n_dofs, self._ldab).T
 
     def _stress(self, q: np.ndarray) -> tuple[float, float]:
-        """Peak |N|/A + |M| c/I (MPa) over the sampling points and its arc length (mm)."""
-        qe = q[self._edofs].reshape(-1, 3, 3)
-        du = np.einsum("eqk,ek->eq", self._dNs, qe[:, :, 0])
-        dv = np.einsum("eqk,ek->eq", self._dNs, qe[:, :, 1])
-        phi = qe[:, :, 2] @ self._Ns.T
-        kappa = np.einsum("eqk,ek->eq", self._dNs, qe[:, :, 2])
-        theta = self._theta0_s + phi
+        """Peak |N|/A + |M| c/I (MPa) over the sampling points and its arc length (mm).
+
+        The curvature phi' is linear in a P2 element and exact at the sampling points. The axial
+        strain is taken at the Gauss points, where reduced integration makes it accurate, and
+        extrapolated linearly to the sampling points: evaluated directly at the element ends it
+        carries an interpolation artefact (+2.5 % of the stress at 1.5 rad with 20 elements).
+        """
+        qe = q[self._edofs3]
+        grad = self._dN @ qe
+        theta = self._theta0 + qe[:, :, 2] @ self._NgT
         g1 = (
-            np.cos(theta) * (np.cos(self._theta0_s) + du)
-            + np.sin(theta) * (np.sin(self._theta0_s) + dv)
+            np.cos(theta) * (self._c0 + grad[..., 0])
+            + np.sin(theta) * (self._s0 + grad[..., 1])
             - 1.0
         )
-        sigma = (
-            np.abs(self._EA_s * g1) / self._area_s
-            + np.abs(self._EI_s * kappa) / self._section_modulus_s
+        g1_s = g1 @ self._gauss_to_samples  # (E, 3)
+        kappa = np.einsum("eqk,ek->eq", self._dNs, qe[:, :, 2])
+        sigma = self.material.E_MPa * np.abs(g1_s) + np.abs(self._EI_s * kappa) / (
+            self._section_modulus_s
         )
         k = int(np.argmax(sigma))
         return float(sigma.flat[k]), float(self._s_samp.flat[k])

@@ -340,3 +340,19 @@ def test_displacement_controlled_thin_cantilever_force_on_fine_meshes(n):
     )
     assert res.ok, res.message
     assert res.force_N[-1] == pytest.approx(alpha * ei / L**2, rel=1e-4)
+
+
+def test_root_stress_at_large_deflection_matches_the_elastica_moment():
+    """Tip force P perpendicular to the undeformed axis, alpha = 10 (82 deg at the tip): the root
+    carries no axial force and the moment P x_tip, so the peak stress is 6 P x_tip / (b t^2)."""
+    L, t, b, alpha = 100.0, 0.5, 4.0, 10.0
+    P = alpha * ei_of(t, b) / L**2
+    res = solve_beam(
+        straight(L, t, b),
+        MAT,
+        EndDrive("force", (0.0, 1.0), P, 20, rotation="free", transverse="free"),
+        settings=BeamSettings(20),
+    )
+    _, x_tip = elastica_cantilever(alpha)
+    assert res.peak_stress_s_mm[-1] == pytest.approx(0.0, abs=1e-9)
+    assert res.peak_stress_MPa[-1] == pytest.approx(6 * P * x_tip * L / (b * t**2), rel=1e-3)
