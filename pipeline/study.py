@@ -20,7 +20,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from fea.errors import FeaError
 from fea.materials import MATERIALS, Material, get_material
@@ -30,6 +37,7 @@ __all__ = [
     "STUDY_CONFIG",
     "MaterialSpec",
     "OptimiserSpec",
+    "ParallelSpec",
     "Study",
     "list_examples",
     "load_study",
@@ -44,6 +52,15 @@ __all__ = [
 STUDY_CONFIG = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+
+
+#: Plausibility limits of a material (unit slips, not physics): diamond has E = 1.05e6 MPa, the
+#: strongest bulk materials (wires, whiskers aside) reach ~1e4 MPa, the lightest printable solid
+#: foams ~30 kg/m^3 (1 looks like g/cm^3), osmium is 22590 kg/m^3.
+MAX_E_MPA = 2.0e6
+MAX_YIELD_MPA = 2.0e4
+MIN_DENSITY_KG_M3 = 10.0
+MAX_DENSITY_KG_M3 = 25000.0
 
 
 class MaterialSpec(BaseModel):
@@ -62,6 +79,38 @@ class MaterialSpec(BaseModel):
     yield_MPa: float = Field(gt=0, description="allowable stress (yield or strength), MPa")
     density_kg_m3: float | None = Field(None, gt=0, description="density, kg/m^3")
     source: str = Field("user", description="where the numbers come from")
+
+    @model_validator(mode="after")
+    def _plausible(self) -> MaterialSpec:
+        # Unit slips are the common material error (Pa for MPa, g/cm^3 for kg/m^3); the numbers
+        # then pass every sign check and the solve "works", so catch them here with the fix.
+        e, y, rho = self.E_MPa, self.yield_MPa, self.density_kg_m3
+        if e > MAX_E_MPA:
+            raise ValueError(
+                f"E_MPa = {e:g} is stiffer than any solid (diamond: about 1.05e6 MPa); did you "
+                f"give Pa? In MPa that is E_MPa: {e / 1e6:g}"
+            )
+        if y > MAX_YIELD_MPA:
+            raise ValueError(
+                f"yield_MPa = {y:g} is stronger than any bulk material (about 1e4 MPa); did you "
+                f"give Pa? In MPa that is yield_MPa: {y / 1e6:g}"
+            )
+        if y >= e:
+            raise ValueError(
+                f"yield_MPa = {y:g} is not below E_MPa = {e:g} (a yield strain of 100 % or more); "
+                "check the units (both MPa) or swapped values"
+            )
+        if rho is not None and rho < MIN_DENSITY_KG_M3:
+            raise ValueError(
+                f"density_kg_m3 = {rho:g} is lighter than any printable solid; did you give "
+                f"g/cm^3? In kg/m^3 that is density_kg_m3: {rho * 1000:g}"
+            )
+        if rho is not None and rho > MAX_DENSITY_KG_M3:
+            raise ValueError(
+                f"density_kg_m3 = {rho:g} is denser than any element (osmium: 22590 kg/m^3); "
+                "check the units (kg/m^3)"
+            )
+        return self
 
     def to_material(self) -> Material:
         """The :class:`fea.materials.Material` this block describes."""
@@ -94,6 +143,45 @@ class OptimiserSpec(BaseModel):
     quick_n_gen: int = Field(3, ge=1, description="n_gen under --quick")
 
 
+class ParallelSpec(BaseModel):
+    """The optional ``parallel:`` block: where ``flexopt run`` evaluates designs.
+
+    Every kind accepts it (it is part of :class:`Study`). The command line's ``--workers``,
+    ``--dask`` and ``--eval-timeout`` override it. It does not change results (the same seed gives
+    the same designs on every backend), so it is left out of the study hash that ``--resume``
+    compares: a run may be resumed on another machine or cluster.
+    """
+
+    model_config = STUDY_CONFIG
+
+    backend: Literal["serial", "processes", "dask"] = Field(
+        "processes",
+        description="serial (this process), processes (local pool) or dask (a cluster)",
+    )
+    workers: int | None = Field(
+        None, ge=1, le=4096, description="worker processes of the local pool (default: cores)"
+    )
+    address: str | None = Field(
+        None, description="Dask scheduler address, tcp://host:8786 (backend: dask)"
+    )
+    eval_timeout_s: float | None = Field(
+        None, gt=0, description="time limit of one evaluation, s (a design over it fails)"
+    )
+    chunk_size: int | None = Field(
+        None, ge=1, le=100000, description="designs per task (default: ~4 tasks per worker)"
+    )
+
+    @field_validator("address")
+    @classmethod
+    def _address_has_a_scheme(cls, value: str | None) -> str | None:
+        if value is not None and not re.match(r"^[a-z]+://\S+$", value):
+            raise ValueError(
+                f"'{value}' is not a scheduler address; give it as tcp://host:8786 (what "
+                "`dask scheduler` prints)"
+            )
+        return value
+
+
 class Study(BaseModel):
     """What every study shares; each geometry kind adds ``geometry`` and its own blocks.
 
@@ -102,6 +190,8 @@ class Study(BaseModel):
     name : str
         Names the run folder: letters, digits, ``.``, ``_`` and ``-``.
     material : MaterialSpec
+    parallel : ParallelSpec or None
+        Where ``flexopt run`` evaluates designs (default: a local process pool).
     """
 
     model_config = STUDY_CONFIG
@@ -109,6 +199,9 @@ class Study(BaseModel):
     name: str = Field(description="study name; names the run folder")
     geometry: BaseModel
     material: MaterialSpec
+    parallel: ParallelSpec | None = Field(
+        None, description="where flexopt run evaluates designs (processes, dask, time limit)"
+    )
 
     @field_validator("name")
     @classmethod
