@@ -66,12 +66,15 @@ class Generation:
     evaluations : the designs evaluated in this generation, in the order asked.
     best : the best design found so far (feasible first, then least violation).
     n_evaluations : designs evaluated so far, this generation included.
+    population : (pop_size, n_var) float — the designs the optimiser keeps after this generation
+        (what a checkpoint records; a resumed run rebuilds it by replay, not from here).
     """
 
     index: int
     evaluations: tuple[Evaluation, ...]
     best: Evaluation
     n_evaluations: int
+    population: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def feasible_fraction(self) -> float:
@@ -184,7 +187,13 @@ def run_ga(
         Evaluator().eval(StaticProblem(problem, **kwargs), pop)
         algorithm.tell(infills=pop)
         everything.extend(evaluations)
-        gen = Generation(len(generations), evaluations, best_of(everything), len(everything))
+        gen = Generation(
+            len(generations),
+            evaluations,
+            best_of(everything),
+            len(everything),
+            np.array(algorithm.pop.get("X"), dtype=float),
+        )
         generations.append(gen)
         if on_generation is not None:
             on_generation(gen)
