@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import platform
+import re
 import statistics
 from dataclasses import dataclass
 from datetime import datetime
@@ -60,6 +61,20 @@ def versions() -> dict[str, str | None]:
         except metadata.PackageNotFoundError:
             found[key] = None  # e.g. flexopt run from a source checkout without installing
     return found
+
+
+_FILE_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+
+
+def _extra_files(result: EvaluationResult) -> dict[str, bytes]:
+    """The kind's own files (``EvaluationResult.files``), checked to be plain new file names."""
+    files = {}
+    for name, data in result.files.items():
+        if not _FILE_NAME_RE.match(name) or name in EVALUATE_FILES:
+            log.warning("the kind's file %r is not written: not a plain new file name", name)
+            continue
+        files[name] = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+    return files
 
 
 def evaluate_study(
@@ -136,8 +151,13 @@ def evaluate_study(
         right=result.plot.get("right", "peak_stress_MPa"),
         allowable_MPa=result.plot.get("allowable_MPa"),
         title=f"{study.name} ({study.kind})",
+        labels=result.plot,
     )
     write_atomic(run_dir / "force_displacement.png", png)
+    extra = _extra_files(result)
+    for name, data in extra.items():
+        write_atomic(run_dir / name, data)
+    record["files"] = [*EVALUATE_FILES, *extra]
     write_atomic(run_dir / "evaluation.json", to_json(record))
     log.info("wrote %s", run_dir)
     return EvaluateOutcome(run_dir, result, record)

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 __all__ = [
+    "quantity_name",
     "plot_convergence",
     "plot_curve",
     "plot_response",
@@ -41,15 +42,31 @@ def _label(name: str, given: str | None) -> str:
     return given or _LABELS.get(name, name)
 
 
+#: Unit suffixes of column names (``force_N``, ``time_ms``), dropped to name the quantity.
+_UNITS = {"mm", "m", "deg", "rad", "s", "ms", "g", "kg", "pct", "percent"}
+
+
+def quantity_name(column: str) -> str:
+    """The quantity a column names, without its unit: ``contact_force_N`` → ``contact force``,
+    ``stiffness_N_per_mm`` → ``stiffness``, ``torque_Nm_1`` → ``torque``."""
+    parts = column.split("_")
+    for i, part in enumerate(parts[1:], 1):
+        if part in _UNITS or any(ch.isupper() for ch in part):
+            return " ".join(parts[:i])
+    return " ".join(parts)
+
+
 def plot_response(
     table: Mapping[str, np.ndarray],
     x: str = "displacement_mm",
     left: str = "force_N",
-    right: str = "peak_stress_MPa",
+    right: str | None = "peak_stress_MPa",
     allowable_MPa: float | None = None,
     title: str = "",
+    labels: Mapping[str, str] | None = None,
 ) -> bytes:
-    """Two panels against ``x``: ``left`` (force) and ``right`` (stress, with the allowable line).
+    """Two panels against ``x``: ``left`` (force, torque, ...) and ``right`` (stress, with the
+    allowable line); one panel when ``right`` is None or not in the table.
 
     Only converged rows are drawn; a title note says when some are missing.
 
@@ -58,37 +75,51 @@ def plot_response(
     table : mapping of str to (n,) array
         Response columns, including ``x``, ``left``, ``right`` and ``converged``.
     allowable_MPa : float, MPa, optional
-        Drawn as a dashed horizontal line on the stress panel.
+        Drawn as a dashed horizontal line on the right panel.
+    labels : mapping, optional
+        Words from the kind's plot dict: ``left_title`` and ``right_title`` (panel titles,
+        default "<left quantity> – <x quantity>", e.g. "torque – rotation"), ``x_label``,
+        ``left_label``, ``right_label`` (axes) and ``allowable_label`` (legend of the line,
+        default "yield <value> MPa" for a stress column, "allowable <value> MPa" otherwise).
 
     Returns
     -------
     bytes
         The PNG file.
     """
+    labels = dict(labels or {})
     ok = np.asarray(table.get("converged", np.ones(len(table[x]), bool)), dtype=bool)
     xs = np.asarray(table[x], dtype=float)[ok]
-    fig = Figure(figsize=(10, 4), layout="constrained")
+    two = right is not None and right in table
+    fig = Figure(figsize=(10 if two else 5.5, 4), layout="constrained")
     FigureCanvasAgg(fig)
-    ax_f, ax_s = fig.subplots(1, 2)
+    axes = fig.subplots(1, 2) if two else [fig.subplots(1, 1)]
+    x_label = labels.get("x_label") or labels.get("xlabel") or _LABELS.get(x, x)
+    ax_f = axes[0]
     ax_f.plot(xs, np.asarray(table[left], dtype=float)[ok], "o-", ms=3, color="tab:blue")
-    ax_f.set_xlabel(_LABELS.get(x, x))
-    ax_f.set_ylabel(_LABELS.get(left, left))
-    ax_f.set_title("force – displacement")
-    ax_s.plot(xs, np.asarray(table[right], dtype=float)[ok], "o-", ms=3, color="tab:red")
-    if allowable_MPa is not None:
-        ax_s.axhline(allowable_MPa, ls="--", color="k", lw=1, label=f"yield {allowable_MPa:g} MPa")
-        ax_s.legend(loc="best")
-    ax_s.set_xlabel(_LABELS.get(x, x))
-    ax_s.set_ylabel(_LABELS.get(right, right))
-    ax_s.set_title("stress – displacement")
-    for ax in (ax_f, ax_s):
+    ax_f.set_xlabel(x_label)
+    ax_f.set_ylabel(labels.get("left_label") or _LABELS.get(left, left))
+    ax_f.set_title(labels.get("left_title") or f"{quantity_name(left)} – {quantity_name(x)}")
+    if two:
+        assert right is not None
+        ax_s = axes[1]
+        ax_s.plot(xs, np.asarray(table[right], dtype=float)[ok], "o-", ms=3, color="tab:red")
+        if allowable_MPa is not None:
+            default = "yield" if "stress" in right else "allowable"
+            word = labels.get("allowable_label") or default
+            ax_s.axhline(
+                allowable_MPa, ls="--", color="k", lw=1, label=f"{word} {allowable_MPa:g} MPa"
+            )
+            ax_s.legend(loc="best")
+        ax_s.set_xlabel(x_label)
+        ax_s.set_ylabel(labels.get("right_label") or _LABELS.get(right, right))
+        ax_s.set_title(labels.get("right_title") or f"{quantity_name(right)} – {quantity_name(x)}")
+    for ax in axes:
         ax.grid(True, alpha=0.3)
     note = "" if ok.all() else f"  ({int((~ok).sum())} of {ok.size} rows not converged)"
     if title or note:
         fig.suptitle(title + note)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=120)
-    return buffer.getvalue()
+    return _png(fig)
 
 
 def plot_curve(

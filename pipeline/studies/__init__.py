@@ -45,9 +45,14 @@ class EvaluationResult:
     diagnostics : dict
         What the solver reports about itself (element and DOF counts, sub-steps, ...).
     plot : dict
-        Names of the columns to plot: ``x``, ``left``, ``right`` and the ``allowable_MPa`` line.
+        Names of the columns to plot: ``x``, ``left``, ``right`` and the ``allowable_MPa`` line;
+        optional words: ``left_title``, ``right_title``, ``x_label``, ``left_label``,
+        ``right_label``, ``allowable_label`` (see :func:`pipeline.plots.plot_response`).
     headline : tuple of str
         The summary keys worth a line in the CLI's table (all of them when empty).
+    files : dict of str to bytes
+        Files of the kind beyond the standard ones (``sweeps.png``, a resolved study), by plain
+        file name; ``flexopt evaluate`` writes them into the run folder, atomically.
     """
 
     table: dict[str, np.ndarray]
@@ -59,6 +64,7 @@ class EvaluationResult:
     diagnostics: dict[str, Any] = field(default_factory=dict)
     plot: dict[str, Any] = field(default_factory=dict)
     headline: tuple[str, ...] = ()
+    files: dict[str, bytes] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -559,6 +559,7 @@ def evaluate(study: CamStudy, repeat: int = 1) -> EvaluationResult:
             "left": "virtual_work_torque_Nm",
             "right": "contact_pressure_MPa",
             "allowable_MPa": summary["onset_pressure_MPa"],
+            "allowable_label": "onset of yield, contact",
         },
         headline=tuple(
             k

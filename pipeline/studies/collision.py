@@ -20,6 +20,7 @@ YAML (SI in the impact block, as the paper; see docs/threshold_torque.md)::
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 import time
@@ -516,4 +517,10 @@ def extra_files(study: CollisionStudy, result: EvaluationResult) -> dict[str, by
     return files
 
 
-register(StudyKind("collision", CollisionStudy, check, evaluate))  # type: ignore[arg-type]
+def evaluate_with_files(study: CollisionStudy, repeat: int = 1) -> EvaluationResult:
+    """:func:`evaluate`, with :func:`extra_files` for ``flexopt evaluate`` to write."""
+    result = evaluate(study, repeat)
+    return dataclasses.replace(result, files={**result.files, **extra_files(study, result)})
+
+
+register(StudyKind("collision", CollisionStudy, check, evaluate_with_files))  # type: ignore[arg-type]

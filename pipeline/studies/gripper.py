@@ -27,6 +27,7 @@ YAML::
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import time
 from typing import Any, Literal
@@ -470,4 +471,12 @@ def problem(study: GripperStudy) -> Any:
     return kind.problem(resolved)
 
 
-register(StudyKind("gripper", GripperStudy, check, evaluate, problem))  # type: ignore[arg-type]
+def evaluate_with_files(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
+    """:func:`evaluate`, with :func:`extra_files` for ``flexopt evaluate`` to write."""
+    result = evaluate(study, repeat)
+    return dataclasses.replace(result, files={**result.files, **extra_files(study, result)})
+
+
+register(
+    StudyKind("gripper", GripperStudy, check, evaluate_with_files, problem)  # type: ignore[arg-type]
+)
