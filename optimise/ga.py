@@ -27,7 +27,7 @@ from optimise.errors import OptimiseError
 from optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from optimise.space import DesignSpace
 
-__all__ = ["GAConfig", "Generation", "GAResult", "run_ga", "best_of"]
+__all__ = ["GAConfig", "Generation", "GAResult", "run_ga", "best_of", "pareto_front"]
 
 
 @dataclass(frozen=True)
@@ -114,7 +114,8 @@ def best_of(evaluations: Sequence[Evaluation]) -> Evaluation:
     return min(evaluated, key=lambda e: (e.violation, float(e.f[0])))
 
 
-def _front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
+def pareto_front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
+    """Non-dominated feasible evaluations, sorted by their objectives."""
     feasible = [e for e in evaluations if e.feasible]
     front = []
     for a in feasible:
@@ -199,5 +200,5 @@ def run_ga(
             on_generation(gen)
 
     best = best_of(everything)
-    front = _front(everything) if n_obj > 1 else (best,)
+    front = pareto_front(everything) if n_obj > 1 else (best,)
     return GAResult(best, front, tuple(generations))

@@ -1,4 +1,5 @@
-"""The ``flexopt`` command line: one subcommand per verb (``evaluate``, ``run``, ``export``).
+"""The ``flexopt`` command line: one subcommand per verb (``evaluate``, ``run``, ``status``,
+``report``, ``export``).
 
 Exit codes: 0 done (also when a solve did not converge or no feasible design was found: those are
 results, reported by a warning line and in the run folder), 1 the run folder could not be written,
@@ -63,6 +64,16 @@ def _nonnegative_int(text: str) -> int:
     return value
 
 
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text} must be a number > 0 (seconds)")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``flexopt`` parser; each subcommand sets ``handler``."""
     parser = _Parser(
@@ -115,13 +126,42 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "study",
         metavar="STUDY",
-        help="a study YAML file, or a built-in example: " + ", ".join(list_examples()),
+        nargs="?",
+        help="a study YAML file, or a built-in example: "
+        + ", ".join(list_examples())
+        + " (with --resume: optional, checked against the run's study)",
     )
     run.add_argument(
         "--out",
         type=Path,
         metavar="DIR",
         help="run folder (created; must not hold a run yet; default runs/<name>-run-<timestamp>)",
+    )
+    run.add_argument(
+        "--resume",
+        type=Path,
+        metavar="RUN_DIR",
+        help="finish an interrupted or killed run: replay it from its seed, serving every "
+        "finished evaluation from RUN_DIR/evaluations.jsonl (refused if the study changed)",
+    )
+    run.add_argument(
+        "--workers",
+        type=_positive_int,
+        metavar="N",
+        help="worker processes (default: parallel.workers, else one per core; 1 = serial in "
+        "this process)",
+    )
+    run.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        help="evaluate on the Dask cluster whose scheduler is at ADDRESS (tcp://host:8786)",
+    )
+    run.add_argument(
+        "--eval-timeout",
+        type=_positive_float,
+        metavar="S",
+        help="time limit of one evaluation in s (default parallel.eval_timeout_s, else none); "
+        "a design over it is an infeasible row",
     )
     run.add_argument(
         "--quick",
@@ -139,6 +179,29 @@ def build_parser() -> argparse.ArgumentParser:
         "-q", "--quiet", action="store_true", help="no progress bar and no line per generation"
     )
     run.set_defaults(handler=_run)
+
+    status = commands.add_parser(
+        "status",
+        help="progress of a running or finished run",
+        description=(
+            "Show a run's progress from its folder: generation, evaluations, feasible share, "
+            "best so far, status, elapsed time and an estimate of the time left."
+        ),
+    )
+    status.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a folder of flexopt run")
+    status.set_defaults(handler=_status)
+
+    report = commands.add_parser(
+        "report",
+        help="rebuild a run's report and plots from its folder",
+        description=(
+            "Rebuild best.json, the best design's response, the plots, best.stl and report.md "
+            "from the evaluations in a run folder (nothing is optimised again; only the best "
+            "design is solved again for its response)."
+        ),
+    )
+    report.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a folder of flexopt run")
+    report.set_defaults(handler=_report)
 
     export = commands.add_parser(
         "export",
@@ -317,31 +380,56 @@ def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from pipeline.run import prepare_run, run_study
+    from pipeline.parallel import BackendError
+    from pipeline.run import parallel_settings, prepare_run, resume_run, run_study
 
     prog = "flexopt run"
-    try:
-        path = resolve_study_path(args.study)
-        study = load_study(path)
-        setup = prepare_run(study, quick=args.quick, seed=args.seed)
-    except StudyError as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
+    if args.resume is None and args.study is None:
+        print(
+            f"{prog}: error: give a STUDY, or --resume RUN_DIR (see {prog} --help)", file=sys.stderr
+        )
+        return EXIT_USAGE
+    if args.resume is not None and (args.seed is not None or args.quick or args.out):
+        print(
+            f"{prog}: error: --resume continues the run with its own seed, --quick and folder; "
+            "leave out --seed, --quick and --out",
+            file=sys.stderr,
+        )
         return EXIT_USAGE
     progress = _RunProgress(args.quiet)
+    callbacks = {
+        "command_line": shlex.join(["flexopt", *args.argv]),
+        "on_start": progress.start,
+        "on_generation": progress.generation,
+        "on_result": progress.result,
+    }
     try:
-        outcome = run_study(
-            setup,
-            out=args.out,
-            source=str(path),
-            command_line=shlex.join(["flexopt", *args.argv]),
-            on_start=progress.start,
-            on_generation=progress.generation,
-            on_result=progress.result,
-        )
+        if args.resume is not None:
+            outcome = resume_run(
+                args.resume,
+                resolve_study_path(args.study) if args.study is not None else None,
+                workers=args.workers,
+                dask=args.dask,
+                eval_timeout_s=args.eval_timeout,
+                **callbacks,
+            )
+        else:
+            path = resolve_study_path(args.study)
+            study = load_study(path)
+            setup = prepare_run(study, quick=args.quick, seed=args.seed)
+            settings = parallel_settings(study, args.workers, args.dask, args.eval_timeout)
+            outcome = run_study(
+                setup, out=args.out, source=str(path), parallel=settings, **callbacks
+            )
     except StudyError as exc:
         progress.stop()
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except BackendError as exc:
+        progress.stop()
+        where = f"; see {progress.run_dir / 'run.json'}" if progress.run_dir else ""
+        print(f"{prog}: error: {exc}{where}", file=sys.stderr)
+        return EXIT_WRITE
     except OSError as exc:
         progress.stop()
         print(f"{prog}: error: cannot write the run folder: {exc}", file=sys.stderr)
@@ -349,7 +437,8 @@ def _run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         progress.stop()
         where = f"; what was done is in {progress.run_dir}" if progress.run_dir else ""
-        print(f"{prog}: interrupted{where} (run.json status: interrupted)", file=sys.stderr)
+        resume = f"; continue with: flexopt run --resume {progress.run_dir}" if where else ""
+        print(f"{prog}: interrupted{where} (run.json status: interrupted){resume}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as exc:
         progress.stop()
@@ -366,6 +455,39 @@ def _run(args: argparse.Namespace) -> int:
             "one. Widen the design space, relax the constraints or run longer (no --quick)",
             file=sys.stderr,
         )
+    return EXIT_OK
+
+
+def _status(args: argparse.Namespace) -> int:
+    from pipeline.status import format_status, run_status
+
+    try:
+        status = run_status(args.run_dir)
+    except StudyError as exc:
+        print(f"flexopt status: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    print(format_status(status))
+    return EXIT_OK
+
+
+def _report(args: argparse.Namespace) -> int:
+    from pipeline.run import rebuild_report
+
+    prog = "flexopt report"
+    try:
+        outcome = rebuild_report(args.run_dir)
+    except StudyError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        print(f"{prog}: error: cannot write the run folder: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    print(
+        f"rebuilt {', '.join(outcome.files)} in {outcome.run_dir} from "
+        f"{outcome.n_evaluations} evaluations"
+    )
+    for note in outcome.notes:
+        print(f"{prog}: warning: {note}", file=sys.stderr)
     return EXIT_OK
 
 

@@ -19,30 +19,49 @@ import json
 import logging
 import os
 import platform
+import socket
 import time
 from collections import Counter
-from collections.abc import Callable, Mapping, MutableMapping
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Iterable, Mapping, MutableMapping
+from dataclasses import asdict, dataclass, field
 from datetime import datetime
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from optimise.errors import OptimiseError
 from optimise.evaluation import Evaluation
-from optimise.ga import GAConfig, GAResult, Generation, run_ga
+from optimise.ga import GAConfig, GAResult, Generation, best_of, pareto_front, run_ga
 from optimise.problem import DesignDetail, DesignProblem
 from optimise.space import DesignSpace
 from pipeline import plots
+from pipeline.checkpoint import (
+    CHECKPOINT_FILE,
+    STORE_FILE,
+    EvaluationStore,
+    study_sha256,
+    write_checkpoint,
+)
 from pipeline.errors import StudyError
 from pipeline.evaluate import versions
+from pipeline.parallel import (
+    BackendError,
+    BatchBackend,
+    ParallelSettings,
+    design_key,
+    evaluate_batch,
+    evaluate_one,
+    open_backend,
+)
+from pipeline.parallel import one_line as _one_line
 from pipeline.report import ReportData, render_report
 from pipeline.runfolder import (
     check_out_dir,
     make_run_dir,
     new_run_dir_path,
+    probe_writable,
     read_records_csv,
     records_to_csv,
     table_to_csv,
@@ -50,19 +69,23 @@ from pipeline.runfolder import (
     write_atomic,
 )
 from pipeline.studies import get_kind, kinds
-from pipeline.study import OptimiserSpec, Study, load_study, study_to_yaml
+from pipeline.study import OptimiserSpec, ParallelSpec, Study, load_study, study_to_yaml
 
 __all__ = [
     "Evaluator",
     "ExportError",
     "ExportOutcome",
     "GenerationReport",
+    "Resume",
     "RunOutcome",
     "RunSetup",
     "evaluate_batch",
     "evaluate_one",
     "export_design",
+    "parallel_settings",
     "prepare_run",
+    "rebuild_report",
+    "resume_run",
     "run_study",
 ]
 
@@ -74,6 +97,8 @@ RUN_FILES = (
     "study.yaml",
     "run.json",
     "evaluations.csv",
+    "evaluations.jsonl",
+    "checkpoint.json",
     "history.csv",
     "best.json",
     "best_response.csv",
@@ -84,9 +109,6 @@ RUN_FILES = (
     "best.stl",
     "report.md",
 )
-
-#: Longest failure reason kept in a row (exception messages can quote whole arrays).
-MAX_REASON_CHARS = 300
 
 _EXTRA_DISTRIBUTIONS = {
     "pymoo": "pymoo",
@@ -104,117 +126,6 @@ class ExportError(RuntimeError):
 # Evaluating designs: one function, one cache
 
 
-class BatchBackend(Protocol):
-    """Evaluates designs; reports each as it finishes through ``on_result(row, evaluation)``.
-
-    Reporting as results arrive lets the evaluator keep every finished design when the run is
-    interrupted mid-batch, and lets a parallel backend finish designs in any order.
-    """
-
-    def __call__(
-        self,
-        problem: DesignProblem,
-        X: np.ndarray,
-        on_result: Callable[[int, Evaluation], None] | None = None,
-    ) -> list[Evaluation]: ...
-
-
-def _one_line(text: str) -> str:
-    text = " ".join(text.split())
-    return text if len(text) <= MAX_REASON_CHARS else text[: MAX_REASON_CHARS - 3] + "..."
-
-
-def evaluate_one(problem: DesignProblem, x: np.ndarray) -> Evaluation:
-    """Evaluate one design, turning every failure into an infeasible Evaluation with a reason.
-
-    Parameters
-    ----------
-    problem : DesignProblem
-    x : (n_var,) float
-        The design vector, in the units of ``problem.space``.
-
-    Returns
-    -------
-    Evaluation
-        The kind's Evaluation (``time_s`` filled in with the wall time when the kind left it 0);
-        or ``Evaluation.failed`` when ``problem.evaluate`` raised (reason
-        ``"<ExceptionType>: <message>"``), returned something that is not an Evaluation with
-        ``n_obj`` objectives and ``n_con`` constraints, or returned a NaN/inf objective or
-        constraint without a reason (pymoo cannot rank those).
-    """
-    n_obj, n_con = len(problem.objective_names), len(problem.constraint_names)
-    x = np.array(x, dtype=float)
-    start = time.perf_counter()
-    try:
-        evaluation = problem.evaluate(x.copy())
-    except Exception as exc:  # fault isolation: a bad design never stops the run
-        elapsed = time.perf_counter() - start
-        log.debug("design %s raised", x, exc_info=True)
-        return Evaluation.failed(
-            x, n_obj, n_con, _one_line(f"{type(exc).__name__}: {exc}"), elapsed
-        )
-    elapsed = time.perf_counter() - start
-    if not isinstance(evaluation, Evaluation):
-        return Evaluation.failed(
-            x,
-            n_obj,
-            n_con,
-            f"TypeError: evaluate returned {type(evaluation).__name__}, not an Evaluation",
-            elapsed,
-        )
-    f, g = np.asarray(evaluation.f, dtype=float), np.asarray(evaluation.g, dtype=float)
-    if f.shape != (n_obj,) or g.shape != (n_con,):
-        return Evaluation.failed(
-            x,
-            n_obj,
-            n_con,
-            f"ValueError: evaluate returned f of shape {f.shape} and g of shape {g.shape}; the "
-            f"problem names {n_obj} objectives and {n_con} constraints",
-            elapsed,
-            evaluation.metrics,
-        )
-    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(g))):
-        reason = evaluation.reason or f"non-finite result (f = {f.tolist()}, g = {g.tolist()})"
-        return Evaluation.failed(x, n_obj, n_con, _one_line(reason), elapsed, evaluation.metrics)
-    if evaluation.time_s <= 0.0:
-        evaluation = replace(evaluation, time_s=elapsed)
-    return evaluation
-
-
-def evaluate_batch(
-    problem: DesignProblem,
-    X: np.ndarray,
-    on_result: Callable[[int, Evaluation], None] | None = None,
-) -> list[Evaluation]:
-    """Evaluate designs one after the other in this process (the serial backend).
-
-    Parameters
-    ----------
-    problem : DesignProblem
-    X : (m, n_var) float
-        Design vectors.
-    on_result : callable(row, evaluation), optional
-        Called after each design with its row in ``X``.
-
-    Returns
-    -------
-    list of Evaluation
-        m evaluations in the order of ``X``; failures are infeasible Evaluations with a reason
-        (see :func:`evaluate_one`), so this never raises for a bad design.
-    """
-    out = []
-    for row, x in enumerate(np.atleast_2d(np.asarray(X, dtype=float))):
-        out.append(evaluate_one(problem, x))
-        if on_result is not None:
-            on_result(row, out[-1])
-    return out
-
-
-def design_key(x: np.ndarray) -> bytes:
-    """Cache key of a design: the bytes of its float64 vector (bit-identical designs only)."""
-    return np.ascontiguousarray(x, dtype=np.float64).tobytes()
-
-
 class Evaluator:
     """Evaluates batches of designs through a backend; a design is never solved twice.
 
@@ -227,13 +138,24 @@ class Evaluator:
         Evaluations by :func:`design_key`; give a persistent mapping to share it between runs.
     on_result : callable, optional
         Called once per design the backend finishes.
+    store : EvaluationStore, optional
+        Every design the backend finishes is appended (and fsynced) here at once.
+    restored : iterable of Evaluation, optional
+        Evaluations finished by an earlier session of this run (``--resume``): served instead of
+        solved, and counted as that session counted them, so the replayed run's tables are those
+        of an uninterrupted run.
 
     Attributes
     ----------
     solved : list of Evaluation
-        Every design the backend solved, in order (cache hits are not repeated here).
+        Every design evaluated for this run, restored ones included, in the order the optimiser
+        first asked for them (whatever order the backend finished them in).
     n_cache_hits : int
         Designs served from the cache (repeats across generations and within a batch).
+    n_restored : int
+        Designs served from ``restored``.
+    n_backend : int
+        Designs the backend solved in this session.
     """
 
     def __init__(
@@ -242,38 +164,59 @@ class Evaluator:
         backend: BatchBackend = evaluate_batch,
         cache: MutableMapping[bytes, Evaluation] | None = None,
         on_result: Callable[[], None] | None = None,
+        store: EvaluationStore | None = None,
+        restored: Iterable[Evaluation] = (),
     ) -> None:
         self.problem = problem
         self.backend = backend
         self.cache: MutableMapping[bytes, Evaluation] = {} if cache is None else cache
         self.on_result = on_result
+        self.store = store
+        self.restored = {design_key(ev.x): ev for ev in restored}
         self.solved: list[Evaluation] = []
         self.n_cache_hits = 0
+        self.n_restored = 0
+        self.n_backend = 0
 
     def map(self, X: np.ndarray) -> list[Evaluation]:
         """Evaluate (m, n_var) designs; returns m Evaluations in order."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         keys = [design_key(x) for x in X]
-        todo: dict[bytes, int] = {}
+        new: dict[bytes, int] = {}  # first appearance in this batch -> its row
         for row, key in enumerate(keys):
-            if key not in self.cache and key not in todo:
-                todo[key] = row
-        self.n_cache_hits += len(keys) - len(todo)
-        if todo:
-            new_keys = list(todo)
+            if key not in self.cache and key not in new:
+                new[key] = row
+        self.n_cache_hits += len(keys) - len(new)
+        todo = [key for key in new if key not in self.restored]
+        for key in new:
+            if key in self.restored:
+                self.cache[key] = self.restored.pop(key)
+                self.n_restored += 1
+        finished: dict[bytes, Evaluation] = {}
 
-            def keep(row: int, evaluation: Evaluation) -> None:
-                if new_keys[row] not in self.cache:  # a backend may report and also return it
-                    self.cache[new_keys[row]] = evaluation
-                    self.solved.append(evaluation)
-                    if self.on_result is not None:
-                        self.on_result()
+        def keep(row: int, evaluation: Evaluation) -> None:
+            key = todo[row]
+            if key not in finished:  # a backend may report and also return it
+                finished[key] = evaluation
+                self.cache[key] = evaluation
+                self.n_backend += 1
+                if self.store is not None:
+                    self.store.append(evaluation)
+                if self.on_result is not None:
+                    self.on_result()
 
-            new = self.backend(self.problem, X[list(todo.values())], on_result=keep)
-            if len(new) != len(todo):
-                raise RuntimeError(f"the backend returned {len(new)} results for {len(todo)}")
-            for row, evaluation in enumerate(new):
-                keep(row, evaluation)
+        try:
+            if todo:
+                rows = [new[key] for key in todo]
+                results = self.backend(self.problem, X[rows], on_result=keep)
+                if len(results) != len(todo):
+                    raise RuntimeError(f"backend: {len(results)} results for {len(todo)} designs")
+                for row, evaluation in enumerate(results):
+                    keep(row, evaluation)
+        finally:
+            # In the order asked, not the order finished: the same tables on every backend. An
+            # interrupted batch keeps what did finish.
+            self.solved.extend(self.cache[key] for key in new if key in self.cache)
         return [self.cache[key] for key in keys]
 
     __call__ = map  # run_ga calls the evaluator like a function
@@ -528,6 +471,9 @@ class _Run:
         record: dict[str, Any],
         on_generation: Callable[[GenerationReport], None] | None,
         on_result: Callable[[], None] | None,
+        backend: BatchBackend = evaluate_batch,
+        store: EvaluationStore | None = None,
+        restored: Iterable[Evaluation] = (),
     ) -> None:
         self.setup = setup
         self.problem = setup.problem
@@ -535,7 +481,10 @@ class _Run:
         self.record = record
         self.on_generation = on_generation
         self.columns = _Columns.of(setup.problem)
-        self.evaluator = Evaluator(setup.problem, on_result=on_result)
+        self.evaluator = Evaluator(
+            setup.problem, backend, on_result=on_result, store=store, restored=restored
+        )
+        self.n_backend_last = 0
         self.rows: list[dict[str, Any]] = []
         self.where: dict[bytes, tuple[int, int]] = {}  # design -> (generation, index) solved
         self.history: list[dict[str, Any]] = []
@@ -560,7 +509,10 @@ class _Run:
     def generation_done(self, gen: Generation) -> None:
         now = time.perf_counter()
         number = gen.index + 1
-        n_new = self._collect(number)
+        self._collect(number)
+        # solved now, not served from the store of an earlier session: the rate a user can plan by
+        n_new = self.evaluator.n_backend - self.n_backend_last
+        self.n_backend_last = self.evaluator.n_backend
         gen_wall = now - self.t_last
         self.t_last = now
         self.generations.append(gen)
@@ -594,9 +546,12 @@ class _Run:
             generations_done=number,
             n_evaluations=report.n_evaluations,
             n_cache_hits=report.n_cache_hits,
+            n_restored=self.evaluator.n_restored,
+            n_solved=self.evaluator.n_backend,
             optimise_wall_s=report.wall_s,
         )
         self.write_tables()
+        self.write_checkpoint(gen)
         write_atomic(self.run_dir / "run.json", to_json(self.record))
         log.info(
             "generation %d/%d: %d evaluations, best %s, %.0f%% feasible, %.3g eval/s",
@@ -609,6 +564,36 @@ class _Run:
         )
         if self.on_generation is not None:
             self.on_generation(report)
+
+    def write_checkpoint(self, gen: Generation) -> None:
+        """checkpoint.json: what a resume needs besides the store, and what ``status`` shows."""
+        config = self.setup.config
+        population = gen.population if gen.population is not None else np.empty((0, 0))
+        write_checkpoint(
+            self.run_dir,
+            {
+                "study_sha256": self.record["study_sha256"],
+                "generation": gen.index + 1,
+                "n_gen": config.n_gen,
+                "pop_size": config.pop_size,
+                "algorithm": config.algorithm,
+                "quick": self.setup.quick,
+                # pymoo draws every random number from a Generator seeded once with this seed,
+                # so the seed and the evaluations (the store) determine the whole run: a resume
+                # replays it rather than restoring a random state.
+                "rng": {"seed": config.seed, "library": "pymoo", "resume": "replay"},
+                "store": STORE_FILE,
+                "n_evaluations": len(self.rows),
+                "n_cache_hits": self.evaluator.n_cache_hits,
+                "variables": list(self.problem.space.names),
+                "population": [[float(v) for v in x] for x in population],
+                "best": {
+                    "x": [float(v) for v in gen.best.x],
+                    "f": [float(v) for v in gen.best.f],
+                    "feasible": gen.best.feasible,
+                },
+            },
+        )
 
     def write_tables(self) -> None:
         exact = set(self.columns.variables)
@@ -774,6 +759,54 @@ def _convergence_png(history: list[dict[str, Any]], columns: _Columns) -> bytes:
     )
 
 
+@dataclass(frozen=True)
+class Resume:
+    """What ``--resume`` carries into :func:`run_study`: the run's record and its store.
+
+    Attributes
+    ----------
+    record : run.json of the interrupted run.
+    restored : every evaluation its store (evaluations.jsonl) holds.
+    """
+
+    record: dict[str, Any]
+    restored: tuple[Evaluation, ...]
+
+
+def parallel_settings(
+    study: Study,
+    workers: int | None = None,
+    dask: str | None = None,
+    eval_timeout_s: float | None = None,
+) -> ParallelSettings:
+    """The study's ``parallel:`` block with the command line's options applied.
+
+    ``workers`` 1 means serial in this process; ``dask`` selects the Dask backend at that address.
+
+    Raises
+    ------
+    StudyError
+        When the Dask backend is asked for without a scheduler address.
+    """
+    spec = getattr(study, "parallel", None) or ParallelSpec()
+    backend, address = spec.backend, spec.address
+    n_workers = workers if workers is not None else spec.workers
+    if dask is not None:
+        backend, address = "dask", dask
+    elif workers is not None:
+        backend = "serial" if workers == 1 else "processes"
+    elif backend == "processes" and n_workers == 1:
+        backend = "serial"
+    if backend == "dask" and not address:
+        raise StudyError(
+            "parallel.address",
+            "backend dask needs the scheduler's address; add address: tcp://host:8786 or give "
+            "--dask tcp://host:8786",
+        )
+    timeout = eval_timeout_s if eval_timeout_s is not None else spec.eval_timeout_s
+    return ParallelSettings(backend, n_workers, address, timeout, spec.chunk_size)
+
+
 def run_study(
     setup: RunSetup,
     out: Path | None = None,
@@ -783,6 +816,8 @@ def run_study(
     on_start: Callable[[Path, GAConfig], None] | None = None,
     on_generation: Callable[[GenerationReport], None] | None = None,
     on_result: Callable[[], None] | None = None,
+    parallel: ParallelSettings | None = None,
+    resume: Resume | None = None,
 ) -> RunOutcome:
     """Optimise a prepared study and write its run folder.
 
@@ -792,7 +827,7 @@ def run_study(
         From :func:`prepare_run` (which refuses bad inputs before anything is written).
     out : Path, optional
         Run folder; default ``runs_root/<name>-run-<timestamp>``. A folder that already holds
-        a run (run.json) is refused.
+        a run (run.json) is refused, unless resuming it.
     source : str
         Where the study came from, recorded in run.json.
     command_line : str
@@ -803,6 +838,11 @@ def run_study(
         Called after each generation.
     on_result : callable(), optional
         Called after each solved design (progress within a generation).
+    parallel : ParallelSettings, optional
+        Where designs are evaluated (default: :func:`parallel_settings` of the study, a local
+        process pool unless the study says otherwise).
+    resume : Resume, optional
+        Continue the run in ``out`` (see :func:`resume_run`, which checks it may be).
 
     Returns
     -------
@@ -812,69 +852,140 @@ def run_study(
     ------
     StudyError
         When ``out`` cannot be a new run folder (nothing is written).
+    BackendError
+        When the workers or the cluster cannot take the problem (nothing is written).
     OSError
-        When the run folder cannot be written.
+        When the run folder cannot be written; a folder that is read-only or full is found by a
+        probe before anything else is done.
     KeyboardInterrupt
         After writing run.json with status ``interrupted`` (and every evaluation so far).
     """
     if out is not None:
         check_out_dir(out)
-        if (out / "run.json").exists():
+        if resume is None and (out / "run.json").exists():
             raise StudyError(
                 "--out", f"'{out}' already holds a run (run.json); give a new folder or remove it"
             )
-    study, config = setup.study, setup.config
+    if resume is not None and out is None:
+        raise ValueError("resume needs the run folder as out")
+    study = setup.study
+    settings = parallel or parallel_settings(study)
     started = _now()
-    run_dir = make_run_dir(out or new_run_dir_path(runs_root, study.name, "run", started))
-    record: dict[str, Any] = {
-        "study": study.name,
-        "kind": study.kind,
-        "command": "run",
-        "command_line": command_line,
-        "source": source,
+    run_dir = out or new_run_dir_path(runs_root, study.name, "run", started)
+    probe_writable(run_dir)  # a read-only or full disk now, not after hours of solving
+    stack = contextlib.ExitStack()
+    try:
+        backend = stack.enter_context(open_backend(settings, setup.problem))
+    except BackendError as exc:
+        stack.close()
+        where = "--dask" if settings.backend == "dask" else "--workers"
+        raise StudyError(where, str(exc)) from None
+    with stack:
+        return _run_in(
+            setup,
+            make_run_dir(run_dir),
+            settings,
+            backend,
+            started,
+            source,
+            command_line,
+            on_start,
+            on_generation,
+            on_result,
+            resume,
+        )
+
+
+def _run_in(
+    setup: RunSetup,
+    run_dir: Path,
+    settings: ParallelSettings,
+    backend: BatchBackend,
+    started: datetime,
+    source: str,
+    command_line: str,
+    on_start: Callable[[Path, GAConfig], None] | None,
+    on_generation: Callable[[GenerationReport], None] | None,
+    on_result: Callable[[], None] | None,
+    resume: Resume | None,
+) -> RunOutcome:
+    """The body of :func:`run_study` once the folder can be written and the backend is up."""
+    study, config = setup.study, setup.config
+    session = {
         "status": "running",
         "error": "",
-        "quick": setup.quick,
-        "seed": config.seed,
-        "optimiser": {
-            "algorithm": config.algorithm,
-            "pop_size": config.pop_size,
-            "n_gen": config.n_gen,
-            "seed": config.seed,
-        },
-        "objectives": list(setup.problem.objective_names),
-        "constraints": list(setup.problem.constraint_names),
-        "variables": list(setup.problem.space.names),
-        "started": _stamp(started),
         "finished": None,
-        "generations_done": 0,
-        "n_evaluations": 0,
-        "n_cache_hits": 0,
-        "wall_s": None,
-        "optimise_wall_s": None,
-        "evaluations_per_s": None,
+        "pid": os.getpid(),
+        "hostname": socket.gethostname(),
+        "parallel": {**asdict(settings), "description": settings.describe()},
         "versions": all_versions(),
         "host": {"platform": platform.platform(), "cpu_count": os.cpu_count()},
     }
-    rerun = f"flexopt run {run_dir / 'study.yaml'}" + (" --quick" if setup.quick else "")
-    header = (
-        f"Resolved study written by flexopt run on {record['started']}\n"
-        f"from {source or 'memory'}; re-run with: {rerun}"
-    )
-    write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
+    if resume is not None:
+        record = dict(resume.record)
+        record.update(session)
+        record["resumed"] = [
+            *record.get("resumed", []),
+            {
+                "at": _stamp(started),
+                "command_line": command_line,
+                "n_in_store": len(resume.restored),
+            },
+        ]
+    else:
+        record = {
+            "study": study.name,
+            "kind": study.kind,
+            "command": "run",
+            "command_line": command_line,
+            "source": source,
+            **session,
+            "quick": setup.quick,
+            "seed": config.seed,
+            "study_sha256": study_sha256(study),
+            "optimiser": {
+                "algorithm": config.algorithm,
+                "pop_size": config.pop_size,
+                "n_gen": config.n_gen,
+                "seed": config.seed,
+            },
+            "objectives": list(setup.problem.objective_names),
+            "constraints": list(setup.problem.constraint_names),
+            "variables": list(setup.problem.space.names),
+            "started": _stamp(started),
+            "generations_done": 0,
+            "n_evaluations": 0,
+            "n_cache_hits": 0,
+            "n_restored": 0,
+            "n_solved": 0,
+            "wall_s": None,
+            "optimise_wall_s": None,
+            "evaluations_per_s": None,
+        }
+        rerun = f"flexopt run {run_dir / 'study.yaml'}" + (" --quick" if setup.quick else "")
+        header = (
+            f"Resolved study written by flexopt run on {record['started']}\n"
+            f"from {source or 'memory'}; re-run with: {rerun}"
+        )
+        write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
     write_atomic(run_dir / "run.json", to_json(record))
-    log.info("run folder %s; %s", run_dir, config)
+    log.info("run folder %s; %s; %s", run_dir, config, settings.describe())
     if on_start is not None:
         on_start(run_dir, config)
 
-    run = _Run(setup, run_dir, record, on_generation, on_result)
+    store = EvaluationStore(run_dir / STORE_FILE)
+    restored = resume.restored if resume is not None else ()
+    run = _Run(setup, run_dir, record, on_generation, on_result, backend, store, restored)
     t_start = time.perf_counter()
 
     def close(status: str, error: str = "", write: bool = True) -> None:
         wall = time.perf_counter() - t_start
-        n = len(run.evaluator.solved)
+        solved = run.evaluator.solved
+        n = len(solved)
+        n_now = run.evaluator.n_backend
         optimise_wall = record.get("optimise_wall_s") or wall
-        failed = [ev for ev in run.evaluator.solved if ev.reason]
+        failed = [ev for ev in solved if ev.reason]
+        now_times = [ev.time_s for ev in solved[-n_now:]] if n_now else []
         record.update(
             status=status,
             error=error,
@@ -882,15 +993,25 @@ def run_study(
             wall_s=wall,
             n_evaluations=n,
             n_cache_hits=run.evaluator.n_cache_hits,
+            n_restored=run.evaluator.n_restored,
+            n_solved=n_now,
             n_failed=len(failed),
-            n_feasible=sum(ev.feasible for ev in run.evaluator.solved),
-            evaluations_per_s=n / optimise_wall if optimise_wall > 0 else None,
-            mean_evaluation_s=(
-                float(np.mean([ev.time_s for ev in run.evaluator.solved])) if n else None
+            n_feasible=sum(ev.feasible for ev in solved),
+            evaluations_per_s=n_now / optimise_wall if optimise_wall > 0 and n_now else None,
+            mean_evaluation_s=float(np.mean([ev.time_s for ev in solved])) if n else None,
+            # the share of the wall time the workers spent solving (1 - overhead - idle)
+            worker_utilisation=(
+                sum(now_times) / (optimise_wall * _n_workers(settings))
+                if now_times and optimise_wall > 0
+                else None
             ),
             failure_reasons=dict(Counter(ev.reason for ev in failed).most_common(10)),
             notes=run.notes,
-            files=sorted(set(run.files) | {"study.yaml", "run.json", "evaluations.csv"}),
+            files=sorted(
+                set(run.files)
+                | {"study.yaml", "run.json", "evaluations.csv", STORE_FILE}
+                | ({CHECKPOINT_FILE} if run.generations else set())
+            ),
         )
         if write:
             write_atomic(run_dir / "run.json", to_json(record))
@@ -903,15 +1024,18 @@ def run_study(
             close(status, error)
 
     try:
-        result = run_ga(
-            setup.problem.space,
-            run.evaluator,
-            len(setup.problem.objective_names),
-            len(setup.problem.constraint_names),
-            config,
-            on_generation=run.generation_done,
-            initial=setup.initial,
-        )
+        try:
+            result = run_ga(
+                setup.problem.space,
+                run.evaluator,
+                len(setup.problem.objective_names),
+                len(setup.problem.constraint_names),
+                config,
+                on_generation=run.generation_done,
+                initial=setup.initial,
+            )
+        finally:
+            store.close()
         record["optimise_wall_s"] = time.perf_counter() - t_start
         run.files += ["evaluations.csv", "history.csv"]
         detail = run.finish(result)
@@ -939,6 +1063,268 @@ def run_study(
         raise
     log.info("finished %s in %.3g s", run_dir, record["wall_s"])
     return RunOutcome(run_dir, result, detail, record, tuple(run.notes))
+
+
+def _n_workers(settings: ParallelSettings) -> int:
+    return 1 if settings.backend == "serial" else settings.n_workers
+
+
+def _pid_alive(pid: Any) -> bool:
+    try:
+        os.kill(int(pid), 0)
+    except (OSError, TypeError, ValueError):
+        return False
+    return True
+
+
+def run_is_live(record: Mapping[str, Any]) -> bool:
+    """Whether the process that wrote ``record`` (status running) still runs on this host."""
+    return (
+        record.get("status") == "running"
+        and record.get("hostname") == socket.gethostname()
+        and record.get("pid") != os.getpid()
+        and _pid_alive(record.get("pid"))
+    )
+
+
+def read_run_record(run_dir: Path, option: str = "RUN_DIR") -> dict[str, Any]:
+    """run.json of a run folder.
+
+    Raises
+    ------
+    StudyError
+        At ``option`` when the folder is not a run folder of ``flexopt run``.
+    """
+    if not run_dir.is_dir():
+        raise StudyError(option, f"'{run_dir}' is not a folder; give a run folder of flexopt run")
+    path = run_dir / "run.json"
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise StudyError(
+            option, f"'{run_dir}' has no run.json; give a folder written by flexopt run"
+        ) from None
+    except (OSError, ValueError) as exc:
+        raise StudyError(option, f"'{path}' cannot be read ({exc})") from None
+    if not isinstance(record, dict) or record.get("command") != "run":
+        raise StudyError(option, f"'{path}' is not the record of a flexopt run")
+    return record
+
+
+def resume_run(
+    run_dir: Path,
+    study_path: str | Path | None = None,
+    parallel: ParallelSettings | None = None,
+    workers: int | None = None,
+    dask: str | None = None,
+    eval_timeout_s: float | None = None,
+    command_line: str = "",
+    on_start: Callable[[Path, GAConfig], None] | None = None,
+    on_generation: Callable[[GenerationReport], None] | None = None,
+    on_result: Callable[[], None] | None = None,
+) -> RunOutcome:
+    """Finish an interrupted or killed run by replaying it from its seed and its store.
+
+    Every evaluation in ``evaluations.jsonl`` is served from there (none is solved again); the
+    optimiser, seeded as before, asks for the same designs, so the run ends as an uninterrupted
+    run with the same seed would.
+
+    Parameters
+    ----------
+    run_dir : Path
+        The run folder of the run to continue.
+    study_path : path, optional
+        The study to check against the run's (default: the run folder's study.yaml). Its hash
+        (sha256 of the resolved YAML, the ``parallel:`` block left out) must match.
+    parallel, workers, dask, eval_timeout_s :
+        Where to evaluate (``parallel`` as is, or the study's block with these options applied);
+        a run may be resumed on other workers.
+
+    Raises
+    ------
+    StudyError
+        At ``--resume`` when the folder is not a resumable run (finished, still running, no
+        hash, a store that was edited) or the study changed; nothing is written then.
+    """
+    record = read_run_record(run_dir, "--resume")
+    if record.get("status") == "finished":
+        raise StudyError(
+            "--resume",
+            f"the run in '{run_dir}' has finished; nothing to resume (flexopt report "
+            f"{run_dir} rebuilds its report)",
+        )
+    if run_is_live(record):
+        raise StudyError(
+            "--resume",
+            f"the run in '{run_dir}' is still running (pid {record['pid']}); wait for it or "
+            "stop it first",
+        )
+    expected = record.get("study_sha256")
+    if not expected:
+        raise StudyError(
+            "--resume",
+            f"'{run_dir}' was written without a study hash (an older flexopt); start a new run",
+        )
+    study = load_study(study_path if study_path is not None else run_dir / "study.yaml")
+    quick = bool(record.get("quick", False))
+    spec = getattr(study, "optimiser", None) or OptimiserSpec()
+    seed = record.get("seed")
+    setup = prepare_run(study, quick=quick, seed=None if seed == spec.seed else seed)
+    found = study_sha256(setup.study)
+    if found != expected:
+        raise StudyError(
+            "--resume",
+            f"the study differs from the one this run started with (sha256 {found[:12]} is "
+            f"not {expected[:12]}); resume with the run's own study (flexopt run --resume "
+            f"{run_dir}) or start a new run",
+        )
+    try:
+        restored = EvaluationStore(run_dir / STORE_FILE).load(setup.problem.space.n_var)
+    except ValueError as exc:
+        raise StudyError("--resume", str(exc)) from None
+    except OSError as exc:
+        raise StudyError("--resume", f"cannot read the store: {exc}") from None
+    settings = parallel or parallel_settings(setup.study, workers, dask, eval_timeout_s)
+    log.info("resuming %s with %d evaluations from its store", run_dir, len(restored))
+    return run_study(
+        setup,
+        out=run_dir,
+        source=str(record.get("source", "")),
+        command_line=command_line,
+        on_start=on_start,
+        on_generation=on_generation,
+        on_result=on_result,
+        parallel=settings,
+        resume=Resume(record, tuple(restored)),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# flexopt report
+
+
+@dataclass(frozen=True)
+class ReportOutcome:
+    """What ``flexopt report`` rebuilt.
+
+    Attributes
+    ----------
+    run_dir : the run folder.
+    best : the best evaluation of every evaluation in the folder.
+    n_evaluations : evaluations the report is built from.
+    files : files (re)written.
+    notes : what was skipped and why.
+    """
+
+    run_dir: Path
+    best: Evaluation
+    n_evaluations: int
+    files: tuple[str, ...]
+    notes: tuple[str, ...]
+
+
+def _evaluations_in(run_dir: Path, problem: DesignProblem) -> list[Evaluation]:
+    """The run's evaluations: the lossless store, or evaluations.csv in a folder without one."""
+    store = EvaluationStore(run_dir / STORE_FILE)
+    if store.path.is_file():
+        return store.load(problem.space.n_var)
+    path = run_dir / "evaluations.csv"
+    if not path.is_file():
+        return []
+    columns = _Columns.of(problem)
+    out = []
+    for row in read_records_csv(path):
+        try:
+            out.append(
+                Evaluation(
+                    np.array([float(row[c]) for c in columns.variables]),
+                    np.array([float(row[c]) for c in columns.objectives]),
+                    np.array([float(row[c]) for c in columns.constraints]),
+                    {},
+                    row.get("reason", ""),
+                    float(row.get("time_s") or 0.0),
+                )
+            )
+        except (KeyError, ValueError) as exc:
+            raise StudyError(
+                "RUN_DIR", f"'{path}' does not match the run's study.yaml ({exc}); was it edited?"
+            ) from None
+    return out
+
+
+def _history_in(run_dir: Path) -> list[dict[str, Any]]:
+    """history.csv with its numbers and booleans read back."""
+    path = run_dir / "history.csv"
+    if not path.is_file():
+        return []
+
+    def value(text: str) -> Any:
+        if text in ("true", "false"):
+            return text == "true"
+        try:
+            return float(text)
+        except ValueError:
+            return text
+
+    return [{k: value(v) for k, v in row.items()} for row in read_records_csv(path)]
+
+
+def rebuild_report(run_dir: Path) -> ReportOutcome:
+    """Rebuild best.json, the best design's response, plots, STL and report.md from a run folder.
+
+    Nothing is optimised again: the evaluations come from the folder (evaluations.jsonl, else
+    evaluations.csv); only the best design's detail is solved again, for its response and shape.
+    Works on a finished, interrupted or still running run (a report of what is done so far);
+    run.json is left as it is.
+
+    Raises
+    ------
+    StudyError
+        When the folder is not a run folder or holds no evaluation yet.
+    OSError
+        When the folder cannot be written.
+    """
+    record = read_run_record(run_dir)
+    study = load_study(run_dir / "study.yaml")
+    setup = prepare_run(study, quick=bool(record.get("quick", False)))
+    problem = setup.problem
+    try:
+        evaluations = _evaluations_in(run_dir, problem)
+    except ValueError as exc:
+        raise StudyError("RUN_DIR", str(exc)) from None
+    if not evaluations:
+        raise StudyError("RUN_DIR", f"'{run_dir}' holds no evaluation yet; nothing to report")
+    probe_writable(run_dir)
+    run = _Run(setup, run_dir, record, None, None)
+    run.evaluator.solved = list(evaluations)
+    run.history = _history_in(run_dir)
+    columns = run.columns
+    if (run_dir / "evaluations.csv").is_file():
+        for row in read_records_csv(run_dir / "evaluations.csv"):
+            with contextlib.suppress(KeyError, ValueError):
+                x = np.array([float(row[c]) for c in columns.variables])
+                run.where.setdefault(design_key(x), (int(row["generation"]), int(row["index"])))
+    best = best_of(evaluations)
+    n_obj = len(problem.objective_names)
+    front = pareto_front(evaluations) if n_obj > 1 else (best,)
+    result = GAResult(best, front, ())
+    detail = run.finish(result)
+    files = list(run.files)
+    report = ReportData(
+        record=record,
+        study=setup.study,
+        problem=problem,
+        best=best,
+        best_where=run.where.get(design_key(best.x), (None, None)),
+        front=front,
+        detail=detail,
+        files=tuple([*record.get("files", []), *files]),
+        notes=tuple(run.notes),
+        stl=run.stl,
+    )
+    write_atomic(run_dir / "report.md", render_report(report))
+    files.append("report.md")
+    return ReportOutcome(run_dir, best, len(evaluations), tuple(files), tuple(run.notes))
 
 
 # --------------------------------------------------------------------------------------------

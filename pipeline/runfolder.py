@@ -21,6 +21,7 @@ __all__ = [
     "check_out_dir",
     "make_run_dir",
     "new_run_dir_path",
+    "probe_writable",
     "read_records_csv",
     "records_to_csv",
     "table_to_csv",
@@ -69,6 +70,43 @@ def check_out_dir(path: Path) -> None:
     """
     if path.exists() and not path.is_dir():
         raise StudyError("--out", f"'{path}' exists and is not a folder; give a folder path")
+
+
+#: Bytes the write probe writes: enough to meet a full disk (creating an empty file may succeed
+#: there), small enough to cost nothing.
+PROBE_BYTES = 64 * 1024
+
+
+def probe_writable(path: Path) -> None:
+    """Check that ``path`` (a run folder, existing or not) can be written, before any work.
+
+    Writes, fsyncs and removes a small temporary file in ``path`` or, when it does not exist
+    yet, in its nearest existing parent (where it will be created).
+
+    Raises
+    ------
+    OSError
+        Read-only, not permitted or full, with the folder and the fix in the message.
+    """
+    folder = path
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".flexopt-probe-", suffix=".tmp")
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(b"\0" * PROBE_BYTES)
+            handle.flush()
+            os.fsync(handle.fileno())
+    except OSError as exc:
+        raise OSError(
+            exc.errno,
+            f"'{folder}' cannot be written ({exc.strerror or exc}); free some space, fix the "
+            "permissions or give another folder with --out",
+        ) from None
+    finally:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
 
 
 def make_run_dir(path: Path) -> Path:

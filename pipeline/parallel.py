@@ -1,0 +1,667 @@
+"""Evaluating designs: one function for one design, and the backends that run many.
+
+:func:`evaluate_one` is the only place a design is solved. It turns every failure of the kind (an
+exception, a NaN, a wrong shape, a time limit) into an infeasible Evaluation with a reason, so a
+bad design never stops a run. The backends only decide *where* it runs:
+
+- :func:`evaluate_batch` / :class:`SerialBackend` — in this process, one after the other (the time
+  limit is an interval timer, POSIX main thread only);
+- :class:`ProcessPool` — a local pool of worker processes that receive the pickled problem once,
+  at start, and then only design vectors, in chunks. A watchdog terminates and replaces a worker
+  whose design exceeds the time limit; a worker that dies has its unfinished designs resubmitted
+  (the design it was solving at most :data:`MAX_ATTEMPTS` times in all);
+- :class:`pipeline.cluster.DaskBackend` — the same on a Dask distributed cluster.
+
+Every backend reports each design as it finishes (``on_result(row, evaluation)``: the run persists
+it at once) and returns the evaluations in the order of the designs, so results do not depend on
+the backend or on which worker finished first.
+
+This module is imported by every worker process: it imports nothing heavy (no pymoo, no pipeline
+CLI), so a worker starts in the time it takes to import the problem's own module.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import multiprocessing
+import os
+import pickle
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+from multiprocessing.connection import Connection, wait
+from typing import Any, Literal, Protocol
+
+import numpy as np
+
+from optimise.evaluation import Evaluation
+from optimise.problem import DesignProblem
+
+__all__ = [
+    "MAX_ATTEMPTS",
+    "BackendError",
+    "THREAD_ENV_VARS",
+    "BatchBackend",
+    "EvaluationTimeout",
+    "ParallelSettings",
+    "ProcessPool",
+    "SerialBackend",
+    "chunk_rows",
+    "design_key",
+    "evaluate_batch",
+    "evaluate_one",
+    "one_line",
+    "open_backend",
+    "pin_threads",
+    "timeout_reason",
+]
+
+log = logging.getLogger(__name__)
+
+#: Longest failure reason kept in a row (exception messages can quote whole arrays).
+MAX_REASON_CHARS = 300
+
+#: How often a design is tried when its worker process dies under it (os._exit, segfault, OOM
+#: kill): a design that kills every worker it is given must end as a failed row, not a loop.
+MAX_ATTEMPTS = 3
+
+#: BLAS/OpenMP pools each start one thread per core: with one worker process per core that is
+#: cores² threads fighting for the caches. One thread per worker is faster for these small solves.
+THREAD_ENV_VARS = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+)
+
+#: How often an idle worker checks that the run that started it is still alive, s.
+PARENT_CHECK_S = 1.0
+
+#: Chunks per worker and batch: enough to balance designs of uneven cost, few enough that the
+#: per-message cost stays far below a solve (see benchmarks/runner_overhead.py).
+CHUNKS_PER_WORKER = 4
+
+
+class BatchBackend(Protocol):
+    """Evaluates designs; reports each as it finishes through ``on_result(row, evaluation)``.
+
+    Reporting as results arrive lets the evaluator keep every finished design when the run is
+    interrupted mid-batch, and lets a parallel backend finish designs in any order.
+    """
+
+    def __call__(
+        self,
+        problem: DesignProblem,
+        X: np.ndarray,
+        on_result: Callable[[int, Evaluation], None] | None = None,
+    ) -> list[Evaluation]: ...
+
+
+class EvaluationTimeout(Exception):  # noqa: N818 - the reason reads "EvaluationTimeout: ..."
+    """A design took longer than the per-evaluation time limit."""
+
+
+def timeout_reason(timeout_s: float) -> str:
+    """The failure reason of a design that exceeded the time limit (the same on every backend)."""
+    return (
+        f"EvaluationTimeout: took longer than the time limit of {timeout_s:g} s "
+        "(--eval-timeout / parallel.eval_timeout_s)"
+    )
+
+
+def one_line(text: str) -> str:
+    """``text`` folded to one line of at most :data:`MAX_REASON_CHARS` characters."""
+    text = " ".join(text.split())
+    return text if len(text) <= MAX_REASON_CHARS else text[: MAX_REASON_CHARS - 3] + "..."
+
+
+def design_key(x: np.ndarray) -> bytes:
+    """Cache key of a design: the bytes of its float64 vector (bit-identical designs only)."""
+    return np.ascontiguousarray(x, dtype=np.float64).tobytes()
+
+
+# --------------------------------------------------------------------------------------------
+# One design
+
+
+@contextlib.contextmanager
+def _alarm(timeout_s: float | None) -> Iterator[None]:
+    """Raise :class:`EvaluationTimeout` in this thread after ``timeout_s`` (POSIX main thread).
+
+    Elsewhere (Windows, a worker thread) the limit cannot interrupt the solve and is not applied.
+    """
+    usable = (
+        timeout_s is not None
+        and hasattr(signal, "setitimer")
+        and threading.current_thread() is threading.main_thread()
+    )
+    if not usable:
+        yield
+        return
+
+    def expire(signum: int, frame: Any) -> None:
+        raise EvaluationTimeout(timeout_reason(timeout_s).split(": ", 1)[1])
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, timeout_s)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def evaluate_one(
+    problem: DesignProblem, x: np.ndarray, timeout_s: float | None = None
+) -> Evaluation:
+    """Evaluate one design, turning every failure into an infeasible Evaluation with a reason.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+    x : (n_var,) float
+        The design vector, in the units of ``problem.space``.
+    timeout_s : float, s, optional
+        Time limit, enforced here with an interval timer (POSIX main thread only; the process
+        pool and Dask backends enforce it themselves).
+
+    Returns
+    -------
+    Evaluation
+        The kind's Evaluation (``time_s`` filled in with the wall time when the kind left it 0);
+        or ``Evaluation.failed`` when ``problem.evaluate`` raised (reason
+        ``"<ExceptionType>: <message>"``), timed out, returned something that is not an
+        Evaluation with ``n_obj`` objectives and ``n_con`` constraints, or returned a NaN/inf
+        objective or constraint (pymoo cannot rank those; the kind's reason is kept if it gave
+        one).
+    """
+    n_obj, n_con = len(problem.objective_names), len(problem.constraint_names)
+    x = np.array(x, dtype=float)
+    start = time.perf_counter()
+    try:
+        with _alarm(timeout_s):
+            evaluation = problem.evaluate(x.copy())
+    except Exception as exc:  # fault isolation: a bad design never stops the run
+        elapsed = time.perf_counter() - start
+        log.debug("design %s raised", x, exc_info=True)
+        return Evaluation.failed(x, n_obj, n_con, one_line(f"{type(exc).__name__}: {exc}"), elapsed)
+    elapsed = time.perf_counter() - start
+    if not isinstance(evaluation, Evaluation):
+        return Evaluation.failed(
+            x,
+            n_obj,
+            n_con,
+            f"TypeError: evaluate returned {type(evaluation).__name__}, not an Evaluation",
+            elapsed,
+        )
+    f, g = np.asarray(evaluation.f, dtype=float), np.asarray(evaluation.g, dtype=float)
+    if f.shape != (n_obj,) or g.shape != (n_con,):
+        return Evaluation.failed(
+            x,
+            n_obj,
+            n_con,
+            f"ValueError: evaluate returned f of shape {f.shape} and g of shape {g.shape}; the "
+            f"problem names {n_obj} objectives and {n_con} constraints",
+            elapsed,
+            evaluation.metrics,
+        )
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(g))):
+        reason = evaluation.reason or f"non-finite result (f = {f.tolist()}, g = {g.tolist()})"
+        return Evaluation.failed(x, n_obj, n_con, one_line(reason), elapsed, evaluation.metrics)
+    if evaluation.time_s <= 0.0:
+        evaluation = replace(evaluation, time_s=elapsed)
+    return evaluation
+
+
+def evaluate_batch(
+    problem: DesignProblem,
+    X: np.ndarray,
+    on_result: Callable[[int, Evaluation], None] | None = None,
+) -> list[Evaluation]:
+    """Evaluate designs one after the other in this process (the serial backend, no time limit).
+
+    Parameters
+    ----------
+    problem : DesignProblem
+    X : (m, n_var) float
+        Design vectors.
+    on_result : callable(row, evaluation), optional
+        Called after each design with its row in ``X``.
+
+    Returns
+    -------
+    list of Evaluation
+        m evaluations in the order of ``X``; failures are infeasible Evaluations with a reason
+        (see :func:`evaluate_one`), so this never raises for a bad design.
+    """
+    return SerialBackend()(problem, X, on_result)
+
+
+@dataclass
+class SerialBackend:
+    """Evaluate in this process, in order, with an optional time limit per design (s)."""
+
+    timeout_s: float | None = None
+
+    def __call__(
+        self,
+        problem: DesignProblem,
+        X: np.ndarray,
+        on_result: Callable[[int, Evaluation], None] | None = None,
+    ) -> list[Evaluation]:
+        out = []
+        for row, x in enumerate(np.atleast_2d(np.asarray(X, dtype=float))):
+            out.append(evaluate_one(problem, x, self.timeout_s))
+            if on_result is not None:
+                on_result(row, out[-1])
+        return out
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+# --------------------------------------------------------------------------------------------
+# Settings
+
+
+@dataclass(frozen=True)
+class ParallelSettings:
+    """Where and how designs are evaluated (the study's ``parallel:`` block with the command
+    line's ``--workers`` / ``--dask`` / ``--eval-timeout`` applied).
+
+    Attributes
+    ----------
+    backend : "serial" (in this process), "processes" (local pool) or "dask" (a cluster).
+    workers : worker processes of the local pool (default: the machine's cores).
+    address : the Dask scheduler, ``tcp://host:8786``.
+    eval_timeout_s : s, time limit of one evaluation; None for none.
+    chunk_size : designs per task (default: about four chunks per worker and batch).
+    """
+
+    backend: Literal["serial", "processes", "dask"] = "processes"
+    workers: int | None = None
+    address: str | None = None
+    eval_timeout_s: float | None = None
+    chunk_size: int | None = None
+
+    @property
+    def n_workers(self) -> int:
+        """Worker processes of the local pool (1 for serial)."""
+        if self.backend == "serial":
+            return 1
+        return max(1, self.workers or os.cpu_count() or 1)
+
+    def describe(self) -> str:
+        """One line for the log and run.json: ``processes (2 workers)``."""
+        limit = f", time limit {self.eval_timeout_s:g} s" if self.eval_timeout_s else ""
+        if self.backend == "dask":
+            return f"dask at {self.address}{limit}"
+        if self.backend == "processes":
+            return f"processes ({self.n_workers} workers){limit}"
+        return f"serial (this process){limit}"
+
+
+def pin_threads() -> None:
+    """Set the BLAS/OpenMP thread variables to 1 in this process's environment.
+
+    Called before worker processes start, so that they (and a forkserver they are forked from)
+    read them when their numerical libraries load.
+    """
+    for var in THREAD_ENV_VARS:
+        os.environ[var] = "1"
+
+
+def _limit_loaded_pools() -> None:
+    """One thread for the BLAS/OpenMP pools already loaded (a forked worker inherits the
+    parent's, sized before the variables were set)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # optional: the environment variables cover freshly started workers
+        return
+    threadpool_limits(1)
+
+
+def chunk_rows(n: int, n_workers: int, chunk_size: int | None = None) -> int:
+    """Designs per chunk for ``n`` designs on ``n_workers`` workers."""
+    if chunk_size:
+        return max(1, int(chunk_size))
+    return max(1, math.ceil(n / (CHUNKS_PER_WORKER * max(1, n_workers))))
+
+
+@contextlib.contextmanager
+def open_backend(settings: ParallelSettings, problem: DesignProblem) -> Iterator[BatchBackend]:
+    """The backend ``settings`` ask for, released (workers stopped, client closed) on exit.
+
+    Raises
+    ------
+    BackendError
+        When the problem cannot be sent to workers or the cluster cannot be reached.
+    """
+    backend: Any
+    if settings.backend == "dask":
+        from pipeline.cluster import DaskBackend  # distributed is imported only when used
+
+        backend = DaskBackend(
+            problem, settings.address or "", settings.eval_timeout_s, settings.chunk_size
+        )
+    elif settings.backend == "processes" and settings.n_workers > 1:
+        backend = ProcessPool(
+            problem, settings.n_workers, settings.eval_timeout_s, settings.chunk_size
+        )
+    else:
+        backend = SerialBackend(settings.eval_timeout_s)
+    try:
+        yield backend
+    finally:
+        backend.close()
+
+
+class BackendError(RuntimeError):
+    """The backend cannot run at all (not a design's fault): the message says what to do."""
+
+
+# --------------------------------------------------------------------------------------------
+# The local process pool
+
+
+def _worker_main(conn: Connection, payload: bytes) -> None:
+    """A worker process: load the problem once, then evaluate the chunks it is sent.
+
+    Messages to the parent: ``("ready", pid)`` once the problem is loaded, ``("done", row,
+    evaluation)`` per design, ``("fatal", message)`` when the problem cannot be loaded.
+    """
+    pin_threads()  # for libraries this worker loads itself
+    _limit_loaded_pools()
+    # Ctrl-C reaches the whole process group; the parent decides what stops, and stops us.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        problem = pickle.loads(payload)
+    except BaseException as exc:
+        conn.send(("fatal", one_line(f"{type(exc).__name__}: {exc}")))
+        return
+    conn.send(("ready", os.getpid()))
+    parent = os.getppid()
+    while True:
+        try:
+            # A killed parent does not always close this pipe (a forked sibling may hold a copy
+            # of its end): notice that we were orphaned instead of waiting forever.
+            while not conn.poll(PARENT_CHECK_S):
+                if os.getppid() != parent:
+                    return
+            task = conn.recv()
+        except (EOFError, OSError):  # the parent is gone
+            return
+        if task is None:
+            return
+        for row, x in task:
+            # No timer here: the parent's watchdog owns the time limit (it also stops a worker
+            # stuck in C code, which a signal cannot interrupt).
+            conn.send(("done", row, evaluate_one(problem, x)))
+
+
+@dataclass
+class _Worker:
+    process: multiprocessing.process.BaseProcess
+    conn: Connection
+    ready: bool = False
+    task: deque[tuple[int, np.ndarray]] | None = None  # designs sent and not yet reported
+    started: float = 0.0  # when the design at the head of ``task`` started (perf_counter)
+
+
+def _context() -> multiprocessing.context.BaseContext:
+    # fork is instant and the worker inherits the imported modules, but forking a process that
+    # runs other threads (a progress bar, a Dask client) can deadlock the child, and macOS
+    # libraries do not survive it: fork only on Linux from a single-threaded process (the pool
+    # starts its workers before the progress bar). Otherwise forkserver, which forks from a clean
+    # single-threaded server without re-running the user's __main__ each time as spawn does;
+    # spawn where there is no forkserver (Windows).
+    if sys.platform == "linux" and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        # the server imports numpy and this module once; each worker forks with them loaded
+        ctx.set_forkserver_preload(["pipeline.parallel"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+class ProcessPool:
+    """A local pool of worker processes with a per-design watchdog.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        Pickled once here and sent once to each worker as it starts.
+    n_workers : int
+        Worker processes (started at the first batch, kept for the whole run).
+    timeout_s : float, s, optional
+        Time limit of one design: the worker solving it longer is terminated and replaced, and
+        the design becomes a failed Evaluation (:func:`timeout_reason`).
+    chunk_size : int, optional
+        Designs per message (default :func:`chunk_rows`).
+
+    Attributes
+    ----------
+    n_replaced : int
+        Workers replaced after they died or were stopped by the watchdog.
+
+    Raises
+    ------
+    BackendError
+        When the problem cannot be pickled, or workers cannot load it.
+    """
+
+    def __init__(
+        self,
+        problem: DesignProblem,
+        n_workers: int,
+        timeout_s: float | None = None,
+        chunk_size: int | None = None,
+    ) -> None:
+        try:
+            self.payload = pickle.dumps(problem, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:
+            raise BackendError(
+                f"the design problem cannot be sent to worker processes ({type(exc).__name__}: "
+                f"{exc}); run in this process with --workers 1"
+            ) from exc
+        self.n_workers = max(1, int(n_workers))
+        self.timeout_s = timeout_s
+        self.chunk_size = chunk_size
+        self.workers: list[_Worker] = []
+        self.n_replaced = 0
+        self._failed_starts = 0
+        for _ in range(self.n_workers):  # now, while this process may still fork safely
+            self._start()
+
+    # -- workers -------------------------------------------------------------------------------
+
+    def _start(self) -> _Worker:
+        pin_threads()  # before the first worker (and the forkserver) starts
+        ctx = _context()
+        parent, child = ctx.Pipe(duplex=True)
+        process = ctx.Process(
+            target=_worker_main,
+            args=(child, self.payload),
+            name="flexopt-worker",
+            daemon=True,
+        )
+        process.start()
+        child.close()
+        worker = _Worker(process, parent)
+        self.workers.append(worker)
+        return worker
+
+    def _stop(self, worker: _Worker) -> None:
+        """Kill a worker now (stuck or dead) and forget it."""
+        with contextlib.suppress(Exception):
+            worker.process.kill()
+        worker.process.join(5)
+        worker.conn.close()
+        self.workers.remove(worker)
+
+    def close(self) -> None:
+        """Ask every worker to stop; kill those that do not within a second."""
+        for worker in self.workers:
+            with contextlib.suppress(Exception):
+                worker.conn.send(None)
+        deadline = time.monotonic() + 1.0
+        for worker in list(self.workers):
+            worker.process.join(max(0.0, deadline - time.monotonic()))
+            if worker.process.is_alive():
+                worker.process.kill()
+                worker.process.join(5)
+            worker.conn.close()
+        self.workers.clear()
+
+    # -- a batch -------------------------------------------------------------------------------
+
+    def __call__(
+        self,
+        problem: DesignProblem,
+        X: np.ndarray,
+        on_result: Callable[[int, Evaluation], None] | None = None,
+    ) -> list[Evaluation]:
+        """Evaluate (m, n_var) designs on the pool; returns m Evaluations in order."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        n_obj, n_con = len(problem.objective_names), len(problem.constraint_names)
+        results: list[Evaluation | None] = [None] * len(X)
+        size = chunk_rows(len(X), self.n_workers, self.chunk_size)
+        queue: deque[tuple[int, np.ndarray]] = deque((row, X[row]) for row in range(len(X)))
+        attempts = [0] * len(X)
+        n_left = len(X)
+
+        def finish(row: int, evaluation: Evaluation) -> None:
+            nonlocal n_left
+            if results[row] is None:
+                results[row] = evaluation
+                n_left -= 1
+                if on_result is not None:
+                    on_result(row, evaluation)
+
+        def lost(worker: _Worker, why: str) -> None:
+            """The worker died: resubmit its designs, the one it was solving up to a limit."""
+            pending = list(worker.task or ())
+            self._stop(worker)
+            self.n_replaced += 1
+            if not worker.ready:
+                self._failed_starts += 1
+                if self._failed_starts >= 2 * self.n_workers:
+                    raise BackendError(
+                        f"worker processes die before they load the design problem ({why}); "
+                        "run in this process with --workers 1 to see why"
+                    )
+            self._start()
+            if pending:
+                row, x = pending[0]
+                attempts[row] += 1
+                if attempts[row] >= MAX_ATTEMPTS:
+                    finish(
+                        row,
+                        Evaluation.failed(
+                            x,
+                            n_obj,
+                            n_con,
+                            f"WorkerDied: the worker process died while evaluating this design "
+                            f"({why}), {attempts[row]} times",
+                        ),
+                    )
+                    pending = pending[1:]
+                log.warning("a worker died (%s); resubmitting %d designs", why, len(pending))
+                queue.extendleft(reversed(pending))
+
+        while n_left:
+            # Keep n_workers alive, and give every idle ready worker a chunk.
+            while len(self.workers) < self.n_workers:
+                self._start()
+            now = time.perf_counter()
+            for worker in self.workers:
+                if worker.ready and not worker.task and queue:
+                    chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
+                    worker.task = deque(chunk)
+                    worker.started = now
+                    worker.conn.send(chunk)
+            timeout = None
+            if self.timeout_s is not None:
+                busy = [w.started for w in self.workers if w.task]
+                if busy:
+                    timeout = max(0.0, min(busy) + self.timeout_s - now) + 0.01
+            ready = wait(
+                [w.conn for w in self.workers] + [w.process.sentinel for w in self.workers],
+                timeout,
+            )
+            for worker in list(self.workers):
+                dead = worker.process.sentinel in ready
+                try:
+                    # drain what a dying worker sent before it died
+                    while (worker.conn in ready or dead) and worker.conn.poll():
+                        message = worker.conn.recv()
+                        self._handle(worker, message, finish)
+                except (EOFError, OSError):
+                    dead = True
+                if dead or not worker.process.is_alive():
+                    code = worker.process.exitcode
+                    worker.process.join(1)
+                    code = worker.process.exitcode if code is None else code
+                    lost(worker, _exit_text(code))
+            if self.timeout_s is not None:
+                now = time.perf_counter()
+                for worker in list(self.workers):
+                    if worker.task and now - worker.started > self.timeout_s:
+                        row, x = worker.task.popleft()
+                        log.warning(
+                            "design %d exceeded %g s: replacing its worker", row, self.timeout_s
+                        )
+                        finish(
+                            row,
+                            Evaluation.failed(
+                                x, n_obj, n_con, timeout_reason(self.timeout_s), self.timeout_s
+                            ),
+                        )
+                        # the rest of its chunk goes back to the queue, untouched
+                        queue.extendleft(reversed(list(worker.task)))
+                        worker.task = None
+                        self._stop(worker)
+                        self.n_replaced += 1
+                        self._start()
+        return [r for r in results if r is not None]
+
+    def _handle(
+        self,
+        worker: _Worker,
+        message: tuple[Any, ...],
+        finish: Callable[[int, Evaluation], None],
+    ) -> None:
+        kind = message[0]
+        if kind == "ready":
+            worker.ready = True
+            self._failed_starts = 0
+        elif kind == "done":
+            _, row, evaluation = message
+            if worker.task and worker.task[0][0] == row:
+                worker.task.popleft()
+            worker.started = time.perf_counter()  # the next design of the chunk starts now
+            finish(row, evaluation)
+        elif kind == "fatal":
+            self.close()
+            raise BackendError(
+                f"worker processes cannot load the design problem ({message[1]}); is the kind's "
+                "module importable outside this process? Run with --workers 1 to stay in it"
+            )
+
+
+def _exit_text(code: int | None) -> str:
+    if code is None:
+        return "no exit code"
+    if code < 0:
+        with contextlib.suppress(ValueError):
+            return f"killed by {signal.Signals(-code).name}"
+        return f"killed by signal {-code}"
+    return f"exit code {code}"

@@ -1,0 +1,226 @@
+"""``flexopt status``: the progress of a run, read from its folder (never written to).
+
+The running process keeps run.json, history.csv and checkpoint.json current after each
+generation and appends every finished design to evaluations.jsonl at once, so the folder alone
+says how far a run is, also mid-generation and after a kill.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import socket
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from pipeline.checkpoint import STORE_FILE
+from pipeline.errors import StudyError
+
+__all__ = ["RunStatus", "format_status", "run_status"]
+
+
+@dataclass(frozen=True)
+class RunStatus:
+    """What ``flexopt status`` shows.
+
+    Attributes
+    ----------
+    run_dir : the run folder.
+    study, kind : the study's name and kind.
+    status : running, finished, interrupted, failed, or stopped (run.json says running but its
+        process is gone: killed; resume it).
+    generation, n_gen : generations done and in all.
+    n_evaluations : designs evaluated so far (the store, which is ahead of the tables mid-run).
+    n_feasible : feasible designs among them.
+    n_failed : designs that could not be evaluated.
+    best : objective values of the best design so far, by name (None before the first).
+    best_feasible : whether that design is feasible.
+    elapsed_s : s since the run (or its last resume) started; its wall time once finished.
+    evaluations_per_s : designs solved per second in the current session.
+    eta_s : estimated s to the end (None when unknown or done).
+    error : run.json's error, when there is one.
+    """
+
+    run_dir: Path
+    study: str
+    kind: str
+    status: str
+    generation: int
+    n_gen: int
+    n_evaluations: int
+    n_feasible: int
+    n_failed: int
+    best: dict[str, float] | None
+    best_feasible: bool
+    elapsed_s: float | None
+    evaluations_per_s: float | None
+    eta_s: float | None
+    error: str = ""
+
+    @property
+    def feasible_share(self) -> float:
+        """Share of the evaluated designs that are feasible."""
+        return self.n_feasible / self.n_evaluations if self.n_evaluations else 0.0
+
+
+def _alive(record: dict[str, Any]) -> bool:
+    if record.get("hostname") not in (None, socket.gethostname()):
+        return True  # another machine: trust the record
+    try:
+        os.kill(int(record.get("pid")), 0)
+    except (OSError, TypeError, ValueError):
+        return False
+    return True
+
+
+def _store_rows(run_dir: Path) -> list[dict[str, Any]]:
+    path = run_dir / STORE_FILE
+    rows = []
+    if path.is_file():
+        for line in path.read_text(encoding="utf-8").splitlines():
+            try:
+                rows.append(json.loads(line))
+            except ValueError:  # a torn last line of a killed run
+                continue
+    return rows
+
+
+def _seconds_since(stamp: str | None) -> float | None:
+    if not stamp:
+        return None
+    try:
+        then = datetime.fromisoformat(stamp)
+    except ValueError:
+        return None
+    return (datetime.now().astimezone() - then).total_seconds()
+
+
+def run_status(run_dir: Path) -> RunStatus:
+    """Read the progress of the run in ``run_dir``.
+
+    Raises
+    ------
+    StudyError
+        At ``RUN_DIR`` when it is not a run folder of ``flexopt run``.
+    """
+    if not run_dir.is_dir():
+        raise StudyError("RUN_DIR", f"'{run_dir}' is not a folder; give a run folder")
+    try:
+        record = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise StudyError(
+            "RUN_DIR", f"'{run_dir}' has no run.json; give a folder written by flexopt run"
+        ) from None
+    except (OSError, ValueError) as exc:
+        raise StudyError("RUN_DIR", f"run.json cannot be read ({exc})") from None
+    if not isinstance(record, dict) or record.get("command") != "run":
+        raise StudyError("RUN_DIR", f"'{run_dir}' is not the folder of a flexopt run")
+
+    status = str(record.get("status", "unknown"))
+    if status == "running" and not _alive(record):
+        status = "stopped"
+    optimiser = record.get("optimiser", {})
+    n_gen = int(optimiser.get("n_gen", 0))
+    pop_size = int(optimiser.get("pop_size", 0))
+    generation = int(record.get("generations_done", 0))
+    objectives = list(record.get("objectives", []))
+
+    rows = _store_rows(run_dir)
+    n_evaluations = len(rows) or int(record.get("n_evaluations", 0))
+    failed = [r for r in rows if r.get("reason")]
+    feasible = [
+        r
+        for r in rows
+        if not r.get("reason")
+        and all(math.isfinite(v) for v in r.get("f", []))
+        and all(v <= 0 for v in r.get("g", []))
+    ]
+    best = None
+    best_feasible = False
+    if feasible:
+        top = min(feasible, key=lambda r: r["f"][0])
+        best, best_feasible = dict(zip(objectives, top["f"], strict=False)), True
+    elif rows:
+        evaluated = [r for r in rows if not r.get("reason")] or rows
+        top = min(evaluated, key=lambda r: (sum(max(v, 0.0) for v in r.get("g", [])), r["f"][0]))
+        best = dict(zip(objectives, top["f"], strict=False))
+
+    if status == "running":
+        resumed = record.get("resumed") or []
+        elapsed = _seconds_since(resumed[-1]["at"] if resumed else record.get("started"))
+    else:
+        elapsed = record.get("wall_s")
+    n_solved = int(record.get("n_solved") or 0)
+    optimise_wall = record.get("optimise_wall_s")
+    rate = record.get("evaluations_per_s")
+    if rate is None and n_solved and optimise_wall:
+        rate = n_solved / optimise_wall
+    eta = None
+    if status == "running" and rate:
+        asked = n_evaluations + int(record.get("n_cache_hits", 0))
+        # designs still to come; repeats (served by the cache) so far say how many are new
+        new_share = (
+            int(record.get("n_evaluations", 0)) / (generation * pop_size)
+            if generation and pop_size
+            else 1.0
+        )
+        remaining = max(0.0, (n_gen * pop_size - asked) * min(1.0, new_share))
+        eta = remaining / rate
+    return RunStatus(
+        run_dir=run_dir,
+        study=str(record.get("study", "")),
+        kind=str(record.get("kind", "")),
+        status=status,
+        generation=generation,
+        n_gen=n_gen,
+        n_evaluations=n_evaluations,
+        n_feasible=len(feasible),
+        n_failed=len(failed),
+        best=best,
+        best_feasible=best_feasible,
+        elapsed_s=elapsed,
+        evaluations_per_s=rate,
+        eta_s=eta,
+        error=str(record.get("error") or ""),
+    )
+
+
+def _duration(seconds: float | None) -> str:
+    if seconds is None:
+        return "–"
+    seconds = int(round(seconds))
+    hours, rest = divmod(seconds, 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
+
+
+def format_status(status: RunStatus) -> str:
+    """The lines ``flexopt status`` prints."""
+    if status.best is None:
+        best = "–"
+    else:
+        values = ", ".join(f"{name} = {value:.6g}" for name, value in status.best.items())
+        best = values + ("" if status.best_feasible else " (none feasible yet)")
+    rate = f"{status.evaluations_per_s:.3g} eval/s" if status.evaluations_per_s else "–"
+    lines = [
+        f"run          {status.run_dir}",
+        f"study        {status.study} ({status.kind})",
+        f"status       {status.status}",
+        f"generation   {status.generation}/{status.n_gen}",
+        f"evaluations  {status.n_evaluations} ({status.n_failed} failed)",
+        f"feasible     {100 * status.feasible_share:.0f}%",
+        f"best so far  {best}",
+        f"elapsed      {_duration(status.elapsed_s)}",
+        f"speed        {rate}",
+    ]
+    if status.status == "running":
+        lines.append(f"ETA          {_duration(status.eta_s)}")
+    if status.status in ("stopped", "interrupted", "failed"):
+        hint = f"resume with: flexopt run --resume {status.run_dir}"
+        lines.append(f"next         {hint}")
+    if status.error:
+        lines.append(f"error        {status.error}")
+    return "\n".join(lines)

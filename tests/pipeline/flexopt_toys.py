@@ -1,0 +1,117 @@
+"""A toy study kind whose designs fail on purpose, for the runner's parallel and fault tests.
+
+Importing this module registers the kind ``toy_faults``. It is a module of its own (not a test
+file) so that worker processes, Dask workers and a ``flexopt run`` subprocess can import it by name
+(``tests/pipeline`` on ``sys.path`` / ``PYTHONPATH``) to unpickle the problem.
+
+The problem minimises (a - 0.6)^2 + (b - 0.3)^2 + c^2 subject to a + b <= 1.1 over [0, 1]^3, and
+misbehaves where its geometry block says (every threshold is on ``a``):
+
+- ``raise_above``: evaluate raises RuntimeError;
+- ``nan_above``: evaluate returns a NaN objective;
+- ``mesh_fail_above``: evaluate returns ``Evaluation.failed`` with a meshing reason (what a kind
+  does for a design it cannot mesh);
+- ``hang_above``: evaluate sleeps ``hang_s`` (a stuck solve);
+- ``exit_above``: the process exits at once (``os._exit``: a segfault, an OOM kill);
+- ``exit_once_above``: the process exits the first time it sees each such design (a marker file in
+  ``marker_dir``), and evaluates it normally when it is resubmitted;
+- ``sleep_s``: every evaluation takes this long (a solve of realistic length).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, Field
+
+from optimise import DesignDetail, DesignSpace, Evaluation
+from pipeline.studies import StudyKind, register
+from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
+
+
+class FaultGeometry(BaseModel):
+    model_config = STUDY_CONFIG
+
+    kind: Literal["toy_faults"]
+    sleep_s: float = Field(0.0, ge=0)
+    raise_above: float | None = None
+    nan_above: float | None = None
+    mesh_fail_above: float | None = None
+    hang_above: float | None = None
+    hang_s: float = 30.0
+    exit_above: float | None = None
+    exit_once_above: float | None = None
+    marker_dir: str | None = None
+
+
+class FaultStudy(Study):
+    geometry: FaultGeometry
+    optimiser: OptimiserSpec = OptimiserSpec(pop_size=8, n_gen=4, seed=5)
+
+
+def _above(value: float, threshold: float | None) -> bool:
+    return threshold is not None and value > threshold
+
+
+@dataclass
+class FaultProblem:
+    geometry: FaultGeometry
+    space: DesignSpace = DesignSpace(("a", "b", "c"), np.zeros(3), np.ones(3))
+    objective_names: tuple[str, ...] = ("error",)
+    constraint_names: tuple[str, ...] = ("sum_excess",)
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        g = self.geometry
+        a, b, c = (float(v) for v in x)
+        if g.sleep_s:
+            time.sleep(g.sleep_s)
+        if _above(a, g.exit_above):
+            os._exit(3)
+        if _above(a, g.exit_once_above):
+            marker = Path(g.marker_dir or ".") / hashlib.sha1(x.tobytes()).hexdigest()
+            if not marker.exists():
+                marker.write_text("died here once")
+                os._exit(4)
+        if _above(a, g.hang_above):
+            time.sleep(g.hang_s)
+        if _above(a, g.raise_above):
+            raise RuntimeError(f"cannot build a = {a:.3f}")
+        if _above(a, g.mesh_fail_above):
+            return Evaluation.failed(x, 1, 1, "MeshError: the outline could not be meshed")
+        f = (a - 0.6) ** 2 + (b - 0.3) ** 2 + c**2
+        if _above(a, g.nan_above):
+            f = float("nan")
+        return Evaluation(np.array(x), np.array([f]), np.array([a + b - 1.1]), {"sum": a + b})
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        d = np.linspace(0.0, 1.0, 6)
+        table = {"displacement_mm": d, "force_N": float(x[0]) * d}
+        return DesignDetail(self.evaluate(x), table, {"x": "displacement_mm", "y": "force_N"})
+
+
+# Not kinds(): that imports every kind module, which a worker unpickling the problem should not
+# pay for. A module is imported once per process, so this registers once.
+register(
+    StudyKind(
+        "toy_faults",
+        FaultStudy,
+        check=lambda study: None,
+        problem=lambda study: FaultProblem(study.geometry),  # type: ignore[attr-defined]
+    )
+)
+
+
+def study(name: str = "faults", **geometry: object) -> dict:
+    """A toy_faults study as a raw mapping (write it as JSON, which is YAML)."""
+    return {
+        "name": name,
+        "geometry": {"kind": "toy_faults", **geometry},
+        "material": "PLA",
+        "optimiser": {"pop_size": 8, "n_gen": 4, "seed": 5},
+    }
