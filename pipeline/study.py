@@ -359,6 +359,7 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
     try:
         kind = get_kind(geometry.get("kind"))
         study = kind.model.model_validate(raw)
+        check_lengths(study.model_dump(mode="json", exclude_none=True))
         kind.check(study)
     except ValidationError as exc:
         raise validation_error_to_study_error(exc, kind.model, source) from None
@@ -366,6 +367,39 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         exc.source = exc.source or source
         raise
     return study
+
+
+#: Longest plausible length in a study, mm (100 m): past it a number was almost surely given in µm.
+MAX_LENGTH_MM = 1.0e5
+
+
+def _lengths(data: Any, path: tuple[int | str, ...], is_mm: bool) -> Any:
+    """(path, value) of every number under a key ending in ``_mm``."""
+    if isinstance(data, dict):
+        for key, value in data.items():
+            yield from _lengths(value, (*path, key), is_mm or str(key).endswith("_mm"))
+    elif isinstance(data, list | tuple):
+        for i, value in enumerate(data):
+            yield from _lengths(value, (*path, i), is_mm)
+    elif is_mm and isinstance(data, int | float) and not isinstance(data, bool):
+        yield path, float(data)
+
+
+def check_lengths(data: dict[str, Any]) -> None:
+    """Refuse lengths no compliant mechanism has: a unit slip (µm or m given as mm).
+
+    Raises
+    ------
+    StudyError
+        At the first ``*_mm`` value beyond :data:`MAX_LENGTH_MM`, with the value in mm.
+    """
+    for path, value in _lengths(data, (), False):
+        if abs(value) > MAX_LENGTH_MM:
+            raise StudyError(
+                format_loc(path),
+                f"{value:g} mm is longer than {MAX_LENGTH_MM / 1000:g} m; did you give µm? In mm "
+                f"that is {value / 1000:g}",
+            )
 
 
 def load_study(study: str | Path) -> Study:

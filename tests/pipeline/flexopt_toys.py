@@ -15,7 +15,9 @@ misbehaves where its geometry block says (every threshold is on ``a``):
 - ``exit_above``: the process exits at once (``os._exit``: a segfault, an OOM kill);
 - ``exit_once_above``: the process exits the first time it sees each such design (a marker file in
   ``marker_dir``), and evaluates it normally when it is resubmitted;
-- ``sleep_s``: every evaluation takes this long (a solve of realistic length).
+- ``sleep_s``: every evaluation takes this long (a solve of realistic length);
+- ``call_log``: a file that every finished solve appends a line to (to count solves across
+  processes).
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ class FaultGeometry(BaseModel):
     exit_above: float | None = None
     exit_once_above: float | None = None
     marker_dir: str | None = None
+    call_log: str | None = None  # every finished solve appends a line here (counts solves)
 
 
 class FaultStudy(Study):
@@ -87,6 +90,9 @@ class FaultProblem:
         f = (a - 0.6) ** 2 + (b - 0.3) ** 2 + c**2
         if _above(a, g.nan_above):
             f = float("nan")
+        if g.call_log:
+            with open(g.call_log, "a") as log:  # one short write: whole lines from any process
+                log.write(hashlib.sha1(x.tobytes()).hexdigest() + "\n")
         return Evaluation(np.array(x), np.array([f]), np.array([a + b - 1.1]), {"sum": a + b})
 
     def detail(self, x: np.ndarray) -> DesignDetail:
