@@ -30,6 +30,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from optimise.evaluation import Evaluation
 from optimise.problem import DesignProblem
 from pipeline.parallel import (
+    DASK_CHUNKS_PER_WORKER,
     BackendError,
     chunk_rows,
     evaluate_one,
@@ -188,7 +189,7 @@ class DaskBackend:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         n_obj, n_con = len(problem.objective_names), len(problem.constraint_names)
         results: list[Evaluation | None] = [None] * len(X)
-        size = chunk_rows(len(X), self.n_threads, self.chunk_size)
+        size = chunk_rows(len(X), self.n_threads, self.chunk_size, DASK_CHUNKS_PER_WORKER)
         self.n_batches += 1
         tasks: dict[Any, list[int]] = {}
         n_tasks = 0

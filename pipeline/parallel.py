@@ -84,9 +84,13 @@ THREAD_ENV_VARS = (
 #: How often an idle worker checks that the run that started it is still alive, s.
 PARENT_CHECK_S = 1.0
 
-#: Chunks per worker and batch: enough to balance designs of uneven cost, few enough that the
-#: per-message cost stays far below a solve (see benchmarks/runner_overhead.py).
-CHUNKS_PER_WORKER = 4
+#: Chunks per worker and batch. A chunk is one message (pool) or one task (Dask); the last chunks
+#: of a batch leave workers idle while others finish, so chunks should be small - as small as the
+#: per-chunk cost allows: ~0.15 ms a round trip in the pool (so ~16 chunks per worker cost nothing
+#: against 50-150 ms solves), ~1-3 ms a task on Dask (4 per worker thread).
+#: See benchmarks/runner_overhead.py.
+POOL_CHUNKS_PER_WORKER = 16
+DASK_CHUNKS_PER_WORKER = 4
 
 
 class BatchBackend(Protocol):
@@ -282,7 +286,7 @@ class ParallelSettings:
     workers : worker processes of the local pool (default: the machine's cores).
     address : the Dask scheduler, ``tcp://host:8786``.
     eval_timeout_s : s, time limit of one evaluation; None for none.
-    chunk_size : designs per task (default: about four chunks per worker and batch).
+    chunk_size : designs per message or task (default :func:`chunk_rows`).
     """
 
     backend: Literal["serial", "processes", "dask"] = "processes"
@@ -328,11 +332,16 @@ def _limit_loaded_pools() -> None:
     threadpool_limits(1)
 
 
-def chunk_rows(n: int, n_workers: int, chunk_size: int | None = None) -> int:
-    """Designs per chunk for ``n`` designs on ``n_workers`` workers."""
+def chunk_rows(
+    n: int,
+    n_workers: int,
+    chunk_size: int | None = None,
+    per_worker: int = POOL_CHUNKS_PER_WORKER,
+) -> int:
+    """Designs per chunk for ``n`` designs on ``n_workers`` workers (``chunk_size`` if given)."""
     if chunk_size:
         return max(1, int(chunk_size))
-    return max(1, math.ceil(n / (CHUNKS_PER_WORKER * max(1, n_workers))))
+    return max(1, math.ceil(n / (per_worker * max(1, n_workers))))
 
 
 @contextlib.contextmanager

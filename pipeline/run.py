@@ -983,7 +983,8 @@ def _run_in(
         solved = run.evaluator.solved
         n = len(solved)
         n_now = run.evaluator.n_backend
-        optimise_wall = record.get("optimise_wall_s") or wall
+        # a run that stopped mid-generation solved its last designs after optimise_wall_s
+        optimise_wall = (record.get("optimise_wall_s") or wall) if status == "finished" else wall
         failed = [ev for ev in solved if ev.reason]
         now_times = [ev.time_s for ev in solved[-n_now:]] if n_now else []
         record.update(

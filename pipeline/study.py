@@ -168,7 +168,7 @@ class ParallelSpec(BaseModel):
         None, gt=0, description="time limit of one evaluation, s (a design over it fails)"
     )
     chunk_size: int | None = Field(
-        None, ge=1, le=100000, description="designs per task (default: ~4 tasks per worker)"
+        None, ge=1, le=100000, description="designs per message/task (default: small chunks)"
     )
 
     @field_validator("address")
