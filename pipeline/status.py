@@ -203,7 +203,8 @@ def format_status(status: RunStatus) -> str:
         best = "–"
     else:
         values = ", ".join(f"{name} = {value:.6g}" for name, value in status.best.items())
-        best = values + ("" if status.best_feasible else " (none feasible yet)")
+        late = " yet" if status.status == "running" else ""
+        best = values + ("" if status.best_feasible else f" (none feasible{late})")
     rate = f"{status.evaluations_per_s:.3g} eval/s" if status.evaluations_per_s else "–"
     lines = [
         f"run          {status.run_dir}",
