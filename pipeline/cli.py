@@ -12,6 +12,7 @@ Only this module prints; progress goes to stderr, results to stdout.
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import math
 import shlex
@@ -298,7 +299,7 @@ class _RunProgress:
         if self.lines:
             self._say(
                 f"run folder {run_dir}\n{config.algorithm}: {config.pop_size} designs x "
-                f"{config.n_gen} generations, seed {config.seed}"
+                f"{config.n_gen} generations, seed {config.seed}{_where(run_dir)}"
             )
         if self.bar_enabled:
             self.progress = Progress(
@@ -340,6 +341,17 @@ class _RunProgress:
         if self.progress is not None:
             self.progress.stop()
             self.progress = None
+
+
+def _where(run_dir: Path) -> str:
+    """``, on processes (2 workers)``: where the run evaluates, from its run.json."""
+    try:
+        record = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+        where = f", on {record['parallel']['description']}"
+        restored = record.get("resumed") and record["resumed"][-1].get("n_in_store")
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+    return where + (f"; resuming with {restored} designs from the store" if restored else "")
 
 
 def format_generation(report: GenerationReport) -> str:

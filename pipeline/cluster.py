@@ -8,10 +8,12 @@ not), and tasks carry only chunks of design vectors.
 
 Fault handling: a design that raises is a failed Evaluation (inside the task, like everywhere); a
 worker that dies has its tasks rescheduled by the scheduler; a chunk that keeps killing workers
-(``KilledWorker``) is split into single designs, and a single design that does is a failed row
-(``WorkerDied``). The time limit runs each design in a thread and stops waiting for it after the
-limit: Dask cannot kill a running task, so the stuck thread runs on until its solve returns (run
-the workers with ``--lifetime`` to recycle them if that happens often).
+(``KilledWorker``) is split into single designs, a single design that does is tried once more
+alone at the end of the batch (the scheduler also blames tasks merely queued on a dying worker),
+and if it kills workers even then it is a failed row (``WorkerDied``). The time limit runs each
+design in a thread and stops waiting for it after the limit: Dask cannot kill a running task, so
+the stuck thread runs on until its solve returns (run the workers with ``--lifetime`` to recycle
+them if that happens often).
 """
 
 from __future__ import annotations
@@ -209,36 +211,51 @@ class DaskBackend:
             tasks[future] = rows
             return future
 
+        def record(done: list[tuple[int, Evaluation]]) -> None:
+            for row, evaluation in done:
+                if results[row] is None:
+                    results[row] = evaluation
+                    if on_result is not None:
+                        on_result(row, evaluation)
+
         futures = [submit(list(range(s, min(s + size, len(X))))) for s in range(0, len(X), size)]
         pending = as_completed(futures)
+        suspects: list[int] = []
         try:
             for future in pending:
                 rows = tasks.pop(future)
                 try:
-                    done = future.result()
-                except KilledWorker as exc:
-                    if len(rows) > 1:  # find the design that kills workers: one per task
+                    record(future.result())
+                except KilledWorker:
+                    # The scheduler blames every task on a worker that dies, also those only
+                    # queued there: split a chunk into single designs, and try a single one
+                    # again alone at the end, where only the design that kills is blamed.
+                    if len(rows) > 1:
                         log.warning("a chunk kept killing Dask workers; resubmitting its designs")
                         for row in rows:
                             pending.add(submit([row]))
-                        continue
-                    done = [
-                        (
-                            rows[0],
-                            Evaluation.failed(
-                                X[rows[0]],
-                                n_obj,
-                                n_con,
-                                f"WorkerDied: Dask workers died while evaluating this design "
-                                f"({exc.__class__.__name__})",
-                            ),
-                        )
-                    ]
-                for row, evaluation in done:
-                    if results[row] is None:
-                        results[row] = evaluation
-                        if on_result is not None:
-                            on_result(row, evaluation)
+                    else:
+                        suspects.append(rows[0])
+            for row in suspects:
+                future = submit([row])
+                try:
+                    record(future.result())
+                except KilledWorker as exc:
+                    record(
+                        [
+                            (
+                                row,
+                                Evaluation.failed(
+                                    X[row],
+                                    n_obj,
+                                    n_con,
+                                    "WorkerDied: Dask workers died while evaluating this design "
+                                    f"alone ({exc.__class__.__name__})",
+                                ),
+                            )
+                        ]
+                    )
+                tasks.pop(future, None)
         except BaseException:
             self.client.cancel(list(tasks))  # Ctrl-C or a broken cluster: stop what is queued
             raise

@@ -851,9 +851,10 @@ def run_study(
     Raises
     ------
     StudyError
-        When ``out`` cannot be a new run folder (nothing is written).
+        When ``out`` cannot be a new run folder, or the workers or the cluster cannot take the
+        problem (at ``--workers`` / ``--dask``); nothing is written.
     BackendError
-        When the workers or the cluster cannot take the problem (nothing is written).
+        When worker processes die before they can load the problem (mid-run).
     OSError
         When the run folder cannot be written; a folder that is read-only or full is found by a
         probe before anything else is done.

@@ -135,15 +135,15 @@ def test_cli_time_limit_marks_slow_designs_and_the_run_goes_on(tmp_path, capsys)
     path = tmp_path / "toy.yaml"
     path.write_text(json.dumps(flexopt_toys.study(hang_above=0.8, hang_s=30.0)))
     out = tmp_path / "run"
-    argv = ["run", str(path), "--out", str(out), "-q", "--workers", "2", "--eval-timeout", "0.4"]
+    argv = ["run", str(path), "--out", str(out), "-q", "--workers", "2", "--eval-timeout", "0.8"]
     assert main(argv) == 0
     rows = read_records_csv(out / "evaluations.csv")
     slow = [r for r in rows if float(r["a"]) > 0.8]
-    assert slow and all(r["reason"] == timeout_reason(0.4) for r in slow)
+    assert slow and all(r["reason"] == timeout_reason(0.8) for r in slow)
     assert all(r["reason"] == "" for r in rows if float(r["a"]) <= 0.8)
     record = json.loads((out / "run.json").read_text())
-    assert record["parallel"]["eval_timeout_s"] == 0.4
-    assert record["failure_reasons"] == {timeout_reason(0.4): len(slow)}
+    assert record["parallel"]["eval_timeout_s"] == 0.8
+    assert record["failure_reasons"] == {timeout_reason(0.8): len(slow)}
 
 
 def test_a_problem_that_cannot_be_pickled_is_a_clear_error():

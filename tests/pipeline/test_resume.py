@@ -230,3 +230,22 @@ def test_a_read_only_folder_is_found_before_any_solve(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot be written" in err and "Traceback" not in err
     assert not out.exists() and not (tmp_path / "calls.log").exists()
+
+
+def test_every_write_into_a_run_folder_goes_through_write_atomic():
+    """A static guard: pipeline code writes files only through runfolder.write_atomic (and the
+    append-only store), so a reader never sees half a file. Plots and STL are made in memory."""
+    import re
+
+    allowed = {"runfolder.py", "checkpoint.py"}
+    pattern = re.compile(
+        r"\.write_text\(|\.write_bytes\(|open\([^)]*['\"][wa]b?['\"]|savefig\((?!buf)"
+    )
+    offenders = []
+    for path in sorted((ROOT / "pipeline").rglob("*.py")):
+        if path.name in allowed:
+            continue
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if pattern.search(line) and not line.lstrip().startswith("#"):
+                offenders.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()}")
+    assert offenders == [], "\n".join(offenders)

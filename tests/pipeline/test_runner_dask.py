@@ -103,13 +103,27 @@ def test_an_unreachable_scheduler_is_one_line_and_nothing_is_written(tmp_path, c
 
 
 def test_dask_time_limit_and_a_design_that_kills_workers(tmp_path, cluster):
-    problem = toy_setup(hang_above=0.8, hang_s=3.0, exit_above=0.95).problem
+    # limits with room for a loaded machine: 1 s against a fast design of microseconds
+    problem = toy_setup(hang_above=0.8, hang_s=4.0, exit_above=0.95).problem
     X = np.array([[0.1, 0.1, 0.0], [0.9, 0.1, 0.0], [0.97, 0.0, 0.0], [0.3, 0.2, 0.1]])
     settings = ParallelSettings(
-        "dask", address=cluster.scheduler_address, eval_timeout_s=0.5, chunk_size=2
+        "dask", address=cluster.scheduler_address, eval_timeout_s=1.0, chunk_size=2
     )
     with open_backend(settings, problem) as backend:
         out = backend(problem, X)
     assert out[0].reason == "" and out[3].reason == ""
-    assert out[1].reason == timeout_reason(0.5)
+    assert out[1].reason == timeout_reason(1.0)
     assert out[2].reason.startswith("WorkerDied")
+
+
+def test_flexopt_run_on_dask_from_the_command_line(tmp_path, cluster, capsys):
+    path = tmp_path / "toy.yaml"
+    path.write_text(json.dumps(flexopt_toys.study(**FAULTS)))
+    out = tmp_path / "run"
+    address = cluster.scheduler_address
+    assert main(["run", str(path), "--out", str(out), "--dask", address]) == 0
+    err = capsys.readouterr().err
+    assert f"on dask at {address}" in err
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "finished" and record["parallel"]["address"] == address
+    assert record["n_failed"] > 0 and record["n_evaluations"] == len(table(out))
