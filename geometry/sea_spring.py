@@ -73,6 +73,8 @@ __all__ = [
     "SpringGeometry",
     "build_spring",
     "clearances",
+    "ga_bounds",
+    "ga_variables",
     "params_from_vector",
     "params_to_vector",
     "taguchi_params",
@@ -291,44 +293,94 @@ class SpringParams:
         return 360.0 / self.n_sets
 
 
-def params_from_vector(x: np.ndarray, n_sets: int) -> SpringParams:
-    """SpringParams from the 18 GA variables in :data:`GA_VARIABLES` order (mm, degrees).
+def ga_variables(n_arcs: int = 5) -> tuple[str, ...]:
+    """Names of the GA variables for ``n_arcs`` arcs: R1..Rn, S1..Sn, W1..W(n-1), P1, P2,
+    alpha, ST (Table 9's 18 for n = 5).
+
+    Raises
+    ------
+    GeometryError
+        ``n_arcs`` not odd and >= 1.
+    """
+    if int(n_arcs) != n_arcs or n_arcs < 1 or n_arcs % 2 == 0:
+        raise GeometryError(f"n_arcs = {n_arcs} must be odd and >= 1 (2 RR + 1)")
+    n = int(n_arcs)
+    return (
+        *(f"R{i}" for i in range(1, n + 1)),
+        *(f"S{i}" for i in range(1, n + 1)),
+        *(f"W{i}" for i in range(1, n)),
+        "P1",
+        "P2",
+        "alpha",
+        "ST",
+    )
+
+
+def ga_bounds(n_arcs: int = 5) -> dict[str, tuple[float, float]]:
+    """Bounds of the GA variables (mm, degrees): Table 9 for five arcs; for another count the
+    radius bands are spread evenly between Table 9's first and last band, each as wide as
+    Table 9's middle one allows for the pitch, with Table 9's S, W, P1, alpha and ST ranges (the
+    outermost arc keeps S5's 1.6 mm cap, which keeps it inside the envelope) and the neck P2
+    narrowed to 1-2.4 mm above five arcs."""
+    names = ga_variables(n_arcs)
+    if n_arcs == 5:
+        return dict(TABLE9_BOUNDS)
+    n = int(n_arcs)
+    lo, hi = TABLE9_BOUNDS["R1"], TABLE9_BOUNDS["R5"]
+    centres = np.linspace(0.5 * sum(lo), 0.5 * sum(hi), n)
+    pitch = (centres[-1] - centres[0]) / max(n - 1, 1)
+    half = min(1.0, 0.2 * pitch)
+    out: dict[str, tuple[float, float]] = {}
+    for i in range(n):
+        c = float(centres[i])
+        r_lo, r_hi = c - half, c + half
+        if i == 0:
+            r_lo, r_hi = lo
+        if i == n - 1:
+            r_lo, r_hi = hi
+        out[f"R{i + 1}"] = (round(float(r_lo), 3), round(float(r_hi), 3))
+    for i in range(n):
+        out[f"S{i + 1}"] = TABLE9_BOUNDS["S5"] if i == n - 1 else TABLE9_BOUNDS["S1"]
+    for i in range(n - 1):
+        out[f"W{i + 1}"] = TABLE9_BOUNDS["W1"]
+    for k in ("P1", "alpha", "ST"):
+        out[k] = TABLE9_BOUNDS[k]
+    # The neck runs at the pad's radius, inside the last arc: with more arcs the one before the
+    # last comes closer, so a wide neck would close that slot (clearances: slot_mm).
+    out["P2"] = TABLE9_BOUNDS["P2"] if n < 5 else (1.0, 2.4)
+    out = {k: out[k] for k in names}
+    assert tuple(out) == names
+    return out
+
+
+def params_from_vector(x: np.ndarray, n_sets: int, n_arcs: int = 5) -> SpringParams:
+    """SpringParams from the GA variables in :func:`ga_variables` order (mm, degrees); five
+    arcs is Table 9's 18-variable vector (:data:`GA_VARIABLES`).
 
     Raises
     ------
     GeometryError
         Wrong length or values (see :class:`SpringParams`).
     """
+    names = ga_variables(n_arcs)
+    n = int(n_arcs)
     x = np.asarray(x, dtype=float).ravel()
-    if x.shape != (len(GA_VARIABLES),):
-        raise GeometryError(
-            f"{x.size} values; the GA vector has {len(GA_VARIABLES)}: {GA_VARIABLES}"
-        )
+    if x.shape != (len(names),):
+        raise GeometryError(f"{x.size} values; the GA vector of {n} arcs has {len(names)}: {names}")
     return SpringParams(
-        radii_mm=tuple(x[0:5]),
-        arc_thickness_mm=tuple(x[5:10]),
-        link_width_mm=tuple(x[10:14]),
-        hub_link_mm=float(x[14]),
-        pad_link_mm=float(x[15]),
-        span_deg=float(x[16]),
-        thickness_mm=float(x[17]),
+        radii_mm=tuple(x[0:n]),
+        arc_thickness_mm=tuple(x[n : 2 * n]),
+        link_width_mm=tuple(x[2 * n : 3 * n - 1]),
+        hub_link_mm=float(x[3 * n - 1]),
+        pad_link_mm=float(x[3 * n]),
+        span_deg=float(x[3 * n + 1]),
+        thickness_mm=float(x[3 * n + 2]),
         n_sets=int(n_sets),
     )
 
 
 def params_to_vector(p: SpringParams) -> np.ndarray:
-    """(18,) GA vector of a five-arc SpringParams.
-
-    Raises
-    ------
-    GeometryError
-        When ``p`` does not have five arcs (the GA's Table 9 layout).
-    """
-    if p.n_arcs != 5:
-        raise GeometryError(
-            f"the GA vector describes five arcs (Table 9); this spring has {p.n_arcs} "
-            "(RR = 2 in the Taguchi stage gives five)"
-        )
+    """(3 n + 3,) GA vector of a SpringParams (Table 9's 18 for five arcs)."""
     return np.array(
         [
             *p.radii_mm,

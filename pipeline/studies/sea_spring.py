@@ -10,7 +10,8 @@ Two stages, as in the paper (docs/sea_spring.md):
    confirmation run, and the additivity check with extra runs off the array. It runs once, when
    the design problem is built (about 25 + 6 linear solves, under a minute), fixes RP for stage 2
    and seeds its first population; its results are recorded in ``detail().info["taguchi"]``.
-2. **NSGA-II** over the 18 variables of Table 9 (:data:`geometry.sea_spring.GA_VARIABLES`):
+2. **NSGA-II** over the variables of Table 9 (:data:`geometry.sea_spring.GA_VARIABLES`; with
+   ``geometry.arcs`` other than 5, :func:`geometry.sea_spring.ga_variables`):
    objectives the peak von Mises stress at the design torque and ``|K - K_target| / K_target``;
    constraints the envelope, the thinnest member, the narrowest slot, the link reach (all from
    :func:`geometry.sea_spring.clearances`) and the stiffness band (``tolerance_percent``). The
@@ -59,14 +60,14 @@ from fea.plane_stress import (
 )
 from geometry.errors import GeometryError
 from geometry.sea_spring import (
-    GA_VARIABLES,
     TABLE6_LEVELS,
-    TABLE9_BOUNDS,
     SpringFrame,
     SpringGeometry,
     SpringParams,
     build_spring,
     clearances,
+    ga_bounds,
+    ga_variables,
     params_from_vector,
     taguchi_params,
 )
@@ -131,6 +132,22 @@ class SeaSpringGeometry(BaseModel):
         le=12,
         description="RP of the GA stage; default: the Taguchi stage's choice (4 without it)",
     )
+    arcs: int = Field(
+        5,
+        ge=1,
+        le=15,
+        description="arcs per set in the GA stage (odd; Table 9 has 5; 7 lowers the stress)",
+    )
+
+    @model_validator(mode="after")
+    def _odd_arcs(self) -> SeaSpringGeometry:
+        if self.arcs % 2 == 0:
+            raise ValueError(
+                f"arcs = {self.arcs}: the serpentine needs an odd number of arcs (hub spoke at "
+                f"one end of a set, pad at the other); use {self.arcs - 1} or {self.arcs + 1}"
+            )
+        return self
+
     hub_radius_mm: float = Field(9.0, gt=0, description="hub disc radius")
     bore_diameter_mm: float = Field(6.0, ge=0, description="hub bore")
     hub_holes: int = Field(4, ge=0, le=12, description="hub bolt holes")
@@ -305,13 +322,14 @@ def target_stiffness_Nm_per_rad(study: SeaSpringStudy) -> tuple[float, dict[str,
     return float(k), {"source": f"stiffness_window ({w.pick})", "k_min": lo, "k_max": hi}
 
 
-def _unknown(name: str, path: str) -> StudyError:
-    close = [n for n in GA_VARIABLES if n.lower() == name.lower()]
-    close = close or difflib.get_close_matches(name, GA_VARIABLES, n=1)
+def _unknown(name: str, path: str, names: tuple[str, ...]) -> StudyError:
+    close = [n for n in names if n.lower() == name.lower()]
+    close = close or difflib.get_close_matches(name, names, n=1)
     hint = f"did you mean '{close[0]}'? " if close else ""
     return StudyError(
         f"{path}.{name}",
-        f"unknown design variable '{name}'; {hint}use {', '.join(GA_VARIABLES)} (Table 9)",
+        f"unknown design variable '{name}'; {hint}use {', '.join(names)} (Table 9 for 5 arcs; "
+        "geometry.arcs sets the count)",
     )
 
 
@@ -324,11 +342,12 @@ def design_space(study: SeaSpringStudy) -> DesignSpace:
         At ``design_space.<name>``: unknown name, not two numbers, swapped, equal or non-positive
         bounds, ST above ``geometry`` limits or alpha outside (0, 360 / RP).
     """
-    bounds = {k: list(v) for k, v in TABLE9_BOUNDS.items()}
+    names = ga_variables(study.geometry.arcs)
+    bounds = {k: list(v) for k, v in ga_bounds(study.geometry.arcs).items()}
     for name, b in study.design_space.items():
         path = f"design_space.{name}"
         if name not in bounds:
-            raise _unknown(name, "design_space")
+            raise _unknown(name, "design_space", names)
         if len(b) != 2:
             raise StudyError(path, f"got {list(b)}; give two bounds [lower, upper]")
         lo, hi = float(b[0]), float(b[1])
@@ -341,22 +360,22 @@ def design_space(study: SeaSpringStudy) -> DesignSpace:
         if name == "alpha" and hi >= 360:
             raise StudyError(path, f"alpha up to {hi:g} degrees leaves no room; keep it < 360 / RP")
         bounds[name] = [lo, hi]
-    names = tuple(f"{n}_deg" if n == "alpha" else f"{n}_mm" for n in GA_VARIABLES)
     return DesignSpace(
-        names,
-        np.array([bounds[n][0] for n in GA_VARIABLES]),
-        np.array([bounds[n][1] for n in GA_VARIABLES]),
+        tuple(f"{n}_deg" if n == "alpha" else f"{n}_mm" for n in names),
+        np.array([bounds[n][0] for n in names]),
+        np.array([bounds[n][1] for n in names]),
     )
 
 
 def design_vector(study: SeaSpringStudy) -> np.ndarray:
     """(18,) the study's ``design:`` (unlisted variables at the middle of their range)."""
     space = design_space(study)
+    names = ga_variables(study.geometry.arcs)
     x = 0.5 * (space.lower + space.upper)
     for name, value in (study.design or {}).items():
-        if name not in GA_VARIABLES:
-            raise _unknown(name, "design")
-        x[GA_VARIABLES.index(name)] = float(value)
+        if name not in names:
+            raise _unknown(name, "design", names)
+        x[names.index(name)] = float(value)
     return x
 
 
@@ -367,20 +386,21 @@ def check(study: SeaSpringStudy) -> None:
     except GeometryError as exc:
         raise StudyError("geometry", str(exc)) from exc
     space = design_space(study)
-    st = space.upper[GA_VARIABLES.index("ST")]
+    names = ga_variables(study.geometry.arcs)
+    st = space.upper[names.index("ST")]
     if st > 20.0 + 1e-9:
         log.info("design_space.ST reaches %.3g mm, beyond the paper's 20 mm", st)
     n_sets = study.geometry.n_sets or 4
-    if space.upper[GA_VARIABLES.index("alpha")] >= 360.0 / n_sets:
+    if space.upper[names.index("alpha")] >= 360.0 / n_sets:
         raise StudyError(
             "design_space.alpha",
-            f"alpha may reach {space.upper[GA_VARIABLES.index('alpha')]:g} degrees but {n_sets} "
+            f"alpha may reach {space.upper[names.index('alpha')]:g} degrees but {n_sets} "
             f"sets leave {360.0 / n_sets:g} degrees each; lower its upper bound",
         )
     if study.design is not None:
         x = design_vector(study)
         try:
-            build_spring(params_from_vector(x, n_sets), frame)
+            build_spring(params_from_vector(x, n_sets, study.geometry.arcs), frame)
         except GeometryError as exc:
             raise StudyError("design", str(exc)) from exc
     target_stiffness_Nm_per_rad(study)
@@ -713,14 +733,17 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
 
 
 def seed_from_taguchi(
-    chosen: dict[str, float], space: DesignSpace, frame: SpringFrame
+    chosen: dict[str, float], space: DesignSpace, frame: SpringFrame, n_arcs: int = 5
 ) -> np.ndarray:
-    """The stage-1 spring as an 18-variable GA vector (five arcs, clipped into the space)."""
-    p = taguchi_params(chosen["RP"], 2, chosen["ST"], chosen["A"], chosen["RT"], chosen["D"], frame)
-    R = np.linspace(frame.inner_radius_mm, frame.outer_radius_mm, 5)
+    """The stage-1 spring as a GA vector of ``n_arcs`` arcs (its other levels kept, arcs spread
+    evenly as in stage 1, clipped into the space)."""
+    n = int(n_arcs)
+    p = taguchi_params(
+        chosen["RP"], (n - 1) // 2, chosen["ST"], chosen["A"], chosen["RT"], chosen["D"], frame
+    )
     x = np.array(
-        [*R, *(chosen["RT"],) * 5, *(chosen["D"],) * 4, chosen["D"], max(chosen["D"], chosen["RT"]),
-         p.span_deg, chosen["ST"]]
+        [*p.radii_mm, *p.arc_thickness_mm, *p.link_width_mm, p.hub_link_mm, p.pad_link_mm,
+         p.span_deg, p.thickness_mm]
     )  # fmt: skip
     return space.clip(x)
 
@@ -761,10 +784,12 @@ class SeaSpringProblem:
         self.theta = study.target.torque_Nm / self.k_target  # rad
         self.full_space = design_space(study)
         self.solve_st = study.thickness == "solve"
-        i_st = GA_VARIABLES.index("ST")
+        self.n_arcs = study.geometry.arcs
+        self.names = ga_variables(self.n_arcs)
+        i_st = self.names.index("ST")
         self.st_range = (float(self.full_space.lower[i_st]), float(self.full_space.upper[i_st]))
         if self.solve_st:
-            keep = [i for i in range(len(GA_VARIABLES)) if i != i_st]
+            keep = [i for i in range(len(self.names)) if i != i_st]
             self.space = DesignSpace(
                 tuple(self.full_space.names[i] for i in keep),
                 self.full_space.lower[keep],
@@ -793,22 +818,22 @@ class SeaSpringProblem:
         if not self.solve_st:
             return x
         st = self.REFERENCE_THICKNESS_MM if st_mm is None else st_mm
-        return np.insert(x, GA_VARIABLES.index("ST"), st)
+        return np.insert(x, self.names.index("ST"), st)
 
     def params(self, x: np.ndarray, st_mm: float | None = None) -> SpringParams:
-        return params_from_vector(self.full_vector(x, st_mm), self.n_sets)
+        return params_from_vector(self.full_vector(x, st_mm), self.n_sets, self.n_arcs)
 
     def initial_designs(self) -> np.ndarray | None:
         """The stage-1 spring (five-arc version) or else the study's ``design:``, seeded into
         the first population."""
         if self.stage1:
-            x = seed_from_taguchi(self.stage1["chosen"], self.full_space, self.frame)
+            x = seed_from_taguchi(self.stage1["chosen"], self.full_space, self.frame, self.n_arcs)
         elif self.study.design is not None:
             x = self.full_space.clip(design_vector(self.study))
         else:
             return None
         if self.solve_st:
-            x = np.delete(x, GA_VARIABLES.index("ST"))
+            x = np.delete(x, self.names.index("ST"))
         return x[None, :]
 
     def _margins_g(self, p: SpringParams) -> np.ndarray:
@@ -924,7 +949,7 @@ class SeaSpringProblem:
         except (GeometryError, FeaError) as exc:
             info["problem"] = f"cannot build: {exc}"
             return DesignDetail(evaluation, info=info)
-        info["design"] = dict(zip(GA_VARIABLES, map(float, self.full_vector(x, st)), strict=True))
+        info["design"] = dict(zip(self.names, map(float, self.full_vector(x, st)), strict=True))
         if self.solve_st:
             # ST was computed from a solve at the reference thickness; solving again at ST
             # shows the proportionality (the stiffness must be the target to solver precision).
@@ -968,6 +993,7 @@ class SeaSpringProblem:
                 "volume_mm3": volume,
                 "stiffness_per_volume_Nm_per_rad_cm3": k_mean / (volume * 1e-3),
                 "stiffness_per_disc_volume_Nm_per_rad_cm3": k_mean / disc_cm3,
+                "torque_per_disc_volume_Nm_per_cm3": study.target.torque_Nm / disc_cm3,
                 "max_torque_per_mass_Nm_per_kg": study.target.torque_Nm / mass,
                 "checks": geom.checks,
                 "mesh": {"dofs": r.n_dofs, "triangles": r.n_triangles},
@@ -1033,6 +1059,7 @@ def _published_comparison() -> list[dict[str, Any]]:
                 "stiffness_per_disc_volume_Nm_per_rad_cm3": (
                     s["stiffness_Nm_per_rad"] / vol if vol else None
                 ),
+                "torque_per_disc_volume_Nm_per_cm3": s["torque_Nm"] / vol if vol else None,
             }
         )
     return rows
@@ -1099,7 +1126,7 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
     prob = SeaSpringProblem(study, stage1={})
     x = design_vector(study)
     if prob.solve_st:  # ST follows from the target (the design's ST is ignored)
-        x = np.delete(x, GA_VARIABLES.index("ST"))
+        x = np.delete(x, prob.names.index("ST"))
     times = []
     r = geom = None
     st = math.nan
@@ -1120,6 +1147,8 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
         "linear_stiffness_Nm_per_rad": r.linear_stiffness_Nm_per_rad,
         "stiffness_error_percent": (r.mean_stiffness_Nm_per_rad / prob.k_target - 1) * 100,
         "peak_stress_MPa": r.worst_peak_stress_MPa,
+        "stress_yield_ratio": r.worst_peak_stress_MPa / prob.material.yield_MPa,
+        "stress_allowable_ratio": r.worst_peak_stress_MPa / study.target.allowable_stress_MPa,
         "mass_g": geom.mass_kg(prob.material.density_kg_m3) * 1e3,
         "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
     }

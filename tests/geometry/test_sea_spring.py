@@ -119,3 +119,17 @@ def test_fillets_round_the_u_turn_corners():
     # each concave corner gains r^2 (1 - pi/4) for a right angle; dozens of corners per set
     per_corner = 0.3**2 * (1 - math.pi / 4)
     assert 20 * per_corner < added < 400 * per_corner
+
+
+def test_other_arc_counts_have_variables_and_bounds():
+    from geometry.sea_spring import ga_bounds, ga_variables
+
+    assert ga_variables(5) == GA_VARIABLES and ga_bounds(5) == TABLE9_BOUNDS
+    names, bounds = ga_variables(7), ga_bounds(7)
+    assert len(names) == 24 and tuple(bounds) == names
+    mid = np.array([0.5 * (lo + hi) for lo, hi in bounds.values()])
+    g = build_spring(params_from_vector(mid, 4, 7))
+    assert g.params.n_arcs == 7 and g.checks["outer_radius_mm"] <= 36.0 + 1e-9
+    np.testing.assert_allclose(params_to_vector(g.params), mid)
+    with pytest.raises(GeometryError, match="odd"):
+        ga_variables(6)
