@@ -871,28 +871,32 @@ class SeaSpringProblem:
     # -- the contract ----------------------------------------------------------------------
 
     def evaluate(self, x: np.ndarray) -> Evaluation:
+        return self._evaluate(x)[0]
+
+    def _evaluate(self, x: np.ndarray, steps: int = 1, keep_model: bool = False) -> tuple:
+        """(Evaluation, solved) with solved = (params, geometry, response, ST) or None."""
         t0 = time.perf_counter()
         x = np.asarray(x, dtype=float)
         n_obj, n_con = len(self.objective_names), len(self.constraint_names)
         try:
             p = self.params(x)
         except GeometryError as exc:
-            return Evaluation.failed(x, n_obj, n_con, f"cannot build: {exc}")
+            return Evaluation.failed(x, n_obj, n_con, f"cannot build: {exc}"), None
         g_geo = self._margins_g(p)
         n_extra = n_con - g_geo.size
         if np.any(g_geo > 1e-9):
             # Not buildable: no FE, but graded violations lead the GA back.
             g = np.append(g_geo, np.full(n_extra, INFEASIBLE_VALUE))
             f = np.full(n_obj, INFEASIBLE_VALUE)
-            return Evaluation(x, f, g, {"buildable": False}, "", time.perf_counter() - t0)
+            ev = Evaluation(x, f, g, {"buildable": False}, "", time.perf_counter() - t0)
+            return ev, None
         try:
-            p, geom, r, st = self.solve(x)
+            p, geom, r, st = self.solve(x, steps, keep_model)
         except (GeometryError, FeaError) as exc:
-            return Evaluation.failed(x, n_obj, n_con, f"cannot build: {exc}")
+            return Evaluation.failed(x, n_obj, n_con, f"cannot build: {exc}"), None
         if not r.ok:
-            return Evaluation.failed(
-                x, n_obj, n_con, f"nonlinear solve: {r.message}", time.perf_counter() - t0
-            )
+            reason = f"nonlinear solve: {r.message}"
+            return Evaluation.failed(x, n_obj, n_con, reason, time.perf_counter() - t0), None
         mass_g = geom.mass_kg(self.material.density_kg_m3) * 1e3
         k_mean = r.mean_stiffness_Nm_per_rad
         err = abs(k_mean / self.k_target - 1.0) * 100.0
@@ -920,12 +924,13 @@ class SeaSpringProblem:
             "newton_iterations": r.iterations,
             "fe_time_s": r.solve_time_s,
         }
-        return Evaluation(x, f, g, metrics, "", time.perf_counter() - t0)
+        return Evaluation(x, f, g, metrics, "", time.perf_counter() - t0), (p, geom, r, st)
 
     def detail(self, x: np.ndarray) -> DesignDetail:
         x = np.asarray(x, dtype=float)
-        evaluation = self.evaluate(x)
         study = self.study
+        # One solve serves the evaluation and the curve (the last row is the design point).
+        evaluation, solved = self._evaluate(x, study.mesh.curve_steps, keep_model=True)
         info: dict[str, Any] = {
             "thickness": study.thickness,
             "n_sets": self.n_sets,
@@ -943,22 +948,21 @@ class SeaSpringProblem:
         }
         if self.stage1:
             info["taguchi"] = _stage1_summary(self.stage1)
-        steps = study.mesh.curve_steps
-        try:
-            p, geom, r, st = self.solve(x, steps, keep_model=True)
-        except (GeometryError, FeaError) as exc:
-            info["problem"] = f"cannot build: {exc}"
+        if solved is None:
+            info["problem"] = evaluation.reason or "not buildable (see the constraints)"
             return DesignDetail(evaluation, info=info)
+        p, geom, r, st = solved
         info["design"] = dict(zip(self.names, map(float, self.full_vector(x, st)), strict=True))
         if self.solve_st:
             # ST was computed from a solve at the reference thickness; solving again at ST
             # shows the proportionality (the stiffness must be the target to solver precision).
-            check = analyse_spring(geom, self.material, self.theta, study.mesh,
-                                   both_directions=study.target.directions == "both")  # fmt: skip
+            # (one direction suffices to show it; torques scale with ST in both).
+            check = analyse_spring(geom, self.material, self.theta, study.mesh)
             info["thickness_solved"] = {
                 "ST_mm": st,
-                "stiffness_resolved_at_ST_Nm_per_rad": check.mean_stiffness_Nm_per_rad,
-                "peak_stress_resolved_at_ST_MPa": check.worst_peak_stress_MPa,
+                "ccw_stiffness_scaled_from_reference_Nm_per_rad": r.stiffness_Nm_per_rad,
+                "ccw_stiffness_resolved_at_ST_Nm_per_rad": check.stiffness_Nm_per_rad,
+                "ccw_peak_stress_resolved_at_ST_MPa": float(check.peak_stress_MPa[-1]),
             }
         small = analyse_spring(geom, self.material, math.radians(1.0), study.mesh)
         table = _curve_table(r)
