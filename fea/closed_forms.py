@@ -87,6 +87,8 @@ __all__ = [
     "elliptical_notch_compliance_simplified",
     "corner_filleted_compliance",
     "cross_axis_stiffness_Nmm",
+    "ArmSpringLinear",
+    "arm_spring_linear",
     "notch_stress_concentration",
 ]
 
@@ -434,3 +436,77 @@ def pivot_closed_form(flexure: Flexure, E_MPa: float) -> PivotClosedForm:
     if not (math.isfinite(E_MPa) and E_MPa > 0):
         raise FeaError(f"E_MPa = {E_MPa!r} must be > 0")
     return fn(flexure, float(E_MPa))
+
+
+@dataclass(frozen=True)
+class ArmSpringLinear:
+    """Linear (Euler-Bernoulli, Castigliano) response of a hub carried by curved arms.
+
+    Attributes
+    ----------
+    stiffness_Nmm_per_rad : float, N·mm/rad — hub torque per hub rotation, all arms.
+    moment_Nmm_per_rad : (s,) float, N·mm/rad — bending moment along one arm per hub rotation.
+    end_load_per_rad : (3,) float — (Fx N, Fy N, M N·mm) the hub applies to one arm, per rad.
+    stress_MPa_per_rad : (s,) float, MPa/rad — outer-fibre bending stress 6|M|/(b w^2).
+    """
+
+    stiffness_Nmm_per_rad: float
+    moment_Nmm_per_rad: np.ndarray
+    end_load_per_rad: np.ndarray
+    stress_MPa_per_rad: np.ndarray
+
+
+def arm_spring_linear(
+    xy_mm: np.ndarray, width_mm: np.ndarray, E_MPa: float, thickness_mm: float, n_arms: int
+) -> ArmSpringLinear:
+    r"""Small-rotation stiffness and moment of ``n_arms`` identical curved arms between a hub
+    turning about the origin and clamped outer ends (the elastic-centre / Castigliano method).
+
+    Arm 0 runs from the hub end A = ``xy_mm[0]`` (fixed to the hub) to the clamped end
+    ``xy_mm[-1]``. A load (Fx, Fy, M) applied by the hub at A gives the bending moment
+    ``M(s) = M + (x_A - x(s)) Fy - (y_A - y(s)) Fx`` and the complementary energy
+    ``U* = \int M^2 / (2 E I) + N^2 / (2 E A) ds`` with the axial force ``N = F . t(s)`` (the
+    axial term is second order for a curved slender arm but makes a straight spoke determinate;
+    shear is left out). Its gradient is the displacement of A, ``C [Fx, Fy, M]`` with
+    ``C = \int g g^T / (E I) + h h^T / (E A) ds``, ``g = [-(y_A - y), x_A - x, 1]``,
+    ``h = [t_x, t_y, 0]``. A rigid hub rotation theta
+    moves A by ``theta (-y_A, x_A)`` and turns it by theta, so ``[Fx, Fy, M] = theta C^{-1}
+    [-y_A, x_A, 1]``, and the hub torque is ``n (M + x_A Fy - y_A Fx)``. When the arm's elastic
+    centre (the 1/EI-weighted centroid of its centreline) is the origin, Fx = Fy = 0 and the arm
+    carries a uniform moment: the lower bound of the peak stress for a given stiffness.
+
+    Parameters
+    ----------
+    xy_mm : (s, 2) float, mm — centreline from the hub end to the clamped end.
+    width_mm : (s,) float, mm — in-plane width w (bending depth) at those points.
+    E_MPa : float, MPa.
+    thickness_mm : float, mm — out-of-plane thickness b.
+    n_arms : int.
+
+    Returns
+    -------
+    ArmSpringLinear
+    """
+    xy = np.asarray(xy_mm, dtype=float)
+    w = np.asarray(width_mm, dtype=float)
+    seg = np.hypot(*np.diff(xy, axis=0).T)
+    ds = np.zeros(len(xy))  # trapezoid weights
+    ds[:-1] += 0.5 * seg
+    ds[1:] += 0.5 * seg
+    a = xy[0]
+    g = np.column_stack([-(a[1] - xy[:, 1]), a[0] - xy[:, 0], np.ones(len(xy))])
+    ei = E_MPa * thickness_mm * w**3 / 12.0
+    ea = E_MPa * thickness_mm * w
+    tangent = np.gradient(xy, axis=0)
+    tangent /= np.hypot(tangent[:, 0], tangent[:, 1])[:, None]
+    h = np.column_stack([tangent, np.zeros(len(xy))])  # axial force N = F . t
+    C = np.einsum("si,sj,s->ij", g, g, ds / ei) + np.einsum("si,sj,s->ij", h, h, ds / ea)
+    load = np.linalg.solve(C, np.array([-a[1], a[0], 1.0]))
+    torque = float(n_arms * (load[2] + a[0] * load[1] - a[1] * load[0]))
+    moment = g @ load
+    return ArmSpringLinear(
+        stiffness_Nmm_per_rad=torque,
+        moment_Nmm_per_rad=moment,
+        end_load_per_rad=load,
+        stress_MPa_per_rad=6.0 * np.abs(moment) / (thickness_mm * w**2),
+    )

@@ -1,0 +1,471 @@
+"""Planar torsional springs of curved arms: a hub, ``n`` identical arms, a mounting pad on each.
+
+The second topology beside the serpentine of :mod:`geometry.sea_spring` (paper 004's sets of
+concentric arcs). Each arm is one slender member from the hub rim to an outer pad, its centreline
+given in polar coordinates by a few control points and its in-plane width by a few control
+values; the arms are repeated ``n`` times around the axis (rotational symmetry, no outer ring, as
+paper 004 asks). A spiral arm (radius growing with the polar angle) is the classic clock-spring
+shape: a long member in a small disc that carries the hub torque mostly as a bending moment
+spread evenly along it, which is what a low peak stress needs (docs/sea_spring.md, section 5).
+The same generator shapes the threshold-torque spring of paper 000 (arms whose geometric
+nonlinearity makes the torque level off; docs/threshold_torque.md).
+
+Units: mm and degrees in the parameters, rad inside.
+
+**Centreline** of arm 0, a parameter ``t`` in [0, 1] from hub to pad::
+
+    r(t)   = PCHIP through (t_i, radii_mm[i]),   t_i = i / (m - 1)
+    phi(t) = PCHIP through (t_i, angles_deg[i])
+    x, y   = r cos(phi), r sin(phi)
+
+PCHIP (monotone cubic Hermite) keeps ``r`` and ``phi`` between neighbouring control values, so a
+spiral with increasing control radii never folds back. ``radii_mm[0]`` is where the centreline
+starts, normally half a root width inside the hub rim, so the arm's band overlaps the hub;
+``radii_mm[-1]`` is the pad centre. Arm ``k`` is arm 0 turned by ``k 360/n`` degrees.
+
+**Width** ``w(t)``: PCHIP through ``widths_mm`` at evenly spaced ``t``; the band is the
+centreline offset by ``±w/2`` along its normal.
+
+**Junctions**: the arm meets the hub rim and the pad boss in concave corners; they get fillets of
+radius ``root_fillet_mm`` by a closing (``buffer(+r).buffer(-r)``) kept only near the two ends of
+each arm, so the slots between arms elsewhere stay as drawn. Every other concave corner gets the
+frame's ``fillet_mm``.
+
+:func:`build_arm_spring` returns a :class:`geometry.sea_spring.SpringGeometry` (the same
+outlines, rigid footprints, boundaries and checks as the serpentine, so the FE and the study code
+take either) with the arms' refinement regions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from scipy.interpolate import PchipInterpolator
+from shapely import affinity
+from shapely.geometry import MultiPolygon, Point, Polygon
+from shapely.geometry.base import BaseGeometry
+
+from geometry.errors import GeometryError
+from geometry.sea_spring import SpringFrame, SpringGeometry
+
+_DEFAULT_FRAME = SpringFrame()
+
+__all__ = [
+    "ArmSpringParams",
+    "ArmSpringGeometry",
+    "arm_centreline",
+    "arm_clearances",
+    "build_arm_spring",
+    "SPIRAL_LEVELS",
+    "spiral_level_values",
+    "SPIRAL_VARIABLES",
+    "SPIRAL_BOUNDS",
+    "spiral_params",
+]
+
+
+@dataclass(frozen=True)
+class ArmSpringParams:
+    """One arm's shape, repeated ``n_arms`` times.
+
+    Attributes
+    ----------
+    radii_mm : (m,) float, mm — centreline radius at the control points ``t_i = i/(m-1)``;
+        the first is inside the hub, the last is the pad centre.
+    angles_deg : (m,) float, degrees — centreline polar angle at the same points (first 0).
+    widths_mm : (k,) float, mm — in-plane width at ``t_j = j/(k-1)`` (k >= 1).
+    thickness_mm : float, mm — out-of-plane thickness, the extrusion (ST).
+    n_arms : int — arms around the hub.
+    root_fillet_mm : float, mm — fillet radius where an arm meets the hub and its pad.
+    """
+
+    radii_mm: tuple[float, ...]
+    angles_deg: tuple[float, ...]
+    widths_mm: tuple[float, ...]
+    thickness_mm: float
+    n_arms: int = 4
+    root_fillet_mm: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("radii_mm", "angles_deg", "widths_mm"):
+            vals = tuple(float(v) for v in getattr(self, name))
+            object.__setattr__(self, name, vals)
+            if not all(math.isfinite(v) for v in vals):
+                raise GeometryError(f"ArmSpringParams.{name} = {vals} must be finite numbers")
+        if len(self.radii_mm) < 2 or len(self.radii_mm) != len(self.angles_deg):
+            raise GeometryError(
+                f"{len(self.radii_mm)} control radii and {len(self.angles_deg)} angles: give the "
+                "same number, at least 2 (hub end and pad)"
+            )
+        if not self.widths_mm:
+            raise GeometryError("widths_mm is empty; give at least one width")
+        positive = {
+            "radii_mm": self.radii_mm,
+            "widths_mm": self.widths_mm,
+            "thickness_mm": (self.thickness_mm,),
+        }
+        for name, vals in positive.items():
+            if not all(v > 0 for v in vals):
+                raise GeometryError(f"ArmSpringParams.{name} = {vals} must be positive")
+        if not (math.isfinite(self.root_fillet_mm) and self.root_fillet_mm >= 0):
+            raise GeometryError(f"root_fillet_mm = {self.root_fillet_mm} must be >= 0")
+        if int(self.n_arms) != self.n_arms or self.n_arms < 1:
+            raise GeometryError(f"n_arms = {self.n_arms} must be a whole number >= 1")
+
+    @property
+    def pitch_deg(self) -> float:
+        """Angle between neighbouring arms, 360 / n."""
+        return 360.0 / self.n_arms
+
+    # SpringGeometry's properties read these two names
+    @property
+    def n_sets(self) -> int:
+        return int(self.n_arms)
+
+
+def arm_centreline(p: ArmSpringParams, max_step_mm: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Sampled centreline and width of arm 0.
+
+    Returns
+    -------
+    xy : (s, 2) float, mm — centreline points from hub to pad, at most ``max_step_mm`` apart.
+    w : (s,) float, mm — width at those points.
+    """
+    m = len(p.radii_mm)
+    t_ctrl = np.linspace(0.0, 1.0, m)
+    r_of = PchipInterpolator(t_ctrl, p.radii_mm)
+    a_of = PchipInterpolator(t_ctrl, np.radians(p.angles_deg))
+    # A fine first pass measures the length, then the samples are spread evenly in t.
+    t = np.linspace(0.0, 1.0, 2001)
+    r, a = r_of(t), a_of(t)
+    xy = np.column_stack([r * np.cos(a), r * np.sin(a)])
+    length = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
+    n = max(8, int(math.ceil(length / max_step_mm)) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    r, a = r_of(t), a_of(t)
+    xy = np.column_stack([r * np.cos(a), r * np.sin(a)])
+    k = len(p.widths_mm)
+    if k == 1:
+        w = np.full(n, p.widths_mm[0])
+    else:
+        w = PchipInterpolator(np.linspace(0.0, 1.0, k), p.widths_mm)(t)
+    return xy, w
+
+
+def _band(xy: np.ndarray, w: np.ndarray) -> Polygon:
+    """The region within ±w/2 of a polyline along its (averaged) normals, as one polygon."""
+    d = np.gradient(xy, axis=0)
+    d /= np.hypot(d[:, 0], d[:, 1])[:, None]
+    nrm = np.column_stack([-d[:, 1], d[:, 0]])
+    left = xy + 0.5 * w[:, None] * nrm
+    right = xy - 0.5 * w[:, None] * nrm
+    poly = Polygon(np.vstack([left, right[::-1]]))
+    if not poly.is_valid:
+        # A width larger than the local radius of curvature folds an offset curve; buffer(0)
+        # resolves the fold into the region it encloses.
+        poly = poly.buffer(0)
+    return poly
+
+
+def _rotate(geom: BaseGeometry, angle_deg: float) -> BaseGeometry:
+    return affinity.rotate(geom, angle_deg, origin=(0.0, 0.0))
+
+
+@dataclass(frozen=True)
+class ArmSpringGeometry(SpringGeometry):
+    """A built arm spring: :class:`geometry.sea_spring.SpringGeometry` with the arms' bands.
+
+    Attributes (beyond SpringGeometry's)
+    ------------------------------------
+    arm_pieces : list of (Polygon, width mm) — pieces of every arm band with their smallest
+        width, for the mesh refinement.
+    centreline_mm : (s, 2) float, mm — arm 0's centreline (hub to pad).
+    """
+
+    arm_pieces: list = field(default_factory=list)
+    centreline_mm: np.ndarray | None = None
+
+    def mesh_regions(self, elements_through: float = 2.0, max_mm: float = 2.0) -> list:
+        """Every arm piece at its width / ``elements_through`` (list of (geometry, size mm))."""
+        return [(g, min(max_mm, w / elements_through)) for g, w in self.arm_pieces]
+
+
+def arm_clearances(p: ArmSpringParams, frame: SpringFrame = _DEFAULT_FRAME) -> dict[str, float]:
+    """Signed margins (mm, >= 0 when met) of an arm spring, from its drawn arms.
+
+    * ``envelope_mm``: envelope radius minus the farthest point of an arm or pad;
+    * ``thinnest_mm``: narrowest arm width minus ``min_feature_mm``;
+    * ``slot_mm``: smallest gap between two different arms (with their pads) away from the hub,
+      minus ``min_slot_mm`` (a root fillet that would bridge a slot is refused by the builder);
+    * ``hub_mm``: the arm's start lies inside the hub (the hub rim minus the first radius).
+    """
+    arm, pad, _, _ = _arm_zero(p, frame)
+    one = arm.union(pad)
+    outer = max(
+        float(np.hypot(*np.asarray(one.exterior.coords).T).max()),
+        p.radii_mm[-1] + frame.pad_radius_mm,
+    )
+    _, w = arm_centreline(p)
+    slot = _slot(one, p, frame)
+    return {
+        "envelope_mm": frame.envelope_radius_mm - outer,
+        "thinnest_mm": float(w.min()) - frame.min_feature_mm,
+        "slot_mm": slot - frame.min_slot_mm,
+        "hub_mm": frame.hub_radius_mm - p.radii_mm[0],
+    }
+
+
+def _slot(one: BaseGeometry, p: ArmSpringParams, frame: SpringFrame) -> float:
+    if p.n_arms < 2:
+        return math.inf
+    # Away from the hub (the arms all join it) and its root fillets.
+    keep_out = Point(0.0, 0.0).buffer(frame.hub_radius_mm + 0.5 * p.root_fillet_mm, quad_segs=32)
+    mine = one.difference(keep_out)
+    others = shapely.union_all([_rotate(one, k * p.pitch_deg) for k in range(1, p.n_arms)])
+    return float(mine.distance(others.difference(keep_out)))
+
+
+def _arm_zero(p: ArmSpringParams, frame: SpringFrame):
+    xy, w = arm_centreline(p, max_step_mm=min(0.5, 0.25 * min(p.widths_mm) + 0.1))
+    arm = _band(xy, w)
+    centre = Point(*xy[-1])
+    pad = centre.buffer(frame.pad_radius_mm, quad_segs=32)
+    return arm, pad, xy, w
+
+
+def build_arm_spring(p: ArmSpringParams, frame: SpringFrame = _DEFAULT_FRAME) -> ArmSpringGeometry:
+    """Build the outline of an arm spring and check it.
+
+    Parameters
+    ----------
+    p : ArmSpringParams
+    frame : SpringFrame — envelope, hub, pads, holes, fillets, manufacturing limits.
+
+    Returns
+    -------
+    ArmSpringGeometry
+
+    Raises
+    ------
+    GeometryError
+        A failed check of :func:`arm_clearances` (named, with its fix), or an outline that is
+        not one valid polygon.
+    """
+    margins = arm_clearances(p, frame)
+    fixes = {
+        "envelope_mm": "bring the pad radius (last control radius) or the widths in",
+        "thinnest_mm": "widen the thinnest arm section or lower min_feature_mm",
+        "slot_mm": "fewer arms, less sweep, narrower arms or a smaller root fillet",
+        "hub_mm": "start the centreline inside the hub (first radius <= hub_radius_mm)",
+    }
+    for key, margin in margins.items():
+        if margin < -1e-9:
+            raise GeometryError(
+                f"arm spring check {key} fails by {-margin:.3g} mm; {fixes[key]} "
+                "(see geometry.arm_spring.arm_clearances)"
+            )
+    arm0, pad0, xy, w = _arm_zero(p, frame)
+    hub = Point(0.0, 0.0).buffer(frame.hub_radius_mm, quad_segs=64)
+    arms = [_rotate(arm0, k * p.pitch_deg) for k in range(p.n_arms)]
+    pads = [_rotate(pad0, k * p.pitch_deg) for k in range(p.n_arms)]
+    body = shapely.union_all([hub, *arms, *pads])
+    if p.root_fillet_mm > 0:
+        # Fillets at the two junctions of every arm only: the closing of one arm with the hub
+        # and its own pad (no neighbour to bridge to), of which the pieces touching the hub rim
+        # or the pad boss are kept, then turned to every arm.
+        rf = p.root_fillet_mm
+        own = shapely.union_all([hub, arm0, pad0])
+        closed = own.buffer(rf, join_style="mitre", mitre_limit=20.0).buffer(-rf, quad_segs=16)
+        # keep the pieces that fill a corner at the hub rim or at the pad boss
+        near = hub.exterior.buffer(0.01).union(pad0.exterior.buffer(0.01))
+        new = closed.difference(own)
+        fill = shapely.union_all(
+            [g for g in getattr(new, "geoms", [new]) if not g.is_empty and g.intersects(near)]
+        )
+        body = body.union(
+            shapely.union_all([_rotate(fill, k * p.pitch_deg) for k in range(p.n_arms)])
+        )
+    if frame.fillet_mm > 0:
+        r = frame.fillet_mm
+        body = body.buffer(r, join_style="mitre", mitre_limit=20.0).buffer(
+            -r, quad_segs=frame.fillet_segments
+        )
+    body = shapely.simplify(body, 2e-3, preserve_topology=True)
+    if isinstance(body, MultiPolygon) or not isinstance(body, Polygon) or not body.is_valid:
+        raise GeometryError(
+            f"the arm spring outline is not one valid polygon ({body.geom_type}, "
+            f"{shapely.is_valid_reason(body)}); check the widths and the slots"
+        )
+    if len(body.interiors) != 0:
+        raise GeometryError(
+            f"the arm spring outline closed {len(body.interiors)} slot(s) into holes; widen the "
+            "slots or reduce root_fillet_mm"
+        )
+    centres = [_rotate(Point(*xy[-1]), k * p.pitch_deg) for k in range(p.n_arms)]
+    holes = []
+    if frame.bore_diameter_mm > 0:
+        holes.append(Point(0.0, 0.0).buffer(0.5 * frame.bore_diameter_mm, quad_segs=16))
+    if frame.hub_holes > 0 and frame.hub_hole_diameter_mm > 0:
+        rc = 0.5 * frame.hub_hole_circle_diameter_mm
+        for j in range(frame.hub_holes):
+            t = 2 * math.pi * (j + 0.5) / frame.hub_holes
+            holes.append(Point(rc * math.cos(t), rc * math.sin(t)).buffer(
+                0.5 * frame.hub_hole_diameter_mm, quad_segs=12))  # fmt: skip
+    if frame.pad_hole_diameter_mm > 0:
+        holes += [c.buffer(0.5 * frame.pad_hole_diameter_mm, quad_segs=12) for c in centres]
+    outline = body.difference(shapely.union_all(holes)) if holes else body
+    if not isinstance(outline, Polygon) or not outline.is_valid:
+        raise GeometryError("the mounting holes cut the spring apart; make them smaller")
+    hub_region = Point(0.0, 0.0).buffer(frame.hub_clamp_radius_mm, quad_segs=32)
+    pad_region = MultiPolygon([c.buffer(frame.pad_clamp_radius_mm, quad_segs=16) for c in centres])
+    boundaries = {
+        "hub": Point(0.0, 0.0).buffer(frame.hub_radius_mm + 1e-6, quad_segs=64),
+        "pads": shapely.union_all(
+            [c.buffer(frame.pad_radius_mm + 1e-6, quad_segs=32) for c in centres]
+        ),
+    }
+    pieces = []
+    n_pieces = 12
+    edges = np.linspace(0, len(xy) - 1, n_pieces + 1).astype(int)
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        piece = _band(xy[a : b + 1], w[a : b + 1]).buffer(0.05)
+        for k in range(p.n_arms):
+            pieces.append((_rotate(piece, k * p.pitch_deg), float(w[a : b + 1].min())))
+    exy = np.asarray(outline.exterior.coords)
+    outer = float(np.hypot(exy[:, 0], exy[:, 1]).max())
+    if outer > frame.envelope_radius_mm + 1e-9:
+        # a junction fillet can reach a little beyond the arm and pad it joins
+        raise GeometryError(
+            f"arm spring check envelope_mm fails by {outer - frame.envelope_radius_mm:.3g} mm "
+            "(at a junction fillet); bring the pad radius in or reduce root_fillet_mm"
+        )
+    checks = dict(margins)
+    checks["envelope_mm"] = min(margins["envelope_mm"], frame.envelope_radius_mm - outer)
+    checks.update(
+        {"outer_radius_mm": outer,
+         "area_mm2": float(outline.area),
+         "arm_length_mm": float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))}
+    )  # fmt: skip
+    return ArmSpringGeometry(
+        params=p,  # type: ignore[arg-type]
+        frame=frame,
+        outline=outline,
+        fe_outline=body,
+        hub_region=hub_region,
+        pad_region=pad_region,
+        boundaries=boundaries,
+        pad_centres_mm=np.array([[c.x, c.y] for c in centres]),
+        checks=checks,
+        arm_pieces=pieces,
+        centreline_mm=xy,
+    )
+
+
+def _rim_point(xy: np.ndarray, radius: float) -> np.ndarray:
+    """The first centreline point at or beyond ``radius`` (where the arm leaves the hub)."""
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    i = int(np.argmax(r >= radius)) if np.any(r >= radius) else 0
+    return xy[i]
+
+
+# --------------------------------------------------------------------------------------------
+# The spiral parameterisation of the SEA study (topology: spiral)
+
+#: GA variables of a spiral arm (mm, degrees): the angle the arm sweeps from hub to pad, the pad
+#: centre radius, the radial shape (F1: fraction of the radial rise reached at a third of the
+#: sweep; F2: fraction of the *remaining* rise reached at two thirds) and the width at
+#: t = 0, 1/3, 2/3, 1; ST the out-of-plane thickness.
+SPIRAL_VARIABLES: tuple[str, ...] = (
+    "sweep", "R_pad", "F1", "F2", "W1", "W2", "W3", "W4", "ST",
+)  # fmt: skip
+
+#: Bounds of the spiral variables (mm; sweep in degrees; F1, F2 fractions). The pad centre stays
+#: a pad radius (3.5 mm) inside the 36 mm envelope; widths span the serpentine's S and W ranges.
+SPIRAL_BOUNDS: dict[str, tuple[float, float]] = {
+    "sweep": (150.0, 480.0),
+    "R_pad": (22.0, 32.5),
+    "F1": (0.1, 0.7),
+    "F2": (0.1, 0.9),
+    "W1": (1.0, 6.0),
+    "W2": (1.0, 6.0),
+    "W3": (1.0, 6.0),
+    "W4": (1.0, 6.0),
+    "ST": (8.0, 20.0),
+}
+
+
+def spiral_params(
+    values: dict[str, float], n_arms: int, frame: SpringFrame = _DEFAULT_FRAME,
+    root_fillet_mm: float = 1.0,
+) -> ArmSpringParams:  # fmt: skip
+    """A spiral arm spring from the named variables of :data:`SPIRAL_VARIABLES`.
+
+    The centreline starts inside the hub rim (``r0 = hub_radius - W1/2 - 1 mm``) at
+    angle 0 and reaches the pad centre ``R_pad`` at angle ``sweep``; in between it passes
+    ``r(1/3) = r0 + F1 (R_pad - r0)`` at a third of the sweep and
+    ``r(2/3) = r(1/3) + F2 (R_pad - r(1/3))`` at two thirds, so any F1, F2 in (0, 1) give a
+    radius that grows from hub to pad (F1 = 1/3, F2 = 1/2 is an Archimedean spiral; a large F1
+    leaves the hub steeply, a small one winds close around it first). The width runs through
+    W1..W4 at t = 0, 1/3, 2/3, 1.
+
+    Raises
+    ------
+    GeometryError
+        F1 or F2 outside (0, 1), or parameters ArmSpringParams refuses.
+    """
+    v = values
+    f1, f2 = float(v["F1"]), float(v["F2"])
+    if not (0.0 < f1 < 1.0 and 0.0 < f2 < 1.0):
+        raise GeometryError(
+            f"spiral shape F1 = {f1:g}, F2 = {f2:g}: both must lie in (0, 1) (fractions of the "
+            "radial rise)"
+        )
+    # 1 mm deeper than half the root width: the band's square start end then lies wholly inside
+    # the hub even where the centreline leaves it at a slant.
+    r0 = frame.hub_radius_mm - 0.5 * float(v["W1"]) - 1.0
+    r3 = float(v["R_pad"])
+    r1 = r0 + f1 * (r3 - r0)
+    r2 = r1 + f2 * (r3 - r1)
+    sweep = float(v["sweep"])
+    return ArmSpringParams(
+        radii_mm=(r0, r1, r2, r3),
+        angles_deg=(0.0, sweep / 3.0, 2.0 * sweep / 3.0, sweep),
+        widths_mm=(v["W1"], v["W2"], v["W3"], v["W4"]),
+        thickness_mm=v["ST"],
+        n_arms=n_arms,
+        root_fillet_mm=root_fillet_mm,
+    )
+
+
+#: Five levels of each Taguchi factor of a spiral spring (stage 1 with ``topology: spiral``):
+#: RP arms around the hub, the sweep (degrees), one width W for the whole arm (mm), the radial
+#: shape F1 (F2 = 1/2), the pad radius R_pad (mm) and ST (mm). They span SPIRAL_BOUNDS the way
+#: Table 6 spans the serpentine's ranges.
+SPIRAL_LEVELS: dict[str, tuple[float, ...]] = {
+    "RP": (2, 3, 4, 5, 6),
+    "sweep": (180.0, 247.5, 315.0, 382.5, 450.0),
+    "W": (1.5, 2.25, 3.0, 3.75, 4.5),
+    "F1": (0.15, 0.25, 0.35, 0.45, 0.55),
+    "R_pad": (24.0, 26.0, 28.0, 30.0, 32.0),
+    "ST": (8.0, 11.0, 14.0, 17.0, 20.0),
+}
+
+
+def spiral_level_values(levels: dict[str, float]) -> dict[str, float]:
+    """The :data:`SPIRAL_VARIABLES` of a Taguchi run of :data:`SPIRAL_LEVELS` (a uniform width,
+    F2 = 1/2)."""
+    w = float(levels["W"])
+    return {
+        "sweep": float(levels["sweep"]),
+        "R_pad": float(levels["R_pad"]),
+        "F1": float(levels["F1"]),
+        "F2": 0.5,
+        "W1": w,
+        "W2": w,
+        "W3": w,
+        "W4": w,
+        "ST": float(levels["ST"]),
+    }
