@@ -35,6 +35,10 @@ class DesignDetail:
     outline : shapely Polygon, optional — the printable outline (mm), extruded by ``height_mm``.
     height_mm : float, optional — extrusion height of the outline (the out-of-plane width).
     info : dict — anything else worth reporting (derived geometry, checks, notes).
+    field_map : dict, optional — a scalar field on a triangle mesh to draw (a stress map):
+        ``points_mm`` (n, 2) mm, ``triangles`` (m, 3) int, ``values`` (n,), ``label`` (name and
+        unit of the values), optional ``limit`` (an allowable in the same unit). Drawn as
+        ``stress_map.png``; not written into best.json (it is large).
     """
 
     evaluation: Evaluation
@@ -44,6 +48,7 @@ class DesignDetail:
     outline: Any = None
     height_mm: float | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    field_map: dict[str, Any] | None = None
 
 
 @runtime_checkable

@@ -15,6 +15,8 @@ __all__ = [
     "quantity_name",
     "plot_convergence",
     "plot_curve",
+    "plot_field",
+    "plot_front",
     "plot_response",
     "plot_shapes",
     "plot_stress",
@@ -315,6 +317,96 @@ def plot_shapes(
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    return _png(fig)
+
+
+def plot_field(
+    points_mm: np.ndarray,
+    triangles: np.ndarray,
+    values: np.ndarray,
+    label: str = "von Mises stress (MPa)",
+    limit: float | None = None,
+    title: str = "",
+) -> bytes:
+    """A scalar field on a triangle mesh (e.g. the stress map of a plane-stress model).
+
+    Parameters
+    ----------
+    points_mm : (n, 2) float, mm — mesh nodes.
+    triangles : (m, 3) int — node indices.
+    values : (n,) float — the field at the nodes (unit in ``label``).
+    limit : float, optional — an allowable: the colour scale reaches at least it, and the nodes
+        above it are outlined in red.
+
+    Returns
+    -------
+    bytes
+        The PNG file.
+    """
+    from matplotlib.tri import Triangulation
+
+    p = np.asarray(points_mm, dtype=float)
+    v = np.asarray(values, dtype=float)
+    tri = Triangulation(p[:, 0], p[:, 1], np.asarray(triangles, dtype=int))
+    fig = Figure(figsize=(6.8, 5.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    vmax = max(float(np.nanmax(v)), limit or 0.0)
+    cs = ax.tripcolor(tri, v, shading="gouraud", cmap="viridis", vmin=0.0, vmax=vmax)
+    fig.colorbar(cs, ax=ax, label=label)
+    i = int(np.nanargmax(v))
+    ax.plot(p[i, 0], p[i, 1], "x", color="red", ms=9, label=f"peak {v[i]:.4g}")
+    if limit is not None and np.any(v > limit):
+        over = v > limit
+        ax.plot(p[over, 0], p[over, 1], ".", color="red", ms=2, label=f"above {limit:g}")
+    ax.legend(loc="upper right", fontsize="small")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    if title:
+        ax.set_title(title)
+    return _png(fig)
+
+
+def plot_front(
+    objectives: np.ndarray,
+    front: np.ndarray,
+    names: tuple[str, str],
+    best: np.ndarray | None = None,
+    title: str = "",
+) -> bytes:
+    """The first two objectives of every feasible design, with the Pareto front.
+
+    Parameters
+    ----------
+    objectives : (k, >= 2) float — feasible designs (units in ``names``).
+    front : (j, >= 2) float — the non-dominated designs.
+    names : the two objective names, with units (``peak_stress_MPa``).
+    best : (>= 2,) float, optional — the design the run chose.
+
+    Returns
+    -------
+    bytes
+        The PNG file.
+    """
+    f = np.asarray(objectives, dtype=float).reshape(-1, np.shape(front)[-1])
+    pf = np.asarray(front, dtype=float)
+    pf = pf[np.argsort(pf[:, 0])]
+    fig = Figure(figsize=(6.4, 4.8), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    if len(f):
+        ax.plot(f[:, 0], f[:, 1], ".", color="0.6", ms=4, label="feasible designs")
+    ax.plot(pf[:, 0], pf[:, 1], "o-", color="C0", ms=4, lw=1, label="Pareto front")
+    if best is not None:
+        b = np.asarray(best, dtype=float)
+        ax.plot(b[0], b[1], "*", color="C3", ms=14, label="chosen")
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
     if title:

@@ -32,6 +32,8 @@ _PLOTS = (
     ("force_displacement.png", "Force–displacement of the best design"),
     ("stress.png", "Peak stress along the stroke"),
     ("shapes.png", "Deformed shapes"),
+    ("stress_map.png", "Stress map of the best design"),
+    ("front.png", "Pareto front"),
     ("convergence.png", "Convergence"),
 )
 

@@ -106,6 +106,8 @@ RUN_FILES = (
     "stress.png",
     "convergence.png",
     "shapes.png",
+    "stress_map.png",
+    "front.png",
     "best.stl",
     "report.md",
 )
@@ -698,11 +700,38 @@ class _Run:
                 "shapes.png",
                 lambda: plots.plot_shapes(shapes, values, value_label=x, title=title),
             )
+        fmap = getattr(detail, "field_map", None) if detail is not None else None
+        if fmap:
+            self.artefact(
+                "stress_map.png",
+                lambda: plots.plot_field(
+                    fmap["points_mm"],
+                    fmap["triangles"],
+                    fmap["values"],
+                    label=fmap.get("label", "von Mises stress (MPa)"),
+                    limit=_float_or_none(fmap.get("limit")),
+                    title=title,
+                ),
+            )
+        if len(result.front) > 1 and len(problem.objective_names) >= 2:
+            self.artefact("front.png", lambda: self._front_png(result, title))
         if detail is not None and detail.outline is not None and detail.height_mm:
             self.artefact("best.stl", lambda: self._stl(detail))
         elif detail is not None:
             self.notes.append("best.stl skipped: the kind gives no outline and height_mm")
         return detail
+
+    def _front_png(self, result: GAResult, title: str) -> bytes:
+        """First two objectives of every feasible evaluation, the front and the chosen one."""
+        feasible = [ev.f[:2] for ev in self.evaluator.solved if ev.feasible]
+        names = self.problem.objective_names
+        return plots.plot_front(
+            np.array(feasible, dtype=float).reshape(-1, 2),
+            np.array([ev.f[:2] for ev in result.front], dtype=float),
+            (names[0], names[1]),
+            best=np.asarray(result.best.f[:2], dtype=float),
+            title=f"{title}: Pareto front",
+        )
 
     def _stl(self, detail: DesignDetail) -> bytes | None:
         try:

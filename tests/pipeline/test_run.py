@@ -125,6 +125,13 @@ class ToyProblem:
             box(0.0, 0.0, 10.0 + 5.0 * a, 3.0 + 2.0 * b),
             self.geometry.height_mm,
             info,
+            field_map={
+                "points_mm": [[0.0, 0.0], [10.0, 0.0], [10.0, 3.0], [0.0, 3.0]],
+                "triangles": [[0, 1, 2], [0, 2, 3]],
+                "values": [0.0, 5.0 * a, 25.0, 10.0 * b],
+                "label": "toy stress (MPa)",
+                "limit": 20.0,
+            },
         )
 
 
@@ -222,7 +229,8 @@ def test_run_writes_every_file(tmp_path, capsys):
     assert len(gen_lines) == 4 and gen_lines[-1].startswith("gen 4/4  best ")
     assert "eval/s" in gen_lines[-1] and "feasible" in gen_lines[-1]
     assert "warning" not in captured.err
-    assert sorted(p.name for p in out.iterdir()) == sorted(RUN_FILES)  # no temp files either
+    # every file (front.png only with several objectives); no temp files either
+    assert sorted(p.name for p in out.iterdir()) == sorted(set(RUN_FILES) - {"front.png"})
 
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "finished" and record["error"] == ""
@@ -349,7 +357,11 @@ def test_two_objectives_need_nsga2_and_give_a_front(tmp_path, capsys):
     best = json.loads((out / "best.json").read_text())
     assert len(best["front"]) > 1 and set(best["objectives"]) == {"error_N", "area_mm2"}
     assert "best_area_mm2" in read_records_csv(out / "history.csv")[0]
-    assert "### Pareto front" in (out / "report.md").read_text()
+    report = (out / "report.md").read_text()
+    assert "### Pareto front" in report and "![Pareto front](front.png)" in report
+    assert (out / "front.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "![Stress map of the best design](stress_map.png)" in report
+    assert "field_map" not in (out / "best.json").read_text()  # drawn, not stored
 
 
 def test_a_failing_detail_is_a_note_not_the_loss_of_the_run(tmp_path, capsys):
