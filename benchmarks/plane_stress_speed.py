@@ -6,7 +6,10 @@ One evaluation of the ``sea_spring`` study: mesh the spring, build the model, a 
 CG variant) and, in the same process, the old path (scikit-fem's per-basis-pair assembly), so the
 two see the same machine load. Prints the median of ``--repeat`` runs of each.
 
-    python benchmarks/plane_stress_speed.py [--repeat 3] [--fillet-segments 2]
+    python benchmarks/plane_stress_speed.py [--repeat 3] [--fillet-segments 2] [--spring spiral]
+
+``--spring spiral`` times the spring of the default ``sea-spring`` study (spiral arms, its
+``design:`` at the thickness it solved) instead of the Table 9 mid-range serpentine.
 
 BLAS threads are limited to one before numpy is imported (and MKL to its sequential layer): on a
 shared 2-core machine OpenBLAS's threads spin against each other (a 30k-element dot product took
@@ -66,15 +69,27 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--fillet-segments", type=int, default=4)
+    ap.add_argument("--spring", choices=("serpentine", "spiral"), default="serpentine")
     args = ap.parse_args()
-    x = np.array([0.5 * (lo + hi) for lo, hi in TABLE9_BOUNDS.values()])
-    geom = build_spring(params_from_vector(x, 4), SpringFrame(fillet_segments=args.fillet_segments))
+    frame = SpringFrame(fillet_segments=args.fillet_segments)
+    if args.spring == "spiral":
+        from geometry.arm_spring import build_arm_spring, spiral_params
+        from pipeline.study import load_study
+
+        study = load_study("sea-spring")
+        values = {**study.design, "ST": study.design.get("ST", 10.0)}
+        p = spiral_params(values, int(study.geometry.n_sets or 2), frame,
+                          study.geometry.root_fillet_mm)  # fmt: skip
+        geom = build_arm_spring(p, frame)
+        label = f"sea-spring study's spiral, {p.n_arms} arms"
+    else:
+        x = np.array([0.5 * (lo + hi) for lo, hi in TABLE9_BOUNDS.values()])
+        geom = build_spring(params_from_vector(x, 4), frame)
+        label = "Table 9 mid-range, 4 sets"
     t0 = time.perf_counter()
     mesh = mesh_polygon(geom.fe_outline, 3.0, refine=geom.mesh_regions(1.0, 3.0))
     t_mesh = time.perf_counter() - t0
-    print(
-        f"spring: Table 9 mid-range, 4 sets, {mesh.n_triangles} P2 triangles, mesh {t_mesh:.2f} s"
-    )
+    print(f"spring: {label}, {mesh.n_triangles} P2 triangles, mesh {t_mesh:.2f} s")
     nl = dict(rtol_residual=1e-7)  # what the sea_spring study uses
     cases = [
         ("linear     vectorised SuperLU", PlaneStressSettings(solver="direct"), "linear"),

@@ -39,7 +39,6 @@ YAML (every key optional but ``name``, ``geometry.kind`` and ``material``)::
 from __future__ import annotations
 
 import difflib
-import io
 import logging
 import math
 import time
@@ -57,6 +56,16 @@ from fea.plane_stress import (
     PlaneStressModel,
     PlaneStressSettings,
     Rotate,
+)
+from geometry.arm_spring import (
+    SPIRAL_BOUNDS,
+    SPIRAL_LEVELS,
+    SPIRAL_VARIABLES,
+    ArmSpringParams,
+    arm_clearances,
+    build_arm_spring,
+    spiral_level_values,
+    spiral_params,
 )
 from geometry.errors import GeometryError
 from geometry.sea_spring import (
@@ -125,6 +134,15 @@ class SeaSpringGeometry(BaseModel):
     model_config = STUDY_CONFIG
 
     kind: Literal["sea_spring"] = Field(description="sea_spring")
+    topology: Literal["serpentine", "spiral"] = Field(
+        "serpentine",
+        description="serpentine: the paper's sets of concentric arcs joined by links (Tables 6 "
+        "and 9); spiral: one curved arm per set from hub to pad (geometry.arm_spring), which "
+        "carries the torque as a nearly uniform bending moment",
+    )
+    root_fillet_mm: float = Field(
+        1.5, ge=0, le=5, description="spiral: fillet radius where an arm meets hub and pad"
+    )
     envelope_diameter_mm: float = Field(72.0, gt=0, description="the spring fits this circle")
     n_sets: int | None = Field(
         None,
@@ -265,7 +283,9 @@ class SeaSpringStudy(Study):
         "stiffness error an objective (the paper's formulation)",
     )
     design: dict[str, float] | None = Field(
-        None, description="the design flexopt evaluate analyses (Table 9 mid-range if null)"
+        None,
+        description="the design flexopt evaluate analyses (mid-range if null), by variable "
+        "name; RP: its number of sets (arms) when geometry.n_sets is null",
     )
     mesh: MeshSpec = Field(default_factory=MeshSpec, description="FE discretisation")
     optimiser: OptimiserSpec = Field(
@@ -322,6 +342,70 @@ def target_stiffness_Nm_per_rad(study: SeaSpringStudy) -> tuple[float, dict[str,
     return float(k), {"source": f"stiffness_window ({w.pick})", "k_min": lo, "k_max": hi}
 
 
+# Both topologies behind one interface: variable names and bounds, parameters from a vector,
+# building, geometric margins, Taguchi factors.
+
+
+def variables(study: SeaSpringStudy) -> tuple[str, ...]:
+    """Names of the GA variables of the study's topology (ST included, in vector order)."""
+    if study.geometry.topology == "spiral":
+        return SPIRAL_VARIABLES
+    return ga_variables(study.geometry.arcs)
+
+
+def _bounds(study: SeaSpringStudy) -> dict[str, tuple[float, float]]:
+    if study.geometry.topology == "spiral":
+        return dict(SPIRAL_BOUNDS)
+    return ga_bounds(study.geometry.arcs)
+
+
+def _unit_name(name: str) -> str:
+    if name in ("alpha", "sweep"):
+        return f"{name}_deg"
+    if name in ("F1", "F2"):
+        return f"{name}_fraction"
+    return f"{name}_mm"
+
+
+def params_of(
+    study: SeaSpringStudy, x: np.ndarray, n_sets: int, frame: SpringFrame
+) -> SpringParams | ArmSpringParams:
+    """The spring parameters of a full vector (ST included) of the study's topology."""
+    x = np.asarray(x, dtype=float).ravel()
+    if study.geometry.topology == "spiral":
+        values = dict(zip(SPIRAL_VARIABLES, map(float, x), strict=True))
+        return spiral_params(values, n_sets, frame, study.geometry.root_fillet_mm)
+    return params_from_vector(x, n_sets, study.geometry.arcs)
+
+
+def build(p: SpringParams | ArmSpringParams, frame: SpringFrame) -> SpringGeometry:
+    """Build either topology (:func:`build_spring` or :func:`build_arm_spring`)."""
+    if isinstance(p, ArmSpringParams):
+        return build_arm_spring(p, frame)
+    return build_spring(p, frame)
+
+
+def margins(p: SpringParams | ArmSpringParams, frame: SpringFrame) -> dict[str, float]:
+    """Signed geometric margins (mm) of either topology, in :func:`constraint_keys` order."""
+    if isinstance(p, ArmSpringParams):
+        return arm_clearances(p, frame)
+    return clearances(p, frame)
+
+
+def constraint_keys(study: SeaSpringStudy) -> tuple[str, ...]:
+    """The geometric constraints of the study's topology."""
+    if study.geometry.topology == "spiral":
+        return _SPIRAL_CONSTRAINTS
+    return _GEOMETRY_CONSTRAINTS
+
+
+def factor_levels(study: SeaSpringStudy) -> dict[str, tuple[float, ...]]:
+    """The stage-1 factors and their five levels: Table 6, or the spiral's."""
+    if study.geometry.topology == "spiral":
+        return SPIRAL_LEVELS
+    return TABLE6_LEVELS
+
+
 def _unknown(name: str, path: str, names: tuple[str, ...]) -> StudyError:
     close = [n for n in names if n.lower() == name.lower()]
     close = close or difflib.get_close_matches(name, names, n=1)
@@ -342,8 +426,8 @@ def design_space(study: SeaSpringStudy) -> DesignSpace:
         At ``design_space.<name>``: unknown name, not two numbers, swapped, equal or non-positive
         bounds, ST above ``geometry`` limits or alpha outside (0, 360 / RP).
     """
-    names = ga_variables(study.geometry.arcs)
-    bounds = {k: list(v) for k, v in ga_bounds(study.geometry.arcs).items()}
+    names = variables(study)
+    bounds = {k: list(v) for k, v in _bounds(study).items()}
     for name, b in study.design_space.items():
         path = f"design_space.{name}"
         if name not in bounds:
@@ -359,9 +443,11 @@ def design_space(study: SeaSpringStudy) -> DesignSpace:
             raise StudyError(path, f"lower bound {lo:g} must be > 0")
         if name == "alpha" and hi >= 360:
             raise StudyError(path, f"alpha up to {hi:g} degrees leaves no room; keep it < 360 / RP")
+        if name in ("F1", "F2") and hi >= 1:
+            raise StudyError(path, f"upper bound {hi:g}: {name} is a fraction; keep it below 1")
         bounds[name] = [lo, hi]
     return DesignSpace(
-        tuple(f"{n}_deg" if n == "alpha" else f"{n}_mm" for n in names),
+        tuple(_unit_name(n) for n in names),
         np.array([bounds[n][0] for n in names]),
         np.array([bounds[n][1] for n in names]),
     )
@@ -370,13 +456,27 @@ def design_space(study: SeaSpringStudy) -> DesignSpace:
 def design_vector(study: SeaSpringStudy) -> np.ndarray:
     """(18,) the study's ``design:`` (unlisted variables at the middle of their range)."""
     space = design_space(study)
-    names = ga_variables(study.geometry.arcs)
+    names = variables(study)
     x = 0.5 * (space.lower + space.upper)
     for name, value in (study.design or {}).items():
+        if name == "RP":
+            continue  # the set count, see design_sets
         if name not in names:
-            raise _unknown(name, "design", names)
+            raise _unknown(name, "design", (*names, "RP"))
         x[names.index(name)] = float(value)
     return x
+
+
+def design_sets(study: SeaSpringStudy) -> int:
+    """Sets (arms) of the study's ``design:``: geometry.n_sets, else the design's RP, else 4."""
+    if study.geometry.n_sets:
+        return int(study.geometry.n_sets)
+    rp = (study.design or {}).get("RP")
+    if rp is None:
+        return 4
+    if rp != int(rp) or not 1 <= rp <= 12:
+        raise StudyError("design.RP", f"RP = {rp:g} must be a whole number of sets, 1 to 12")
+    return int(rp)
 
 
 def check(study: SeaSpringStudy) -> None:
@@ -386,12 +486,12 @@ def check(study: SeaSpringStudy) -> None:
     except GeometryError as exc:
         raise StudyError("geometry", str(exc)) from exc
     space = design_space(study)
-    names = ga_variables(study.geometry.arcs)
+    names = variables(study)
     st = space.upper[names.index("ST")]
     if st > 20.0 + 1e-9:
         log.info("design_space.ST reaches %.3g mm, beyond the paper's 20 mm", st)
-    n_sets = study.geometry.n_sets or 4
-    if space.upper[names.index("alpha")] >= 360.0 / n_sets:
+    n_sets = design_sets(study)
+    if "alpha" in names and space.upper[names.index("alpha")] >= 360.0 / n_sets:
         raise StudyError(
             "design_space.alpha",
             f"alpha may reach {space.upper[names.index('alpha')]:g} degrees but {n_sets} "
@@ -400,7 +500,7 @@ def check(study: SeaSpringStudy) -> None:
     if study.design is not None:
         x = design_vector(study)
         try:
-            build_spring(params_from_vector(x, n_sets, study.geometry.arcs), frame)
+            build(params_of(study, x, n_sets, frame), frame)
         except GeometryError as exc:
             raise StudyError("design", str(exc)) from exc
     target_stiffness_Nm_per_rad(study)
@@ -582,20 +682,32 @@ def analyse_spring(
 # Stage 1: Taguchi L25 (paper section 5, Tables 6-8)
 
 
-def _levels_to_values(levels: np.ndarray | tuple[int, ...]) -> dict[str, float]:
-    return {
-        n: float(TABLE6_LEVELS[n][int(lv)]) for n, lv in zip(TABLE6_LEVELS, levels, strict=True)
-    }
+def _levels_to_values(
+    levels: np.ndarray | tuple[int, ...], table: dict[str, tuple[float, ...]] = TABLE6_LEVELS
+) -> dict[str, float]:
+    return {n: float(table[n][int(lv)]) for n, lv in zip(table, levels, strict=True)}
+
+
+def screen_params(
+    values: dict[str, float], frame: SpringFrame, topology: str = "serpentine",
+    root_fillet_mm: float = 1.5,
+) -> SpringParams | ArmSpringParams:  # fmt: skip
+    """The spring of one stage-1 run: Table 6 factors (serpentine) or SPIRAL_LEVELS (spiral)."""
+    v = values
+    if topology == "spiral":
+        return spiral_params(spiral_level_values(v), int(v["RP"]), frame, root_fillet_mm)
+    return taguchi_params(v["RP"], v["RR"], v["ST"], v["A"], v["RT"], v["D"], frame)
 
 
 def _screen_one(
-    levels: tuple[int, ...], frame: SpringFrame, material: Material, mesh: MeshSpec
+    levels: tuple[int, ...], frame: SpringFrame, material: Material, study: SeaSpringStudy
 ) -> tuple[float, float, str]:
     """(stiffness N m/rad, peak stress per radian MPa/rad, reason) of one level combination."""
-    v = _levels_to_values(levels)
+    v = _levels_to_values(levels, factor_levels(study))
+    mesh = study.mesh
     try:
-        p = taguchi_params(v["RP"], v["RR"], v["ST"], v["A"], v["RT"], v["D"], frame)
-        geom = build_spring(p, frame)
+        p = screen_params(v, frame, study.geometry.topology, study.geometry.root_fillet_mm)
+        geom = build(p, frame)
         theta = math.radians(1.0)  # linear: any angle; 1 degree keeps the numbers readable
         r = analyse_spring(geom, material, theta, mesh, nonlinear=False)
     except (GeometryError, FeaError) as exc:
@@ -625,8 +737,9 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
     k_target, _ = target_stiffness_Nm_per_rad(study)
     torque = study.taguchi.torque_Nm or study.target.torque_Nm / 5.0
     theta_t = math.degrees(torque / k_target)
-    lay = select_array({n: len(v) for n, v in TABLE6_LEVELS.items()})
-    runs = [_screen_one(tuple(row), frame, material, study.mesh) for row in lay.design]
+    table = factor_levels(study)
+    lay = select_array({n: len(v) for n, v in table.items()})
+    runs = [_screen_one(tuple(row), frame, material, study) for row in lay.design]
     k = np.array([r[0] for r in runs])
     sig_per_rad = np.array([r[1] for r in runs])
     theta = np.degrees(torque / k)
@@ -656,7 +769,7 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
     best = tuple(int(v) for v in result.best_levels)
 
     def measure(levels: tuple[int, ...]) -> tuple[float, float, float, float]:
-        kk, sp, _ = _screen_one(levels, frame, material, study.mesh)
+        kk, sp, _ = _screen_one(levels, frame, material, study)
         if not math.isfinite(kk):
             return math.nan, math.nan, math.nan, float(C.max())
         th = math.degrees(torque / kk)
@@ -666,7 +779,7 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
     kb, thb, sgb, cb = measure(best)
     conf = confirm(result, responses=[cb])
     rng = np.random.default_rng(spec.seed)
-    extra = rng.integers(0, 5, size=(spec.extra_runs, len(TABLE6_LEVELS)))
+    extra = rng.integers(0, 5, size=(spec.extra_runs, len(table)))
     extra_c = np.array([measure(tuple(int(v) for v in row))[3] for row in extra])
     additivity = (
         result.additivity(extra_levels=extra, extra_sn=-10.0 * np.log10(extra_c**2))
@@ -684,13 +797,13 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
     ]
     return {
         "array": lay.array_name,
+        "topology": study.geometry.topology,
         "torque_Nm": torque,
         "target_rotation_deg": theta_t,
         "cost": "C = 0.5 sigma/max(sigma) + 0.5 |theta_T - theta|/max|theta_T - theta| (Eq. 27)",
         "runs": {
             **{
-                n: [float(TABLE6_LEVELS[n][lv]) for lv in lay.design[:, j]]
-                for j, n in enumerate(TABLE6_LEVELS)
+                n: [float(table[n][lv]) for lv in lay.design[:, j]] for j, n in enumerate(table)
             },  # fmt: skip
             "stiffness_Nm_per_rad": k.tolist(),
             "rotation_deg": theta.tolist(),
@@ -701,7 +814,7 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
         },
         "anova": anova_rows,
         "best_levels": dict(zip(lay.factor_names, best, strict=True)),
-        "best_values": _levels_to_values(best),
+        "best_values": _levels_to_values(best, table),
         "predicted_sn_dB": float(result.predicted_sn),
         "confirmation": {
             "stiffness_Nm_per_rad": kb,
@@ -726,17 +839,25 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
             ),
             "notes": list(additivity.notes),
         },
-        "best_run": {"index": i_run, "C": float(C[i_run]), **_levels_to_values(lay.design[i_run])},
-        "chosen": {"from": chosen_from, **_levels_to_values(chosen_levels)},
+        "best_run": {
+            "index": i_run,
+            "C": float(C[i_run]),
+            **_levels_to_values(lay.design[i_run], table),
+        },
+        "chosen": {"from": chosen_from, **_levels_to_values(chosen_levels, table)},
         "time_s": time.perf_counter() - t0,
     }
 
 
 def seed_from_taguchi(
-    chosen: dict[str, float], space: DesignSpace, frame: SpringFrame, n_arcs: int = 5
-) -> np.ndarray:
-    """The stage-1 spring as a GA vector of ``n_arcs`` arcs (its other levels kept, arcs spread
-    evenly as in stage 1, clipped into the space)."""
+    chosen: dict[str, float], space: DesignSpace, frame: SpringFrame, n_arcs: int = 5,
+    topology: str = "serpentine",
+) -> np.ndarray:  # fmt: skip
+    """The stage-1 spring as a GA vector: ``n_arcs`` arcs (its other levels kept, arcs spread
+    evenly as in stage 1) or the spiral's variables; clipped into the space."""
+    if topology == "spiral":
+        v = spiral_level_values(chosen)
+        return space.clip(np.array([v[n] for n in SPIRAL_VARIABLES]))
     n = int(n_arcs)
     p = taguchi_params(
         chosen["RP"], (n - 1) // 2, chosen["ST"], chosen["A"], chosen["RT"], chosen["D"], frame
@@ -785,7 +906,8 @@ class SeaSpringProblem:
         self.full_space = design_space(study)
         self.solve_st = study.thickness == "solve"
         self.n_arcs = study.geometry.arcs
-        self.names = ga_variables(self.n_arcs)
+        self.topology = study.geometry.topology
+        self.names = variables(study)
         i_st = self.names.index("ST")
         self.st_range = (float(self.full_space.lower[i_st]), float(self.full_space.upper[i_st]))
         if self.solve_st:
@@ -803,12 +925,14 @@ class SeaSpringProblem:
             extra = ("stiffness_band_percent",)
         if study.target.max_asymmetry_percent is not None:
             extra = (*extra, "asymmetry_percent")
-        self.constraint_names = (*_GEOMETRY_CONSTRAINTS, *extra)
+        self.geometry_constraints = constraint_keys(study)
+        self.constraint_names = (*self.geometry_constraints, *extra)
         if stage1 is None and study.taguchi.enabled:
             stage1 = run_taguchi(study)
         self.stage1 = stage1
-        chosen_rp = int(stage1["chosen"]["RP"]) if stage1 else 4
-        self.n_sets = int(study.geometry.n_sets or chosen_rp)
+        self.n_sets = int(stage1["chosen"]["RP"]) if stage1 else design_sets(study)
+        if study.geometry.n_sets:
+            self.n_sets = int(study.geometry.n_sets)
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -820,14 +944,16 @@ class SeaSpringProblem:
         st = self.REFERENCE_THICKNESS_MM if st_mm is None else st_mm
         return np.insert(x, self.names.index("ST"), st)
 
-    def params(self, x: np.ndarray, st_mm: float | None = None) -> SpringParams:
-        return params_from_vector(self.full_vector(x, st_mm), self.n_sets, self.n_arcs)
+    def params(self, x: np.ndarray, st_mm: float | None = None) -> SpringParams | ArmSpringParams:
+        return params_of(self.study, self.full_vector(x, st_mm), self.n_sets, self.frame)
 
     def initial_designs(self) -> np.ndarray | None:
         """The stage-1 spring (five-arc version) or else the study's ``design:``, seeded into
         the first population."""
         if self.stage1:
-            x = seed_from_taguchi(self.stage1["chosen"], self.full_space, self.frame, self.n_arcs)
+            x = seed_from_taguchi(
+                self.stage1["chosen"], self.full_space, self.frame, self.n_arcs, self.topology
+            )
         elif self.study.design is not None:
             x = self.full_space.clip(design_vector(self.study))
         else:
@@ -836,9 +962,9 @@ class SeaSpringProblem:
             x = np.delete(x, self.names.index("ST"))
         return x[None, :]
 
-    def _margins_g(self, p: SpringParams) -> np.ndarray:
-        m = clearances(p, self.frame)
-        return -np.array([m[k] for k in _GEOMETRY_CONSTRAINTS])
+    def _margins_g(self, p: SpringParams | ArmSpringParams) -> np.ndarray:
+        m = margins(p, self.frame)
+        return -np.array([m[k] for k in self.geometry_constraints])
 
     def solve(self, x: np.ndarray, steps: int = 1, keep_model: bool = False):
         """Build and analyse a design; returns (params, geometry, response, ST mm) or raises.
@@ -852,7 +978,7 @@ class SeaSpringProblem:
         GeometryError, FeaError
         """
         p = self.params(x)
-        geom = build_spring(p, self.frame)
+        geom = build(p, self.frame)
         both = self.study.target.directions == "both"
         r = analyse_spring(geom, self.material, self.theta, self.study.mesh, steps, True,
                            keep_model, both_directions=both)  # fmt: skip
@@ -862,7 +988,7 @@ class SeaSpringProblem:
         scale = self.k_target / r.mean_stiffness_Nm_per_rad
         st = p.thickness_mm * scale
         p = self.params(x, st)
-        geom = build_spring(p, self.frame)
+        geom = build(p, self.frame)
         r = r.scaled(scale)
         if r.model is not None:
             r.model.thickness_mm = st  # only the stress map reads it; stresses do not change
@@ -880,9 +1006,9 @@ class SeaSpringProblem:
         n_obj, n_con = len(self.objective_names), len(self.constraint_names)
         try:
             p = self.params(x)
+            g_geo = self._margins_g(p)
         except GeometryError as exc:
             return Evaluation.failed(x, n_obj, n_con, f"cannot build: {exc}"), None
-        g_geo = self._margins_g(p)
         n_extra = n_con - g_geo.size
         if np.any(g_geo > 1e-9):
             # Not buildable: no FE, but graded violations lead the GA back.
@@ -1002,9 +1128,9 @@ class SeaSpringProblem:
                 "checks": geom.checks,
                 "mesh": {"dofs": r.n_dofs, "triangles": r.n_triangles},
                 "published_springs": _published_comparison(),
-                "stress_map": _stress_map_data(r),
             }
         )
+        smap = _stress_map_data(r)
         tol = study.target.tolerance_percent / 100.0 * study.target.torque_Nm
         plot = {
             "x": "rotation_deg",
@@ -1012,10 +1138,21 @@ class SeaSpringProblem:
             "stress": "peak_stress_MPa",
             "target": study.target.torque_Nm,
             "tolerance": tol,
+            # the band where the design torque must be met: near +theta_T
+            "band_x": [0.9 * math.degrees(self.theta), math.degrees(self.theta)],
             "allowable_MPa": study.target.allowable_stress_MPa,
             "xlabel": "hub rotation (deg)",
             "ylabel": "torque on the hub (N m)",
         }
+        field_map = None
+        if smap:
+            field_map = {
+                "points_mm": smap["points_mm"],
+                "triangles": smap["triangles"],
+                "values": smap["von_mises_MPa"],
+                "label": "von Mises stress at +theta_T, counter-clockwise (MPa)",
+                "limit": study.target.allowable_stress_MPa,
+            }
         return DesignDetail(
             evaluation=evaluation,
             table=table,
@@ -1023,10 +1160,12 @@ class SeaSpringProblem:
             outline=geom.outline,
             height_mm=p.thickness_mm,
             info=info,
+            field_map=field_map,
         )
 
 
 _GEOMETRY_CONSTRAINTS = ("envelope_mm", "thinnest_mm", "slot_mm", "link_reach_mm")
+_SPIRAL_CONSTRAINTS = ("envelope_mm", "thinnest_mm", "slot_mm", "hub_mm")
 
 
 def _curve_table(r: SpringResponse) -> dict[str, np.ndarray]:
@@ -1089,31 +1228,17 @@ def _stress_map_data(r: SpringResponse) -> dict[str, Any]:
 
 def stress_map_png(stress_map: dict[str, Any], allowable_MPa: float | None = None,
                    title: str = "") -> bytes:  # fmt: skip
-    """PNG of the von Mises map of :func:`SeaSpringProblem.detail` (``info["stress_map"]``).
+    """PNG of a von Mises map of :func:`_stress_map_data` (``flexopt run`` draws the same map
+    from ``DesignDetail.field_map`` as ``stress_map.png``)."""
+    from pipeline.plots import plot_field
 
-    Pipeline modules may draw; this is offered for ``flexopt run`` to write ``stress_map.png``.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.tri import Triangulation
-
-    p = np.asarray(stress_map["points_mm"])
-    tri = Triangulation(p[:, 0], p[:, 1], np.asarray(stress_map["triangles"]))
-    vm = np.asarray(stress_map["von_mises_MPa"])
-    fig, ax = plt.subplots(figsize=(6.5, 5.5))
-    vmax = max(float(vm.max()), allowable_MPa or 0.0)
-    cs = ax.tripcolor(tri, vm, shading="gouraud", cmap="viridis", vmin=0.0, vmax=vmax)
-    fig.colorbar(cs, ax=ax, label="von Mises stress (MPa)")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.set_title(title or "von Mises stress at the design torque")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return buf.getvalue()
+    return plot_field(
+        stress_map["points_mm"],
+        stress_map["triangles"],
+        stress_map["von_mises_MPa"],
+        limit=allowable_MPa,
+        title=title or "von Mises stress at the design torque",
+    )
 
 
 # --------------------------------------------------------------------------------------------

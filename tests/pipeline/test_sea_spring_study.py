@@ -26,6 +26,7 @@ MINIMAL = {
     "taguchi": {"enabled": False},
 }
 MID = np.array([0.5 * (lo + hi) for lo, hi in TABLE9_BOUNDS.values()])
+SPIRAL_GEOMETRY = {"kind": "sea_spring", "topology": "spiral", "n_sets": 4}
 
 
 def study_with(**changes):
@@ -44,6 +45,22 @@ def study_with(**changes):
         ({"target": {"stiffness_Nm_per_rad": None}}, "", ["stiffness_window"]),
         ({"design": {"R9": 3.0}}, "design.R9", ["unknown design variable"]),
         ({"design": {"R5": 35.5}}, "design", ["envelope"]),
+        (
+            {"geometry": SPIRAL_GEOMETRY, "design_space": {"R1": [9, 12]}},
+            "design_space.R1",
+            ["unknown design variable", "sweep", "R_pad"],
+        ),
+        (
+            {"geometry": SPIRAL_GEOMETRY, "design_space": {"F1": [0.2, 1.1]}},
+            "design_space.F1",
+            ["fraction"],
+        ),
+        ({"geometry": SPIRAL_GEOMETRY, "design": {"R_pad": 34.0}}, "design", ["envelope_mm"]),
+        (
+            {"geometry": {"kind": "sea_spring", "topology": "helix"}},
+            "geometry.topology",
+            ["serpentine", "spiral"],
+        ),
     ],
 )
 def test_bad_studies_name_the_key(changes, path, words):
@@ -55,13 +72,16 @@ def test_bad_studies_name_the_key(changes, path, words):
 
 
 def test_examples_validate():
-    assert {"sea-spring", "sea-spring-quick"} <= set(list_examples())
-    for name in ("sea-spring", "sea-spring-quick"):
+    assert {"sea-spring", "sea-spring-quick", "sea-spring-serpentine"} <= set(list_examples())
+    for name in ("sea-spring", "sea-spring-quick", "sea-spring-serpentine"):
         study = load_study(name)
         assert study.kind == "sea_spring"
         assert study.target.stiffness_Nm_per_rad == 275.0
-    raw = yaml.safe_load((EXAMPLES / "sea-spring.yaml").read_text())
-    assert raw["taguchi"]["torque_Nm"] == 10.0
+    for name in ("sea-spring", "sea-spring-serpentine"):
+        raw = yaml.safe_load((EXAMPLES / f"{name}.yaml").read_text())
+        assert raw["taguchi"]["torque_Nm"] == 10.0
+    assert load_study("sea-spring").geometry.topology == "spiral"
+    assert load_study("sea-spring-serpentine").geometry.topology == "serpentine"
 
 
 def test_stiffness_target_from_the_window():
@@ -144,5 +164,57 @@ def test_quick_example_runs_end_to_end(tmp_path):
     best = json.loads((out / "best.json").read_text())
     info = best["info"]
     assert info["outer_diameter_mm"] <= 72.0 + 1e-6
-    assert {"best.stl", "force_displacement.png", "report.md"} <= set(record["files"])
+    assert {"best.stl", "force_displacement.png", "stress_map.png", "report.md"} <= set(
+        record["files"]
+    )
+    assert "stress_map" not in info  # drawn as stress_map.png, not stored in best.json
     assert trimesh.load(out / "best.stl").is_watertight
+
+
+SPIRAL = {"name": "sea-spiral", "geometry": SPIRAL_GEOMETRY, "material": "maraging-300",
+          "taguchi": {"enabled": False}}  # fmt: skip
+SPIRAL_DESIGN = {"sweep": 300.0, "R_pad": 30.0, "F1": 1 / 3, "F2": 0.5,
+                 "W1": 3.0, "W2": 2.5, "W3": 2.5, "W4": 3.0}  # fmt: skip
+
+
+def test_spiral_problem_contract_and_solved_thickness():
+    raw = copy.deepcopy(SPIRAL)
+    raw.update(mesh=COARSE, design=SPIRAL_DESIGN)
+    prob = ss.SeaSpringProblem(validate_study(raw))
+    assert isinstance(prob, DesignProblem)
+    assert prob.space.names == ("sweep_deg", "R_pad_mm", "F1_fraction", "F2_fraction",
+                                "W1_mm", "W2_mm", "W3_mm", "W4_mm")  # fmt: skip
+    assert prob.constraint_names[:4] == ("envelope_mm", "thinnest_mm", "slot_mm", "hub_mm")
+    pickle.loads(pickle.dumps(prob))
+    x0 = prob.initial_designs()[0]
+    assert np.allclose(x0, [SPIRAL_DESIGN[n] for n in ss.SPIRAL_VARIABLES[:-1]])
+    ev = prob.evaluate(x0)
+    assert ev.reason == "", ev.reason  # solved (feasible or not: ST may leave 8-20 mm)
+    # both directions: the solved ST makes the mean secant stiffness the target
+    assert ev.metrics["stiffness_Nm_per_rad"] == pytest.approx(275.0, rel=1e-9)
+    k_ccw, k_cw = ev.metrics["stiffness_ccw_Nm_per_rad"], ev.metrics["stiffness_cw_Nm_per_rad"]
+    assert 0.5 * (k_ccw + k_cw) == pytest.approx(275.0, rel=1e-9) and k_ccw != k_cw
+    # the geometric check comes before the FE: a pad outside the envelope costs no solve
+    bad = x0.copy()
+    bad[prob.names.index("R_pad")] = 34.0
+    ev_bad = prob.evaluate(bad)
+    assert not ev_bad.feasible and ev_bad.g[0] > 0 and ev_bad.time_s < 0.5
+
+
+def test_spiral_screening_run_builds_or_explains_every_l25_row():
+    from optimise.taguchi import select_array
+
+    study = validate_study(SPIRAL)
+    frame = ss.spring_frame(study)
+    table = ss.factor_levels(study)
+    lay = select_array({n: len(v) for n, v in table.items()})
+    built = 0
+    for row in lay.design:
+        values = ss._levels_to_values(row, table)
+        p = ss.screen_params(values, frame, "spiral", study.geometry.root_fillet_mm)
+        try:
+            ss.build(p, frame)
+            built += 1
+        except ss.GeometryError as exc:
+            assert "fails by" in str(exc) or "polygon" in str(exc) or "holes" in str(exc)
+    assert built >= 12  # most of the array is a spring; the rest imputes the worst cost
