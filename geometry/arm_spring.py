@@ -205,7 +205,7 @@ def arm_clearances(p: ArmSpringParams, frame: SpringFrame = _DEFAULT_FRAME) -> d
     arm, pad, _, _ = _arm_zero(p, frame)
     one = arm.union(pad)
     outer = max(
-        float(np.hypot(*np.asarray(one.exterior.coords).T).max()),
+        float(np.hypot(*shapely.get_coordinates(one).T).max()),
         p.radii_mm[-1] + frame.pad_radius_mm,
     )
     _, w = arm_centreline(p)
