@@ -39,6 +39,8 @@ class DesignDetail:
         ``points_mm`` (n, 2) mm, ``triangles`` (m, 3) int, ``values`` (n,), ``label`` (name and
         unit of the values), optional ``limit`` (an allowable in the same unit). Drawn as
         ``stress_map.png``; not written into best.json (it is large).
+    files : dict of str to bytes — more files of the kind (``taguchi.png``), by plain file name;
+        ``flexopt run`` writes them into the run folder.
     """
 
     evaluation: Evaluation
@@ -49,6 +51,7 @@ class DesignDetail:
     height_mm: float | None = None
     info: dict[str, Any] = field(default_factory=dict)
     field_map: dict[str, Any] | None = None
+    files: dict[str, bytes] = field(default_factory=dict)
 
 
 @runtime_checkable

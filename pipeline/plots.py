@@ -17,6 +17,7 @@ __all__ = [
     "plot_curve",
     "plot_field",
     "plot_front",
+    "plot_taguchi",
     "plot_response",
     "plot_shapes",
     "plot_stress",
@@ -411,4 +412,52 @@ def plot_front(
     ax.legend(loc="best", fontsize="small")
     if title:
         ax.set_title(title)
+    return _png(fig)
+
+
+def plot_taguchi(
+    main_effects: Mapping[str, Mapping[str, list[float]]],
+    anova_rows: list[Mapping[str, object]],
+    title: str = "",
+) -> bytes:
+    """Main effects (mean S/N of each level of each factor) and percent contributions (ANOVA).
+
+    Parameters
+    ----------
+    main_effects : factor name -> {"levels": (s,) level values, "sn_dB": (s,) mean S/N, dB}.
+    anova_rows : rows of the ANOVA table with ``source``, ``percent`` and ``pooled``; the
+        ``error`` and ``total`` rows are drawn as the error bar and left out.
+
+    Returns
+    -------
+    bytes
+        The PNG file.
+    """
+    names = list(main_effects)
+    fig = Figure(figsize=(2.0 * len(names) + 1.0, 6.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(2, len(names))
+    top = [fig.add_subplot(grid[0, i]) for i in range(len(names))]
+    lows = [min(e["sn_dB"]) for e in main_effects.values()]
+    highs = [max(e["sn_dB"]) for e in main_effects.values()]
+    for ax, name in zip(top, names, strict=True):
+        e = main_effects[name]
+        ax.plot(range(1, len(e["sn_dB"]) + 1), e["sn_dB"], "o-")
+        ax.set_xticks(range(1, len(e["levels"]) + 1))
+        ax.set_xticklabels([f"{v:g}" for v in e["levels"]], fontsize="x-small", rotation=45)
+        ax.set_title(name)
+        ax.set_ylim(min(lows) - 1.0, max(highs) + 1.0)
+        ax.grid(True, alpha=0.3)
+    top[0].set_ylabel("mean S/N (dB)")
+    bottom = fig.add_subplot(grid[1, :])
+    rows = [r for r in anova_rows if r.get("source") not in ("total",)]
+    labels = [str(r["source"]) for r in rows]
+    values = [float(r.get("percent") or 0.0) for r in rows]  # type: ignore[arg-type]
+    colours = ["0.6" if r.get("pooled") or r.get("source") == "error" else "C0" for r in rows]
+    bottom.bar(labels, values, color=colours)
+    bottom.set_ylabel("contribution (% of total SS)")
+    bottom.set_title("ANOVA contributions (grey: pooled into the error)")
+    bottom.grid(True, axis="y", alpha=0.3)
+    if title:
+        fig.suptitle(title)
     return _png(fig)

@@ -34,6 +34,7 @@ _PLOTS = (
     ("shapes.png", "Deformed shapes"),
     ("stress_map.png", "Stress map of the best design"),
     ("front.png", "Pareto front"),
+    ("taguchi.png", "Taguchi stage: main effects and contributions"),
     ("convergence.png", "Convergence"),
 )
 

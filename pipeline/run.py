@@ -713,6 +713,11 @@ class _Run:
                     title=title,
                 ),
             )
+        for name, data in (getattr(detail, "files", None) or {}).items():
+            if name in RUN_FILES or "/" in name or name.startswith("."):
+                self.notes.append(f"{name} from the kind not written: a reserved or unsafe name")
+                continue
+            self.artefact(name, lambda data=data: data)
         if len(result.front) > 1 and len(problem.objective_names) >= 2:
             self.artefact("front.png", lambda: self._front_png(result, title))
         if detail is not None and detail.outline is not None and detail.height_mm:

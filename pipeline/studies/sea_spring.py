@@ -813,6 +813,10 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
             "failed": [r[2] for r in runs],
         },
         "anova": anova_rows,
+        "main_effects": {
+            me.name: {"levels": [float(v) for v in table[me.name]], "sn_dB": me.sn.tolist()}
+            for me in result.main_effects
+        },
         "best_levels": dict(zip(lay.factor_names, best, strict=True)),
         "best_values": _levels_to_values(best, table),
         "predicted_sn_dB": float(result.predicted_sn),
@@ -1072,8 +1076,17 @@ class SeaSpringProblem:
                 **self.target_source,
             },
         }
+        files: dict[str, bytes] = {}
         if self.stage1:
             info["taguchi"] = _stage1_summary(self.stage1)
+            if "main_effects" in self.stage1:
+                from pipeline.plots import plot_taguchi
+
+                files["taguchi.png"] = plot_taguchi(
+                    self.stage1["main_effects"],
+                    self.stage1["anova"],
+                    title=f"stage 1: {self.stage1['array']} over the {self.topology}'s factors",
+                )
         if solved is None:
             info["problem"] = evaluation.reason or "not buildable (see the constraints)"
             return DesignDetail(evaluation, info=info)
@@ -1161,6 +1174,7 @@ class SeaSpringProblem:
             height_mm=p.thickness_mm,
             info=info,
             field_map=field_map,
+            files=files,
         )
 
 
@@ -1185,7 +1199,8 @@ def _curve_table(r: SpringResponse) -> dict[str, np.ndarray]:
 
 def _stage1_summary(stage1: dict[str, Any]) -> dict[str, Any]:
     keys = (
-        "array", "torque_Nm", "target_rotation_deg", "cost", "runs", "anova", "best_values",
+        "array", "topology", "torque_Nm", "target_rotation_deg", "cost", "runs", "anova",
+        "main_effects", "best_values",
         "predicted_sn_dB", "confirmation", "additivity", "best_run", "chosen", "time_s",
     )  # fmt: skip
     return {k: stage1[k] for k in keys if k in stage1}

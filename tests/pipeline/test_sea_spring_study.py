@@ -218,3 +218,26 @@ def test_spiral_screening_run_builds_or_explains_every_l25_row():
         except ss.GeometryError as exc:
             assert "fails by" in str(exc) or "polygon" in str(exc) or "holes" in str(exc)
     assert built >= 12  # most of the array is a spring; the rest imputes the worst cost
+
+
+def test_spiral_taguchi_stage_effects_contributions_and_plot():
+    raw = copy.deepcopy(SPIRAL)
+    raw["geometry"] = {**SPIRAL_GEOMETRY, "n_sets": None}
+    raw.update(mesh=COARSE, taguchi={"enabled": True, "extra_runs": 2})
+    stage1 = ss.run_taguchi(validate_study(raw))
+    assert stage1["array"].startswith("L25") and stage1["topology"] == "spiral"
+    sn = np.array(stage1["runs"]["sn_dB"])
+    for name, effect in stage1["main_effects"].items():
+        assert len(effect["sn_dB"]) == 5 == len(effect["levels"]), name
+        # a balanced array: the mean of the level means is the grand mean
+        assert np.mean(effect["sn_dB"]) == pytest.approx(sn.mean(), abs=1e-9), name
+    parts = [r["percent"] for r in stage1["anova"] if r["source"] not in ("total", "error")]
+    pooled = [r for r in stage1["anova"] if r.get("pooled")]
+    error = next(r for r in stage1["anova"] if r["source"] == "error")
+    total = sum(parts) + error["percent"] - sum(r["percent"] for r in pooled)
+    assert total == pytest.approx(100.0, abs=1e-6)
+    assert stage1["chosen"]["RP"] in (2, 3, 4, 5, 6)
+    from pipeline.plots import plot_taguchi
+
+    png = plot_taguchi(stage1["main_effects"], stage1["anova"])
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
