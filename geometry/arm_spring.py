@@ -156,17 +156,35 @@ def arm_centreline(p: ArmSpringParams, max_step_mm: float = 0.5) -> tuple[np.nda
 
 
 def _band(xy: np.ndarray, w: np.ndarray) -> Polygon:
-    """The region within ±w/2 of a polyline along its (averaged) normals, as one polygon."""
+    """The region within ±w/2 of a polyline along its (averaged) normals, as one polygon.
+
+    Raises
+    ------
+    GeometryError
+        A centreline that stands still (repeated points: a degenerate shape) or a band that
+        shapely cannot close.
+    """
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    keep = np.concatenate([[True], step > 1e-9])
+    xy, w = xy[keep], w[keep]
+    if len(xy) < 2:
+        raise GeometryError("the arm centreline has no length; check its control points")
     d = np.gradient(xy, axis=0)
-    d /= np.hypot(d[:, 0], d[:, 1])[:, None]
+    norm = np.hypot(d[:, 0], d[:, 1])
+    if not np.all(norm > 0):
+        raise GeometryError("the arm centreline turns back on itself; check its control points")
+    d /= norm[:, None]
     nrm = np.column_stack([-d[:, 1], d[:, 0]])
     left = xy + 0.5 * w[:, None] * nrm
     right = xy - 0.5 * w[:, None] * nrm
-    poly = Polygon(np.vstack([left, right[::-1]]))
-    if not poly.is_valid:
-        # A width larger than the local radius of curvature folds an offset curve; buffer(0)
-        # resolves the fold into the region it encloses.
-        poly = poly.buffer(0)
+    try:
+        poly = Polygon(np.vstack([left, right[::-1]]))
+        if not poly.is_valid:
+            # A width larger than the local radius of curvature folds an offset curve;
+            # buffer(0) resolves the fold into the region it encloses.
+            poly = poly.buffer(0)
+    except shapely.errors.GEOSException as exc:
+        raise GeometryError(f"the arm band cannot be drawn ({exc}); check the shape") from exc
     return poly
 
 
