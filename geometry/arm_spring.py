@@ -49,7 +49,7 @@ from shapely.geometry import MultiPolygon, Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from geometry.errors import GeometryError
-from geometry.sea_spring import SpringFrame, SpringGeometry
+from geometry.sea_spring import SpringFrame, SpringGeometry, mounting_holes
 
 _DEFAULT_FRAME = SpringFrame()
 
@@ -323,18 +323,8 @@ def build_arm_spring(p: ArmSpringParams, frame: SpringFrame = _DEFAULT_FRAME) ->
             "slots or reduce root_fillet_mm"
         )
     centres = [_rotate(Point(*xy[-1]), k * p.pitch_deg) for k in range(p.n_arms)]
-    holes = []
-    if frame.bore_diameter_mm > 0:
-        holes.append(Point(0.0, 0.0).buffer(0.5 * frame.bore_diameter_mm, quad_segs=16))
-    if frame.hub_holes > 0 and frame.hub_hole_diameter_mm > 0:
-        rc = 0.5 * frame.hub_hole_circle_diameter_mm
-        for j in range(frame.hub_holes):
-            t = 2 * math.pi * (j + 0.5) / frame.hub_holes
-            holes.append(Point(rc * math.cos(t), rc * math.sin(t)).buffer(
-                0.5 * frame.hub_hole_diameter_mm, quad_segs=12))  # fmt: skip
-    if frame.pad_hole_diameter_mm > 0:
-        holes += [c.buffer(0.5 * frame.pad_hole_diameter_mm, quad_segs=12) for c in centres]
-    outline = body.difference(shapely.union_all(holes)) if holes else body
+    holes = mounting_holes(frame, centres)
+    outline = body.difference(holes) if not holes.is_empty else body
     if not isinstance(outline, Polygon) or not outline.is_valid:
         raise GeometryError("the mounting holes cut the spring apart; make them smaller")
     hub_region = Point(0.0, 0.0).buffer(frame.hub_clamp_radius_mm, quad_segs=32)

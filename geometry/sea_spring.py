@@ -73,6 +73,7 @@ __all__ = [
     "SpringGeometry",
     "build_spring",
     "clearances",
+    "mounting_holes",
     "ga_bounds",
     "ga_variables",
     "params_from_vector",
@@ -649,7 +650,9 @@ def _hub(p: SpringParams, frame: SpringFrame) -> Polygon:
     return Point(0.0, 0.0).buffer(frame.hub_radius_mm, quad_segs=32)
 
 
-def _holes(p: SpringParams, frame: SpringFrame, pads: list[Point]) -> BaseGeometry:
+def mounting_holes(frame: SpringFrame, pads: list[Point]) -> BaseGeometry:
+    """The bore, the hub bolt holes (half a pitch off the first set or arm) and a bolt hole in
+    every pad centre (``pads``: shapely points, mm), as one geometry (empty when none)."""
     holes = []
     if frame.bore_diameter_mm > 0:
         holes.append(Point(0.0, 0.0).buffer(0.5 * frame.bore_diameter_mm, quad_segs=16))
@@ -726,7 +729,7 @@ def build_spring(p: SpringParams, frame: SpringFrame = SpringFrame()) -> SpringG
             f"the spring outline closed {len(body.interiors)} slot(s) into holes: a slot is "
             f"narrower than 2 fillet_mm = {2 * frame.fillet_mm:g} mm somewhere; widen it"
         )
-    holes = _holes(p, frame, pads)
+    holes = mounting_holes(frame, pads)
     outline = body.difference(holes)
     if not isinstance(outline, Polygon) or not outline.is_valid:
         raise GeometryError("the mounting holes cut the spring apart; make them smaller")

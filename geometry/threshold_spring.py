@@ -154,7 +154,8 @@ def fold_margin_mm(p: ArmSpringParams, max_step_mm: float = 0.25) -> float:
     ds = np.hypot(d[:, 0], d[:, 1])
     heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
     turn = np.abs(np.diff(heading))  # at the interior samples
-    kappa = turn / (0.5 * (ds[:-1] + ds[1:]))
+    with np.errstate(divide="ignore", invalid="ignore"):  # repeated points: no curvature
+        kappa = turn / (0.5 * (ds[:-1] + ds[1:]))
     with np.errstate(divide="ignore"):
         radius = np.where(kappa > 1e-12, 1.0 / kappa, np.inf)
     return float(np.min(radius - 0.5 * w[1:-1]))

@@ -85,6 +85,7 @@ from optimise.problem import DesignDetail
 from optimise.space import DesignSpace
 from pipeline.errors import StudyError
 from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies._spring_frame import SpringFrameBlock
 from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 
 __all__ = [
@@ -128,10 +129,8 @@ PUBLISHED_SPRINGS: tuple[dict[str, Any], ...] = tuple(
 # The study file
 
 
-class SeaSpringGeometry(BaseModel):
-    """The ``geometry:`` block: envelope, mounting and manufacturing limits (mm)."""
-
-    model_config = STUDY_CONFIG
+class SeaSpringGeometry(SpringFrameBlock):
+    """The ``geometry:`` block: topology, set count and the shared frame keys (mm)."""
 
     kind: Literal["sea_spring"] = Field(description="sea_spring")
     topology: Literal["serpentine", "spiral"] = Field(
@@ -140,10 +139,6 @@ class SeaSpringGeometry(BaseModel):
         "and 9); spiral: one curved arm per set from hub to pad (geometry.arm_spring), which "
         "carries the torque as a nearly uniform bending moment",
     )
-    root_fillet_mm: float = Field(
-        1.5, ge=0, le=5, description="spiral: fillet radius where an arm meets hub and pad"
-    )
-    envelope_diameter_mm: float = Field(72.0, gt=0, description="the spring fits this circle")
     n_sets: int | None = Field(
         None,
         ge=1,
@@ -165,35 +160,6 @@ class SeaSpringGeometry(BaseModel):
                 f"one end of a set, pad at the other); use {self.arcs - 1} or {self.arcs + 1}"
             )
         return self
-
-    hub_radius_mm: float = Field(9.0, gt=0, description="hub disc radius")
-    bore_diameter_mm: float = Field(6.0, ge=0, description="hub bore")
-    hub_holes: int = Field(4, ge=0, le=12, description="hub bolt holes")
-    hub_hole_diameter_mm: float = Field(2.7, ge=0, description="hub bolt hole diameter")
-    hub_hole_circle_diameter_mm: float = Field(12.0, gt=0, description="hub bolt circle")
-    pad_radius_mm: float = Field(3.5, gt=0, description="outer mounting boss radius")
-    pad_hole_diameter_mm: float = Field(3.2, ge=0, description="outer bolt hole diameter")
-    fillet_mm: float = Field(0.3, ge=0, description="fillet radius at concave corners")
-    min_slot_mm: float = Field(0.8, gt=0, description="narrowest slot (cutting)")
-    min_feature_mm: float = Field(0.5, gt=0, description="thinnest member (machining)")
-
-    def frame(self) -> SpringFrame:
-        """The :class:`geometry.sea_spring.SpringFrame` of these values."""
-        return SpringFrame(
-            envelope_diameter_mm=self.envelope_diameter_mm,
-            hub_radius_mm=self.hub_radius_mm,
-            bore_diameter_mm=self.bore_diameter_mm,
-            hub_holes=self.hub_holes,
-            hub_hole_diameter_mm=self.hub_hole_diameter_mm,
-            hub_hole_circle_diameter_mm=self.hub_hole_circle_diameter_mm,
-            hub_clamp_radius_mm=max(self.hub_radius_mm - 1.0, 0.5 * self.hub_radius_mm),
-            pad_radius_mm=self.pad_radius_mm,
-            pad_hole_diameter_mm=self.pad_hole_diameter_mm,
-            pad_clamp_radius_mm=0.8 * self.pad_radius_mm,
-            fillet_mm=self.fillet_mm,
-            min_slot_mm=self.min_slot_mm,
-            min_feature_mm=self.min_feature_mm,
-        )
 
 
 class SpringTarget(BaseModel):

@@ -60,7 +60,6 @@ from fea.collision import ThresholdSpring, score_spring_curve, simulate_collisio
 from fea.errors import FeaError
 from geometry.arm_spring import ArmSpringParams, arm_clearances, build_arm_spring
 from geometry.errors import GeometryError
-from geometry.sea_spring import SpringFrame
 from geometry.solid import extrude, stl_bytes
 from geometry.threshold_spring import (
     THRESHOLD_BOUNDS,
@@ -77,6 +76,7 @@ from optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_k
 from pipeline.errors import StudyError
 from pipeline.plots import plot_field
 from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies._spring_frame import SpringFrameBlock
 from pipeline.studies.collision import ImpactSpec
 from pipeline.studies.sea_spring import MeshSpec as PlaneStressMesh
 from pipeline.studies.sea_spring import _stress_map_data, analyse_spring
@@ -105,10 +105,8 @@ _MARGINS = ("envelope_mm", "thinnest_mm", "slot_mm", "hub_mm", "fold_mm")
 # The study file
 
 
-class ThresholdSpringGeometry(BaseModel):
-    """The ``geometry:`` block: arm count, envelope, mounting and manufacturing limits (mm)."""
-
-    model_config = STUDY_CONFIG
+class ThresholdSpringGeometry(SpringFrameBlock):
+    """The ``geometry:`` block: arm count, thickness range and the shared frame keys (mm)."""
 
     kind: Literal["threshold_spring"] = Field(description="threshold_spring")
     n_arms: int = Field(3, ge=1, le=8, description="identical arms around the hub")
@@ -117,16 +115,6 @@ class ThresholdSpringGeometry(BaseModel):
         (2.0, 20.0), description="allowed spring thickness ST [lower, upper], mm"
     )
     root_fillet_mm: float = Field(1.0, ge=0, le=5, description="fillet at arm roots, mm")
-    hub_radius_mm: float = Field(9.0, gt=0, description="hub disc radius")
-    bore_diameter_mm: float = Field(6.0, ge=0, description="hub bore")
-    hub_holes: int = Field(4, ge=0, le=12, description="hub bolt holes")
-    hub_hole_diameter_mm: float = Field(2.7, ge=0, description="hub bolt hole diameter")
-    hub_hole_circle_diameter_mm: float = Field(12.0, gt=0, description="hub bolt circle")
-    pad_radius_mm: float = Field(3.5, gt=0, description="outer mounting boss radius")
-    pad_hole_diameter_mm: float = Field(3.2, ge=0, description="outer bolt hole diameter")
-    fillet_mm: float = Field(0.3, ge=0, description="fillet radius at concave corners")
-    min_slot_mm: float = Field(0.8, gt=0, description="narrowest slot (cutting)")
-    min_feature_mm: float = Field(0.5, gt=0, description="thinnest member (machining)")
 
     @model_validator(mode="after")
     def _thickness_range(self) -> ThresholdSpringGeometry:
@@ -136,24 +124,6 @@ class ThresholdSpringGeometry(BaseModel):
                 f"thickness_range_mm = {[lo, hi]} must be [lower, upper] with 0 < lower < upper"
             )
         return self
-
-    def frame(self) -> SpringFrame:
-        """The :class:`geometry.sea_spring.SpringFrame` of these values."""
-        return SpringFrame(
-            envelope_diameter_mm=self.envelope_diameter_mm,
-            hub_radius_mm=self.hub_radius_mm,
-            bore_diameter_mm=self.bore_diameter_mm,
-            hub_holes=self.hub_holes,
-            hub_hole_diameter_mm=self.hub_hole_diameter_mm,
-            hub_hole_circle_diameter_mm=self.hub_hole_circle_diameter_mm,
-            hub_clamp_radius_mm=max(self.hub_radius_mm - 1.0, 0.5 * self.hub_radius_mm),
-            pad_radius_mm=self.pad_radius_mm,
-            pad_hole_diameter_mm=self.pad_hole_diameter_mm,
-            pad_clamp_radius_mm=0.8 * self.pad_radius_mm,
-            fillet_mm=self.fillet_mm,
-            min_slot_mm=self.min_slot_mm,
-            min_feature_mm=self.min_feature_mm,
-        )
 
 
 class BeamSpec(BaseModel):
