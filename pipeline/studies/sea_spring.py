@@ -151,6 +151,12 @@ class SeaSpringGeometry(SpringFrameBlock):
         le=15,
         description="arcs per set in the GA stage (odd; Table 9 has 5; 7 lowers the stress)",
     )
+    min_deformed_slot_mm: float | None = Field(
+        None,
+        ge=0,
+        description="a constraint: the narrowest slot at +-theta_T (the loaded spring must not "
+        "touch itself), mm; null: measured and reported only",
+    )
 
     @model_validator(mode="after")
     def _odd_arcs(self) -> SeaSpringGeometry:
@@ -513,6 +519,8 @@ class SpringResponse:
     reverse_torque_Nm: np.ndarray | None = None
     reverse_peak_stress_MPa: np.ndarray | None = None
     reverse_stiffness_Nm_per_rad: float = math.nan
+    reverse_u: np.ndarray | None = None
+    slot_gaps_mm: dict[str, float] | None = None
 
     @property
     def mean_stiffness_Nm_per_rad(self) -> float:
@@ -552,6 +560,7 @@ def analyse_spring(
     keep_model: bool = False,
     settings: PlaneStressSettings | None = None,
     both_directions: bool = False,
+    gaps: bool = False,
 ) -> SpringResponse:
     """Linear stiffness and (optionally) the nonlinear torque curve of a spring up to theta.
 
@@ -569,6 +578,7 @@ def analyse_spring(
     nonlinear : bool — skip the nonlinear solve when False (stage 1).
     keep_model : bool — keep the model and last state (for stress maps).
     settings : PlaneStressSettings, optional — solver tolerances.
+    gaps : bool — measure the narrowest slot undeformed and at +-theta (:func:`slot_gaps_mm`).
     both_directions : bool — also turn the hub by -theta (a second nonlinear solve on the same
         model and factorisation pattern).
 
@@ -578,7 +588,7 @@ def analyse_spring(
         When the mesh or model cannot be built (a geometry problem, not a convergence one).
     """
     t0 = time.perf_counter()
-    rev_torque = rev_stress = None
+    rev_torque = rev_stress = rev_u = None
     mesh = mesh or MeshSpec()
     m = mesh_polygon(geom.fe_outline, mesh.max_edge_mm, refine=geom.mesh_regions(
         mesh.elements_through, mesh.max_edge_mm))  # fmt: skip
@@ -609,6 +619,7 @@ def analyse_spring(
             # symbolic analysis are reused.
             model.drive = replace(model.drive, max_rad=-theta_rad)
             back = model.solve("nonlinear")
+            rev_u = back.dofs
             model.drive = replace(model.drive, max_rad=theta_rad)
             rev_torque = np.asarray(back.torque_Nmm) * 1e-3
             rev_stress = np.asarray(back.peak_nodal_stress_MPa)
@@ -620,6 +631,12 @@ def analyse_spring(
         stress = np.asarray(lin.peak_nodal_stress_MPa)
         where = np.asarray(lin.peak_nodal_stress_xy_mm)
         ok, message, its, u = lin.ok, lin.message, 0, lin.dofs
+    slot_gaps = None
+    if gaps and nonlinear and ok:
+        states = {"ccw": u}
+        if rev_u is not None:
+            states["cw"] = rev_u
+        slot_gaps = slot_gaps_mm(model, states, geom.fe_outline)
     return SpringResponse(
         rotation_deg=rows,
         torque_Nm=torque,
@@ -634,8 +651,10 @@ def analyse_spring(
         n_triangles=int(m.n_triangles),
         iterations=its,
         solve_time_s=time.perf_counter() - t0,
+        slot_gaps_mm=slot_gaps,
         model=model if keep_model else None,
         u=u if keep_model else None,
+        reverse_u=rev_u if keep_model else None,
         reverse_torque_Nm=rev_torque,
         reverse_peak_stress_MPa=rev_stress,
         reverse_stiffness_Nm_per_rad=(
@@ -895,6 +914,9 @@ class SeaSpringProblem:
             extra = ("stiffness_band_percent",)
         if study.target.max_asymmetry_percent is not None:
             extra = (*extra, "asymmetry_percent")
+        self.min_gap = study.geometry.min_deformed_slot_mm
+        if self.min_gap is not None:
+            extra = (*extra, "deformed_slot_mm")
         self.geometry_constraints = constraint_keys(study)
         self.constraint_names = (*self.geometry_constraints, *extra)
         if stage1 is None and study.taguchi.enabled:
@@ -951,7 +973,8 @@ class SeaSpringProblem:
         geom = build(p, self.frame)
         both = self.study.target.directions == "both"
         r = analyse_spring(geom, self.material, self.theta, self.study.mesh, steps, True,
-                           keep_model, both_directions=both)  # fmt: skip
+                           keep_model, both_directions=both,
+                           gaps=keep_model or self.min_gap is not None)  # fmt: skip
         if not self.solve_st or not r.ok:
             return p, geom, r, p.thickness_mm
         # The thickness at which the (mean) secant stiffness is the target.
@@ -1006,6 +1029,14 @@ class SeaSpringProblem:
             g = np.append(g_geo, err - self.study.target.tolerance_percent)
         if self.study.target.max_asymmetry_percent is not None:
             g = np.append(g, asym - self.study.target.max_asymmetry_percent)
+        deformed_gap = math.nan
+        if r.slot_gaps_mm:
+            # no slot found (inf) counts as plenty of room, kept finite for the optimiser
+            deformed_gap = min(
+                [min(v, 1e3) for k, v in r.slot_gaps_mm.items() if k != "undeformed"] or [1e3]
+            )
+        if self.min_gap is not None:
+            g = np.append(g, self.min_gap - deformed_gap)
         metrics = {
             "ST_mm": st,
             "stiffness_Nm_per_rad": r.mean_stiffness_Nm_per_rad,
@@ -1019,6 +1050,7 @@ class SeaSpringProblem:
             "n_dofs": r.n_dofs,
             "newton_iterations": r.iterations,
             "fe_time_s": r.solve_time_s,
+            "deformed_slot_mm": deformed_gap,
         }
         return Evaluation(x, f, g, metrics, "", time.perf_counter() - t0), (p, geom, r, st)
 
@@ -1105,6 +1137,7 @@ class SeaSpringProblem:
                 "torque_per_disc_volume_Nm_per_cm3": study.target.torque_Nm / disc_cm3,
                 "max_torque_per_mass_Nm_per_kg": study.target.torque_Nm / mass,
                 "checks": geom.checks,
+                "slot_gaps_mm": r.slot_gaps_mm,
                 "mesh": {"dofs": r.n_dofs, "triangles": r.n_triangles},
                 "published_springs": _published_comparison(),
             }
@@ -1189,6 +1222,55 @@ def _published_comparison() -> list[dict[str, Any]]:
     return rows
 
 
+def slot_gaps_mm(model: Any, states: dict[str, np.ndarray], outline: Any) -> dict[str, float]:
+    """Narrowest gap across the slots of a solved spring, undeformed and in each given state.
+
+    A slot is where the outline comes back close to itself: two boundary nodes of the FE mesh
+    closer than 3 mm whose distance along the outline is more than three times that (so they lie
+    on two members facing each other, not on one edge). Measured node to node (P2 nodes 0.25 mm
+    apart near the edges), which overstates a 0.9 mm gap by under 0.01 mm.
+
+    Parameters
+    ----------
+    model : PlaneStressModel — its FE node locations ``xy`` (n, 2) mm and displacement indices.
+    states : name -> (N,) displacement vector, mm.
+    outline : Polygon — the FE outline (no holes), mm.
+
+    Returns
+    -------
+    dict — ``undeformed`` and one entry per state, mm (inf where no slot is found).
+    """
+    import shapely
+    from scipy.spatial import cKDTree
+
+    xy = np.asarray(model.xy)
+    ring = outline.exterior
+    on = np.asarray(shapely.distance(shapely.points(xy), ring)) < 1e-6
+    idx = np.flatnonzero(on)
+    pts = xy[idx]
+    s = np.asarray(shapely.line_locate_point(ring, shapely.points(pts)))
+    length = ring.length
+    reach = 3.0
+    pairs = cKDTree(pts).query_pairs(reach, output_type="ndarray")
+    if len(pairs) == 0:
+        return {"undeformed": math.inf, **{k: math.inf for k in states}}
+    ds = np.abs(s[pairs[:, 0]] - s[pairs[:, 1]])
+    ds = np.minimum(ds, length - ds)
+    pairs = pairs[ds > 3.0 * reach]
+    if len(pairs) == 0:
+        return {"undeformed": math.inf, **{k: math.inf for k in states}}
+
+    def gap(points: np.ndarray) -> float:
+        d = points[pairs[:, 0]] - points[pairs[:, 1]]
+        return float(np.hypot(d[:, 0], d[:, 1]).min())
+
+    out = {"undeformed": gap(pts)}
+    for name, u in states.items():
+        moved = pts + np.column_stack([u[model.ix][idx], u[model.iy][idx]])
+        out[name] = gap(moved)
+    return out
+
+
 def _stress_map_data(r: SpringResponse) -> dict[str, Any]:
     """Vertex-averaged von Mises at the last row on the undeformed mesh (for a PNG)."""
     model = r.model
@@ -1243,7 +1325,7 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
     for _ in range(max(1, repeat)):
         t0 = time.perf_counter()
         try:
-            _, geom, r, st = prob.solve(x, study.mesh.curve_steps)
+            _, geom, r, st = prob.solve(x, study.mesh.curve_steps, keep_model=True)
         except (GeometryError, FeaError) as exc:
             raise StudyError("design", str(exc)) from exc
         times.append(time.perf_counter() - t0)
@@ -1262,6 +1344,9 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
         "mass_g": geom.mass_kg(prob.material.density_kg_m3) * 1e3,
         "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
     }
+    if r.slot_gaps_mm:
+        summary["slot_mm"] = r.slot_gaps_mm["undeformed"]
+        summary["deformed_slot_mm"] = min(v for k, v in r.slot_gaps_mm.items() if k != "undeformed")
     return EvaluationResult(
         table=table,
         summary=summary,

@@ -241,3 +241,29 @@ def test_spiral_taguchi_stage_effects_contributions_and_plot():
 
     png = plot_taguchi(stage1["main_effects"], stage1["anova"])
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_slot_gap_of_a_u_shape_closes_by_what_the_prong_moves():
+    # A U: two 2 mm prongs 20 mm long, a 1.0 mm slot between them, joined at x < 0.
+    from shapely.geometry import LineString, box
+
+    from fea.materials import get_material
+    from fea.mesh import mesh_polygon
+    from fea.plane_stress import Clamp, PlaneStressModel, Translate
+
+    u_shape = box(-3.0, 0.0, 20.0, 5.0).difference(box(0.0, 2.0, 21.0, 3.0))
+    mesh = mesh_polygon(u_shape, 0.5)
+    model = PlaneStressModel(
+        mesh, get_material("PLA"), 1.0, Clamp(LineString([(-3, 0), (-3, 5)])),
+        Translate(LineString([(20, 3), (20, 5)]), (0.0, 1.0), 0.1, 1),
+    )  # fmt: skip
+    zero = np.zeros(model.n_dofs)
+    move = np.zeros(model.n_dofs)
+    upper = model.xy[:, 1] > 2.5  # the upper prong (and the top of the join)
+    move[model.iy[upper]] = -0.3 * np.clip(model.xy[upper, 0] / 20.0, 0.0, 1.0)  # tip down 0.3
+    shift = np.zeros(model.n_dofs)
+    shift[model.ix], shift[model.iy] = 0.7, -0.4  # a rigid translation changes nothing
+    g = ss.slot_gaps_mm(model, {"zero": zero, "tip": move, "shift": shift}, u_shape)
+    assert g["undeformed"] == pytest.approx(1.0, abs=1e-9)
+    assert g["zero"] == pytest.approx(1.0, abs=1e-9) and g["shift"] == pytest.approx(1.0, abs=1e-9)
+    assert g["tip"] == pytest.approx(0.7, abs=0.01)
