@@ -1,39 +1,46 @@
 """Study kind ``sea_spring``: the compact torsional SEA spring of paper 004 (Ardakanian et al.).
 
-Two stages, as in the paper (docs/sea_spring.md):
+Two topologies (``geometry.topology``): the paper's **serpentine** of concentric arcs joined by
+links (:mod:`geometry.sea_spring`, Tables 6 and 9) and **spiral** arms (:mod:`geometry.arm_spring`,
+one curved arm per set, which carries the torque as a nearly uniform moment and is the default
+study's; docs/sea_spring.md, section 6). Two stages, as in the paper:
 
-1. **Taguchi screening** (paper section 5, Tables 6-8): an L25 array over the six shape factors
-   RP, RR, ST, A, RT, D (:data:`geometry.sea_spring.TABLE6_LEVELS`), each run a linear
-   plane-stress FEA at a fifth of the design torque (10 N m, target 2.08 degrees); cost
+1. **Taguchi screening** (paper section 5, Tables 6-8): an L25 array over six shape factors
+   (the serpentine's RP, RR, ST, A, RT, D, :data:`geometry.sea_spring.TABLE6_LEVELS`; the
+   spiral's :data:`geometry.arm_spring.SPIRAL_LEVELS`), each run a linear plane-stress FEA at a
+   fifth of the design torque (10 N m, target 2.08 degrees); cost
    ``C = 0.5 sigma_n + 0.5 |theta_T - theta|_n`` (Eq. 27, each term divided by its largest value
-   over the array), S/N smaller-the-better, pooled ANOVA, the predicted optimum and its
-   confirmation run, and the additivity check with extra runs off the array. It runs once, when
-   the design problem is built (about 25 + 6 linear solves, under a minute), fixes RP for stage 2
-   and seeds its first population; its results are recorded in ``detail().info["taguchi"]``.
-2. **NSGA-II** over the variables of Table 9 (:data:`geometry.sea_spring.GA_VARIABLES`; with
-   ``geometry.arcs`` other than 5, :func:`geometry.sea_spring.ga_variables`):
-   objectives the peak von Mises stress at the design torque and ``|K - K_target| / K_target``;
-   constraints the envelope, the thinnest member, the narrowest slot, the link reach (all from
-   :func:`geometry.sea_spring.clearances`) and the stiffness band (``tolerance_percent``). The
-   run's best design is therefore the least-stressed spring inside the stiffness band; the front
-   shows what a looser stiffness buys in stress.
+   over the array), S/N smaller-the-better, pooled ANOVA, main effects, the predicted optimum and
+   its confirmation run, and the additivity check with extra runs off the array. It runs once,
+   when the design problem is built (31 linear solves, under a minute), fixes RP for stage 2 and
+   seeds its first population; its results are in ``detail().info["taguchi"]`` and
+   ``taguchi.png``.
+2. **NSGA-II** over the planform variables of the topology (Table 9's, or
+   :data:`geometry.arm_spring.SPIRAL_VARIABLES`). With ``thickness: solve`` (default) ST follows
+   from the stiffness target and the objectives are the peak von Mises stress and the mass;
+   constraints the geometric margins, the ST range, optionally each direction's stiffness
+   (``target.max_asymmetry_percent``) and the loaded slots (``geometry.min_deformed_slot_mm``).
+   With ``thickness: search`` (the paper's formulation) ST is a variable and
+   ``|K - K_target| / K_target`` the second objective.
 
-Each design is evaluated by a linear solve (stiffness ``K_lin``) and a geometrically nonlinear
-solve in one step to ``theta_T = torque / K_target`` (11.04 degrees for 53 N m and 275 N m/rad):
-``K = T(theta_T) / theta_T`` is the secant stiffness at the design torque. The hub's flange
-footprint is turned rigidly about the axis, the pads' washer footprints are held.
+Each design is evaluated by a linear solve (stiffness ``K_lin``) and geometrically nonlinear
+solves in one step to ``+-theta_T = torque / K_target`` (11.04 degrees for 53 N m and
+275 N m/rad): ``K = T(theta_T) / theta_T`` is the secant stiffness at the design torque. The
+hub's flange footprint is turned rigidly about the axis, the pads' washer footprints are held.
 
 YAML (every key optional but ``name``, ``geometry.kind`` and ``material``)::
 
-    geometry: {kind: sea_spring, envelope_diameter_mm: 72, n_sets: null, fillet_mm: 0.3}
+    geometry: {kind: sea_spring, topology: spiral, envelope_diameter_mm: 72, n_sets: null,
+               root_fillet_mm: 1.5, min_deformed_slot_mm: 0.2}
     material: maraging-300
     target: {stiffness_Nm_per_rad: 275, torque_Nm: 53, tolerance_percent: 2,
-             allowable_stress_MPa: 800}
+             allowable_stress_MPa: 800, max_asymmetry_percent: 2}
     stiffness_window: null          # or {required_bandwidth_Hz: 4, impact_speed_rpm: 46.86, ...}
     taguchi: {enabled: true, torque_Nm: 10}
-    design_space: {S1: [0.8, 3.0]}  # Table 9 bounds unless overridden
+    design_space: {sweep: [150, 480]}   # the topology's bounds unless overridden
     mesh: {max_edge_mm: 3.0, elements_through: 1.0, curve_steps: 4}
-    optimiser: {algorithm: nsga2, pop_size: 20, n_gen: 20}
+    optimiser: {algorithm: nsga2, pop_size: 24, n_gen: 16}
+    design: {RP: 2, sweep: 479.8, ...}  # what flexopt evaluate analyses
 """
 
 from __future__ import annotations
