@@ -11,9 +11,14 @@ material and the reading and validation machinery.
 
 from __future__ import annotations
 
+import collections.abc
 import difflib
 import math
+import os
 import re
+import reprlib
+import types
+import typing
 from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
@@ -42,6 +47,8 @@ __all__ = [
     "list_examples",
     "load_study",
     "parse_study_text",
+    "read_study_file",
+    "short_repr",
     "resolve_study_path",
     "study_to_yaml",
     "validate_study",
@@ -139,8 +146,30 @@ class OptimiserSpec(BaseModel):
     pop_size: int = Field(40, ge=2, le=10000, description="designs per generation")
     n_gen: int = Field(30, ge=1, le=100000, description="generations, the first included")
     seed: int = Field(1, ge=0, description="random seed; the same seed gives the same run")
-    quick_pop_size: int = Field(8, ge=2, description="pop_size under --quick")
-    quick_n_gen: int = Field(3, ge=1, description="n_gen under --quick")
+    quick_pop_size: int = Field(8, ge=2, le=10000, description="pop_size under --quick")
+    quick_n_gen: int = Field(3, ge=1, le=100000, description="n_gen under --quick")
+
+
+#: Local worker processes allowed per core: a pool larger than the cores only adds memory and
+#: start-up time (each worker holds the problem and its own BLAS), and thousands of processes
+#: can take a machine down; 4 per core leaves room for solves that wait on I/O or a time limit.
+MAX_WORKERS_PER_CORE = 4
+
+
+def max_workers() -> int:
+    """Most local worker processes on this machine: :data:`MAX_WORKERS_PER_CORE` per core."""
+    return MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+
+
+def workers_problem(n: int) -> str | None:
+    """Why ``n`` local workers is refused on this machine (None when it is fine)."""
+    limit = max_workers()
+    if n > limit:
+        return (
+            f"{n} worker processes on a {os.cpu_count() or 1}-core machine is too many; give "
+            f"at most {limit} ({MAX_WORKERS_PER_CORE} per core; more cores need a Dask cluster)"
+        )
+    return None
 
 
 class ParallelSpec(BaseModel):
@@ -159,7 +188,10 @@ class ParallelSpec(BaseModel):
         description="serial (this process), processes (local pool) or dask (a cluster)",
     )
     workers: int | None = Field(
-        None, ge=1, le=4096, description="worker processes of the local pool (default: cores)"
+        None,
+        ge=1,
+        description="worker processes of the local pool (default: cores; at most "
+        "MAX_WORKERS_PER_CORE per core)",
     )
     address: str | None = Field(
         None, description="Dask scheduler address, tcp://host:8786 (backend: dask)"
@@ -170,6 +202,15 @@ class ParallelSpec(BaseModel):
     chunk_size: int | None = Field(
         None, ge=1, le=100000, description="designs per message/task (default: small chunks)"
     )
+
+    @field_validator("workers")
+    @classmethod
+    def _workers_fit_the_machine(cls, value: int | None) -> int | None:
+        if value is not None:
+            problem = workers_problem(value)
+            if problem:
+                raise ValueError(problem)
+        return value
 
     @field_validator("address")
     @classmethod
@@ -207,10 +248,11 @@ class Study(BaseModel):
     @classmethod
     def _name_is_a_folder_name(cls, value: str) -> str:
         if not _NAME_RE.match(value) or len(value) > 100:
-            suggestion = re.sub(r"[^A-Za-z0-9_.-]+", "_", value).strip("_.-") or "my_study"
+            head = value[:200]
+            suggestion = re.sub(r"[^A-Za-z0-9_.-]+", "_", head).strip("_.-") or "my_study"
             raise ValueError(
-                f"'{value}' cannot name a run folder; use letters, digits, '.', '_' and '-' "
-                f"(at most 100), e.g. '{suggestion[:100]}'"
+                f"{short_repr(value)} cannot name a run folder; use letters, digits, '.', '_' "
+                f"and '-' (at most 100), e.g. '{suggestion[:60]}'"
             )
         return value
 
@@ -227,8 +269,8 @@ class Study(BaseModel):
                 ) from None
         if not isinstance(value, dict | MaterialSpec):
             raise ValueError(
-                f"got {value!r}; give a library name ({', '.join(MATERIALS)}) or a mapping "
-                "{E_MPa, nu, yield_MPa, density_kg_m3}"
+                f"got {short_repr(value)}; give a library name ({', '.join(MATERIALS)}) or a "
+                "mapping {E_MPa, nu, yield_MPa, density_kg_m3}"
             )
         return value
 
@@ -242,7 +284,12 @@ class Study(BaseModel):
 # Reading YAML
 
 
-class _StudyLoader(yaml.SafeLoader):
+#: libyaml's parser where PyYAML was built with it (the wheels are): the same safe constructor,
+#: 20-50x faster at reading, so even a file at the size limit is read in a fraction of a second.
+_SafeBase: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class _StudyLoader(_SafeBase):  # type: ignore[misc, valid-type]
     """PyYAML's safe loader, plus YAML 1.2 exponent floats and an error on duplicate keys."""
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
@@ -298,16 +345,167 @@ def resolve_study_path(study: str | Path) -> Path:
     )
 
 
-def parse_study_text(text: str, source: str = "<study>") -> dict[str, Any]:
-    """Parse YAML text into the raw mapping of a study.
+#: Limits of a study file, each far beyond any real study and far below what would take a
+#: second to read: a study is a few kB (the largest shipped one is under 4 kB).
+MAX_STUDY_BYTES = 1024 * 1024
+#: Deepest nesting of lists and mappings (a study needs about 6 levels).
+MAX_STUDY_DEPTH = 64
+#: Most values (nodes) once every YAML alias is expanded: guards against alias bombs, where a few
+#: hundred bytes expand to 10^9 values (a real study has a few hundred).
+MAX_STUDY_NODES = 100_000
+
+
+def _check_node_graph(node: yaml.Node, source: str) -> None:
+    """Refuse a composed YAML document that nests too deeply or expands too far.
+
+    Walks the node graph once, iteratively (no recursion limit) and memoising shared nodes (an
+    alias is the same node object), so the cost is that of the distinct nodes, not of the
+    expansion that an alias bomb would produce.
 
     Raises
     ------
     StudyError
-        For invalid YAML, an empty document or a top level that is not a mapping.
+        Naming the limit that was passed.
+    """
+    size: dict[int, int] = {}  # id(node) -> values under it, aliases expanded
+    depth: dict[int, int] = {}  # id(node) -> levels under it
+    stack: list[tuple[yaml.Node, int, bool]] = [(node, 0, False)]
+    on_path: set[int] = set()
+    while stack:
+        current, level, done = stack.pop()
+        key = id(current)
+        if level > MAX_STUDY_DEPTH:
+            raise _nesting_error(source)
+        if isinstance(current, yaml.ScalarNode):
+            size[key], depth[key] = 1, 0
+            continue
+        if isinstance(current, yaml.MappingNode):
+            children = [n for pair in current.value for n in pair]
+        else:
+            children = list(current.value)
+        if done:
+            on_path.discard(key)
+            size[key] = 1 + sum(size[id(c)] for c in children)
+            depth[key] = 1 + max((depth[id(c)] for c in children), default=0)
+            if size[key] > MAX_STUDY_NODES:
+                raise StudyError(
+                    "",
+                    f"expands to more than {MAX_STUDY_NODES} values (YAML aliases '*name' "
+                    "repeating anchors '&name'); write the study out without nested aliases",
+                    source=source,
+                )
+            continue
+        if key in size:
+            continue
+        if key in on_path:  # a recursive alias (&a [*a]) would expand forever
+            raise StudyError(
+                "",
+                "holds an alias that refers to itself; remove the recursive alias",
+                source=source,
+            )
+        on_path.add(key)
+        stack.append((current, level, True))
+        stack.extend((c, level + 1, False) for c in children if id(c) not in size)
+
+
+def _nesting_error(source: str) -> StudyError:
+    return StudyError(
+        "",
+        f"lists and mappings are nested more than {MAX_STUDY_DEPTH} levels deep; a study "
+        "needs a few (see docs/usage.md)",
+        source=source,
+    )
+
+
+_OPEN_TOKENS = (
+    yaml.FlowSequenceStartToken,
+    yaml.FlowMappingStartToken,
+    yaml.BlockSequenceStartToken,
+    yaml.BlockMappingStartToken,
+)
+_CLOSE_TOKENS = (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken, yaml.BlockEndToken)
+
+
+def _check_nesting(text: str, source: str) -> None:
+    """Refuse nesting past :data:`MAX_STUDY_DEPTH` from the token stream, before composing.
+
+    PyYAML's scanner is iterative but its composer recurses once per level, so 5000 nested
+    lists would end in a RecursionError after a second of work; the tokens say it at once.
+    Syntax errors are left to the parser, which reports them with their line.
+    """
+    depth = 0
+    try:
+        for token in yaml.scan(text, Loader=_StudyLoader):
+            if isinstance(token, _OPEN_TOKENS):
+                depth += 1
+                if depth > MAX_STUDY_DEPTH + 1:  # +1: the top-level mapping
+                    raise _nesting_error(source)
+            elif isinstance(token, _CLOSE_TOKENS):
+                depth -= 1
+    except yaml.YAMLError as exc:
+        if "nesting depth" in str(exc):  # libyaml stops at 1000 levels, before we count them
+            raise _nesting_error(source) from None
+        return
+
+
+def read_study_file(path: Path) -> str:
+    """The text of a study file, refused when it is too large, not text or unreadable.
+
+    Raises
+    ------
+    StudyError
+        Naming the file and the fix.
     """
     try:
-        data = yaml.load(text, Loader=_StudyLoader)  # noqa: S506 - a SafeLoader subclass
+        with path.open("rb") as handle:
+            data = handle.read(MAX_STUDY_BYTES + 1)
+    except OSError as exc:
+        raise StudyError(
+            "",
+            f"cannot be read ({exc.strerror or exc}); check the path and permissions",
+            source=str(path),
+        ) from None
+    if len(data) > MAX_STUDY_BYTES:
+        raise StudyError(
+            "",
+            f"is larger than {MAX_STUDY_BYTES // 1024} KiB; a study is a few kB of YAML (keep "
+            "long tables in a CSV file the study names)",
+            source=str(path),
+        )
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise StudyError(
+            "", "is not UTF-8 text; save the study as a YAML text file", source=str(path)
+        ) from None
+
+
+def parse_study_text(text: str, source: str = "<study>") -> dict[str, Any]:
+    """Parse YAML text into the raw mapping of a study.
+
+    The text is composed into YAML nodes first and checked against :data:`MAX_STUDY_BYTES`,
+    :data:`MAX_STUDY_DEPTH` and :data:`MAX_STUDY_NODES` before any Python object is built, so a
+    hostile file (an alias bomb, 5000 nested lists) is refused in milliseconds.
+
+    Raises
+    ------
+    StudyError
+        For invalid YAML, an empty document, a top level that is not a mapping, or a file past
+        one of the limits.
+    """
+    if len(text) > MAX_STUDY_BYTES:
+        raise StudyError(
+            "",
+            f"is larger than {MAX_STUDY_BYTES // 1024} KiB; a study is a few kB of YAML",
+            source=source,
+        )
+    _check_nesting(text, source)
+    loader = _StudyLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is not None:
+            _check_node_graph(node, source)
+        data = None if node is None else loader.construct_document(node)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -318,6 +516,10 @@ def parse_study_text(text: str, source: str = "<study>") -> dict[str, Any]:
             else "fix the syntax (indent with spaces, 'key: value')"
         )
         raise StudyError("", f"not valid YAML{where}: {problem}; {fix}", source=source) from None
+    except RecursionError:  # PyYAML's composer recurses once per level (_check_nesting's net)
+        raise _nesting_error(source) from None
+    finally:
+        loader.dispose()
     if data is None:
         raise StudyError(
             "",
@@ -358,7 +560,9 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         raise StudyError("geometry", problem, source=source)
     try:
         kind = get_kind(geometry.get("kind"))
+        check_no_bool_numbers(raw, kind.model)  # before pydantic reads `true` as 1
         study = kind.model.model_validate(raw)
+        check_no_bool_numbers(raw, study)
         check_lengths(study.model_dump(mode="json", exclude_none=True))
         kind.check(study)
     except ValidationError as exc:
@@ -367,6 +571,118 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         exc.source = exc.source or source
         raise
     return study
+
+
+def _bools(data: Any, path: tuple[int | str, ...]) -> Any:
+    """(path, value) of every boolean in a raw study mapping (iteratively: no recursion limit)."""
+    stack: list[tuple[Any, tuple[int | str, ...]]] = [(data, path)]
+    while stack:
+        item, where = stack.pop()
+        if isinstance(item, bool):
+            yield where, item
+        elif isinstance(item, dict):
+            stack.extend((v, (*where, k)) for k, v in item.items())
+        elif isinstance(item, list | tuple):
+            stack.extend((v, (*where, i)) for i, v in enumerate(item))
+
+
+_MISSING = object()
+
+
+def _value_at(model: Any, path: tuple[int | str, ...]) -> Any:
+    """The validated value at a raw key path (``_MISSING`` where the model reshaped it)."""
+    current = model
+    for part in path:
+        if isinstance(current, BaseModel):
+            current = getattr(current, str(part), _MISSING)
+        elif isinstance(current, dict):
+            current = current.get(part, _MISSING)
+        elif isinstance(current, list | tuple) and isinstance(part, int):
+            current = current[part] if 0 <= part < len(current) else _MISSING
+        else:
+            return _MISSING
+        if current is _MISSING:
+            return _MISSING
+    return current
+
+
+def _number_types(annotation: Any) -> tuple[set[type], bool]:
+    """(leaf types a value of ``annotation`` may have, whether anything goes there)."""
+    origin = typing.get_origin(annotation)
+    if origin is typing.Annotated:
+        return _number_types(typing.get_args(annotation)[0])
+    if origin in (typing.Union, types.UnionType):
+        found: set[type] = set()
+        for arm in typing.get_args(annotation):
+            arm_types, anything = _number_types(arm)
+            if anything:
+                return set(), True
+            found |= arm_types
+        return found, False
+    if annotation is Any or not isinstance(annotation, type):
+        return set(), origin is None  # a Literal, a container: not a number leaf
+    return {annotation}, False
+
+
+def _annotation_at(model: type[BaseModel], path: tuple[int | str, ...]) -> Any:
+    """The type annotation a raw key path leads to in a study model (None when unknown)."""
+    current: Any = model
+    for part in path:
+        while typing.get_origin(current) is typing.Annotated:
+            current = typing.get_args(current)[0]
+        origin = typing.get_origin(current)
+        if origin in (typing.Union, types.UnionType):
+            arms = [a for a in typing.get_args(current) if a is not type(None)]
+            if len(arms) != 1:
+                return None  # several shapes: the validated value decides (second check)
+            current = arms[0]
+            origin = typing.get_origin(current)
+        if isinstance(current, type) and issubclass(current, BaseModel):
+            field = current.model_fields.get(str(part))
+            if field is None:
+                return None
+            current = field.annotation
+        elif origin in (list, tuple, collections.abc.Sequence) and isinstance(part, int):
+            args = typing.get_args(current)
+            if origin is tuple and args and args[-1] is not Ellipsis:
+                current = args[part] if part < len(args) else None
+            else:
+                current = args[0] if args else None
+        elif origin is dict:
+            args = typing.get_args(current)
+            current = args[1] if len(args) == 2 else None
+        else:
+            return None
+    return current
+
+
+def check_no_bool_numbers(raw: dict[str, Any], study: BaseModel | type[BaseModel]) -> None:
+    """Refuse ``true``/``false`` where the study wants a number.
+
+    pydantic's lax mode reads ``width_mm: true`` as 1.0 mm; YAML users who type ``yes`` or
+    ``true`` there meant something else (or slipped), so a boolean is never a number.
+
+    Raises
+    ------
+    StudyError
+        At the key path of the first boolean that became a number.
+    """
+    model = study if isinstance(study, type) else type(study)
+    for path, value in _bools(raw, ()):
+        leaf_types, anything = _number_types(_annotation_at(model, path))
+        numbers_only = (
+            bool(leaf_types)
+            and not anything
+            and all(issubclass(t, int | float) and t is not bool for t in leaf_types)
+        )
+        validated = _MISSING if isinstance(study, type) else _value_at(study, path)
+        became_number = isinstance(validated, int | float) and not isinstance(validated, bool)
+        if numbers_only or became_number:
+            raise StudyError(
+                format_loc(path),
+                f"got {str(value).lower()}; a boolean is not a number here; give the number "
+                "in the key's unit (e.g. 5.0)",
+            )
 
 
 #: Longest plausible length in a study, mm (100 m): past it a number was almost surely given in µm.
@@ -411,17 +727,7 @@ def load_study(study: str | Path) -> Study:
         For a missing or unreadable file, invalid YAML, or an invalid study.
     """
     path = resolve_study_path(study)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise StudyError(
-            "", "is not UTF-8 text; save the study as a YAML text file", source=str(path)
-        ) from None
-    except OSError as exc:
-        raise StudyError(
-            "", f"cannot be read ({exc.strerror}); check the path and permissions", source=str(path)
-        ) from None
-    return validate_study(parse_study_text(text, str(path)), source=str(path))
+    return validate_study(parse_study_text(read_study_file(path), str(path)), source=str(path))
 
 
 class _StudyDumper(yaml.SafeDumper):
@@ -478,9 +784,24 @@ def _model_at(model: type[BaseModel], loc: tuple[int | str, ...]) -> type[BaseMo
     return current if isinstance(current, type) and issubclass(current, BaseModel) else None
 
 
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
+_REPR = reprlib.Repr()  # keyword arguments need Python 3.12
+_REPR.maxlevel, _REPR.maxdict, _REPR.maxlist, _REPR.maxtuple, _REPR.maxset = 2, 4, 4, 4, 4
+_REPR.maxstring = _REPR.maxother = 40
+
+
+def short_repr(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters, without building the whole repr first.
+
+    A value echoed in an error message can be anything a study file holds, including a shared
+    structure that would repr to gigabytes; :mod:`reprlib` stops after a few items and levels.
+    """
+    if isinstance(value, str) and len(value) > limit:
+        value = value[:limit]  # reprlib would copy the whole string first
+    text = _REPR.repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+_short = short_repr
 
 
 def validation_error_to_study_error(

@@ -51,6 +51,7 @@ from pipeline.study import (
     OptimiserSpec,
     Study,
     parse_study_text,
+    read_study_file,
     resolve_study_path,
     study_to_yaml,
     validate_study,
@@ -267,7 +268,7 @@ def _base_raw(study: GripperStudy) -> dict[str, Any]:
             "optimise.gripper.finger_force",
         )
     path = resolve_study_path(study.constant_force.study)
-    raw = parse_study_text(path.read_text(encoding="utf-8"), str(path))
+    raw = parse_study_text(read_study_file(path), str(path))
     kind = (raw.get("geometry") or {}).get("kind")
     if kind != "constant_force":
         raise StudyError(
