@@ -4,7 +4,8 @@
 Exit codes: 0 done (also when a solve did not converge or no feasible design was found: those are
 results, reported by a warning line and in the run folder), 1 the run folder could not be written,
 the run failed, or the design could not be exported, 2 bad command line or bad study file (one line
-on stderr naming the key path; nothing is written), 130 interrupted (Ctrl-C).
+on stderr naming the key path; nothing is written), 130 interrupted (Ctrl-C), 143 stopped by
+SIGTERM (like Ctrl-C: the run folder keeps what was done, status `stopped`, resumable).
 
 Only this module prints; progress goes to stderr, results to stdout.
 """
@@ -16,7 +17,9 @@ import json
 import logging
 import math
 import shlex
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -25,9 +28,9 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-from pipeline.errors import StudyError
+from pipeline.errors import StudyError, Terminated
 from pipeline.evaluate import EvaluateOutcome, evaluate_study, versions
-from pipeline.study import list_examples, load_study, resolve_study_path
+from pipeline.study import list_examples, load_study, resolve_study_path, workers_problem
 
 if TYPE_CHECKING:  # pipeline.run imports pymoo (~1 s): only `run` and `export` pay for it
     from optimise.ga import GAConfig
@@ -35,31 +38,54 @@ if TYPE_CHECKING:  # pipeline.run imports pymoo (~1 s): only `run` and `export` 
 
 __all__ = ["build_parser", "main"]
 
-EXIT_OK, EXIT_WRITE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_WRITE, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_TERMINATED = 0, 1, 2, 130, 143
 
 
 class _Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line on stderr (exit 2), like a bad study file."""
 
     def error(self, message: str) -> NoReturn:
+        message = " ".join(message.split())  # one line, whatever argparse echoes
+        if len(message) > 300:  # an option's value is echoed: cut a pasted megabyte
+            message = message[:200] + " ... " + message[-95:]
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _echo(text: str) -> str:
+    """An option's value quoted for an error line, cut to 40 characters."""
+    return repr(text if len(text) <= 40 else text[:37] + "...")
 
 
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+        raise argparse.ArgumentTypeError(f"{_echo(text)} is not a whole number") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} must be >= 1")
     return value
+
+
+def _workers(text: str) -> int:
+    value = _positive_int(text)
+    problem = workers_problem(value)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
+    return value
+
+
+def _path(text: str) -> Path:
+    """A path option: never empty (``Path('')`` is the current folder, which nobody means)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty; give a path")
+    return Path(text)
 
 
 def _nonnegative_int(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+        raise argparse.ArgumentTypeError(f"{_echo(text)} is not a whole number") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"{value} must be >= 0")
     return value
@@ -69,9 +95,9 @@ def _positive_float(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+        raise argparse.ArgumentTypeError(f"{_echo(text)} is not a number") from None
     if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"{text} must be a number > 0 (seconds)")
+        raise argparse.ArgumentTypeError(f"{_echo(text)} must be a number > 0 (seconds)")
     return value
 
 
@@ -102,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument(
         "--out",
-        type=Path,
+        type=_path,
         metavar="DIR",
         help="run folder (created if needed; default runs/<name>-evaluate-<timestamp>)",
     )
@@ -134,20 +160,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument(
         "--out",
-        type=Path,
+        type=_path,
         metavar="DIR",
         help="run folder (created; must not hold a run yet; default runs/<name>-run-<timestamp>)",
     )
     run.add_argument(
         "--resume",
-        type=Path,
+        type=_path,
         metavar="RUN_DIR",
         help="finish an interrupted or killed run: replay it from its seed, serving every "
         "finished evaluation from RUN_DIR/evaluations.jsonl (refused if the study changed)",
     )
     run.add_argument(
         "--workers",
-        type=_positive_int,
+        type=_workers,
         metavar="N",
         help="worker processes (default: parallel.workers, else one per core; 1 = serial in "
         "this process)",
@@ -189,7 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
             "best so far, status, elapsed time and an estimate of the time left."
         ),
     )
-    status.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a folder of flexopt run")
+    status.add_argument("run_dir", type=_path, metavar="RUN_DIR", help="a folder of flexopt run")
     status.set_defaults(handler=_status)
 
     report = commands.add_parser(
@@ -201,7 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
             "design is solved again for its response)."
         ),
     )
-    report.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a folder of flexopt run")
+    report.add_argument("run_dir", type=_path, metavar="RUN_DIR", help="a folder of flexopt run")
     report.set_defaults(handler=_report)
 
     export = commands.add_parser(
@@ -212,7 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
             "STL: the outline extruded by its height, lying flat, in mm."
         ),
     )
-    export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a folder of flexopt run")
+    export.add_argument("run_dir", type=_path, metavar="RUN_DIR", help="a folder of flexopt run")
     export.add_argument(
         "--design",
         default="best",
@@ -221,7 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     export.add_argument(
         "--out",
-        type=Path,
+        type=_path,
         metavar="FILE.stl",
         help="STL file (default RUN_DIR/best.stl or RUN_DIR/design-INDEX.stl)",
     )
@@ -446,12 +472,16 @@ def _run(args: argparse.Namespace) -> int:
         progress.stop()
         print(f"{prog}: error: cannot write the run folder: {exc}", file=sys.stderr)
         return EXIT_WRITE
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         progress.stop()
+        stopped = isinstance(exc, Terminated)
+        what, status = (
+            ("stopped by SIGTERM", "stopped") if stopped else ("interrupted", "interrupted")
+        )
         where = f"; what was done is in {progress.run_dir}" if progress.run_dir else ""
         resume = f"; continue with: flexopt run --resume {progress.run_dir}" if where else ""
-        print(f"{prog}: interrupted{where} (run.json status: interrupted){resume}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        print(f"{prog}: {what}{where} (run.json status: {status}){resume}", file=sys.stderr)
+        return EXIT_TERMINATED if stopped else EXIT_INTERRUPTED
     except Exception as exc:
         progress.stop()
         where = f"; see {progress.run_dir / 'run.json'}" if progress.run_dir else ""
@@ -540,11 +570,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = argv
     if args.verbose:
         logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    else:
+        # Without -v nothing is logged: what a user must know is printed by this module as one
+        # line, and logging's last-resort handler would print warnings (and their tracebacks)
+        # of flexopt and of the libraries it uses.
+        logging.getLogger().addHandler(logging.NullHandler())
+    previous = _stop_on_sigterm()
     try:
         return int(args.handler(args))
+    except Terminated:
+        print("flexopt: stopped by SIGTERM", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("flexopt: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _raise_terminated(signum: int, frame: Any) -> None:
+    raise Terminated()
+
+
+def _stop_on_sigterm() -> Any:
+    """Make SIGTERM end a command as Ctrl-C does (the run folder says ``stopped``, resumable).
+
+    Returns the previous handler (None where signals cannot be set: not the main thread).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _raise_terminated)
 
 
 if __name__ == "__main__":
