@@ -46,8 +46,11 @@ the geometry selects instead of the mirror image: a converged sub-step is retrie
 increment turned away from the predicted one, or when it led from a stable equilibrium (positive
 definite tangent, by banded Cholesky) to an unstable one. Near a bifurcation the sub-steps thus
 become as small as the turn of the path needs (the "very small first increments" of the classic
-recipe, chosen automatically). Failure to converge is returned as data (``converged`` flags and
-``message``), never raised.
+recipe, chosen automatically). A crossing that survives the smallest sub-step is genuine: a perfect
+strut pushed past its Euler load stays straight here, on the unstable branch. Every accepted state
+is therefore checked, and the rows past such a crossing are flagged (``BeamResponse.stable``,
+``unstable``, ``unstable_message``, ``critical_value``), never returned as ordinary results.
+Failure to converge is returned as data (``converged`` flags and ``message``), never raised.
 """
 
 from __future__ import annotations
@@ -173,6 +176,17 @@ class BeamResponse:
     ok : every row converged.
     message : why not, when not ``ok``.
     extra : n_elements, n_dofs, substeps.
+    stable : bool — the row is a stable equilibrium: the tangent with the supports and the
+        prescribed DOFs eliminated is positive definite there and at every sub-step since the
+        previous row (False for rows that did not converge). None when not assessed (a stand-in
+        response built without it).
+    unstable : some converged row is not stable: the path passed a bifurcation or limit point (a
+        straight strut pushed past its Euler load stays straight in the solver, on the unstable
+        branch; the rows from there on are not what a real, imperfect beam does).
+    unstable_message : names the step and the driven value (mm or N) where stability was lost, and
+        how many rows are unstable; empty when ``unstable`` is False.
+    critical_value : driven value (mm or N) at which stability was first lost, bracketed to
+        ``min_critical_substep`` of a step; NaN when it never was.
     """
 
     displacement_mm: np.ndarray
@@ -189,6 +203,10 @@ class BeamResponse:
     ok: bool
     message: str = ""
     extra: dict = field(default_factory=dict)
+    stable: np.ndarray | None = None
+    unstable: bool = False
+    unstable_message: str = ""
+    critical_value: float = float("nan")
 
 
 # -- reference element tables (computed by scikit-fem once per process) -------------------------
@@ -476,16 +494,17 @@ class BeamModel:
 
     # ---------------------------------------------------------------- tracing
 
-    def solve(self, drive: EndDrive) -> BeamResponse:
-        """Trace the response under ``drive``; see :class:`BeamResponse` for the rows."""
-        st = self.settings
-        n = self.n_dofs
+    def _frame(self, drive: EndDrive) -> np.ndarray:
+        """(2, 2) rows: the generalised end-node axes (direction, normal) in physical x, y."""
         d = np.asarray(drive.direction, dtype=float)
         d = d / np.hypot(*d)
-        frame = np.array([d, [-d[1], d[0]]])  # rows: generalised axes in physical coordinates
+        return np.array([d, [-d[1], d[0]]])
+
+    def _constraints(self, drive: EndDrive) -> _Constraints:
+        """The held and prescribed DOFs of the supports and of ``drive`` (generalised numbering)."""
+        n = self.n_dofs
         ia, it, ir = n - 3, n - 2, n - 1
         is_disp = drive.control == "displacement"
-
         fixed = [0, 1] + ([2] if self.start == "clamped" else [])
         if is_disp:
             fixed.append(ia)
@@ -494,7 +513,7 @@ class BeamModel:
         if drive.rotation == "fixed":
             fixed.append(ir)
         fixed = np.array(sorted(fixed))
-        bc = _Constraints(
+        return _Constraints(
             fixed=fixed,
             free=np.setdiff1d(np.arange(n), fixed),
             zero_idx=_band_zero_index(fixed, n, _BAND, _BAND),
@@ -504,6 +523,15 @@ class BeamModel:
             loaded=-1 if is_disp else ia,
         )
 
+    def solve(self, drive: EndDrive) -> BeamResponse:
+        """Trace the response under ``drive``; see :class:`BeamResponse` for the rows."""
+        st = self.settings
+        n = self.n_dofs
+        frame = self._frame(drive)
+        ia, it, ir = n - 3, n - 2, n - 1
+        is_disp = drive.control == "displacement"
+        bc = self._constraints(drive)
+
         steps = int(drive.steps)
         targets = drive.max_value * np.arange(steps + 1) / steps
         rows = _Rows(steps + 1, self.n_nodes)
@@ -511,6 +539,11 @@ class BeamModel:
         r, ab = self._assemble(q, frame)
         rows.store(0, self, q, r, frame, 0, ia, it, ir)
         stable = _is_positive_definite(ab, bc)
+        rows.stable[0] = stable
+        # Stability bookkeeping: whether every accepted state since the last row was stable, and
+        # the first stable -> unstable crossing (the driven value bracketed by the two states).
+        row_stable = stable
+        lost: tuple[int, float, float] | None = None  # (row, last stable value, first unstable)
 
         value = 0.0
         history: list[tuple[float, np.ndarray]] = [(0.0, q.copy())]
@@ -522,26 +555,31 @@ class BeamModel:
         for k in range(1, steps + 1):
             target = targets[k]
             iters_row = 0
+            row_stable = True
             direction_sign = np.sign(target - value) or 1.0
             while abs(target - value) > 1e-12 * max(1.0, abs(drive.max_value)):
                 inc = direction_sign * min(h, abs(target - value))
                 sub = self._newton(q, r, ab, value, value + inc, history, bc, frame)
                 iters_row += sub.iterations
                 substeps += 1
-                is_stable = stable
-                if sub.converged and stable:
+                is_stable = False
+                if sub.converged:
                     is_stable = _is_positive_definite(sub.ab, bc)
-                    if not is_stable and abs(inc) > st.min_critical_substep * step_size:
+                    if stable and not is_stable and abs(inc) > st.min_critical_substep * step_size:
                         # A stable state led to an unstable one: the sub-step crossed a
                         # bifurcation or limit point. Along a displacement-controlled path through
                         # an imperfect structure this means Newton jumped onto the unstable
                         # (perfect) path; retry smaller so the physical path is followed around
-                        # its turn. Only a genuine critical point survives the smallest step.
+                        # its turn. Only a genuine critical point survives the smallest step; the
+                        # states past it are flagged unstable (BeamResponse.stable).
                         sub = sub._replace(converged=False, reason="crossed a critical point")
                 if sub.converged:
+                    if stable and not is_stable and lost is None:
+                        lost = (k, value, value + inc)
                     q, r, ab = sub.q, sub.r, sub.ab
                     value += inc
                     stable = is_stable
+                    row_stable = row_stable and is_stable
                     history = [*history[-1:], (value, q.copy())]
                     if sub.iterations <= st.fast_iterations:
                         h = min(2.0 * h, step_size)
@@ -560,9 +598,10 @@ class BeamModel:
             if not ok:
                 break
             rows.store(k, self, q, r, frame, iters_row, ia, it, ir)
+            rows.stable[k] = row_stable
 
         extra = {"n_elements": self.n_elements, "n_dofs": self.n_dofs, "substeps": substeps}
-        return rows.response(ok, message, extra)
+        return rows.response(ok, message, extra, _stability(rows, lost, is_disp))
 
     def _checked(self, q0: np.ndarray, q_pred: np.ndarray, sub: _SubStep) -> _SubStep:
         """Reject a converged sub-step whose increment turned away from the predicted one.
@@ -706,6 +745,7 @@ class _Rows:
         }
         self.iterations = np.zeros(n_rows, dtype=int)
         self.converged = np.zeros(n_rows, dtype=bool)
+        self.stable = np.zeros(n_rows, dtype=bool)
         self.shapes = np.full((n_rows, n_nodes, 2), np.nan)
 
     def store(self, k, model: BeamModel, q, r, frame, iters, ia, it, ir) -> None:
@@ -722,7 +762,10 @@ class _Rows:
         self.converged[k] = True
         self.shapes[k] = model.reference_nodes_mm + u.reshape(-1, 3)[:, :2]
 
-    def response(self, ok: bool, message: str, extra: dict) -> BeamResponse:
+    def response(
+        self, ok: bool, message: str, extra: dict, stability: tuple[bool, str, float]
+    ) -> BeamResponse:
+        unstable, unstable_message, critical = stability
         return BeamResponse(
             **self.a,
             iterations=self.iterations,
@@ -731,7 +774,42 @@ class _Rows:
             ok=ok,
             message=message,
             extra=extra,
+            stable=self.stable & self.converged,
+            unstable=unstable,
+            unstable_message=unstable_message,
+            critical_value=critical,
         )
+
+
+def _stability(
+    rows: _Rows, lost: tuple[int, float, float] | None, is_disp: bool
+) -> tuple[bool, str, float]:
+    """``(unstable, message, critical value)`` of a traced path (see :class:`BeamResponse`).
+
+    ``lost`` is the first stable -> unstable crossing: the row it happened on and the driven values
+    (mm or N) of the last stable and the first unstable state.
+    """
+    bad = np.flatnonzero(rows.converged & ~rows.stable)
+    if bad.size == 0:
+        return False, "", float("nan")
+    quantity, unit = ("displacement_mm", "mm") if is_disp else ("force_N", "N")
+    n_bad = f"{bad.size} of {int(rows.converged.sum())} converged rows"
+    if lost is None:  # unstable from the start: never a crossing, the supports allow a mechanism
+        return (
+            True,
+            f"unstable from the undeformed state (the constrained tangent is not positive "
+            f"definite: a mechanism?); {n_bad} unstable",
+            float("nan"),
+        )
+    k, before, after = lost
+    critical = 0.5 * (before + after)
+    return (
+        True,
+        f"unstable: passed a bifurcation or limit point at step {k} ({quantity} between "
+        f"{before:.6g} and {after:.6g} {unit}: the constrained tangent stopped being positive "
+        f"definite); {n_bad} unstable, on a branch that buckles under any imperfection",
+        critical,
+    )
 
 
 # -- band-storage helpers (LAPACK gbsv layout: A[i, j] = ab[kl + ku + i - j, j]) ---------------
@@ -789,11 +867,23 @@ def _solve_constrained(
 def _is_positive_definite(ab: np.ndarray, bc: _Constraints) -> bool:
     """Is the constrained tangent positive definite (a stable equilibrium)?
 
-    The tangent is symmetric: rows kl.. of the general band storage are LAPACK's upper symmetric
-    band storage, so a banded Cholesky factorisation (dpbtrf) answers, at O(n b^2).
+    Parameters
+    ----------
+    ab : (2 kl + ku + 1, n) float — the tangent in LAPACK gbsv storage (kl = ku = ``_BAND``),
+        ``A[i, j] = ab[kl + ku + i - j, j]``; rows 0..kl-1 are gbsv's fill-in workspace.
+    bc : the constraints; their rows and columns are replaced by identity rows, so the matrix
+        factorised is the reduced tangent on the free DOFs (plus a decoupled identity block),
+        which is positive definite exactly when the reduced one is.
+
+    The tangent is symmetric, so its upper half is LAPACK's upper symmetric band storage with
+    ``kd = _BAND`` superdiagonals, ``A[i, j] = up[kd + i - j, j]`` for ``i <= j``: these are the
+    ``kd + 1`` rows ``kl .. kl + ku`` of the gbsv storage (the diagonal is row ``kl + ku``). The
+    rows below the diagonal must not be passed: ``dpbtrf`` takes ``kd`` from the row count, and
+    with them it would read a subdiagonal as the diagonal. A banded Cholesky factorisation
+    (``dpbtrf``, O(n kd^2)) then answers: ``info == 0`` exactly when it is positive definite.
     """
-    up = np.array(ab[_BAND:], order="F")
-    flat = up.T.reshape(-1)
+    up = np.array(ab[_BAND : 2 * _BAND + 1], order="F")  # (kd + 1, n), diagonal in the last row
+    flat = up.T.reshape(-1)  # a view: up is Fortran-ordered
     flat[bc.zero_idx_sym] = 0.0
     flat[bc.fixed * (_BAND + 1) + _BAND] = 1.0
     _, info = dpbtrf(up, lower=0, overwrite_ab=1)

@@ -690,8 +690,17 @@ class ConstantForceProblem:
         )
 
     def _evaluation(
-        self, x: np.ndarray, design: ConstantForceDesign, m: CurveMetrics, time_s: float
+        self,
+        x: np.ndarray,
+        design: ConstantForceDesign,
+        m: CurveMetrics,
+        time_s: float,
+        response: BeamResponse,
     ) -> Evaluation:
+        """The design's objectives, constraints and metrics. A design whose traced path passed a
+        bifurcation or limit point (``response.unstable``: some row's constrained tangent is not
+        positive definite, so the beam would snap or buckle away from the traced rows) keeps its
+        numbers but is infeasible, with the solver's ``unstable: ...`` message as the reason."""
         study = self.study
         if study.objective == "rms_error":
             f = [m.rms_error_N]
@@ -718,8 +727,13 @@ class ConstantForceProblem:
             "plateau_mean_force_N": m.plateau_mean_force_N,
             "plateau_flatness_percent": m.plateau_flatness_percent,
             "min_feature_mm": design_min_feature_mm(design),
+            "stable": not response.unstable,
+            "unstable_rows": _unstable_rows(response),
         }
-        return Evaluation(np.asarray(x, dtype=float), np.array(f), np.array(g), metrics, "", time_s)
+        reason = response.unstable_message if response.unstable else ""
+        return Evaluation(
+            np.asarray(x, dtype=float), np.array(f), np.array(g), metrics, reason, time_s
+        )
 
     def _failed(self, x: np.ndarray, reason: str, t0: float, design: Any = None) -> Evaluation:
         metrics = {} if design is None else {"min_feature_mm": design_min_feature_mm(design)}
@@ -741,7 +755,7 @@ class ConstantForceProblem:
             if reason or response is None or design is None:
                 return self._failed(x, reason or "failed", t0, design)
             m = self._metrics(design, response)
-            return self._evaluation(x, design, m, time.perf_counter() - t0)
+            return self._evaluation(x, design, m, time.perf_counter() - t0, response)
         except Exception as exc:  # never let one design end the run
             log.exception("constant_force: evaluating %s raised", x)
             return self._failed(x, f"raised {type(exc).__name__}: {exc}", t0)
@@ -839,9 +853,24 @@ def _guarded(check: Any, *args: Any) -> dict[str, Any]:
         return {"skipped": f"raised {type(exc).__name__}: {exc}"}
 
 
+def _unstable_rows(response: BeamResponse) -> int:
+    """Converged rows that are not stable equilibria (see :class:`fea.beam.BeamResponse`)."""
+    if response.stable is None:
+        return 0
+    return int(np.sum(np.asarray(response.converged, bool) & ~np.asarray(response.stable, bool)))
+
+
+def _stable_column(response: BeamResponse) -> np.ndarray:
+    """(rows,) bool: the row is a stable equilibrium (converged rows when not assessed)."""
+    if response.stable is None:
+        return np.asarray(response.converged, dtype=bool).copy()
+    return np.asarray(response.stable, dtype=bool)
+
+
 def _response_table(response: BeamResponse, target_N: float) -> dict[str, np.ndarray]:
     """The traced response as named columns (row 0 unloaded). The output force is the force
-    that pushes S6 along the work direction, positive in compression like the paper's plots."""
+    that pushes S6 along the work direction, positive in compression like the paper's plots.
+    ``stable`` is False on rows past a bifurcation or limit point (see fea.beam)."""
     force = np.asarray(response.force_N, dtype=float)
     return {
         "displacement_mm": np.asarray(response.displacement_mm, dtype=float),
@@ -852,6 +881,7 @@ def _response_table(response: BeamResponse, target_N: float) -> dict[str, np.nda
         "end_rotation_deg": np.degrees(np.asarray(response.end_rotation_rad, dtype=float)),
         "peak_stress_MPa": np.asarray(response.peak_stress_MPa, dtype=float),
         "peak_stress_s_mm": np.asarray(response.peak_stress_s_mm, dtype=float),
+        "stable": _stable_column(response),
     }
 
 
@@ -1182,6 +1212,10 @@ def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
     peak = float(np.max(response.peak_stress_MPa))
     summary["stress_yield_ratio"] = peak / study.material.yield_MPa
     summary["feasible"] = evaluation.feasible
+    # ``stable`` (bool) and ``unstable_rows`` come with the metrics; the message names the step.
+    summary["stable"] = not response.unstable
+    summary["unstable_rows"] = _unstable_rows(response)
+    summary["unstable_message"] = response.unstable_message
     summary.update(
         {name: float(v) for name, v in zip(prob.objective_names, evaluation.f, strict=True)}
     )
@@ -1193,7 +1227,7 @@ def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
         table=table,
         summary=summary,
         converged=bool(response.ok),
-        message=response.message,
+        message="; ".join(m for m in (response.message, response.unstable_message) if m),
         solve_times_s=tuple(times),
         inputs={
             "material": material_record(prob.material) | {"G_MPa": prob.material.G_MPa},

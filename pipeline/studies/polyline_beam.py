@@ -38,6 +38,7 @@ __all__ = [
     "build_drive",
     "build_profile",
     "response_table",
+    "stability_summary",
     "summarise",
 ]
 
@@ -365,6 +366,34 @@ def _max_abs(values: np.ndarray) -> float | None:
     return float(np.max(np.abs(finite))) if finite.size else None
 
 
+def stability_summary(response: BeamResponse) -> dict[str, Any]:
+    """Whether the traced path stayed on stable equilibria (see :class:`fea.beam.BeamResponse`).
+
+    Returns
+    -------
+    dict
+        ``stable`` (bool): no converged row passed a bifurcation or limit point (every row's
+        constrained tangent is positive definite); ``unstable_rows`` (int): converged rows that
+        are not stable; ``first_unstable_step`` (int or None); ``unstable_message`` (str): the
+        solver's message naming the step and the driven value where stability was lost, empty
+        when stable. A response that was not assessed (``stable`` None) counts as stable.
+    """
+    if response.stable is None:
+        return {
+            "stable": True,
+            "unstable_rows": 0,
+            "first_unstable_step": None,
+            "unstable_message": "",
+        }
+    bad = np.flatnonzero(np.asarray(response.converged, bool) & ~np.asarray(response.stable, bool))
+    return {
+        "stable": bool(bad.size == 0 and not response.unstable),
+        "unstable_rows": int(bad.size),
+        "first_unstable_step": int(bad[0]) if bad.size else None,
+        "unstable_message": response.unstable_message,
+    }
+
+
 def summarise(
     table: dict[str, np.ndarray], material: Material, profile: BeamProfile
 ) -> dict[str, Any]:
@@ -376,6 +405,7 @@ def summarise(
         Maxima of |force| (N), |displacement| (mm), |moment| (N mm), |end rotation| (deg) and peak
         stress (MPa, with where and when), stress/yield ratio, initial stiffness (N/mm, from the
         first step), rows converged, Newton iterations, length (mm), volume (mm^3), mass (g).
+        The stability keys come from :func:`stability_summary` (``evaluate`` adds them).
     """
     ok = table["converged"]
     rows = {key: np.asarray(col)[ok] for key, col in table.items()}
@@ -442,9 +472,17 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
     table = response_table(response)
     converged = bool(response.ok)
     message = response.message or ("" if converged else "not every step converged")
+    summary = summarise(table, material, profile)
+    # A path that passed a bifurcation (a strut pushed past its Euler load stays straight in the
+    # solver) is never reported as a plain result: the summary says stable = False and the message
+    # names the step. ``converged`` keeps meaning that every row is an equilibrium.
+    stability = stability_summary(response)
+    summary.update(stability)
+    if not stability["stable"]:
+        message = "; ".join(m for m in (message, stability["unstable_message"]) if m)
     return EvaluationResult(
         table=table,
-        summary=summarise(table, material, profile),
+        summary=summary,
         converged=converged,
         message=message,
         solve_times_s=tuple(times),
@@ -482,6 +520,7 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
             "max_peak_stress_MPa",
             "stress_yield_ratio",
             "mass_g",
+            "stable",
         ),
     )
 
