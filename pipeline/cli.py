@@ -298,6 +298,14 @@ def _evaluate(args: argparse.Namespace) -> int:
         print(f"{prog}: error: cannot write the run folder: {exc}", file=sys.stderr)
         return EXIT_WRITE
     _print_summary(outcome, Console(highlight=False))
+    if outcome.result.summary.get("stable") is False:
+        # a design past a bifurcation is never reported as a plain result (issue 11)
+        message = outcome.result.summary.get("unstable_message") or "passed an instability"
+        print(
+            f"{prog}: warning: {message}; rows with stable=false are not a safe "
+            f"design; see {outcome.run_dir / 'evaluation.json'}",
+            file=sys.stderr,
+        )
     if not outcome.result.converged:
         print(
             f"{prog}: warning: the solve did not converge ({outcome.result.message}); "

@@ -343,9 +343,15 @@ def response_table(response: BeamResponse) -> dict[str, np.ndarray]:
     -------
     dict of str to (steps + 1,) array
         ``step, displacement_mm, force_N, transverse_displacement_mm, transverse_force_N,
-        moment_Nmm, end_rotation_deg, peak_stress_MPa, peak_stress_s_mm, iterations, converged``.
+        moment_Nmm, end_rotation_deg, peak_stress_MPa, peak_stress_s_mm, iterations, converged,
+        stable`` (``stable`` false on a row past a bifurcation or limit point: not a safe state).
     """
     n = len(response.displacement_mm)
+    stable = (
+        np.ones(n, dtype=bool)
+        if response.stable is None
+        else np.asarray(response.stable, dtype=bool)
+    )
     return {
         "step": np.arange(n),
         "displacement_mm": np.asarray(response.displacement_mm, dtype=float),
@@ -358,6 +364,7 @@ def response_table(response: BeamResponse) -> dict[str, np.ndarray]:
         "peak_stress_s_mm": np.asarray(response.peak_stress_s_mm, dtype=float),
         "iterations": np.asarray(response.iterations, dtype=int),
         "converged": np.asarray(response.converged, dtype=bool),
+        "stable": stable,
     }
 
 

@@ -32,6 +32,7 @@ COLUMNS = [
     "peak_stress_s_mm",
     "iterations",
     "converged",
+    "stable",
 ]
 SRC_ROOT = Path(pipeline.__file__).resolve().parents[1]
 
@@ -236,3 +237,34 @@ def test_installed_console_script(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(EVALUATE_FILES)
+
+
+def test_a_buckled_strut_is_flagged_unstable_in_the_console_and_the_files(tmp_path, capsys):
+    # A 60 x 1.5 x 8 mm ABS cantilever pushed along its axis with 100 N: the Euler load
+    # pi^2 E I / (4 L^2) is computed here, and everything past it must be flagged, not reported
+    # as a plain (safe-looking) straight strut.
+    raw = yaml.safe_load((SRC_ROOT / "pipeline" / "examples" / "cantilever.yaml").read_text())
+    raw["boundary"]["end"] = {
+        "control": "force",
+        "direction": [-1, 0],
+        "max_N": 100.0,
+        "steps": 10,
+    }
+    path = tmp_path / "strut.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    study = load_study(path)
+    E = study.material.E_MPa
+    inertia = 8.0 * 1.5**3 / 12.0
+    p_euler = np.pi**2 * E * inertia / (4.0 * 60.0**2)
+    assert p_euler < 10.0  # the push is 35x past it
+    out = tmp_path / "out"
+    assert main(["evaluate", str(path), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "warning: unstable: passed a bifurcation" in err
+    record = json.loads((out / "evaluation.json").read_text())
+    assert record["summary"]["stable"] is False
+    _, rows = read_csv(out / "response.csv")
+    forces = np.array([float(r["force_N"]) for r in rows])
+    stable = np.array([r["stable"] == "true" for r in rows])
+    # every row with a push past the Euler load is unstable; the unloaded row is not
+    assert stable[0] and not stable[np.abs(forces) > 1.01 * p_euler].any()
