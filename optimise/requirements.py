@@ -1,0 +1,868 @@
+r"""Requirements of a design, separate from its objectives, and the verdict on each.
+
+A study states what its design must meet; every evaluation is then judged against each
+requirement with one word, **MET** or **NOT MET**, its value, its bound and its margin. Being
+*feasible* (every optimiser constraint ``g <= 0``) is not the same thing: a constraint may be
+missing, or the objective may be only minimised (an RMS error of 1.2 N is a fine minimum of a
+5 N target that ends at 3.8 N); the verdict is what says whether the design does its job.
+
+API (stable; other modules and kinds build on it)
+-------------------------------------------------
+:class:`Verdict`
+    ``name, quantity, value, bound, margin, margin_rel, met, unit, role, detail``; ``margin`` is
+    positive when met, in the quantity's unit (``margin_rel`` a fraction of the bound's scale,
+    None where there is none); ``bound`` is human text with the unit (``<= 42.5 MPa``).
+:class:`Requirement` and its kinds
+    :class:`MaxValue`, :class:`MinValue`, :class:`Range`, :class:`AllowableStress` (yield over a
+    safety factor), :class:`TargetBand` (a curve ``y(x)`` within a tolerance band of a target
+    curve of :mod:`optimise.targets` over an x-range), :class:`Envelope` (bounding box within
+    ``w x h``), :class:`MinFeature`, :class:`Flag` (a yes/no metric such as ``stable``). Each
+    has ``check(metrics, curves) -> Verdict`` and ``constraint(metrics, curves) -> float`` (a
+    ``g <= 0`` row, dimensionless: ``-margin / scale``).
+
+    ``metrics`` maps quantity names (units in the names: ``max_peak_stress_MPa``) to floats
+    (bools for :class:`Flag`; None or a missing key is "not computed" and NOT MET). ``curves``
+    maps a response quantity (``force_N``) to ``(x, y)``, two (n,) arrays: ``x`` in the unit of
+    the requirement's ``x`` column, ``y`` in the quantity's unit; :func:`curves_from_table`
+    builds it from a response table.
+:func:`verdict_lines`, :func:`overall`, :func:`to_records`, :func:`verdict_record`
+    Console / Markdown lines, the overall word (MET only when there is at least one requirement
+    and every one is met), JSON records.
+:class:`RequirementSpec`
+    One item of a study's ``requirements:`` list (pydantic, units in the keys), turned into a
+    requirement by :meth:`RequirementSpec.to_requirement`.
+
+Everything here takes values and returns values; which names a study kind reports, and reading
+a target table from CSV, are the pipeline's business.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from optimise.errors import OptimiseError
+from optimise.targets import TargetCurve, TargetSpec, column_unit_factor
+
+__all__ = [
+    "AllowableStress",
+    "Envelope",
+    "Flag",
+    "MaxValue",
+    "MinFeature",
+    "MinValue",
+    "Range",
+    "Requirement",
+    "RequirementSpec",
+    "TargetBand",
+    "Verdict",
+    "curves_from_table",
+    "overall",
+    "to_records",
+    "unit_of",
+    "verdict_lines",
+    "verdict_record",
+]
+
+Role = Literal["constraint", "check"]
+
+#: Constraint value of a requirement whose quantity was not computed (finite: pymoo ranks by it).
+MISSING_CONSTRAINT = 1.0e6
+
+#: Unit suffixes of quantity names and how they read (longest first).
+_UNITS: tuple[tuple[str, str], ...] = (
+    ("_Nm_per_rad", "N·m/rad"),
+    ("_Nmm_per_rad", "N·mm/rad"),
+    ("_N_per_mm", "N/mm"),
+    ("_per_rad", "1/rad"),
+    ("_per_mm", "1/mm"),
+    ("_kg_m3", "kg/m³"),
+    ("_percent", "%"),
+    ("_MPa", "MPa"),
+    ("_Nmm", "N·mm"),
+    ("_Nm", "N·m"),
+    ("_mm3", "mm³"),
+    ("_mm2", "mm²"),
+    ("_mm", "mm"),
+    ("_deg", "deg"),
+    ("_rad", "rad"),
+    ("_Hz", "Hz"),
+    ("_kg", "kg"),
+    ("_N", "N"),
+    ("_g", "g"),
+    ("_s", "s"),
+    ("_J", "J"),
+)
+
+
+def unit_of(quantity: str) -> str:
+    """The unit a quantity name carries (``max_peak_stress_MPa`` -> ``MPa``; ``""`` for ratios)."""
+    for suffix, unit in _UNITS:
+        if quantity.endswith(suffix):
+            return unit
+    return ""
+
+
+def _num(value: float, unit: str = "") -> str:
+    """``42.5 MPa``: 4 significant digits, the unit after a space (``%`` too)."""
+    if value is None or not math.isfinite(value):
+        text = "n/a" if value is None or math.isnan(value) else str(value)
+    else:
+        text = f"{value:.4g}"
+    return f"{text} {unit}" if unit else text
+
+
+def _value_of(metrics: Mapping[str, Any], quantity: str) -> float | None:
+    value = metrics.get(quantity)
+    if value is None or isinstance(value, str):
+        return None
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return None
+    return out if math.isfinite(out) else None
+
+
+# --------------------------------------------------------------------------------------------
+# The verdict
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The judgement of one design against one requirement.
+
+    Attributes
+    ----------
+    name : label of the requirement (unique within a study).
+    quantity : the metric or response column judged (units in the name).
+    value : its value for this design, in ``unit`` (NaN when not computed); for a curve the
+        worst deviation from the target, for an envelope the larger overshoot-relevant size.
+    bound : what it must meet, human text with the unit (``<= 42.5 MPa``,
+        ``within ±2 % of 1.5 N over 0.5–30 mm``).
+    margin : distance to the bound in ``unit``; positive (or 0) when met, negative when not,
+        NaN when not computed.
+    margin_rel : ``margin`` as a fraction of the bound's scale (0.1 = 10 % to spare), or None.
+    met : the requirement is met.
+    unit : unit of ``value`` and ``margin`` (``MPa``, ``N``, ``""`` for a ratio).
+    role : ``constraint`` (also a constraint of the optimisation) or ``check`` (only judged).
+    detail : one line on where the bound is hit or why the value is missing.
+    """
+
+    name: str
+    quantity: str
+    value: float
+    bound: str
+    margin: float
+    margin_rel: float | None
+    met: bool
+    unit: str
+    role: Role = "check"
+    detail: str = ""
+
+    @property
+    def word(self) -> str:
+        """``MET`` or ``NOT MET``."""
+        return "MET" if self.met else "NOT MET"
+
+
+def overall(verdicts: Sequence[Verdict]) -> Literal["MET", "NOT MET"]:
+    """``MET`` when there is at least one verdict and every one is met; else ``NOT MET``.
+
+    No requirement at all is NOT MET: nothing was shown, so nothing is claimed.
+    """
+    return "MET" if verdicts and all(v.met for v in verdicts) else "NOT MET"
+
+
+def _margin_text(v: Verdict) -> str:
+    if not math.isfinite(v.margin):
+        return "n/a"
+    text = f"{v.margin:+.4g}" + (f" {v.unit}" if v.unit else "")
+    if v.margin_rel is not None and math.isfinite(v.margin_rel):
+        text += f" ({100 * v.margin_rel:+.3g} %)"
+    return text
+
+
+def verdict_rows(verdicts: Sequence[Verdict]) -> list[list[str]]:
+    """One row per verdict: requirement, value, bound, margin, MET/NOT MET (strings)."""
+    return [
+        [v.name, _num(v.value, v.unit), v.bound, _margin_text(v), v.word + _role_mark(v)]
+        for v in verdicts
+    ]
+
+
+def _role_mark(v: Verdict) -> str:
+    return "" if v.role == "check" else " (constraint)"
+
+
+def verdict_lines(verdicts: Sequence[Verdict]) -> list[str]:
+    """Plain aligned lines: a header, one line per requirement, then ``overall: MET``.
+
+    ``requirement  value  bound  margin  verdict``; a requirement that is NOT MET carries its
+    ``detail`` on the next line, indented.
+    """
+    header = ["requirement", "value", "bound", "margin", "verdict"]
+    rows = verdict_rows(verdicts)
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(header, widths, strict=True)).rstrip()]
+    for v, row in zip(verdicts, rows, strict=True):
+        lines.append("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
+        if not v.met and v.detail:
+            lines.append(f"    {v.detail}")
+    if not verdicts:
+        lines.append("(no requirement stated)")
+    met = sum(v.met for v in verdicts)
+    lines.append(f"overall: {overall(verdicts)} ({met} of {len(verdicts)} requirements met)")
+    return lines
+
+
+def _json_float(value: float | None) -> float | None:
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def to_records(verdicts: Iterable[Verdict]) -> list[dict[str, Any]]:
+    """One JSON-ready mapping per verdict (NaN as None, the word as ``verdict``)."""
+    out = []
+    for v in verdicts:
+        record = asdict(v)
+        record["value"] = _json_float(v.value)
+        record["margin"] = _json_float(v.margin)
+        record["margin_rel"] = _json_float(v.margin_rel)
+        out.append({"verdict": v.word, **record})
+    return out
+
+
+def verdict_record(verdicts: Sequence[Verdict]) -> dict[str, Any]:
+    """``{"overall": "MET"|"NOT MET", "met": k, "of": n, "requirements": [...]}`` for JSON."""
+    return {
+        "overall": overall(verdicts),
+        "met": sum(v.met for v in verdicts),
+        "of": len(verdicts),
+        "requirements": to_records(verdicts),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Requirements
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """Base of the requirements (a frozen, picklable value; use a subclass).
+
+    Attributes
+    ----------
+    quantity : the metric (or response column) judged, units in the name.
+    name : label; default ``quantity``.
+    role : ``constraint`` or ``check``.
+    """
+
+    quantity: str
+    name: str = ""
+    role: Role = "check"
+
+    @property
+    def label(self) -> str:
+        return self.name or self.quantity
+
+    @property
+    def unit(self) -> str:
+        return unit_of(self.quantity)
+
+    @property
+    def needs_curve(self) -> bool:
+        """The requirement reads ``curves`` (a response), not only ``metrics``."""
+        return False
+
+    def check(
+        self,
+        metrics: Mapping[str, Any],
+        curves: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    ) -> Verdict:
+        """The verdict for one design (see the module docstring for the arguments)."""
+        raise NotImplementedError
+
+    def scale(self) -> float:
+        """Magnitude that makes the margin a fraction (for ``margin_rel`` and the constraint)."""
+        return 1.0
+
+    def constraint(
+        self,
+        metrics: Mapping[str, Any],
+        curves: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    ) -> float:
+        """A ``g <= 0`` row for an optimiser: ``-margin / scale`` (dimensionless); a value that
+        was not computed gives :data:`MISSING_CONSTRAINT`."""
+        v = self.check(metrics, curves)
+        if not math.isfinite(v.margin):
+            return MISSING_CONSTRAINT
+        return -v.margin / self.scale()
+
+    def _missing(self, bound: str, why: str = "") -> Verdict:
+        return Verdict(
+            self.label,
+            self.quantity,
+            math.nan,
+            bound,
+            math.nan,
+            None,
+            False,
+            self.unit,
+            self.role,
+            why or f"{self.quantity} was not computed for this design",
+        )
+
+    def _verdict(self, value: float, bound: str, margin: float, detail: str = "") -> Verdict:
+        s = self.scale()
+        rel = margin / s if s > 0 and math.isfinite(margin) else None
+        return Verdict(
+            self.label, self.quantity, value, bound, margin, rel, margin >= 0.0, self.unit,
+            self.role, detail,
+        )  # fmt: skip
+
+
+def _finite(name: str, value: float) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise OptimiseError(f"{name} = {value} must be a finite number")
+    return value
+
+
+@dataclass(frozen=True)
+class MaxValue(Requirement):
+    """``value <= maximum`` (unit of the quantity)."""
+
+    maximum: float = 0.0
+
+    def __post_init__(self) -> None:
+        _finite("maximum", self.maximum)
+
+    def scale(self) -> float:
+        return abs(self.maximum) or 1.0
+
+    def bound_text(self) -> str:
+        return f"<= {_num(self.maximum, self.unit)}"
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        value = _value_of(metrics, self.quantity)
+        if value is None:
+            return self._missing(self.bound_text())
+        return self._verdict(value, self.bound_text(), self.maximum - value)
+
+
+@dataclass(frozen=True)
+class MinValue(Requirement):
+    """``value >= minimum`` (unit of the quantity)."""
+
+    minimum: float = 0.0
+
+    def __post_init__(self) -> None:
+        _finite("minimum", self.minimum)
+
+    def scale(self) -> float:
+        return abs(self.minimum) or 1.0
+
+    def bound_text(self) -> str:
+        return f">= {_num(self.minimum, self.unit)}"
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        value = _value_of(metrics, self.quantity)
+        if value is None:
+            return self._missing(self.bound_text())
+        return self._verdict(value, self.bound_text(), value - self.minimum)
+
+
+@dataclass(frozen=True)
+class MinFeature(MinValue):
+    """The thinnest printed feature (``min_feature_mm``-like quantity) is at least ``minimum``."""
+
+    def bound_text(self) -> str:
+        return f">= {_num(self.minimum, self.unit)} (printable feature)"
+
+
+@dataclass(frozen=True)
+class Range(Requirement):
+    """``minimum <= value <= maximum``; the margin is the distance to the nearer end."""
+
+    minimum: float = 0.0
+    maximum: float = 0.0
+
+    def __post_init__(self) -> None:
+        _finite("minimum", self.minimum)
+        _finite("maximum", self.maximum)
+        if not self.minimum <= self.maximum:
+            raise OptimiseError(
+                f"range [{self.minimum:g}, {self.maximum:g}] of {self.quantity} is empty; give "
+                "[min, max] with min <= max"
+            )
+
+    def scale(self) -> float:
+        return max(abs(self.minimum), abs(self.maximum)) or 1.0
+
+    def bound_text(self) -> str:
+        unit = f" {self.unit}" if self.unit else ""
+        return f"in [{self.minimum:.4g}, {self.maximum:.4g}]{unit}"
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        value = _value_of(metrics, self.quantity)
+        if value is None:
+            return self._missing(self.bound_text())
+        low, high = value - self.minimum, self.maximum - value
+        detail = "" if min(low, high) >= 0 else ("below the range" if low < 0 else "above it")
+        return self._verdict(value, self.bound_text(), min(low, high), detail)
+
+
+@dataclass(frozen=True)
+class AllowableStress(Requirement):
+    """A stress (MPa) at most ``yield_MPa / safety_factor``."""
+
+    yield_MPa: float = 0.0
+    safety_factor: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.yield_MPa) and self.yield_MPa > 0):
+            raise OptimiseError(f"yield_MPa = {self.yield_MPa} must be > 0")
+        if not (math.isfinite(self.safety_factor) and self.safety_factor > 0):
+            raise OptimiseError(
+                f"safety_factor = {self.safety_factor} must be > 0 (1.0: the yield itself)"
+            )
+
+    @property
+    def allowable_MPa(self) -> float:
+        return self.yield_MPa / self.safety_factor
+
+    @property
+    def unit(self) -> str:
+        return "MPa"
+
+    def scale(self) -> float:
+        return self.allowable_MPa
+
+    def bound_text(self) -> str:
+        text = f"<= {_num(self.allowable_MPa, 'MPa')}"
+        if self.safety_factor != 1.0:
+            text += f" (yield {self.yield_MPa:.4g} MPa / SF {self.safety_factor:.3g})"
+        return text
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        value = _value_of(metrics, self.quantity)
+        if value is None:
+            return self._missing(self.bound_text())
+        return self._verdict(value, self.bound_text(), self.allowable_MPa - value)
+
+
+@dataclass(frozen=True)
+class Flag(Requirement):
+    """A yes/no metric must be ``expected`` (``stable`` must be true). Value 1 (yes) or 0 (no);
+    margin +1 when met, -1 when not."""
+
+    expected: bool = True
+
+    def bound_text(self) -> str:
+        return "= " + ("yes" if self.expected else "no")
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        raw = metrics.get(self.quantity)
+        if raw is None or isinstance(raw, str):
+            return self._missing(self.bound_text())
+        value = bool(raw)
+        met = value is self.expected
+        detail = "" if met else str(metrics.get(f"{self.quantity}_message") or "")
+        return Verdict(
+            self.label, self.quantity, float(value), self.bound_text(), 1.0 if met else -1.0,
+            None, met, "", self.role, detail,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Envelope(Requirement):
+    """The bounding box of an outline fits ``max_width_mm x max_height_mm`` (no turning).
+
+    Reads ``width_key`` and ``height_key`` from the metrics (mm). The value is the worse of the
+    two sizes relative to its limit; the margin the smaller of the two spares (mm).
+    """
+
+    quantity: str = "envelope_mm"
+    max_width_mm: float = 0.0
+    max_height_mm: float = 0.0
+    width_key: str = "envelope_width_mm"
+    height_key: str = "envelope_height_mm"
+
+    def __post_init__(self) -> None:
+        for key in ("max_width_mm", "max_height_mm"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0):
+                raise OptimiseError(f"envelope {key} = {value} must be > 0")
+
+    @property
+    def unit(self) -> str:
+        return "mm"
+
+    def scale(self) -> float:
+        return min(self.max_width_mm, self.max_height_mm)
+
+    def bound_text(self) -> str:
+        return f"within {self.max_width_mm:.4g} × {self.max_height_mm:.4g} mm"
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        w, h = _value_of(metrics, self.width_key), _value_of(metrics, self.height_key)
+        if w is None or h is None:
+            return self._missing(self.bound_text(), "the design has no outline to measure")
+        spare_w, spare_h = self.max_width_mm - w, self.max_height_mm - h
+        value = w if spare_w <= spare_h else h
+        return self._verdict(
+            value, self.bound_text(), min(spare_w, spare_h), f"{w:.4g} × {h:.4g} mm"
+        )
+
+
+def _unit_factor(name: str) -> float:
+    """Factor from a column's unit to project units (rad, mm, N·mm, N); 1 when unknown."""
+    try:
+        return column_unit_factor(name)[2]
+    except OptimiseError:
+        return 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class TargetBand(Requirement):
+    """A response ``y(x)`` within a tolerance band of a target curve over ``x`` in ``over``.
+
+    Attributes
+    ----------
+    quantity : the response column ``y`` (``force_N``, ``torque_Nm``).
+    x : the driving column (``displacement_mm``, ``rotation_deg``).
+    target : a :class:`optimise.targets.TargetCurve` (project units: rad, mm, N·mm, N); the
+        response is converted by its column units (``torque_Nm`` x 1000, ``rotation_deg`` to rad).
+    over : (lo, hi) in the unit of ``x``, or None for the whole response. The response must
+        reach both ends (a trace that stops early is NOT MET).
+    tolerance : half-width of the band in the unit of ``quantity`` (absolute), or
+    tolerance_rel : half-width as a fraction of ``|target(x)|`` (0.02 = ±2 %). Exactly one.
+
+    ``check`` reports the worst deviation ``max |y - target|`` (unit of ``quantity``) and the
+    margin ``min (band - |y - target|)`` over the rows in ``over`` (both ends interpolated).
+    """
+
+    x: str = "displacement_mm"
+    target: TargetCurve | None = None
+    over: tuple[float, float] | None = None
+    tolerance: float | None = None
+    tolerance_rel: float | None = None
+    target_text: str = ""
+
+    def __post_init__(self) -> None:
+        if self.target is None:
+            raise OptimiseError("a target band needs a target curve")
+        if (self.tolerance is None) == (self.tolerance_rel is None):
+            raise OptimiseError("a target band needs one of tolerance (absolute) or tolerance_rel")
+        tol = self.tolerance if self.tolerance is not None else self.tolerance_rel
+        if not (math.isfinite(tol) and tol > 0):  # type: ignore[arg-type]
+            raise OptimiseError(f"tolerance = {tol} must be > 0")
+        if self.over is not None and not self.over[0] < self.over[1]:
+            raise OptimiseError(f"over = {list(self.over)} must be [lower, upper], lower < upper")
+
+    @property
+    def needs_curve(self) -> bool:
+        return True
+
+    def _fy(self) -> float:
+        return _unit_factor(self.quantity)
+
+    def _target_in_y_units(self, x: np.ndarray) -> np.ndarray:
+        """Target at ``x`` (unit of the x column), in the unit of ``quantity``."""
+        return np.asarray(self.target(x * _unit_factor(self.x)), dtype=float) / self._fy()  # type: ignore[misc]
+
+    def scale(self) -> float:
+        if self.tolerance is not None:
+            return float(self.tolerance)
+        if self.over is not None:
+            xs = np.linspace(self.over[0], self.over[1], 33)
+            try:
+                level = float(np.max(np.abs(self._target_in_y_units(xs))))
+            except OptimiseError:
+                level = 0.0
+            if level > 0:
+                return float(self.tolerance_rel) * level  # type: ignore[arg-type]
+        return 1.0
+
+    def bound_text(self) -> str:
+        what = self.target_text or describe_target(self.target, self.quantity)  # type: ignore[arg-type]
+        if self.tolerance is not None:
+            band = f"within ±{_num(self.tolerance, self.unit)} of {what}"
+        else:
+            band = f"within ±{100 * self.tolerance_rel:.3g} % of {what}"  # type: ignore[operator]
+        if self.over is not None:
+            xu = unit_of(self.x)
+            band += f" over {self.over[0]:.4g}–{self.over[1]:.4g}" + (f" {xu}" if xu else "")
+        return band
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        bound = self.bound_text()
+        curve = (curves or {}).get(self.quantity)
+        if curve is None:
+            return self._missing(bound, f"no response {self.quantity}({self.x}) for this design")
+        x = np.asarray(curve[0], dtype=float).ravel()
+        y = np.asarray(curve[1], dtype=float).ravel()
+        keep = np.isfinite(x) & np.isfinite(y)
+        x, y = x[keep], y[keep]
+        if x.size == 0:
+            return self._missing(bound, "the response has no finite row")
+        order = np.argsort(x, kind="stable")
+        x, y = x[order], y[order]
+        lo, hi = (x[0], x[-1]) if self.over is None else self.over
+        xu = unit_of(self.x)
+        span = 1e-9 * max(1.0, abs(lo), abs(hi))
+        if x[0] > lo + span or x[-1] < hi - span:
+            reach = f"{x[0]:.4g}–{x[-1]:.4g} {xu}".strip()
+            return Verdict(
+                self.label, self.quantity, math.nan, bound, math.nan, None, False, self.unit,
+                self.role, f"the response covers only {reach} of {lo:.4g}–{hi:.4g} {xu}".strip(),
+            )  # fmt: skip
+        inside = (x > lo) & (x < hi)
+        xs = np.concatenate([[lo], x[inside], [hi]])
+        ys = np.concatenate([[np.interp(lo, x, y)], y[inside], [np.interp(hi, x, y)]])
+        try:
+            t = self._target_in_y_units(xs)
+        except OptimiseError as exc:
+            return self._missing(bound, str(exc))
+        dev = np.abs(ys - t)
+        band = (
+            np.full_like(t, float(self.tolerance))
+            if self.tolerance is not None
+            else float(self.tolerance_rel) * np.abs(t)  # type: ignore[arg-type]
+        )
+        spare = band - dev
+        k = int(np.argmin(spare))
+        margin = float(spare[k])
+        side = "above" if ys[k] > t[k] else "below"
+        detail = (
+            ""
+            if margin >= 0
+            else f"at {xs[k]:.4g} {xu} the response is {ys[k]:.4g} {self.unit}, {side} "
+            f"{t[k]:.4g} {self.unit} by more than ±{band[k]:.4g} {self.unit}".replace("  ", " ")
+        )
+        return self._verdict(float(np.max(dev)), bound, margin, detail)
+
+
+def curves_from_table(
+    table: Mapping[str, Any], requirements: Iterable[Requirement]
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """``{quantity: (x, y)}`` for every :class:`TargetBand` whose columns are in ``table``."""
+    curves = {}
+    for req in requirements:
+        if isinstance(req, TargetBand) and req.quantity in table and req.x in table:
+            curves[req.quantity] = (
+                np.asarray(table[req.x], dtype=float),
+                np.asarray(table[req.quantity], dtype=float),
+            )
+    return curves
+
+
+# --------------------------------------------------------------------------------------------
+# The study-file spec
+
+_SPEC_CONFIG = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class RequirementSpec(BaseModel):
+    """One item of a study's ``requirements:`` list. Values are in the unit of ``quantity``.
+
+    Examples (YAML)::
+
+        - {quantity: max_peak_stress_MPa, max: 40.0}                  # MaxValue
+        - {quantity: stroke_mm, min: 10.0, role: constraint}          # MinValue, optimised
+        - {quantity: stiffness_Nm_per_rad, min: 270, max: 290}        # Range
+        - {quantity: max_peak_stress_MPa, safety_factor: 1.5}         # AllowableStress
+        - {quantity: min_feature_mm, min: 0.8}                        # MinFeature
+        - {quantity: stable, equals: true}                            # Flag
+        - {envelope_mm: [80, 40]}                                     # Envelope
+        - {quantity: force_N, x: displacement_mm, over: [0.5, 15.0],  # TargetBand
+           target: {kind: constant, force_N: 5.0}, tolerance_rel: 0.05}
+
+    ``role: constraint`` makes it also a constraint of the optimisation (kinds that optimise);
+    ``check`` (default) only judges the result.
+    """
+
+    model_config = _SPEC_CONFIG
+
+    quantity: str | None = Field(
+        None,
+        max_length=100,
+        description="the metric or response column judged, units in the name (force_N)",
+    )
+    name: str | None = Field(None, max_length=100, description="label in the verdict")
+    role: Role = Field("check", description="constraint (also optimised) or check (only judged)")
+    max: float | None = Field(None, description="upper bound, unit of the quantity")
+    min: float | None = Field(None, description="lower bound, unit of the quantity")
+    safety_factor: float | None = Field(
+        None, gt=0, description="allowable stress = yield_MPa / safety_factor (quantity in MPa)"
+    )
+    yield_MPa: float | None = Field(
+        None, gt=0, description="yield for safety_factor, MPa (default: the material's)"
+    )
+    equals: bool | None = Field(None, description="a yes/no quantity must be this (stable: true)")
+    envelope_mm: tuple[float, float] | None = Field(
+        None, description="[width, height] the outline's bounding box must fit, mm"
+    )
+    target: TargetSpec | None = Field(
+        None, description="target curve of the response (kinds of optimise/targets.py)"
+    )
+    x: str | None = Field(
+        None, max_length=100, description="target: the driving column (displacement_mm)"
+    )
+    over: tuple[float, float] | None = Field(
+        None, description="target: [lower, upper] range of x, unit of x (default: all rows)"
+    )
+    tolerance: float | None = Field(
+        None, gt=0, description="target: band half-width, unit of the quantity"
+    )
+    tolerance_rel: float | None = Field(
+        None, gt=0, lt=10, description="target: band half-width as a fraction (0.02 = ±2 %)"
+    )
+    tolerance_percent: float | None = Field(
+        None, gt=0, lt=1000, description="target: band half-width in percent (2 = ±2 %)"
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _tolerance_inside_target(cls, data: Any) -> Any:
+        # `target: {kind: constant, force_N: 5, tolerance_rel: 0.05}` reads naturally: lift the
+        # band keys out of the target mapping (TargetSpec knows nothing of bands).
+        if isinstance(data, dict) and isinstance(data.get("target"), dict):
+            target = dict(data["target"])
+            lifted = {
+                k: target.pop(k)
+                for k in ("tolerance", "tolerance_rel", "tolerance_percent", "over")
+                if k in target
+            }
+            clash = sorted(k for k in lifted if k in data)
+            if clash:
+                raise ValueError(f"{', '.join(clash)} given both in target and beside it; keep one")
+            data = {**data, "target": target, **lifted}
+        return data
+
+    @model_validator(mode="after")
+    def _one_shape(self) -> RequirementSpec:
+        shapes = {
+            "max/min": self.max is not None or self.min is not None,
+            "safety_factor": self.safety_factor is not None,
+            "equals": self.equals is not None,
+            "envelope_mm": self.envelope_mm is not None,
+            "target": self.target is not None,
+        }
+        given = [k for k, v in shapes.items() if v]
+        if len(given) != 1:
+            what = "has none of" if not given else f"mixes {' and '.join(given)}; give one of"
+            raise ValueError(
+                f"{what} max/min (bounds), safety_factor (allowable stress), equals (yes/no), "
+                "envelope_mm ([w, h]) or target (a curve)"
+            )
+        kind = given[0]
+        if kind != "envelope_mm" and self.quantity is None:
+            raise ValueError("needs quantity: the metric or response column it judges")
+        if kind == "envelope_mm":
+            if self.envelope_mm is None or min(self.envelope_mm) <= 0:
+                raise ValueError("envelope_mm must be [width, height], both > 0 mm")
+        if kind == "max/min" and self.min is not None and self.max is not None:
+            if self.min > self.max:
+                raise ValueError(f"min = {self.min:g} is above max = {self.max:g}; swap them")
+        if self.yield_MPa is not None and kind != "safety_factor":
+            raise ValueError("yield_MPa goes with safety_factor (an allowable stress)")
+        target_keys = ("x", "over", "tolerance", "tolerance_rel", "tolerance_percent")
+        stray = [k for k in target_keys if getattr(self, k) is not None]
+        if kind != "target" and stray:
+            raise ValueError(
+                f"{', '.join(stray)} go with target (a curve); add target or drop them"
+            )
+        if kind == "target":
+            tol = [k for k in target_keys[2:] if getattr(self, k) is not None]
+            if len(tol) != 1:
+                raise ValueError(
+                    "a target needs one band: tolerance (unit of the quantity), tolerance_rel "
+                    "(0.02 = ±2 %) or tolerance_percent"
+                )
+            if self.x is None:
+                raise ValueError("a target needs x: the driving column (e.g. displacement_mm)")
+            if self.over is not None and not self.over[0] < self.over[1]:
+                raise ValueError(f"over = {list(self.over)} must be [lower, upper], lower < upper")
+        if kind == "safety_factor" and self.quantity and unit_of(self.quantity) != "MPa":
+            raise ValueError(
+                f"safety_factor judges a stress in MPa, but {self.quantity} is not one; use "
+                "max: for a ratio (stress_yield_ratio: max 1/SF)"
+            )
+        return self
+
+    @property
+    def judged(self) -> tuple[str, ...]:
+        """The names this requirement reads (the quantity, and x for a target)."""
+        if self.envelope_mm is not None:
+            return ("envelope_width_mm", "envelope_height_mm")
+        return tuple(n for n in (self.quantity, self.x) if n)
+
+    def to_requirement(
+        self,
+        yield_MPa: float | None = None,
+        table: tuple[np.ndarray, np.ndarray] | None = None,
+        columns: tuple[str, str] | None = None,
+    ) -> Requirement:
+        """The requirement this item states.
+
+        Parameters
+        ----------
+        yield_MPa : the material's yield, MPa (for ``safety_factor`` without ``yield_MPa``).
+        table, columns : a ``kind: table`` target's CSV columns (see
+            :meth:`optimise.targets.TargetSpec.to_curve`).
+
+        Raises
+        ------
+        OptimiseError
+            When an allowable stress has no yield, or the target refuses its values.
+        """
+        q, name, role = self.quantity or "", self.name or "", self.role
+        if self.envelope_mm is not None:
+            w, h = self.envelope_mm
+            return Envelope(name=name, role=role, max_width_mm=w, max_height_mm=h)
+        if self.safety_factor is not None:
+            y = self.yield_MPa if self.yield_MPa is not None else yield_MPa
+            if y is None:
+                raise OptimiseError("an allowable stress needs yield_MPa (or a material)")
+            return AllowableStress(q, name, role, y, self.safety_factor)
+        if self.equals is not None:
+            return Flag(q, name, role, self.equals)
+        if self.target is not None:
+            curve = self.target.to_curve(table, columns)
+            rel = self.tolerance_rel
+            if self.tolerance_percent is not None:
+                rel = self.tolerance_percent / 100.0
+            return TargetBand(
+                q, name or f"{q} target", role, x=self.x or "", target=curve, over=self.over,
+                tolerance=self.tolerance, tolerance_rel=rel, target_text=describe_target(curve, q),
+            )  # fmt: skip
+        if self.min is not None and self.max is not None:
+            return Range(q, name, role, self.min, self.max)
+        if self.max is not None:
+            return MaxValue(q, name, role, self.max)
+        cls = MinFeature if "feature" in q else MinValue
+        return cls(q, name, role, float(self.min))  # type: ignore[arg-type]
+
+
+def describe_target(curve: TargetCurve, quantity: str = "") -> str:
+    """Short words for a target curve in the unit of ``quantity`` (``1.5 N``, ``276 N·m/rad``)."""
+    from optimise.targets import ConstantTarget, LinearTarget, ThresholdTarget
+
+    fy = _unit_factor(quantity) if quantity else 1.0
+    unit = unit_of(quantity) if quantity else curve.y_unit
+    if isinstance(curve, ConstantTarget):
+        return _num(curve.level / fy, unit)
+    if isinstance(curve, LinearTarget):
+        per = "rad" if curve.quantity == "torque" else "mm"
+        return f"a {_num(curve.stiffness / fy, f'{unit}/{per}')} line"
+    if isinstance(curve, ThresholdTarget):
+        return f"the threshold curve to {_num(curve.max_value / fy, unit)}"
+    return "the target table"
