@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 
 from optimise.evaluation import Evaluation
-from pipeline.runfolder import to_json, write_atomic
+from pipeline.errors import StudyError
+from pipeline.runfolder import echo, read_folder_bytes, read_folder_json, to_json, write_atomic
 from pipeline.study import Study, study_to_yaml
 
 __all__ = [
@@ -86,79 +87,183 @@ def evaluation_record(evaluation: Evaluation) -> dict[str, Any]:
 
 
 def evaluation_from_record(record: Mapping[str, Any]) -> Evaluation:
-    """The Evaluation of a :func:`evaluation_record` (bit-identical ``x``, ``f`` and ``g``)."""
+    """The Evaluation of a :func:`evaluation_record` (bit-identical ``x``, ``f`` and ``g``).
+
+    Raises
+    ------
+    ValueError
+        Saying which field is not what :func:`evaluation_record` writes (no more than 60
+        characters of a value are echoed).
+    """
+    if not isinstance(record, Mapping):
+        raise ValueError(f"it is {echo(record)}, not a mapping with x, f and g")
+    arrays = []
+    for key in ("x", "f", "g"):
+        value = record.get(key)
+        if not isinstance(value, list) or not all(_number(v) for v in value):
+            raise ValueError(f"{key} is {echo(value)}, not a list of numbers")
+        arrays.append(np.array(value, dtype=float))
+    if not arrays[1].size:
+        raise ValueError("f is [], not a list of objective values")
+    metrics = record.get("metrics")
+    if metrics is not None and not isinstance(metrics, Mapping):
+        raise ValueError(f"metrics is {echo(metrics)}, not a mapping")
+    reason = record.get("reason")
+    if reason is not None and not isinstance(reason, str):
+        raise ValueError(f"reason is {echo(reason)}, not text")
+    time_s = record.get("time_s")
+    if time_s is not None and not _number(time_s):
+        raise ValueError(f"time_s is {echo(time_s)}, not a number")
     return Evaluation(
-        np.array(record["x"], dtype=float),
-        np.array(record["f"], dtype=float),
-        np.array(record["g"], dtype=float),
-        dict(record.get("metrics") or {}),
-        str(record.get("reason") or ""),
-        float(record.get("time_s") or 0.0),
+        arrays[0], arrays[1], arrays[2], dict(metrics or {}), reason or "", float(time_s or 0.0)
+    )
+
+
+def _number(value: Any) -> bool:
+    """A JSON number a float can hold (a bool is not one; an integer of 400 digits neither)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    return isinstance(value, float) or abs(value) <= 1e308
+
+
+def store_fix(run_dir: Path, line: bool = True) -> str:
+    """What to do about a damaged store (the end of a refusal): about one ``line`` of it, or
+    the file as a whole."""
+    if line:
+        return (
+            "was it edited? restore the file from a copy, or delete that line (flexopt run "
+            f"--resume {run_dir} solves its design again)"
+        )
+    return (
+        "restore it from a copy, or move it away (flexopt report then reads evaluations.csv, "
+        "and flexopt run --resume solves every design again)"
     )
 
 
 class EvaluationStore:
     """``evaluations.jsonl``: finished evaluations, appended and fsynced one by one.
 
+    Reading it never changes it; the first :meth:`append` of a session repairs a torn last line
+    (a kill mid-write) so that the new line starts on a line of its own.
+
     Parameters
     ----------
     path : Path
         The store file (created on the first append).
+
+    Attributes
+    ----------
+    notes : list of str
+        What the last :meth:`load` skipped (a torn last line).
     """
 
     def __init__(self, path: Path) -> None:
         self.path = path
         self._fd: int | None = None
         self.n_appended = 0
+        self.notes: list[str] = []
 
-    def load(self, n_var: int | None = None) -> list[Evaluation]:
-        """Every evaluation in the store; a torn last line (a kill mid-write) is dropped.
+    def load(
+        self,
+        n_var: int | None = None,
+        n_obj: int | None = None,
+        n_con: int | None = None,
+        option: str = "RUN_DIR",
+    ) -> list[Evaluation]:
+        """Every evaluation in the store, read only (the file is not changed).
 
-        The file is rewritten without the torn line, so the next append starts a new line.
+        A torn last line (no newline after it and not a whole record: a kill mid-write) is
+        skipped, with a note in :attr:`notes`.
+
+        Parameters
+        ----------
+        n_var, n_obj, n_con : int, optional
+            Variables, objectives and constraints each evaluation must have.
+        option : str
+            Where a refusal is reported (``RUN_DIR``, ``--resume``).
 
         Raises
         ------
-        ValueError
-            For a line other than the last that is not an evaluation (the store was edited),
-            or a design with the wrong number of variables.
+        StudyError
+            (a ValueError) At ``option``, naming the file and line, for a store that is a
+            folder or cannot be read, a line that is not UTF-8, not JSON or not an evaluation
+            (other than a torn last line), or an evaluation of the wrong size.
         """
-        if not self.path.is_file():
+        self.notes = []
+        fix = store_fix(self.path.parent)
+        data = read_folder_bytes(self.path, option, store_fix(self.path.parent, line=False))
+        if not data:
             return []
-        text = self.path.read_text(encoding="utf-8")
-        lines = text.split("\n")
+        lines = data.split(b"\n")
         out: list[Evaluation] = []
-        good = 0  # characters of whole, readable lines
-        for number, line in enumerate(lines, 1):
-            if not line.strip():
-                good += len(line) + 1
+        for number, raw in enumerate(lines, 1):
+            if not raw.strip():
                 continue
-            last = number == len(lines)  # no newline after it: possibly cut short
+            where = f"'{self.path}' line {number}"
+            torn = number == len(lines)  # no newline after it: possibly cut short
             try:
-                evaluation = evaluation_from_record(json.loads(line))
-            except (ValueError, KeyError, TypeError) as exc:
-                if last:
-                    log.warning("%s: dropping a torn last line", self.path)
+                text = raw.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                if torn:
+                    self._torn(number)
                     break
-                raise ValueError(
-                    f"{self.path} line {number} is not an evaluation ({exc}); was it edited?"
+                raise StudyError(
+                    option, f"{where} is not UTF-8 text (byte 0x{raw[exc.start]:02x}); {fix}"
                 ) from None
-            if n_var is not None and evaluation.x.shape != (n_var,):
-                raise ValueError(
-                    f"{self.path} line {number} has {evaluation.x.size} design variables, the "
-                    f"study {n_var}"
+            try:
+                evaluation = evaluation_from_record(json.loads(text))
+            except (ValueError, RecursionError) as exc:
+                if torn:
+                    self._torn(number)
+                    break
+                problem = (
+                    f"is not valid JSON ({exc.msg}: column {exc.colno})"
+                    if isinstance(exc, json.JSONDecodeError)
+                    else f"is not an evaluation ({str(exc) or type(exc).__name__})"
                 )
+                raise StudyError(option, f"{where} {problem}; {fix}") from None
+            for size, wanted, what in (
+                (evaluation.x.size, n_var, "design variables"),
+                (evaluation.f.size, n_obj, "objectives"),
+                (evaluation.g.size, n_con, "constraints"),
+            ):
+                if wanted is not None and size != wanted:
+                    raise StudyError(
+                        option, f"{where} has {size} {what}, the study {wanted}; {fix}"
+                    )
             out.append(evaluation)
-            good += len(line) + 1
-        good = min(good, len(text))
-        if good < len(text) or (text and not text.endswith("\n")):
-            keep = text[:good]
-            write_atomic(self.path, keep if keep.endswith("\n") or not keep else keep + "\n")
         return out
+
+    def _torn(self, number: int) -> None:
+        note = (
+            f"{self.path.name} line {number} is torn (a kill while it was written); skipped, "
+            "its design is solved again on --resume"
+        )
+        log.info("%s: %s", self.path, note)
+        self.notes.append(note)
+
+    def _repair(self, fd: int) -> None:
+        """Before the first append: cut a torn last line, or end a whole one with a newline."""
+        size = os.fstat(fd).st_size
+        if not size or os.pread(fd, 1, size - 1) == b"\n":
+            return
+        tail_at = max(0, size - (1 << 20))
+        tail = os.pread(fd, size - tail_at, tail_at)
+        start = tail_at + tail.rfind(b"\n") + 1 if b"\n" in tail else tail_at
+        last = os.pread(fd, size - start, start)
+        try:
+            evaluation_from_record(json.loads(last.decode("utf-8")))
+        except (ValueError, RecursionError):
+            log.warning("%s: dropping a torn last line", self.path)
+            os.ftruncate(fd, start)
+            return
+        os.write(fd, b"\n")
 
     def append(self, evaluation: Evaluation) -> None:
         """Add one evaluation and fsync it: once this returns, a SIGKILL does not lose it."""
         if self._fd is None:
-            self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+            self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_APPEND, 0o644)
+            self._repair(self._fd)
         line = json.dumps(evaluation_record(evaluation), allow_nan=True) + "\n"
         os.write(self._fd, line.encode("utf-8"))  # one write: O_APPEND keeps lines whole
         os.fsync(self._fd)
@@ -176,21 +281,48 @@ def write_checkpoint(run_dir: Path, data: Mapping[str, Any]) -> None:
     write_atomic(run_dir / CHECKPOINT_FILE, to_json({"format": FORMAT, **data}))
 
 
-def read_checkpoint(run_dir: Path) -> dict[str, Any] | None:
+def read_checkpoint(run_dir: Path, option: str = "RUN_DIR") -> dict[str, Any] | None:
     """``checkpoint.json`` of a run folder, or None when there is none.
 
     Raises
     ------
-    ValueError
-        When it is not a checkpoint this version can read.
+    StudyError
+        (a ValueError) At ``option`` when it cannot be read, is not JSON, is not a checkpoint
+        of this format or a field has the wrong type.
     """
     path = run_dir / CHECKPOINT_FILE
-    if not path.is_file():
+    fix = (
+        "was it edited? delete it: flexopt run --resume rewrites it after the next generation "
+        "(it is not needed to resume)"
+    )
+    data = read_folder_json(path, option, fix)
+    if data is None:
         return None
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path} cannot be read ({exc})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ValueError(f"{path} is not a flexopt checkpoint of format {FORMAT}")
+        what = echo(data.get("format")) if isinstance(data, dict) else echo(data)
+        raise StudyError(
+            option, f"'{path}' is not a flexopt checkpoint of format {FORMAT} (got {what}); {fix}"
+        )
+
+    def count(value: Any) -> bool:
+        return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+    checks = {
+        "study_sha256": (lambda v: isinstance(v, str), "text"),
+        "generation": (count, "a whole number >= 0"),
+        "n_gen": (count, "a whole number >= 0"),
+        "pop_size": (count, "a whole number >= 0"),
+        "n_evaluations": (count, "a whole number >= 0"),
+        "rng": (lambda v: isinstance(v, dict), "a mapping"),
+        "population": (
+            lambda v: (
+                isinstance(v, list)
+                and all(isinstance(x, list) and all(_number(n) for n in x) for x in v)
+            ),
+            "a list of design vectors",
+        ),
+    }
+    for key, (check, what) in checks.items():
+        if key in data and not check(data[key]):
+            raise StudyError(option, f"'{path}': {key} is {echo(data[key])}, not {what}; {fix}")
     return data

@@ -15,7 +15,6 @@ rewritten after each generation, so a killed run leaves a consistent folder of w
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
 import os
 import platform
@@ -58,11 +57,17 @@ from pipeline.parallel import (
 from pipeline.parallel import one_line as _one_line
 from pipeline.report import ReportData, render_report
 from pipeline.runfolder import (
+    RunDirLock,
+    cell_float,
     check_out_dir,
+    echo,
+    lock_run_dir,
     make_run_dir,
     new_run_dir_path,
     probe_writable,
-    read_records_csv,
+    read_folder_csv,
+    read_folder_json,
+    read_run_json,
     records_to_csv,
     table_to_csv,
     to_json,
@@ -852,6 +857,7 @@ def run_study(
     on_result: Callable[[], None] | None = None,
     parallel: ParallelSettings | None = None,
     resume: Resume | None = None,
+    lock: RunDirLock | None = None,
 ) -> RunOutcome:
     """Optimise a prepared study and write its run folder.
 
@@ -877,6 +883,10 @@ def run_study(
         process pool unless the study says otherwise).
     resume : Resume, optional
         Continue the run in ``out`` (see :func:`resume_run`, which checks it may be).
+    lock : RunDirLock, optional
+        The lock of ``out``, already held (``--resume`` takes it before it reads the folder);
+        otherwise the folder's lock is taken here, before the folder is checked or written. It
+        is released when the run ends (a killed process's lock is released by the kernel).
 
     Returns
     -------
@@ -885,8 +895,9 @@ def run_study(
     Raises
     ------
     StudyError
-        When ``out`` cannot be a new run folder, or the workers or the cluster cannot take the
-        problem (at ``--workers`` / ``--dask``); nothing is written.
+        When ``out`` cannot be a new run folder (it holds a run, or another flexopt process
+        holds its lock), or the workers or the cluster cannot take the problem (at
+        ``--workers`` / ``--dask``); nothing is written.
     BackendError
         When worker processes die before they can load the problem (mid-run).
     OSError
@@ -897,28 +908,36 @@ def run_study(
     """
     if out is not None:
         check_out_dir(out)
-        if resume is None and (out / "run.json").exists():
-            raise StudyError(
-                "--out", f"'{out}' already holds a run (run.json); give a new folder or remove it"
-            )
-    if resume is not None and out is None:
-        raise ValueError("resume needs the run folder as out")
+        if resume is None:
+            _refuse_a_run_in(out)  # at once, before workers start (again under the lock below)
+    if resume is not None and (out is None or lock is None):
+        raise ValueError("resume needs the run folder as out, and its lock")
     study = setup.study
     settings = parallel or parallel_settings(study)
     started = _now()
     run_dir = out or new_run_dir_path(runs_root, study.name, "run", started)
     probe_writable(run_dir)  # a read-only or full disk now, not after hours of solving
     stack = contextlib.ExitStack()
+    if lock is not None:
+        stack.callback(lock.release)
     try:
         backend = stack.enter_context(open_backend(settings, setup.problem))
     except BackendError as exc:
         stack.close()
         where = "--dask" if settings.backend == "dask" else "--workers"
         raise StudyError(where, str(exc)) from None
+    except BaseException:
+        stack.close()
+        raise
     with stack:
+        run_dir = make_run_dir(run_dir)
+        if lock is None:
+            # Released first when the run ends (a callback after the backend's exit runs first).
+            lock = stack.enter_context(_lock_new_run_dir(run_dir))
+        lock.claim("run")
         return _run_in(
             setup,
-            make_run_dir(run_dir),
+            run_dir,
             settings,
             backend,
             started,
@@ -929,6 +948,25 @@ def run_study(
             on_result,
             resume,
         )
+
+
+def _refuse_a_run_in(out: Path) -> None:
+    """Refuse an ``--out`` that already holds a run (its run.json)."""
+    if (out / "run.json").exists():
+        raise StudyError(
+            "--out", f"'{out}' already holds a run (run.json); give a new folder or remove it"
+        )
+
+
+def _lock_new_run_dir(run_dir: Path) -> RunDirLock:
+    """Lock the folder of a new run, then check (under the lock) that it holds no run yet."""
+    lock = lock_run_dir(run_dir, "--out", "wait for it or give another folder with --out")
+    try:
+        _refuse_a_run_in(run_dir)
+    except BaseException:
+        lock.release()
+        raise
+    return lock
 
 
 def _run_in(
@@ -1124,27 +1162,32 @@ def run_is_live(record: Mapping[str, Any]) -> bool:
 
 
 def read_run_record(run_dir: Path, option: str = "RUN_DIR") -> dict[str, Any]:
-    """run.json of a run folder.
+    """run.json of a run folder, every field a command relies on checked
+    (:func:`pipeline.runfolder.read_run_json`).
 
     Raises
     ------
     StudyError
-        At ``option`` when the folder is not a run folder of ``flexopt run``.
+        At ``option`` when the folder is not a run folder of ``flexopt run`` or its run.json is
+        damaged (the message names the file, what is wrong and what to do).
     """
-    if not run_dir.is_dir():
-        raise StudyError(option, f"'{run_dir}' is not a folder; give a run folder of flexopt run")
-    path = run_dir / "run.json"
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
+    return read_run_json(run_dir, option)
+
+
+def _run_folder_study(run_dir: Path, option: str) -> Study:
+    """The study.yaml of a run folder (a missing one is named as such, not as an example)."""
+    path = run_dir / "study.yaml"
+    if not path.exists():
         raise StudyError(
-            option, f"'{run_dir}' has no run.json; give a folder written by flexopt run"
-        ) from None
-    except (OSError, ValueError) as exc:
-        raise StudyError(option, f"'{path}' cannot be read ({exc})") from None
-    if not isinstance(record, dict) or record.get("command") != "run":
-        raise StudyError(option, f"'{path}' is not the record of a flexopt run")
-    return record
+            option, f"'{run_dir}' has no study.yaml; give a run folder written by flexopt run"
+        )
+    if not path.is_file():
+        raise StudyError(
+            option,
+            f"'{path}' is not a file; restore the run's study.yaml (the resolved study the run "
+            "started with) from a copy",
+        )
+    return load_study(path)
 
 
 def resume_run(
@@ -1179,60 +1222,71 @@ def resume_run(
     Raises
     ------
     StudyError
-        At ``--resume`` when the folder is not a resumable run (finished, still running, no
-        hash, a store that was edited) or the study changed; nothing is written then.
+        At ``--resume`` when the folder is not a resumable run (finished, in use by another
+        flexopt process, no hash, a damaged run.json or store) or the study changed; nothing is
+        written then. The folder's lock is taken before anything is read and held to the end.
     """
-    record = read_run_record(run_dir, "--resume")
-    if record.get("status") == "finished":
+    if not run_dir.is_dir():
         raise StudyError(
-            "--resume",
-            f"the run in '{run_dir}' has finished; nothing to resume (flexopt report "
-            f"{run_dir} rebuilds its report)",
+            "--resume", f"'{run_dir}' is not a folder; give a run folder of flexopt run"
         )
-    if run_is_live(record):
-        raise StudyError(
-            "--resume",
-            f"the run in '{run_dir}' is still running (pid {record['pid']}); wait for it or "
-            "stop it first",
+    # The lock first: two resumes of one folder must not both get past the checks below.
+    with lock_run_dir(
+        run_dir, "--resume", f"wait for it to finish (flexopt status {run_dir} shows it)"
+    ) as lock:
+        record = read_run_record(run_dir, "--resume")
+        if record.get("status") == "finished":
+            raise StudyError(
+                "--resume",
+                f"the run in '{run_dir}' has finished; nothing to resume (flexopt report "
+                f"{run_dir} rebuilds its report)",
+            )
+        # No process holds the lock, so a status "running" is a run that was killed.
+        expected = record.get("study_sha256")
+        if not expected:
+            raise StudyError(
+                "--resume",
+                f"'{run_dir}' was written without a study hash (an older flexopt); start a new run",
+            )
+        study = (
+            load_study(study_path)
+            if study_path is not None
+            else _run_folder_study(run_dir, "--resume")
         )
-    expected = record.get("study_sha256")
-    if not expected:
-        raise StudyError(
-            "--resume",
-            f"'{run_dir}' was written without a study hash (an older flexopt); start a new run",
+        quick = bool(record.get("quick", False))
+        spec = getattr(study, "optimiser", None) or OptimiserSpec()
+        seed = record.get("seed")
+        setup = prepare_run(study, quick=quick, seed=None if seed == spec.seed else seed)
+        found = study_sha256(setup.study)
+        if found != expected:
+            raise StudyError(
+                "--resume",
+                f"the study differs from the one this run started with (sha256 {found[:12]} is "
+                f"not {expected[:12]}); resume with the run's own study (flexopt run --resume "
+                f"{run_dir}) or start a new run",
+            )
+        problem = setup.problem
+        store = EvaluationStore(run_dir / STORE_FILE)
+        restored = store.load(
+            problem.space.n_var,
+            len(problem.objective_names),
+            len(problem.constraint_names),
+            option="--resume",
         )
-    study = load_study(study_path if study_path is not None else run_dir / "study.yaml")
-    quick = bool(record.get("quick", False))
-    spec = getattr(study, "optimiser", None) or OptimiserSpec()
-    seed = record.get("seed")
-    setup = prepare_run(study, quick=quick, seed=None if seed == spec.seed else seed)
-    found = study_sha256(setup.study)
-    if found != expected:
-        raise StudyError(
-            "--resume",
-            f"the study differs from the one this run started with (sha256 {found[:12]} is "
-            f"not {expected[:12]}); resume with the run's own study (flexopt run --resume "
-            f"{run_dir}) or start a new run",
+        settings = parallel or parallel_settings(setup.study, workers, dask, eval_timeout_s)
+        log.info("resuming %s with %d evaluations from its store", run_dir, len(restored))
+        return run_study(
+            setup,
+            out=run_dir,
+            source=str(record.get("source", "")),
+            command_line=command_line,
+            on_start=on_start,
+            on_generation=on_generation,
+            on_result=on_result,
+            parallel=settings,
+            resume=Resume(record, tuple(restored)),
+            lock=lock,
         )
-    try:
-        restored = EvaluationStore(run_dir / STORE_FILE).load(setup.problem.space.n_var)
-    except ValueError as exc:
-        raise StudyError("--resume", str(exc)) from None
-    except OSError as exc:
-        raise StudyError("--resume", f"cannot read the store: {exc}") from None
-    settings = parallel or parallel_settings(setup.study, workers, dask, eval_timeout_s)
-    log.info("resuming %s with %d evaluations from its store", run_dir, len(restored))
-    return run_study(
-        setup,
-        out=run_dir,
-        source=str(record.get("source", "")),
-        command_line=command_line,
-        on_start=on_start,
-        on_generation=on_generation,
-        on_result=on_result,
-        parallel=settings,
-        resume=Resume(record, tuple(restored)),
-    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -1259,40 +1313,95 @@ class ReportOutcome:
     notes: tuple[str, ...]
 
 
-def _evaluations_in(run_dir: Path, problem: DesignProblem) -> list[Evaluation]:
-    """The run's evaluations: the lossless store, or evaluations.csv in a folder without one."""
-    store = EvaluationStore(run_dir / STORE_FILE)
-    if store.path.is_file():
-        return store.load(problem.space.n_var)
+def _csv_fix(run_dir: Path) -> str:
+    return (
+        "was it edited or cut short? restore it from a copy, or move it away (flexopt report "
+        "works from the store evaluations.jsonl without it)"
+    )
+
+
+def _evaluations_csv(run_dir: Path, columns: _Columns, option: str) -> list[dict[str, str]] | None:
+    """evaluations.csv, checked: its columns are the study's, its indices and designs numbers."""
     path = run_dir / "evaluations.csv"
-    if not path.is_file():
-        return []
-    columns = _Columns.of(problem)
-    out = []
-    for row in read_records_csv(path):
-        try:
-            out.append(
-                Evaluation(
-                    np.array([float(row[c]) for c in columns.variables]),
-                    np.array([float(row[c]) for c in columns.objectives]),
-                    np.array([float(row[c]) for c in columns.constraints]),
-                    {},
-                    row.get("reason", ""),
-                    float(row.get("time_s") or 0.0),
+    fix = _csv_fix(run_dir)
+    required = ["generation", "index", *columns.variables, *columns.objectives]
+    rows = read_folder_csv(path, option, fix, [*required, *columns.constraints])
+    if rows is None:
+        return None
+    for number, row in enumerate(rows, 2):
+        where = f"'{path}' line {number}"
+        for column in ("generation", "index"):
+            if not row[column].isdigit():
+                raise StudyError(
+                    option,
+                    f"{where}, column {column}: {echo(row[column])} is not a whole number; {fix}",
                 )
+        for column in required[2:] + list(columns.constraints):
+            cell_float(row, column, where, option, fix)
+        time_s = row.get("time_s", "")
+        if time_s:
+            cell_float(row, "time_s", where, option, fix)
+    return rows
+
+
+def _evaluations_in(
+    run_dir: Path, problem: DesignProblem, option: str = "RUN_DIR"
+) -> tuple[list[Evaluation], list[str]]:
+    """The run's evaluations (the lossless store, or evaluations.csv in a folder without one)
+    and notes on what was skipped (a torn last line of the store). Nothing is written.
+
+    Raises
+    ------
+    StudyError
+        For a damaged store or evaluations.csv (naming the file, the line and the fix).
+    """
+    store = EvaluationStore(run_dir / STORE_FILE)
+    n_var, n_obj = problem.space.n_var, len(problem.objective_names)
+    n_con = len(problem.constraint_names)
+    if store.path.exists() or store.path.is_symlink():  # a folder there is refused by load
+        return store.load(n_var, n_obj, n_con, option=option), list(store.notes)
+    columns = _Columns.of(problem)
+    rows = _evaluations_csv(run_dir, columns, option)
+    out = []
+    for row in rows or []:
+        out.append(
+            Evaluation(
+                np.array([float(row[c]) for c in columns.variables]),
+                np.array([float(row[c]) for c in columns.objectives]),
+                np.array([float(row[c]) for c in columns.constraints]),
+                {},
+                row.get("reason", ""),
+                float(row.get("time_s") or 0.0),
             )
-        except (KeyError, ValueError) as exc:
-            raise StudyError(
-                "RUN_DIR", f"'{path}' does not match the run's study.yaml ({exc}); was it edited?"
-            ) from None
-    return out
+        )
+    return out, []
 
 
-def _history_in(run_dir: Path) -> list[dict[str, Any]]:
-    """history.csv with its numbers and booleans read back."""
+def _history_in(run_dir: Path, columns: _Columns | None = None) -> list[dict[str, Any]]:
+    """history.csv with its numbers and booleans read back (checked when ``columns`` are given:
+    the columns the convergence plot reads are there and hold numbers)."""
     path = run_dir / "history.csv"
-    if not path.is_file():
+    fix = (
+        "was it edited or cut short? restore it from a copy, or delete it (the report then has "
+        "no convergence plot)"
+    )
+    numeric = ["generation", "feasible_fraction"]
+    if columns is not None:
+        numeric += [f"best_{name}" for name in columns.objectives]
+    required = [*numeric, "best_feasible"] if columns is not None else []
+    rows = read_folder_csv(path, "RUN_DIR", fix, required)
+    if rows is None:
         return []
+    for number, row in enumerate(rows, 2):
+        where = f"'{path}' line {number}"
+        for column in numeric if columns is not None else ():
+            cell_float(row, column, where, "RUN_DIR", fix)
+        if columns is not None and row["best_feasible"] not in ("true", "false"):
+            raise StudyError(
+                "RUN_DIR",
+                f"{where}, column best_feasible: {echo(row['best_feasible'])} is not true or "
+                f"false; {fix}",
+            )
 
     def value(text: str) -> Any:
         if text in ("true", "false"):
@@ -1302,7 +1411,7 @@ def _history_in(run_dir: Path) -> list[dict[str, Any]]:
         except ValueError:
             return text
 
-    return [{k: value(v) for k, v in row.items()} for row in read_records_csv(path)]
+    return [{k: value(v) for k, v in row.items()} for row in rows]
 
 
 def rebuild_report(run_dir: Path) -> ReportOutcome:
@@ -1310,36 +1419,58 @@ def rebuild_report(run_dir: Path) -> ReportOutcome:
 
     Nothing is optimised again: the evaluations come from the folder (evaluations.jsonl, else
     evaluations.csv); only the best design's detail is solved again, for its response and shape.
-    Works on a finished, interrupted or still running run (a report of what is done so far);
-    run.json is left as it is.
+    Works on a finished, interrupted or stopped (killed) run (a report of what is done so far);
+    run.json, evaluations.csv and the store are only read. It takes the folder's lock, so it is
+    refused while a run (or another report) is writing the folder.
 
     Raises
     ------
     StudyError
-        When the folder is not a run folder or holds no evaluation yet.
+        When the folder is not a run folder, a file it reads is damaged (run.json, study.yaml,
+        the store, evaluations.csv, history.csv), it holds no evaluation yet or another flexopt
+        process holds its lock; nothing is written then.
     OSError
         When the folder cannot be written.
     """
+    if not run_dir.is_dir():
+        raise StudyError(
+            "RUN_DIR", f"'{run_dir}' is not a folder; give a run folder of flexopt run"
+        )
+    with lock_run_dir(
+        run_dir,
+        "RUN_DIR",
+        f"wait for it to finish (flexopt status {run_dir} shows it), then rebuild the report",
+    ) as lock:
+        return _rebuild_report(run_dir, lock)
+
+
+def _rebuild_report(run_dir: Path, lock: RunDirLock) -> ReportOutcome:
+    """:func:`rebuild_report` under the folder's lock: read and check everything, then write."""
     record = read_run_record(run_dir)
-    study = load_study(run_dir / "study.yaml")
+    study = _run_folder_study(run_dir, "RUN_DIR")
     setup = prepare_run(study, quick=bool(record.get("quick", False)))
     problem = setup.problem
-    try:
-        evaluations = _evaluations_in(run_dir, problem)
-    except ValueError as exc:
-        raise StudyError("RUN_DIR", str(exc)) from None
+    evaluations, notes = _evaluations_in(run_dir, problem)
     if not evaluations:
         raise StudyError("RUN_DIR", f"'{run_dir}' holds no evaluation yet; nothing to report")
+    columns = _Columns.of(problem)
+    history = _history_in(run_dir, columns)
+    rows = _evaluations_csv(run_dir, columns, "RUN_DIR") or []
+    for name in RUN_FILES:  # what the report may write must not be a folder
+        path = run_dir / name
+        if path.exists() and not path.is_file():
+            raise StudyError(
+                "RUN_DIR", f"'{path}' is not a file; move it away so that the report can write it"
+            )
     probe_writable(run_dir)
+    lock.claim("report")
     run = _Run(setup, run_dir, record, None, None)
+    run.notes.extend(notes)
     run.evaluator.solved = list(evaluations)
-    run.history = _history_in(run_dir)
-    columns = run.columns
-    if (run_dir / "evaluations.csv").is_file():
-        for row in read_records_csv(run_dir / "evaluations.csv"):
-            with contextlib.suppress(KeyError, ValueError):
-                x = np.array([float(row[c]) for c in columns.variables])
-                run.where.setdefault(design_key(x), (int(row["generation"]), int(row["index"])))
+    run.history = history
+    for row in rows:
+        x = np.array([float(row[c]) for c in columns.variables])
+        run.where.setdefault(design_key(x), (int(row["generation"]), int(row["index"])))
     best = best_of(evaluations)
     n_obj = len(problem.objective_names)
     front = pareto_front(evaluations) if n_obj > 1 else (best,)
@@ -1390,51 +1521,75 @@ class ExportOutcome:
 
 
 def _design_vector(
-    run_dir: Path, design: str, space: DesignSpace
+    run_dir: Path, design: str, space: DesignSpace, columns: _Columns | None = None
 ) -> tuple[np.ndarray, dict[str, Any]]:
-    """The design vector of ``best`` or of evaluation INDEX, and where it came from."""
+    """The design vector of ``best`` or of evaluation INDEX, and where it came from.
+
+    Raises
+    ------
+    StudyError
+        For a design that is not in the run, or a damaged best.json or evaluations.csv (naming
+        the file, what is wrong and what to do).
+    """
     if design == "best":
         path = run_dir / "best.json"
-        if not path.is_file():
+        fix = f"rebuild it with flexopt report {run_dir}"
+        data = read_folder_json(path, "RUN_DIR", fix)
+        if data is None:
             raise StudyError(
                 "--design",
                 f"'{run_dir}' has no best.json (the run did not finish); export one of its "
-                "evaluations with --design INDEX (the index column of evaluations.csv)",
+                "evaluations with --design INDEX (the index column of evaluations.csv), or "
+                f"write it with flexopt report {run_dir}",
             )
-        values = json.loads(path.read_text(encoding="utf-8")).get("parameters", {})
-        source = "best.json"
+        if not isinstance(data, dict) or not isinstance(data.get("parameters"), dict):
+            what = echo(data.get("parameters")) if isinstance(data, dict) else echo(data)
+            raise StudyError(
+                "RUN_DIR",
+                f"'{path}' has no parameters mapping (found {what}); {fix}",
+            )
+        values: Mapping[str, Any] = data["parameters"]
+        source = f"'{path}'"
     else:
         try:
             index = int(design)
         except ValueError:
             raise StudyError(
-                "--design", f"got {design!r}; give 'best' or a whole number (an evaluation index)"
+                "--design",
+                f"got {echo(design)}; give 'best' or a whole number (an evaluation index)",
             ) from None
         path = run_dir / "evaluations.csv"
-        if not path.is_file():
+        rows = _evaluations_csv(run_dir, columns or _Columns(variables=space.names), "RUN_DIR")
+        if rows is None:
             raise StudyError("RUN_DIR", f"'{run_dir}' has no evaluations.csv; is it a run folder?")
-        rows = read_records_csv(path)
         if not 0 <= index < len(rows):
+            last = f"0 … {len(rows) - 1}" if rows else "none yet"
             raise StudyError(
                 "--design",
-                f"no evaluation {index}: the run has {len(rows)} (0 … {len(rows) - 1}); pick "
-                "an index from the index column of evaluations.csv",
+                f"no evaluation {index}: the run has {len(rows)} ({last}); pick an index from "
+                "the index column of evaluations.csv",
             )
         values = rows[index]
-        source = f"evaluations.csv row {index}"
+        source = f"'{path}' row {index}"
+        fix = _csv_fix(run_dir)
     missing = [name for name in space.names if name not in values]
     if missing:
         raise StudyError(
-            "--design",
-            f"{source} has no value for {', '.join(missing)}; the study.yaml of this run folder "
-            "does not match its results (was it edited?)",
+            "RUN_DIR",
+            f"{source} has no value for {', '.join(echo(m) for m in missing[:3])}; the study.yaml "
+            f"of this run folder does not match its results (was it edited?); {fix}",
         )
-    try:
-        x = np.array([float(values[name]) for name in space.names], dtype=float)
-    except (TypeError, ValueError):
-        raise StudyError(
-            "--design", f"{source} holds a design value that is not a number"
-        ) from None
+    for name in space.names:
+        value = values[name]
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if isinstance(value, str):
+            with contextlib.suppress(ValueError):
+                number = bool(float(value) == float(value))  # not nan
+        if not number or not np.isfinite(float(value)):
+            raise StudyError(
+                "RUN_DIR", f"{source}: {name} is {echo(value)}, not a finite number; {fix}"
+            )
+    x = np.array([float(values[name]) for name in space.names], dtype=float)
     return x, {"source": source}
 
 
@@ -1453,23 +1608,18 @@ def export_design(run_dir: Path, design: str = "best", out: Path | None = None) 
     Raises
     ------
     StudyError
-        For a missing or unusable run folder, or a design that is not in it (bad arguments).
+        For a missing or unusable run folder (a damaged run.json, study.yaml, best.json or
+        evaluations.csv), or a design that is not in it (bad arguments). Export takes no lock:
+        it reads files that are replaced atomically, also while a run writes the folder.
     ExportError
         When the design cannot be rebuilt or has no printable outline.
     OSError
         When the STL cannot be written.
     """
-    if not run_dir.is_dir():
-        raise StudyError(
-            "RUN_DIR", f"'{run_dir}' is not a folder; give a run folder of flexopt run"
-        )
-    if not (run_dir / "study.yaml").is_file():
-        raise StudyError(
-            "RUN_DIR", f"'{run_dir}' has no study.yaml; give a run folder written by flexopt run"
-        )
-    study = load_study(run_dir / "study.yaml")
+    read_run_record(run_dir)  # a folder of flexopt run, its run.json readable
+    study = _run_folder_study(run_dir, "RUN_DIR")
     problem = build_problem(study)
-    x, _ = _design_vector(run_dir, design, problem.space)
+    x, _ = _design_vector(run_dir, design, problem.space, _Columns.of(problem))
     target = out or run_dir / ("best.stl" if design == "best" else f"design-{int(design)}.stl")
     if target.is_dir():
         raise StudyError("--out", f"'{target}' is a folder; give a file name ending in .stl")

@@ -1,28 +1,54 @@
-"""Run folders: where a command's results go, each file written atomically."""
+"""Run folders: where a command's results go, each file written atomically.
+
+Also the two things every command that opens an existing run folder needs:
+
+- :func:`lock_run_dir`, an exclusive lock on the folder (``.flexopt.lock``, ``flock``) that a run
+  holds for its whole life, so two commands never write one folder at once;
+- validated readers of the folder's files (:func:`read_folder_json`, :func:`read_folder_csv`,
+  :func:`read_run_json`): a damaged file is a :class:`StudyError` naming the file, what is wrong
+  with it and what to do, never a traceback.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
 import math
 import os
+import socket
+import stat
 import tempfile
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
+
+try:  # POSIX; elsewhere a run folder is not locked
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None  # type: ignore[assignment]
 
 import numpy as np
 
 from pipeline.errors import StudyError
 
 __all__ = [
+    "LOCK_FILE",
+    "RunDirLock",
     "check_out_dir",
+    "echo",
+    "lock_run_dir",
     "make_run_dir",
     "new_run_dir_path",
     "probe_writable",
+    "read_folder_bytes",
+    "read_folder_csv",
+    "read_folder_json",
+    "read_folder_text",
     "read_records_csv",
+    "read_run_json",
     "records_to_csv",
     "table_to_csv",
     "to_json",
@@ -204,3 +230,464 @@ def _jsonable(value: Any) -> Any:
 def to_json(data: Mapping[str, Any]) -> str:
     """Strict JSON text (NaN and inf become null, other objects their ``str``), indented."""
     return json.dumps(_jsonable(data), indent=2, allow_nan=False, default=str) + "\n"
+
+
+# --------------------------------------------------------------------------------------------
+# Echoing values in messages
+
+#: Characters of a value echoed in a message (a message stays one readable line).
+ECHO_CHARS = 60
+
+
+def echo(value: Any) -> str:
+    """``repr(value)`` cut to :data:`ECHO_CHARS` characters (``…`` marks the cut)."""
+    text = repr(value)
+    return text if len(text) <= ECHO_CHARS else text[: ECHO_CHARS - 1] + "…"
+
+
+# --------------------------------------------------------------------------------------------
+# The run-folder lock
+
+#: The lock file of a run folder: whoever holds an exclusive ``flock`` on it may write the folder.
+LOCK_FILE = ".flexopt.lock"
+
+#: File descriptors of the locks this process holds; a forked child (a worker) closes its copies,
+#: so that a worker outliving a killed run does not keep its folder locked.
+_HELD: set[int] = set()
+
+
+def _close_held_locks_in_child() -> None:
+    for fd in list(_HELD):
+        with contextlib.suppress(OSError):
+            os.close(fd)
+    _HELD.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_close_held_locks_in_child)
+
+
+class RunDirLock:
+    """An exclusive lock on a run folder, held until :meth:`release` or the end of the process.
+
+    The kernel drops the lock of a process that dies (also on SIGKILL), so a killed run never
+    leaves its folder locked; the lock file it leaves behind is reused by the next taker.
+
+    Attributes
+    ----------
+    run_dir : the folder.
+    path : its lock file.
+    created : whether this lock created the lock file (it is then removed on release).
+    claimed : whether :meth:`claim` was called (the holder writes the folder).
+    """
+
+    def __init__(self, run_dir: Path, fd: int | None, created: bool) -> None:
+        self.run_dir = run_dir
+        self.path = run_dir / LOCK_FILE
+        self._fd = fd
+        self.created = created
+        self.claimed = False
+
+    @property
+    def held(self) -> bool:
+        return self._fd is not None
+
+    def claim(self, command: str = "run") -> None:
+        """Say who writes the folder (pid, host, command in the lock file, what a refused
+        taker reports); from now on the lock file is removed on release."""
+        if self._fd is None:
+            return
+        text = f"{os.getpid()} {socket.gethostname()} {command}\n".encode()
+        with contextlib.suppress(OSError):
+            os.ftruncate(self._fd, 0)
+            os.pwrite(self._fd, text, 0)
+        self.claimed = True
+
+    def release(self) -> None:
+        """Drop the lock (idempotent). A lock file this holder created or wrote is removed first,
+        while still locked: a taker that opened it meanwhile sees it is gone and tries again."""
+        fd, self._fd = self._fd, None
+        if fd is None:
+            return
+        if self.claimed or self.created:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
+        _HELD.discard(fd)
+        with contextlib.suppress(OSError):
+            os.close(fd)
+
+    def __enter__(self) -> RunDirLock:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def _lock_holder(path: Path, fd: int) -> str:
+    """``flexopt run (pid 123)``: who holds the lock on ``path`` (from /proc/locks on Linux,
+    else the lock file's content), as far as can be told."""
+    pid: int | None = None
+    command = "run"
+    with contextlib.suppress(OSError, ValueError):
+        info = os.fstat(fd)
+        for line in Path("/proc/locks").read_text().splitlines():
+            fields = line.replace("->", " ").split()
+            if "FLOCK" not in fields:
+                continue
+            at = fields.index("FLOCK")
+            device, _, inode = fields[at + 4].rpartition(":")
+            major, _, minor = device.partition(":")
+            if int(inode) == info.st_ino and (int(major, 16), int(minor, 16)) == (
+                os.major(info.st_dev),
+                os.minor(info.st_dev),
+            ):
+                pid = int(fields[at + 3])
+                break
+    with contextlib.suppress(OSError, ValueError, UnicodeDecodeError):
+        words = os.pread(fd, 200, 0).decode("utf-8").split()
+        if len(words) >= 3 and words[2].isidentifier():
+            if pid is None or int(words[0]) == pid:
+                pid, command = int(words[0]), words[2]
+    return f"flexopt {command}" + (f" (pid {pid})" if pid and pid > 0 else "")
+
+
+def lock_run_dir(run_dir: Path, option: str, hint: str) -> RunDirLock:
+    """Take the exclusive lock of an existing run folder, without waiting.
+
+    Parameters
+    ----------
+    run_dir : Path
+        The folder (it must exist).
+    option : str
+        The option named in the refusal (``--out``, ``--resume``, ``RUN_DIR``).
+    hint : str
+        What to do when another process holds the lock.
+
+    Raises
+    ------
+    StudyError
+        When another flexopt process holds the lock: ``'DIR' is in use by another flexopt run
+        (pid N); <hint>``.
+    OSError
+        When the lock file cannot be created (a read-only folder), with the fix in the message.
+    """
+    path = run_dir / LOCK_FILE
+    if fcntl is None:  # pragma: no cover - no flock: no lock
+        return RunDirLock(run_dir, None, False)
+    flags = os.O_RDWR | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(20):
+        created = False
+        try:
+            fd = os.open(path, flags | os.O_CREAT | os.O_EXCL, 0o644)
+            created = True
+        except FileExistsError:
+            try:
+                fd = os.open(path, flags)
+            except FileNotFoundError:
+                continue  # removed by its holder in between: try again
+            except OSError as exc:
+                raise _unlockable(run_dir, exc) from None
+        except OSError as exc:
+            raise _unlockable(run_dir, exc) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _lock_holder(path, fd)
+            os.close(fd)
+            raise StudyError(option, f"'{run_dir}' is in use by another {holder}; {hint}") from None
+        except OSError as exc:
+            os.close(fd)
+            raise _unlockable(run_dir, exc) from None
+        try:  # the holder before us may have removed the file while we opened it
+            same = os.path.samestat(os.fstat(fd), os.stat(path))
+        except OSError:
+            same = False
+        if same:
+            _HELD.add(fd)
+            return RunDirLock(run_dir, fd, created)
+        os.close(fd)
+    raise StudyError(option, f"'{run_dir}' could not be locked (its lock file keeps changing)")
+
+
+def _unlockable(run_dir: Path, exc: OSError) -> OSError:
+    return OSError(
+        exc.errno,
+        f"'{run_dir}' cannot be locked ({exc.strerror or exc}): {LOCK_FILE} cannot be created or "
+        "locked there; fix the permissions or give another folder",
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Validated readers of run-folder files
+
+
+def read_folder_bytes(path: Path, option: str, fix: str) -> bytes | None:
+    """The bytes of a run-folder file; None when there is no such file.
+
+    Raises
+    ------
+    StudyError
+        At ``option`` when the path is a folder (or other non-file) or cannot be read; ``fix``
+        says what to do.
+    """
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise _unreadable(path, exc, option, fix) from None
+    if stat.S_ISDIR(info.st_mode):
+        raise StudyError(option, f"'{path}' is a folder, not a file; {fix}")
+    if not stat.S_ISREG(info.st_mode):
+        raise StudyError(option, f"'{path}' is not a regular file; {fix}")
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise _unreadable(path, exc, option, fix) from None
+
+
+def _unreadable(path: Path, exc: OSError, option: str, fix: str) -> StudyError:
+    return StudyError(option, f"'{path}' cannot be read ({exc.strerror or exc}); {fix}")
+
+
+def _decode(data: bytes, path: Path, option: str, fix: str) -> str:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise StudyError(
+            option,
+            f"'{path}' line {line} is not UTF-8 text (byte 0x{data[exc.start]:02x}); {fix}",
+        ) from None
+
+
+def read_folder_text(path: Path, option: str, fix: str) -> str | None:
+    """The UTF-8 text of a run-folder file; None when there is no such file.
+
+    Raises
+    ------
+    StudyError
+        As :func:`read_folder_bytes`, and for bytes that are not UTF-8 (naming the line).
+    """
+    data = read_folder_bytes(path, option, fix)
+    return None if data is None else _decode(data, path, option, fix)
+
+
+def parse_json(text: str, where: str, option: str, fix: str) -> Any:
+    """``json.loads`` with every failure a one-line :class:`StudyError` about ``where``."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise StudyError(
+            option,
+            f"{where} is not valid JSON (truncated? {exc.msg}: line {exc.lineno} column "
+            f"{exc.colno}); {fix}",
+        ) from None
+    except (ValueError, RecursionError) as exc:  # a huge integer, nesting too deep
+        problem = str(exc) if isinstance(exc, ValueError) else "nested too deeply"
+        raise StudyError(option, f"{where} is not valid JSON ({problem[:80]}); {fix}") from None
+
+
+def read_folder_json(path: Path, option: str, fix: str) -> Any:
+    """The JSON data of a run-folder file; None when there is no such file.
+
+    Raises
+    ------
+    StudyError
+        As :func:`read_folder_text`, and for text that is not JSON.
+    """
+    text = read_folder_text(path, option, fix)
+    return None if text is None else parse_json(text, f"'{path}'", option, fix)
+
+
+def read_folder_csv(
+    path: Path, option: str, fix: str, required: Sequence[str] = ()
+) -> list[dict[str, str]] | None:
+    """The rows of a run-folder CSV file as dicts of text; None when there is no such file.
+
+    Parameters
+    ----------
+    required : sequence of str
+        Columns the header must have.
+
+    Raises
+    ------
+    StudyError
+        As :func:`read_folder_text`; for a file without a header, a header without a
+        ``required`` column, or a row with another number of cells than the header (a cut row).
+    """
+    text = read_folder_text(path, option, fix)
+    if text is None:
+        return None
+    try:
+        table = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:
+        raise StudyError(option, f"'{path}' is not a CSV table ({exc}); {fix}") from None
+    if not table or not table[0]:
+        raise StudyError(option, f"'{path}' is empty (no header row); {fix}")
+    header = table[0]
+    missing = [name for name in required if name not in header]
+    if missing:
+        raise StudyError(
+            option,
+            f"'{path}' has no column {echo(missing[0])}"
+            + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
+            + f"; {fix}",
+        )
+    rows = []
+    for number, cells in enumerate(table[1:], 2):
+        if not cells:
+            continue
+        if len(cells) != len(header):
+            raise StudyError(
+                option,
+                f"'{path}' line {number} has {len(cells)} cells, the header {len(header)} "
+                f"(cut short?); {fix}",
+            )
+        rows.append(dict(zip(header, cells, strict=True)))
+    return rows
+
+
+def cell_float(row: Mapping[str, str], column: str, where: str, option: str, fix: str) -> float:
+    """A number from a CSV row read by :func:`read_folder_csv` (``nan``/``inf`` allowed)."""
+    text = row.get(column, "")
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        raise StudyError(
+            option, f"{where}, column {echo(column)}: {echo(text)} is not a number; {fix}"
+        ) from None
+
+
+# -- run.json ---------------------------------------------------------------------------------
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _kind(checks: Callable[[Any], bool], what: str) -> tuple[Callable[[Any], bool], str]:
+    return checks, what
+
+
+_COUNT = _kind(lambda v: _is_int(v) and v >= 0, "a whole number >= 0")
+_POSITIVE = _kind(lambda v: _is_int(v) and v >= 1, "a whole number >= 1")
+_SECONDS = _kind(lambda v: v is None or (_is_number(v) and v >= 0), "a number >= 0 or null")
+_TEXT = _kind(lambda v: isinstance(v, str), "text")
+_TEXT_OR_NULL = _kind(lambda v: v is None or isinstance(v, str), "text or null")
+_NAMES = _kind(
+    lambda v: isinstance(v, list) and all(isinstance(i, str) for i in v), "a list of text"
+)
+_MAPPING = _kind(lambda v: isinstance(v, dict), "a mapping")
+_SEED = _kind(lambda v: v is None or (_is_int(v) and v >= 0), "a whole number >= 0")
+
+#: What each command reads of run.json, with its type: a value of another type is refused.
+RUN_JSON_FIELDS: dict[str, tuple[Callable[[Any], bool], str]] = {
+    "status": _kind(
+        lambda v: v in ("running", "finished", "interrupted", "stopped", "failed"),
+        "one of running, finished, interrupted, stopped, failed",
+    ),
+    "study": _TEXT,
+    "kind": _TEXT,
+    "source": _TEXT,
+    "command_line": _TEXT,
+    "error": _TEXT_OR_NULL,
+    "started": _TEXT,
+    "finished": _TEXT_OR_NULL,
+    "hostname": _TEXT_OR_NULL,
+    "pid": _kind(lambda v: v is None or (_is_int(v) and v >= 0), "a process id (a whole number)"),
+    "quick": _kind(lambda v: isinstance(v, bool), "true or false"),
+    "seed": _SEED,
+    "study_sha256": _kind(
+        lambda v: isinstance(v, str) and len(v) == 64 and all(c in "0123456789abcdef" for c in v),
+        "a sha256 (64 hex digits)",
+    ),
+    "optimiser": _MAPPING,
+    "optimiser.algorithm": _TEXT,
+    "optimiser.pop_size": _POSITIVE,
+    "optimiser.n_gen": _POSITIVE,
+    "optimiser.seed": _SEED,
+    "variables": _NAMES,
+    "objectives": _NAMES,
+    "constraints": _NAMES,
+    "generations_done": _COUNT,
+    "n_evaluations": _COUNT,
+    "n_cache_hits": _COUNT,
+    "n_restored": _COUNT,
+    "n_solved": _COUNT,
+    "n_failed": _COUNT,
+    "n_feasible": _COUNT,
+    "wall_s": _SECONDS,
+    "optimise_wall_s": _SECONDS,
+    "evaluations_per_s": _SECONDS,
+    "mean_evaluation_s": _SECONDS,
+    "worker_utilisation": _SECONDS,
+    "resumed": _kind(
+        lambda v: (
+            isinstance(v, list)
+            and all(isinstance(i, dict) and isinstance(i.get("at"), str) for i in v)
+        ),
+        "a list of mappings with an 'at' time",
+    ),
+    "failure_reasons": _kind(
+        lambda v: isinstance(v, dict) and all(_is_int(n) for n in v.values()),
+        "a mapping of reasons to counts",
+    ),
+    "files": _NAMES,
+    "notes": _NAMES,
+    "parallel": _MAPPING,
+    "versions": _MAPPING,
+    "host": _MAPPING,
+}
+
+
+def _run_json_fix(run_dir: Path) -> str:
+    return (
+        "was it edited or cut short? restore it from a copy, or start a new run with flexopt run "
+        f"{run_dir / 'study.yaml'}"
+    )
+
+
+def read_run_json(run_dir: Path, option: str = "RUN_DIR") -> dict[str, Any]:
+    """run.json of a run folder of ``flexopt run``, every field a command relies on checked.
+
+    Fields may be missing (older runs); a field that is there must have its type
+    (:data:`RUN_JSON_FIELDS`).
+
+    Raises
+    ------
+    StudyError
+        At ``option`` when ``run_dir`` is not a folder, has no run.json, or its run.json cannot
+        be read, is not JSON, is not the record of a flexopt run or has a field of the wrong type.
+    """
+    if not run_dir.is_dir():
+        raise StudyError(option, f"'{run_dir}' is not a folder; give a run folder of flexopt run")
+    path = run_dir / "run.json"
+    fix = _run_json_fix(run_dir)
+    record = read_folder_json(path, option, fix)
+    if record is None:
+        raise StudyError(
+            option, f"'{run_dir}' has no run.json; give a folder written by flexopt run"
+        )
+    if not isinstance(record, dict):
+        raise StudyError(
+            option, f"'{path}' holds {echo(record)}, not the record of a flexopt run; {fix}"
+        )
+    if record.get("command") != "run":
+        raise StudyError(
+            option,
+            f"'{path}' is not the record of a flexopt run (command is "
+            f"{echo(record.get('command'))}, not 'run'); give a folder written by flexopt run",
+        )
+    for key, (check, what) in RUN_JSON_FIELDS.items():
+        parent, _, name = key.rpartition(".")
+        holder = record.get(parent) if parent else record
+        if not isinstance(holder, dict) or name not in holder:
+            continue
+        if not check(holder[name]):
+            raise StudyError(option, f"'{path}': {key} is {echo(holder[name])}, not {what}; {fix}")
+    return record

@@ -2,13 +2,12 @@
 
 The running process keeps run.json, history.csv and checkpoint.json current after each
 generation and appends every finished design to evaluations.jsonl at once, so the folder alone
-says how far a run is, also mid-generation and after a kill.
+says how far a run is, also mid-generation and after a kill. It reads run.json and the store
+through their validated readers (a damaged file is one line naming it, exit 2) and takes no lock.
 """
 
 from __future__ import annotations
 
-import json
-import math
 import os
 import socket
 from dataclasses import dataclass
@@ -16,8 +15,10 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from pipeline.checkpoint import STORE_FILE
+from optimise.evaluation import Evaluation
+from pipeline.checkpoint import STORE_FILE, EvaluationStore
 from pipeline.errors import StudyError
+from pipeline.runfolder import read_run_json
 
 __all__ = ["RunStatus", "format_status", "run_status"]
 
@@ -42,6 +43,7 @@ class RunStatus:
     evaluations_per_s : designs solved per second in the current session.
     eta_s : estimated s to the end (None when unknown or done).
     error : run.json's error, when there is one.
+    notes : what was skipped reading the folder (a torn last line of the store).
     """
 
     run_dir: Path
@@ -59,6 +61,7 @@ class RunStatus:
     evaluations_per_s: float | None
     eta_s: float | None
     error: str = ""
+    notes: tuple[str, ...] = ()
 
     @property
     def feasible_share(self) -> float:
@@ -76,26 +79,16 @@ def _alive(record: dict[str, Any]) -> bool:
     return True
 
 
-def _store_rows(run_dir: Path) -> list[dict[str, Any]]:
-    path = run_dir / STORE_FILE
-    rows = []
-    if path.is_file():
-        for line in path.read_text(encoding="utf-8").splitlines():
-            try:
-                rows.append(json.loads(line))
-            except ValueError:  # a torn last line of a killed run
-                continue
-    return rows
-
-
 def _seconds_since(stamp: str | None) -> float | None:
     if not stamp:
         return None
     try:
         then = datetime.fromisoformat(stamp)
-    except ValueError:
+        if then.tzinfo is None:  # a stamp without its offset: local time
+            then = then.astimezone()
+        return (datetime.now().astimezone() - then).total_seconds()
+    except (ValueError, OverflowError, OSError):  # not a time, or out of range
         return None
-    return (datetime.now().astimezone() - then).total_seconds()
 
 
 def run_status(run_dir: Path) -> RunStatus:
@@ -108,16 +101,7 @@ def run_status(run_dir: Path) -> RunStatus:
     """
     if not run_dir.is_dir():
         raise StudyError("RUN_DIR", f"'{run_dir}' is not a folder; give a run folder")
-    try:
-        record = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise StudyError(
-            "RUN_DIR", f"'{run_dir}' has no run.json; give a folder written by flexopt run"
-        ) from None
-    except (OSError, ValueError) as exc:
-        raise StudyError("RUN_DIR", f"run.json cannot be read ({exc})") from None
-    if not isinstance(record, dict) or record.get("command") != "run":
-        raise StudyError("RUN_DIR", f"'{run_dir}' is not the folder of a flexopt run")
+    record = read_run_json(run_dir)
 
     status = str(record.get("status", "unknown"))
     if status == "running" and not _alive(record):
@@ -128,25 +112,23 @@ def run_status(run_dir: Path) -> RunStatus:
     generation = int(record.get("generations_done", 0))
     objectives = list(record.get("objectives", []))
 
-    rows = _store_rows(run_dir)
+    def size(key: str) -> int | None:
+        return len(record[key]) if key in record else None
+
+    store = EvaluationStore(run_dir / STORE_FILE)
+    rows: list[Evaluation] = store.load(size("variables"), size("objectives"), size("constraints"))
     n_evaluations = len(rows) or int(record.get("n_evaluations", 0))
-    failed = [r for r in rows if r.get("reason")]
-    feasible = [
-        r
-        for r in rows
-        if not r.get("reason")
-        and all(math.isfinite(v) for v in r.get("f", []))
-        and all(v <= 0 for v in r.get("g", []))
-    ]
+    failed = [ev for ev in rows if ev.reason]
+    feasible = [ev for ev in rows if ev.feasible]
     best = None
     best_feasible = False
     if feasible:
-        top = min(feasible, key=lambda r: r["f"][0])
-        best, best_feasible = dict(zip(objectives, top["f"], strict=False)), True
+        top = min(feasible, key=lambda ev: float(ev.f[0]))
+        best, best_feasible = dict(zip(objectives, map(float, top.f), strict=False)), True
     elif rows:
-        evaluated = [r for r in rows if not r.get("reason")] or rows
-        top = min(evaluated, key=lambda r: (sum(max(v, 0.0) for v in r.get("g", [])), r["f"][0]))
-        best = dict(zip(objectives, top["f"], strict=False))
+        evaluated = [ev for ev in rows if not ev.reason] or rows
+        top = min(evaluated, key=lambda ev: (ev.violation, float(ev.f[0])))
+        best = dict(zip(objectives, map(float, top.f), strict=False))
 
     if status == "running":
         resumed = record.get("resumed") or []
@@ -185,6 +167,7 @@ def run_status(run_dir: Path) -> RunStatus:
         evaluations_per_s=rate,
         eta_s=eta,
         error=str(record.get("error") or ""),
+        notes=tuple(store.notes),
     )
 
 
@@ -224,4 +207,5 @@ def format_status(status: RunStatus) -> str:
         lines.append(f"next         {hint}")
     if status.error:
         lines.append(f"error        {status.error}")
+    lines += [f"note         {note}" for note in status.notes]
     return "\n".join(lines)

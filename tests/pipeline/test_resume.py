@@ -11,6 +11,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -21,8 +22,14 @@ import flexopt_toys  # registers the toy_faults kind
 import numpy as np
 import pytest
 
-from pipeline.checkpoint import EvaluationStore, evaluation_from_record, evaluation_record
+from pipeline.checkpoint import (
+    EvaluationStore,
+    evaluation_from_record,
+    evaluation_record,
+    read_checkpoint,
+)
 from pipeline.cli import main
+from pipeline.errors import StudyError
 from pipeline.parallel import ParallelSettings, design_key
 from pipeline.run import prepare_run, run_study
 from pipeline.runfolder import read_records_csv
@@ -141,22 +148,33 @@ def test_sigkill_mid_run_then_resume_ends_as_an_uninterrupted_run(tmp_path, caps
     assert "has finished" in capsys.readouterr().err
 
 
-def test_store_round_trip_is_exact_and_a_torn_line_is_dropped(tmp_path):
+def test_store_round_trip_is_exact_and_a_torn_line_is_skipped(tmp_path):
     setup = prepare_run(validate_study(flexopt_toys.study()))
     rng = np.random.default_rng(3)
-    evaluations = [setup.problem.evaluate(x) for x in rng.random((5, 3))]
+    evaluations = [setup.problem.evaluate(x) for x in rng.random((6, 3))]
     store = EvaluationStore(tmp_path / "evaluations.jsonl")
-    for ev in evaluations:
+    for ev in evaluations[:5]:
         store.append(ev)
     store.close()
     with open(store.path, "a") as handle:
         handle.write('{"x": [0.1, 0.2')  # a SIGKILL in the middle of a write
-    loaded = store.load(3)
-    assert len(loaded) == 5
-    for a, b in zip(evaluations, loaded, strict=True):
+    torn = store.path.read_bytes()
+    loaded = store.load(3, 1, 1)
+    assert len(loaded) == 5 and "line 6 is torn" in store.notes[0]
+    for a, b in zip(evaluations[:5], loaded, strict=True):
         assert a.x.tobytes() == b.x.tobytes() and a.f.tobytes() == b.f.tobytes()
         assert a.g.tobytes() == b.g.tobytes() and a.metrics == b.metrics
-    assert store.path.read_text().endswith("}\n")  # repaired: the next append starts a line
+    assert store.path.read_bytes() == torn  # reading never changes the store
+    store.append(evaluations[5])  # the next session's first append repairs it
+    store.close()
+    assert store.path.read_text().count("\n") == 6 and store.path.read_text().endswith("}\n")
+    assert len(store.load(3)) == 6 and store.notes == []
+    # a whole last line that lost only its newline is kept, and ended before the next append
+    store.path.write_bytes(store.path.read_bytes()[:-1])
+    assert len(store.load(3)) == 6
+    store.append(evaluations[0])
+    store.close()
+    assert len(store.load(3)) == 7
     nan = evaluation_from_record(
         evaluation_record(
             evaluations[0].__class__(
@@ -168,6 +186,21 @@ def test_store_round_trip_is_exact_and_a_torn_line_is_dropped(tmp_path):
     (tmp_path / "bad.jsonl").write_text("not json\n{}\n")
     with pytest.raises(ValueError, match="line 1"):
         EvaluationStore(tmp_path / "bad.jsonl").load()
+
+
+def test_a_damaged_checkpoint_is_refused_in_one_line(tmp_path):
+    assert read_checkpoint(tmp_path) is None
+    for text, needle in (
+        ('{"format": 1, "generation": 2', "not valid JSON (truncated?"),
+        ("[]", "not a flexopt checkpoint of format 1"),
+        ('{"format": 1, "generation": "two"}', "generation is 'two', not a whole number"),
+        ('{"format": 1, "population": [[0.1, "x"]]}', "population is"),
+    ):
+        (tmp_path / "checkpoint.json").write_text(text)
+        with pytest.raises(StudyError, match=re.escape(needle)):
+            read_checkpoint(tmp_path)
+    (tmp_path / "checkpoint.json").write_text('{"format": 1, "generation": 2}')
+    assert read_checkpoint(tmp_path) == {"format": 1, "generation": 2}
 
 
 def test_status_and_report_of_a_finished_run(tmp_path, capsys):

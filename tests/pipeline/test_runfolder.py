@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
+import sys
+import time
 from datetime import datetime
 
 import numpy as np
@@ -11,7 +14,10 @@ import pytest
 
 from pipeline.errors import StudyError
 from pipeline.runfolder import (
+    LOCK_FILE,
     check_out_dir,
+    echo,
+    lock_run_dir,
     new_run_dir_path,
     table_to_csv,
     to_json,
@@ -67,3 +73,64 @@ def test_out_dir_must_be_a_folder(tmp_path):
     (tmp_path / "f").write_text("")
     with pytest.raises(StudyError, match="--out"):
         check_out_dir(tmp_path / "f")
+
+
+def test_echo_cuts_long_values():
+    assert echo("two") == "'two'"
+    long = echo("x" * 1000)
+    assert len(long) == 60 and long.endswith("…")
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="flock is POSIX")
+def test_a_held_lock_refuses_a_second_taker_and_is_gone_when_released(tmp_path):
+    first = lock_run_dir(tmp_path, "--out", "wait for it")
+    assert first.held and first.created and (tmp_path / LOCK_FILE).is_file()
+    first.claim("run")
+    assert (tmp_path / LOCK_FILE).read_text().split()[0] == str(os.getpid())
+    # another open file of the same lock (also in this process) is refused, without waiting
+    with pytest.raises(StudyError, match=rf"in use by another flexopt run \(pid {os.getpid()}\)"):
+        lock_run_dir(tmp_path, "--resume", "wait for it")
+    first.release()
+    first.release()  # idempotent
+    assert not (tmp_path / LOCK_FILE).exists()
+    with lock_run_dir(tmp_path, "--out", "") as again:
+        assert again.held
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="flock is POSIX")
+def test_the_lock_file_of_a_killed_run_is_taken_over(tmp_path):
+    """A killed holder's lock is dropped by the kernel; its lock file stays and is reused. A
+    taker that writes nothing leaves it as it was; one that claims the folder removes it."""
+    stale = tmp_path / LOCK_FILE
+    stale.write_text("999999 elsewhere run\n")
+    with lock_run_dir(tmp_path, "--resume", "") as lock:
+        assert not lock.created
+    assert stale.read_text() == "999999 elsewhere run\n"
+    with lock_run_dir(tmp_path, "--resume", "") as lock:
+        lock.claim("run")
+    assert not stale.exists()
+
+
+def _solve_for_a_while(started) -> None:
+    started.set()
+    time.sleep(3.0)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="workers fork on Linux")
+def test_a_forked_worker_does_not_keep_the_folder_locked(tmp_path):
+    (tmp_path / LOCK_FILE).write_text("")  # left by a killed run: kept, so the same file is locked
+    lock = lock_run_dir(tmp_path, "--out", "")
+    assert not lock.created
+    ctx = multiprocessing.get_context("fork")
+    started = ctx.Event()
+    worker = ctx.Process(target=_solve_for_a_while, args=(started,))
+    worker.start()
+    try:
+        assert started.wait(30)  # the worker runs (the fork's hooks are done)
+        lock.release()  # the run ends (or is killed) while its worker still solves
+        with lock_run_dir(tmp_path, "--resume", "") as again:
+            assert again.held
+    finally:
+        worker.terminate()
+        worker.join()
