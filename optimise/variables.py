@@ -13,7 +13,8 @@ plain data) mapping, with bounds, instead of a fixed list of parameters::
       - {path: geometry.width_mm, bounds: [4, 12], name: width_mm}
 
 Path grammar: keys separated by ``.``, list items as ``[i]`` (0-based) and ``[*]`` for every item
-of a list; the first key is the root (``geometry``). A path ending in ``[*]`` (or passing through
+of a list, or after a dot (``points_mm.1.1``, ``thickness_mm.*``: no quotes needed in YAML flow
+mappings, where brackets must be quoted); the first key is the root (``geometry``). A path ending in ``[*]`` (or passing through
 one) stands for every numeric leaf it reaches, all set to the same value.
 
 Each variable sets its own path(s) to ``x`` and each tie path to ``factor * x + offset``, so two
@@ -140,12 +141,14 @@ class VariableSpec(BaseModel):
 # --------------------------------------------------------------------------------------------
 # Paths
 
-_TOKEN = re.compile(r"\.?([A-Za-z_][A-Za-z0-9_\-]*)|\[(\d+|\*)\]")
+_TOKEN = re.compile(r"\.?([A-Za-z_][A-Za-z0-9_\-]*)|\[(\d+|\*)\]|\.(\d+|\*)(?![A-Za-z_])")
 
 
 def parse_path(text: str) -> tuple[PathPart, ...]:
     """``'geometry.beams.b1.points_mm[1][0]'`` → ``('geometry', 'beams', 'b1', 'points_mm', 1,
-    0)``; ``[*]`` becomes ``('*',)``.
+    0)``; ``[*]`` becomes ``('*',)``. List items may also be written after a dot
+    (``points_mm.1.0``, ``thickness_mm.*``): brackets are flow indicators in YAML, so a path
+    with them must be quoted inside ``{...}``, while the dotted form never needs quotes.
 
     Raises
     ------
@@ -164,7 +167,8 @@ def parse_path(text: str) -> tuple[PathPart, ...]:
                 f"cannot read the path '{text}' at character {pos + 1}; write keys with '.', "
                 "list items as [i] or [*], e.g. geometry.beams.leaf1.points_mm[1][0]"
             )
-        key, index = match.groups()
+        key, index, dotted = match.groups()
+        index = index if index is not None else dotted
         if key is not None:
             parts.append(key)
         elif index == "*":

@@ -43,7 +43,7 @@ from pipeline.checkpoint import (
     study_sha256,
     write_checkpoint,
 )
-from pipeline.errors import StudyError
+from pipeline.errors import StudyError, Terminated
 from pipeline.evaluate import versions
 from pipeline.parallel import (
     BackendError,
@@ -622,7 +622,8 @@ class _Run:
             data = make()
         except Exception as exc:
             note = f"{name} not written: {_one_line(f'{type(exc).__name__}: {exc}')}"
-            log.warning(note, exc_info=True)
+            log.warning(note)  # the CLI prints the notes; the traceback only with -v
+            log.info("%s: traceback", name, exc_info=True)
             self.notes.append(note)
             return
         if data is None:
@@ -659,7 +660,8 @@ class _Run:
             detail = problem.detail(np.array(best.x, dtype=float))
         except Exception as exc:
             note = f"the best design's detail failed: {_one_line(f'{type(exc).__name__}: {exc}')}"
-            log.warning(note, exc_info=True)
+            log.warning(note)  # the CLI prints the notes; the traceback only with -v
+            log.info("the best design's detail: traceback", exc_info=True)
             self.notes.append(note + " (no response, plots of it, STL)")
         if detail is not None and detail.info:
             best_json["info"] = detail.info
@@ -1129,6 +1131,9 @@ def _run_in(
         )
         write_atomic(run_dir / "report.md", render_report(report))
         close("finished")
+    except Terminated:
+        abandon("stopped", "stopped by SIGTERM")
+        raise
     except KeyboardInterrupt:
         abandon("interrupted", "interrupted by the user (Ctrl-C)")
         raise

@@ -45,6 +45,11 @@ def test_parse_and_format_round_trip():
     assert parse_path(text) == ("geometry", "beams", "leaf1", "points_mm", 1, 0)
     assert format_path(parse_path(text)) == text
     assert parse_path("geometry.beams.b.thickness_mm[*]")[-1] == ("*",)
+    # the dotted form of list items (no YAML quoting needed in flow mappings)
+    assert parse_path("geometry.beams.leaf1.points_mm.1.0") == parse_path(text)
+    assert parse_path("geometry.beams.b.thickness_mm.*") == parse_path(
+        "geometry.beams.b.thickness_mm[*]"
+    )
     for bad in ("", ".geometry", "geometry..x", "geometry.x[a]", "geometry x", "[0].x"):
         with pytest.raises(ValueError):
             parse_path(bad)
