@@ -1,20 +1,53 @@
 """A planar compliant mechanism as data: beams, rigid bodies, joints, one drive per load case.
 
-Skeleton (API only); the solver follows. See docs/mechanism_engine.md.
+Formulation (docs/mechanism_engine.md has the derivations)
+---------------------------------------------------------
+Unknowns ``z = [q_1, ..., q_B, (U, V, theta)_1, ..., (U, V, theta)_K]``: every beam's DOFs
+(u, v in mm and the section rotation phi in rad at each node of its geometrically exact
+Simo-Reissner mesh, :class:`fea.beam.BeamModel`), then every rigid body's motion (its reference
+point's displacement U, V in mm and its rotation theta in rad). Joints, the case's supports and
+the drive are constraint rows ``g(z, p) = 0`` (p the drive value); all are linear except the
+position of a beam end attached to a body::
 
-Units: mm, N, N·mm, rad, MPa.
+    X_end + u_end = ref + (U, V) + R(theta) (X_end - ref)        (nonlinear in theta)
+    phi_end = theta                                              (clamped; none when pinned)
+
+Equilibrium ``r(z) - f(p) - G(z)^T lam = 0`` with ``G = dg/dz`` is solved by Newton on::
+
+    [ H   -G^T ] [dz  ]     [ r - f - G^T lam ]
+    [ G    0   ] [dlam] = - [ g               ]      H = K - sum_i lam_i d2g_i/dz2
+
+(the constraint-Hessian term is what keeps Newton quadratic when a body turns). ``lam`` are the
+constraint forces (N, N·mm) acting on the parts along the rows: the multiplier of a displacement
+drive row is the force the actuator applies along the drive direction.
+
+The steps are adaptive with the branch guards of :mod:`fea.beam` (secant predictor, a sub-step
+whose increment turns away from the prediction or that crosses from a stable to an unstable
+state is retried smaller), so a buckling-type mechanism starts on the branch its geometry
+selects. Stability is the inertia of the KKT matrix (see :func:`solve_mechanism`).
+
+Failure to converge is data (``converged``, ``ok``, ``message``), never raised; bad input (unknown
+parts, free rigid-body motions, redundant constraints) raises :class:`fea.errors.FeaError` before
+any solve. Units: mm, N, N·mm, rad, MPa, g.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.linalg.lapack import dsytrf
+from scipy.sparse.linalg import splu
+from threadpoolctl import threadpool_limits
 
+from fea.beam import BeamModel, BeamSettings
+from fea.constrained_beams import _BAND, _band_entries
 from fea.errors import FeaError
 from fea.materials import Material
+from geometry.profile import BeamProfile
 
 __all__ = [
     "MechBeam",
@@ -187,9 +220,49 @@ class Mechanism:
 
 @dataclass(frozen=True)
 class MechanismSettings:
-    """Discretisation and solver tolerances (see the solver for the reasons)."""
+    """Discretisation and solver tolerances, each with its reason.
+
+    Attributes
+    ----------
+    default_elements : P2 elements of a beam whose ``elements`` is 0. 30 P2 elements put the tip
+        force of a clamped-guided leaf at 1.5 rad within 1e-4 of the converged value; a mechanism
+        with many beams costs ~3 x 61 DOFs per beam per 30 elements.
+    shear_factor : k of k G A (5/6, rectangular section).
+    rtol : equilibrium when the residual norm is below rtol x the force scale (constraint forces
+        and applied loads); 1e-9 leaves the force error to the mesh.
+    ctol : constraints met when max |g| is below ctol x the length scale (mm); the position rows
+        of a beam end on a rotating body are nonlinear, and Newton meets them quadratically.
+    max_iterations : Newton iterations per sub-step before the sub-step is cut back.
+    first_substep : first sub-step as a fraction of a row step (the branch guards below make the
+        sub-steps as small as a buckling-type start needs).
+    min_substep : smallest sub-step as a fraction of a row step before giving up.
+    fast_iterations : a sub-step converged in at most this many iterations doubles the next one.
+    max_rotation_step : largest rotation (rad) of a beam section or a body one Newton correction
+        may apply (larger corrections are scaled down: far from equilibrium a slender beam's full
+        Newton step can turn sections by radians, onto another branch).
+    dtol : a Newton correction below dtol x the length scale is round-off (converged).
+    min_path_cosine : a converged sub-step whose increment makes an angle with the secant
+        prediction whose cosine is below this is retried smaller (it jumped to another branch).
+    min_critical_substep : a sub-step leading from a stable to an unstable state crossed a
+        bifurcation or a limit point; it is retried smaller down to this fraction of a row step,
+        then the crossing is accepted as genuine (and the rows are flagged unstable).
+    check_stability : compute the KKT inertia at every accepted state (``stable``); False skips
+        it (all rows report stable=True, the crossing guard is off): faster for big meshes.
+    """
 
     default_elements: int = 30
+    shear_factor: float = 5.0 / 6.0
+    rtol: float = 1e-9
+    ctol: float = 1e-10
+    max_iterations: int = 25
+    first_substep: float = 1.0
+    min_substep: float = 1e-5
+    fast_iterations: int = 5
+    max_rotation_step: float = 0.5
+    dtol: float = 1e-13
+    min_path_cosine: float = 0.8
+    min_critical_substep: float = 1e-3
+    check_stability: bool = True
 
 
 @dataclass(frozen=True)
@@ -227,10 +300,588 @@ class MechanismResponse:
     stable_released: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
 
-def check_mechanism(mech: Mechanism, case: LoadCase | None = None) -> None:
-    """Raise FeaError naming the problem: unknown or duplicate names, beam ends joined that do not
-    meet, and (with a case) a part free to move without deforming any beam."""
-    raise FeaError("not implemented yet")
+# ==================================================================================== model
+
+_GROUND = "ground"
+_ENDS = ("start", "end")
+
+
+@dataclass
+class _Rows:
+    """Constraint rows ``g(z, p) = A z + h(z) - b0 - p bp = 0`` (m rows).
+
+    ``A`` holds the linear part; ``h`` the terms of points on rotating bodies,
+    ``h = w . (R(theta) o - o)`` (offset ``o`` (2,) mm of the point from the body's reference
+    point, weights ``w`` (2,), body rotation DOF ``theta``), at most one per row. ``group`` names
+    the joint, support or drive each row comes from (for messages and reactions).
+    """
+
+    A: list[dict[int, float]] = field(default_factory=list)
+    b0: list[float] = field(default_factory=list)
+    bp: list[float] = field(default_factory=list)
+    group: list[int] = field(default_factory=list)
+    nonlinear: list[tuple[int, int, np.ndarray, np.ndarray]] = field(default_factory=list)
+
+    def add(
+        self,
+        coefs: dict[int, float],
+        group: int,
+        bp: float = 0.0,
+        nl: tuple[int, np.ndarray, np.ndarray] | None = None,
+    ) -> int:
+        """Add a row; ``nl`` = (theta DOF, o, w) adds w . (R(theta) o - o) when o is not 0."""
+        row = len(self.A)
+        merged: dict[int, float] = {}
+        for k, v in coefs.items():
+            merged[k] = merged.get(k, 0.0) + v
+        self.A.append(merged)
+        self.b0.append(0.0)
+        self.bp.append(bp)
+        self.group.append(group)
+        if nl is not None and np.any(np.asarray(nl[1]) != 0.0) and np.any(np.asarray(nl[2]) != 0):
+            self.nonlinear.append((row, nl[0], np.asarray(nl[1], float), np.asarray(nl[2], float)))
+        return row
+
+
+class _Point(NamedTuple):
+    """A point of a part: its (x, y, rotation) DOFs and, on a body, its offset from the
+    reference point (mm; zero at the reference point and for beam ends)."""
+
+    x: int
+    y: int
+    r: int
+    offset: np.ndarray  # (2,) mm
+    on_body: bool
+    where: np.ndarray  # (2,) mm, undeformed position
+
+    def row(self, w: np.ndarray) -> tuple[dict[int, float], tuple[int, np.ndarray, np.ndarray]]:
+        """Coefficients and nonlinear term of w . (displacement of the point)."""
+        return {self.x: float(w[0]), self.y: float(w[1])}, (self.r, self.offset, np.asarray(w))
+
+
+@dataclass(frozen=True)
+class _Group:
+    """Where constraint rows come from: a joint, a support or the drive."""
+
+    label: str
+    kind: Literal["joint", "support", "drive"]
+    ground_part: str = ""  # the part a joint/support holds to the ground ("" otherwise)
+
+
+def _parse_end(ref: str) -> tuple[str, str] | None:
+    """``"beam.start"`` -> ("beam", "start"); None when ``ref`` is not a beam-end reference."""
+    if "." not in ref:
+        return None
+    name, _, end = ref.rpartition(".")
+    return (name, end) if end in _ENDS else None
+
+
+class _Model:
+    """The meshed beams, the unknowns z = [q_1 .. q_B, (U, V, theta) per body] and the rows."""
+
+    def __init__(self, mech: Mechanism, case: LoadCase | None, settings: MechanismSettings):
+        self.mech = mech
+        self.case = case
+        self.settings = settings
+        beams = tuple(mech.beams)
+        bodies = tuple(mech.bodies)
+        names = [b.name for b in beams] + [b.name for b in bodies]
+        for nm in names:
+            if not isinstance(nm, str) or not nm or "." in nm or nm == _GROUND:
+                raise FeaError(
+                    f"part name {nm!r}: names must be non-empty, without '.', and not 'ground'"
+                )
+        dup = sorted({nm for nm in names if names.count(nm) > 1})
+        if dup:
+            raise FeaError(f"duplicate part names {dup}: beams and bodies need unique names")
+        if not beams:
+            raise FeaError("a mechanism needs at least one beam")
+        self.beam_index = {b.name: i for i, b in enumerate(beams)}
+        self.body_index = {b.name: i for i, b in enumerate(bodies)}
+
+        self.models: list[BeamModel] = []
+        for b in beams:
+            try:
+                profile = BeamProfile(
+                    points_mm=np.asarray(b.points_mm, dtype=float),
+                    thickness_mm=np.asarray(b.thickness_mm, dtype=float),
+                    width_mm=float(b.width_mm),
+                    curvature_per_mm=(
+                        None if b.curvature_per_mm is None else np.asarray(b.curvature_per_mm)
+                    ),
+                )
+            except ValueError as exc:  # GeometryError: say which beam
+                raise FeaError(f"beam {b.name!r}: {exc}") from exc
+            n_el = int(b.elements) if int(b.elements) > 0 else int(settings.default_elements)
+            bs = BeamSettings(n_elements=n_el, shear_factor=settings.shear_factor)
+            self.models.append(BeamModel(profile, mech.material, "clamped", bs))
+        self.body_ref = np.array(
+            [np.asarray(b.ref_mm, dtype=float).reshape(2) for b in bodies]
+        ).reshape(-1, 2)
+        if not np.all(np.isfinite(self.body_ref)):
+            raise FeaError("body ref_mm must be finite [x, y] pairs")
+        self.offsets = np.concatenate([[0], np.cumsum([m.n_dofs for m in self.models])])
+        self.n_beam_dofs = int(self.offsets[-1])
+        self.n = self.n_beam_dofs + 3 * len(bodies)
+        self.length = max(max(m.profile.length_mm for m in self.models), 1.0)
+        self.force_floor = max(m._force_floor for m in self.models)
+        self.rot_dofs = np.concatenate(
+            [np.arange(self.offsets[i] + 2, self.offsets[i + 1], 3) for i in range(len(beams))]
+            + [self.n_beam_dofs + 3 * np.arange(len(bodies)) + 2]
+        )
+        rows, cols, self._band_src = [], [], []
+        for i, m in enumerate(self.models):
+            r_i, c_i, src = _band_entries(m.n_dofs)
+            rows.append(r_i + self.offsets[i])
+            cols.append(c_i + self.offsets[i])
+            self._band_src.append(src)
+        self._k_rows = np.concatenate(rows)
+        self._k_cols = np.concatenate(cols)
+
+        self.rows = _Rows()
+        self.groups: list[_Group] = []
+        self.f0 = np.zeros(self.n)
+        self.fp = np.zeros(self.n)
+        for j in mech.joints:
+            self._joint(j, "joint")
+        self.drive_row = -1
+        self.drive_group = -1
+        if case is not None:
+            for j in case.supports:
+                if j.b != _GROUND:
+                    raise FeaError(
+                        f"support {j.a!r} -> {j.b!r} of case {case.name!r}: a support holds a "
+                        "part to the ground (b must be 'ground')"
+                    )
+                self._joint(j, "support")
+            self._drive(case.drive)
+        self._freeze()
+
+    # ---- parts ------------------------------------------------------------------------------
+
+    def point(self, ref: str, what: str) -> _Point:
+        """A beam end ("beam.start" / "beam.end"), a body's reference point ("body") or a point
+        of a body given in undeformed coordinates ("body@x,y", mm)."""
+        end = _parse_end(ref)
+        if end is not None and end[0] in self.beam_index:
+            i = self.beam_index[end[0]]
+            m = self.models[i]
+            node = 0 if end[1] == "start" else m.n_nodes - 1
+            base = int(self.offsets[i]) + 3 * node
+            return _Point(base, base + 1, base + 2, np.zeros(2), False, m.reference_nodes_mm[node])
+        name, at, xy = ref.partition("@")
+        if name in self.body_index:
+            k = self.body_index[name]
+            base = self.n_beam_dofs + 3 * k
+            where = self.body_ref[k]
+            if at:
+                try:
+                    where = np.array([float(v) for v in xy.split(",")])
+                except ValueError:
+                    where = np.zeros(0)
+                if where.shape != (2,) or not np.all(np.isfinite(where)):
+                    raise FeaError(f"{what}: {ref!r}: a body point is 'body@x,y' (mm)")
+            return _Point(base, base + 1, base + 2, where - self.body_ref[k], True, where)
+        known = [f"{b}.start" for b in self.beam_index] + [f"{b}.end" for b in self.beam_index]
+        raise FeaError(
+            f"{what}: unknown part {ref!r}; beam ends are {known[:6]}"
+            f"{' ...' if len(known) > 6 else ''}, bodies are {sorted(self.body_index)}"
+        )
+
+    def part_dofs(self, ref: str, what: str) -> tuple[int, int, int]:
+        """(x, y, rotation) DOF indices of a beam end or a body."""
+        pt = self.point(ref, what)
+        return pt.x, pt.y, pt.r
+
+    # ---- constraints ------------------------------------------------------------------------
+
+    def _joint(self, j: MechJoint, kind: Literal["joint", "support"]) -> None:
+        label = f"{kind} {j.a!r} -> {j.b!r} ({j.type})"
+        if j.type not in ("clamped", "pinned"):
+            raise FeaError(f"{label}: type must be 'clamped' or 'pinned'")
+        a = self.point(j.a, label)
+        g = len(self.groups)
+        rw = self.rows
+        ex, ey = np.eye(2)
+        if j.b == _GROUND:
+            self.groups.append(_Group(label, kind, ground_part=j.a))
+            for w in (ex, ey):
+                rw.add(*_row(a, w, g))
+            if j.type == "clamped":
+                rw.add({a.r: 1.0}, g)
+            return
+        if a.on_body:
+            raise FeaError(
+                f"{label}: a body can only be joined to the ground (as 'a'); attach beam ends to "
+                "bodies instead (a = 'beam.end', b = body)"
+            )
+        self.groups.append(_Group(label, kind))
+        b = self.point(j.b, label)
+        if b.on_body:
+            # X_end + u = ref + U + R(theta) o with o = X_end - ref: the end's offset from the
+            # body's reference point, whatever point of the body ``b`` names.
+            k = self.body_index[j.b.partition("@")[0]]
+            o = a.where - self.body_ref[k]
+            for w in (ex, ey):
+                rw.add({a.x: w[0], a.y: w[1], b.x: -w[0], b.y: -w[1]}, g, nl=(b.r, o, -w))
+            if j.type == "clamped":
+                rw.add({a.r: 1.0, b.r: -1.0}, g)
+            return
+        if (a.x, a.y) == (b.x, b.y):
+            raise FeaError(f"{label}: a beam end cannot be joined to itself")
+        gap = float(np.hypot(*(a.where - b.where)))
+        if gap > 1e-6 * self.length:
+            raise FeaError(
+                f"{label}: the beam ends are {gap:.6g} mm apart; joined ends must meet "
+                "(or attach both to a body)"
+            )
+        # phi is the rotation from the reference, so a welded joint keeps the initial angle
+        rw.add({a.x: 1.0, b.x: -1.0}, g)
+        rw.add({a.y: 1.0, b.y: -1.0}, g)
+        if j.type == "clamped":
+            rw.add({a.r: 1.0, b.r: -1.0}, g)
+
+    def _drive(self, d: MechDrive) -> None:
+        label = f"drive of {d.part!r} ({d.control})"
+        if d.control not in ("displacement", "rotation", "force", "moment"):
+            raise FeaError(f"{label}: control must be displacement, rotation, force or moment")
+        for nm in ("transverse", "rotation"):
+            if getattr(d, nm) not in ("held", "free"):
+                raise FeaError(f"{label}: {nm} = {getattr(d, nm)!r}; use 'held' or 'free'")
+        if int(d.steps) < 1:
+            raise FeaError(f"{label}: steps = {d.steps} must be >= 1")
+        if not (np.isfinite(d.max_value) and np.isfinite(d.min_value)):
+            raise FeaError(f"{label}: min_value and max_value must be finite")
+        if d.max_value == d.min_value:
+            raise FeaError(f"{label}: max_value must differ from min_value")
+        pt = self.point(d.part, label)
+        self.drive_point = pt
+        g = len(self.groups)
+        self.groups.append(_Group(label, "drive"))
+        self.drive_group = g
+        rw = self.rows
+        if d.control in ("displacement", "force"):
+            u = _unit(d.direction, label)
+            n = np.array([-u[1], u[0]])
+            if d.control == "displacement":
+                coefs, nl = pt.row(u)
+                self.drive_row = rw.add(coefs, g, bp=1.0, nl=nl)
+            else:
+                if np.any(pt.offset != 0.0):
+                    raise FeaError(
+                        f"{label}: a force drives a body at its reference point (put ref_mm "
+                        "where the force acts)"
+                    )
+                self.fp[[pt.x, pt.y]] = u
+            if d.transverse == "held":
+                rw.add(*_row(pt, n, g))
+            if d.rotation == "held":
+                rw.add({pt.r: 1.0}, g)
+        else:
+            if d.control == "rotation":
+                self.drive_row = rw.add({pt.r: 1.0}, g, bp=1.0)
+            else:
+                self.fp[pt.r] = 1.0
+            if d.transverse == "held":
+                for w in np.eye(2):
+                    rw.add(*_row(pt, w, g))
+
+    def _freeze(self) -> None:
+        rw = self.rows
+        self.m = len(rw.A)
+        ii = [i for i, c in enumerate(rw.A) for _ in c]
+        jj = [k for c in rw.A for k in c]
+        vv = [v for c in rw.A for v in c.values()]
+        self.A = sp.csr_matrix((vv, (ii, jj)), shape=(self.m, self.n))
+        self.b0 = np.asarray(rw.b0, dtype=float)
+        self.bp = np.asarray(rw.bp, dtype=float)
+        self.row_group = np.asarray(rw.group, dtype=int)
+        nl = rw.nonlinear
+        self.nl_row = np.array([t[0] for t in nl], dtype=int)
+        self.nl_theta = np.array([t[1] for t in nl], dtype=int)
+        self.nl_off = np.array([t[2] for t in nl], dtype=float).reshape(-1, 2)
+        self.nl_w = np.array([t[3] for t in nl], dtype=float).reshape(-1, 2)
+
+    def constraints(self, z: np.ndarray, p: float) -> tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
+        """g (m,), G = dg/dz (m, N), and d2g/dtheta2 (n_nonlinear,) of the nonlinear terms."""
+        g = self.A @ z - self.b0 - p * self.bp
+        if self.nl_row.size == 0:
+            return g, self.A, np.zeros(0)
+        th = z[self.nl_theta]
+        c, s = np.cos(th), np.sin(th)
+        ox, oy = self.nl_off[:, 0], self.nl_off[:, 1]
+        wx, wy = self.nl_w[:, 0], self.nl_w[:, 1]
+        # w . R(theta) o, w . R'(theta) o; and R'' = -R
+        wro = wx * (c * ox - s * oy) + wy * (s * ox + c * oy)
+        wdro = wx * (-s * ox - c * oy) + wy * (c * ox - s * oy)
+        g += np.bincount(self.nl_row, wro - (wx * ox + wy * oy), minlength=self.m)
+        G = self.A + sp.csr_matrix((wdro, (self.nl_row, self.nl_theta)), shape=(self.m, self.n))
+        return g, G.tocsr(), -wro
+
+    def point_displacement(self, z: np.ndarray, pt: _Point) -> np.ndarray:
+        """(2,) displacement (mm) of a point at state z (rows of z: (..., N) -> (..., 2))."""
+        d = np.stack([z[..., pt.x], z[..., pt.y]], axis=-1)
+        if pt.on_body and np.any(pt.offset != 0.0):
+            th = z[..., pt.r]
+            c, s = np.cos(th), np.sin(th)
+            ox, oy = pt.offset
+            d = d + np.stack([c * ox - s * oy - ox, s * ox + c * oy - oy], axis=-1)
+        return d
+
+    def loads(self, p: float) -> np.ndarray:
+        """Applied dead loads (N,), N and N·mm, at drive value p."""
+        return self.f0 + p * self.fp
+
+    # ---- physics ----------------------------------------------------------------------------
+
+    def assemble(self, z: np.ndarray) -> tuple[np.ndarray, sp.coo_matrix]:
+        """Internal force r (N,) and the beams' tangent K (N, N) at z (bodies carry none)."""
+        r = np.zeros(self.n)
+        vals = []
+        frame = np.eye(2)
+        for i, m in enumerate(self.models):
+            a, b = self.offsets[i], self.offsets[i + 1]
+            ri, ab = m._assemble(z[a:b], frame)
+            r[a:b] = ri
+            vals.append(ab[_BAND:][self._band_src[i]])
+        K = sp.coo_matrix(
+            (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
+        )
+        return r, K
+
+    def hessian(self, K: sp.spmatrix, lam: np.ndarray, ro: np.ndarray) -> sp.csr_matrix:
+        """Hessian of the Lagrangian, H = K - sum_i lam_i d2g_i/dz2 (N, N)."""
+        if self.nl_row.size == 0:
+            return sp.csr_matrix(K)
+        diag = np.bincount(self.nl_theta, lam[self.nl_row] * ro, minlength=self.n)
+        return (sp.csr_matrix(K) - sp.diags(diag)).tocsr()
+
+    def stresses(self, z: np.ndarray) -> np.ndarray:
+        """(B,) peak stress (MPa) of each beam."""
+        return np.array(
+            [
+                m._stress(z[self.offsets[i] : self.offsets[i + 1]])[0]
+                for i, m in enumerate(self.models)
+            ]
+        )
+
+    # ---- checks -----------------------------------------------------------------------------
+
+    def check_rank(self) -> None:
+        """Refuse redundant constraints and free rigid-body motions, naming the parts.
+
+        Redundant rows: the undeformed Jacobian G0 (m, N) must have full row rank (otherwise the
+        multipliers are not unique and the KKT system is singular). Free motions: a motion with
+        G0 dz = 0 and K dz = 0 strains no beam; K's null space is exactly the rigid motions of
+        each beam (reduced integration is rank sufficient), so dz = T a with a the rigid motion
+        (translation, rotation) of every beam and body, and the free motions are the null space
+        of the small matrix G0 T (m, 3 (B + bodies)).
+        """
+        _, G0, _ = self.constraints(np.zeros(self.n), 0.0)
+        G0 = G0.toarray()
+        if self.m:
+            u, s, _ = np.linalg.svd(G0, full_matrices=True)
+            tol = 1e-10 * max(float(s.max(initial=0.0)), 1.0)
+            rank = int((s > tol).sum())
+            if rank < self.m:
+                left = u[:, rank:]  # combinations of rows that vanish
+                involved = np.flatnonzero(np.abs(left).max(axis=1) > 1e-6)
+                labels = sorted({self.groups[self.row_group[i]].label for i in involved})
+                raise FeaError(
+                    "redundant constraints (they hold the same motion twice): "
+                    + "; ".join(labels)
+                    + ". Remove one of them."
+                )
+        # rigid motions of each part, rotations scaled by the length so the columns compare
+        parts: list[tuple[str, np.ndarray]] = []
+        cols = []
+        L = self.length
+        for i, m in enumerate(self.models):
+            X = m.reference_nodes_mm
+            c = X[0]
+            T = np.zeros((self.n, 3))
+            sl = slice(self.offsets[i], self.offsets[i + 1])
+            Ti = np.zeros((m.n_nodes, 3, 3))
+            Ti[:, 0, 0] = 1.0
+            Ti[:, 1, 1] = 1.0
+            Ti[:, 0, 2] = -(X[:, 1] - c[1]) / L
+            Ti[:, 1, 2] = (X[:, 0] - c[0]) / L
+            Ti[:, 2, 2] = 1.0 / L
+            T[sl] = Ti.reshape(-1, 3)
+            parts.append((f"beam {self.mech.beams[i].name!r}", c))
+            cols.append(T)
+        for k, b in enumerate(self.mech.bodies):
+            T = np.zeros((self.n, 3))
+            base = self.n_beam_dofs + 3 * k
+            T[base, 0] = T[base + 1, 1] = 1.0
+            T[base + 2, 2] = 1.0 / L
+            parts.append((f"body {b.name!r}", self.body_ref[k]))
+            cols.append(T)
+        M = G0 @ np.hstack(cols) if self.m else np.zeros((0, 3 * len(parts)))
+        _, s, vt = np.linalg.svd(np.vstack([M, np.zeros((1, M.shape[1]))]), full_matrices=True)
+        s_full = np.zeros(M.shape[1])
+        s_full[: s.size] = s
+        free = vt[s_full <= 1e-9 * max(float(s_full.max(initial=0.0)), 1.0)]
+        if free.size == 0:
+            return
+        notes = []
+        for k, (label, c) in enumerate(parts):
+            a = free[:, 3 * k : 3 * k + 3]
+            if np.abs(a).max() < 1e-6:
+                continue
+            if free.shape[0] == 1 and abs(a[0, 2]) > 1e-6:
+                w = a[0, 2] / L
+                centre = c + np.array([-a[0, 1], a[0, 0]]) / w
+                notes.append(f"{label} (turns about ({centre[0]:.4g}, {centre[1]:.4g}) mm)")
+            elif free.shape[0] == 1:
+                notes.append(f"{label} (translates along ({a[0, 0]:.3g}, {a[0, 1]:.3g}))")
+            else:
+                notes.append(label)
+        raise FeaError(
+            f"free rigid-body motion ({free.shape[0]} degree(s) of freedom no beam resists): "
+            + ", ".join(notes)
+            + " can move without deforming any beam; add a joint or a support, or drive that "
+            "motion under displacement/rotation control"
+        )
+
+
+def _row(pt: _Point, w: np.ndarray, group: int) -> tuple:
+    """Arguments of _Rows.add for the row w . (displacement of pt) = 0."""
+    coefs, nl = pt.row(w)
+    return coefs, group, 0.0, nl
+
+
+def _unit(direction: Sequence[float], what: str) -> np.ndarray:
+    d = np.asarray(direction, dtype=float)
+    if d.shape != (2,) or not np.all(np.isfinite(d)) or np.hypot(*d) < 1e-12:
+        raise FeaError(f"{what}: direction = {direction!r} must be a non-zero [dx, dy] pair")
+    return d / np.hypot(*d)
+
+
+def _kkt_negative_count(H: sp.spmatrix, G: sp.spmatrix) -> int:
+    """Negative eigenvalues of the symmetric KKT matrix [[H, G^T], [G, 0]] (Sylvester inertia).
+
+    Adding G^T rho G to H is a congruence of the KKT matrix (it does not change the inertia),
+    and makes the primal block regular where H alone is singular (a body's DOFs carry no
+    stiffness). The matrix, primal DOFs first and multipliers last, is then factorised by a
+    sparse LU *without pivoting* in the natural order (the beams' DOFs are numbered along each
+    beam, so the fill stays within the band plus the few rows the constraints couple): for a
+    symmetric matrix that is L D L^T with D = diag(U), and the signs of D are the inertia
+    (Sylvester's law). When SuperLU had to pivot anyway (a zero pivot), a dense Bunch-Kaufman
+    LDL^T (LAPACK dsytrf) with one BLAS thread counts instead: every 2x2 block it chooses is
+    indefinite (one negative eigenvalue). Returns -1 when neither factorisation worked.
+    """
+    Hc = sp.csr_matrix(H)
+    rho = max(float(np.abs(Hc.diagonal()).max(initial=0.0)), 1.0)
+    Kkt = sp.bmat([[Hc + rho * (G.T @ G), G.T], [G, None]], format="csc")
+    try:
+        lu = splu(
+            Kkt,
+            permc_spec="NATURAL",
+            diag_pivot_thresh=0.0,
+            options={"SymmetricMode": True},
+        )
+        if np.array_equal(lu.perm_r, np.arange(Kkt.shape[0])):
+            d = lu.U.diagonal()
+            if np.all(np.isfinite(d)) and np.all(d != 0.0):
+                return int((d < 0.0).sum())
+    except RuntimeError:
+        pass
+    with threadpool_limits(1):  # a dense factorisation of a few hundred rows: threads only cost
+        dense = Kkt.toarray()
+        lu_d, ipiv, info = dsytrf(0.5 * (dense + dense.T), lower=1, overwrite_a=1)
+    if info < 0:
+        return -1
+    n = dense.shape[0]
+    neg = 0
+    k = 0
+    while k < n:
+        if ipiv[k] > 0:
+            neg += int(lu_d[k, k] <= 0.0)  # an exactly zero pivot is not positive definite
+            k += 1
+        else:
+            neg += 1
+            k += 2
+    return neg
+
+
+# ==================================================================================== solver
+
+
+class _State(NamedTuple):
+    z: np.ndarray
+    lam: np.ndarray
+    r: np.ndarray
+    H: sp.csr_matrix
+    G: sp.csr_matrix
+
+
+class _Solver:
+    def __init__(self, model: _Model) -> None:
+        self.model = model
+        self.st = model.settings
+
+    def newton(
+        self, z0: np.ndarray, lam0: np.ndarray, p: float, predictor: tuple | None
+    ) -> tuple[bool, _State | None, np.ndarray | None, int, str]:
+        """Equilibrium at p: (converged, state, predicted z, iterations, reason)."""
+        md, st = self.model, self.st
+        if predictor is not None:
+            z, lam = predictor
+            z_pred = z
+        else:
+            z, lam = z0.copy(), lam0.copy()
+            z_pred = None
+        f = md.loads(p)
+        for it in range(1, st.max_iterations + 1):
+            r, K = md.assemble(z)
+            if not np.all(np.isfinite(r)):
+                return False, None, None, it, "the internal force became NaN or inf"
+            g, G, ro = md.constraints(z, p)
+            H = md.hessian(K, lam, ro)
+            res = r - f - G.T @ lam
+            scale = max(float(np.linalg.norm(G.T @ lam)), float(np.linalg.norm(f)), md.force_floor)
+            res_ok = float(np.linalg.norm(res)) <= st.rtol * scale
+            gap_ok = float(np.abs(g).max(initial=0.0)) <= st.ctol * md.length
+            if res_ok and gap_ok and (it > 1 or predictor is not None):
+                return True, _State(z, lam, r, H, G), z_pred, it - 1, ""
+            J = sp.bmat([[H, -G.T], [G, None]], format="csc")
+            try:
+                step = splu(J, permc_spec="MMD_AT_PLUS_A").solve(-np.concatenate([res, g]))
+            except RuntimeError:
+                return False, None, None, it, "singular system (a mechanism or a limit point)"
+            if not np.all(np.isfinite(step)) or np.abs(step[: md.n]).max() > 1e3 * md.length:
+                return False, None, None, it, "singular system (a mechanism or a limit point)"
+            dz, dlam = step[: md.n], step[md.n :]
+            big = np.abs(dz[md.rot_dofs]).max(initial=0.0) / st.max_rotation_step
+            if big > 1.0:
+                dz, dlam = dz / big, dlam / big
+            z = z + dz
+            lam = lam + dlam
+            if z_pred is None:
+                z_pred = z  # the linearised predictor (first Newton iterate from the last state)
+            if np.abs(dz).max() <= st.dtol * md.length:
+                r, K = md.assemble(z)
+                g, G, ro = md.constraints(z, p)
+                if float(np.abs(g).max(initial=0.0)) <= st.ctol * md.length:
+                    return True, _State(z, lam, r, md.hessian(K, lam, ro), G), z_pred, it, ""
+        return (
+            False,
+            None,
+            None,
+            st.max_iterations,
+            (f"Newton did not converge in {st.max_iterations} iterations"),
+        )
+
+    def is_stable(self, s: _State, drop_row: int = -1) -> bool:
+        """Constrained stability: Z^T H Z positive definite on the null space of G (see module)."""
+        if not self.st.check_stability:
+            return True
+        G = s.G
+        if drop_row >= 0:
+            keep = np.setdiff1d(np.arange(G.shape[0]), [drop_row])
+            G = G[keep]
+        return _kkt_negative_count(s.H, G) == G.shape[0]
 
 
 def solve_mechanism(
@@ -239,11 +890,279 @@ def solve_mechanism(
     outputs: Sequence[MechOutput] = (),
     settings: MechanismSettings | None = None,
 ) -> MechanismResponse:
-    """Trace the equilibrium path of ``mech`` under ``case`` (not implemented yet)."""
-    raise FeaError("not implemented yet")
+    """Trace the equilibrium path of ``mech`` under ``case``, one row per drive value.
+
+    The unknowns are every beam's DOFs (u, v mm, phi rad per node) and every body's (U, V mm of
+    its reference point, theta rad). Joints, supports and the drive are constraint rows
+    g(z, p) = 0 with Lagrange multipliers (the constraint forces, N or N·mm); equilibrium
+    r(z) - f(p) - G(z)^T lam = 0 is solved by Newton on the KKT system with the constraint
+    Hessian term in the tangent. Rows are reached through adaptive sub-steps with the branch
+    guards of fea.beam (secant predictor, path-turn and stability-crossing retries).
+
+    Stability (``stable``): an equilibrium is stable when the Hessian of the Lagrangian is
+    positive definite on the null space of the constraint Jacobian (Z^T H Z > 0), with the
+    constraints of the case: under displacement / rotation control the drive is a constraint
+    (an actuator holding the part), so a snap-through traced under displacement control is
+    stable wherever the held part cannot escape, and unstable only past a bifurcation of the
+    constrained system (e.g. an asymmetric mode of a symmetric arch). ``stable_released`` is the
+    same test with the drive row dropped: the equilibrium under a dead load equal to the
+    reaction, i.e. what force control would see (False on a negative-stiffness stretch).
+    Computed by the inertia of the KKT matrix: with G of full row rank m, it has exactly m
+    negative eigenvalues iff Z^T H Z is positive definite.
+
+    Parameters
+    ----------
+    mech : Mechanism
+    case : LoadCase
+    outputs : sequence of MechOutput — names must be unique.
+    settings : MechanismSettings, optional.
+
+    Returns
+    -------
+    MechanismResponse — failure to converge is data (``converged``, ``ok``, ``message``).
+
+    Raises
+    ------
+    FeaError
+        Bad input: unknown parts, duplicate names, joined ends apart, redundant constraints, a
+        free rigid-body motion (the part named), bad outputs.
+    """
+    st = settings or MechanismSettings()
+    md = _Model(mech, case, st)
+    md.check_rank()
+    readers = _output_readers(md, outputs)
+    solver = _Solver(md)
+    drv = case.drive
+    steps = int(drv.steps)
+    targets = drv.min_value + (drv.max_value - drv.min_value) * np.arange(steps + 1) / steps
+    step_size = abs(targets[1] - targets[0])
+    n_rows = steps + 1
+    nb = len(mech.beams)
+    Z = np.full((n_rows, md.n), np.nan)
+    LAM = np.full((n_rows, md.m), np.nan)
+    R = np.full((n_rows, md.n), np.nan)
+    peak = np.full((n_rows, nb), np.nan)
+    converged = np.zeros(n_rows, dtype=bool)
+    stable = np.zeros(n_rows, dtype=bool)
+    released = np.zeros(n_rows, dtype=bool)
+
+    z = np.zeros(md.n)
+    lam = np.zeros(md.m)
+    ok, state, _, _, reason = solver.newton(z, lam, 0.0, None)
+    message = ""
+    if not ok:
+        message = f"no equilibrium in the undeformed state: {reason}"
+    else:
+        is_stab = solver.is_stable(state)
+        value = 0.0
+        history: list[tuple[float, np.ndarray, np.ndarray]] = [(0.0, state.z, state.lam)]
+        h = st.first_substep * step_size
+        lost: tuple[int, float, float] | None = None
+        # targets[0] may be nonzero: it is reached first, through sub-steps like any row
+        for k in range(n_rows):
+            target = targets[k]
+            row_stable = is_stab
+            sign = np.sign(target - value) or 1.0
+            while abs(target - value) > 1e-12 * max(1.0, abs(target), step_size):
+                inc = sign * min(h, abs(target - value))
+                p_try = value + inc
+                pred = None
+                if len(history) >= 2 and history[-1][0] != history[-2][0]:
+                    (v1, z1, l1), (v2, z2, l2) = history[-2], history[-1]
+                    t = inc / (v2 - v1)
+                    pred = (z2 + (z2 - z1) * t, l2 + (l2 - l1) * t)
+                ok, new, z_pred, it, reason = solver.newton(state.z, state.lam, p_try, pred)
+                if ok and pred is not None:
+                    dp, dc = z_pred - state.z, new.z - state.z
+                    if dp @ dc < st.min_path_cosine * np.sqrt((dp @ dp) * (dc @ dc)):
+                        ok, reason = False, "the sub-step left the path"
+                new_stable = False
+                if ok:
+                    new_stable = solver.is_stable(new)
+                    if (
+                        is_stab
+                        and not new_stable
+                        and abs(inc) > st.min_critical_substep * step_size
+                    ):
+                        ok, reason = False, "crossed a critical point"
+                if ok:
+                    if is_stab and not new_stable and lost is None:
+                        lost = (k, value, p_try)
+                    state, value, is_stab = new, p_try, new_stable
+                    row_stable = row_stable and new_stable
+                    history = [*history[-1:], (value, state.z, state.lam)]
+                    if it <= st.fast_iterations:
+                        h = min(2.0 * h, step_size)
+                    continue
+                h = abs(inc) / 4.0
+                history = history[-1:]
+                if h < st.min_substep * step_size:
+                    message = (
+                        f"no convergence at drive = {p_try:.6g} (row {k}, last converged "
+                        f"{value:.6g}) after cutting the sub-step to {abs(inc):.3g}: {reason}"
+                    )
+                    break
+            if message:
+                break
+            Z[k], LAM[k], R[k] = state.z, state.lam, state.r
+            peak[k] = md.stresses(state.z)
+            converged[k] = True
+            stable[k] = row_stable
+            released[k] = solver.is_stable(state, md.drive_row) if md.drive_row >= 0 else row_stable
+        if lost is not None:
+            k, a, b = lost
+            note = (
+                f"unstable from row {k} (drive between {a:.6g} and {b:.6g}): the constrained "
+                "tangent stopped being positive definite (a bifurcation or limit point)"
+            )
+            message = f"{message}; {note}" if message else note
+
+    outs = {name: fn(Z, LAM, R, peak, targets) for name, fn in readers.items()}
+    for v in outs.values():
+        v[~converged] = np.nan
+    shapes = []
+    thick = []
+    body_poses = np.full((n_rows, len(mech.bodies), 3), np.nan)
+    for i, m in enumerate(md.models):
+        q = Z[:, md.offsets[i] : md.offsets[i + 1]].reshape(n_rows, -1, 3)
+        shapes.append(m.reference_nodes_mm[None] + q[:, :, :2])
+        thick.append(np.interp(m.s_nodes, m.profile.arc_length_mm, m.profile.thickness_mm))
+    for k in range(len(mech.bodies)):
+        base = md.n_beam_dofs + 3 * k
+        body_poses[:, k, :2] = md.body_ref[k] + Z[:, base : base + 2]
+        body_poses[:, k, 2] = Z[:, base + 2]
+    return MechanismResponse(
+        case=case.name,
+        drive=targets,
+        outputs=outs,
+        peak_stress_MPa=peak,
+        shapes_mm=tuple(shapes),
+        thickness_at_nodes_mm=tuple(thick),
+        body_poses=body_poses,
+        converged=converged,
+        stable=stable & converged,
+        ok=bool(converged.all()),
+        message=message,
+        stable_released=released & converged,
+    )
+
+
+def _output_readers(md: _Model, outputs: Sequence[MechOutput]) -> dict:
+    """name -> function (Z, LAM, R, peak, drive) -> (rows,) for each requested output."""
+    readers = {}
+    control = md.case.drive.control
+    for o in outputs:
+        what = f"output {o.name!r} ({o.quantity})"
+        if o.name in readers:
+            raise FeaError(f"{what}: duplicate output name")
+        q = o.quantity
+        if q == "peak_stress":
+            if o.part == "":
+                readers[o.name] = lambda Z, L, R, P, D: P.max(axis=1)
+            elif o.part in md.beam_index:
+                i = md.beam_index[o.part]
+                readers[o.name] = lambda Z, L, R, P, D, i=i: P[:, i].copy()
+            else:
+                raise FeaError(f"{what}: part must be a beam name or '' (all beams)")
+            continue
+        if q == "reaction" and o.part == "":
+            if control in ("displacement", "rotation"):
+                row = md.drive_row
+                readers[o.name] = lambda Z, L, R, P, D, row=row: L[:, row].copy()
+            else:
+                readers[o.name] = lambda Z, L, R, P, D: D.astype(float).copy()
+            continue
+        if q in ("displacement", "rotation"):
+            pt = md.point(o.part, what)
+            if q == "rotation":
+                readers[o.name] = lambda Z, L, R, P, D, r=pt.r: Z[:, r].copy()
+            else:
+                u = _unit(o.direction, what)
+                readers[o.name] = lambda Z, L, R, P, D, pt=pt, u=u: md.point_displacement(Z, pt) @ u
+            continue
+        if q in ("reaction", "reaction_force", "reaction_moment"):
+            if o.part == "":
+                groups = [md.drive_group]
+                x, y, r = md.part_dofs(md.case.drive.part, what)
+                with_load = True
+            else:
+                x, y, r = md.part_dofs(o.part, what)
+                groups = [g for g, gr in enumerate(md.groups) if gr.ground_part == o.part]
+                if not groups:
+                    raise FeaError(
+                        f"{what}: {o.part!r} is not held to the ground by a joint or a support"
+                    )
+                with_load = False
+            rows = np.flatnonzero(np.isin(md.row_group, groups))
+            u = _unit(o.direction, what)
+            moment = q == "reaction_moment"
+            readers[o.name] = _reaction_reader(md, rows, (x, y, r), u, moment, with_load)
+            continue
+        raise FeaError(
+            f"{what}: quantity must be reaction, reaction_force, reaction_moment, displacement, "
+            "rotation or peak_stress"
+        )
+    return readers
+
+
+def _reaction_reader(md: _Model, rows: np.ndarray, dofs, u: np.ndarray, moment: bool, load: bool):
+    """Force (N, along u) or moment (N·mm) applied on a part by the constraint rows ``rows``
+    (plus the drive's applied load when ``load``): (G_rows^T lam_rows) at the part's DOFs."""
+    x, y, r = dofs
+
+    def read(Z, L, R, P, D):
+        out = np.full(Z.shape[0], np.nan)
+        for k in range(Z.shape[0]):
+            if not np.all(np.isfinite(Z[k])):
+                continue
+            _, G, _ = md.constraints(Z[k], float(D[k]))
+            F = G[rows].T @ L[k, rows]
+            if load:
+                F = F + md.fp * D[k]
+            out[k] = F[r] if moment else F[x] * u[0] + F[y] * u[1]
+        return out
+
+    return read
+
+
+def check_mechanism(mech: Mechanism, case: LoadCase | None = None) -> None:
+    """Refuse a mechanism (or a mechanism under a load case) that cannot be solved.
+
+    Raises FeaError naming the problem: a bad or duplicate part name, an unknown part in a joint,
+    a support or the drive, joined beam ends that do not meet, redundant constraints, and, with
+    ``case``, a free rigid-body motion (a part that can move without deforming any beam, with
+    its rotation centre or translation direction). Without ``case`` the free-motion test is
+    skipped: a case's supports and drive may be what holds a part.
+    """
+    md = _Model(mech, case, MechanismSettings(default_elements=2))
+    if case is not None:
+        md.check_rank()
 
 
 def mass_g(mech: Mechanism, body_thickness_mm: float = 0.0) -> float:
-    """Mass (g) of the beams (thickness x width x length x density), plus the bodies' outline
-    area x ``body_thickness_mm`` x density when that is > 0 (bodies without an outline count 0)."""
-    raise FeaError("not implemented yet")
+    """Mass (g) of the beams, plus the bodies when ``body_thickness_mm`` > 0.
+
+    Beams: integral of thickness x width over the arc length (exact: thickness is linear in arc
+    length) x density. Bodies: outline area (shoelace) x ``body_thickness_mm`` x density; bodies
+    without an outline count 0. NaN when the material has no density.
+    """
+    rho = mech.material.density_kg_m3 * 1e-6  # kg/m^3 -> g/mm^3
+    vol = 0.0
+    for b in mech.beams:
+        prof = BeamProfile(
+            points_mm=np.asarray(b.points_mm, dtype=float),
+            thickness_mm=np.asarray(b.thickness_mm, dtype=float),
+            width_mm=float(b.width_mm),
+            curvature_per_mm=None if b.curvature_per_mm is None else np.asarray(b.curvature_per_mm),
+        )
+        t = prof.thickness_mm
+        vol += float(np.sum(prof.segment_lengths_mm * 0.5 * (t[:-1] + t[1:]))) * prof.width_mm
+    if body_thickness_mm > 0:
+        for bd in mech.bodies:
+            if bd.outline_mm is None:
+                continue
+            xy = np.asarray(bd.outline_mm, dtype=float)
+            x, y = xy[:, 0], xy[:, 1]
+            area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+            vol += area * body_thickness_mm
+    return vol * rho
