@@ -355,8 +355,14 @@ def open_backend(settings: ParallelSettings, problem: DesignProblem) -> Iterator
     """
     backend: Any
     if settings.backend == "dask":
-        from pipeline.cluster import DaskBackend  # distributed is imported only when used
-
+        try:
+            from pipeline.cluster import DaskBackend  # distributed is imported only when used
+        except ImportError as exc:
+            raise BackendError(
+                f"the Dask backend needs dask.distributed ({exc}); pip install 'flexopt[dask]'"
+            ) from None
+        # DaskBackend turns every failure to connect (also MemoryError, a hung peer) into a
+        # BackendError within its connect limit: the caller prints one line, nothing is written
         backend = DaskBackend(
             problem, settings.address or "", settings.eval_timeout_s, settings.chunk_size
         )
