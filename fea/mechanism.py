@@ -284,6 +284,8 @@ class MechanismResponse:
     message : str — why not, when not ok (and stability notes).
     stable_released : (rows,) bool — stable with the drive released to a dead load equal to its
         reaction (what force control would see); equals ``stable`` under force / moment control.
+    critical_drive : float — drive value where a stable path first became unstable (bracketed to
+        ``min_critical_substep`` of a row step); NaN when it never did.
     """
 
     case: str
@@ -298,6 +300,7 @@ class MechanismResponse:
     ok: bool
     message: str
     stable_released: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    critical_drive: float = float("nan")
 
 
 # ==================================================================================== model
@@ -950,6 +953,7 @@ def solve_mechanism(
     lam = np.zeros(md.m)
     ok, state, _, _, reason = solver.newton(z, lam, 0.0, None)
     message = ""
+    critical = float("nan")
     if not ok:
         message = f"no equilibrium in the undeformed state: {reason}"
     else:
@@ -963,7 +967,7 @@ def solve_mechanism(
             target = targets[k]
             row_stable = is_stab
             sign = np.sign(target - value) or 1.0
-            while abs(target - value) > 1e-12 * max(1.0, abs(target), step_size):
+            while abs(target - value) > 1e-9 * step_size:
                 inc = sign * min(h, abs(target - value))
                 p_try = value + inc
                 pred = None
@@ -1009,8 +1013,15 @@ def solve_mechanism(
             converged[k] = True
             stable[k] = row_stable
             released[k] = solver.is_stable(state, md.drive_row) if md.drive_row >= 0 else row_stable
+        if lost is None and converged[0] and not stable[0]:
+            note = (
+                "unstable from row 0: the constrained tangent is not positive definite there "
+                "(a prestressed start past a critical point?)"
+            )
+            message = f"{message}; {note}" if message else note
         if lost is not None:
             k, a, b = lost
+            critical = 0.5 * (a + b)
             note = (
                 f"unstable from row {k} (drive between {a:.6g} and {b:.6g}): the constrained "
                 "tangent stopped being positive definite (a bifurcation or limit point)"
@@ -1044,6 +1055,7 @@ def solve_mechanism(
         ok=bool(converged.all()),
         message=message,
         stable_released=released & converged,
+        critical_drive=critical,
     )
 
 

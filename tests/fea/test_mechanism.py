@@ -444,6 +444,26 @@ def test_bistable_snap_through_under_displacement_control() -> None:
     assert "unstable from row" in resp_free.message
 
 
+def test_a_strut_pushed_past_euler_is_flagged_at_the_euler_load() -> None:
+    """A perfect clamped-guided strut shortened past P = 4 pi^2 EI / L^2 stays straight in the
+    solver (no imperfection selects a side) but is flagged unstable from the Euler load on."""
+    L, t = 50.0, 0.5
+    strut = _straight("strut", (0.0, 0.0), (0.0, L), t, 20)
+    mech = Mechanism((strut,), (), (MechJoint("strut.start", "ground"),), MAT)
+    p_cr = 4.0 * np.pi**2 * _ei(t) / L**2
+    d_cr = p_cr * L / (MAT.E_MPa * W * t)  # the shortening that carries P_cr
+    case = LoadCase(
+        "c", MechDrive("strut.end", "displacement", 2.0 * d_cr, 8, (0, -1), "held", "held")
+    )
+    resp = solve_mechanism(mech, case, [MechOutput("F", "reaction")])
+    assert resp.ok
+    # shear (Engesser) and stretching lower the Reissner column's load by ~ P_cr / kGA = 1e-3
+    assert resp.critical_drive == pytest.approx(d_cr, rel=3e-3)
+    np.testing.assert_array_equal(resp.stable, resp.drive < resp.critical_drive)
+    assert "unstable from row 4" in resp.message
+    np.testing.assert_allclose(resp.outputs["F"], resp.drive * MAT.E_MPa * W * t / L, rtol=1e-9)
+
+
 def test_force_control_past_the_limit_is_data_not_an_exception() -> None:
     mech = _bistable_arch()
     peak = 0.0507  # N, just above the guided path's peak force (about 0.0506 N)
@@ -556,3 +576,43 @@ def test_mass_of_beams_and_bodies() -> None:
     beam = 2 * 10.0 * 0.75 * 4.0
     assert mass_g(mech) == pytest.approx(beam * rho)
     assert mass_g(mech, body_thickness_mm=3.0) == pytest.approx((beam + 300.0) * rho)
+
+
+def test_newton_jacobian_matches_finite_differences() -> None:
+    """The KKT Jacobian with the constraint-Hessian term, at a random state with a body turned,
+    against central differences of [r - f - G^T lam, g] (what keeps Newton quadratic)."""
+    import scipy.sparse as sp
+
+    from fea.mechanism import MechanismSettings, _Model
+
+    leaf = _straight("leaf", (0.0, 0.0), (40.0, 0.0), 0.4, 3)
+    body = MechBody("block", np.array([44.0, 3.0]))
+    mech = Mechanism(
+        (leaf,),
+        (body,),
+        (MechJoint("leaf.start", "ground"), MechJoint("leaf.end", "block@50,1")),
+        MAT,
+    )
+    case = LoadCase("m", MechDrive("block@30,-2", "displacement", 3.0, 3, (0.3, 1.0)))
+    md = _Model(mech, case, MechanismSettings())
+    rng = np.random.default_rng(0)
+    z, lam, p = 0.1 * rng.normal(size=md.n), rng.normal(size=md.m), 0.7
+
+    def kkt_residual(x: np.ndarray) -> np.ndarray:
+        r, _ = md.assemble(x[: md.n])
+        g, G, _ = md.constraints(x[: md.n], p)
+        return np.concatenate([r - md.loads(p) - G.T @ x[md.n :], g])
+
+    _, K = md.assemble(z)
+    _, G, d2g = md.constraints(z, p)
+    J = sp.bmat([[md.hessian(K, lam, d2g), -G.T], [G, None]]).toarray()
+    x0 = np.concatenate([z, lam])
+    eps = 1e-6
+    Jn = np.column_stack(
+        [
+            (kkt_residual(x0 + eps * e) - kkt_residual(x0 - eps * e)) / (2 * eps)
+            for e in np.eye(x0.size)
+        ]
+    )
+    assert np.abs(J - Jn).max() < 1e-8 * np.abs(J).max()
+    assert np.abs(d2g).max() > 0  # the nonlinear rows are really there
