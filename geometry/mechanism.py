@@ -157,7 +157,7 @@ class MechanismOutline:
 def curve_points(
     start_mm: Sequence[float],
     end_mm: Sequence[float],
-    shape: Literal["straight", "cosine", "arc"] = "straight",
+    shape: Literal["straight", "cosine", "arc", "half_cosine"] = "straight",
     rise_mm: float = 0.0,
     points: int = 21,
 ) -> np.ndarray:
@@ -169,7 +169,10 @@ def curve_points(
     shape : straight; ``cosine``: the first buckling mode of a clamped-clamped beam,
         ``w(s) = rise/2 (1 - cos(2 pi s / L))`` off the chord (the classic pre-shaped bistable
         beam, slope zero at both ends); ``arc``: a circular arc whose mid-point lies ``rise``
-        off the chord.
+        off the chord; ``half_cosine``: from start to end with x linear and y following half a
+        cosine wave, ``y = y0 + (y1 - y0) (1 - cos(pi u)) / 2``, so the tangent is along x at both
+        ends (half of a cosine-shaped clamped-clamped beam, ending on a shuttle at its apex;
+        ``rise_mm`` is not used: the rise is ``y1 - y0``).
     rise_mm : mm — the largest distance from the chord, to the left of start→end when > 0.
     points : int — at least 2 (a straight beam needs only 2).
 
@@ -188,6 +191,13 @@ def curve_points(
         raise GeometryError(f"points = {points}: a centreline needs at least 2")
     u = np.linspace(0.0, 1.0, points)
     normal = np.array([-chord[1], chord[0]]) / length
+    if shape == "half_cosine":
+        if abs(chord[0]) < 1e-9:
+            raise GeometryError("a half_cosine needs start and end apart in x; it runs along x")
+        xy = np.empty((points, 2))
+        xy[:, 0] = a[0] + u * chord[0]
+        xy[:, 1] = a[1] + chord[1] * 0.5 * (1.0 - np.cos(np.pi * u))
+        return xy
     if shape == "straight" or rise_mm == 0.0:
         offset = np.zeros_like(u)
     elif shape == "cosine":
@@ -207,7 +217,7 @@ def curve_points(
         along = 0.5 + radius * np.sin(angle) / length
         return a + np.outer(along, chord) + np.outer(offset, normal)
     else:
-        raise GeometryError(f"unknown shape '{shape}'; use straight, cosine or arc")
+        raise GeometryError(f"unknown shape '{shape}'; use straight, cosine, arc or half_cosine")
     return a + np.outer(u, chord) + np.outer(offset, normal)
 
 
@@ -322,6 +332,7 @@ def mechanism_outline(
     body_polys = {b.name: b.polygon() for b in bodies}
     pads: dict[str, Polygon] = {}
     anchor: dict[tuple[str, str], str] = {}  # (beam, end) -> what holds it
+    joints_in: list[Polygon] = []  # beam ends carried into the bodies they are attached to
     for a in attachments:
         beam = by_name.get(a.beam)
         if beam is None:
@@ -331,6 +342,10 @@ def mechanism_outline(
             anchor[(a.beam, a.end)] = "ground"
         elif a.to in body_polys:
             anchor[(a.beam, a.end)] = f"body:{a.to}"
+            # the end carried on into the body by one thickness: an end face flush with the
+            # body's edge leaves GEOS a zero-width seam that reads as a thin wall
+            t_end = float(beam.thickness_mm[0 if a.end == "start" else -1])
+            joints_in.append(end_pad(beam, a.end, t_end, t_end))
         else:  # another beam's end: both ends share one joint
             other = a.to.rsplit(".", 1)
             key = "joint:" + "|".join(sorted([f"{a.beam}.{a.end}", a.to]))
@@ -402,6 +417,7 @@ def mechanism_outline(
         *((f"pad {n}", g) for n, g in pads.items()),
         *((f"frame [{k}]", g) for k, g in enumerate(frames)),
         *(("joint", g) for g in joints),
+        *(("joint", g) for g in joints_in),
     ]
     union = shapely.union_all([g for _, g in labelled])
     if isinstance(union, MultiPolygon):

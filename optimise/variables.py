@@ -14,13 +14,16 @@ plain data) mapping, with bounds, instead of a fixed list of parameters::
 
 Path grammar: keys separated by ``.``, list items as ``[i]`` (0-based) and ``[*]`` for every item
 of a list, or after a dot (``points_mm.1.1``, ``thickness_mm.*``: no quotes needed in YAML flow
-mappings, where brackets must be quoted); the first key is the root (``geometry``). A path ending in ``[*]`` (or passing through
-one) stands for every numeric leaf it reaches, all set to the same value.
+mappings, where brackets must be quoted); the first key is the root (``geometry``). A path
+ending in ``[*]`` (or passing through one) stands for every numeric leaf it reaches, all set to
+the same value.
 
-Each variable sets its own path(s) to ``x`` and each tie path to ``factor * x + offset``, so two
-keys share one variable (symmetry) and a mirrored coordinate is ``factor: -1``. The initial design
-is each variable's ``initial`` or, without it, the value the mapping holds at its first path
-(inverted through nothing: the main path has factor 1).
+Each variable sets its own path(s) to ``factor * x + offset`` (default: ``x``) and each tie path
+to its own ``factor * x + offset``, so two keys share one variable (symmetry), a mirrored
+coordinate is ``factor: -1``, and a point that slides along a line is a variable ``a`` with the
+line's direction as factors and its start as offsets. The initial design is each variable's
+``initial`` or, without it, the value the mapping holds at its first path, ``(value - offset) /
+factor``.
 
 This module knows nothing of mechanisms; a study kind calls :func:`resolve_variables` once with
 its raw mapping (errors are :class:`VariableError` with the key path of the variables block and
@@ -107,10 +110,23 @@ class VariableSpec(BaseModel):
     tie: tuple[TieSpec | str, ...] = Field(
         (), description="more keys set from this variable: paths or {path, factor, offset}"
     )
+    factor: float = Field(
+        1.0, description="the key at path is set to factor * x + offset (default: x itself)"
+    )
+    offset: float = Field(0.0, description="added after the factor, in the key's unit")
     initial: float | None = Field(
-        None, description="the initial design's value (default: the value at path)"
+        None,
+        description="the initial design's value (default: from the value at path, "
+        "(value - offset) / factor)",
     )
     name: str | None = Field(None, description="name in reports (default: the path)")
+
+    @field_validator("factor")
+    @classmethod
+    def _factor_nonzero(cls, value: float) -> float:
+        if value == 0:
+            raise ValueError("factor 0 would fix the key at offset; remove the variable")
+        return value
 
     @field_validator("path")
     @classmethod
@@ -402,7 +418,7 @@ def resolve_variables(
         here = f"{where}[{i}]"
         lo, hi = spec.bounds
         mine: list[_Target] = []
-        entries = [(spec.path, 1.0, 0.0, f"{here}.path")]
+        entries = [(spec.path, spec.factor, spec.offset, f"{here}.path")]
         entries += [
             (t.path, t.factor, t.offset, f"{here}.tie[{j}].path") for j, t in enumerate(spec.ties)
         ]
@@ -438,7 +454,10 @@ def resolve_variables(
                         )
                 mine.append(_Target(path, float(factor), float(offset)))
         first = _get(root, mine[0].path)
-        x0 = float(spec.initial) if spec.initial is not None else float(first)
+        if spec.initial is not None:
+            x0 = float(spec.initial)
+        else:
+            x0 = (float(first) - spec.offset) / spec.factor
         if not lo <= x0 <= hi:
             given = "initial" if spec.initial is not None else f"the value at {spec.path}"
             raise VariableError(

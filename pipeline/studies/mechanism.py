@@ -36,7 +36,8 @@ YAML (abridged)::
 
 Metric names (what requirements and objectives name): per output ``o`` of a load case,
 ``max_o``, ``min_o``, ``max_abs_o``, ``mean_o`` (over the converged rows), ``end_o`` (last
-row) and ``start_o`` (row 0); with more than
+row), ``start_o`` (row 0) and ``first_peak_o`` (the first local maximum along the drive: a
+snap-through force; None when the curve has none); with more than
 one load case each is prefixed by the case name and a dot (``blocked.max_jaw_force_N``). Per
 case ``stable_positions`` (zero crossings of the drive reaction with positive stiffness, the
 undeformed state included) and ``second_stable_position_<unit>``; overall ``mass_g``,
@@ -111,7 +112,7 @@ _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
 _DRIVE_UNIT = {"displacement": "mm", "rotation": "deg", "force": "N", "moment": "Nmm"}
 _REACTION_UNIT = {"displacement": "N", "force": "N", "rotation": "Nmm", "moment": "Nmm"}
 #: Statistics of every output over the converged rows of its case (metric ``<stat>_<output>``).
-_STATS = ("max", "min", "max_abs", "mean", "end", "start")
+_STATS = ("max", "min", "max_abs", "mean", "end", "start", "first_peak")
 #: Columns every case table has; an output may not take one of these names.
 _BUILTIN_COLUMNS = ("step", "converged", "stable", "peak_stress_MPa")
 
@@ -136,8 +137,10 @@ class CurveSpec(BaseModel):
 
     start_mm: tuple[float, float] = Field(description="[x, y] of the beam's start, mm")
     end_mm: tuple[float, float] = Field(description="[x, y] of the beam's end, mm")
-    shape: Literal["straight", "cosine", "arc"] = Field(
-        "straight", description="straight, cosine (first clamped-clamped mode) or arc"
+    shape: Literal["straight", "cosine", "arc", "half_cosine"] = Field(
+        "straight",
+        description="straight, cosine (first clamped-clamped mode), arc, or half_cosine (y from "
+        "start to end along half a cosine wave, level at both ends)",
     )
     rise_mm: float = Field(0.0, description="largest distance from the chord, mm (left if > 0)")
     points: int = Field(21, ge=2, le=2001, description="points along the centreline")
@@ -922,6 +925,12 @@ def _stat(values: np.ndarray, how: str) -> float | None:
         return None
     if how == "mean":
         return float(np.mean(finite))
+    if how == "first_peak":  # the first local maximum along the drive: a snap-through force
+        y = v[np.isfinite(v)]
+        for k in range(1, len(y) - 1):
+            if y[k] >= y[k - 1] and y[k] > y[k + 1]:
+                return float(y[k])
+        return None
     return float(
         {"max": np.max, "min": np.min, "max_abs": lambda a: np.max(np.abs(a))}[how](finite)
     )
@@ -1054,7 +1063,7 @@ class MechanismProblem:
         objectives = list(study.objectives) or self._default_objectives()
         self.objectives = tuple(o.key for o in objectives)
         self.objective_names = tuple(self._objective_name(k, n) for k, n in self.objectives)
-        self.constraints = tuple(r for r in self.requirements if r.role == "constraint")
+        self.constraints = _curve_constraints(self.requirements)
         self.constraint_names = tuple(f"req_{r.label}" for r in self.constraints)
 
     def _default_objectives(self) -> list[ObjectiveSpec]:
@@ -1219,6 +1228,14 @@ class MechanismProblem:
             files=_files(self.study, solved, self.requirements),
             **kwargs,
         )
+
+
+def _curve_constraints(requirements: Sequence[Requirement]) -> tuple[Requirement, ...]:
+    """The ``role: constraint`` requirements this problem turns into ``g`` rows itself: those
+    judged on a response curve (a target band). Scalar ones are added by the pipeline for every
+    kind (:func:`pipeline.verdict.with_requirement_constraints`) from the evaluation's metrics,
+    which carry every scalar metric of the design (the solved width included)."""
+    return tuple(r for r in requirements if r.role == "constraint" and r.needs_curve)
 
 
 def _slug(text: str) -> str:
@@ -1434,8 +1451,8 @@ def _files(
     study: MechanismStudy, solved: _Solved, requirements: Sequence[Requirement]
 ) -> dict[str, bytes]:
     files = {
-        "response.png": response_png(study, solved.tables, requirements, f"{study.name}: response"),
-        "shapes.png": shapes_png(study, solved, f"{study.name}: deformed shapes"),
+        "outputs.png": response_png(study, solved.tables, requirements, f"{study.name}: response"),
+        "deformed_shapes.png": shapes_png(study, solved, f"{study.name}: deformed shapes"),
     }
     if len(solved.tables) > 1:
         for case, table in solved.tables.items():
@@ -1464,7 +1481,7 @@ class _Evaluator(MechanismProblem):
         objectives = list(study.objectives) or self._default_objectives()
         self.objectives = tuple(o.key for o in objectives)
         self.objective_names = tuple(self._objective_name(k, n) for k, n in self.objectives)
-        self.constraints = tuple(r for r in self.requirements if r.role == "constraint")
+        self.constraints = _curve_constraints(self.requirements)
         self.constraint_names = tuple(f"req_{r.label}" for r in self.constraints)
 
 

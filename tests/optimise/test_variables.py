@@ -158,3 +158,21 @@ def test_a_key_takes_one_variable_and_counts_are_not_variables():
             {"path": "geometry.width_mm", "bounds": [4, 8], "name": "w"},
             {"path": "geometry.beams.leaf1.thickness_mm[0]", "bounds": [0.8, 2], "name": "w"},
         )
+
+
+def test_a_point_sliding_along_a_line_is_one_variable_with_factors_and_offsets():
+    # p = S + a (E - S) with S = (0, 5), E = (40, 5) + (0, 8): x and y both follow a
+    dv = _vars(
+        {
+            "path": "geometry.beams.leaf1.points_mm[1][0]",
+            "factor": 40.0,
+            "offset": 0.0,
+            "bounds": [0.1, 0.9],
+            "tie": [{"path": "geometry.beams.leaf1.points_mm[1][1]", "factor": 8.0, "offset": 5.0}],
+        }
+    )
+    assert dv.initial.tolist() == [0.5]  # (20 - 0) / 40: the geometry's own point
+    out = dv.apply(_root(), np.array([0.25]))
+    assert out["geometry"]["beams"]["leaf1"]["points_mm"][1] == [10.0, 7.0]
+    with pytest.raises(ValidationError, match="factor 0"):
+        VariableSpec(path="geometry.width_mm", bounds=[1, 2], factor=0)
