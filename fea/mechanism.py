@@ -371,6 +371,11 @@ class _Group:
     ground_part: str = ""  # the part a joint/support holds to the ground ("" otherwise)
 
 
+def _part_name(ref: str) -> str:
+    """The part a reference names: "body@x,y" -> "body"; beam ends and bodies unchanged."""
+    return ref if _parse_end(ref) is not None else ref.partition("@")[0]
+
+
 def _parse_end(ref: str) -> tuple[str, str] | None:
     """``"beam.start"`` -> ("beam", "start"); None when ``ref`` is not a beam-end reference."""
     if "." not in ref:
@@ -390,9 +395,10 @@ class _Model:
         bodies = tuple(mech.bodies)
         names = [b.name for b in beams] + [b.name for b in bodies]
         for nm in names:
-            if not isinstance(nm, str) or not nm or "." in nm or nm == _GROUND:
+            if not isinstance(nm, str) or not nm or "." in nm or "@" in nm or nm == _GROUND:
                 raise FeaError(
-                    f"part name {nm!r}: names must be non-empty, without '.', and not 'ground'"
+                    f"part name {nm!r}: names must be non-empty, without '.' or '@' (they build "
+                    "'beam.end' and 'body@x,y'), and not 'ground'"
                 )
         dup = sorted({nm for nm in names if names.count(nm) > 1})
         if dup:
@@ -1099,7 +1105,13 @@ def _output_readers(md: _Model, outputs: Sequence[MechOutput]) -> dict:
                 with_load = True
             else:
                 x, y, r = md.part_dofs(o.part, what)
-                groups = [g for g, gr in enumerate(md.groups) if gr.ground_part == o.part]
+                # a body held at any of its points: all its ground rows, read about its
+                # reference point
+                groups = [
+                    g
+                    for g, gr in enumerate(md.groups)
+                    if gr.ground_part and _part_name(gr.ground_part) == _part_name(o.part)
+                ]
                 if not groups:
                     raise FeaError(
                         f"{what}: {o.part!r} is not held to the ground by a joint or a support"
