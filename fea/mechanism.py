@@ -109,13 +109,18 @@ class MechBody:
 class MechJoint:
     """A joint: beam end ``a`` attached to ``b``.
 
+    Part references: "beam.start" / "beam.end" (a beam end), "body" (a body's reference point),
+    "body@x,y" (the point of a body at x, y mm in undeformed coordinates, e.g. a lever's pivot).
+
     Attributes
     ----------
-    a : str — "beamname.start" or "beamname.end"; also a body name when ``b`` is "ground" (a body
-        clamped to the ground, or pinned to it at its reference point: an ideal revolute joint).
-    b : str — "ground", a body name, or another beam end "otherbeam.start" / "otherbeam.end".
-    type : "clamped" (positions and section angles tied; to a body the end moves with it rigidly)
-        or "pinned" (positions tied, rotations independent).
+    a : str — a beam end; also a body or a body point when ``b`` is "ground" (clamped to the
+        ground, or pinned to it at that point: an ideal revolute joint).
+    b : str — "ground", a body (the end is carried rigidly at its own position; "body@x,y" means
+        the same body), or another beam end "otherbeam.start" / "otherbeam.end" (the two ends
+        must meet).
+    type : "clamped" (positions tied and the angle between the end tangent and the body / the
+        other tangent kept) or "pinned" (positions tied, rotations independent).
     """
 
     a: str
@@ -129,7 +134,8 @@ class MechDrive:
 
     Attributes
     ----------
-    part : str — "bodyname" (acts at its reference point) or "beamname.end" / "beamname.start".
+    part : str — "bodyname" (acts at its reference point), "bodyname@x,y" (a point of the body,
+        displacement / rotation control only) or "beamname.end" / "beamname.start".
     control : "displacement" (mm, along ``direction``), "rotation" (rad, counter-clockwise),
         "force" (N, along ``direction``) or "moment" (N·mm, counter-clockwise).
     max_value : float — mm | rad | N | N·mm, the value of the last row.
@@ -168,7 +174,8 @@ class MechOutput:
         joints to ground and the case's supports); part "": applied by the drive.
         "reaction_moment" — moment (N·mm, counter-clockwise) applied on ``part`` by the ground
         (about the beam end node / body reference point); part "": by the drive.
-        "displacement" — mm, motion of the body reference point / beam end node along direction.
+        "displacement" — mm, motion of the body reference point / body point ("body@x,y") /
+        beam end node along direction (a geometric advantage is the ratio of two of these).
         "rotation" — rad, rotation of the body / beam end section.
         "peak_stress" — MPa, max |N|/A + |M| c/I over the beam ``part`` ("" : over all beams).
     part : str — see quantity.
@@ -689,7 +696,8 @@ class _Model:
         _, G0, _ = self.constraints(np.zeros(self.n), 0.0)
         G0 = G0.toarray()
         if self.m:
-            u, s, _ = np.linalg.svd(G0, full_matrices=True)
+            # m <= N rows here (else rank < m anyway): U (m, m) holds every left null vector
+            u, s, _ = np.linalg.svd(G0, full_matrices=False)
             tol = 1e-10 * max(float(s.max(initial=0.0)), 1.0)
             rank = int((s > tol).sum())
             if rank < self.m:
@@ -826,6 +834,8 @@ class _State(NamedTuple):
 
 
 class _Solver:
+    """Newton on the KKT system and the stability test, for one _Model."""
+
     def __init__(self, model: _Model) -> None:
         self.model = model
         self.st = model.settings
@@ -842,6 +852,7 @@ class _Solver:
             z, lam = z0.copy(), lam0.copy()
             z_pred = None
         f = md.loads(p)
+        first = None
         for it in range(1, st.max_iterations + 1):
             r, K = md.assemble(z)
             if not np.all(np.isfinite(r)):
@@ -850,7 +861,12 @@ class _Solver:
             H = md.hessian(K, lam, ro)
             res = r - f - G.T @ lam
             scale = max(float(np.linalg.norm(G.T @ lam)), float(np.linalg.norm(f)), md.force_floor)
-            res_ok = float(np.linalg.norm(res)) <= st.rtol * scale
+            norm = float(np.linalg.norm(res))
+            res_ok = norm <= st.rtol * scale
+            first = norm if first is None else first
+            if it > 4 and norm > 1e6 * max(first, st.rtol * scale):
+                # far off the path (a snap the sub-step jumped over): a smaller sub-step, now
+                return False, None, None, it, "Newton diverged"
             gap_ok = float(np.abs(g).max(initial=0.0)) <= st.ctol * md.length
             if res_ok and gap_ok and (it > 1 or predictor is not None):
                 return True, _State(z, lam, r, H, G), z_pred, it - 1, ""
