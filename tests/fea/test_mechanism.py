@@ -383,6 +383,38 @@ def test_pure_bending_of_a_cantilever_by_a_body(control: str) -> None:
     assert err[0] / err[1] > 3.0 and err[1] / err[2] > 3.0  # converges with the mesh
 
 
+def test_moment_on_an_arc_beam_end_bends_it_to_a_new_circle() -> None:
+    """A quarter-circle beam (an exact arc, curvature_per_mm) clamped at its start, a moment on
+    its free end: the curvature rises by M / EI everywhere, so the end is on a known circle."""
+    R, t = 20.0, 0.4
+    ei = _ei(t)
+    L = np.pi * R / 2
+    arc = MechBeam(
+        "arc", np.array([[R, 0.0], [0.0, R]]), np.array([t, t]), W, 24, np.array([1 / R])
+    )
+    mech = Mechanism((arc,), (), (MechJoint("arc.start", "ground"),), MAT)
+    M = 1.5 * ei / L  # turns the end by 1.5 rad more
+    resp = solve_mechanism(
+        mech,
+        LoadCase("m", MechDrive("arc.end", "moment", M, 3)),
+        [MechOutput("rot", "rotation", "arc.end")],
+    )
+    assert resp.ok and resp.stable.all()
+    np.testing.assert_allclose(resp.outputs["rot"], resp.drive * L / ei, rtol=1e-9, atol=1e-14)
+    kappa = 1 / R + M / ei
+    th0 = np.pi / 2
+    end = (
+        np.array([R, 0.0])
+        + np.array([np.sin(th0 + kappa * L) - np.sin(th0), np.cos(th0) - np.cos(th0 + kappa * L)])
+        / kappa
+    )
+    np.testing.assert_allclose(resp.shapes_mm[0][-1, -1], end, atol=1e-4 * R)
+    np.testing.assert_allclose(resp.shapes_mm[0][0, -1], [0.0, R], atol=1e-12)
+    np.testing.assert_allclose(resp.thickness_at_nodes_mm[0], t)
+    # the reference nodes lie on the arc
+    np.testing.assert_allclose(np.hypot(*resp.shapes_mm[0][0].T), R, rtol=1e-12)
+
+
 def test_case_support_blocks_a_jaw() -> None:
     """A blocked-force case: leaf 1 carries body A from the ground, leaf 2 carries a jaw B from
     A. Holding B to the ground in this case only (a support), A driven across: each leaf is a
