@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.integrate import solve_bvp
+from scipy.optimize import brentq
+from scipy.special import ellipe, ellipk
 
 from fea.elastica import fixed_guided
 from fea.errors import FeaError
@@ -539,6 +541,33 @@ def test_a_strut_pushed_past_euler_is_flagged_at_the_euler_load() -> None:
     np.testing.assert_array_equal(resp.stable, resp.drive < resp.critical_drive)
     assert "unstable from row 4" in resp.message
     np.testing.assert_allclose(resp.outputs["F"], resp.drive * MAT.E_MPa * W * t / L, rtol=1e-9)
+
+
+@pytest.mark.parametrize("kink", [1e-5, -1e-5])
+def test_an_imperfect_strut_buckles_to_its_side_and_follows_the_elastica(kink: float) -> None:
+    """The physical-branch start: a strut with a kink of 1e-5 L at mid-length, shortened 20x
+    past its Euler shortening in 5 rows, buckles to the side of the kink and stays on the stable
+    post-buckled branch. Reference: the clamped-clamped elastica is four quarter-length
+    cantilevers, P = 16 EI K(m)^2 / L^2 and shortening 2 L (1 - E(m) / K(m)); the FE column also
+    shears and stretches, which lowers its load by the factor (1 + P/kGA)(1 - P/EA) (Engesser,
+    to first order) and adds P L / EA to the shortening."""
+    L, t = 50.0, 0.5
+    pts = np.array([[0.0, 0.0], [kink * L, L / 2], [0.0, L]])
+    strut = MechBeam("strut", pts, np.full(3, t), W, 20)
+    mech = Mechanism((strut,), (), (MechJoint("strut.start", "ground"),), MAT)
+    case = LoadCase(
+        "c", MechDrive("strut.end", "displacement", 0.1 * L, 5, (0, -1), "held", "held")
+    )
+    resp = solve_mechanism(mech, case, [MechOutput("P", "reaction")])
+    assert resp.ok and resp.stable.all(), resp.message
+    lateral = resp.shapes_mm[0][1:, 20, 0]  # the mid-length node
+    assert np.all(np.sign(lateral) == np.sign(kink)) and np.abs(lateral).min() > 4.0
+    ei, ea, kga = _ei(t), MAT.E_MPa * W * t, _kga(t)
+    for d, P in zip(resp.drive[1:], resp.outputs["P"][1:], strict=True):
+        bent = d - P * L / ea
+        m = brentq(lambda m, bent=bent: 2 * L * (1 - ellipe(m) / ellipk(m)) - bent, 1e-12, 0.9)
+        p_ref = 16 * ei * ellipk(m) ** 2 / L**2 / ((1 + P / kga) * (1 - P / ea))
+        assert P == pytest.approx(p_ref, rel=1.5e-4)  # 6e-5 seen
 
 
 def test_force_control_past_the_limit_is_data_not_an_exception() -> None:
