@@ -711,15 +711,20 @@ def _check_width_solve(study: MechanismStudy, labels: Mapping[str, Requirement])
 
 
 def _fea_path(study: MechanismStudy, case: str, message: str) -> str:
-    if re.search(r"\bdrive\b", message):
-        return f"load_cases.{case}.drive"
-    if "support" in message:
+    """The key path a refusal of the engine is about: the joints for a free motion or a joint,
+    the case's drive or supports when the message starts with them."""
+    head = message.split(":", 1)[0]
+    if "free rigid-body motion" in message or "joint" in head:
+        return "geometry.joints"
+    if "support" in head:
         return f"load_cases.{case}.supports"
+    if "drive" in head:
+        return f"load_cases.{case}.drive"
     return "geometry.joints"
 
 
 def _fea_fix(message: str) -> str:
-    if "free" in message and "fix" not in message:
+    if "free" in message and "add a joint" not in message:
         return f"{message}; add a joint or a support that holds it"
     return message
 
