@@ -13,6 +13,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from optimise.evaluation import Evaluation
+from optimise.requirements import Verdict
 from optimise.space import DesignSpace
 
 __all__ = ["DesignProblem", "DesignDetail"]
@@ -41,6 +42,9 @@ class DesignDetail:
         ``stress_map.png``; not written into best.json (it is large).
     files : dict of str to bytes — more files of the kind (``taguchi.png``), by plain file name;
         ``flexopt run`` writes them into the run folder.
+    verdicts : tuple of Verdict — the kind's own verdicts on this design; empty (the default)
+        lets ``flexopt run`` judge ``evaluation.metrics``, ``info`` and ``table`` against the
+        study's requirements (:func:`pipeline.verdict.judge_detail`).
     """
 
     evaluation: Evaluation
@@ -52,6 +56,7 @@ class DesignDetail:
     info: dict[str, Any] = field(default_factory=dict)
     field_map: dict[str, Any] | None = None
     files: dict[str, bytes] = field(default_factory=dict)
+    verdicts: tuple[Verdict, ...] = ()
 
 
 @runtime_checkable

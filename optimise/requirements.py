@@ -190,9 +190,14 @@ def _margin_text(v: Verdict) -> str:
 def verdict_rows(verdicts: Sequence[Verdict]) -> list[list[str]]:
     """One row per verdict: requirement, value, bound, margin, MET/NOT MET (strings)."""
     return [
-        [v.name, _num(v.value, v.unit), v.bound, _margin_text(v), v.word + _role_mark(v)]
-        for v in verdicts
+        [v.name, _value_text(v), v.bound, _margin_text(v), v.word + _role_mark(v)] for v in verdicts
     ]
+
+
+def _value_text(v: Verdict) -> str:
+    if v.bound.startswith("= ") and math.isfinite(v.value):  # a yes/no quantity (Flag)
+        return "yes" if v.value else "no"
+    return _num(v.value, v.unit)
 
 
 def _role_mark(v: Verdict) -> str:

@@ -263,8 +263,19 @@ def _format_value(value: Any) -> str:
     return str(value)
 
 
+def _print_verdict(verdicts: Sequence[Any], title: str, console: Console) -> None:
+    """The verdict first: one line per requirement (value, bound, margin, MET / NOT MET), then
+    the overall word. Never 'feasible' alone: a design is judged by what it must meet."""
+    from optimise.requirements import verdict_lines
+
+    console.print(f"{title}: requirements", soft_wrap=True, markup=False)
+    for line in verdict_lines(verdicts):
+        console.print(line, soft_wrap=True, markup=False)
+
+
 def _print_summary(outcome: EvaluateOutcome, console: Console) -> None:
     result, record = outcome.result, outcome.record
+    _print_verdict(result.verdicts, f"{record['study']} ({record['kind']})", console)
     table = Table(title=f"{record['study']} ({record['kind']})", title_justify="left")
     table.add_column("quantity")
     table.add_column("value", justify="right")
@@ -400,6 +411,8 @@ def format_generation(report: GenerationReport) -> str:
 
 def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
     record, best = outcome.record, outcome.result.best
+    verdicts = getattr(outcome, "verdicts", ())
+    _print_verdict(verdicts, f"{record['study']} ({record['kind']}): best design", console)
     problem_names = (record["variables"], record["objectives"], record["constraints"])
     table = Table(title=f"{record['study']} ({record['kind']}): best design", title_justify="left")
     table.add_column("")
@@ -413,7 +426,7 @@ def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
     ):
         for name, value in zip(names, values, strict=True):
             table.add_row(label, name, _format_value(float(value)))
-    table.add_row("", "feasible", _format_value(best.feasible))
+    table.add_row("", "optimiser constraints met (feasible)", _format_value(best.feasible))
     console.print(table)
     rate = record.get("evaluations_per_s")
     console.print(

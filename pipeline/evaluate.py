@@ -6,12 +6,13 @@ import logging
 import platform
 import re
 import statistics
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from optimise.requirements import verdict_record
 from pipeline.errors import StudyError
 from pipeline.plots import plot_response
 from pipeline.runfolder import (
@@ -24,6 +25,7 @@ from pipeline.runfolder import (
 )
 from pipeline.studies import EvaluationResult, get_kind
 from pipeline.study import Study, study_to_yaml
+from pipeline.verdict import judge
 
 __all__ = ["EVALUATE_FILES", "EvaluateOutcome", "evaluate_study", "versions"]
 
@@ -86,6 +88,10 @@ def evaluate_study(
 ) -> EvaluateOutcome:
     """Solve ``study`` and write response.csv, study.yaml, the plot and evaluation.json.
 
+    evaluation.json opens with ``verdict``: every requirement of the study (the kind's built-in
+    ones, then ``requirements:``) with its value, bound, margin and MET / NOT MET, and the
+    overall word (:func:`optimise.requirements.verdict_record`).
+
     Nothing is written unless the solve returns (converged or not), so a refused input leaves no
     folder behind.
 
@@ -120,8 +126,12 @@ def evaluate_study(
     log.info("evaluating %s (%s), %d repeat(s)", study.name, study.kind, repeat)
     result = kind.evaluate(study, repeat)
 
+    verdicts = result.verdicts or judge(study, result.summary, result.table)
+    if not result.verdicts:
+        result = replace(result, verdicts=verdicts)
     run_dir = make_run_dir(out or new_run_dir_path(runs_root, study.name, "evaluate", started))
     record = {
+        "verdict": verdict_record(verdicts),  # first: what the design meets, and what not
         "study": study.name,
         "kind": study.kind,
         "command": "evaluate",

@@ -17,9 +17,10 @@ import numpy as np
 
 from optimise.evaluation import Evaluation
 from optimise.problem import DesignDetail, DesignProblem
+from optimise.requirements import Verdict, overall, verdict_rows
 from pipeline.study import Study
 
-__all__ = ["ReportData", "format_value", "render_info", "render_report"]
+__all__ = ["ReportData", "format_value", "render_info", "render_report", "render_verdict"]
 
 #: Tables from ``info`` longer than this are left to best.json (a report is read, not parsed).
 MAX_TABLE_ROWS = 60
@@ -53,6 +54,8 @@ class ReportData:
     detail : the best design's detail, or None when it failed.
     files : files written to the run folder; ``notes`` what was skipped and why.
     stl : facts about best.stl (volume_mm3, triangles, size_mm), empty when not written.
+    verdicts : the best design against the study's requirements (default: ``detail.verdicts``);
+        report.md opens with them.
     """
 
     record: Mapping[str, Any]
@@ -65,6 +68,7 @@ class ReportData:
     files: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     stl: Mapping[str, Any] = field(default_factory=dict)
+    verdicts: tuple[Verdict, ...] = ()
 
 
 def _escape(text: str) -> str:
@@ -240,11 +244,37 @@ def _rate(value: Any) -> str:
     return "–" if value is None else f"{float(value):.3g}"
 
 
+def render_verdict(verdicts: Sequence[Verdict]) -> list[str]:
+    """The ``## Verdict`` section: the overall word, then one row per requirement."""
+    met = sum(v.met for v in verdicts)
+    lines = [
+        "## Verdict",
+        "",
+        f"**{overall(verdicts)}** — {met} of {len(verdicts)} requirements met by the best design.",
+        "",
+    ]
+    if verdicts:
+        rows = [[*row[:4], f"**{row[4]}**" if not v.met else row[4]]
+                for v, row in zip(verdicts, verdict_rows(verdicts), strict=True)]  # fmt: skip
+        lines += ["| requirement | value | bound | margin | verdict |", "|---|---|---|---|---|"]
+        lines += ["| " + " | ".join(_escape(c) for c in row) + " |" for row in rows]
+        lines += [""]
+        lines += [f"- {_escape(v.name)}: {_escape(v.detail)}" for v in verdicts
+                  if not v.met and v.detail]  # fmt: skip
+        if any(not v.met and v.detail for v in verdicts):
+            lines += [""]
+    else:
+        lines += ["No requirement was stated, so nothing is claimed.", ""]
+    return lines
+
+
 def render_report(data: ReportData) -> str:
     """The Markdown text of report.md (plots linked relative to the run folder)."""
     record, problem, best = data.record, data.problem, data.best
     study = data.study
     lines = [f"# {study.name} — flexopt run", ""]
+    verdicts = data.verdicts or (data.detail.verdicts if data.detail is not None else ())
+    lines += render_verdict(verdicts)
     status = record.get("status", "")
     lines += _table(
         ["", ""],
@@ -287,8 +317,12 @@ def render_report(data: ReportData) -> str:
         if index is not None
         else "Found in the run."
     )
-    verdict = "feasible" if best.feasible else "**not feasible**"
-    lines += [f"{where} The design is {verdict}."]
+    verdict = "met" if best.feasible else "**not met**"
+    lines += [
+        f"{where} The optimiser's constraints are {verdict} (feasible: "
+        f"{format_value(best.feasible)}); whether the design meets its requirements is the "
+        "verdict above."
+    ]
     if best.reason:
         lines += [f"Reason: {_escape(best.reason)}"]
     if not best.feasible:

@@ -22,7 +22,7 @@ import socket
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, MutableMapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from datetime import datetime
 from importlib import metadata
 from pathlib import Path
@@ -34,6 +34,7 @@ from optimise.errors import OptimiseError
 from optimise.evaluation import Evaluation
 from optimise.ga import GAConfig, GAResult, Generation, best_of, pareto_front, run_ga
 from optimise.problem import DesignDetail, DesignProblem
+from optimise.requirements import Verdict, verdict_record
 from optimise.space import DesignSpace
 from pipeline import plots
 from pipeline.checkpoint import (
@@ -75,6 +76,7 @@ from pipeline.runfolder import (
 )
 from pipeline.studies import get_kind, kinds
 from pipeline.study import OptimiserSpec, ParallelSpec, Study, load_study, study_to_yaml
+from pipeline.verdict import judge_detail
 
 __all__ = [
     "Evaluator",
@@ -287,7 +289,9 @@ def build_problem(study: Study) -> DesignProblem:
             f"kind '{kind.name}' returned {type(problem).__name__}, which is not a DesignProblem "
             "(space, objective_names, constraint_names, evaluate, detail)"
         )
-    return problem
+    from pipeline.verdict import with_requirement_constraints
+
+    return with_requirement_constraints(study, problem)  # requirements: with role: constraint
 
 
 def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> RunSetup:
@@ -387,6 +391,7 @@ class RunOutcome:
     detail: DesignDetail | None
     record: dict[str, Any]
     notes: tuple[str, ...] = ()
+    verdicts: tuple[Verdict, ...] = ()  # the best design against the study's requirements
 
 
 @dataclass
@@ -650,6 +655,16 @@ class _Run:
             "x": [float(v) for v in best.x],
         }
 
+    def judge(self, best: Evaluation, detail: DesignDetail | None) -> tuple[Verdict, ...]:
+        """The best design against the study's requirements (a failure is a note, not the end)."""
+        try:
+            return judge_detail(self.setup.study, detail, best)
+        except Exception as exc:
+            note = f"the verdict failed: {_one_line(f'{type(exc).__name__}: {exc}')}"
+            log.warning(note)
+            self.notes.append(note)
+            return ()
+
     def finish(self, result: GAResult) -> DesignDetail | None:
         study, problem = self.setup.study, self.problem
         best = result.best
@@ -663,6 +678,10 @@ class _Run:
             log.warning(note)  # the CLI prints the notes; the traceback only with -v
             log.info("the best design's detail: traceback", exc_info=True)
             self.notes.append(note + " (no response, plots of it, STL)")
+        self.verdicts = self.judge(best, detail)
+        if detail is not None:
+            detail = replace(detail, verdicts=self.verdicts)
+        best_json = {"verdict": verdict_record(self.verdicts), **best_json}  # the verdict first
         if detail is not None and detail.info:
             best_json["info"] = detail.info
         if len(result.front) > 1:
@@ -1128,6 +1147,7 @@ def _run_in(
             files=tuple(run.files),
             notes=tuple(run.notes),
             stl=run.stl,
+            verdicts=run.verdicts,
         )
         write_atomic(run_dir / "report.md", render_report(report))
         close("finished")
@@ -1141,7 +1161,7 @@ def _run_in(
         abandon("failed", _one_line(f"{type(exc).__name__}: {exc}"))
         raise
     log.info("finished %s in %.3g s", run_dir, record["wall_s"])
-    return RunOutcome(run_dir, result, detail, record, tuple(run.notes))
+    return RunOutcome(run_dir, result, detail, record, tuple(run.notes), run.verdicts)
 
 
 def _n_workers(settings: ParallelSettings) -> int:

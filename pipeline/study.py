@@ -36,6 +36,7 @@ from pydantic import (
 
 from fea.errors import FeaError
 from fea.materials import MATERIALS, Material, get_material
+from optimise.requirements import RequirementSpec
 from pipeline.errors import StudyError
 
 __all__ = [
@@ -233,6 +234,10 @@ class Study(BaseModel):
     material : MaterialSpec
     parallel : ParallelSpec or None
         Where ``flexopt run`` evaluates designs (default: a local process pool).
+    requirements : tuple of RequirementSpec or None
+        What the design must meet beyond the kind's built-in requirements, each judged MET or
+        NOT MET in every verdict (``role: constraint`` also constrains the optimisation); see
+        :mod:`optimise.requirements` and docs/usage.md, "Requirements and the verdict".
     """
 
     model_config = STUDY_CONFIG
@@ -242,6 +247,11 @@ class Study(BaseModel):
     material: MaterialSpec
     parallel: ParallelSpec | None = Field(
         None, description="where flexopt run evaluates designs (processes, dask, time limit)"
+    )
+    requirements: tuple[RequirementSpec, ...] | None = Field(
+        None,
+        max_length=200,
+        description="what the design must meet: a list of {quantity, max/min/target/...}",
     )
 
     @field_validator("name")
@@ -565,6 +575,9 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         check_no_bool_numbers(raw, study)
         check_lengths(study.model_dump(mode="json", exclude_none=True))
         kind.check(study)
+        from pipeline.verdict import check_requirement_names
+
+        check_requirement_names(study)
     except ValidationError as exc:
         raise validation_error_to_study_error(exc, kind.model, source) from None
     except StudyError as exc:

@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from optimise.problem import DesignProblem
+from optimise.requirements import Requirement, Verdict
 from pipeline.errors import StudyError
 from pipeline.study import Study
 
@@ -53,6 +54,10 @@ class EvaluationResult:
     files : dict of str to bytes
         Files of the kind beyond the standard ones (``sweeps.png``, a resolved study), by plain
         file name; ``flexopt evaluate`` writes them into the run folder, atomically.
+    verdicts : tuple of optimise.requirements.Verdict
+        The kind's own verdicts when it judges itself; empty (the default) lets
+        ``flexopt evaluate`` judge ``summary`` and ``table`` against the study's requirements
+        (:func:`pipeline.verdict.judge`), which is what every shipped kind does.
     """
 
     table: dict[str, np.ndarray]
@@ -65,6 +70,7 @@ class EvaluationResult:
     plot: dict[str, Any] = field(default_factory=dict)
     headline: tuple[str, ...] = ()
     files: dict[str, bytes] = field(default_factory=dict)
+    verdicts: tuple[Verdict, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -85,6 +91,13 @@ class StudyKind:
         For kinds that ``flexopt run`` optimises: the picklable problem built once from the study
         (its ``optimiser:`` block is an :class:`pipeline.study.OptimiserSpec` at
         ``study.optimiser``).
+    requirements : callable(study) -> sequence of optimise.requirements.Requirement, optional
+        The kind's BUILT-IN requirements: what its study already constrains or targets (an
+        allowable stress, a force band, a stiffness window, stability), judged MET / NOT MET
+        in every verdict before the study's own ``requirements:``.
+    quantities : tuple of str or callable(study) -> iterable of str, optional
+        The names a ``requirements:`` item may judge: summary / metrics keys and response
+        columns (units in the names). The built-in requirements' names are always included.
     """
 
     name: str
@@ -92,6 +105,8 @@ class StudyKind:
     check: Callable[[Study], None]
     evaluate: Callable[[Study, int], EvaluationResult] | None = None
     problem: Callable[[Study], DesignProblem] | None = None
+    requirements: Callable[[Study], Sequence[Requirement]] | None = None
+    quantities: tuple[str, ...] | Callable[[Study], Iterable[str]] | None = None
 
 
 _KINDS: dict[str, StudyKind] = {}

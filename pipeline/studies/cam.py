@@ -59,7 +59,7 @@ from optimise.problem import DesignDetail
 from optimise.space import DesignSpace
 from optimise.targets import TargetCurve, TargetSpec, ThresholdTarget, curve_error, measure_key
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 
 __all__ = [
@@ -700,4 +700,14 @@ def problem(study: CamStudy) -> CamProblem:
     return CamProblem(study)
 
 
-register(StudyKind("cam", CamStudy, check, evaluate, problem))  # type: ignore[arg-type]
+register(
+    StudyKind(
+        "cam",
+        CamStudy,
+        check,
+        evaluate,
+        problem,
+        requirements=_builtin.cam,
+        quantities=_builtin.CAM,
+    )
+)  # type: ignore[arg-type]

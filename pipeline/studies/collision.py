@@ -48,7 +48,7 @@ from fea.materials import get_material
 from geometry.cam import contact_pressure_MPa, onset_pressure_MPa
 from optimise.targets import LinearTarget, TableTarget, TargetCurve, TargetSpec, ThresholdTarget
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.studies.cam import CamGeometry, CamStudy, SpringsSpec, build_cam, resolve_target
 from pipeline.study import STUDY_CONFIG, MaterialSpec, Study, material_record
 
@@ -523,4 +523,13 @@ def evaluate_with_files(study: CollisionStudy, repeat: int = 1) -> EvaluationRes
     return dataclasses.replace(result, files={**result.files, **extra_files(study, result)})
 
 
-register(StudyKind("collision", CollisionStudy, check, evaluate_with_files))  # type: ignore[arg-type]
+register(
+    StudyKind(
+        "collision",
+        CollisionStudy,
+        check,
+        evaluate_with_files,
+        requirements=_builtin.collision,
+        quantities=_builtin.COLLISION,
+    )
+)  # type: ignore[arg-type]

@@ -63,7 +63,7 @@ from optimise.evaluation import Evaluation
 from optimise.problem import DesignDetail
 from optimise.space import DesignSpace
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 
 __all__ = [
@@ -1261,6 +1261,8 @@ register(
         ConstantForceStudy,
         check,  # type: ignore[arg-type]
         evaluate,  # type: ignore[arg-type]
-        problem,  # type: ignore[arg-type]
+        problem,  # type: ignore[arg-type],
+        requirements=_builtin.constant_force,
+        quantities=_builtin.CONSTANT_FORCE,
     )
 )

@@ -66,7 +66,7 @@ from optimise.evaluation import Evaluation
 from optimise.problem import DesignDetail
 from optimise.space import DesignSpace
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 
 __all__ = [
@@ -732,6 +732,9 @@ def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
         "centre_shift_at_range_mm": detail.info["centre_shift_at_range_mm"],
         "feasible": ev.feasible,
     }
+    for key in ("stiffness_Nmm_per_rad", "centre_shift_mm", "envelope_length_mm",
+                "envelope_height_mm"):  # fmt: skip
+        summary.setdefault(key, ev.metrics.get(key))  # the names flexopt run judges too
     ps = detail.info.get("plane_stress")
     if isinstance(ps, dict) and "linear_stiffness_Nmm_per_rad" in ps:
         summary["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]
@@ -774,6 +777,8 @@ register(
         FlexurePivotStudy,
         check,  # type: ignore[arg-type]
         evaluate,  # type: ignore[arg-type]
-        problem,  # type: ignore[arg-type]
+        problem,  # type: ignore[arg-type],
+        requirements=_builtin.flexure_pivot,
+        quantities=_builtin.FLEXURE_PIVOT,
     )
 )

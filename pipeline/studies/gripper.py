@@ -45,7 +45,7 @@ from optimise.gripper import (
     overtravel_mm,
 )
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, get_kind, kinds, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, get_kind, kinds, register
 from pipeline.study import (
     STUDY_CONFIG,
     OptimiserSpec,
@@ -420,6 +420,7 @@ def evaluate(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
             "beam_plateau_error": plateau / force - 1.0,
             "beam_max_deviation_percent": float(np.max(np.abs(f[inside] / force - 1.0)) * 100.0),
             "beam_peak_stress_MPa": float(np.max(stress)),
+            "peak_stress_MPa": float(np.max(stress)),  # the name flexopt run reports
             "stress_yield_ratio": float(np.max(stress)) / study.material.yield_MPa,
         }
     )
@@ -479,5 +480,13 @@ def evaluate_with_files(study: GripperStudy, repeat: int = 1) -> EvaluationResul
 
 
 register(
-    StudyKind("gripper", GripperStudy, check, evaluate_with_files, problem)  # type: ignore[arg-type]
+    StudyKind(
+        "gripper",
+        GripperStudy,
+        check,
+        evaluate_with_files,
+        problem,
+        requirements=_builtin.gripper,
+        quantities=_builtin.GRIPPER,
+    )  # type: ignore[arg-type]
 )

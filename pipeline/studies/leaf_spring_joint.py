@@ -47,7 +47,7 @@ from optimise.evaluation import Evaluation
 from optimise.problem import DesignDetail
 from optimise.space import DesignSpace
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 
 __all__ = [
@@ -364,6 +364,7 @@ def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
     summary: dict[str, Any] = {
         "allowable_stress_MPa": allowable,
         "max_peak_stress_MPa": peak,
+        "peak_stress_MPa": peak,  # the name flexopt run reports (and the verdict judges)
         "stress_yield_ratio": peak / material.yield_MPa,
     }
     ranges: dict[str, list[float]] = {s: [] for s in g.structures}
@@ -599,6 +600,8 @@ register(
         LeafSpringJointStudy,
         check,  # type: ignore[arg-type]
         evaluate,  # type: ignore[arg-type]
-        problem,  # type: ignore[arg-type]
+        problem,  # type: ignore[arg-type],
+        requirements=_builtin.leaf_spring_joint,
+        quantities=_builtin.LEAF_SPRING_JOINT,
     )
 )

@@ -27,7 +27,7 @@ from fea.materials import Material
 from geometry.errors import GeometryError
 from geometry.profile import BeamProfile
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.study import STUDY_CONFIG, Study, material_record
 
 __all__ = [
@@ -532,4 +532,13 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
     )
 
 
-register(StudyKind("polyline_beam", PolylineBeamStudy, check, evaluate))  # type: ignore[arg-type]
+register(
+    StudyKind(
+        "polyline_beam",
+        PolylineBeamStudy,
+        check,
+        evaluate,
+        requirements=_builtin.polyline_beam,
+        quantities=_builtin.POLYLINE_BEAM,
+    )
+)  # type: ignore[arg-type]

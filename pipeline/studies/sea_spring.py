@@ -91,7 +91,7 @@ from optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from optimise.problem import DesignDetail
 from optimise.space import DesignSpace
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.studies._spring_frame import SpringFrameBlock
 from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 
@@ -1345,6 +1345,7 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
         "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
         "linear_stiffness_Nm_per_rad": r.linear_stiffness_Nm_per_rad,
         "stiffness_error_percent": (r.mean_stiffness_Nm_per_rad / prob.k_target - 1) * 100,
+        "asymmetry_percent": abs(r.stiffness_Nm_per_rad / r.mean_stiffness_Nm_per_rad - 1) * 100,
         "peak_stress_MPa": r.worst_peak_stress_MPa,
         "stress_yield_ratio": r.worst_peak_stress_MPa / prob.material.yield_MPa,
         "stress_allowable_ratio": r.worst_peak_stress_MPa / study.target.allowable_stress_MPa,
@@ -1378,6 +1379,8 @@ register(
         SeaSpringStudy,
         check,  # type: ignore[arg-type]
         evaluate,  # type: ignore[arg-type]
-        problem,  # type: ignore[arg-type]
+        problem,  # type: ignore[arg-type],
+        requirements=_builtin.sea_spring,
+        quantities=_builtin.SEA_SPRING,
     )
 )

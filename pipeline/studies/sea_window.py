@@ -49,7 +49,7 @@ from fea.sea_window import (
     torque_bandwidth_rad_per_s,
 )
 from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.study import STUDY_CONFIG, MaterialSpec, Study
 
 __all__ = ["SeaWindowStudy", "evaluate", "check", "drive"]
@@ -282,4 +282,13 @@ def bode_png(bodes: list[Any], required_bandwidth_Hz: float) -> bytes:
     return buf.getvalue()
 
 
-register(StudyKind("sea_window", SeaWindowStudy, check, evaluate))  # type: ignore[arg-type]
+register(
+    StudyKind(
+        "sea_window",
+        SeaWindowStudy,
+        check,
+        evaluate,
+        requirements=_builtin.sea_window,
+        quantities=_builtin.SEA_WINDOW,
+    )
+)  # type: ignore[arg-type]

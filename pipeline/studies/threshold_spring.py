@@ -75,7 +75,7 @@ from optimise.space import DesignSpace
 from optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_key
 from pipeline.errors import StudyError
 from pipeline.plots import plot_field
-from pipeline.studies import EvaluationResult, StudyKind, register
+from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from pipeline.studies._spring_frame import SpringFrameBlock
 from pipeline.studies.collision import ImpactSpec
 from pipeline.studies.sea_spring import MeshSpec as PlaneStressMesh
@@ -805,6 +805,8 @@ def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
             f["points_mm"], f["triangles"], f["values"], f["label"], f.get("limit"), study.name
         )
     summary = _summary(prob, d)
+    for key in (prob.error_name, "peak_stress_MPa"):  # the names flexopt run judges too
+        summary.setdefault(key, ev.metrics.get(key))
     ps = d.info.get("plane_stress", {})
     return EvaluationResult(
         table=d.table,
@@ -825,5 +827,13 @@ def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
 
 
 register(
-    StudyKind("threshold_spring", ThresholdSpringStudy, check, evaluate, problem)  # type: ignore[arg-type]
+    StudyKind(
+        "threshold_spring",
+        ThresholdSpringStudy,
+        check,
+        evaluate,
+        problem,
+        requirements=_builtin.threshold_spring,
+        quantities=_builtin.THRESHOLD_SPRING,
+    )  # type: ignore[arg-type]
 )

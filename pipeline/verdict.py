@@ -1,0 +1,282 @@
+"""The verdict of a study: its requirements (built into the kind and stated in ``requirements:``)
+judged on one design, for ``flexopt evaluate`` and ``flexopt run`` alike.
+
+A kind states two things in its :class:`~pipeline.studies.StudyKind`:
+
+``requirements(study) -> sequence of Requirement``
+    What its study already constrains or targets (the allowable stress, the force band, the
+    stiffness window, stability ...), judged on every evaluation.
+``quantities``
+    The names a requirement may judge (summary and metrics keys, response-table columns), or a
+    callable ``(study) -> iterable of str``. An unknown name in ``requirements:`` is refused at
+    load time with this list.
+
+:func:`judge` turns scalar values (a summary, an :class:`~optimise.Evaluation`'s metrics, a
+detail's ``info``) and a response table into verdicts; :class:`RequirementConstraints` adds the
+``role: constraint`` items of ``requirements:`` to a kind's :class:`~optimise.DesignProblem` as
+``g <= 0`` rows.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from optimise.errors import OptimiseError
+from optimise.evaluation import Evaluation
+from optimise.problem import DesignDetail
+from optimise.requirements import (
+    Requirement,
+    RequirementSpec,
+    Verdict,
+    curves_from_table,
+)
+from pipeline.errors import StudyError
+from pipeline.study import Study
+
+__all__ = [
+    "GENERIC_QUANTITIES",
+    "RequirementConstraints",
+    "builtin_requirements",
+    "check_requirement_names",
+    "detail_values",
+    "judge",
+    "judge_detail",
+    "quantities_of",
+    "study_requirements",
+    "user_requirements",
+]
+
+#: Names every kind offers (measured by the pipeline from the printable outline, when there is
+#: one: the bounding box of the part, mm).
+GENERIC_QUANTITIES = ("envelope_width_mm", "envelope_height_mm")
+
+
+def _kind(study: Study) -> Any:
+    from pipeline.studies import get_kind  # the registry imports this module's users
+
+    return get_kind(study.kind)
+
+
+def builtin_requirements(study: Study) -> tuple[Requirement, ...]:
+    """What the kind of ``study`` always requires (empty when the kind states nothing)."""
+    make = getattr(_kind(study), "requirements", None)
+    return tuple(make(study)) if make is not None else ()
+
+
+def user_requirements(study: Study) -> tuple[Requirement, ...]:
+    """The ``requirements:`` block of ``study`` as requirements.
+
+    Raises
+    ------
+    StudyError
+        At ``requirements[i]...`` when a target table cannot be read or a curve refuses it.
+    """
+    specs: Sequence[RequirementSpec] = getattr(study, "requirements", None) or ()
+    out = []
+    for i, spec in enumerate(specs):
+        key = f"requirements[{i}]"
+        table = columns = None
+        if spec.target is not None and spec.target.kind == "table" and spec.target.file:
+            from pipeline.studies.cam import read_table_csv
+
+            table, columns = read_table_csv(
+                spec.target.file, spec.target.columns, f"{key}.target.file"
+            )
+        try:
+            out.append(spec.to_requirement(study.material.yield_MPa, table, columns))
+        except OptimiseError as exc:
+            raise StudyError(key, str(exc)) from None
+    return tuple(out)
+
+
+def study_requirements(study: Study) -> tuple[Requirement, ...]:
+    """Built-in requirements of the kind, then the study's own, in that order."""
+    return (*builtin_requirements(study), *user_requirements(study))
+
+
+def quantities_of(study: Study) -> tuple[str, ...]:
+    """Every name a requirement of ``study`` may judge, sorted (see the module docstring)."""
+    kind = _kind(study)
+    names = getattr(kind, "quantities", None)
+    if callable(names):
+        names = names(study)
+    found = set(names or ())
+    for req in builtin_requirements(study):
+        found.add(req.quantity)
+        if hasattr(req, "x"):
+            found.add(req.x)
+    found.discard("envelope_mm")
+    return tuple(sorted(found | set(GENERIC_QUANTITIES)))
+
+
+def check_requirement_names(study: Study) -> None:
+    """Refuse a ``requirements:`` item that judges a name the kind does not report.
+
+    Raises
+    ------
+    StudyError
+        At ``requirements[i].quantity`` (or ``.x``), listing the names the kind reports.
+    """
+    specs: Sequence[RequirementSpec] = getattr(study, "requirements", None) or ()
+    if not specs:
+        return
+    valid = set(quantities_of(study))
+    for i, spec in enumerate(specs):
+        for key in ("quantity", "x"):
+            name = getattr(spec, key)
+            if name is not None and name not in valid:
+                import difflib
+
+                close = difflib.get_close_matches(name, sorted(valid), n=1)
+                hint = f"did you mean '{close[0]}'? " if close else ""
+                raise StudyError(
+                    f"requirements[{i}].{key}",
+                    f"kind {study.kind} reports no '{name}'; {hint}use one of "
+                    + ", ".join(sorted(valid)),
+                )
+        if spec.role == "constraint":
+            why = ""
+            if getattr(_kind(study), "problem", None) is None:
+                why = f"kind {study.kind} is not optimised (flexopt evaluate only)"
+            elif spec.target is not None or spec.envelope_mm is not None:
+                why = "a target curve or an envelope is judged on the best design only"
+            if why:
+                raise StudyError(
+                    f"requirements[{i}].role",
+                    f"cannot be a constraint: {why}; use role: check",
+                )
+    user_requirements(study)  # a target table that cannot be read is refused here too
+
+
+def _scalars(*sources: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The scalar values of mappings (later ones win), numpy scalars as Python ones."""
+    out: dict[str, Any] = {}
+    for source in sources:
+        for key, value in (source or {}).items():
+            if isinstance(value, np.generic):
+                value = value.item()
+            if value is None or isinstance(value, bool | int | float):
+                if value is None and key in out:
+                    continue
+                out[str(key)] = value
+    return out
+
+
+def judge(
+    study: Study,
+    values: Mapping[str, Any],
+    table: Mapping[str, Any] | None = None,
+    requirements: Sequence[Requirement] | None = None,
+) -> tuple[Verdict, ...]:
+    """Verdicts of one design against the requirements of ``study`` (built-in, then its own).
+
+    Parameters
+    ----------
+    values : scalar results by name (units in the names); non-scalars are ignored.
+    table : response columns by name, each (n_rows,); feeds target bands.
+    requirements : judge these instead of :func:`study_requirements`.
+    """
+    reqs = study_requirements(study) if requirements is None else tuple(requirements)
+    scalars = _scalars(values)
+    # a table column may also be judged by its worst value: max |column|
+    for name, column in (table or {}).items():
+        if name not in scalars:
+            arr = np.asarray(column)
+            if arr.dtype.kind == "b":
+                scalars[name] = bool(np.all(arr)) if arr.size else None
+            elif arr.dtype.kind in "fiu" and arr.size:
+                finite = np.abs(arr[np.isfinite(arr)])
+                scalars[name] = float(np.max(finite)) if finite.size else None
+    curves = curves_from_table(table or {}, reqs)
+    return tuple(req.check(scalars, curves) for req in reqs)
+
+
+def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[str, Any]:
+    """Scalars of a run's design: its metrics, the detail's info, the outline's bounding box."""
+    info = detail.info if detail is not None else {}
+    values = _scalars(info, evaluation.metrics)
+    outline = getattr(detail, "outline", None)
+    if outline is not None:
+        try:
+            x0, y0, x1, y1 = outline.bounds
+            if all(map(math.isfinite, (x0, y0, x1, y1))):
+                values["envelope_width_mm"] = float(x1 - x0)
+                values["envelope_height_mm"] = float(y1 - y0)
+        except (AttributeError, ValueError, TypeError):
+            pass
+    return values
+
+
+def judge_detail(
+    study: Study, detail: DesignDetail | None, evaluation: Evaluation
+) -> tuple[Verdict, ...]:
+    """Verdicts of a run's design: the kind's own (``detail.verdicts``) when it gives them,
+    else the study's requirements judged on :func:`detail_values` and ``detail.table``."""
+    given = tuple(getattr(detail, "verdicts", ()) or ())
+    if given:
+        return given
+    table = detail.table if detail is not None else {}
+    return judge(study, detail_values(detail, evaluation), table)
+
+
+class RequirementConstraints:
+    """A kind's design problem with the ``role: constraint`` requirements as more constraints.
+
+    The extra rows are ``requirement.constraint(metrics)`` (``-margin / scale``, dimensionless,
+    g <= 0 when met), named ``req_<name>``. Only requirements that read scalar metrics become
+    constraints (a target band needs the response curve, which a plain evaluation does not
+    carry: it stays a check of the best design).
+
+    Picklable; everything else (``detail``, ``initial_designs`` ...) is the inner problem's.
+    """
+
+    def __init__(self, inner: Any, requirements: Sequence[Requirement]) -> None:
+        self.inner = inner
+        self.requirements = tuple(requirements)
+        self.space = inner.space
+        self.objective_names = tuple(inner.objective_names)
+        self.constraint_names = (
+            *inner.constraint_names,
+            *(f"req_{r.label}" for r in self.requirements),
+        )
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "inner":  # during unpickling, before __dict__ is filled
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def _extend(self, ev: Evaluation) -> Evaluation:
+        from dataclasses import replace
+
+        if ev.reason:
+            extra = np.full(len(self.requirements), float(np.max(ev.g, initial=1.0e12)))
+        else:
+            metrics = _scalars(ev.metrics)
+            extra = np.array([r.constraint(metrics) for r in self.requirements], dtype=float)
+        return replace(ev, g=np.concatenate([np.asarray(ev.g, dtype=float), extra]))
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        return self._extend(self.inner.evaluate(x))
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        from dataclasses import replace
+
+        detail = self.inner.detail(x)
+        return replace(detail, evaluation=self._extend(detail.evaluation))
+
+
+def with_requirement_constraints(study: Study, problem: Any) -> Any:
+    """``problem`` with the study's ``role: constraint`` scalar requirements added (or itself)."""
+    constraints = [
+        r for r in user_requirements(study) if r.role == "constraint" and not r.needs_curve
+    ]
+    return RequirementConstraints(problem, constraints) if constraints else problem
+
+
+def scalar_names(values: Iterable[str]) -> tuple[str, ...]:
+    """Sorted unique names (a helper for kinds declaring ``quantities``)."""
+    return tuple(sorted(set(values)))
