@@ -55,8 +55,11 @@ Failure to converge is returned as data (``converged`` flags and ``message``), n
 
 from __future__ import annotations
 
+import logging
+import os
 from dataclasses import dataclass, field
 from functools import cache, lru_cache
+from types import ModuleType
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -70,6 +73,11 @@ from fea.materials import Material
 from geometry.profile import BeamProfile
 
 __all__ = ["EndDrive", "BeamSettings", "BeamResponse", "BeamModel", "solve_beam"]
+
+log = logging.getLogger(__name__)
+
+#: environment variable choosing the kernel when ``BeamSettings.kernel`` is "auto"
+KERNEL_ENV = "FLEXOPT_BEAM_KERNEL"
 
 
 @dataclass(frozen=True)
@@ -139,6 +147,12 @@ class BeamSettings:
         0.8 (37 degrees) keeps sub-steps small where the path turns sharply, as at buckling.
     max_rotation_step : largest section rotation (rad) one Newton correction may apply; larger ones
         are scaled down (see _newton). 0.5 rad is a large step on any smooth path.
+    kernel : "auto", "numba" or "numpy" — which implementation runs (same physics, same
+        decisions, answers equal to round-off; docs/beam.md "Kernels"). "numba" is the compiled
+        kernel (fea/_beam_kernels.py), "numpy" the pure-numpy reference; "auto" reads the
+        environment variable FLEXOPT_BEAM_KERNEL (numba | numpy) and otherwise takes numba. When
+        numba cannot be imported, numba falls back to numpy (logged at debug level);
+        ``BeamModel.kernel`` says which one runs.
     """
 
     n_elements: int = 20
@@ -153,6 +167,7 @@ class BeamSettings:
     predictor: Literal["secant", "tangent"] = "secant"
     min_critical_substep: float = 1e-3
     min_path_cosine: float = 0.8
+    kernel: Literal["auto", "numba", "numpy"] = "auto"
 
 
 @dataclass(frozen=True)
@@ -175,7 +190,7 @@ class BeamResponse:
         vertices and mid-points, ordered along ``s``).
     ok : every row converged.
     message : why not, when not ``ok``.
-    extra : n_elements, n_dofs, substeps.
+    extra : n_elements, n_dofs, substeps, kernel ("numba" or "numpy": which one ran).
     stable : bool — the row is a stable equilibrium: the tangent with the supports and the
         prescribed DOFs eliminated is positive definite there and at every sub-step since the
         previous row (False for rows that did not converge). None when not assessed (a stand-in
@@ -207,6 +222,39 @@ class BeamResponse:
     unstable: bool = False
     unstable_message: str = ""
     critical_value: float = float("nan")
+
+
+# -- kernel selection -----------------------------------------------------------------------------
+
+
+_KERNELS = ("numba", "numpy")
+
+
+@cache
+def _compiled() -> ModuleType | None:
+    """fea._beam_kernels, or None when numba cannot be imported (the numpy path then runs)."""
+    try:
+        from fea import _beam_kernels
+    except Exception as exc:  # ImportError, or a numba that fails on this platform's LLVM
+        log.debug("numba beam kernel unavailable (%s: %s); using numpy", type(exc).__name__, exc)
+        return None
+    return _beam_kernels
+
+
+def _resolve_kernel(setting: str) -> str:
+    """The kernel that runs for ``BeamSettings.kernel`` = ``setting`` ("numba" or "numpy")."""
+    choice = setting
+    if setting == "auto":
+        choice = os.environ.get(KERNEL_ENV, "").strip().lower() or "numba"
+        if choice not in _KERNELS:
+            raise FeaError(
+                f"{KERNEL_ENV} = {os.environ[KERNEL_ENV]!r}; use one of {', '.join(_KERNELS)}"
+            )
+    elif setting not in _KERNELS:
+        raise FeaError(f"kernel = {setting!r}; use 'auto', 'numba' or 'numpy'")
+    if choice == "numba" and _compiled() is None:
+        return "numpy"
+    return choice
 
 
 # -- reference element tables (computed by scikit-fem once per process) -------------------------
@@ -270,6 +318,8 @@ class BeamModel:
             raise FeaError(f"start = {start!r}; use 'clamped' or 'pinned'")
         if int(settings.n_elements) < 1:
             raise FeaError(f"n_elements = {settings.n_elements} must be >= 1")
+        #: "numba" (compiled, fea/_beam_kernels.py) or "numpy" (the reference): which one runs
+        self.kernel = _resolve_kernel(settings.kernel)
         self.profile = profile
         self.material = material
         self.start = start
@@ -324,9 +374,8 @@ class BeamModel:
         self._length_scale = max(length, 1.0)
         self._ea, self._kga, self._ei = (np.ascontiguousarray(self._D[..., i]) for i in range(3))
         self._dk = self._ea - self._kga
-        self._rbuf = np.empty((n_el, len(wg), 4))
-        self._kbuf = np.empty((n_el, len(wg), 6))
-        self._precompute_kernels(ng)
+        if self.kernel == "numpy":
+            self._precompute_kernels(ng)
 
         # Stress sampling at both element ends and the middle (the bending moment is largest at
         # supports and kinks, which are element ends; Gauss points alone would miss the peak).
@@ -359,6 +408,8 @@ class BeamModel:
         # Band storage is kept Fortran-ordered (what LAPACK reads, so f2py does not copy it): the
         # flat index of A[i, j] = ab[kl + ku + i - j, j] is j * ldab + kl + ku + i - j.
         self._band_index = (cols * self._ldab + kl + ku + rows - cols).ravel()
+        if self.kernel == "numba":
+            self._geo, self._sgeo = self._kernel_geometry()
 
     # ---------------------------------------------------------------- element kernels (batched)
 
@@ -371,10 +422,14 @@ class BeamModel:
         part ``EI dN_k dN_l``. The weighted products are fixed for a mesh: they are built here once,
         and each call needs one batched matrix product.
 
-        Sets ``_Kmap`` (E, Q * 6, 81), ``_Kbend`` (E, 81), ``_Rmap`` (E, Q * 4, 9).
+        Sets ``_Kmap`` (E, Q * 6, 81), ``_Kbend`` (E, 81), ``_Rmap`` (E, Q * 4, 9) and the work
+        buffers of :meth:`_element_arrays` (the numpy path only; the compiled kernel uses
+        :meth:`_kernel_geometry`).
         """
         dN, w = self._dN, self._w
         n_el, n_q, _ = dN.shape
+        self._rbuf = np.empty((n_el, n_q, 4))
+        self._kbuf = np.empty((n_el, n_q, 6))
         N = np.broadcast_to(n_gauss[None], dN.shape)
         dd = dN[..., :, None] * dN[..., None, :] * w[..., None, None]  # (E, Q, k, l)
         dn = dN[..., :, None] * N[..., None, :] * w[..., None, None]
@@ -402,6 +457,52 @@ class BeamModel:
         self._Rmap = R.reshape(n_el, n_q * 4, 9)
         self._NgT = np.ascontiguousarray(n_gauss.T)  # (3, Q)
 
+    def _kernel_geometry(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """The mesh tables of the compiled kernel (fea/_beam_kernels.py), all float64 C-ordered.
+
+        ``geo``: dN (E, Q, 3) [1/mm], N (Q, 3), dN w and N w (E, Q, 3), the weighted products
+        dN_k dN_l w, dN_k N_l w, N_k N_l w (E, Q, 3, 3) [1/mm, 1, mm], the bending block
+        sum_Q EI dN_k dN_l w (E, 3, 3) [N mm], theta0, cos theta0, sin theta0 (E, Q), EA, kGA [N]
+        and EI [N mm^2] (E, Q): the same numbers :meth:`_precompute_kernels` folds into its maps.
+        ``sgeo``: gauss_to_samples (Q, 3), dN at the sampling points (E, 3, 3) [1/mm], EI (E, 3),
+        section modulus (E, 3) [mm^3] and arc length (E, 3) [mm] there (see :meth:`_stress`).
+        """
+        dN, w = self._dN, self._w
+        N = np.broadcast_to(self._N[None], dN.shape)
+        dd = dN[..., :, None] * dN[..., None, :] * w[..., None, None]
+        dn = dN[..., :, None] * N[..., None, :] * w[..., None, None]
+        nn = N[..., :, None] * N[..., None, :] * w[..., None, None]
+        kbend = np.einsum("eq,eqkl->ekl", self._D[..., 2], dd)
+        geo = (
+            dN,
+            self._N,
+            dN * w[..., None],
+            N * w[..., None],
+            dd,
+            dn,
+            nn,
+            kbend,
+            self._theta0,
+            self._c0,
+            self._s0,
+            self._ea,
+            self._kga,
+            self._ei,
+        )
+        sgeo = (
+            self._gauss_to_samples,
+            self._dNs,
+            self._EI_s,
+            self._section_modulus_s,
+            self._s_samp,
+        )
+
+        def c(a: np.ndarray) -> np.ndarray:
+            # one layout and dtype, so that every model hits the same cached compiled code
+            return np.ascontiguousarray(a, dtype=np.float64)
+
+        return tuple(c(a) for a in geo), tuple(c(a) for a in sgeo)
+
     def _element_arrays(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Element residuals (E, 9) and tangents (E, 9, 9) for physical DOFs ``q`` (n_dofs,).
 
@@ -415,6 +516,8 @@ class BeamModel:
             c_v  = EA s Gamma2 - kGA c h + N c - Q s
             p    = EA Gamma2^2 + kGA h^2 - N h - Q Gamma2
         """
+        if not hasattr(self, "_Kmap"):  # a numba model asked for the numpy arrays
+            self._precompute_kernels(self._N)
         qe = q[self._edofs3]  # (E, node, field)
         grad = self._dN @ qe  # (E, Q, field): u', v', phi'
         theta = self._theta0 + qe[:, :, 2] @ self._NgT
@@ -458,7 +561,20 @@ class BeamModel:
         return u
 
     def _assemble(self, q: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Internal force (n_dofs,) and tangent in LAPACK band storage, generalised DOFs."""
+        """Internal force (n_dofs,) and tangent in LAPACK band storage, generalised DOFs.
+
+        ``q`` (n_dofs,) generalised DOFs [mm, rad]; ``frame`` (2, 2) the end node's axes. Returns
+        ``r`` (n_dofs,) [N, N mm] and ``ab`` (2 kl + ku + 1, n_dofs), Fortran-ordered,
+        ``A[i, j] = ab[kl + ku + i - j, j]`` (kl = ku = 8), rows 0..kl-1 zero.
+        """
+        if self.kernel == "numba":
+            kern = _compiled()
+            q = np.ascontiguousarray(q, dtype=np.float64)
+            r = np.empty(self.n_dofs)
+            abc = np.empty((self.n_dofs, self._ldab))
+            u = np.empty(self.n_dofs)
+            kern.assemble(q, np.ascontiguousarray(frame, dtype=np.float64), self._geo, u, r, abc)
+            return r, abc.T
         re, ke = self._element_arrays(self._physical(q, frame))
         # Rotate the end node's translations of the last element into (direction, normal).
         T = _end_rotation(frame[0, 0], frame[0, 1])
@@ -475,7 +591,19 @@ class BeamModel:
         strain is taken at the Gauss points, where reduced integration makes it accurate, and
         extrapolated linearly to the sampling points: evaluated directly at the element ends it
         carries an interpolation artefact (+2.5 % of the stress at 1.5 rad with 20 elements).
+
+        ``q`` (n_dofs,) physical DOFs [mm, rad].
         """
+        if self.kernel == "numba":
+            sigma, where = _compiled().peak_stress(
+                np.ascontiguousarray(q, dtype=np.float64),
+                self._geo,
+                self._sgeo,
+                float(self.material.E_MPa),
+            )
+            return float(sigma), float(where)
+        if not hasattr(self, "_NgT"):  # a numba model asked for the numpy path's tables
+            self._precompute_kernels(self._N)
         qe = q[self._edofs3]
         grad = self._dN @ qe
         theta = self._theta0 + qe[:, :, 2] @ self._NgT
@@ -525,6 +653,8 @@ class BeamModel:
 
     def solve(self, drive: EndDrive) -> BeamResponse:
         """Trace the response under ``drive``; see :class:`BeamResponse` for the rows."""
+        if self.kernel == "numba":
+            return self._solve_compiled(drive)
         st = self.settings
         n = self.n_dofs
         frame = self._frame(drive)
@@ -600,7 +730,91 @@ class BeamModel:
             rows.store(k, self, q, r, frame, iters_row, ia, it, ir)
             rows.stable[k] = row_stable
 
-        extra = {"n_elements": self.n_elements, "n_dofs": self.n_dofs, "substeps": substeps}
+        extra = {
+            "n_elements": self.n_elements,
+            "n_dofs": self.n_dofs,
+            "substeps": substeps,
+            "kernel": "numpy",
+        }
+        return rows.response(ok, message, extra, _stability(rows, lost, is_disp))
+
+    def _solve_compiled(self, drive: EndDrive) -> BeamResponse:
+        """:meth:`solve` by the compiled kernel: the whole loop (sub-steps, Newton, branch guards,
+        stability checks, row stresses) runs in :func:`fea._beam_kernels.trace`; only the rows'
+        bookkeeping and the messages are made here, as :meth:`solve` makes them."""
+        st = self.settings
+        n = self.n_dofs
+        frame = np.ascontiguousarray(self._frame(drive))
+        is_disp = drive.control == "displacement"
+        bc = self._constraints(drive)
+        steps = int(drive.steps)
+        targets = drive.max_value * np.arange(steps + 1) / steps
+        fpar = np.array(
+            [
+                st.rtol,
+                st.first_substep,
+                st.min_substep,
+                st.dtol,
+                st.max_rotation_step,
+                st.min_critical_substep,
+                st.min_path_cosine,
+                self._force_floor,
+                self._length_scale,
+            ],
+            dtype=np.float64,
+        )
+        ipar = np.array(
+            [st.max_iterations, st.fast_iterations, 1 if st.predictor == "secant" else 0, 1],
+            dtype=np.int64,
+        )
+        out = _compiled().trace(
+            self._geo,
+            self._sgeo,
+            float(self.material.E_MPa),
+            frame,
+            bc.fixed.astype(np.int64),
+            int(bc.driven),
+            int(bc.loaded),
+            targets.astype(np.float64),
+            fpar,
+            ipar,
+        )
+        q_rows, r_end, stress, stress_s, iterations, converged, stable, ints, floats = out
+        ok = bool(ints[0])
+        rows = _Rows(steps + 1, self.n_nodes)
+        a = rows.a
+        a["displacement_mm"][:] = q_rows[:, n - 3]
+        a["transverse_displacement_mm"][:] = q_rows[:, n - 2]
+        a["end_rotation_rad"][:] = q_rows[:, n - 1]
+        a["force_N"][:] = r_end[:, 0]
+        a["transverse_force_N"][:] = r_end[:, 1]
+        a["moment_Nmm"][:] = r_end[:, 2]
+        a["peak_stress_MPa"][:] = stress
+        a["peak_stress_s_mm"][:] = stress_s
+        rows.iterations[:] = iterations
+        rows.converged[:] = converged
+        rows.stable[:] = stable
+        # deformed node positions: the end node's translations back to x, y (frame.T @ q_end)
+        u = q_rows.copy()
+        u[:, n - 3 : n - 1] = q_rows[:, n - 3 : n - 1] @ frame
+        done = converged
+        rows.shapes[done] = self.reference_nodes_mm + u[done].reshape(-1, self.n_nodes, 3)[..., :2]
+        message = ""
+        if not ok:
+            value, inc = float(floats[0]), float(floats[1])
+            quantity = "displacement_mm" if is_disp else "force_N"
+            reason = _REASONS[int(ints[1])].format(max_iterations=st.max_iterations)
+            message = (
+                f"no convergence at {quantity} = {value + inc:.6g} (last converged "
+                f"{value:.6g}) after cutting the sub-step to {abs(inc):.3g}: {reason}"
+            )
+        lost = None if ints[3] < 0 else (int(ints[3]), float(floats[2]), float(floats[3]))
+        extra = {
+            "n_elements": self.n_elements,
+            "n_dofs": n,
+            "substeps": int(ints[2]),
+            "kernel": "numba",
+        }
         return rows.response(ok, message, extra, _stability(rows, lost, is_disp))
 
     def _checked(self, q0: np.ndarray, q_pred: np.ndarray, sub: _SubStep) -> _SubStep:
@@ -700,6 +914,19 @@ class BeamModel:
         return fail._replace(
             iterations=iters, reason=f"Newton did not converge in {st.max_iterations} iterations"
         )
+
+
+#: the reasons of a failed sub-step, by the compiled kernel's codes (fea/_beam_kernels.py)
+_REASONS = (
+    "",
+    "singular tangent (check the supports)",
+    "the residual became NaN or inf",
+    "Newton diverged",
+    "singular tangent (a mechanism or a limit point)",
+    "Newton did not converge in {max_iterations} iterations",
+    "the sub-step left the path",
+    "crossed a critical point",
+)
 
 
 class _Constraints(NamedTuple):
