@@ -396,15 +396,15 @@ def _worker_main(conn: Connection, payload: bytes) -> None:
     _limit_loaded_pools()
     # Ctrl-C reaches the whole process group; the parent decides what stops, and stops us.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # A forked worker inherits the CLI's SIGTERM handler (which stops a run cleanly); a worker is
+    # stopped by its parent, so it ends at once on SIGTERM as a process normally does.
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
         problem = pickle.loads(payload)
     except BaseException as exc:
         conn.send(("fatal", one_line(f"{type(exc).__name__}: {exc}")))
         return
     conn.send(("ready", os.getpid()))
-    # A forked worker inherits the CLI's SIGTERM handler (which stops a run cleanly); a worker is
-    # stopped by its parent, so it ends at once on SIGTERM as a process normally does.
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     parent = os.getppid()
     while True:
         try:

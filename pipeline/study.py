@@ -360,9 +360,10 @@ def resolve_study_path(study: str | Path) -> Path:
 MAX_STUDY_BYTES = 1024 * 1024
 #: Deepest nesting of lists and mappings (a study needs about 6 levels).
 MAX_STUDY_DEPTH = 64
-#: Most values (nodes) once every YAML alias is expanded: guards against alias bombs, where a few
-#: hundred bytes expand to 10^9 values (a real study has a few hundred).
-MAX_STUDY_NODES = 100_000
+#: Most values (nodes), also once every YAML alias is expanded: guards against alias bombs, where
+#: a few hundred bytes expand to 10^9 values, and against huge inline tables (a real study has a
+#: few hundred values; a long table belongs in a CSV file the study names).
+MAX_STUDY_NODES = 20_000
 
 
 def _check_node_graph(node: yaml.Node, source: str) -> None:
@@ -398,12 +399,7 @@ def _check_node_graph(node: yaml.Node, source: str) -> None:
             size[key] = 1 + sum(size[id(c)] for c in children)
             depth[key] = 1 + max((depth[id(c)] for c in children), default=0)
             if size[key] > MAX_STUDY_NODES:
-                raise StudyError(
-                    "",
-                    f"expands to more than {MAX_STUDY_NODES} values (YAML aliases '*name' "
-                    "repeating anchors '&name'); write the study out without nested aliases",
-                    source=source,
-                )
+                raise _too_many_values(source)
             continue
         if key in size:
             continue
@@ -434,6 +430,17 @@ _OPEN_TOKENS = (
     yaml.BlockMappingStartToken,
 )
 _CLOSE_TOKENS = (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken, yaml.BlockEndToken)
+_VALUE_TOKENS = (yaml.ScalarToken, yaml.AliasToken)
+
+
+def _too_many_values(source: str) -> StudyError:
+    return StudyError(
+        "",
+        f"expands to more than {MAX_STUDY_NODES} values (YAML aliases '*name' repeating anchors "
+        "'&name', or a huge inline table); write the study out without nested aliases and keep "
+        "long tables in a CSV file",
+        source=source,
+    )
 
 
 def _check_nesting(text: str, source: str) -> None:
@@ -443,10 +450,14 @@ def _check_nesting(text: str, source: str) -> None:
     lists would end in a RecursionError after a second of work; the tokens say it at once.
     Syntax errors are left to the parser, which reports them with their line.
     """
-    depth = 0
+    depth = values = 0
     try:
         for token in yaml.scan(text, Loader=_StudyLoader):
-            if isinstance(token, _OPEN_TOKENS):
+            if isinstance(token, _VALUE_TOKENS):
+                values += 1
+                if values > MAX_STUDY_NODES:  # stop reading: composing would cost far more
+                    raise _too_many_values(source)
+            elif isinstance(token, _OPEN_TOKENS):
                 depth += 1
                 if depth > MAX_STUDY_DEPTH + 1:  # +1: the top-level mapping
                     raise _nesting_error(source)
