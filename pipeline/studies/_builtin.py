@@ -233,7 +233,7 @@ def cam(study: Any) -> list[Requirement]:
         MaxValue("max_pressure_angle_deg", "pressure angle", "constraint",
                  lim.max_pressure_angle_deg),
         MaxValue("stress_yield_ratio", "contact pressure within onset", "constraint", 1.0),
-        Flag("undercut", "no undercut", "constraint", False),
+        Flag("undercut", "undercut", "constraint", False),
     ]  # fmt: skip
     if lim.max_diameter_mm:
         reqs.append(MaxValue("mechanism_diameter_mm", "diameter", "constraint",
@@ -263,7 +263,7 @@ def collision(study: Any) -> list[Requirement]:
         MinValue("force_reduction", "peak force below the reference", "check", 0.0),
     ]
     if getattr(study, "cam", None) is not None:
-        reqs.append(Flag("cam_range_exceeded", "cam within its range", "check", False))
+        reqs.append(Flag("cam_range_exceeded", "cam range exceeded", "check", False))
     return reqs
 
 
@@ -280,7 +280,7 @@ COLLISION = (
 
 def sea_window(study: Any) -> list[Requirement]:
     """A stiffness window exists; a given stiffness lies in it and meets the bandwidth."""
-    reqs: list[Requirement] = [Flag("window_empty", "stiffness window exists", "check", False)]
+    reqs: list[Requirement] = [Flag("window_empty", "stiffness window empty", "check", False)]
     if study.stiffness_Nm_per_rad is not None:
         reqs += [
             Flag("in_window", "stiffness in the window", "check", True),
