@@ -27,8 +27,14 @@ Discretisation and speed
   the mesh is a :class:`skfem.MeshLine` in ``s``. DOFs are numbered node by node along ``s``
   (scikit-fem numbers the P2 interior DOFs after all vertex DOFs, which would destroy the band), so
   the tangent is banded with half-bandwidth 8 and is factorised with LAPACK ``dgbsv``.
-* All element integrals are batched numpy over elements x Gauss points; assembly is one
-  ``np.bincount`` into band storage with precomputed indices.
+* Two implementations of the same formulation (``BeamSettings.kernel``, env FLEXOPT_BEAM_KERNEL):
+  the compiled kernel (numba, fea/_beam_kernels.py, the default) runs the element integrals, the
+  band assembly, the banded LU with partial pivoting (a port of LAPACK's dgbtf2/dgbtrs) and
+  Cholesky check (dpbtf2) and the whole tracing loop below as machine code; the numpy reference
+  path batches the element integrals over elements x Gauss points, assembles with one
+  ``np.bincount`` into band storage and calls LAPACK through scipy. Both make the same decisions
+  and agree to round-off (tests/fea/test_beam_kernels.py); the numpy path is the fallback where
+  numba does not import.
 
 Loading
 -------
