@@ -367,6 +367,7 @@ def open_backend(settings: ParallelSettings, problem: DesignProblem) -> Iterator
             problem, settings.address or "", settings.eval_timeout_s, settings.chunk_size
         )
     elif settings.backend == "processes" and settings.n_workers > 1:
+        _warm_up_kernels()
         backend = ProcessPool(
             problem, settings.n_workers, settings.eval_timeout_s, settings.chunk_size
         )
@@ -376,6 +377,21 @@ def open_backend(settings: ParallelSettings, problem: DesignProblem) -> Iterator
         yield backend
     finally:
         backend.close()
+
+
+def _warm_up_kernels() -> None:
+    """Compile or load the compiled beam kernel once, before the pool forks its workers.
+
+    Forked workers inherit it; otherwise each would compile it on its first design (in a fresh
+    install ~14 s CPU each, all at once) or load it from numba's cache. A failure here is not the
+    run's: the workers then compile or fall back on their own.
+    """
+    try:
+        from fea.beam import warm_up
+
+        warm_up()
+    except Exception:  # noqa: BLE001 - only an optimisation
+        log.debug("beam kernel warm-up failed", exc_info=True)
 
 
 class BackendError(RuntimeError):

@@ -265,3 +265,10 @@ def _rerun(module) -> None:
 
 _rerun(test_beam)
 _rerun(test_beam_stability)
+
+
+def test_warm_up_compiles_the_kernel_the_models_use():
+    # the process pool calls warm_up before it forks, so workers inherit the compiled code
+    from fea.beam import BeamSettings, _resolve_kernel, warm_up
+
+    assert warm_up() == _resolve_kernel(BeamSettings().kernel)
