@@ -146,7 +146,8 @@ class Verdict:
         ``within ±2 % of 1.5 N over 0.5–30 mm``).
     margin : distance to the bound in ``unit``; positive (or 0) when met, negative when not,
         NaN when not computed.
-    margin_rel : ``margin`` as a fraction of the bound's scale (0.1 = 10 % to spare), or None.
+    margin_rel : ``margin`` as a fraction of the bound's scale (0.1 = 10 % to spare; for a target
+        band, of the target level), or None.
     met : the requirement is met.
     unit : unit of ``value`` and ``margin`` (``MPa``, ``N``, ``""`` for a ratio).
     role : ``constraint`` (also a constraint of the optimisation) or ``check`` (only judged).
@@ -324,8 +325,12 @@ class Requirement:
             why or f"{self.quantity} was not computed for this design",
         )
 
+    def relative_to(self) -> float:
+        """What ``margin_rel`` is a fraction of (default :meth:`scale`)."""
+        return self.scale()
+
     def _verdict(self, value: float, bound: str, margin: float, detail: str = "") -> Verdict:
-        s = self.scale()
+        s = self.relative_to()
         rel = margin / s if s > 0 and math.isfinite(margin) else None
         return Verdict(
             self.label, self.quantity, value, bound, margin, rel, margin >= 0.0, self.unit,
@@ -595,6 +600,19 @@ class TargetBand(Requirement):
             if level > 0:
                 return float(self.tolerance_rel) * level  # type: ignore[arg-type]
         return 1.0
+
+    def relative_to(self) -> float:
+        # The margin as a share of the target level (a 1.5 N target missed by 1.33 N is -89 %),
+        # not of the tolerance, which would read -4450 %; the constraint row keeps the tolerance.
+        if self.over is not None:
+            xs = np.linspace(self.over[0], self.over[1], 33)
+            try:
+                level = float(np.max(np.abs(self._target_in_y_units(xs))))
+            except OptimiseError:
+                level = 0.0
+            if level > 0:
+                return level
+        return self.scale()
 
     def bound_text(self) -> str:
         what = self.target_text or describe_target(self.target, self.quantity)  # type: ignore[arg-type]
