@@ -1,5 +1,5 @@
 """The ``flexopt`` command line: one subcommand per verb (``evaluate``, ``run``, ``status``,
-``report``, ``export``).
+``report``, ``export``; ``list``, ``init`` and ``schema`` help write a study).
 
 Exit codes: 0 done (also when a solve did not converge or no feasible design was found: those are
 results, reported by a warning line and in the run folder), 1 the run folder could not be written,
@@ -232,13 +232,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     export = commands.add_parser(
         "export",
-        help="write one design of a run as an STL file",
+        help="write one design of a run or evaluate folder as STL, DXF or STEP",
         description=(
-            "Rebuild a design of a finished run (from its study.yaml) and write it as a binary "
-            "STL: the outline extruded by its height, lying flat, in mm."
+            "Rebuild a design of a run (from its study.yaml), or the design of a flexopt "
+            "evaluate folder, and write its part in mm, laid flat and aligned to the bed axes: "
+            "binary STL (to print), DXF (the outline with its holes, to cut) or STEP (needs "
+            "pip install 'flexopt[step]'). A sheet part (the leaf-spring joint's leaf) is "
+            "written as its flat profile."
         ),
     )
-    export.add_argument("run_dir", type=_path, metavar="RUN_DIR", help="a folder of flexopt run")
+    export.add_argument(
+        "run_dir",
+        type=_path,
+        metavar="RUN_DIR",
+        help="a folder of flexopt run or of flexopt evaluate",
+    )
     export.add_argument(
         "--design",
         default="best",
@@ -246,13 +254,75 @@ def build_parser() -> argparse.ArgumentParser:
         help="best (best.json, the default) or the index of a row of evaluations.csv",
     )
     export.add_argument(
+        "--format",
+        choices=("stl", "dxf", "step"),
+        default=None,
+        help="file format (default: what --out ends in, else stl)",
+    )
+    export.add_argument(
         "--out",
         type=_path,
-        metavar="FILE.stl",
-        help="STL file (default RUN_DIR/best.stl or RUN_DIR/design-INDEX.stl)",
+        metavar="FILE",
+        help=(
+            "file to write (default RUN_DIR/best.FORMAT, RUN_DIR/design-INDEX.FORMAT, or "
+            "RUN_DIR/design.FORMAT in an evaluate folder)"
+        ),
     )
     export.set_defaults(handler=_export)
+    _add_study_tools(commands)
     return parser
+
+
+def _add_study_tools(commands: Any) -> None:
+    """The subcommands that help write a study: ``list``, ``init`` and ``schema``."""
+    listing = commands.add_parser(
+        "list",
+        help="study kinds (built-in and plugins) and built-in studies, one line each",
+        description=(
+            "List every study kind (geometry.kind: built-in, or from a plugin package through "
+            "the flexopt.kinds entry points) and every built-in study, one line each with what "
+            "it designs, and any plugin kind that could not be loaded, with the reason."
+        ),
+    )
+    listing.set_defaults(handler=_list)
+
+    init = commands.add_parser(
+        "init",
+        help="write a commented starter study of a kind",
+        description=(
+            "Write a commented starter study named NAME: the kind's built-in study with its "
+            "comments (or, for a kind without one, keys and their descriptions from its schema). "
+            "It loads as written: flexopt evaluate NAME.yaml. An existing file is never "
+            "overwritten."
+        ),
+    )
+    init.add_argument("name", metavar="NAME", help="the study's name (names its run folders)")
+    source = init.add_mutually_exclusive_group()
+    source.add_argument(
+        "--kind", metavar="K", help="the study kind (geometry.kind; default polyline_beam)"
+    )
+    source.add_argument(
+        "--example", metavar="STUDY", help="start from this built-in study (see flexopt list)"
+    )
+    init.add_argument(
+        "--out", type=_path, metavar="FILE", help="file to write (default ./NAME.yaml)"
+    )
+    init.set_defaults(handler=_init)
+
+    schema = commands.add_parser(
+        "schema",
+        help="the JSON schema of a study file, for editor completion",
+        description=(
+            "Print the JSON schema of a study file: of one kind with --kind, else of any kind "
+            "(oneOf the kinds, told apart by geometry.kind). Editors use it for completion and "
+            "checking as you type (docs/usage.md, 'Editor completion')."
+        ),
+    )
+    schema.add_argument("--kind", metavar="K", help="only this kind's study (default: any kind)")
+    schema.add_argument(
+        "--out", type=_path, metavar="FILE", help="write it to FILE (default: standard output)"
+    )
+    schema.set_defaults(handler=_schema)
 
 
 def _format_value(value: Any) -> str:
@@ -559,7 +629,7 @@ def _export(args: argparse.Namespace) -> int:
 
     prog = "flexopt export"
     try:
-        outcome = export_design(args.run_dir, args.design, args.out)
+        outcome = export_design(args.run_dir, args.design, args.out, args.format)
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -567,16 +637,93 @@ def _export(args: argparse.Namespace) -> int:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_WRITE
     except OSError as exc:
-        print(f"{prog}: error: cannot write the STL: {exc}", file=sys.stderr)
+        print(f"{prog}: error: cannot write {args.out or 'the file'}: {exc}", file=sys.stderr)
         return EXIT_WRITE
-    size = " x ".join(f"{v:.4g}" for v in outcome.size_mm)
+    w, h = outcome.footprint_mm
+    laid = "flat profile of the sheet" if outcome.sheet else "laid flat"
+    if outcome.rotation_deg:
+        laid += f", turned {outcome.rotation_deg:+.3g} deg to the bed axes"
+    triangles = f"{outcome.triangles} triangles, " if outcome.triangles else ""
     print(
-        f"wrote {outcome.path} (design {outcome.design}: {outcome.triangles} triangles, "
-        f"volume {outcome.volume_mm3:.6g} mm^3, {size} mm)"
+        f"wrote {outcome.path} (design {outcome.design}, {outcome.format.upper()}: footprint "
+        f"{w:.4g} x {h:.4g} mm, {outcome.thickness_mm:.4g} mm thick, {laid}; {triangles}"
+        f"volume {outcome.volume_mm3:.6g} mm^3)"
     )
     if not outcome.evaluation.feasible:
         reason = f": {outcome.evaluation.reason}" if outcome.evaluation.reason else ""
         print(f"{prog}: warning: this design is not feasible{reason}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _list(args: argparse.Namespace) -> int:
+    from pipeline.init_study import catalogue
+
+    found = catalogue()
+    width = max(len(name) for name, *_ in found.kinds + found.studies)
+    print("Study kinds (geometry.kind):")
+    for name, origin, summary in found.kinds:
+        print(f"  {name:<{width}}  {origin:<8}  {summary}")
+    print("Built-in studies (flexopt evaluate NAME, run NAME, init MINE --example NAME):")
+    kind_width = max(len(kind) for _, kind, _ in found.studies)
+    for name, kind, summary in found.studies:
+        print(f"  {name:<{width}}  {kind:<{kind_width}}  {summary}")
+    if found.unavailable:
+        print("Unavailable plugin kinds:")
+        for name, reason in found.unavailable:
+            print(f"  {name:<{width}}  {reason}")
+    return EXIT_OK
+
+
+def _init(args: argparse.Namespace) -> int:
+    from pipeline.init_study import starter_study
+
+    prog = "flexopt init"
+    out = args.out or Path(f"{args.name}.yaml")
+    try:
+        text = starter_study(args.name, kind=args.kind, example=args.example, file=str(out))
+    except StudyError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if out.exists() or out.is_symlink():
+        print(
+            f"{prog}: error: {out} exists; flexopt init never overwrites a file: give another "
+            "NAME or --out FILE",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with open(out, "x", encoding="utf-8") as handle:  # "x": not even a file made just now
+            handle.write(text)
+    except FileExistsError:
+        print(f"{prog}: error: {out} exists; give another NAME or --out FILE", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        print(f"{prog}: error: cannot write {out}: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    print(f"wrote {out}; try: flexopt evaluate {shlex.quote(str(out))}")
+    return EXIT_OK
+
+
+def _schema(args: argparse.Namespace) -> int:
+    from pipeline.init_study import study_schema
+
+    prog = "flexopt schema"
+    try:
+        text = json.dumps(study_schema(args.kind), indent=2, ensure_ascii=False) + "\n"
+    except StudyError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.out is None:
+        sys.stdout.write(text)
+        return EXIT_OK
+    try:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        print(f"{prog}: error: cannot write {args.out}: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    print(f"wrote {args.out}")
     return EXIT_OK
 
 

@@ -5,12 +5,23 @@ pydantic model of its whole study, a ``check`` that builds the geometry and mate
 ``evaluate`` that solves one design. The CLI and the runner know only this registry, so a new kind
 is a new module here and touches no other file (modules are discovered on first use; names
 starting with ``_`` are skipped so they can hold shared helpers).
+
+A kind may also come from a package of the user's own, through the entry-point group
+``flexopt.kinds`` (docs/plugins.md). The entry point's name is the kind's name; its value is either
+a module that calls :func:`register` when imported (``my_pkg.kind``) or an object in a module
+(``my_pkg.kind:make_kind``): a :class:`StudyKind`, or a callable taking no argument that returns
+one, which flexopt registers. Plugins are loaded after the built-in kinds, on first use. A plugin
+that fails to load does not break flexopt: its kind is recorded as unavailable with the reason
+(:func:`unavailable_kinds`), reported in one line when a study asks for that kind and by
+``flexopt list``. A plugin may not take a built-in kind's name, nor one another plugin took first.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 import pkgutil
+import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,7 +33,21 @@ from optimise.requirements import Requirement, Verdict
 from pipeline.errors import StudyError
 from pipeline.study import Study
 
-__all__ = ["EvaluationResult", "StudyKind", "get_kind", "kinds", "register"]
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "EvaluationResult",
+    "StudyKind",
+    "builtin_kind_names",
+    "get_kind",
+    "kind_summary",
+    "kinds",
+    "refused_plugins",
+    "register",
+    "unavailable_kinds",
+]
+
+#: The entry-point group a package names its study kinds in (``[project.entry-points]``).
+ENTRY_POINT_GROUP = "flexopt.kinds"
 
 
 @dataclass(frozen=True)
@@ -98,6 +123,9 @@ class StudyKind:
     quantities : tuple of str or callable(study) -> iterable of str, optional
         The names a ``requirements:`` item may judge: summary / metrics keys and response
         columns (units in the names). The built-in requirements' names are always included.
+    summary : str, optional
+        One line: what the kind designs (``flexopt list``). Default: the first line of the
+        docstring of the module that defines ``model``, without its ``Study kind ``x``:`` lead.
     """
 
     name: str
@@ -107,33 +135,175 @@ class StudyKind:
     problem: Callable[[Study], DesignProblem] | None = None
     requirements: Callable[[Study], Sequence[Requirement]] | None = None
     quantities: tuple[str, ...] | Callable[[Study], Iterable[str]] | None = None
+    summary: str = ""
 
 
 _KINDS: dict[str, StudyKind] = {}
+#: Kinds that plugins name but could not provide, with the reason in one line.
+_UNAVAILABLE: dict[str, str] = {}
+#: Entry points refused for their name (a built-in kind's, or one another plugin took first).
+_REFUSED: list[str] = []
+#: Names of the kinds shipped in this package (filled by discovery): plugins may not take them.
+_BUILTIN: set[str] = set()
 _discovered = False
+#: The entry point being loaded while a plugin runs (names it in a clash message), else None.
+_loading: importlib.metadata.EntryPoint | None = None
 
 
 def register(kind: StudyKind) -> StudyKind:
-    """Add a kind to the registry (called by each kind module at import)."""
+    """Add a kind to the registry (called by each kind module at import).
+
+    Raises
+    ------
+    ValueError
+        When another kind holds the name already, or a plugin claims a built-in kind's name.
+    """
+    if not isinstance(kind, StudyKind):
+        raise TypeError(f"register() takes a StudyKind, not {type(kind).__name__}")
+    if _loading is not None and kind.name in _BUILTIN:
+        # a plugin module may register more than its entry point names: none may be built-in
+        raise ValueError(
+            f"the kind name '{kind.name}' is taken by a built-in kind; give the plugin's kind "
+            "(entry point name and geometry.kind) another name"
+        )
     if kind.name in _KINDS and _KINDS[kind.name] is not kind:
         raise ValueError(f"study kind '{kind.name}' registered twice")
     _KINDS[kind.name] = kind
     return kind
 
 
+def _is_builtin_module(kind: StudyKind) -> bool:
+    return getattr(kind.model, "__module__", "").startswith(f"{__name__}.")
+
+
 def _discover() -> None:
     global _discovered
-    if not _discovered:
-        for info in pkgutil.iter_modules(__path__):
-            if not info.name.startswith("_"):
-                importlib.import_module(f"{__name__}.{info.name}")
-        _discovered = True
+    if _discovered:
+        return
+    # set first: a plugin that calls kinds() while it is imported must not recurse into here
+    _discovered = True
+    for info in pkgutil.iter_modules(__path__):
+        if not info.name.startswith("_"):
+            importlib.import_module(f"{__name__}.{info.name}")
+    _BUILTIN.update(name for name, kind in _KINDS.items() if _is_builtin_module(kind))
+    _load_plugins()
+
+
+def _entry_points() -> list[importlib.metadata.EntryPoint]:
+    """The ``flexopt.kinds`` entry points of the installed distributions, in name order."""
+    try:
+        found = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
+    except Exception:  # a broken dist-info on sys.path must not stop flexopt
+        return []
+    return sorted(found, key=lambda ep: (ep.name, ep.value))
+
+
+def _origin(ep: importlib.metadata.EntryPoint) -> str:
+    """``'my_kind = my_pkg.kind' (package my-pkg 0.1)``: where a plugin kind comes from."""
+    dist = getattr(ep, "dist", None)
+    package = f" (package {dist.name} {dist.version})" if dist is not None else ""
+    return f"plugin '{ep.name} = {ep.value}'{package}"
+
+
+def _load_plugins() -> None:
+    """Load every ``flexopt.kinds`` entry point; record the ones that fail (never raise)."""
+    global _loading
+    for ep in _entry_points():
+        if ep.name in _BUILTIN:
+            _REFUSED.append(
+                f"{_origin(ep)} refused: '{ep.name}' is a built-in kind; rename the plugin's "
+                "kind (entry point name and geometry.kind)"
+            )
+            continue
+        if ep.name in _KINDS or ep.name in _UNAVAILABLE:
+            held = _KINDS.get(ep.name)
+            if held is not None and getattr(held.model, "__module__", "") == ep.module:
+                continue  # the same plugin, imported before discovery (a test, a notebook)
+            _REFUSED.append(
+                f"{_origin(ep)} refused: another plugin took the kind name '{ep.name}' first; "
+                "uninstall one of them or rename its kind"
+            )
+            continue
+        _loading = ep
+        try:
+            problem = _load_plugin(ep)
+        except (Exception, SystemExit) as exc:  # whatever a third-party import raises
+            text = " ".join(str(exc).split())
+            text = text if len(text) <= 200 else text[:197] + "..."
+            problem = f"{_origin(ep)} failed to load: {type(exc).__name__}: {text}"
+        finally:
+            _loading = None
+        if problem:
+            _KINDS.pop(ep.name, None)
+            _UNAVAILABLE[ep.name] = problem
+
+
+def _load_plugin(ep: importlib.metadata.EntryPoint) -> str | None:
+    """Import one entry point and register its kind; the problem in one line, or None."""
+    loaded = ep.load()
+    if ep.attr:  # `module:object`: a StudyKind, or a callable that returns one
+        kind = loaded() if callable(loaded) and not isinstance(loaded, StudyKind) else loaded
+        if not isinstance(kind, StudyKind):
+            return (
+                f"{_origin(ep)} gave {type(kind).__name__}, not a StudyKind; point the entry "
+                "point at a StudyKind or a function returning one"
+            )
+        if kind.name != ep.name:
+            return (
+                f"{_origin(ep)} gave the kind '{kind.name}'; the entry point name must be the "
+                "kind's name (its geometry.kind)"
+            )
+        if _KINDS.get(kind.name) is not kind:
+            register(kind)
+    elif ep.name not in _KINDS:  # a module: importing it must have registered the kind
+        registered = [
+            name for name, kind in _KINDS.items()
+            if getattr(kind.model, "__module__", "") == ep.module
+        ]  # fmt: skip
+        also = f" (it registered {', '.join(registered)})" if registered else ""
+        return (
+            f"{_origin(ep)} was imported but registered no kind named '{ep.name}'{also}; call "
+            f"register(StudyKind('{ep.name}', ...)) in it, or name the entry point after its kind"
+        )
+    return None
 
 
 def kinds() -> dict[str, StudyKind]:
-    """All registered kinds by name."""
+    """All registered (available) kinds by name, built-in and plugins."""
     _discover()
     return dict(_KINDS)
+
+
+def unavailable_kinds() -> dict[str, str]:
+    """Kinds that plugins name but could not provide, each with the reason in one line."""
+    _discover()
+    return dict(_UNAVAILABLE)
+
+
+def refused_plugins() -> list[str]:
+    """One line per plugin entry point refused for its kind name (the kind stays as it was)."""
+    _discover()
+    return list(_REFUSED)
+
+
+def builtin_kind_names() -> set[str]:
+    """Names of the kinds shipped with flexopt (the rest come from plugins or tests)."""
+    _discover()
+    return set(_BUILTIN)
+
+
+def kind_summary(kind: StudyKind) -> str:
+    """One line: what ``kind`` designs (its ``summary``, else its module's docstring)."""
+    text = kind.summary
+    if not text:
+        module = sys.modules.get(getattr(kind.model, "__module__", ""))
+        doc = (getattr(module, "__doc__", None) or kind.model.__doc__ or "").strip()
+        text = doc.split("\n\n")[0]  # the first paragraph: some first lines wrap mid-sentence
+        prefix = f"Study kind ``{kind.name}``:"
+        if text.startswith(prefix):
+            text = text[len(prefix) :]
+    text = " ".join(text.replace("``", "").split())
+    return text if len(text) <= 100 else text[:97].rstrip() + "..."
 
 
 def get_kind(name: Any) -> StudyKind:
@@ -147,6 +317,8 @@ def get_kind(name: Any) -> StudyKind:
     available = ", ".join(sorted(kinds()))
     if name is None:
         raise StudyError("geometry.kind", f"required key is missing; add kind: one of {available}")
+    if isinstance(name, str) and name not in _KINDS and name in _UNAVAILABLE:
+        raise StudyError("geometry.kind", f"kind '{name}' is unavailable: {_UNAVAILABLE[name]}")
     if not isinstance(name, str) or name not in _KINDS:
         raise StudyError("geometry.kind", f"unknown kind {name!r}; use one of {available}")
     return _KINDS[name]
