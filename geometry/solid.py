@@ -36,6 +36,13 @@ __all__ = [
     "min_feature_mm",
     "thin_feature_at",
     "check_printable",
+    "FlatPart",
+    "SHEET_HINT",
+    "lay_flat",
+    "sheet_profile",
+    "flat_part",
+    "StepUnavailable",
+    "step_bytes",
 ]
 
 
@@ -332,3 +339,222 @@ def check_printable(
     if raise_error:
         raise GeometryError(reason)
     return reason
+
+
+# ---- laying a part flat on the bed (shared by STL, DXF and STEP) ------------------------------
+
+
+@dataclass(frozen=True)
+class FlatPart:
+    """A planar part as it is made: its outline laid flat on the bed and its thickness.
+
+    Attributes
+    ----------
+    outline : shapely Polygon, mm
+        In the x-y plane of the bed, its minimum-area bounding rectangle aligned with x and y
+        and its lower-left corner at the origin (first quadrant).
+    thickness_mm : float, mm
+        Extrusion along z (the out-of-plane thickness; the sheet thickness of a sheet part).
+    footprint_mm : (float, float), mm
+        Size of the outline along x and y on the bed.
+    rotation_deg : float, deg
+        Rotation about the origin applied to the kind's outline (counter-clockwise positive),
+        before the shift; 0 for a sheet part (its flat profile is drawn anew).
+    offset_mm : (float, float), mm
+        Shift applied after the rotation.
+    sheet : bool
+        The kind's outline was the sheet standing on its edge (length x thickness, extruded by
+        the width); ``outline`` is its flat profile (length x width).
+    """
+
+    outline: Polygon
+    thickness_mm: float
+    footprint_mm: tuple[float, float]
+    rotation_deg: float = 0.0
+    offset_mm: tuple[float, float] = (0.0, 0.0)
+    sheet: bool = False
+
+    def record(self) -> dict[str, object]:
+        """What a report says about the part: footprint, thickness and how it was laid."""
+        w, h = self.footprint_mm
+        return {
+            "footprint_mm": [round(w, 4), round(h, 4)],
+            "thickness_mm": round(self.thickness_mm, 6),
+            "rotated_deg": round(self.rotation_deg, 4),
+            "flat_sheet_profile": self.sheet,
+        }
+
+
+#: The minimum-area rectangle must save more than this share of the axis-aligned box's area
+#: before a part is turned: a round part (whose rectangle is anywhere) stays as drawn, a part
+#: tilted by more than ~0.005 deg is turned.
+ALIGN_MIN_GAIN = 1e-3
+
+
+def lay_flat(polygon: Polygon) -> tuple[Polygon, float, tuple[float, float]]:
+    """Turn an outline so its minimum-area bounding rectangle is aligned with x and y, and move
+    it into the first quadrant.
+
+    The turn is the smallest of the four that align the rectangle (|angle| <= 45 deg), and it is
+    made only when it shrinks the axis-aligned box by more than :data:`ALIGN_MIN_GAIN`.
+
+    Parameters
+    ----------
+    polygon : shapely Polygon, mm
+
+    Returns
+    -------
+    (outline, rotation_deg, offset_mm)
+        The laid-flat outline (lower-left corner of its bounds at (0, 0)), the rotation about
+        the origin (deg, counter-clockwise) and the shift (x, y) mm applied after it.
+    """
+    from shapely import affinity
+
+    poly = _check_outline(polygon, "lay_flat")
+    x0, y0, x1, y1 = poly.bounds
+    box_area = (x1 - x0) * (y1 - y0)
+    rect = shapely.minimum_rotated_rectangle(poly)
+    angle = 0.0
+    if isinstance(rect, Polygon) and rect.area < (1.0 - ALIGN_MIN_GAIN) * box_area:
+        corners = np.asarray(rect.exterior.coords)[:2]
+        dx, dy = corners[1] - corners[0]
+        edge_deg = float(np.degrees(np.arctan2(dy, dx)))
+        angle = -(((edge_deg + 45.0) % 90.0) - 45.0)  # in [-45, 45)
+        poly = orient(affinity.rotate(poly, angle, origin=(0.0, 0.0)), sign=1.0)
+    x0, y0, _, _ = poly.bounds
+    poly = affinity.translate(poly, -x0, -y0)
+    return poly, angle, (0.0 - x0, 0.0 - y0)
+
+
+def sheet_profile(edge: Polygon, width_mm: float) -> tuple[Polygon, float]:
+    """The flat profile of a sheet part given standing on its edge.
+
+    A kind may draw a strip cut from sheet (a leaf spring) as its edge view, length x thickness,
+    extruded by the strip's width; made from sheet, the part is a length x width profile cut
+    from stock of that thickness.
+
+    Parameters
+    ----------
+    edge : shapely Polygon, mm
+        The edge view: a rectangle (at any angle), long side the length, short side the
+        thickness.
+    width_mm : float, mm
+        The strip's width (what the edge view is extruded by).
+
+    Returns
+    -------
+    (profile, thickness_mm)
+        The rectangle length x width at the origin, and the sheet thickness (mm).
+
+    Raises
+    ------
+    GeometryError
+        When the edge view is not a rectangle (then it is not a flat strip).
+    """
+    poly = _check_outline(edge, "sheet_profile")
+    rect = shapely.minimum_rotated_rectangle(poly)
+    if poly.interiors or not abs(rect.area - poly.area) <= 1e-6 * rect.area:
+        raise GeometryError(
+            "a sheet part needs a rectangular edge view (length x thickness); this outline is "
+            "not a rectangle, so export it as drawn (drop the kind's 'sheet' hint)"
+        )
+    if not (np.isfinite(width_mm) and width_mm > 0):
+        raise GeometryError(f"sheet width_mm = {width_mm} must be > 0 mm")
+    sides = np.hypot(*np.diff(np.asarray(rect.exterior.coords)[:3], axis=0).T)
+    length, thickness = float(sides.max()), float(sides.min())
+    return Polygon([(0, 0), (length, 0), (length, width_mm), (0, width_mm)]), thickness
+
+
+#: The ``DesignDetail.info`` key by which a kind says its outline is a sheet standing on its
+#: edge (value true): exporters then write the flat profile (:func:`sheet_profile`).
+SHEET_HINT = "made_from_sheet"
+
+
+def flat_part(outline: Polygon, height_mm: float, sheet: bool = False) -> FlatPart:
+    """The part of a kind's outline and height, laid flat on the bed.
+
+    Parameters
+    ----------
+    outline : shapely Polygon, mm
+        The kind's outline (DesignDetail.outline).
+    height_mm : float, mm
+        Its extrusion height (DesignDetail.height_mm).
+    sheet : bool
+        The outline is a sheet standing on its edge (:func:`sheet_profile`).
+
+    Returns
+    -------
+    FlatPart
+    """
+    if not (np.isfinite(height_mm) and height_mm > 0):
+        raise GeometryError(f"extrusion height_mm = {height_mm} must be > 0 mm")
+    if sheet:
+        profile, thickness = sheet_profile(outline, float(height_mm))
+        flat, angle, offset = lay_flat(profile)
+        return FlatPart(flat, thickness, _size(flat), 0.0, offset, True)
+    flat, angle, offset = lay_flat(outline)
+    return FlatPart(flat, float(height_mm), _size(flat), angle, offset, False)
+
+
+def _size(poly: Polygon) -> tuple[float, float]:
+    x0, y0, x1, y1 = poly.bounds
+    return (float(x1 - x0), float(y1 - y0))
+
+
+# ---- STEP (optional: an OCC-based library) ---------------------------------------------------
+
+
+class StepUnavailable(ImportError):
+    """STEP needs build123d (``pip install 'flexopt[step]'``), which is not installed."""
+
+
+def step_bytes(part: FlatPart) -> bytes:
+    """The part as a STEP solid (AP214, mm) via build123d (OpenCascade).
+
+    Parameters
+    ----------
+    part : FlatPart
+        Its outline (holes become through-holes) extruded by its thickness along z.
+
+    Returns
+    -------
+    bytes
+        The STEP file's text.
+
+    Raises
+    ------
+    StepUnavailable
+        When build123d cannot be imported.
+    GeometryError
+        When OpenCascade does not make one valid solid of the expected volume.
+    """
+    try:
+        import build123d as bd
+    except ImportError as exc:  # also a broken OCP install
+        raise StepUnavailable(str(exc)) from exc
+    import os
+    import tempfile
+
+    poly = orient(part.outline, sign=1.0)
+
+    def wire(ring) -> object:
+        pts = [(float(x), float(y), 0.0) for x, y in np.asarray(ring.coords)[:-1]]
+        return bd.Wire.make_polygon(pts, close=True)
+
+    face = bd.Face(wire(poly.exterior), [wire(r) for r in poly.interiors])
+    solid = bd.extrude(face, amount=float(part.thickness_mm))
+    expected = poly.area * float(part.thickness_mm)
+    if not solid.is_valid or not abs(solid.volume - expected) <= 1e-6 * expected + 1e-9:
+        raise GeometryError(
+            f"OpenCascade made a solid of volume {solid.volume:.9g} mm^3, expected area x "
+            f"thickness = {expected:.9g} mm^3; export STL or DXF instead"
+        )
+    fd, name = tempfile.mkstemp(suffix=".step")
+    os.close(fd)
+    try:
+        if not bd.export_step(solid, name):
+            raise GeometryError("build123d could not write the STEP file; export STL or DXF")
+        with open(name, "rb") as fh:
+            return fh.read()
+    finally:
+        os.unlink(name)

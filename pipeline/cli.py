@@ -649,7 +649,8 @@ def _export(args: argparse.Namespace) -> int:
         f"{w:.4g} x {h:.4g} mm, {outcome.thickness_mm:.4g} mm thick, {laid}; {triangles}"
         f"volume {outcome.volume_mm3:.6g} mm^3)"
     )
-    if not outcome.evaluation.feasible:
+    # (an evaluate folder's design is judged by its own verdict, not by the run's constraints)
+    if not outcome.evaluation.feasible and outcome.design != "evaluated":
         reason = f": {outcome.evaluation.reason}" if outcome.evaluation.reason else ""
         print(f"{prog}: warning: this design is not feasible{reason}", file=sys.stderr)
     return EXIT_OK

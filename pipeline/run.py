@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass, field, replace
 from datetime import datetime
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -78,6 +78,9 @@ from pipeline.studies import get_kind, kinds
 from pipeline.study import OptimiserSpec, ParallelSpec, Study, load_study, study_to_yaml
 from pipeline.verdict import judge_detail
 
+if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
+    from geometry.solid import FlatPart
+
 __all__ = [
     "Evaluator",
     "ExportError",
@@ -116,6 +119,8 @@ RUN_FILES = (
     "stress_map.png",
     "front.png",
     "best.stl",
+    "best.dxf",
+    "best.step",
     "report.md",
 )
 
@@ -681,6 +686,9 @@ class _Run:
         self.verdicts = self.judge(best, detail)
         if detail is not None:
             detail = replace(detail, verdicts=self.verdicts)
+        part = self._flat_part(detail)
+        if detail is not None and part is not None:  # the footprint in best.json and the report
+            detail = replace(detail, info={**detail.info, "part": part.record()})
         best_json = {"verdict": verdict_record(self.verdicts), **best_json}  # the verdict first
         if detail is not None and detail.info:
             best_json["info"] = detail.info
@@ -746,10 +754,15 @@ class _Run:
             self.artefact(name, lambda data=data: data)
         if len(result.front) > 1 and len(problem.objective_names) >= 2:
             self.artefact("front.png", lambda: self._front_png(result, title))
-        if detail is not None and detail.outline is not None and detail.height_mm:
-            self.artefact("best.stl", lambda: self._stl(detail))
-        elif detail is not None:
-            self.notes.append("best.stl skipped: the kind gives no outline and height_mm")
+        if part is not None:
+            self.artefact("best.stl", lambda: self._stl(part))
+            self.artefact("best.dxf", lambda: part_bytes(part, "dxf", f"{study.name}: best"))
+            if step_available():  # the optional extra; without it no STEP and no note
+                self.artefact("best.step", lambda: part_bytes(part, "step"))
+        elif detail is not None and (detail.outline is None or not detail.height_mm):
+            self.notes.append(
+                "best.stl and best.dxf skipped: the kind gives no outline and height_mm"
+            )
         return detail
 
     def _front_png(self, result: GAResult, title: str) -> bytes:
@@ -764,13 +777,22 @@ class _Run:
             title=f"{title}: Pareto front",
         )
 
-    def _stl(self, detail: DesignDetail) -> bytes | None:
-        try:
-            from geometry.solid import extrude, stl_bytes
-        except ImportError:
-            self.notes.append("best.stl skipped: geometry.solid is not available in this install")
+    def _flat_part(self, detail: DesignDetail | None) -> FlatPart | None:
+        """The best design's part laid flat (None, with a note, when it cannot be made)."""
+        if detail is None or detail.outline is None or not detail.height_mm:
             return None
-        mesh = extrude(detail.outline, float(detail.height_mm))  # type: ignore[arg-type]
+        try:
+            return part_of(detail)
+        except Exception as exc:
+            note = f"best.stl and best.dxf not written: {_one_line(f'{type(exc).__name__}: {exc}')}"
+            log.warning(note)
+            self.notes.append(note)
+            return None
+
+    def _stl(self, part: FlatPart) -> bytes:
+        from geometry.solid import extrude, stl_bytes
+
+        mesh = extrude(part.outline, part.thickness_mm)
         lo, hi = mesh.bounds
         self.stl = {
             "volume_mm3": float(mesh.volume),
@@ -1523,17 +1545,32 @@ def _rebuild_report(run_dir: Path, lock: RunDirLock) -> ReportOutcome:
 # flexopt export
 
 
+#: What ``flexopt export --format`` writes: binary STL (to print), DXF (the outline, to cut) and
+#: STEP (a solid for CAD; needs the optional extra ``flexopt[step]``).
+EXPORT_FORMATS = ("stl", "dxf", "step")
+
+#: File name endings taken as a format when ``--format`` is not given.
+_SUFFIX_FORMATS = {".stl": "stl", ".dxf": "dxf", ".step": "step", ".stp": "step"}
+
+STEP_EXTRA_FIX = "--format step needs the optional extra: pip install 'flexopt[step]'"
+
+
 @dataclass(frozen=True)
 class ExportOutcome:
     """What ``flexopt export`` wrote.
 
     Attributes
     ----------
-    path : the STL file.
-    design : ``"best"`` or the evaluation index.
+    path : the file written.
+    design : ``"best"``, the evaluation index, or ``"evaluated"`` (an evaluate folder's design).
     x : (n_var,) float, the design vector.
     evaluation : the design re-evaluated by ``problem.detail``.
-    volume_mm3 : mm^3, triangles : count, size_mm : bounding-box size (x, y, z) of the solid.
+    volume_mm3 : mm^3 (area x thickness), triangles : count (STL only, else 0),
+    size_mm : size (x, y, z) of the part as laid on the bed, mm.
+    format : ``stl``, ``dxf`` or ``step``.
+    footprint_mm : (x, y) mm on the bed; thickness_mm : mm along z.
+    rotation_deg : deg the kind's outline was turned to align it; sheet : laid flat from a sheet
+        standing on its edge (its flat profile).
     """
 
     path: Path
@@ -1543,6 +1580,11 @@ class ExportOutcome:
     volume_mm3: float
     triangles: int
     size_mm: tuple[float, float, float]
+    format: str = "stl"
+    footprint_mm: tuple[float, float] = (0.0, 0.0)
+    thickness_mm: float = 0.0
+    rotation_deg: float = 0.0
+    sheet: bool = False
 
 
 def _design_vector(
@@ -1618,36 +1660,197 @@ def _design_vector(
     return x, {"source": source}
 
 
-def export_design(run_dir: Path, design: str = "best", out: Path | None = None) -> ExportOutcome:
-    """Rebuild one design of a run and write it as a binary STL.
+def step_available() -> bool:
+    """Whether the optional STEP writer (build123d) is installed (not imported here)."""
+    import importlib.util
+
+    return importlib.util.find_spec("build123d") is not None
+
+
+def part_of(detail: DesignDetail) -> FlatPart:
+    """A design's part laid flat (:func:`geometry.solid.flat_part`), the kind's sheet hint
+    (``info[SHEET_HINT]``) honoured.
+
+    Raises
+    ------
+    GeometryError
+        When the outline is not one valid polygon (or a sheet's edge view is not a rectangle).
+    """
+    from geometry.solid import SHEET_HINT, flat_part
+
+    sheet = bool((detail.info or {}).get(SHEET_HINT))
+    return flat_part(detail.outline, float(detail.height_mm or 0.0), sheet=sheet)
+
+
+def part_bytes(part: FlatPart, fmt: str, comment: str = "") -> bytes:
+    """The file of a laid-flat part in ``fmt`` (one of :data:`EXPORT_FORMATS`).
+
+    Raises
+    ------
+    GeometryError
+        When the solid fails its checks.
+    geometry.solid.StepUnavailable
+        For ``step`` without build123d.
+    """
+    from geometry.solid import extrude, step_bytes, stl_bytes
+
+    if fmt == "stl":
+        return stl_bytes(extrude(part.outline, part.thickness_mm))
+    if fmt == "dxf":
+        from geometry.dxf import dxf_bytes
+
+        return dxf_bytes(part.outline, comment)
+    if fmt == "step":
+        return step_bytes(part)
+    raise ValueError(f"unknown export format {fmt!r}; use one of {', '.join(EXPORT_FORMATS)}")
+
+
+def is_evaluate_folder(run_dir: Path) -> bool:
+    """A folder of ``flexopt evaluate`` (evaluation.json, no run.json)."""
+    return (run_dir / "evaluation.json").is_file() and not (run_dir / "run.json").exists()
+
+
+def _export_format(fmt: str | None, out: Path | None) -> str:
+    """The format asked for, else the one ``--out`` ends in, else STL; a clash is refused."""
+    implied = _SUFFIX_FORMATS.get(out.suffix.lower()) if out is not None else None
+    if fmt is None:
+        return implied or "stl"
+    if fmt not in EXPORT_FORMATS:
+        raise StudyError("--format", f"got {echo(fmt)}; use one of {', '.join(EXPORT_FORMATS)}")
+    if implied is not None and implied != fmt:
+        raise StudyError(
+            "--out",
+            f"'{out}' ends in {out.suffix} but --format is {fmt}; name the file .{fmt} or drop "  # type: ignore[union-attr]
+            "--format",
+        )
+    return fmt
+
+
+def _nominal_design(problem: DesignProblem, study: Study) -> np.ndarray:
+    """The design a study file describes, the one ``flexopt evaluate`` solves.
+
+    The problem's optional ``nominal_design()`` (beyond the DesignProblem protocol) when it has
+    one; else each design variable read from the study by its name (the ``design:`` block
+    first, then a key of that name found once anywhere in the study).
+
+    Raises
+    ------
+    ExportError
+        When neither says what the design is.
+    """
+    method = getattr(problem, "nominal_design", None)
+    names = problem.space.names
+    if callable(method):
+        x = np.asarray(method(), dtype=float).ravel()
+        if x.shape != (len(names),) or not np.all(np.isfinite(x)):
+            raise ExportError(
+                f"kind '{study.kind}': nominal_design() gave shape {x.shape}, expected "
+                f"({len(names)},) finite values"
+            )
+        return x
+    data = study.model_dump(mode="python")
+    found: dict[str, list[float]] = {}
+
+    def walk(node: Any) -> None:
+        if isinstance(node, Mapping):
+            for key, value in node.items():
+                if key in names and isinstance(value, int | float) and not isinstance(value, bool):
+                    found.setdefault(key, []).append(float(value))
+                walk(value)
+
+    design = data.get("design")
+    walk({k: v for k, v in data.items() if k != "design"})
+    if isinstance(design, Mapping):  # the design: block wins
+        for key, value in design.items():
+            if key in names and isinstance(value, int | float) and not isinstance(value, bool):
+                found[key] = [float(value)]
+    unclear = [n for n in names if len(found.get(n, ())) != 1]
+    if unclear:
+        shown = ", ".join(unclear[:3]) + (" …" if len(unclear) > 3 else "")
+        raise ExportError(
+            f"kind '{study.kind}' does not say which design its study.yaml describes (no "
+            f"nominal_design(), and {shown} are not keys found once in the study); export a "
+            "design of a flexopt run of this study instead"
+        )
+    return np.array([found[n][0] for n in names], dtype=float)
+
+
+def _evaluate_folder_study(run_dir: Path) -> Study:
+    path = run_dir / "study.yaml"
+    if not path.is_file():
+        raise StudyError(
+            "RUN_DIR",
+            f"'{run_dir}' has evaluation.json but no study.yaml file; restore it from a copy, or "
+            "evaluate the study again with flexopt evaluate",
+        )
+    return load_study(path)
+
+
+def export_design(
+    run_dir: Path,
+    design: str = "best",
+    out: Path | None = None,
+    fmt: str | None = None,
+) -> ExportOutcome:
+    """Rebuild one design of a run or evaluate folder and write its part: STL, DXF or STEP.
+
+    The part is the kind's outline laid flat on the bed (turned so its minimum-area rectangle
+    is aligned with x and y, moved into the first quadrant); a kind that marks its outline as a
+    sheet standing on its edge (``info[geometry.solid.SHEET_HINT]``) gets its flat profile.
 
     Parameters
     ----------
     run_dir : Path
-        A folder written by ``flexopt run`` (its study.yaml rebuilds the problem).
+        A folder written by ``flexopt run`` (its study.yaml rebuilds the problem), or by
+        ``flexopt evaluate`` (its study.yaml is the design).
     design : str
-        ``"best"`` (best.json) or an evaluation index (the ``index`` column of evaluations.csv).
+        ``"best"`` (best.json) or an evaluation index (the ``index`` column of evaluations.csv);
+        an evaluate folder holds one design, so only ``"best"`` (the default).
     out : Path, optional
-        The STL file; default ``run_dir/best.stl`` or ``run_dir/design-<INDEX>.stl``.
+        The file; default ``run_dir/best.<fmt>``, ``run_dir/design-<INDEX>.<fmt>`` or, in an
+        evaluate folder, ``run_dir/design.<fmt>``.
+    fmt : str, optional
+        ``stl``, ``dxf`` or ``step``; default the one ``out`` ends in, else ``stl``.
 
     Raises
     ------
     StudyError
-        For a missing or unusable run folder (a damaged run.json, study.yaml, best.json or
-        evaluations.csv), or a design that is not in it (bad arguments). Export takes no lock:
-        it reads files that are replaced atomically, also while a run writes the folder.
+        For a missing or unusable folder (a damaged run.json, study.yaml, best.json or
+        evaluations.csv), a design that is not in it, a bad format, or ``step`` without the
+        optional extra (bad arguments). Export takes no lock: it reads files that are replaced
+        atomically, also while a run writes the folder.
     ExportError
-        When the design cannot be rebuilt or has no printable outline.
+        When the design cannot be rebuilt or has no outline to make a part of.
     OSError
-        When the STL cannot be written.
+        When the file cannot be written.
     """
-    read_run_record(run_dir)  # a folder of flexopt run, its run.json readable
-    study = _run_folder_study(run_dir, "RUN_DIR")
-    problem = build_problem(study)
-    x, _ = _design_vector(run_dir, design, problem.space, _Columns.of(problem))
-    target = out or run_dir / ("best.stl" if design == "best" else f"design-{int(design)}.stl")
+    fmt = _export_format(fmt, out)
+    if fmt == "step" and not step_available():
+        raise StudyError("", STEP_EXTRA_FIX)
+    evaluate = run_dir.is_dir() and is_evaluate_folder(run_dir)
+    if evaluate:
+        if design != "best":
+            raise StudyError(
+                "--design",
+                f"'{run_dir}' is a folder of flexopt evaluate, which holds one design; drop "
+                "--design",
+            )
+        study = _evaluate_folder_study(run_dir)
+        if get_kind(study.kind).problem is None:
+            raise ExportError(f"kind '{study.kind}' gives no part outline to export")
+        problem = build_problem(study)
+        x = _nominal_design(problem, study)
+        design = "evaluated"
+        default = f"design.{fmt}"
+    else:
+        read_run_record(run_dir)  # a folder of flexopt run, its run.json readable
+        study = _run_folder_study(run_dir, "RUN_DIR")
+        problem = build_problem(study)
+        x, _ = _design_vector(run_dir, design, problem.space, _Columns.of(problem))
+        default = f"best.{fmt}" if design == "best" else f"design-{int(design)}.{fmt}"
+    target = out or run_dir / default
     if target.is_dir():
-        raise StudyError("--out", f"'{target}' is a folder; give a file name ending in .stl")
+        raise StudyError("--out", f"'{target}' is a folder; give a file name ending in .{fmt}")
     if not target.parent.is_dir():
         raise StudyError("--out", f"folder '{target.parent}' does not exist; create it first")
     try:
@@ -1658,24 +1861,34 @@ def export_design(run_dir: Path, design: str = "best", out: Path | None = None) 
         ) from exc
     if detail.outline is None or not detail.height_mm:
         raise ExportError(f"kind '{study.kind}' gives no outline and height_mm to extrude")
+    from geometry.solid import StepUnavailable
+
     try:
-        from geometry.solid import extrude, stl_bytes
-    except ImportError as exc:
-        raise ExportError("geometry.solid is not available in this install") from exc
-    try:
-        mesh = extrude(detail.outline, float(detail.height_mm))
+        part = part_of(detail)
+        data = part_bytes(part, fmt, f"{study.name}: design {design}")
+    except StepUnavailable:
+        raise StudyError("", STEP_EXTRA_FIX) from None
     except ValueError as exc:  # GeometryError
-        raise ExportError(f"design {design} cannot be made a solid: {exc}") from exc
-    write_atomic(target, stl_bytes(mesh))
-    lo, hi = mesh.bounds
-    size = tuple(float(v) for v in hi - lo)
-    log.info("wrote %s (%d triangles)", target, len(mesh.faces))
+        raise ExportError(f"design {design} cannot be made a part: {exc}") from exc
+    triangles = 0
+    if fmt == "stl":
+        import trimesh
+
+        triangles = len(trimesh.load(trimesh.util.wrap_as_stream(data), file_type="stl").faces)
+    write_atomic(target, data)
+    w, h = part.footprint_mm
+    log.info("wrote %s (%s)", target, fmt)
     return ExportOutcome(
         target,
         design,
         x,
         detail.evaluation,
-        float(mesh.volume),
-        len(mesh.faces),
-        size,  # type: ignore[arg-type]
+        float(part.outline.area * part.thickness_mm),
+        triangles,
+        (w, h, part.thickness_mm),
+        fmt,
+        (w, h),
+        part.thickness_mm,
+        part.rotation_deg,
+        part.sheet,
     )

@@ -538,6 +538,9 @@ class LeafJointProblem:
         }
         needed = float(np.nanmax(stiff.loaded_length_mm)) - l_min
         info: dict[str, Any] = {
+            # cut from sheet: the outline is the leaf on its edge (geometry.solid.SHEET_HINT), so
+            # exports write its flat profile, length x width, t thick
+            "made_from_sheet": True,
             "structure": self.study.target.structure,
             "arm_mm": float(x[0]),
             "thickness_mm": float(x[1]),

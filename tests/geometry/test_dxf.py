@@ -1,0 +1,126 @@
+"""DXF of an outline (round trip, holes, units) and laying parts flat on the bed."""
+
+from __future__ import annotations
+
+import io
+import sys
+
+import ezdxf
+import numpy as np
+import pytest
+from shapely import affinity
+from shapely.geometry import Point, Polygon, box
+
+from geometry.dxf import HOLES_LAYER, INSUNITS_MM, OUTLINE_LAYER, dxf_bytes, dxf_polygon
+from geometry.errors import GeometryError
+from geometry.solid import (
+    FlatPart,
+    StepUnavailable,
+    extrude,
+    flat_part,
+    lay_flat,
+    sheet_profile,
+    step_bytes,
+)
+
+
+def plate_with_holes() -> Polygon:
+    """40 x 10 mm plate with a square and a round hole."""
+    return box(0, 0, 40, 10).difference(box(5, 3, 8, 6)).difference(Point(25, 5).buffer(2.5))
+
+
+def test_round_trip_keeps_outline_holes_layers_and_mm():
+    part = plate_with_holes()
+    data = dxf_bytes(part, "a plate\nwith two holes")
+    doc = ezdxf.read(io.StringIO(data.decode()))
+    assert doc.units == INSUNITS_MM == 4 and doc.header["$MEASUREMENT"] == 1
+    polylines = list(doc.modelspace().query("LWPOLYLINE"))
+    assert all(p.closed for p in polylines)
+    layers = sorted(p.dxf.layer for p in polylines)
+    assert layers == [HOLES_LAYER, HOLES_LAYER, OUTLINE_LAYER]
+    counts = sorted(len(p) for p in polylines)
+    expected = sorted(len(r.coords) - 1 for r in (part.exterior, *part.interiors))
+    assert counts == expected
+    back = dxf_polygon(data)
+    assert back.area == pytest.approx(part.area, rel=1e-12)
+    assert len(back.interiors) == 2
+    assert back.symmetric_difference(part).area < 1e-9
+
+
+def test_bad_outlines_and_files_are_refused():
+    with pytest.raises(GeometryError, match="valid"):
+        dxf_bytes(Polygon())
+    with pytest.raises(GeometryError, match="readable"):
+        dxf_polygon(b"\xff\xfe not a dxf")
+    doc = ezdxf.new("R2010")
+    doc.units = 1  # inches
+    stream = io.StringIO()
+    doc.write(stream)
+    with pytest.raises(GeometryError, match="INSUNITS"):
+        dxf_polygon(stream.getvalue().encode())
+
+
+def test_a_part_at_31_degrees_comes_back_aligned_with_its_footprint():
+    tilted = affinity.rotate(plate_with_holes(), 31.0, origin=(7.0, -3.0))
+    flat, angle, offset = lay_flat(tilted)
+    assert angle == pytest.approx(-31.0, abs=1e-6)
+    x0, y0, x1, y1 = flat.bounds
+    assert (x0, y0) == pytest.approx((0.0, 0.0), abs=1e-9)
+    assert (x1, y1) == pytest.approx((40.0, 10.0), abs=1e-6)
+    assert flat.area == pytest.approx(tilted.area) and len(flat.interiors) == 2
+    again = affinity.translate(affinity.rotate(tilted, angle, origin=(0, 0)), *offset)
+    assert again.symmetric_difference(flat).area < 1e-6  # the transform reported is the one made
+
+    part = flat_part(tilted, 3.0)
+    assert part.footprint_mm == pytest.approx((40.0, 10.0), abs=1e-6)
+    assert part.thickness_mm == 3.0 and not part.sheet
+    assert part.record()["footprint_mm"] == [40.0, 10.0]
+    mesh = extrude(part.outline, part.thickness_mm)
+    assert mesh.bounds[0] == pytest.approx([0, 0, 0], abs=1e-5)
+    assert mesh.bounds[1] == pytest.approx([40, 10, 3], abs=1e-5)
+    assert dxf_polygon(dxf_bytes(part.outline)).bounds == pytest.approx((0, 0, 40, 10), abs=1e-6)
+
+
+def test_upright_and_round_parts_are_not_turned():
+    flat, angle, _ = lay_flat(box(2, 3, 12, 40))  # taller than wide: stays as drawn
+    assert angle == 0.0 and flat.bounds == (0.0, 0.0, 10.0, 37.0)
+    disk = Point(5, 5).buffer(20.0, quad_segs=64)
+    _, angle, _ = lay_flat(disk)
+    assert angle == 0.0
+
+
+def test_a_sheet_on_its_edge_becomes_its_flat_profile():
+    # the leaf-spring joint's leaf: 68 mm long, 0.5 mm thick on edge, extruded by its 11 mm width
+    edge = affinity.rotate(box(-10, -0.25, 58, 0.25), 12.0)
+    profile, thickness = sheet_profile(edge, 11.0)
+    assert thickness == pytest.approx(0.5) and profile.bounds == pytest.approx((0, 0, 68, 11))
+    part = flat_part(edge, 11.0, sheet=True)
+    assert part.sheet and part.thickness_mm == pytest.approx(0.5)
+    assert part.footprint_mm == pytest.approx((68.0, 11.0))
+    with pytest.raises(GeometryError, match="rectangular edge view"):
+        sheet_profile(plate_with_holes(), 11.0)
+
+
+def test_step_without_build123d_is_a_clear_error(monkeypatch):
+    monkeypatch.setitem(sys.modules, "build123d", None)  # import fails as if not installed
+    part = flat_part(box(0, 0, 10, 5), 2.0)
+    with pytest.raises(StepUnavailable):
+        step_bytes(part)
+
+
+def test_step_writes_a_solid_in_mm():
+    pytest.importorskip("build123d")
+    import build123d as bd
+
+    part = flat_part(plate_with_holes(), 2.0)
+    data = step_bytes(part)
+    assert data.startswith(b"ISO-10303-21;") and b"SI_UNIT(.MILLI.,.METRE.)" in data
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "part.step"
+        path.write_bytes(data)
+        solid = bd.import_step(str(path))
+    assert solid.volume == pytest.approx(part.outline.area * 2.0, rel=1e-6)
+    assert isinstance(part, FlatPart) and np.isfinite(solid.volume)
