@@ -225,21 +225,26 @@ def _load_plugins() -> None:
             )
             continue
         _loading = ep
+        before = set(_KINDS)
         try:
-            problem = _load_plugin(ep)
+            problem = _load_plugin(ep, before)
         except (Exception, SystemExit) as exc:  # whatever a third-party import raises
             text = " ".join(str(exc).split())
             text = text if len(text) <= 200 else text[:197] + "..."
             problem = f"{_origin(ep)} failed to load: {type(exc).__name__}: {text}"
         finally:
             _loading = None
-        if problem:
-            _KINDS.pop(ep.name, None)
+        if problem:  # a plugin that failed contributes nothing, not half its kinds
+            for name in set(_KINDS) - before:
+                del _KINDS[name]
             _UNAVAILABLE[ep.name] = problem
 
 
-def _load_plugin(ep: importlib.metadata.EntryPoint) -> str | None:
-    """Import one entry point and register its kind; the problem in one line, or None."""
+def _load_plugin(ep: importlib.metadata.EntryPoint, before: set[str]) -> str | None:
+    """Import one entry point and register its kind; the problem in one line, or None.
+
+    ``before``: the names registered before it was imported (to name what it registered).
+    """
     loaded = ep.load()
     if ep.attr:  # `module:object`: a StudyKind, or a callable that returns one
         kind = loaded() if callable(loaded) and not isinstance(loaded, StudyKind) else loaded
@@ -247,6 +252,11 @@ def _load_plugin(ep: importlib.metadata.EntryPoint) -> str | None:
             return (
                 f"{_origin(ep)} gave {type(kind).__name__}, not a StudyKind; point the entry "
                 "point at a StudyKind or a function returning one"
+            )
+        if kind.name in _BUILTIN:
+            return (
+                f"{_origin(ep)} gave the kind '{kind.name}': that name is taken by a built-in "
+                "kind; give the plugin's kind (entry point name and geometry.kind) another name"
             )
         if kind.name != ep.name:
             return (
@@ -256,10 +266,7 @@ def _load_plugin(ep: importlib.metadata.EntryPoint) -> str | None:
         if _KINDS.get(kind.name) is not kind:
             register(kind)
     elif ep.name not in _KINDS:  # a module: importing it must have registered the kind
-        registered = [
-            name for name, kind in _KINDS.items()
-            if getattr(kind.model, "__module__", "") == ep.module
-        ]  # fmt: skip
+        registered = sorted(set(_KINDS) - before)
         also = f" (it registered {', '.join(registered)})" if registered else ""
         return (
             f"{_origin(ep)} was imported but registered no kind named '{ep.name}'{also}; call "
