@@ -1,19 +1,28 @@
-"""Speed of one plane-stress evaluation of a torsional SEA spring (docs/plane_stress.md).
+"""Speed of one plane-stress evaluation of a torsional SEA spring (docs/plane_stress.md, issue 13).
 
-One evaluation of the ``sea_spring`` study: mesh the spring, build the model, a linear solve
+One evaluation of the ``sea_spring`` study: build the model on a meshed spring, a linear solve
 (stiffness) and a geometrically nonlinear solve in one step to 11.04 degrees (torque at 53 N m for
-275 N m/rad). Timed for the current path (vectorised assembly, SuperLU per Newton iteration, and the
-CG variant) and, in the same process, the old path (scikit-fem's per-basis-pair assembly), so the
-two see the same machine load. Prints the median of ``--repeat`` runs of each.
+275 N m/rad). Timed side by side in one process, interleaved round by round so that load changes
+hit every case alike, as CPU time (``time.process_time``) and wall time, medians of ``--repeat``
+rounds after one warm-up round (which loads the compiled kernels):
 
-    python benchmarks/plane_stress_speed.py [--repeat 3] [--fillet-segments 2] [--spring spiral]
+* ``cholmod compiled`` — the default path: compiled (numba) assembly, CHOLMOD sparse Cholesky
+  with the analysis kept (cvxopt);
+* ``superlu vectorised`` — the previous default: numpy assembly, SuperLU per tangent;
+* ``superlu compiled``, ``cholmod vectorised`` — each change alone;
+* ``pardiso compiled`` — when pypardiso and MKL import (optional);
+* ``skfem superlu`` (``--old``) — scikit-fem's per-basis-pair assembly, the first path.
+
+    python benchmarks/plane_stress_speed.py [--repeat 7] [--spring serpentine|spiral] [--old]
 
 ``--spring spiral`` times the spring of the default ``sea-spring`` study (spiral arms, its
-``design:`` at the thickness it solved) instead of the Table 9 mid-range serpentine.
+``design:`` at the thickness it solved) instead of the Table 9 mid-range serpentine. The mesh is
+made once (not timed): every case solves the same mesh. Each case's torque is printed with its
+difference to the first case's, so a faster path that changed the answer would show.
 
 BLAS threads are limited to one before numpy is imported (and MKL to its sequential layer): on a
 shared 2-core machine OpenBLAS's threads spin against each other (a 30k-element dot product took
-3 ms instead of 20 us).
+3 ms instead of 20 us), and the run's workers use one thread each too.
 """
 
 from __future__ import annotations
@@ -25,7 +34,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_THREADING_LAYER", "SEQUENTIAL")
 
 import argparse  # noqa: E402
+import datetime  # noqa: E402
 import math  # noqa: E402
+import platform  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -46,10 +57,16 @@ from geometry.sea_spring import (  # noqa: E402
 )
 
 THETA = 53.0 / 275.0  # rad, 11.04 degrees
+TARGET_CPU_S = 0.4  # issue 13: one SEA-spring evaluation (linear + nonlinear)
 
 
-def one(mesh, geom, settings: PlaneStressSettings, kinematics: str) -> tuple[float, float, dict]:
-    t0 = time.perf_counter()
+def load() -> str:
+    return " ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
+def one(mesh, geom, settings: PlaneStressSettings) -> tuple[float, float, float, dict]:
+    """(cpu s, wall s, torque N m, counters) of model build + linear + nonlinear solve."""
+    c0, w0 = time.process_time(), time.perf_counter()
     model = PlaneStressModel(
         mesh,
         get_material("maraging-300"),
@@ -58,21 +75,17 @@ def one(mesh, geom, settings: PlaneStressSettings, kinematics: str) -> tuple[flo
         Rotate(geom.hub_region, (0.0, 0.0), THETA, 1),
         settings=settings,
     )
-    res = model.solve("linear")
-    if kinematics == "nonlinear":
-        res = model.solve("nonlinear")
-        assert res.ok, res.message
-    return time.perf_counter() - t0, float(res.torque_Nmm[-1]) * 1e-3, dict(model.counters)
+    model.solve("linear")
+    res = model.solve("nonlinear")
+    assert res.ok, res.message
+    cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+    info = dict(model.counters, solver=model.solver, assembly=model.assembly)
+    return cpu, wall, float(res.torque_Nmm[-1]) * 1e-3, info
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--fillet-segments", type=int, default=4)
-    ap.add_argument("--spring", choices=("serpentine", "spiral"), default="serpentine")
-    args = ap.parse_args()
-    frame = SpringFrame(fillet_segments=args.fillet_segments)
-    if args.spring == "spiral":
+def spring(kind: str, fillet_segments: int):
+    frame = SpringFrame(fillet_segments=fillet_segments)
+    if kind == "spiral":
         from geometry.arm_spring import build_arm_spring, spiral_params
         from pipeline.study import load_study
 
@@ -80,55 +93,84 @@ def main() -> None:
         values = {**study.design, "ST": study.design.get("ST", 10.0)}
         p = spiral_params(values, int(study.geometry.n_sets or 2), frame,
                           study.geometry.root_fillet_mm)  # fmt: skip
-        geom = build_arm_spring(p, frame)
-        label = f"sea-spring study's spiral, {p.n_arms} arms"
-    else:
-        x = np.array([0.5 * (lo + hi) for lo, hi in TABLE9_BOUNDS.values()])
-        geom = build_spring(params_from_vector(x, 4), frame)
-        label = "Table 9 mid-range, 4 sets"
+        return build_arm_spring(p, frame), f"sea-spring study's spiral, {p.n_arms} arms"
+    x = np.array([0.5 * (lo + hi) for lo, hi in TABLE9_BOUNDS.values()])
+    return build_spring(params_from_vector(x, 4), frame), "Table 9 mid-range, 4 sets"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--fillet-segments", type=int, default=4)
+    ap.add_argument("--spring", choices=("serpentine", "spiral"), default="serpentine")
+    ap.add_argument("--old", action="store_true", help="also time scikit-fem's assembly (slow)")
+    args = ap.parse_args()
+    print(f"date      {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC")
+    print(f"machine   {platform.machine()}, {os.cpu_count()} cores, {platform.system()}")
+    print(f"load avg  {load()} (1, 5, 15 min) at start")
+    geom, label = spring(args.spring, args.fillet_segments)
     t0 = time.perf_counter()
     mesh = mesh_polygon(geom.fe_outline, 3.0, refine=geom.mesh_regions(1.0, 3.0))
     t_mesh = time.perf_counter() - t0
-    print(f"spring: {label}, {mesh.n_triangles} P2 triangles, mesh {t_mesh:.2f} s")
+    print(f"spring    {label}, {mesh.n_triangles} P2 triangles, mesh {t_mesh:.2f} s (not timed)")
     nl = dict(rtol_residual=1e-7)  # what the sea_spring study uses
-    cases = [
-        ("linear     vectorised SuperLU", PlaneStressSettings(solver="direct"), "linear"),
-        ("linear     skfem SuperLU (old)", PlaneStressSettings(assembly="skfem", solver="direct"),
-         "linear"),
-        ("lin+nonlin vectorised SuperLU", PlaneStressSettings(solver="direct", **nl), "nonlinear"),
-        ("lin+nonlin vectorised CG", PlaneStressSettings(solver="krylov", krylov_rtol=1e-4,
-                                                         krylov_max_iter=15, **nl), "nonlinear"),
-        ("lin+nonlin skfem SuperLU (old)",
-         PlaneStressSettings(assembly="skfem", solver="direct", **nl), "nonlinear"),
-    ]  # fmt: skip
+    cases = {
+        "cholmod  compiled": PlaneStressSettings(solver="cholmod", assembly="compiled", **nl),
+        "superlu  vectorised (previous)": PlaneStressSettings(
+            solver="direct", assembly="vectorised", **nl
+        ),
+        "superlu  compiled": PlaneStressSettings(solver="direct", assembly="compiled", **nl),
+        "cholmod  vectorised": PlaneStressSettings(solver="cholmod", assembly="vectorised", **nl),
+    }
     try:
         import pypardiso  # noqa: F401
 
-        cases[1:1] = [("linear     vectorised PARDISO", PlaneStressSettings(solver="pardiso"),
-                       "linear")]  # fmt: skip
-        cases.insert(4, ("lin+nonlin vectorised PARDISO",
-                         PlaneStressSettings(solver="pardiso", **nl), "nonlinear"))  # fmt: skip
+        cases["pardiso  compiled"] = PlaneStressSettings(
+            solver="pardiso", assembly="compiled", **nl
+        )
     except ImportError:
-        print("pypardiso not importable: PARDISO cases skipped (pip install pypardiso mkl)")
-    times: dict[str, list[float]] = {name: [] for name, _, _ in cases}
+        print("pypardiso not importable: PARDISO case skipped (pip install '.[fast]')")
+    if args.old:
+        cases["superlu  skfem (first path)"] = PlaneStressSettings(
+            solver="direct", assembly="skfem", **nl
+        )
+    for settings in cases.values():  # warm-up: numba loads its cache, CHOLMOD its library
+        one(mesh, geom, settings)
+    cpu: dict[str, list[float]] = {name: [] for name in cases}
+    wall: dict[str, list[float]] = {name: [] for name in cases}
     info = {}
     for _ in range(args.repeat):  # interleaved, so load changes hit every case alike
-        for name, settings, kin in cases:
-            t, torque, counters = one(mesh, geom, settings, kin)
-            times[name].append(t)
+        for name, settings in cases.items():
+            c, w, torque, counters = one(mesh, geom, settings)
+            cpu[name].append(c)
+            wall[name].append(w)
             info[name] = (torque, counters)
     n_dofs = PlaneStressModel(
         mesh, get_material("maraging-300"), geom.thickness_mm, Clamp(geom.pad_region),
         Rotate(geom.hub_region, (0.0, 0.0), THETA, 1),
     ).n_dofs  # fmt: skip
-    print(f"{n_dofs} DOF; median of {args.repeat} (min, max), model build included, mesh not")
-    for name, ts in times.items():
+    first = next(iter(cases))
+    base = "superlu  vectorised (previous)"
+    ref_torque = info[first][0]
+    print(
+        f"\n{n_dofs} DOF, theta = {math.degrees(THETA):.2f} deg; one evaluation = model build + "
+        f"linear + nonlinear solve;\nmedians of {args.repeat} interleaved rounds, CPU s (wall s); "
+        f"'x prev' = previous path's time / this path's time (CPU, wall)"
+    )
+    print(f"  {'path':32s} {'CPU s':>6s} {'(wall)':>8s}  {'x prev':>11s}  torque N m (diff)")
+    for name in cases:
+        c, w = statistics.median(cpu[name]), statistics.median(wall[name])
+        cb, wb = statistics.median(cpu[base]), statistics.median(wall[base])
         torque, counters = info[name]
         print(
-            f"  {name:32s} {statistics.median(ts):6.2f} s ({min(ts):.2f}, {max(ts):.2f})  "
-            f"torque {torque:.4f} N m  {counters}"
+            f"  {name:32s} {c:6.3f} ({w:6.3f})  {cb / c:4.1f} ({wb / w:4.1f})  {torque:.6f} "
+            f"({torque - ref_torque:+.1e})  factorisations {counters['factorisations']}, "
+            f"tangents {counters['tangents']}, cholesky failures {counters['cholesky_failures']}"
         )
-    print(f"theta = {math.degrees(THETA):.2f} deg")
+    c = statistics.median(cpu[first])
+    verdict = "met" if c <= TARGET_CPU_S else "NOT met"
+    print(f"target: one evaluation <= {TARGET_CPU_S} s CPU -> {c:.3f} s: {verdict} at this load")
+    print(f"load avg  {load()} (1, 5, 15 min) at end")
 
 
 if __name__ == "__main__":

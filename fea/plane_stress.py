@@ -26,6 +26,8 @@ thickness multiplies the assembled vectors and matrices. Numerical failure is re
 
 from __future__ import annotations
 
+import logging
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -50,6 +52,8 @@ from skfem.helpers import ddot, grad, sym_grad, trace, transpose
 from fea.errors import FeaError
 from fea.materials import Material
 from fea.mesh import TriMesh, to_skfem
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "Clamp",
@@ -161,9 +165,13 @@ class PlaneStressSettings:
     select_tol_mm: float = 1e-6
     # "vectorised": residual and tangent from basis-gradient tables precomputed once per mesh,
     # contracted with numpy and summed into a sparsity pattern found once (about 10x faster
-    # than scikit-fem's per-basis-pair loop on P2). "skfem": the module-level forms through
-    # skfem.asm, kept as the readable reference (the tests check that both agree).
-    assembly: Literal["vectorised", "skfem"] = "vectorised"
+    # than scikit-fem's per-basis-pair loop on P2). "compiled": the same tables and pattern, the
+    # residual and tangent in one numba pass over the elements (fea/_plane_stress_kernels.py;
+    # ~10 ms instead of ~90 ms per tangent at 30k DOFs, equal to round-off). "skfem": the
+    # module-level forms through skfem.asm, kept as the readable reference (the tests check that
+    # all agree). "auto": the environment variable FLEXOPT_PLANE_STRESS_ASSEMBLY if set, else
+    # "compiled" (or "vectorised" when numba does not import).
+    assembly: Literal["auto", "compiled", "vectorised", "skfem"] = "auto"
     # "direct" factorises every tangent (SuperLU). "krylov" solves each Newton system by
     # conjugate gradients preconditioned with the last factorisation (at first the linear
     # stiffness's, which the linear solve made anyway) and factorises the tangent only when CG
@@ -174,9 +182,15 @@ class PlaneStressSettings:
     # ~1/20 of a factorisation. "pardiso": Intel MKL PARDISO through the optional package
     # pypardiso, symmetric indefinite, with the symbolic analysis of the (fixed) sparsity
     # pattern done once per model and only the numerical factorisation per tangent: 5-8x faster
-    # than SuperLU on the spring (docs/plane_stress.md). "auto": pardiso when pypardiso and MKL
-    # load, else "direct".
-    solver: Literal["auto", "pardiso", "direct", "krylov"] = "auto"
+    # than SuperLU on the spring (docs/plane_stress.md). "cholmod": sparse Cholesky (CHOLMOD,
+    # supernodal, through cvxopt's wheels), the fill-reducing analysis of the fixed pattern done
+    # once per model and only the numerical factorisation per tangent: ~11 ms against SuperLU's
+    # ~120 ms at 30k DOFs. Past a bifurcation or limit point the tangent is indefinite and
+    # Cholesky stops; that tangent is then factorised by SuperLU (counters["cholesky_failures"],
+    # which at a converged state says the equilibrium is unstable under the drive). "auto": the
+    # environment variable FLEXOPT_PLANE_STRESS_SOLVER if set, else cholmod when cvxopt imports,
+    # else pardiso when pypardiso and MKL load, else "direct".
+    solver: Literal["auto", "cholmod", "pardiso", "direct", "krylov"] = "auto"
     # CG stops at this residual relative to the right-hand side: Newton then keeps its
     # quadratic rate down to ~1e-10 of the force (an inexact solve of 1e-10 costs 2-3 more CG
     # iterations than 1e-6 and spares Newton iterations).
@@ -216,6 +230,9 @@ class PlaneStressResponse:
     dofs : (N,) the full solution vector at the last converged row (scikit-fem DOF order).
     n_dofs : int — number of unknowns (2 per P2 node).
     solve_time_s : float — model build plus solve.
+    extra : solver and assembly that ran ("cholmod" / "pardiso" / "direct" / "krylov";
+        "compiled" / "vectorised" / "skfem"), and cholesky_failures: tangents the Cholesky
+        path found indefinite and handed to LU, counted over the model's life.
     """
 
     drive: str
@@ -326,6 +343,22 @@ def tangent_stiffness(du, v, w):
 # --------------------------------------------------------------------------------------------
 
 
+_KERNELS: list = []  # fea._plane_stress_kernels once imported, or None when numba cannot
+
+
+def _compiled():
+    """fea._plane_stress_kernels, or None when numba cannot be imported (numpy then runs)."""
+    if not _KERNELS:
+        try:
+            from fea import _plane_stress_kernels
+
+            _KERNELS.append(_plane_stress_kernels)
+        except Exception as exc:  # ImportError, or a numba that fails on this platform's LLVM
+            log.debug("numba plane-stress kernel unavailable (%s: %s)", type(exc).__name__, exc)
+            _KERNELS.append(None)
+    return _KERNELS[0]
+
+
 class _VectorAssembly:
     """Residual and tangent of a vector P1/P2 basis by whole-mesh numpy contractions.
 
@@ -359,17 +392,29 @@ class _VectorAssembly:
         self.dofs = np.asarray(basis.element_dofs).T[:, np.concatenate(idx)]  # (E, 2 ns)
         self.N = int(basis.N)
         m = 2 * self.ns
-        rows = np.repeat(self.dofs, m, axis=1).ravel().astype(np.int64)
-        cols = np.tile(self.dofs, (1, m)).ravel().astype(np.int64)
-        # Sorted unique (row, col) keys are exactly CSR order; the inverse places each element
-        # entry in the data array.
-        keys, self._map = np.unique(rows * self.N + cols, return_inverse=True)
-        self._map = self._map.ravel()
-        self._rows, self._cols = keys // self.N, keys % self.N
+        kernels = _compiled()
+        if kernels is not None:
+            # Same pattern and positions as the np.unique route below, without sorting the
+            # 1e6 (row, col) keys of a 30k-DOF P2 mesh (~150 ms there, ~15 ms compiled).
+            indptr, indices, where = kernels.csr_pattern(self.dofs.astype(np.int64), self.N)
+            self._map = where
+            self._rows = np.repeat(np.arange(self.N), np.diff(indptr))
+            self._cols = indices
+            self.nnz = int(indices.size)
+        else:
+            rows = np.repeat(self.dofs, m, axis=1).ravel().astype(np.int64)
+            cols = np.tile(self.dofs, (1, m)).ravel().astype(np.int64)
+            # Sorted unique (row, col) keys are exactly CSR order; the inverse places each
+            # element entry in the data array.
+            keys, self._map = np.unique(rows * self.N + cols, return_inverse=True)
+            self._map = self._map.ravel()
+            self._rows, self._cols = keys // self.N, keys % self.N
+            self.nnz = int(keys.size)
         self.indices = self._cols.astype(np.int32)
         self.indptr = np.searchsorted(self._rows, np.arange(self.N + 1)).astype(np.int32)
-        self.nnz = int(keys.size)
         self._keep: np.ndarray | None = None
+        self._dofs64 = np.ascontiguousarray(self.dofs, dtype=np.int64)
+        self._g = np.ascontiguousarray(self.g, dtype=float)
 
     def reduce_to(self, free: np.ndarray) -> None:
         """Also write the sub-matrix K[free][:, free] with every tangent (free sorted)."""
@@ -410,6 +455,10 @@ class _VectorAssembly:
         Hm = np.moveaxis(H, 1, 4).reshape(E, 4 * self.ns, 2 * Q)  # (E, c a d, q L)
         Ke = np.matmul(Hm, self.gT.reshape(E, 2 * Q, self.ns))  # (E, c a d, b)
         data = np.bincount(self._map, weights=Ke.ravel(), minlength=self.nnz)
+        return self.matrix(data)
+
+    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        """(N, N) CSR matrix of CSR data (nnz,) on the mesh's pattern (with its reduced block)."""
         K = sp.csr_matrix((data, self.indices, self.indptr), shape=(self.N, self.N))
         if self._keep is not None:
             n = self._n_free
@@ -417,6 +466,20 @@ class _VectorAssembly:
                 (data[self._keep], self._r_indices, self._r_indptr), shape=(n, n)
             )
         return K
+
+    def compiled_state(
+        self, u: np.ndarray, lam: float, mu: float, thickness: float, want_tangent: bool = True
+    ) -> tuple[np.ndarray, sp.csr_matrix | None, float]:
+        """SVK internal force (N,) N, tangent (N, N) N/mm (or None) and min det F, compiled.
+
+        The same quantities as :meth:`deformation_gradient` + :meth:`internal_force` +
+        :meth:`tangent` of :func:`_tangent_tensor`, in one pass (fea/_plane_stress_kernels.py).
+        """
+        f, data, min_det = _compiled().svk_assemble(
+            np.ascontiguousarray(u, dtype=float), self._dofs64, self._g, self.dx,
+            float(thickness), float(lam), float(mu), self._map, self.nnz, want_tangent,
+        )  # fmt: skip
+        return f, (self.matrix(data) if want_tangent else None), float(min_det)
 
 
 def _pcg(
@@ -526,6 +589,99 @@ class _Pardiso:
         return np.asarray(x).ravel()
 
 
+class _Cholmod:
+    """CHOLMOD sparse Cholesky (SuiteSparse, through cvxopt) on a fixed sparsity pattern.
+
+    The fill-reducing ordering and the symbolic factorisation (``cholmod.symbolic``) run on the
+    first matrix of a pattern only; every later matrix of that pattern (the assembly writes a
+    fixed CSR structure) is factorised numerically (``cholmod.numeric``) into the same factor.
+    CHOLMOD picks its supernodal method here, dense BLAS on the supernodes: ~11 ms for the 29.5k
+    free DOFs of the SEA spring against ~120 ms for SuperLU and ~100 ms for cholespy (whose
+    wheels carry CHOLMOD's simplicial method only, with no way to keep the analysis).
+
+    Why cvxopt: its wheels (Linux, macOS, Windows; x86-64 and arm64) carry SuiteSparse and a
+    BLAS, so ``pip install .`` needs no compiler; scikit-sparse publishes no wheels.
+
+    Raises
+    ------
+    ImportError
+        cvxopt is not installed.
+    """
+
+    def __init__(self) -> None:
+        from cvxopt import cholmod, matrix, spmatrix
+
+        self._cholmod, self._matrix, self._spmatrix = cholmod, matrix, spmatrix
+        self._indptr: np.ndarray | None = None  # the pattern analysed, (n + 1,) and (nnz,)
+        self._indices: np.ndarray | None = None
+        self._upper: np.ndarray | None = None  # (nnz,) bool: entries with col >= row
+        self._A = None  # cvxopt spmatrix: the lower triangle on the pattern
+        self._F = None  # CHOLMOD factor of the pattern (symbolic, then numeric)
+
+    def _same_pattern(self, K: sp.csr_matrix) -> bool:
+        if self._indptr is None:
+            return False
+        if K.indices is self._indices and K.indptr is self._indptr:
+            return True  # the assembly hands out the same index arrays for every tangent
+        return np.array_equal(K.indptr, self._indptr) and np.array_equal(K.indices, self._indices)
+
+    def factorise(self, K: sp.csr_matrix) -> bool:
+        """Factorise a symmetric (n, n) CSR matrix; False when it is not positive definite.
+
+        Only its upper triangle is read (as the lower triangle of the CSC transpose, which is
+        the same storage): K must be symmetric.
+        """
+        if not K.has_sorted_indices:
+            K = K.sorted_indices()
+        n = K.shape[0]
+        if not self._same_pattern(K):
+            rows = np.repeat(np.arange(n), np.diff(K.indptr))
+            self._upper = K.indices >= rows
+            # CSR's upper triangle, read column-major, is the CSC lower triangle already in
+            # CHOLMOD's order (column, then row), so the values keep their order in the matrix.
+            i = self._matrix(K.indices[self._upper].astype(np.int64))
+            j = self._matrix(rows[self._upper].astype(np.int64))
+            self._A = self._spmatrix(self._matrix(K.data[self._upper]), i, j, (n, n))
+            self._F = self._cholmod.symbolic(self._A, uplo="L")
+            self._indptr, self._indices = K.indptr, K.indices
+        else:
+            self._A.V = self._matrix(np.ascontiguousarray(K.data[self._upper]))
+        try:
+            self._cholmod.numeric(self._A, self._F)
+        except ArithmeticError:  # CHOLMOD: "not positive definite" at the column it reports
+            return False
+        return True
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """x (n,) with K x = rhs (n,), K the last matrix factorised."""
+        x = self._matrix(np.array(rhs, dtype=float))
+        self._cholmod.solve(self._F, x)
+        return np.asarray(x).ravel()
+
+
+SOLVERS = ("auto", "cholmod", "pardiso", "direct", "krylov")
+"""PlaneStressSettings.solver values."""
+SOLVER_ENV = "FLEXOPT_PLANE_STRESS_SOLVER"
+"""Environment variable that sets the solver where the settings say "auto"."""
+ASSEMBLIES = ("auto", "compiled", "vectorised", "skfem")
+"""PlaneStressSettings.assembly values."""
+ASSEMBLY_ENV = "FLEXOPT_PLANE_STRESS_ASSEMBLY"
+"""Environment variable that sets the assembly where the settings say "auto"."""
+
+
+def _pick(what: str, value: str, allowed: tuple[str, ...], env: str) -> str:
+    """The setting ``value``, or for "auto" the environment's choice (or "auto" when unset)."""
+    if value not in allowed:
+        raise FeaError(f"{what} '{value}' unknown; use one of {', '.join(allowed)}")
+    if value == "auto":
+        value = os.environ.get(env, "").strip().lower() or "auto"
+        if value not in allowed:
+            raise FeaError(f"{env}={value!r} unknown; use one of {', '.join(allowed[1:])}")
+        if what == "assembly" and value == "auto":
+            value = "compiled"
+    return value
+
+
 # --------------------------------------------------------------------------------------------
 # Model
 # --------------------------------------------------------------------------------------------
@@ -632,38 +788,66 @@ class PlaneStressModel:
         self._K_lin: sp.csr_matrix | None = None  # linear stiffness, assembled on first use
         self._lu_lin = None  # and its factorisation
         self._lu_pre = None  # the factorisation CG is preconditioned with (krylov solver)
-        self.counters = {"factorisations": 0, "cg_iterations": 0, "tangents": 0}
-        if settings.assembly not in ("vectorised", "skfem"):
-            raise FeaError(f"assembly '{settings.assembly}' unknown; use 'vectorised' or 'skfem'")
-        if settings.solver not in ("auto", "pardiso", "direct", "krylov"):
-            raise FeaError(
-                f"solver '{settings.solver}' unknown; use 'auto', 'pardiso', 'direct' or 'krylov'"
-            )
+        self.counters = {
+            "factorisations": 0,
+            "cg_iterations": 0,
+            "tangents": 0,
+            "cholesky_failures": 0,
+        }
+        self.assembly = _pick("assembly", settings.assembly, ASSEMBLIES, ASSEMBLY_ENV)
+        if self.assembly == "compiled" and _compiled() is None:
+            self.assembly = "vectorised"  # numba missing: the numpy path, same answers
+        solver = _pick("solver", settings.solver, SOLVERS, SOLVER_ENV)
         self._pardiso = None  # PARDISO handle (symbolic analysis kept) and what it holds
         self._pardiso_K = None
-        if settings.solver in ("auto", "pardiso"):
+        self._chol = None  # CHOLMOD handle (analysis kept), the K it holds, and its LU stand-in
+        self._chol_K = None
+        self._chol_lu = None
+        if solver == "auto":
+            solver = "direct"
+            for name, make in (("cholmod", _Cholmod), ("pardiso", _Pardiso)):
+                try:
+                    make()
+                except ImportError:
+                    continue
+                solver = name
+                break
+        if solver == "cholmod":
+            try:
+                self._chol = _Cholmod()
+            except ImportError as exc:
+                raise FeaError(
+                    f"solver 'cholmod' needs cvxopt ({exc}); pip install cvxopt, or use 'direct'"
+                ) from exc
+        elif solver == "pardiso":
             try:
                 self._pardiso = _Pardiso()
             except ImportError as exc:
-                if settings.solver == "pardiso":
-                    raise FeaError(
-                        f"solver 'pardiso' needs pypardiso and Intel MKL ({exc}); "
-                        "pip install pypardiso mkl, or use solver 'direct'"
-                    ) from exc
-        self.solver = (
-            "pardiso"
-            if self._pardiso is not None
-            else ("direct" if settings.solver == "auto" else settings.solver)
-        )
-        self._asm = _VectorAssembly(self.basis) if settings.assembly == "vectorised" else None
+                raise FeaError(
+                    f"solver 'pardiso' needs pypardiso and Intel MKL ({exc}); "
+                    "pip install pypardiso mkl, or use solver 'direct'"
+                ) from exc
+        #: the solver that runs: "cholmod", "pardiso", "direct" or "krylov"
+        self.solver = solver
+        self._asm = _VectorAssembly(self.basis) if self.assembly != "skfem" else None
         self._build_constraints()
 
     # ---- setup ------------------------------------------------------------------------------
 
     def _select(self, region: BaseGeometry, what: str) -> np.ndarray:
-        d = shapely.distance(region, shapely.points(self.xy))
-        nodes = np.flatnonzero(d <= self.settings.select_tol_mm)
+        tol = self.settings.select_tol_mm
+        # Only nodes in the bounding box of one of the region's parts (grown by tol) can be
+        # within tol of it; the exact distance, O(region vertices) per node, is then taken for
+        # those few (a 15k-node mesh: 30 ms -> ~2 ms). Parts: pads spread around a spring make a
+        # MultiPolygon whose overall box holds the whole mesh.
+        x, y = self.xy[:, 0], self.xy[:, 1]
+        in_box = np.zeros(x.size, dtype=bool)
+        for x0, y0, x1, y1 in shapely.bounds(shapely.get_parts(region)).reshape(-1, 4):
+            in_box |= (x >= x0 - tol) & (x <= x1 + tol) & (y >= y0 - tol) & (y <= y1 + tol)
+        near = np.flatnonzero(in_box)
+        nodes = near[shapely.distance(region, shapely.points(self.xy[near])) <= tol]
         if nodes.size == 0:
+            d = shapely.distance(region, shapely.points(self.xy))  # for the message only
             raise FeaError(
                 f"the {what} region selects no mesh node (nearest node is {d.min():.3g} mm away, "
                 f"tolerance {self.settings.select_tol_mm:g} mm); put the {what} geometry on the "
@@ -767,7 +951,12 @@ class PlaneStressModel:
 
     def _state_linear(self, u: np.ndarray) -> _State:
         if self._K_lin is None:
-            if self._asm is not None:
+            if self.assembly == "compiled":
+                # F = I and S = 0 at u = 0: the SVK tangent there is the linear stiffness.
+                _, self._K_lin, _ = self._asm.compiled_state(
+                    np.zeros(self.n_dofs), self.lam, self.mu, self.thickness_mm
+                )
+            elif self._asm is not None:
                 C = _material_tensor(self.lam, self.mu)[:, :, :, :, None, None]
                 self._K_lin = self._asm.tangent(C, self.thickness_mm)
             else:
@@ -785,6 +974,9 @@ class PlaneStressModel:
     def _state_nonlinear(self, u: np.ndarray) -> _State:
         b = self.thickness_mm
         self.counters["tangents"] += 1
+        if self.assembly == "compiled":
+            f, K, min_det = self._asm.compiled_state(u, self.lam, self.mu, b)
+            return _State(f, K, min_det)
         if self._asm is not None:
             F = self._asm.deformation_gradient(u)
             E = 0.5 * (_matmul(transpose(F), F) - _eye_like(F))
@@ -861,6 +1053,21 @@ class PlaneStressModel:
         return splu(Kr.tocsc(), permc_spec="MMD_AT_PLUS_A")
 
     def _reduced_solve(self, K: sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:
+        if self._chol is not None:
+            # One handle: the pattern's analysis is kept, the numbers refactorised on a new K.
+            if self._chol_K is not K:
+                self.counters["factorisations"] += 1
+                Kr = self._reduced(K)
+                self._chol_lu = None
+                if not self._chol.factorise(Kr):
+                    # Not positive definite: past a bifurcation or limit point, or a Newton
+                    # iterate far from equilibrium. LU (partial pivoting) solves it all the same.
+                    self.counters["cholesky_failures"] += 1
+                    self._chol_lu = self._factorise(Kr)
+                self._chol_K = K
+            if self._chol_lu is not None:
+                return self._chol_lu.solve(rhs)
+            return self._chol.solve(rhs)
         if self._pardiso is not None:
             # One handle: the pattern's analysis is kept, the numbers refactorised on a new K.
             if self._pardiso_K is not K:
@@ -1065,6 +1272,13 @@ class PlaneStressModel:
             dofs=u,
             n_dofs=self.n_dofs,
             solve_time_s=time.perf_counter() - t0,
+            extra={
+                "solver": self.solver,
+                "assembly": self.assembly,
+                # Tangents Cholesky refused (solved by LU): at a converged row, an equilibrium
+                # that is unstable under the drive (past a bifurcation or limit point).
+                "cholesky_failures": self.counters["cholesky_failures"],
+            },
         )
 
 

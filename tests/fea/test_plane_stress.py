@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from scipy.integrate import quad
 from scipy.optimize import brentq
 from shapely.geometry import LineString, Point, Polygon, box
@@ -302,3 +303,129 @@ def test_vectorised_assembly_and_krylov_solver_match_the_skfem_reference():
             mesh, MAT, 2.0, kinematics=kin, settings=PlaneStressSettings(assembly="skfem"), **kw
         )
         np.testing.assert_allclose(a.torque_Nmm, b.torque_Nmm, rtol=1e-10, atol=1e-9)
+
+
+# ---- the Cholesky path, the compiled assembly and the SuperLU fallback (issue 13) ------------
+
+try:
+    import cvxopt  # noqa: F401
+
+    HAS_CHOLMOD = True
+except ImportError:
+    HAS_CHOLMOD = False
+needs_cholmod = pytest.mark.skipif(not HAS_CHOLMOD, reason="cvxopt (CHOLMOD) not installed")
+
+
+def twisted_ring():
+    """The outline and drive of the reference test above: a slit ring turned by 0.15 rad."""
+    poly = annulus(3.0, 8.0, quad_segs=16).difference(box(5.0, -0.5, 9.0, 0.5))
+    inner = poly.interiors[0] if poly.interiors else Point(0, 0).buffer(3.0).exterior
+    kw = dict(clamp=Clamp(Point(-8.0, 0.0).buffer(1.0)), drive=Rotate(inner, (0, 0), 0.15, 2))
+    return mesh_polygon(poly, 1.0), kw
+
+
+@needs_cholmod
+@pytest.mark.parametrize("kinematics", ["linear", "nonlinear"])
+def test_cholesky_and_superlu_paths_agree(kinematics):
+    mesh, kw = twisted_ring()
+    runs = {
+        solver: solve_plane_stress(
+            mesh,
+            MAT,
+            2.0,
+            kinematics=kinematics,
+            settings=PlaneStressSettings(solver=solver, assembly="vectorised"),
+            **kw,
+        )  # fmt: skip
+        for solver in ("cholmod", "direct")
+    }
+    chol, lu = runs["cholmod"], runs["direct"]
+    assert chol.ok and lu.ok
+    assert chol.extra["solver"] == "cholmod" and lu.extra["solver"] == "direct"
+    assert chol.extra["cholesky_failures"] == 0  # positive definite all the way
+    scale = np.abs(lu.dofs).max()
+    np.testing.assert_allclose(chol.dofs, lu.dofs, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(chol.torque_Nmm, lu.torque_Nmm, rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(chol.iterations, lu.iterations)
+
+
+def test_compiled_assembly_matches_the_numpy_one():
+    from fea.plane_stress import PlaneStressModel, _compiled
+
+    if _compiled() is None:
+        pytest.skip("numba not importable")
+    mesh, kw = twisted_ring()
+    models = {
+        a: PlaneStressModel(mesh, MAT, 2.0, settings=PlaneStressSettings(assembly=a), **kw)
+        for a in ("compiled", "vectorised")
+    }
+    u = solve_plane_stress(mesh, MAT, 2.0, **kw).dofs  # a state with 0.15 rad of twist
+    for kin in ("linear", "nonlinear"):
+        c, v = (models[a].state(u, kin) for a in ("compiled", "vectorised"))
+        np.testing.assert_allclose(c.f, v.f, rtol=0, atol=1e-12 * np.abs(v.f).max())
+        np.testing.assert_array_equal(c.K.indices, v.K.indices)
+        np.testing.assert_allclose(c.K.data, v.K.data, rtol=0, atol=1e-12 * np.abs(v.K.data).max())
+        assert c.min_det_F == pytest.approx(v.min_det_F, rel=1e-12)
+        Kc, Kv = (models[a]._reduced(K) for a, K in (("compiled", c.K), ("vectorised", v.K)))
+        np.testing.assert_allclose(
+            Kc.toarray(), Kv.toarray(), rtol=0, atol=1e-12 * np.abs(v.K.data).max()
+        )
+
+
+@needs_cholmod
+def test_indefinite_tangent_falls_back_to_lu():
+    # A clamped-clamped strut squeezed to 4.5x its Euler load (4 pi^2 EI / L^2 = 2.6 N): the
+    # straight state is an equilibrium, but an unstable one, and its tangent is indefinite.
+    # Cholesky stops there; SuperLU solves those systems, and the path is the same.
+    L, h = 50.0, 1.0
+    mesh = mesh_polygon(box(0.0, 0.0, L, h), 0.5)
+    clamp = Clamp(LineString([(0, 0), (0, h)]))
+    drive = Translate(LineString([(L, 0), (L, h)]), direction=(-1.0, 0.0), max_mm=0.3, steps=3)
+    runs = {
+        s: solve_plane_stress(mesh, MAT, 1.0, clamp, drive, settings=PlaneStressSettings(solver=s))
+        for s in ("cholmod", "direct")
+    }
+    chol, lu = runs["cholmod"], runs["direct"]
+    assert chol.ok and lu.ok, (chol.message, lu.message)
+    assert chol.extra["cholesky_failures"] > 0  # the stability signal
+    assert chol.force_N[1] > 4 * np.pi**2 * MAT.E_MPa * h**3 / 12.0 / L**2
+    np.testing.assert_allclose(chol.force_N, lu.force_N, rtol=1e-9)
+    np.testing.assert_array_equal(chol.iterations, lu.iterations)
+
+    # And one indefinite system on its own: the answer is LU's, the failure counted.
+    from scipy.sparse.linalg import splu
+
+    from fea.plane_stress import PlaneStressModel
+
+    model = PlaneStressModel(mesh, MAT, 1.0, clamp, drive, PlaneStressSettings(solver="cholmod"))
+    K = model.state(np.zeros(model.n_dofs), "linear").K
+    shift = 0.01 * K.diagonal().mean()
+    K_indef = (K - shift * sp.identity(K.shape[0], format="csr")).tocsr()
+    K_indef.sort_indices()
+    rhs = np.random.default_rng(0).standard_normal(model.free.size)
+    x = model._reduced_solve(K_indef, rhs)
+    Kr = model._reduced(K_indef)
+    np.testing.assert_allclose(x, splu(Kr.tocsc()).solve(rhs), rtol=1e-9, atol=1e-12)
+    assert model.counters["cholesky_failures"] == 1
+
+
+def test_solver_and_assembly_picked_by_settings_and_environment(monkeypatch):
+    from fea.plane_stress import PlaneStressModel
+
+    mesh = mesh_polygon(box(0.0, 0.0, 10.0, 1.0), 0.5)
+    kw = dict(
+        clamp=Clamp(LineString([(0, 0), (0, 1)])), drive=Translate(LineString([(10, 0), (10, 1)]))
+    )
+    monkeypatch.setenv("FLEXOPT_PLANE_STRESS_SOLVER", "direct")
+    monkeypatch.setenv("FLEXOPT_PLANE_STRESS_ASSEMBLY", "vectorised")
+    m = PlaneStressModel(mesh, MAT, 1.0, **kw)
+    assert (m.solver, m.assembly) == ("direct", "vectorised")
+    m = PlaneStressModel(mesh, MAT, 1.0, settings=PlaneStressSettings(solver="krylov"), **kw)
+    assert m.solver == "krylov"  # an explicit setting wins over the environment
+    monkeypatch.setenv("FLEXOPT_PLANE_STRESS_SOLVER", "superlu")
+    with pytest.raises(FeaError, match="FLEXOPT_PLANE_STRESS_SOLVER"):
+        PlaneStressModel(mesh, MAT, 1.0, **kw)
+    monkeypatch.delenv("FLEXOPT_PLANE_STRESS_SOLVER")
+    monkeypatch.delenv("FLEXOPT_PLANE_STRESS_ASSEMBLY")
+    m = PlaneStressModel(mesh, MAT, 1.0, **kw)
+    assert m.solver == ("cholmod" if HAS_CHOLMOD else m.solver)
