@@ -616,6 +616,10 @@ class ConstantForceProblem:
 
     # ---- what the run pipeline may ask besides evaluate/detail
 
+    def nominal_design(self) -> np.ndarray:
+        """(23,) the design the study file describes (what ``flexopt evaluate`` solves)."""
+        return design_vector(self.study)
+
     def initial_designs(self) -> np.ndarray | None:
         """(k, 23) designs for the first population (``initial:``), or None."""
         if self.study.initial == "none":

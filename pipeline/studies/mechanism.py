@@ -1087,6 +1087,11 @@ class MechanismProblem:
             return f"{_slug(name)}_rms_error_{_unit_suffix(req.quantity)}"
         return f"negative_{_slug(name)}_band_stroke_{_unit_suffix(getattr(req, 'x', ''))}"
 
+    def nominal_design(self) -> np.ndarray:
+        """(n_var,) the study's initial design (what ``flexopt evaluate`` solves)."""
+        assert self.variables is not None
+        return np.asarray(self.variables.initial, dtype=float)
+
     def initial_designs(self) -> np.ndarray:
         """The study's initial design seeds the first population."""
         assert self.variables is not None
