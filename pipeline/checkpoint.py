@@ -4,9 +4,11 @@ A run is a deterministic function of its study, its seed and its evaluations (se
 :mod:`optimise.ga`). So a checkpoint is not a pickled optimiser but data:
 
 - ``evaluations.jsonl`` — one JSON line per finished evaluation (exact float64 ``x``, ``f``,
-  ``g``, metrics, reason, time), appended and fsynced as each design finishes, so a SIGKILL loses
-  at most the designs still being solved. JSON writes floats as their shortest round-trip repr,
-  so the numbers read back to the same bits.
+  ``g``, metrics, reason, time), handed to the kernel as each design finishes, so a SIGKILL of the
+  run loses at most the designs still being solved; fsynced once per generation (before the
+  generation is reported or checkpointed) and at least every ``sync_interval_s``, so a power cut
+  loses no design a generation report acknowledged. JSON writes floats as their shortest
+  round-trip repr, so the numbers read back to the same bits.
 - ``checkpoint.json`` — rewritten atomically after every generation: the population, the seed and
   settings, the counts, and the study hash.
 
@@ -21,6 +23,7 @@ import hashlib
 import json
 import logging
 import os
+import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -141,15 +144,25 @@ def store_fix(run_dir: Path, line: bool = True) -> str:
 
 
 class EvaluationStore:
-    """``evaluations.jsonl``: finished evaluations, appended and fsynced one by one.
+    """``evaluations.jsonl``: finished evaluations, appended one by one, fsynced in groups.
 
     Reading it never changes it; the first :meth:`append` of a session repairs a torn last line
     (a kill mid-write) so that the new line starts on a line of its own.
+
+    Durability: :meth:`append` writes the line with one ``write`` (the kernel has it: a SIGKILL
+    or a crash of this process cannot lose it); :meth:`sync` fsyncs what was appended (a power
+    cut or a kernel crash cannot lose it then). The runner syncs before it reports or
+    checkpoints a generation, and :meth:`append` syncs by itself when the last sync is older
+    than ``sync_interval_s``. An fsync costs 5-15 ms on the development machine's disk: one per
+    design was a main-process ceiling of ~100 designs/s, under the rate of two workers on
+    15 ms designs.
 
     Parameters
     ----------
     path : Path
         The store file (created on the first append).
+    sync_interval_s : float, s
+        Longest time an appended line waits for its fsync; 0 fsyncs every line (the old way).
 
     Attributes
     ----------
@@ -157,10 +170,14 @@ class EvaluationStore:
         What the last :meth:`load` skipped (a torn last line).
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, sync_interval_s: float = 5.0) -> None:
         self.path = path
         self._fd: int | None = None
         self.n_appended = 0
+        self.n_synced = 0  # lines appended and fsynced
+        self.n_fsyncs = 0
+        self.sync_interval_s = float(sync_interval_s)
+        self._t_sync = time.monotonic()
         self.notes: list[str] = []
 
     def load(
@@ -260,20 +277,36 @@ class EvaluationStore:
         os.write(fd, b"\n")
 
     def append(self, evaluation: Evaluation) -> None:
-        """Add one evaluation and fsync it: once this returns, a SIGKILL does not lose it."""
+        """Add one evaluation: once this returns, a SIGKILL of this process does not lose it.
+
+        It is fsynced (safe from a power cut) by the next :meth:`sync`, or here when the last
+        sync is ``sync_interval_s`` old.
+        """
         if self._fd is None:
             self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_APPEND, 0o644)
             self._repair(self._fd)
         line = json.dumps(evaluation_record(evaluation), allow_nan=True) + "\n"
         os.write(self._fd, line.encode("utf-8"))  # one write: O_APPEND keeps lines whole
-        os.fsync(self._fd)
         self.n_appended += 1
+        if time.monotonic() - self._t_sync >= self.sync_interval_s:
+            self.sync()
+
+    def sync(self) -> None:
+        """fsync every line appended so far (no-op when there is none new)."""
+        if self._fd is not None and self.n_synced < self.n_appended:
+            os.fsync(self._fd)
+            self.n_fsyncs += 1
+            self.n_synced = self.n_appended
+        self._t_sync = time.monotonic()
 
     def close(self) -> None:
-        """Close the file (appending again reopens it)."""
+        """fsync and close the file (appending again reopens it)."""
         if self._fd is not None:
-            os.close(self._fd)
-            self._fd = None
+            try:
+                self.sync()
+            finally:
+                os.close(self._fd)
+                self._fd = None
 
 
 def write_checkpoint(run_dir: Path, data: Mapping[str, Any]) -> None:
