@@ -11,6 +11,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from pipeline import labels as _labels
+
 __all__ = [
     "quantity_name",
     "plot_convergence",
@@ -22,12 +24,6 @@ __all__ = [
     "plot_shapes",
     "plot_stress",
 ]
-
-_LABELS = {
-    "displacement_mm": "end displacement along direction (mm)",
-    "force_N": "end force along direction (N)",
-    "peak_stress_MPa": "peak stress (MPa)",
-}
 
 
 def _png(fig: Figure) -> bytes:
@@ -42,7 +38,8 @@ def _converged(table: Mapping[str, np.ndarray], x: str) -> np.ndarray:
 
 
 def _label(name: str, given: str | None) -> str:
-    return given or _LABELS.get(name, name)
+    # words with the unit from the one table of labels (pipeline/labels.py), not the raw name
+    return _labels.label(name, given)
 
 
 #: Unit suffixes of column names (``force_N``, ``time_ms``), dropped to name the quantity.
@@ -97,11 +94,11 @@ def plot_response(
     fig = Figure(figsize=(10 if two else 5.5, 4), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, 2) if two else [fig.subplots(1, 1)]
-    x_label = labels.get("x_label") or labels.get("xlabel") or _LABELS.get(x, x)
+    x_label = labels.get("x_label") or labels.get("xlabel") or _labels.label(x)
     ax_f = axes[0]
     ax_f.plot(xs, np.asarray(table[left], dtype=float)[ok], "o-", ms=3, color="tab:blue")
     ax_f.set_xlabel(x_label)
-    ax_f.set_ylabel(labels.get("left_label") or _LABELS.get(left, left))
+    ax_f.set_ylabel(labels.get("left_label") or _labels.label(left))
     ax_f.set_title(labels.get("left_title") or f"{quantity_name(left)} – {quantity_name(x)}")
     if two:
         assert right is not None
@@ -115,7 +112,7 @@ def plot_response(
             )
             ax_s.legend(loc="best")
         ax_s.set_xlabel(x_label)
-        ax_s.set_ylabel(labels.get("right_label") or _LABELS.get(right, right))
+        ax_s.set_ylabel(labels.get("right_label") or _labels.label(right))
         ax_s.set_title(labels.get("right_title") or f"{quantity_name(right)} – {quantity_name(x)}")
     for ax in axes:
         ax.grid(True, alpha=0.3)
@@ -261,7 +258,7 @@ def plot_convergence(
             ax.set_yscale("log")
         if not ok.any():
             ax.text(0.5, 0.5, "no feasible design yet", transform=ax.transAxes, ha="center")
-        ax.set_ylabel(f"best {objective_names[k]}")
+        ax.set_ylabel(f"best {_labels.label(objective_names[k])}")
         ax.grid(True, alpha=0.3)
     ax_f = axes[-1]
     ax_f.plot(
@@ -313,7 +310,12 @@ def plot_shapes(
     for colour, row in zip(colours, rows.astype(int), strict=True):
         label = f"row {row}"
         if values is not None:
-            label = f"{value_label or 'value'} = {float(np.asarray(values)[row]):.3g}"
+            value = float(np.asarray(values)[row])
+            if value_label and " " not in value_label:  # a column name: words = value unit
+                unit = _labels.unit_of(value_label)
+                label = f"{_labels.words(value_label)} = {value:.3g}" + (f" {unit}" if unit else "")
+            else:
+                label = f"{value_label or 'value'} = {value:.3g}"
         ax.plot(shapes[row, :, 0], shapes[row, :, 1], "-", color=colour, lw=1.5, label=label)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (mm)")
@@ -406,8 +408,8 @@ def plot_front(
     if best is not None:
         b = np.asarray(best, dtype=float)
         ax.plot(b[0], b[1], "*", color="C3", ms=14, label="chosen")
-    ax.set_xlabel(names[0])
-    ax.set_ylabel(names[1])
+    ax.set_xlabel(_labels.label(names[0]))
+    ax.set_ylabel(_labels.label(names[1]))
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
     if title:

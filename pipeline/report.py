@@ -240,6 +240,12 @@ def _seconds(value: Any) -> str:
     return f"{value:.0f} s ({value / 60:.1f} min)"
 
 
+def _backend(record: Mapping[str, Any]) -> str:
+    """How the designs were evaluated, as run.json records it (``processes (2 workers)``)."""
+    parallel = record.get("parallel") or {}
+    return str(parallel.get("description") or parallel.get("backend") or "not recorded")
+
+
 def _rate(value: Any) -> str:
     return "–" if value is None else f"{float(value):.3g}"
 
@@ -274,7 +280,13 @@ def render_report(data: ReportData) -> str:
     study = data.study
     lines = [f"# {study.name} — flexopt run", ""]
     verdicts = data.verdicts or (data.detail.verdicts if data.detail is not None else ())
-    lines += render_verdict(verdicts)
+    lines += render_verdict(verdicts)  # the verdict first: what a reader asks first
+    if "report.html" in data.files:
+        lines += [
+            "Explore every evaluated design (parallel coordinates, scatter matrix, sensitivities, "
+            "top 10, the part in 3D) in [report.html](report.html), one file that opens offline.",
+            "",
+        ]
     status = record.get("status", "")
     lines += _table(
         ["", ""],
@@ -388,7 +400,8 @@ def render_report(data: ReportData) -> str:
             ["of which optimisation", _seconds(record.get("optimise_wall_s"))],
             ["evaluations per second", _rate(record.get("evaluations_per_s"))],
             ["mean time per evaluation", _seconds(record.get("mean_evaluation_s"))],
-            ["machine", f"{record.get('host', {}).get('cpu_count')} CPUs, serial evaluation"],
+            ["machine", f"{record.get('host', {}).get('cpu_count')} CPUs"],
+            ["evaluation backend", _backend(record)],
         ],
     )
     reasons = record.get("failure_reasons") or {}

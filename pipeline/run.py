@@ -57,6 +57,7 @@ from pipeline.parallel import (
 )
 from pipeline.parallel import one_line as _one_line
 from pipeline.report import ReportData, render_report
+from pipeline.report_html import HtmlData, render_html
 from pipeline.runfolder import (
     RunDirLock,
     cell_float,
@@ -122,6 +123,7 @@ RUN_FILES = (
     "best.dxf",
     "best.step",
     "report.md",
+    "report.html",
 )
 
 _EXTRA_DISTRIBUTIONS = {
@@ -782,6 +784,10 @@ class _Run:
             self.notes.append(
                 "best.stl and best.dxf skipped: the kind gives no outline and height_mm"
             )
+        # every design to explore, offline (plotly.js inline); a failure is a note
+        self.artefact("report.html", lambda: render_html(HtmlData(
+            study.name, study.kind, problem, tuple(self.evaluator.solved), best,
+            tuple(result.front), detail, self.verdicts, self.record)))  # fmt: skip
         return detail
 
     def _front_png(self, result: GAResult, title: str) -> bytes:

@@ -1,0 +1,818 @@
+"""``report.html`` of a run folder: every evaluated design to explore, in one offline file.
+
+report.md tells the best design; this page lets an engineer explore all of them, as optiSLang or
+HyperStudy would: parallel coordinates and a scatter matrix coloured by feasibility, a Spearman
+rank-correlation sensitivity of each objective to each variable, the ten best designs, the Pareto
+front (several objectives), the best design's response with its target band and a rotatable 3D
+view of the part.
+
+The page is one self-contained HTML file: plotly.js is embedded once (~3.5–4.5 MB), so it opens
+without a network (a report is read on a workshop laptop or archived with the part). Each figure's
+plotly JSON sits in a ``<script type="application/json" id="fig-…">`` element that a small inline
+script draws, so a test (or a script) can read the figures back with ``json.loads``. Every axis
+and column is labelled in words with its unit from :mod:`pipeline.labels`.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from optimise.evaluation import Evaluation
+from optimise.problem import DesignDetail, DesignProblem
+from optimise.requirements import Verdict, overall, verdict_rows
+from pipeline import labels
+
+__all__ = ["HtmlData", "SECTIONS", "render_html", "sensitivity", "top_designs"]
+
+#: The sections of the page, by element id, in order (a section without data says why).
+SECTIONS = (
+    "verdict",
+    "variables",
+    "top-designs",
+    "parallel-coordinates",
+    "scatter-matrix",
+    "sensitivity",
+    "pareto-front",
+    "response",
+    "part-3d",
+    "run",
+)
+
+#: At most this many variables in the scatter matrix (the most influential ones): a 23 × 23 matrix
+#: of 529 panels is unreadable and slow to draw.
+MAX_SPLOM_VARIABLES = 6
+#: Rows of the top-designs table.
+TOP_N = 10
+
+_FEASIBLE = "#1f77b4"
+_INFEASIBLE = "#d62728"
+_CONFIG = {"displaylogo": False, "responsive": True}
+
+
+@dataclass(frozen=True)
+class HtmlData:
+    """What report.html shows.
+
+    Attributes
+    ----------
+    study_name, kind : the study's name and kind.
+    problem : the design problem (names and bounds of variables, objectives, constraints).
+    evaluations : every evaluated design of the run.
+    best : the chosen design; ``front`` the non-dominated ones (several objectives).
+    detail : the best design's detail (response table, plot spec, outline), or None.
+    verdicts : the best design against the study's requirements.
+    record : run.json (its ``parallel.description`` names the backend).
+    """
+
+    study_name: str
+    kind: str
+    problem: DesignProblem
+    evaluations: Sequence[Evaluation]
+    best: Evaluation
+    front: Sequence[Evaluation] = ()
+    detail: DesignDetail | None = None
+    verdicts: Sequence[Verdict] = ()
+    record: Mapping[str, Any] = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------------------------------
+# Numbers
+
+
+def _rank_key(ev: Evaluation) -> tuple[int, float, float]:
+    """Order of the top-designs table, as :func:`optimise.ga.best_of` chooses: feasible designs by
+    their first objective, then solved infeasible ones by violation, failed designs last."""
+    f0 = float(ev.f[0]) if len(ev.f) and math.isfinite(float(ev.f[0])) else math.inf
+    if ev.feasible:
+        return (0, 0.0, f0)
+    if not ev.reason:
+        return (1, ev.violation, f0)
+    return (2, math.inf, f0)
+
+
+def top_designs(evaluations: Sequence[Evaluation], n: int = TOP_N) -> list[Evaluation]:
+    """The ``n`` best designs, best first (the ordering that chose the best design)."""
+    return sorted(evaluations, key=_rank_key)[:n]
+
+
+def _finite_rows(evaluations: Sequence[Evaluation]) -> list[Evaluation]:
+    """Designs that were solved: every objective and constraint a finite number."""
+    return [
+        ev
+        for ev in evaluations
+        if not ev.reason and np.all(np.isfinite(ev.f)) and np.all(np.isfinite(ev.g))
+    ]
+
+
+def sensitivity(
+    evaluations: Sequence[Evaluation], n_var: int, n_obj: int
+) -> tuple[np.ndarray, str]:
+    """Spearman rank correlation of each objective (rows) with each variable (columns).
+
+    Over the feasible designs, or over every solved design when fewer than five are feasible (the
+    returned text says which). A rank correlation needs no model and no sampling plan: it says
+    how monotonically an objective follows a variable across what the optimiser tried. A constant
+    column gives NaN (nothing to correlate).
+    """
+    from scipy.stats import spearmanr
+
+    solved = _finite_rows(evaluations)
+    feasible = [ev for ev in solved if ev.feasible]
+    rows, basis = (
+        (feasible, f"the {len(feasible)} feasible designs")
+        if len(feasible) >= 5
+        else (solved, f"all {len(solved)} solved designs (only {len(feasible)} feasible)")
+    )
+    rho = np.full((n_obj, n_var), np.nan)
+    if len(rows) < 3:
+        return rho, f"too few designs ({len(rows)}) for a rank correlation"
+    x = np.array([ev.x for ev in rows], dtype=float)
+    f = np.array([ev.f for ev in rows], dtype=float)
+    for i in range(n_obj):
+        for j in range(n_var):
+            if np.ptp(x[:, j]) == 0 or np.ptp(f[:, i]) == 0:
+                continue
+            rho[i, j] = float(spearmanr(x[:, j], f[:, i]).statistic)
+    return rho, basis
+
+
+# --------------------------------------------------------------------------------------------
+# Figures
+
+
+def _axis(title: str, **more: Any) -> dict[str, Any]:
+    return {"title": {"text": title}, **more}
+
+
+def _layout(title: str, **more: Any) -> dict[str, Any]:
+    return {
+        "title": {"text": title},
+        "template": "plotly_white",
+        "margin": {"l": 70, "r": 30, "t": 60, "b": 60},
+        **more,
+    }
+
+
+def _feasibility_colours(rows: Sequence[Evaluation]) -> list[int]:
+    return [1 if ev.feasible else 0 for ev in rows]
+
+
+def _parcoords(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
+    import plotly.graph_objects as go
+
+    p = data.problem
+    dims = [
+        {
+            "label": labels.label(n),
+            "values": [float(ev.x[j]) for ev in rows],
+            "range": [float(p.space.lower[j]), float(p.space.upper[j])],
+        }
+        for j, n in enumerate(p.space.names)
+    ]
+    dims += [
+        {"label": labels.label(n), "values": [float(ev.f[i]) for ev in rows]}
+        for i, n in enumerate(p.objective_names)
+    ]
+    dims += [
+        {"label": labels.label(n), "values": [float(ev.g[k]) for ev in rows]}
+        for k, n in enumerate(p.constraint_names)
+    ]
+    colour = _feasibility_colours(rows)
+    fig = go.Figure(
+        go.Parcoords(
+            dimensions=dims,
+            line={
+                "color": colour,
+                "colorscale": [[0, _INFEASIBLE], [1, _FEASIBLE]],
+                "cmin": 0,
+                "cmax": 1,
+                "showscale": True,
+                "colorbar": {
+                    "title": {"text": "feasible"},
+                    "tickvals": [0, 1],
+                    "ticktext": ["no", "yes"],
+                },
+            },
+        )
+    )
+    fig.data[0].labelangle = -35  # long labels in words would overlap when level
+    fig.update_layout(
+        _layout(
+            "All solved designs: variables, objectives and constraints (blue feasible, red not)",
+            height=620,
+            margin={"l": 80, "r": 160, "t": 230, "b": 40},
+        )
+    )
+    return fig
+
+
+def _splom(data: HtmlData, rows: Sequence[Evaluation], rho: np.ndarray) -> Any:
+    import plotly.graph_objects as go
+
+    p = data.problem
+    names = list(p.space.names)
+    # the most influential variables first (largest |rho| over the objectives)
+    strength = np.nan_to_num(np.nanmax(np.abs(rho), axis=0, initial=0.0), nan=0.0)
+    order = sorted(range(len(names)), key=lambda j: -strength[j])[:MAX_SPLOM_VARIABLES]
+    order.sort()
+    dims = [
+        {"label": labels.label(names[j]), "values": [float(ev.x[j]) for ev in rows]} for j in order
+    ]
+    dims += [
+        {"label": labels.label(n), "values": [float(ev.f[i]) for ev in rows]}
+        for i, n in enumerate(p.objective_names)
+    ]
+    fig = go.Figure()
+    for feasible, colour, word in (
+        (False, _INFEASIBLE, "infeasible"),
+        (True, _FEASIBLE, "feasible"),
+    ):
+        subset = [k for k, ev in enumerate(rows) if ev.feasible is feasible]
+        fig.add_trace(
+            go.Splom(
+                dimensions=[{**d, "values": [d["values"][k] for k in subset]} for d in dims],
+                name=f"{word} ({len(subset)})",
+                marker={"color": colour, "size": 4, "opacity": 0.7},
+                diagonal={"visible": False},
+                showupperhalf=False,
+            )
+        )
+    size = 170 * len(dims) + 120
+    fig.update_layout(
+        _layout(
+            "Scatter matrix of the most influential variables and the objectives",
+            height=max(size, 450),
+            width=max(size, 450),
+            showlegend=True,
+            font={"size": 10},
+        )
+    )
+    return fig, [names[j] for j in order]
+
+
+def _sensitivity_fig(data: HtmlData, rho: np.ndarray, basis: str) -> Any:
+    import plotly.graph_objects as go
+
+    p = data.problem
+    text = [["–" if not math.isfinite(v) else f"{v:+.2f}" for v in row] for row in rho]
+    fig = go.Figure(
+        go.Heatmap(
+            z=np.where(np.isfinite(rho), rho, None).tolist(),
+            x=[labels.label(n) for n in p.space.names],
+            y=[labels.label(n) for n in p.objective_names],
+            text=text,
+            texttemplate="%{text}",
+            zmin=-1,
+            zmax=1,
+            colorscale="RdBu",
+            reversescale=True,
+            colorbar={"title": {"text": "Spearman ρ (–)"}},
+            hovertemplate="variable: %{x}<br>objective: %{y}<br>ρ = %{z:.3f}<extra></extra>",
+        )
+    )
+    fig.update_layout(
+        _layout(
+            f"Sensitivity: Spearman rank correlation of each objective with each variable "
+            f"(over {basis})",
+            height=260 + 40 * len(p.objective_names),
+            xaxis=_axis("design variable", tickangle=-45),
+            yaxis=_axis("objective (minimised)"),
+            margin={"l": 220, "r": 30, "t": 70, "b": 160},
+        )
+    )
+    return fig
+
+
+def _front_fig(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
+    import plotly.graph_objects as go
+
+    names = data.problem.objective_names
+    feasible = [ev for ev in rows if ev.feasible]
+    front = list(data.front)
+    if len(names) == 2:
+        fig = go.Figure()
+        fig.add_trace(
+            go.Scatter(
+                x=[float(ev.f[0]) for ev in feasible],
+                y=[float(ev.f[1]) for ev in feasible],
+                mode="markers",
+                name="feasible designs",
+                marker={"color": "#999999", "size": 5},
+            )
+        )
+        fig.add_trace(
+            go.Scatter(
+                x=[float(ev.f[0]) for ev in front],
+                y=[float(ev.f[1]) for ev in front],
+                mode="lines+markers",
+                name=f"Pareto front ({len(front)})",
+                marker={"color": _FEASIBLE, "size": 7},
+            )
+        )
+        fig.add_trace(
+            go.Scatter(
+                x=[float(data.best.f[0])],
+                y=[float(data.best.f[1])],
+                mode="markers",
+                name="chosen design",
+                marker={"color": _INFEASIBLE, "size": 14, "symbol": "star"},
+            )
+        )
+        fig.update_layout(
+            _layout(
+                "Pareto front (objectives minimised)",
+                height=480,
+                xaxis=_axis(labels.label(names[0])),
+                yaxis=_axis(labels.label(names[1])),
+            )
+        )
+        return fig
+    # three or more objectives: the front among the feasible designs, pairwise
+    dims = [{"label": labels.label(n)} for n in names]
+    fig = go.Figure()
+    for subset, word, colour in (
+        (feasible, "feasible designs", "#999999"),
+        (front, f"Pareto front ({len(front)})", _FEASIBLE),
+    ):
+        fig.add_trace(
+            go.Splom(
+                dimensions=[
+                    {**d, "values": [float(ev.f[i]) for ev in subset]} for i, d in enumerate(dims)
+                ],
+                name=word,
+                marker={"color": colour, "size": 5},
+                diagonal={"visible": False},
+                showupperhalf=False,
+            )
+        )
+    fig.update_layout(_layout("Pareto front, objectives pairwise (minimised)", height=600))
+    return fig
+
+
+def _siblings(table: Mapping[str, Any], column: str) -> list[str]:
+    """``column`` and the columns of the same quantity and unit (the other curves of a
+    multi-curve kind: ``torque_Nm_sliding_l28`` beside ``torque_Nm_fixed_l40``), column first."""
+    quantity, unit, _ = labels.split_name(column)
+    if unit is None:
+        return [column]
+    others = [
+        c
+        for c in table
+        if c != column
+        and labels.split_name(c)[:2] == (quantity, unit)
+        and np.ndim(table[c]) == 1
+        and len(table[c]) == len(table[column])
+    ]
+    return [column, *others]
+
+
+def _float(value: Any) -> float | None:
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return None
+    return out if math.isfinite(out) else None
+
+
+def _response_fig(detail: DesignDetail, y: str, kind: str) -> tuple[Any, str]:
+    """One response plot: every curve of ``y``'s quantity against x, with the target band (or the
+    allowable line for stress). Returns the figure and a sentence on what is drawn as target."""
+    import plotly.graph_objects as go
+
+    spec, table = detail.plot, detail.table
+    x = spec.get("x", "displacement_mm")
+    xs = np.asarray(table[x], dtype=float)
+    converged = np.asarray(table.get("converged", np.ones(len(xs), bool)), dtype=bool)
+    fig = go.Figure()
+    for column in _siblings(table, y):
+        ys = np.asarray(table[column], dtype=float)
+        ys = np.where(converged & np.isfinite(ys), ys, np.nan)
+        fig.add_trace(
+            go.Scatter(
+                x=xs.tolist(),
+                y=[None if not math.isfinite(v) else v for v in ys],
+                mode="lines+markers",
+                name=labels.words(column),
+                marker={"size": 4},
+            )
+        )
+    lo, hi = (float(np.nanmin(xs)), float(np.nanmax(xs))) if len(xs) else (0.0, 1.0)
+    target_text: str
+    if kind == "stress":
+        limit = _float(spec.get("allowable_MPa"))
+        if limit is not None:
+            word = spec.get("allowable_label") or "allowable"
+            fig.add_trace(
+                go.Scatter(
+                    x=[lo, hi],
+                    y=[limit, limit],
+                    mode="lines",
+                    name=f"{word} {limit:g} MPa",
+                    line={"color": "black", "dash": "dash"},
+                )
+            )
+            target_text = f"{word} stress {limit:g} MPa drawn as a dashed line"
+        else:
+            target_text = "no allowable stress given by the study kind"
+        ylabel = labels.label(y)
+    else:
+        target = _float(spec.get("target"))
+        tol = _float(spec.get("tolerance"))
+        if tol is None and target is not None and _float(spec.get("tolerance_rel")) is not None:
+            tol = abs(target) * float(spec["tolerance_rel"])
+        band = spec.get("band_x")
+        b0, b1 = (float(band[0]), float(band[1])) if band is not None else (lo, hi)
+        unit = labels.unit_of(y) or ""
+        if target is not None:
+            if tol:
+                fig.add_trace(
+                    go.Scatter(
+                        x=[b0, b1, b1, b0, b0],
+                        y=[target - tol, target - tol, target + tol, target + tol, target - tol],
+                        fill="toself",
+                        mode="lines",
+                        line={"width": 0},
+                        fillcolor="rgba(44,160,44,0.18)",
+                        name=f"target band ±{tol:g} {unit}",
+                    )
+                )
+            fig.add_trace(
+                go.Scatter(
+                    x=[b0, b1],
+                    y=[target, target],
+                    mode="lines",
+                    name=f"target {target:g} {unit}",
+                    line={"color": "#2ca02c", "dash": "dash"},
+                )
+            )
+            target_text = (
+                f"target {target:g} {unit}"
+                + (f" ± {tol:g} {unit}" if tol else "")
+                + (f" over {b0:g}–{b1:g} of x" if band is not None else "")
+            )
+        else:
+            target_text = "no target given by the study kind for this response"
+        ylabel = labels.label(y, spec.get("ylabel") or spec.get("y_label"))
+    xlabel = labels.label(x, spec.get("xlabel") or spec.get("x_label"))
+    fig.update_layout(
+        _layout(
+            f"{_no_unit(ylabel)} against {_no_unit(xlabel)} (best design)",
+            height=440,
+            xaxis=_axis(xlabel),
+            yaxis=_axis(ylabel),
+            legend={"orientation": "h", "y": -0.22},
+        )
+    )
+    return fig, target_text
+
+
+def _no_unit(text: str) -> str:
+    """A label without its trailing ``(unit)``, for a title."""
+    return re.sub(r"\s*\([^()]*\)$", "", text)
+
+
+def _part_mesh(detail: DesignDetail) -> tuple[np.ndarray, np.ndarray] | None:
+    """(vertices, faces) of the printable part: the outline extruded, as best.stl is built."""
+    if detail.outline is None or not detail.height_mm:
+        return None
+    from geometry.solid import extrude
+
+    mesh = extrude(detail.outline, float(detail.height_mm))
+    return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=int)
+
+
+def _part_fig(vertices: np.ndarray, faces: np.ndarray) -> Any:
+    import plotly.graph_objects as go
+
+    v, f = vertices, faces
+    size = np.maximum(v.max(axis=0) - v.min(axis=0), 1e-9)
+    fig = go.Figure(
+        go.Mesh3d(
+            x=v[:, 0].round(4).tolist(),
+            y=v[:, 1].round(4).tolist(),
+            z=v[:, 2].round(4).tolist(),
+            i=f[:, 0].tolist(),
+            j=f[:, 1].tolist(),
+            k=f[:, 2].tolist(),
+            color="#8fb3d9",
+            flatshading=True,
+            name="best design",
+            lighting={"ambient": 0.45, "diffuse": 0.8, "specular": 0.2},
+        )
+    )
+    fig.update_layout(
+        _layout(
+            "The best design as printed (best.stl): drag to rotate, scroll to zoom",
+            height=560,
+            scene={
+                # true proportions (a 0.5 mm leaf must look thin), the longest side 1 so that
+                # the camera below sees the whole part
+                "aspectmode": "manual",
+                "aspectratio": dict(zip("xyz", (size / size.max()).round(4).tolist(), strict=True)),
+                "camera": {"eye": {"x": 0.9, "y": -1.3, "z": 1.0}},
+                "xaxis": _axis("x (mm)"),
+                "yaxis": _axis("y (mm)"),
+                "zaxis": _axis("z (mm)"),
+            },
+        )
+    )
+    return fig
+
+
+# --------------------------------------------------------------------------------------------
+# The page
+
+
+def _e(text: Any) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def _cell(value: Any) -> str:
+    from pipeline.report import format_value
+
+    return _e(format_value(value))
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[Any]], cls: str = "") -> str:
+    head = "".join(f"<th>{_e(h)}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{_cell(v)}</td>" for v in r) + "</tr>" for r in rows)
+    attr = f' class="{cls}"' if cls else ""
+    return f"<table{attr}><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+class _Figures:
+    """Figures of the page: each one's JSON in a script element, drawn by one loader."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def embed(self, fig: Any, name: str) -> str:
+        self.count += 1
+        spec = json.loads(fig.to_json())  # plotly's encoder turns numpy into lists
+        text = json.dumps(spec, separators=(",", ":"), allow_nan=False)
+        text = text.replace("</", "<\\/")  # a "</script>" in a label must not end the element
+        return (
+            f'<div class="figure" id="plot-{name}"></div>'
+            f'<script type="application/json" class="plotly-figure" id="fig-{name}" '
+            f'data-target="plot-{name}">{text}</script>'
+        )
+
+
+_LOADER = """
+<script>
+// Draw every embedded figure once plotly.js (above, inline) is loaded: no network needed.
+document.querySelectorAll('script.plotly-figure').forEach(function (el) {
+  var spec = JSON.parse(el.textContent);
+  Plotly.newPlot(el.dataset.target, spec.data, spec.layout || {}, %s);
+});
+</script>
+"""
+
+_STYLE = """
+<style>
+body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1250px; color: #222; }
+h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; padding-bottom: .2em; }
+table { border-collapse: collapse; margin: .6em 0 1em; font-size: .9em; }
+th, td { border: 1px solid #ccc; padding: .25em .55em; text-align: left; vertical-align: top; }
+th { background: #f2f4f7; }
+td.num, table.num td { font-variant-numeric: tabular-nums; }
+.met { color: #1a7f37; font-weight: bold; } .notmet { color: #c62828; font-weight: bold; }
+.note { color: #555; font-size: .92em; } .figure { margin: .5em 0 1.5em; }
+.scroll { overflow-x: auto; }
+nav a { margin-right: .8em; }
+</style>
+"""
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def render_html(data: HtmlData) -> str:
+    """The text of report.html (one file, plotly.js inline, no link to the network)."""
+    from plotly.offline import get_plotlyjs
+
+    p = data.problem
+    figures = _Figures()
+    evaluations = list(data.evaluations)
+    solved = _finite_rows(evaluations)
+    n_feasible = sum(ev.feasible for ev in evaluations)
+    verdicts = list(data.verdicts) or list(data.detail.verdicts if data.detail else ())
+    word = overall(verdicts)
+    parts: list[str] = []
+
+    nav = " ".join(f'<a href="#{s}">{_e(s.replace("-", " "))}</a>' for s in SECTIONS)
+    parts.append(
+        f"<h1>{_e(data.study_name)} — flexopt run</h1>"
+        f"<p>Study kind <code>{_e(data.kind)}</code>; {len(evaluations)} designs evaluated, "
+        f"{len(solved)} solved, {n_feasible} feasible. The Markdown report is "
+        f'<a href="report.md">report.md</a>; every design is in '
+        f'<a href="evaluations.csv">evaluations.csv</a>.</p><nav>{nav}</nav>'
+    )
+
+    # -- verdict
+    cls = "met" if word == "MET" else "notmet"
+    body = (
+        f'<p><span class="{cls}">{_e(word)}</span> — {sum(v.met for v in verdicts)} of '
+        f"{len(verdicts)} requirements met by the best design.</p>"
+    )
+    if verdicts:
+        body += _table(
+            ["requirement", "value", "bound", "margin", "verdict"], verdict_rows(verdicts)
+        )
+    else:
+        body += "<p>No requirement was stated, so nothing is claimed.</p>"
+    parts.append(_section("verdict", "Verdict", body))
+
+    # -- variables and their meanings
+    meanings = labels.variable_meanings(data.kind, p.space.names, p)
+    rows = [
+        [n, meanings[n], float(lo), float(hi), float(v)]
+        for n, lo, hi, v in zip(
+            p.space.names, p.space.lower, p.space.upper, data.best.x, strict=True
+        )
+    ]
+    body = _table(["variable", "meaning (unit)", "lower bound", "upper bound", "best design"], rows)
+    body += (
+        "<p class='note'>Objectives (minimised): "
+        + ", ".join(f"<code>{_e(n)}</code> = {_e(labels.label(n))}" for n in p.objective_names)
+        + ". Constraints (met when ≤ 0): "
+        + (
+            ", ".join(f"<code>{_e(n)}</code> = {_e(labels.label(n))}" for n in p.constraint_names)
+            or "none"
+        )
+        + ".</p>"
+    )
+    parts.append(_section("variables", "Design variables and what they mean", body))
+
+    # -- top designs
+    top = top_designs(evaluations)
+    header = [
+        "rank",
+        "feasible",
+        *map(labels.label, p.objective_names),
+        *map(labels.label, p.constraint_names),
+        *map(labels.label, p.space.names),
+        "reason",
+    ]
+    rows = [
+        [
+            k + 1,
+            ev.feasible,
+            *map(_finite, map(float, ev.f)),
+            *map(_finite, map(float, ev.g)),
+            *map(float, ev.x),
+            ev.reason or "–",
+        ]
+        for k, ev in enumerate(top)
+    ]
+    body = (
+        f"<p class='note'>The {len(top)} best of {len(evaluations)} designs: feasible ones by "
+        "their first objective, then the least constraint violation (the ordering that chose "
+        "the best design).</p><div class='scroll'>" + _table(header, rows, "num") + "</div>"
+    )
+    parts.append(_section("top-designs", f"Top {TOP_N} designs", body))
+
+    # -- exploration of every solved design
+    rho, basis = sensitivity(evaluations, len(p.space.names), len(p.objective_names))
+    if len(solved) >= 2:
+        parts.append(
+            _section(
+                "parallel-coordinates",
+                "Parallel coordinates",
+                "<p class='note'>One line per solved design; drag along an axis to filter. "
+                f"{len(evaluations) - len(solved)} failed designs (no numbers) are left out.</p>"
+                + figures.embed(_parcoords(data, solved), "parallel-coordinates"),
+            )
+        )
+        fig, shown = _splom(data, solved, rho)
+        parts.append(
+            _section(
+                "scatter-matrix",
+                "Scatter matrix",
+                f"<p class='note'>Variables shown: {_e(', '.join(shown))} (at most "
+                f"{MAX_SPLOM_VARIABLES}, the ones whose rank correlation with an objective is "
+                "largest), against the objectives; blue feasible, red infeasible.</p>"
+                + figures.embed(fig, "scatter-matrix"),
+            )
+        )
+    else:
+        for sid, title in (
+            ("parallel-coordinates", "Parallel coordinates"),
+            ("scatter-matrix", "Scatter matrix"),
+        ):
+            parts.append(_section(sid, title, "<p>Fewer than two solved designs.</p>"))
+    parts.append(
+        _section(
+            "sensitivity",
+            "Sensitivity of the objectives to the variables",
+            f"<p class='note'>Spearman rank correlation ρ over {_e(basis)}: +1 the objective grows "
+            "with the variable, −1 it falls, 0 no monotonic relation. It is a screening measure, "
+            "not a variance decomposition: a variable can matter non-monotonically with ρ ≈ 0.</p>"
+            + figures.embed(_sensitivity_fig(data, rho, basis), "sensitivity"),
+        )
+    )
+
+    # -- Pareto front
+    if len(p.objective_names) >= 2 and data.front:
+        body = figures.embed(_front_fig(data, solved), "pareto-front")
+        body += _table(
+            ["design", *map(labels.label, p.objective_names)],
+            [[k + 1, *map(float, ev.f)] for k, ev in enumerate(data.front[:60])],
+            "num",
+        )
+    else:
+        body = (
+            f"<p>One objective (<code>{_e(p.objective_names[0])}</code>): no Pareto front; "
+            "the best design is the feasible one with the smallest objective.</p>"
+        )
+    parts.append(_section("pareto-front", "Pareto front", body))
+
+    # -- response
+    parts.append(
+        _section("response", "Response of the best design", _response_section(data, figures))
+    )
+
+    # -- 3D part
+    mesh = None
+    why = "the study kind gives no outline and height for this design"
+    if data.detail is not None:
+        try:
+            mesh = _part_mesh(data.detail)
+        except Exception as exc:  # a part that cannot be extruded must not cost the page
+            why = f"the part could not be built: {type(exc).__name__}: {exc}"
+    else:
+        why = "the best design's detail failed"
+    if mesh is not None:
+        v, _ = mesh
+        size = v.max(axis=0) - v.min(axis=0)
+        body = (
+            f"<p class='note'>{len(mesh[1])} triangles, size "
+            + " × ".join(f"{s:.4g}" for s in size)
+            + " mm (the extruded outline as in <a href='best.stl'>best.stl</a>).</p>"
+            + figures.embed(_part_fig(*mesh), "part-3d")
+        )
+    else:
+        body = f"<p>No 3D view: {_e(why)}.</p>"
+    parts.append(_section("part-3d", "The part in 3D", body))
+
+    # -- the run
+    record = data.record
+    parallel = record.get("parallel") or {}
+    opt = record.get("optimiser") or {}
+    rows = [
+        ["evaluation backend", parallel.get("description") or parallel.get("backend") or "–"],
+        ["algorithm", opt.get("algorithm")],
+        ["population × generations", f"{opt.get('pop_size')} × {opt.get('n_gen')}"],
+        ["seed", opt.get("seed")],
+        ["quick", bool(record.get("quick"))],
+        ["CPUs", (record.get("host") or {}).get("cpu_count")],
+        ["started", record.get("started")],
+    ]
+    parts.append(_section("run", "The run", _table(["item", "value"], rows)))
+
+    config = json.dumps(_CONFIG)
+    return (
+        "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{_e(data.study_name)} — flexopt report</title>{_STYLE}"
+        # plotly.js inline, once: the page opens offline
+        f"<script type='text/javascript'>{get_plotlyjs()}</script></head><body>"
+        + "\n".join(parts)
+        + (_LOADER % config)
+        + "</body></html>\n"
+    )
+
+
+def _section(sid: str, title: str, body: str) -> str:
+    return f'<section id="{sid}"><h2>{_e(title)}</h2>{body}</section>'
+
+
+def _response_section(data: HtmlData, figures: _Figures) -> str:
+    detail = data.detail
+    if detail is None or not detail.table:
+        return "<p>No response: the best design's detail failed or the kind gives no table.</p>"
+    spec, table = detail.plot, detail.table
+    x = spec.get("x", "displacement_mm")
+    y = spec.get("y") or spec.get("left") or "force_N"
+    stress = spec.get("stress") or spec.get("right") or "peak_stress_MPa"
+    body = ""
+    if x not in table:
+        return f"<p>No response plot: the table has no column '{_e(x)}'.</p>"
+    for column, kind, name in ((y, "response", "response"), (stress, "stress", "response-stress")):
+        if column not in table:
+            continue
+        fig, target = _response_fig(detail, column, kind)
+        curves = _siblings(table, column)
+        body += (
+            f"<p class='note'>{len(curves)} curve{'s' if len(curves) > 1 else ''}; "
+            f"{_e(target)}.</p>" + figures.embed(fig, name)
+        )
+    return body or "<p>The response table has none of the plotted columns.</p>"

@@ -1,0 +1,339 @@
+"""report.html: one offline page to explore every design of a run (issue 14, item 5).
+
+A toy kind with two objectives, a multi-curve response (two torque curves and their stresses, as
+the leaf-spring joint has) and a printable outline is run in this process; the page is parsed with
+the standard library's HTML parser and each embedded figure read back as JSON. When chromium is
+installed the page is also drawn in it, headless and offline, and the drawn DOM checked.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+from dataclasses import dataclass, field
+from html.parser import HTMLParser
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pytest
+from pydantic import BaseModel
+from shapely.geometry import box
+
+from optimise import DesignDetail, DesignSpace, Evaluation
+from pipeline.labels import label, variable_meanings, words
+from pipeline.report_html import SECTIONS, sensitivity, top_designs
+from pipeline.run import parallel_settings, prepare_run, rebuild_report, run_study
+from pipeline.studies import StudyKind, register
+from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
+
+# --------------------------------------------------------------------------------------------
+# A toy kind with what the page shows
+
+
+class HtmlGeometry(BaseModel):
+    model_config = STUDY_CONFIG
+
+    kind: Literal["toy_html"]
+
+
+class HtmlStudy(Study):
+    geometry: HtmlGeometry
+    optimiser: OptimiserSpec = OptimiserSpec()
+
+
+MEANINGS = {"a3": "where p3 sits between S2 and S3 (fraction, –)"}
+
+
+@dataclass
+class HtmlProblem:
+    space: DesignSpace = field(
+        default_factory=lambda: DesignSpace(
+            ("a3", "t3_mm", "B_mm"), np.array([0.0, 0.5, 4.0]), np.array([1.0, 1.5, 8.0])
+        )
+    )
+    objective_names: tuple[str, ...] = ("rms_error_N", "mass_g")
+    constraint_names: tuple[str, ...] = ("stress_ratio_minus_1",)
+    variable_meanings: dict = field(default_factory=lambda: dict(MEANINGS))
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        a, t, b = (float(v) for v in x)
+        error = (a - 0.4) ** 2 + (t - 1.0) ** 2  # does not depend on B
+        mass = 2.0 * t * b  # grows with t and B
+        return Evaluation(
+            np.array(x), np.array([error, mass]), np.array([0.8 - t]), {"mass_g": mass}
+        )
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        a, t, b = (float(v) for v in x)
+        d = np.linspace(0.0, 20.0, 11)
+        table = {
+            "deflection_deg": d,
+            "torque_Nm_sliding_l28": 0.1 * t * d,
+            "torque_Nm_fixed_l40": 0.07 * t * d,
+            "stress_MPa_sliding_l28": 2.0 * d,
+            "stress_MPa_fixed_l40": 1.5 * d,
+            "converged": np.ones(11, bool),
+        }
+        plot = {
+            "x": "deflection_deg",
+            "y": "torque_Nm_sliding_l28",
+            "stress": "stress_MPa_sliding_l28",
+            "target": 1.5,
+            "tolerance": 0.1,
+            "band_x": [5.0, 20.0],
+            "allowable_MPa": 30.0,
+        }
+        return DesignDetail(
+            self.evaluate(x), table, plot, outline=box(0, 0, 30 + 10 * a, 5 * t), height_mm=b
+        )
+
+
+register(
+    StudyKind(
+        "toy_html",
+        HtmlStudy,
+        check=lambda study: None,
+        evaluate=None,
+        problem=lambda study: HtmlProblem(),  # type: ignore[arg-type]
+    )
+)
+
+STUDY = {
+    "name": "html-toy",
+    "geometry": {"kind": "toy_html"},
+    "material": "PLA",
+    "optimiser": {"algorithm": "nsga2", "pop_size": 12, "n_gen": 4, "seed": 2},
+}
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    study = validate_study(json.loads(json.dumps(STUDY)))
+    out = tmp_path_factory.mktemp("html") / "run"
+    run_study(prepare_run(study), out=out, parallel=parallel_settings(study, workers=1))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Reading the page
+
+
+class _Page(HTMLParser):
+    """Ids of sections, script elements (attributes and text), table headers."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.sections: list[str] = []
+        self.scripts: list[tuple[dict[str, str | None], str]] = []
+        self.headers: list[str] = []
+        self.links: list[str] = []
+        self._script: dict[str, str | None] | None = None
+        self._text: list[str] = []
+        self._th = False
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "section":
+            self.sections.append(a.get("id") or "")
+        elif tag == "script":
+            self._script, self._text = a, []
+        elif tag == "th":
+            self._th, self._text = True, []
+        elif tag == "a" and a.get("href"):
+            self.links.append(a["href"])
+        elif tag in ("link", "img", "iframe") and (a.get("href") or a.get("src")):
+            self.links.append(a.get("href") or a.get("src"))
+
+    def handle_endtag(self, tag):
+        if tag == "script" and self._script is not None:
+            self.scripts.append((self._script, "".join(self._text)))
+            self._script = None
+        elif tag == "th" and self._th:
+            self.headers.append("".join(self._text))
+            self._th = False
+
+    def handle_data(self, data):
+        if self._script is not None or self._th:
+            self._text.append(data)
+
+
+def _page(run_dir: Path) -> tuple[_Page, dict[str, dict]]:
+    page = _Page()
+    page.feed((run_dir / "report.html").read_text(encoding="utf-8"))
+    figures = {
+        attrs["id"]: json.loads(text)
+        for attrs, text in page.scripts
+        if attrs.get("type") == "application/json"
+    }
+    return page, figures
+
+
+def _axis_title(axis: dict) -> str:
+    return (axis.get("title") or {}).get("text", "")
+
+
+# --------------------------------------------------------------------------------------------
+# Tests
+
+
+def test_labels_are_words_with_units():
+    assert label("torque_Nm_sliding_l28") == "torque, sliding, l = 28 mm (N·m)"
+    assert label("stiffness_Nm_per_rad_lmin").endswith("(N·m/rad)")
+    assert label("stiffness_Nmm_per_rad") == "stiffness (N·mm/rad)"
+    assert label("contact_force_N") == "contact force (N)"
+    assert label("rotation_deg") == "rotation (°)"
+    assert label("spring_rate_N_per_mm") == "spring rate (N/mm)"
+    assert label("peak_stress_MPa", "given (MPa)") == "given (MPa)"  # the kind's label wins
+    assert words("torque_Nm_fixed_l40") == "torque, fixed, l = 40 mm"
+    meanings = variable_meanings("constant_force", ["a3", "t3_mm", "B_mm"])
+    assert meanings["a3"].startswith("where p3 sits between S2 and S3")
+    assert "(mm)" in meanings["t3_mm"] and "(mm)" in meanings["B_mm"]
+
+
+def test_sensitivity_and_top_designs():
+    rng = np.random.default_rng(0)
+    evaluations = [
+        Evaluation(x, np.array([x[0] ** 3, -x[1]]), np.array([x[0] - 0.9]))
+        for x in rng.uniform(0, 1, (30, 3))
+    ]
+    rho, basis = sensitivity(evaluations, 3, 2)
+    assert rho[0, 0] == pytest.approx(1.0) and rho[1, 1] == pytest.approx(-1.0)
+    assert abs(rho[0, 2]) < 0.5 and "feasible" in basis
+    top = top_designs(evaluations, 5)
+    assert [ev.feasible for ev in top] == [True] * 5
+    assert [float(ev.f[0]) for ev in top] == sorted(float(ev.f[0]) for ev in top)
+
+
+def test_run_writes_a_self_contained_report_html(run_dir):
+    record = json.loads((run_dir / "run.json").read_text())
+    assert "report.html" in record["files"]
+    report_md = (run_dir / "report.md").read_text()
+    assert "[report.html](report.html)" in report_md.split("## Settings")[0]  # linked at the top
+    assert "serial evaluation" not in report_md
+    assert f"| evaluation backend | {record['parallel']['description']} |" in report_md
+
+    page, figures = _page(run_dir)
+    assert page.sections == list(SECTIONS)
+    # offline: no script, stylesheet or image from the network; plotly.js inline, once
+    assert not any(attrs.get("src") for attrs, _ in page.scripts)
+    assert not any(str(link).startswith(("http:", "https:", "//")) for link in page.links)
+    big = [text for _, text in page.scripts if len(text) > 1_000_000]
+    assert len(big) == 1 and "Plotly" in big[0]
+
+    assert set(figures) == {
+        "fig-parallel-coordinates",
+        "fig-scatter-matrix",
+        "fig-sensitivity",
+        "fig-pareto-front",
+        "fig-response",
+        "fig-response-stress",
+        "fig-part-3d",
+    }
+    # parallel coordinates: every variable, objective and constraint, in words with units
+    (par,) = figures["fig-parallel-coordinates"]["data"]
+    dims = [d["label"] for d in par["dimensions"]]
+    assert dims[:3] == ["a3", "t3 (mm)", "B (mm)"]
+    assert "RMS force error over the stroke (N)" in dims and "mass (g)" in dims
+    assert set(par["line"]["color"]) <= {0, 1}  # coloured by feasibility
+    # scatter matrix: a feasible and an infeasible trace
+    names = [t["name"] for t in figures["fig-scatter-matrix"]["data"]]
+    assert any(n.startswith("feasible") for n in names)
+    assert any(n.startswith("infeasible") for n in names)
+    # sensitivity: objectives × variables, ρ in [-1, 1]; mass grows with B, the error does not
+    (heat,) = figures["fig-sensitivity"]["data"]
+    z = np.array(heat["z"], dtype=float)
+    assert z.shape == (2, 3) and np.nanmax(np.abs(z)) <= 1.0
+    assert heat["x"] == ["a3", "t3 (mm)", "B (mm)"]
+    assert z[1, 2] > 0.3
+    # Pareto front: both objectives labelled with units
+    front = figures["fig-pareto-front"]["layout"]
+    assert _axis_title(front["xaxis"]).endswith("(N)") and _axis_title(front["yaxis"]) == "mass (g)"
+
+    # the response: both curves of the multi-curve kind, the target band, labelled axes
+    resp = figures["fig-response"]
+    curves = [t["name"] for t in resp["data"] if t.get("mode") == "lines+markers"]
+    assert curves == ["torque, sliding, l = 28 mm", "torque, fixed, l = 40 mm"]
+    band = [t for t in resp["data"] if t.get("fill") == "toself"]
+    assert band and min(band[0]["y"]) == pytest.approx(1.4) and max(band[0]["y"]) == 1.6
+    assert any(t["name"].startswith("target 1.5 N·m") for t in resp["data"])
+    assert _axis_title(resp["layout"]["xaxis"]) == "deflection (°)"
+    assert _axis_title(resp["layout"]["yaxis"]) == "torque, sliding, l = 28 mm (N·m)"
+    stress = figures["fig-response-stress"]
+    assert len([t for t in stress["data"] if t.get("mode") == "lines+markers"]) == 2
+    assert any("allowable 30 MPa" in t["name"] for t in stress["data"])
+
+    # the part: a closed mesh whose extent is the outline × the height
+    (mesh,) = figures["fig-part-3d"]["data"]
+    assert mesh["type"] == "mesh3d" and len(mesh["i"]) >= 12
+    best = json.loads((run_dir / "best.json").read_text())
+    assert max(mesh["z"]) - min(mesh["z"]) == pytest.approx(best["parameters"]["B_mm"], rel=1e-3)
+
+    # every table header and axis in words; the variable meaning from the kind
+    text = (run_dir / "report.html").read_text(encoding="utf-8")
+    assert MEANINGS["a3"] in text
+    assert "RMS force error over the stroke (N)" in page.headers
+    for fig in figures.values():
+        for key, axis in fig["layout"].items():
+            if key.startswith(("xaxis", "yaxis")) and _axis_title(axis):
+                assert "_" not in _axis_title(axis), _axis_title(axis)
+    for value in figures.values():
+        json.dumps(value, allow_nan=False)  # strict JSON: no NaN in a figure
+        assert not any(isinstance(v, float) and math.isnan(v) for v in _floats(value))
+
+
+def _floats(value):
+    if isinstance(value, dict):
+        for v in value.values():
+            yield from _floats(v)
+    elif isinstance(value, list):
+        for v in value:
+            yield from _floats(v)
+    elif isinstance(value, float):
+        yield value
+
+
+def test_flexopt_report_rebuilds_report_html(run_dir):
+    (run_dir / "report.html").unlink()
+    outcome = rebuild_report(run_dir)
+    assert "report.html" in outcome.files
+    page, figures = _page(run_dir)
+    assert page.sections == list(SECTIONS) and "fig-part-3d" in figures
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None, reason="chromium is not installed")
+def test_report_html_draws_offline_in_a_headless_browser(run_dir, tmp_path):
+    """Every figure is drawn by the embedded plotly.js in a real browser, with no network."""
+    result = subprocess.run(
+        [
+            "chromium",
+            "--headless",
+            "--no-sandbox",  # CI runs as root
+            "--disable-gpu",
+            "--enable-unsafe-swiftshader",  # software WebGL for the 3D view and splom
+            f"--user-data-dir={tmp_path / 'profile'}",
+            "--proxy-server=127.0.0.1:9",  # no network: the page must need none
+            "--virtual-time-budget=20000",
+            "--dump-dom",
+            (run_dir / "report.html").resolve().as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    dom = result.stdout
+    for name in (
+        "parallel-coordinates",
+        "scatter-matrix",
+        "sensitivity",
+        "pareto-front",
+        "response",
+        "part-3d",
+    ):
+        at = dom.index(f'id="plot-{name}"')
+        tag = dom[dom.rindex("<div", 0, at) : dom.index(">", at)]
+        assert "js-plotly-plot" in tag, name  # plotly.js drew into the div
+    assert dom.count('class="main-svg"') >= 6
