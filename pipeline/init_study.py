@@ -384,12 +384,20 @@ def _material_by_name(node: dict[str, Any]) -> None:
     """Let ``material:`` be a library name too, as the study model does: pydantic's schema
     shows only the mapping, because the name is resolved by a before-validator."""
     material = node.get("properties", {}).get("material")
-    if not isinstance(material, dict) or not material.get("$ref", "").endswith("/MaterialSpec"):
+    if not isinstance(material, dict):
+        return
+    options = material.get("anyOf", [material])  # an optional material is anyOf [it, null]
+    ref = next((o["$ref"] for o in options if o.get("$ref", "").endswith("/MaterialSpec")), None)
+    if ref is None:
         return
     names = list(MATERIALS)
+    by_name = {"type": "string", "enum": names}
+    rest = [o for o in options if o.get("$ref") != ref]
     node["properties"]["material"] = {
+        **{k: v for k, v in material.items() if k not in ("$ref", "anyOf")},
         "description": "a library material by name (case, '-' and '_' do not matter: "
         + ", ".join(names)
-        + ") or your own {E_MPa, nu, yield_MPa, density_kg_m3}",
-        "anyOf": [{"type": "string", "enum": names}, {"$ref": material["$ref"]}],
+        + ") or your own {E_MPa, nu, yield_MPa, density_kg_m3}"
+        + (f"; {material['description']}" if material.get("description") else ""),
+        "anyOf": [by_name, {"$ref": ref}, *rest],
     }

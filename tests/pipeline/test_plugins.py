@@ -5,8 +5,10 @@ The end-to-end test builds two tiny packages in a temporary folder, installs the
 ``*.dist-info`` folders on ``sys.path``, so a folder on ``PYTHONPATH`` is enough and no venv is
 needed) and runs the ``flexopt`` command on them in a subprocess:
 
-- ``flexopt-toy-plugin`` names two kinds, one per form of the contract: ``toy_plugin`` (a module
-  that registers its kind when imported) and ``toy_factory`` (a function returning a kind);
+- ``flexopt-toy-plugin``, the example of docs/plugins.md (built from its code blocks, so the
+  docs cannot drift from what works), names two kinds, one per form of the contract:
+  ``toy_spring`` (a module that registers its kind when imported) and ``toy_factory`` (a
+  function returning a kind);
 - ``flexopt-broken-plugin`` names a kind whose module fails to import and one that takes the
   name of a built-in kind (``cam``).
 
@@ -19,6 +21,7 @@ from __future__ import annotations
 import importlib.metadata
 import json
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -33,125 +36,20 @@ from pipeline.study import load_study, validate_study
 # --------------------------------------------------------------------------------------------
 # The plugin packages
 
-TOY_PYPROJECT = """\
-[build-system]
-requires = ["setuptools>=61"]
-build-backend = "setuptools.build_meta"
-
-[project]
-name = "flexopt-toy-plugin"
-version = "0.1.0"
-description = "A toy study kind for flexopt's plugin test"
-
-[project.entry-points."flexopt.kinds"]
-toy_plugin = "flexopt_toy_plugin"
-toy_factory = "flexopt_toy_plugin.factory:make_kind"
-
-[tool.setuptools]
-packages = ["flexopt_toy_plugin"]
-"""
-
-TOY_MODULE = '''\
-"""A toy spring: force = rate * displacement; the optimiser looks for a rate of 3 N/mm."""
-
-from dataclasses import dataclass
-from typing import Literal
-
-import numpy as np
-from pydantic import BaseModel, Field
-
-from optimise import DesignDetail, DesignSpace, Evaluation
-from pipeline.studies import EvaluationResult, StudyKind, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "plugins.md"
 
 
-class ToyGeometry(BaseModel):
-    model_config = STUDY_CONFIG
+def docs_package() -> dict[str, str]:
+    """The example plugin of docs/plugins.md: its code blocks titled with a file name."""
+    blocks = re.findall(r'^```\w+ title="([^"]+)"\n(.*?)^```$', DOCS.read_text(), re.M | re.S)
+    files = dict(blocks)
+    assert set(files) == {
+        "pyproject.toml",
+        "flexopt_toy_plugin/__init__.py",
+        "flexopt_toy_plugin/factory.py",
+    }
+    return files
 
-    kind: Literal["toy_plugin"]
-    rate_N_per_mm: float = Field(2.0, gt=0, description="spring rate, N/mm")
-    stroke_mm: float = Field(5.0, gt=0, description="stroke, mm")
-
-
-class ToyStudy(Study):
-    geometry: ToyGeometry
-    optimiser: OptimiserSpec = OptimiserSpec(pop_size=6, n_gen=2, seed=3)
-
-
-def check(study):
-    pass
-
-
-def evaluate(study, repeat):
-    g = study.geometry
-    d = np.linspace(0.0, g.stroke_mm, 6)
-    return EvaluationResult(
-        table={"displacement_mm": d, "force_N": g.rate_N_per_mm * d},
-        summary={"max_force_N": float(g.rate_N_per_mm * g.stroke_mm)},
-        converged=True,
-        message="",
-        solve_times_s=(0.0,) * repeat,
-        plot={"x": "displacement_mm", "left": "force_N"},
-    )
-
-
-@dataclass
-class ToyProblem:
-    stroke_mm: float
-    space: DesignSpace = DesignSpace(("rate_N_per_mm",), np.array([0.5]), np.array([5.0]))
-    objective_names: tuple = ("rate_error",)
-    constraint_names: tuple = ()
-
-    def evaluate(self, x):
-        rate = float(x[0])
-        return Evaluation(np.array(x), np.array([(rate - 3.0) ** 2]), np.zeros(0), {})
-
-    def detail(self, x):
-        d = np.linspace(0.0, self.stroke_mm, 6)
-        table = {"displacement_mm": d, "force_N": float(x[0]) * d}
-        return DesignDetail(self.evaluate(x), table, {"x": "displacement_mm", "y": "force_N"})
-
-
-register(
-    StudyKind(
-        "toy_plugin",
-        ToyStudy,
-        check,
-        evaluate,
-        problem=lambda study: ToyProblem(study.geometry.stroke_mm),
-        quantities=("max_force_N", "force_N", "displacement_mm"),
-        summary="a toy spring of a given rate (flexopt's plugin test)",
-    )
-)
-'''
-
-TOY_FACTORY = '''\
-"""The second form of the contract: a function that returns the kind (flexopt registers it)."""
-
-from typing import Literal
-
-from pydantic import BaseModel
-
-from flexopt_toy_plugin import ToyStudy, check, evaluate
-from pipeline.studies import StudyKind
-from pipeline.study import STUDY_CONFIG
-
-
-class FactoryGeometry(BaseModel):
-    model_config = STUDY_CONFIG
-
-    kind: Literal["toy_factory"]
-    rate_N_per_mm: float = 1.0
-    stroke_mm: float = 2.0
-
-
-class FactoryStudy(ToyStudy):
-    geometry: FactoryGeometry
-
-
-def make_kind():
-    return StudyKind("toy_factory", FactoryStudy, check, evaluate)
-'''
 
 BROKEN_PYPROJECT = """\
 [build-system]
@@ -191,14 +89,7 @@ def _package(root: Path, files: dict[str, str]) -> Path:
 def plugin_path(tmp_path_factory) -> Path:
     """A folder holding both plugin packages, installed by pip (skip when pip cannot build)."""
     root = tmp_path_factory.mktemp("plugins")
-    toy = _package(
-        root / "toy",
-        {
-            "pyproject.toml": TOY_PYPROJECT,
-            "flexopt_toy_plugin/__init__.py": TOY_MODULE,
-            "flexopt_toy_plugin/factory.py": TOY_FACTORY,
-        },
-    )
+    toy = _package(root / "toy", docs_package())
     broken = _package(
         root / "broken",
         {
@@ -237,8 +128,8 @@ def test_plugin_kinds_run_from_the_cli(plugin_path, tmp_path):
     listed = flexopt(plugin_path, tmp_path, "list")
     assert listed.returncode == 0, listed.stderr
     lines = listed.stdout.splitlines()
-    toy = next(line for line in lines if line.split()[:1] == ["toy_plugin"])
-    assert "plugin" in toy and "a toy spring of a given rate" in toy
+    toy = next(line for line in lines if line.split()[:1] == ["toy_spring"])
+    assert "plugin" in toy and "a toy spring of a given rate (the plugin example" in toy
     assert any(line.split()[:2] == ["toy_factory", "plugin"] for line in lines)
     broken = next(line for line in lines if line.split()[:1] == ["broken_kind"])
     assert "flexopt-broken-plugin" in broken and "ModuleNotFoundError" in broken
@@ -250,14 +141,14 @@ def test_plugin_kinds_run_from_the_cli(plugin_path, tmp_path):
     assert listed.stderr == ""  # a broken plugin says nothing until it is asked for
 
     # a starter study of the plugin's kind, from its schema, loads and solves as written
-    made = flexopt(plugin_path, tmp_path, "init", "spring", "--kind", "toy_plugin")
+    made = flexopt(plugin_path, tmp_path, "init", "spring", "--kind", "toy_spring")
     assert made.returncode == 0, made.stderr
     text = (tmp_path / "spring.yaml").read_text()
     assert "rate_N_per_mm" in text and "spring rate, N/mm" in text
     evaluated = flexopt(plugin_path, tmp_path, "evaluate", "spring.yaml", "--out", "ev")
     assert evaluated.returncode == 0, evaluated.stderr
     record = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
-    assert record["kind"] == "toy_plugin" and record["summary"]["max_force_N"] == 10.0
+    assert record["kind"] == "toy_spring" and record["summary"]["end_force_N"] == 10.0
 
     # flexopt run optimises it, on two worker processes (they import the plugin too)
     ran = flexopt(
@@ -265,7 +156,7 @@ def test_plugin_kinds_run_from_the_cli(plugin_path, tmp_path):
     )
     assert ran.returncode == 0, ran.stderr
     best = json.loads((tmp_path / "rn" / "best.json").read_text())
-    assert best["kind"] == "toy_plugin"
+    assert best["kind"] == "toy_spring"
     assert best["parameters"]["rate_N_per_mm"] == pytest.approx(3.0, abs=2.0)
 
     # the factory form
@@ -274,14 +165,14 @@ def test_plugin_kinds_run_from_the_cli(plugin_path, tmp_path):
     )
     evaluated = flexopt(plugin_path, tmp_path, "evaluate", "factory.yaml", "--out", "f")
     assert evaluated.returncode == 0, evaluated.stderr
-    assert "max_force_N" in evaluated.stdout
+    assert "end_force_N" in evaluated.stdout
 
     # the schema of the plugin kind, and the plugin kinds in the schema of any study
-    schema = flexopt(plugin_path, tmp_path, "schema", "--kind", "toy_plugin")
+    schema = flexopt(plugin_path, tmp_path, "schema", "--kind", "toy_spring")
     assert schema.returncode == 0, schema.stderr
     assert "rate_N_per_mm" in json.loads(schema.stdout)["$defs"]["ToyGeometry"]["properties"]
     assert (
-        "toy_plugin" in json.loads(flexopt(plugin_path, tmp_path, "schema").stdout)["description"]
+        "toy_spring" in json.loads(flexopt(plugin_path, tmp_path, "schema").stdout)["description"]
     )
 
 
