@@ -208,7 +208,7 @@ def _parcoords(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
         _layout(
             "All solved designs: variables, objectives and constraints (blue feasible, red not)",
             height=620,
-            margin={"l": 80, "r": 160, "t": 230, "b": 40},
+            margin={"l": 80, "r": 280, "t": 230, "b": 40},
         )
     )
     return fig
@@ -517,7 +517,7 @@ def _part_fig(vertices: np.ndarray, faces: np.ndarray) -> Any:
                 # the camera below sees the whole part
                 "aspectmode": "manual",
                 "aspectratio": dict(zip("xyz", (size / size.max()).round(4).tolist(), strict=True)),
-                "camera": {"eye": {"x": 0.9, "y": -1.3, "z": 1.0}},
+                "camera": {"eye": {"x": 0.55, "y": -0.85, "z": 0.65}},
                 "xaxis": _axis("x (mm)"),
                 "yaxis": _axis("y (mm)"),
                 "zaxis": _axis("z (mm)"),
