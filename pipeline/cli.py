@@ -680,6 +680,8 @@ def _init(args: argparse.Namespace) -> int:
 
     prog = "flexopt init"
     out = args.out or Path(f"{args.name}.yaml")
+    if out.is_dir():  # --out studies/ means "in that folder", as cp does
+        out = out / f"{args.name}.yaml"
     try:
         text = starter_study(args.name, kind=args.kind, example=args.example, file=str(out))
     except StudyError as exc:

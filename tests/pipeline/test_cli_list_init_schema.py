@@ -126,6 +126,9 @@ def test_init_makes_the_folder(tmp_path):
     out = tmp_path / "new" / "folder" / "s.yaml"
     assert main(["init", "s", "--out", str(out)]) == 0
     assert load_study(out).name == "s"
+    # an existing folder as --out: NAME.yaml inside it
+    assert main(["init", "t", "--out", str(out.parent)]) == 0
+    assert load_study(out.parent / "t.yaml").name == "t"
 
 
 @pytest.mark.parametrize(
