@@ -205,16 +205,83 @@ def svk_assemble(
                     for d in range(2):
                         for L in range(2):
                             Ga[a, c, d, L] = g0 * A[c, 0, d, L] + g1 * A[c, 1, d, L]
-            for a in range(ns):
-                for b in range(ns):
-                    h0 = g[e, q, b, 0]
-                    h1 = g[e, q, b, 1]
-                    for c in range(2):
-                        for d in range(2):
-                            Ke[c * ns + a, d * ns + b] += Ga[a, c, d, 0] * h0 + Ga[a, c, d, 1] * h1
+            # Upper triangle only (i <= j): A has the major symmetry A_cJdL = A_dLcJ, so
+            # Ke is symmetric; the lower triangle is copied after the quadrature loop.
+            for c in range(2):
+                for a in range(ns):
+                    i = c * ns + a
+                    for d in range(c, 2):
+                        for b in range(a if d == c else 0, ns):
+                            Ke[i, d * ns + b] += (
+                                Ga[a, c, d, 0] * g[e, q, b, 0] + Ga[a, c, d, 1] * g[e, q, b, 1]
+                            )
         if want_tangent:
+            for i in range(m):
+                for j in range(i):
+                    Ke[i, j] = Ke[j, i]
             base = e * m * m
             for i in range(m):
                 for j in range(m):
                     data[where[base + i * m + j]] += Ke[i, j]
     return f, data, min_det
+
+
+@njit(cache=True)
+def von_mises(
+    u: np.ndarray,
+    dofs: np.ndarray,
+    g: np.ndarray,
+    lam: float,
+    mu: float,
+    lam3d: float,
+    nonlinear: bool,
+) -> np.ndarray:
+    """Von Mises Cauchy stress (E, Q), MPa, at the points of a gradient table ``g`` (E, Q, ns, 2).
+
+    Linear: ``sigma = lam tr(eps) I + 2 mu eps``. Nonlinear: ``sigma = F S F^T / J`` with the
+    thickness stretch from ``S33 = 0`` (``E33 = -lam3d tr(E) / (lam3d + 2 mu)``, 3D ``lam3d``),
+    ``J = det F sqrt(1 + 2 E33)`` (clipped at 1e-12 as in the numpy path). ``lam`` is the
+    plane-stress Lamé constant, MPa.
+    """
+    E, Q, ns, _ = g.shape
+    out = np.empty((E, Q))
+    ue = np.empty((2, ns))
+    H = np.empty((2, 2))
+    for e in range(E):
+        for c in range(2):
+            for a in range(ns):
+                ue[c, a] = u[dofs[e, c * ns + a]]
+        for q in range(Q):
+            for c in range(2):
+                for J in range(2):
+                    s = 0.0
+                    for a in range(ns):
+                        s += ue[c, a] * g[e, q, a, J]
+                    H[c, J] = s
+            if not nonlinear:
+                e01 = 0.5 * (H[0, 1] + H[1, 0])
+                tr = H[0, 0] + H[1, 1]
+                s11 = lam * tr + 2.0 * mu * H[0, 0]
+                s22 = lam * tr + 2.0 * mu * H[1, 1]
+                s12 = 2.0 * mu * e01
+            else:
+                f00, f01, f10, f11 = 1.0 + H[0, 0], H[0, 1], H[1, 0], 1.0 + H[1, 1]
+                E00 = 0.5 * (f00 * f00 + f10 * f10 - 1.0)
+                E11 = 0.5 * (f01 * f01 + f11 * f11 - 1.0)
+                E01 = 0.5 * (f00 * f01 + f10 * f11)
+                tr = E00 + E11
+                S00 = lam * tr + 2.0 * mu * E00
+                S11 = lam * tr + 2.0 * mu * E11
+                S01 = 2.0 * mu * E01
+                E33 = -lam3d * tr / (lam3d + 2.0 * mu)
+                Jac = (f00 * f11 - f01 * f10) * np.sqrt(max(1.0 + 2.0 * E33, 1e-12))
+                # P = F S, sigma = P F^T / J
+                p00 = f00 * S00 + f01 * S01
+                p01 = f00 * S01 + f01 * S11
+                p10 = f10 * S00 + f11 * S01
+                p11 = f10 * S01 + f11 * S11
+                s11 = (p00 * f00 + p01 * f01) / Jac
+                s22 = (p10 * f10 + p11 * f11) / Jac
+                s12 = (p00 * f10 + p01 * f11) / Jac
+            out[e, q] = np.sqrt(max(s11 * s11 - s11 * s22 + s22 * s22 + 3.0 * s12 * s12, 0.0))
+    return out
