@@ -995,6 +995,11 @@ class PlaneStressModel:
         b = self.thickness_mm
         self.counters["tangents"] += 1
         if self.assembly == "compiled":
+            if self._K_lin is not None and not u.any():
+                # The undeformed state: F = I and S = 0 exactly, so the compiled tangent is the
+                # linear stiffness to the bit (same kernel at u = 0) and the force is zero. The
+                # same matrix object also spares its refactorisation after a linear solve.
+                return _State(np.zeros(self.n_dofs), self._K_lin, 1.0)
             f, K, min_det = self._asm.compiled_state(u, self.lam, self.mu, b)
             return _State(f, K, min_det)
         if self._asm is not None:
