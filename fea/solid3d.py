@@ -1,0 +1,643 @@
+"""A 3D linear-elastic check of a flat part: its planar outline extruded to its thickness.
+
+Plane stress (:mod:`fea.plane_stress`) assumes the out-of-plane stresses vanish through the whole
+thickness. That holds for thin plates; a deep part (thickness several times the width of its
+members) is stiffer, because the Poisson contraction across the depth is restrained wherever the
+cross-section is held: at rigid clamps and hubs, and where the bending moment varies along a
+member. With ``nu = 0`` there is nothing to restrain and 3D and plane stress agree exactly. This
+module measures the difference on the part as meshed for plane stress.
+
+Mesh
+    The plane-stress triangle mesh (:class:`fea.mesh.TriMesh`) is extruded into layers of
+    prisms, and each prism is split into three tetrahedra by the rule "each quad face is cut by
+    the diagonal from the bottom of its lower-numbered vertex to the top of the higher-numbered
+    one": the rule depends only on the two vertices of the face, so neighbouring prisms cut their
+    shared face the same way and the mesh is conforming. Quadratic tetrahedra (P2) on it. No
+    mesher beyond Triangle is needed, the layers are graded towards the free faces (where the
+    stress departs from the interior state) and every node lies above a node of the plane mesh,
+    so supports and stress-ignore regions are the plane model's, through the thickness.
+Symmetry
+    Loads and supports are in-plane and the same at every height, so the solution is symmetric
+    about the mid-plane: half the thickness is meshed, with ``w = 0`` on the mid-plane, and the
+    forces are doubled.
+Supports (the plane model's, through the thickness)
+    :class:`~fea.plane_stress.Clamp`: every node whose (x, y) lies on or in the region is held
+    (u = v = w = 0). :class:`~fea.plane_stress.Rotate`: the driven nodes turn rigidly about the
+    z axis through ``centre_mm`` (linearised, ``u = theta e_z x (X - c)``, ``w = 0``).
+    :class:`~fea.plane_stress.Translate`: the driven nodes move rigidly along ``direction``
+    (``w = 0``); ``transverse = "free"`` lets them slide together perpendicular to it.
+Physics
+    Small-strain linear elasticity, ``sigma = lambda tr(eps) I + 2 mu eps`` with the 3D Lamé
+    constants. The linear 3D/2D ratio of a design carries to the geometrically nonlinear 2D
+    answer: the ratio is a property of the cross-sections (measured 1.022 at 1 and 11 degrees
+    on the SEA spring, issue 15), so this check is linear. Solved by a sparse Cholesky
+    factorisation (CHOLMOD through cvxopt; SuperLU when cvxopt does not import).
+
+Units: mm, N, MPa, N·mm, rad. See docs/solid3d.md.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+import shapely
+from shapely.geometry import Polygon
+from shapely.geometry.base import BaseGeometry
+
+from fea.errors import FeaError
+from fea.materials import Material
+from fea.mesh import Refinement, TriMesh, mesh_polygon
+from fea.plane_stress import Clamp, Rotate, Translate
+
+__all__ = [
+    "Solid3DSettings",
+    "Solid3DResult",
+    "extrude_layers_mm",
+    "extrude_mesh",
+    "solve_solid3d",
+    "check_solid3d",
+    "compare_with_plane_stress",
+]
+
+Drive = Translate | Rotate
+
+
+@dataclass(frozen=True)
+class Solid3DSettings:
+    """Discretisation and solver choices of the 3D check, each with its reason."""
+
+    # Prism layers through the meshed height (half the thickness with symmetry). The stress
+    # departs from its interior state in a layer about one member width deep under each free
+    # face; 4 layers graded towards the face resolve it with P2 (docs/solid3d.md: the SEA
+    # spring's stiffness moves < 0.1 % from 4 to 8 layers).
+    layers: int = 4
+    # Ratio of the thickest layer (at the mid-plane) to the thinnest (at the free face); the
+    # layer heights form a geometric series. 1 = uniform.
+    grading: float = 3.0
+    # Mesh half the thickness with a symmetry plane w = 0 at mid-thickness (loads and supports
+    # are in-plane and the same at every height, so the solution is mirror-symmetric).
+    symmetric: bool = True
+    # Distance under which a node counts as on a clamp / drive geometry, mm (the plane model's).
+    select_tol_mm: float = 1e-6
+    # "auto": CHOLMOD's supernodal Cholesky (through cvxopt) when it imports, else SuperLU;
+    # see _Solver for the measured difference.
+    solver: Literal["auto", "cholmod", "superlu"] = "auto"
+    # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
+    # (20 000 blocks use ~150 MB each) independently of the mesh size.
+    block_elements: int = 20_000
+    # A model this large is a units or settings mistake on a 24 GB machine (a 1.2 M-DOF P2
+    # tetrahedral model factorises in ~6 GB).
+    max_dofs: int = 1_500_000
+
+
+@dataclass(frozen=True)
+class Solid3DResult:
+    """The 3D linear answer at the drive's full value (``max_rad`` or ``max_mm``).
+
+    Forces and torques are for the whole part (doubled from the half model under symmetry).
+
+    drive : "rotate" or "translate".
+    drive_value : float — rad (rotate) or mm (translate).
+    reaction_N : (3,) float, N — force applied to the driven nodes.
+    torque_Nmm : float, N·mm — moment about the z axis through the centre applied to them.
+    force_N : float, N — reaction along the drive direction (translate; for rotate, on x).
+    stiffness : float — N·mm/rad (rotate: torque / angle) or N/mm (translate: force / stroke).
+    clamp_reaction_N : (3,) float, N — force applied to the clamped nodes.
+    peak_stress_MPa : float, MPa — max von Mises at quadrature points (element level).
+    peak_stress_xyz_mm : (3,) float, mm — where.
+    peak_nodal_stress_MPa : float, MPa — max of the von Mises averaged at mesh vertices over the
+        tetrahedra sharing them (the value plane stress reports as its peak).
+    peak_nodal_stress_xyz_mm : (3,) float, mm — where.
+    n_dofs : int — unknowns including the prescribed ones (3 per P2 node of the meshed part).
+    n_tets : int; n_layers : int; symmetric : bool; solver : str.
+    times_s : dict — "mesh", "assemble", "factorise_solve", "stress", "total", s.
+    """
+
+    drive: str
+    drive_value: float
+    reaction_N: np.ndarray
+    torque_Nmm: float
+    force_N: float
+    stiffness: float
+    clamp_reaction_N: np.ndarray
+    peak_stress_MPa: float
+    peak_stress_xyz_mm: np.ndarray
+    peak_nodal_stress_MPa: float
+    peak_nodal_stress_xyz_mm: np.ndarray
+    n_dofs: int
+    n_tets: int
+    n_layers: int
+    symmetric: bool
+    solver: str
+    times_s: dict = field(default_factory=dict)
+
+    @property
+    def solve_time_s(self) -> float:
+        """Wall time of the whole check, s."""
+        return float(self.times_s.get("total", float("nan")))
+
+    def summary(self) -> dict:
+        """Plain-number record (JSON-ready)."""
+        return {
+            "drive": self.drive,
+            "drive_value": self.drive_value,
+            "stiffness": self.stiffness,
+            "stiffness_unit": "N mm/rad" if self.drive == "rotate" else "N/mm",
+            "torque_Nmm": self.torque_Nmm,
+            "force_N": self.force_N,
+            "peak_stress_MPa": self.peak_stress_MPa,
+            "peak_stress_xyz_mm": [float(v) for v in self.peak_stress_xyz_mm],
+            "peak_nodal_stress_MPa": self.peak_nodal_stress_MPa,
+            "peak_nodal_stress_xyz_mm": [float(v) for v in self.peak_nodal_stress_xyz_mm],
+            "n_dofs": self.n_dofs,
+            "n_tets": self.n_tets,
+            "n_layers": self.n_layers,
+            "symmetric": self.symmetric,
+            "solver": self.solver,
+            "times_s": dict(self.times_s),
+        }
+
+
+# --------------------------------------------------------------------------------------------
+# Mesh
+
+
+def extrude_layers_mm(thickness_mm: float, settings: Solid3DSettings = Solid3DSettings()):
+    """Heights of the layer interfaces, (layers + 1,) mm, ascending.
+
+    With symmetry they run from the mid-plane z = 0 to the free face z = thickness / 2, else
+    from -thickness / 2 to +thickness / 2 (mirrored, ``layers`` per half, so both meshes resolve
+    the free faces alike). Layer heights shrink geometrically towards the free face by
+    ``grading`` overall.
+    """
+    n = int(settings.layers)
+    if n < 1:
+        raise FeaError(f"layers = {settings.layers} must be >= 1")
+    if not settings.grading >= 1.0:
+        raise FeaError(f"grading = {settings.grading} must be >= 1 (1 = uniform layers)")
+    half = 0.5 * float(thickness_mm)
+    # Layer k (from the mid-plane) has height proportional to q**-k with q**(n-1) = grading.
+    q = settings.grading ** (1.0 / (n - 1)) if n > 1 else 1.0
+    h = q ** -np.arange(n, dtype=float)
+    z = np.concatenate([[0.0], np.cumsum(h)]) / h.sum() * half
+    z[-1] = half
+    if settings.symmetric:
+        return z
+    return np.concatenate([-z[:0:-1], z])
+
+
+def extrude_mesh(mesh: TriMesh, z_mm: np.ndarray):
+    """A conforming tetrahedral mesh of the triangle mesh extruded through the heights z_mm.
+
+    Parameters
+    ----------
+    mesh : TriMesh
+        Nodes (n, 2) mm, triangles (m, 3).
+    z_mm : (L + 1,) float, mm
+        Heights of the layer interfaces, strictly ascending.
+
+    Returns
+    -------
+    skfem.MeshTet
+        (L + 1) n nodes, node ``k n + i`` above plane node i at height ``z_mm[k]``;
+        3 L m positively oriented tetrahedra, element ``3 (k m + j) + s`` in layer k above
+        triangle j.
+    """
+    from skfem import MeshTet
+
+    z = np.asarray(z_mm, dtype=float)
+    if z.ndim != 1 or z.size < 2 or np.any(np.diff(z) <= 0):
+        raise FeaError("z_mm must hold at least two strictly ascending heights")
+    n, L = mesh.n_points, z.size - 1
+    pts = np.column_stack([np.tile(mesh.points, (L + 1, 1)), np.repeat(z, n)])  # ((L+1) n, 3)
+    # Sort each triangle's vertices by global index: the cut of a quad face then depends only
+    # on its two vertices (diagonal bottom-of-lower to top-of-higher), the same from both sides.
+    tri = np.sort(mesh.triangles, axis=1)
+    a, b, c = tri.T
+    tets = []
+    for k in range(L):
+        lo, hi = k * n, (k + 1) * n
+        # Faces (a,b), (b,c), (a,c) get the diagonals a-b', b-c', a-c' (primes on top).
+        t = np.stack(
+            [
+                np.column_stack([a + lo, b + lo, c + lo, c + hi]),
+                np.column_stack([a + lo, b + lo, b + hi, c + hi]),
+                np.column_stack([a + lo, a + hi, b + hi, c + hi]),
+            ],
+            axis=1,
+        ).reshape(-1, 4)
+        tets.append(t)
+    t = np.vstack(tets)
+    # Positive orientation (positive Jacobian) by swapping two vertices where needed.
+    p = pts[t]
+    vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0])
+    neg = vol < 0
+    t[neg] = t[neg][:, [0, 2, 1, 3]]
+    return MeshTet(pts.T.copy(), t.T.copy(), sort_t=False)
+
+
+# --------------------------------------------------------------------------------------------
+# Assembly and solve
+
+
+def _lame(material: Material) -> tuple[float, float]:
+    """3D Lamé constants (lambda, mu), MPa."""
+    E, nu = material.E_MPa, material.nu
+    return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+
+
+def _gradients(basis) -> np.ndarray:
+    """Scalar basis gradients (nel, nqp, nloc, 3) of a scalar scikit-fem basis."""
+    return np.stack([np.moveaxis(phi[0].grad, 0, -1) for phi in basis.basis], axis=2)
+
+
+def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
+    """Linear-elastic stiffness in the DOF numbering ``3 s + c`` (s scalar P2 DOF, c component).
+
+    Per element, with g_a the scalar gradient of local function a and dx the quadrature weights:
+    ``K_(a c)(b d) = sum_q dx (lam g_ac g_bd + mu g_ad g_bc + mu delta_cd g_a . g_b)``,
+    N/mm per mm of height (the mesh carries the height).
+    """
+    dofs = sbasis.element_dofs.T  # (nel, 10)
+    nel, nloc = dofs.shape
+    ndof = 3 * sbasis.N
+    K = sp.csr_matrix((ndof, ndof))
+    G_all = _gradients(sbasis)  # (nel, nqp, 10, 3)
+    dx_all = sbasis.dx  # (nel, nqp)
+    eye = np.eye(3)
+    for s in range(0, nel, block):
+        G, dx = G_all[s : s + block], dx_all[s : s + block]
+        Gw = G * dx[:, :, None, None]
+        # (e, a, c, b, d)
+        Ke = lam * np.einsum("eqac,eqbd->eacbd", Gw, G, optimize=True)
+        Ke += mu * np.einsum("eqad,eqbc->eacbd", Gw, G, optimize=True)
+        Ke += mu * np.einsum("eqak,eqbk,cd->eacbd", Gw, G, eye, optimize=True)
+        ldof = (3 * dofs[s : s + block, :, None] + np.arange(3)).reshape(-1, 3 * nloc)
+        m = ldof.shape[0]
+        rows = np.broadcast_to(ldof[:, :, None], (m, 3 * nloc, 3 * nloc)).ravel()
+        cols = np.broadcast_to(ldof[:, None, :], (m, 3 * nloc, 3 * nloc)).ravel()
+        K = K + sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(ndof, ndof))
+    return K
+
+
+class _Solver:
+    """Factorise a symmetric positive definite matrix once and solve with it.
+
+    "cholmod": CHOLMOD's supernodal Cholesky through cvxopt (a runtime dependency of flexopt,
+    see fea/plane_stress.py), reading the lower triangle only. Measured on a 39k-DOF strip:
+    ~0.3 s against ~3 s for cholespy (its wheels carry CHOLMOD's simplicial method only) and
+    ~5 s for SuperLU. "superlu": scipy's, the fallback when cvxopt does not import.
+    """
+
+    def __init__(self, K: sp.csr_matrix, which: str) -> None:
+        if which not in ("auto", "cholmod", "superlu"):
+            raise FeaError(f"solver '{which}' unknown; use 'auto', 'cholmod' or 'superlu'")
+        self.n = K.shape[0]
+        if which in ("auto", "cholmod"):
+            try:
+                from cvxopt import cholmod, matrix, spmatrix
+            except ImportError as exc:
+                if which == "cholmod":
+                    raise FeaError(f"solver 'cholmod' needs cvxopt ({exc})") from exc
+            else:
+                L = sp.tril(K, format="coo")
+                A = spmatrix(matrix(L.data.astype(float)), matrix(L.row.astype(np.int64)),
+                             matrix(L.col.astype(np.int64)), (self.n, self.n))  # fmt: skip
+                self._cholmod, self._matrix = cholmod, matrix
+                self._F = cholmod.symbolic(A, uplo="L")
+                try:
+                    cholmod.numeric(A, self._F)
+                except ArithmeticError as exc:
+                    raise FeaError(
+                        f"the 3D stiffness is not positive definite ({exc}): a part not held "
+                        "by the clamp and drive (a free body), or a degenerate element"
+                    ) from exc
+                self.name = "cholmod"
+                return
+        from scipy.sparse.linalg import splu
+
+        # Minimum degree on A^T + A suits symmetric matrices (as in fea.plane_stress).
+        self._lu = splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A")
+        self.name = "superlu"
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """x (n,) with K x = b (n,)."""
+        if self.name == "cholmod":
+            x = self._matrix(np.array(b, dtype=float))
+            self._cholmod.solve(self._F, x)
+            return np.asarray(x).ravel()
+        return self._lu.solve(b)
+
+
+def _von_mises(grad_u: np.ndarray, lam: float, mu: float) -> np.ndarray:
+    """Von Mises stress, MPa, from displacement gradients (..., 3, 3)."""
+    eps = 0.5 * (grad_u + np.swapaxes(grad_u, -1, -2))
+    tr = np.trace(eps, axis1=-2, axis2=-1)
+    dev = 2.0 * mu * (eps - tr[..., None, None] * np.eye(3) / 3.0)  # deviatoric stress
+    return np.sqrt(1.5 * np.einsum("...ij,...ij->...", dev, dev))
+
+
+def _select(xy: np.ndarray, region: BaseGeometry, what: str, tol: float) -> np.ndarray:
+    d = shapely.distance(region, shapely.points(xy))
+    nodes = np.flatnonzero(d <= tol)
+    if nodes.size == 0:
+        raise FeaError(
+            f"the {what} region selects no node of the 3D mesh (nearest is {d.min():.3g} mm "
+            f"away, tolerance {tol:g} mm); put it on the outline or overlapping the part"
+        )
+    return nodes
+
+
+def solve_solid3d(
+    mesh: TriMesh,
+    material: Material,
+    thickness_mm: float,
+    clamp: Clamp,
+    drive: Drive,
+    settings: Solid3DSettings = Solid3DSettings(),
+    stress_ignore: BaseGeometry | None = None,
+) -> Solid3DResult:
+    """Linear 3D elasticity of the plane mesh extruded to ``thickness_mm``, at the full drive.
+
+    Parameters
+    ----------
+    mesh : TriMesh
+        The plane mesh, nodes (n, 2) mm (typically the one the plane-stress model used).
+    material : Material
+        E (MPa) and nu.
+    thickness_mm : float, mm
+        Out-of-plane thickness.
+    clamp : Clamp
+        Held region (through the thickness).
+    drive : Rotate or Translate
+        Driven region and its motion; the value is ``max_rad`` / ``max_mm`` (``steps`` is
+        ignored: the answer is linear).
+    settings : Solid3DSettings
+    stress_ignore : shapely geometry, optional
+        Elements whose plane footprint touches it are left out of the peak stress (as in
+        :class:`fea.plane_stress.PlaneStressModel`).
+
+    Returns
+    -------
+    Solid3DResult
+
+    Raises
+    ------
+    FeaError
+        Bad thickness or regions, a model over ``max_dofs``.
+    """
+    from skfem import Basis, ElementTetP2
+
+    t0 = time.perf_counter()
+    times: dict[str, float] = {}
+    if not (np.isfinite(thickness_mm) and thickness_mm > 0):
+        raise FeaError(f"thickness_mm = {thickness_mm} must be > 0 mm")
+    if not isinstance(drive, Translate | Rotate):
+        raise FeaError(f"drive must be Translate or Rotate, got {type(drive).__name__}")
+    z = extrude_layers_mm(thickness_mm, settings)
+    # Estimate P2 node count (vertices + edges, about 4 n per layer interface and mid-layer)
+    # before building anything large.
+    est = 3 * (2 * (z.size - 1) + 1) * 4 * mesh.n_points
+    if est > settings.max_dofs:
+        raise FeaError(
+            f"the 3D model would have about {est} DOFs (cap {settings.max_dofs}); use fewer "
+            "layers or a coarser plane mesh"
+        )
+    tmesh = extrude_mesh(mesh, z)
+    sbasis = Basis(tmesh, ElementTetP2(), intorder=2)
+    times["mesh"] = time.perf_counter() - t0
+
+    t1 = time.perf_counter()
+    lam, mu = _lame(material)
+    K = _stiffness(sbasis, lam, mu, settings.block_elements)
+    ndof = K.shape[0]
+    times["assemble"] = time.perf_counter() - t1
+
+    # Supports. DOF of component c at scalar node s is 3 s + c.
+    locs = sbasis.doflocs.T  # (Ns, 3)
+    tol = settings.select_tol_mm
+    clamp_nodes = _select(locs[:, :2], clamp.region, "clamp", tol)
+    drive_nodes = _select(locs[:, :2], drive.region, "drive", tol)
+    both = np.intersect1d(clamp_nodes, drive_nodes)
+    if both.size:
+        raise FeaError(f"{both.size} node(s) are both clamped and driven; separate the regions")
+    ubar = np.zeros(ndof)
+    fixed = [3 * clamp_nodes + c for c in range(3)] + [3 * drive_nodes + c for c in range(3)]
+    if settings.symmetric:
+        # Mid-plane symmetry: no out-of-plane motion at z = 0.
+        mid = np.flatnonzero(np.abs(locs[:, 2]) <= tol)
+        fixed.append(3 * mid + 2)
+    X = locs[drive_nodes, :2]
+    is_rot = isinstance(drive, Rotate)
+    if is_rot:
+        centre = np.asarray(drive.centre_mm, dtype=float)
+        value = float(drive.max_rad)
+        r = X - centre
+        move = value * np.column_stack([-r[:, 1], r[:, 0]])  # linearised rigid rotation
+        direction = np.array([1.0, 0.0])
+    else:
+        d = np.asarray(drive.direction, dtype=float)
+        if not (d.shape == (2,) and np.linalg.norm(d) > 0):
+            raise FeaError(f"drive direction {drive.direction} must be a non-zero (dx, dy)")
+        direction = d / np.linalg.norm(d)
+        centre = X.mean(axis=0) if drive.centre_mm is None else np.asarray(drive.centre_mm)
+        value = float(drive.max_mm)
+        move = np.broadcast_to(value * direction, X.shape)
+    ubar[3 * drive_nodes] = move[:, 0]
+    ubar[3 * drive_nodes + 1] = move[:, 1]
+    fixed_dofs = np.unique(np.concatenate(fixed))
+    free = np.setdiff1d(np.arange(ndof), fixed_dofs)
+    cols = [sp.csr_matrix((np.ones(free.size), (free, np.arange(free.size))), (ndof, free.size))]
+    if not is_rot and drive.transverse == "free":
+        # One shared unknown: the driven nodes slide together perpendicular to the direction.
+        nrm = np.array([-direction[1], direction[0]])
+        rows = np.concatenate([3 * drive_nodes, 3 * drive_nodes + 1])
+        vals = np.concatenate(
+            [np.full(drive_nodes.size, nrm[0]), np.full(drive_nodes.size, nrm[1])]
+        )
+        cols.append(sp.csr_matrix((vals, (rows, np.zeros(rows.size, dtype=int))), (ndof, 1)))
+    elif not is_rot and drive.transverse != "fixed":
+        raise FeaError(f"transverse = '{drive.transverse}' must be 'fixed' or 'free'")
+    P = sp.hstack(cols).tocsr()
+    if ndof > settings.max_dofs:
+        raise FeaError(f"{ndof} DOFs exceed max_dofs = {settings.max_dofs}")
+
+    t2 = time.perf_counter()
+    Kr = (P.T @ K @ P).tocsr()
+    solver = _Solver(Kr, settings.solver)
+    q = solver.solve(-(P.T @ (K @ ubar)))
+    u = ubar + P @ q
+    f = K @ u  # internal force = force applied by the supports, N (half model)
+    times["factorise_solve"] = time.perf_counter() - t2
+
+    # Whole part: the half model carries half the in-plane forces; the z forces of the two
+    # mirrored halves are equal and opposite, so the part's is 0.
+    scale = 2.0 if settings.symmetric else 1.0
+    keep_z = 0.0 if settings.symmetric else 1.0
+    fd = np.array([f[3 * drive_nodes + c].sum() for c in range(3)]) * scale
+    fc = np.array([f[3 * clamp_nodes + c].sum() for c in range(3)]) * scale
+    fd[2] *= keep_z
+    fc[2] *= keep_z
+    arm = X - centre
+    torque = float(np.sum(arm[:, 0] * f[3 * drive_nodes + 1] - arm[:, 1] * f[3 * drive_nodes]))
+    torque *= scale
+    force = float(fd[:2] @ direction)
+    stiffness = torque / value if is_rot else force / value
+
+    t3 = time.perf_counter()
+    peak, where, peak_n, where_n = _peak_stress(tmesh, sbasis, u, lam, mu, mesh, stress_ignore,
+                                                settings)  # fmt: skip
+    times["stress"] = time.perf_counter() - t3
+    times["total"] = time.perf_counter() - t0
+    return Solid3DResult(
+        drive="rotate" if is_rot else "translate",
+        drive_value=value,
+        reaction_N=fd,
+        torque_Nmm=torque,
+        force_N=force,
+        stiffness=float(stiffness),
+        clamp_reaction_N=fc,
+        peak_stress_MPa=peak,
+        peak_stress_xyz_mm=where,
+        peak_nodal_stress_MPa=peak_n,
+        peak_nodal_stress_xyz_mm=where_n,
+        n_dofs=int(ndof),
+        n_tets=int(tmesh.t.shape[1]),
+        n_layers=int(z.size - 1),
+        symmetric=bool(settings.symmetric),
+        solver=solver.name,
+        times_s=times,
+    )
+
+
+def _peak_stress(tmesh, sbasis, u, lam, mu, mesh: TriMesh, ignore, settings):
+    """Peak von Mises at quadrature points and vertex-averaged, with (x, y, z) locations."""
+    from skfem import Basis, ElementTetP2
+
+    nel = tmesh.t.shape[1]
+    mask = np.ones(nel, dtype=bool)
+    if ignore is not None:
+        tris = shapely.polygons(mesh.points[mesh.triangles])
+        hit = shapely.intersects(ignore, tris)  # (m,) per plane triangle
+        # Element 3 (k m + j) + s lies above plane triangle j.
+        j = (np.arange(nel) // 3) % mesh.n_triangles
+        mask = ~hit[j]
+        if not mask.any():
+            raise FeaError("stress_ignore covers every element; nothing left to check")
+    dofs = sbasis.element_dofs.T  # (nel, 10)
+    ue = u.reshape(-1, 3)[dofs]  # (nel, 10, 3)
+
+    def grad_u(G: np.ndarray) -> np.ndarray:  # G (nel, nqp, 10, 3) -> (nel, nqp, 3, 3)
+        return np.einsum("eac,eqaj->eqcj", ue, G)
+
+    vm = _von_mises(grad_u(_gradients(sbasis)), lam, mu)  # (nel, nqp)
+    vm_m = np.where(mask[:, None], vm, -np.inf)
+    e, qp = np.unravel_index(np.argmax(vm_m), vm_m.shape)
+    xyz = np.asarray(sbasis.global_coordinates())[:, e, qp]
+    # Vertex values: the P2 gradient at the tetrahedron's corners, averaged over its elements.
+    corners = (np.array([[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]),
+               np.full(4, 1.0 / 24.0))  # fmt: skip
+    cb = Basis(tmesh, ElementTetP2(), quadrature=corners)
+    vc = _von_mises(grad_u(_gradients(cb)), lam, mu)  # (nel, 4) in t order
+    t = tmesh.t.T
+    n = tmesh.p.shape[1]
+    total = np.bincount(t.ravel(), weights=vc.ravel(), minlength=n)
+    count = np.bincount(t.ravel(), minlength=n)
+    nodal = total / np.maximum(count, 1)
+    allowed = np.zeros(n, dtype=bool)
+    allowed[t[mask].ravel()] = True
+    nodal[~allowed] = -np.inf
+    k = int(np.argmax(nodal))
+    return float(vm[e, qp]), xyz.copy(), float(nodal[k]), tmesh.p[:, k].copy()
+
+
+# --------------------------------------------------------------------------------------------
+# Entry points
+
+
+def check_solid3d(
+    outline: Polygon,
+    thickness_mm: float,
+    material: Material,
+    clamp: Clamp,
+    drive: Drive,
+    max_edge_mm: float,
+    refine: Refinement | None = None,
+    settings: Solid3DSettings = Solid3DSettings(),
+    stress_ignore: BaseGeometry | None = None,
+) -> Solid3DResult:
+    """Mesh a planar outline and run :func:`solve_solid3d` on it extruded to its thickness.
+
+    Parameters
+    ----------
+    outline : shapely Polygon, mm
+    thickness_mm : float, mm
+    material : Material
+    clamp, drive : the plane-stress supports (:class:`~fea.plane_stress.Clamp`,
+        :class:`~fea.plane_stress.Rotate` or :class:`~fea.plane_stress.Translate`).
+    max_edge_mm : float, mm — plane mesh size; refine : as :func:`fea.mesh.mesh_polygon`.
+    settings : Solid3DSettings
+    stress_ignore : shapely geometry, optional
+
+    Returns
+    -------
+    Solid3DResult (``times_s["mesh"]`` includes the plane mesh)
+    """
+    t0 = time.perf_counter()
+    mesh = mesh_polygon(outline, max_edge_mm, refine=refine)
+    t_plane = time.perf_counter() - t0
+    res = solve_solid3d(mesh, material, thickness_mm, clamp, drive, settings, stress_ignore)
+    res.times_s["mesh"] += t_plane
+    res.times_s["total"] += t_plane
+    return res
+
+
+def compare_with_plane_stress(
+    mesh: TriMesh,
+    material: Material,
+    thickness_mm: float,
+    clamp: Clamp,
+    drive: Drive,
+    settings: Solid3DSettings = Solid3DSettings(),
+    stress_ignore: BaseGeometry | None = None,
+) -> dict:
+    """The linear 3D and linear plane-stress answers on the same plane mesh, and their ratios.
+
+    Returns
+    -------
+    dict
+        ``stiffness_3d`` / ``stiffness_2d`` (N·mm/rad or N/mm), ``stiffness_ratio`` (3D / 2D),
+        ``peak_nodal_stress_3d_MPa`` / ``..._2d_MPa`` and ``peak_stress_ratio`` (vertex-averaged
+        peaks, as plane stress reports them), ``solid3d`` (:meth:`Solid3DResult.summary`),
+        ``time_2d_s``.
+    """
+    from dataclasses import replace
+
+    from fea.plane_stress import solve_plane_stress
+
+    d2 = replace(drive, steps=1)
+    r2 = solve_plane_stress(mesh, material, thickness_mm, clamp, d2, "linear",
+                            stress_ignore=stress_ignore)  # fmt: skip
+    if isinstance(drive, Rotate):
+        k2 = float(r2.torque_Nmm[-1] / drive.max_rad)
+    else:
+        k2 = float(r2.force_N[-1] / drive.max_mm)
+    s2 = float(r2.peak_nodal_stress_MPa[-1])
+    r3 = solve_solid3d(mesh, material, thickness_mm, clamp, drive, settings, stress_ignore)
+    return {
+        "stiffness_2d": k2,
+        "stiffness_3d": r3.stiffness,
+        "stiffness_ratio": r3.stiffness / k2,
+        "peak_nodal_stress_2d_MPa": s2,
+        "peak_nodal_stress_3d_MPa": r3.peak_nodal_stress_MPa,
+        "peak_stress_ratio": r3.peak_nodal_stress_MPa / s2,
+        "peak_stress_qp_2d_MPa": float(r2.peak_stress_MPa[-1]),
+        "peak_stress_qp_3d_MPa": r3.peak_stress_MPa,
+        "n_dofs_2d": int(r2.n_dofs),
+        "time_2d_s": float(r2.solve_time_s),
+        "solid3d": r3.summary(),
+    }
