@@ -267,6 +267,12 @@ class SeaSpringStudy(Study):
         "name; RP: its number of sets (arms) when geometry.n_sets is null",
     )
     mesh: MeshSpec = Field(default_factory=MeshSpec, description="FE discretisation")
+    check_3d: bool = Field(
+        True,
+        description="check the chosen design as a 3D solid (fea/solid3d.py, linear, P2 "
+        "tetrahedra, ~30 s once per run): stiffness and peak stress beside plane stress, "
+        "and the 3D/2D ratios, in the report and best.json",
+    )
     optimiser: OptimiserSpec = Field(
         default_factory=lambda: OptimiserSpec(
             algorithm="nsga2", pop_size=20, n_gen=20, quick_pop_size=6, quick_n_gen=2
@@ -1149,6 +1155,8 @@ class SeaSpringProblem:
                 "published_springs": _published_comparison(),
             }
         )
+        if study.check_3d:
+            info["solid_3d"] = self.solid_3d(geom, r)
         smap = _stress_map_data(r)
         tol = study.target.tolerance_percent / 100.0 * study.target.torque_Nm
         plot = {
@@ -1182,6 +1190,74 @@ class SeaSpringProblem:
             field_map=field_map,
             files=files,
         )
+
+    def solid_3d(self, geom: SpringGeometry, r: SpringResponse) -> dict[str, Any]:
+        """The design as a 3D solid beside plane stress (issue 15; docs/solid3d.md).
+
+        The plane mesh of the 2D model is extruded to ST (:mod:`fea.solid3d`: P2 tetrahedra,
+        half the thickness, hub turned rigidly, pads held through the thickness) and solved
+        linearly at theta_T, beside the linear plane-stress solve on the same mesh. Their
+        stiffness ratio multiplies the nonlinear 2D stiffness of each direction, their
+        vertex-averaged peak-stress ratio the nonlinear 2D peak: the ratio is a property of the
+        cross-sections, the same at 1 and 11 degrees (issue 15: 1.022 by CalculiX, both).
+
+        Returns
+        -------
+        dict — N m/rad, MPa, s; ``problem`` alone when the 3D model cannot be built.
+        """
+        from fea.solid3d import compare_with_plane_stress
+
+        spec, target = self.study.mesh, self.study.target
+        t0 = time.perf_counter()
+        try:
+            m = mesh_polygon(geom.fe_outline, spec.max_edge_mm, refine=geom.mesh_regions(
+                spec.elements_through, spec.max_edge_mm))  # fmt: skip
+            c = compare_with_plane_stress(
+                m,
+                self.material,
+                geom.thickness_mm,
+                Clamp(geom.pad_region),
+                Rotate(geom.hub_region, (0.0, 0.0), self.theta, 1),
+                stress_ignore=geom.hub_region.union(geom.pad_region).buffer(0.05),
+            )
+        except FeaError as exc:
+            return {"problem": f"3D check not made: {exc}"}
+        k_ratio, s_ratio = c["stiffness_ratio"], c["peak_stress_ratio"]
+        k3 = {"ccw": r.stiffness_Nm_per_rad * k_ratio}
+        if math.isfinite(r.reverse_stiffness_Nm_per_rad):
+            k3["cw"] = r.reverse_stiffness_Nm_per_rad * k_ratio
+        err = {d: (k / self.k_target - 1.0) * 100.0 for d, k in k3.items()}
+        peak3 = r.worst_peak_stress_MPa * s_ratio
+        solid = c["solid3d"]
+        out: dict[str, Any] = {
+            "method": "linear 3D / linear plane stress on the same plane mesh, applied to the "
+            "nonlinear 2D answers",
+            "stiffness_ratio_3d_2d": k_ratio,
+            "peak_stress_ratio_3d_2d": s_ratio,
+            "linear_stiffness_2d_Nm_per_rad": c["stiffness_2d"] * 1e-3,
+            "linear_stiffness_3d_Nm_per_rad": c["stiffness_3d"] * 1e-3,
+        }
+        for d, k in k3.items():
+            out[f"stiffness_{d}_3d_Nm_per_rad"] = k
+            out[f"stiffness_error_{d}_3d_percent"] = err[d]
+        out.update(
+            {
+                "stiffness_ok_3d": bool(
+                    all(abs(e) <= target.tolerance_percent for e in err.values())
+                ),
+                "linear_peak_stress_2d_MPa": c["peak_nodal_stress_2d_MPa"],
+                "linear_peak_stress_3d_MPa": c["peak_nodal_stress_3d_MPa"],
+                "peak_stress_3d_MPa": peak3,
+                "peak_stress_3d_xyz_mm": solid["peak_nodal_stress_xyz_mm"],
+                "stress_ok_3d": bool(peak3 <= target.allowable_stress_MPa),
+                "dofs": solid["n_dofs"],
+                "tetrahedra": solid["n_tets"],
+                "layers_in_half_thickness": solid["n_layers"],
+                "solver": solid["solver"],
+                "time_s": time.perf_counter() - t0,
+            }
+        )
+        return out
 
 
 _GEOMETRY_CONSTRAINTS = ("envelope_mm", "thinnest_mm", "slot_mm", "link_reach_mm")
