@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from shapely.geometry import LineString, Point, box
+from shapely.geometry import LineString, Point, Polygon, box
 
 from fea.errors import FeaError
 from fea.materials import Material
@@ -17,6 +17,8 @@ from fea.mesh import mesh_polygon
 from fea.plane_stress import Clamp, Rotate, Translate, solve_plane_stress
 from fea.solid3d import (
     Solid3DSettings,
+    _williams_growth,
+    converge_peak_stress,
     extrude_layers_mm,
     extrude_mesh,
     solve_solid3d,
@@ -181,6 +183,49 @@ def test_annulus_torsion_matches_the_closed_form(nu):
     assert math.hypot(*r.peak_nodal_stress_xyz_mm[:2]) == pytest.approx(a, rel=0.01)
     # An axisymmetric twist has no net force on the hub.
     assert np.linalg.norm(r.reaction_N) < 1e-3 * torque / a
+
+
+# --------------------------------------------------------------------------------------------
+# Peak-stress convergence of plane stress
+
+
+def test_williams_exponent_of_the_square_re_entrant_corner():
+    """270 degrees, traction-free: lambda = 0.5444837 (Williams 1952, the classical value), so
+    a mesh half the size sees 2**(1 - lambda) = 1.3713 times the peak; 180 degrees: none."""
+    assert _williams_growth(270.0) == pytest.approx(
+        (2.0 ** (1.0 - 0.5444837) - 1.0) * 100, rel=1e-6
+    )
+    assert _williams_growth(180.0) == 0.0
+    # a facet of a sampled arc (issue 15: 1.4 degrees) gives about 1 % per halving
+    assert _williams_growth(181.4) == pytest.approx(1.07, abs=0.02)
+
+
+def test_l_bracket_peak_does_not_converge_and_names_the_corner():
+    mat = Material("steel", E, 0.3, 1000.0)
+    bracket = Polygon([(0, 0), (20, 0), (20, 5), (5, 5), (5, 20), (0, 20)])
+    r = converge_peak_stress(
+        bracket, 2.0, mat, Clamp(LineString([(0, 20), (5, 20)])),
+        Translate(LineString([(20, 0), (20, 5)]), (0.0, 1.0), 0.01, 1), 2.0,
+        stress_ignore=box(-1, 18, 6, 21).union(box(18, -1, 21, 6)), max_rounds=4,
+    )  # fmt: skip
+    assert not r["converged"]
+    assert r["status"] == "not converged (re-entrant corner)"
+    assert r["corner"]["xy_mm"] == pytest.approx([5.0, 5.0])
+    assert r["corner"]["interior_angle_deg"] == pytest.approx(270.0)
+    assert np.all(np.diff(r["peaks_MPa"]) > 0)  # the peak keeps rising
+    assert r["last_two_MPa"] == r["peaks_MPa"][-2:]
+
+
+def test_uniform_stress_converges_to_the_exact_value():
+    """nu = 0 strip pulled along its axis: sigma = E delta / L everywhere, at once."""
+    mat = Material("nu0", E, 0.0, 1000.0)
+    stroke = 0.01
+    r = converge_peak_stress(
+        box(0, 0, L, C), 2.0, mat, Clamp(LineString([(0, 0), (0, C)])),
+        Translate(LineString([(L, 0), (L, C)]), (1.0, 0.0), stroke, 1), 1.5,
+    )  # fmt: skip
+    assert r["converged"] and r["status"] == "converged" and r["corner"] is None
+    assert r["last_two_MPa"][-1] == pytest.approx(E * stroke / L, rel=1e-6)
 
 
 # --------------------------------------------------------------------------------------------
