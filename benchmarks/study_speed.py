@@ -104,7 +104,12 @@ def child(study: str, out: str, store_mode: str, extra: list[str]) -> None:
                 "wall_child_s": time.perf_counter() - t_start,
                 "run_wall_s": record.get("wall_s"),
                 "optimise_wall_s": record.get("optimise_wall_s"),
-                "workers": (record.get("parallel") or {}).get("workers") or 1,
+                # "workers": null in run.json means one per core (the default)
+                "workers": (
+                    1
+                    if (record.get("parallel") or {}).get("backend") == "serial"
+                    else (record.get("parallel") or {}).get("workers") or os.cpu_count() or 1
+                ),
                 "n_solved": record.get("n_solved"),
                 "solve_sum_s": float(sum(times)),
                 "store_s": timers["store"],
