@@ -721,8 +721,10 @@ def _schema(args: argparse.Namespace) -> int:
         sys.stdout.write(text)
         return EXIT_OK
     try:
+        from pipeline.runfolder import write_atomic
+
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text, encoding="utf-8")
+        write_atomic(args.out, text)  # an editor reading the schema never sees half of it
     except OSError as exc:
         print(f"{prog}: error: cannot write {args.out}: {exc}", file=sys.stderr)
         return EXIT_WRITE
