@@ -475,6 +475,11 @@ class FlexurePivotProblem:
         }
         return Evaluation(x, np.array([ratio]), np.array(g), metrics, "", time.perf_counter() - t0)
 
+    def nominal_design(self) -> np.ndarray:
+        """(4,) the study's ``design:`` (or its closed-form seed): what ``flexopt evaluate``
+        solves, so ``flexopt export`` of an evaluate folder rebuilds it."""
+        return design_vector(self.study, self)
+
     def initial_designs(self) -> np.ndarray | None:
         """One closed-form design per candidate type that meets the target stiffness (the
         thickness and shape on a small grid, the length solved from the closed form), the one

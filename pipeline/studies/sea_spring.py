@@ -952,6 +952,13 @@ class SeaSpringProblem:
     def params(self, x: np.ndarray, st_mm: float | None = None) -> SpringParams | ArmSpringParams:
         return params_of(self.study, self.full_vector(x, st_mm), self.n_sets, self.frame)
 
+    def nominal_design(self) -> np.ndarray:
+        """(n_var,) the study's ``design:`` in this problem's space (ST left out when it is
+        solved): what ``flexopt evaluate`` solves, so ``flexopt export`` of an evaluate folder
+        rebuilds it."""
+        x = self.full_space.clip(design_vector(self.study))
+        return np.delete(x, self.names.index("ST")) if self.solve_st else x
+
     def initial_designs(self) -> np.ndarray | None:
         """The stage-1 spring (five-arc version) or else the study's ``design:``, seeded into
         the first population."""

@@ -168,3 +168,14 @@ def test_step_without_the_extra_and_bad_formats_are_one_line_exit_2(tmp_path, ca
     assert err.count("\n") == 1 and "invalid choice: 'iges'" in err
     assert main(["export", str(run_dir), "--format", "stl", "--out", str(tmp_path / "a.dxf")]) == 2
     assert "ends in .dxf but --format is stl" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["flexure-pivot", "sea-spring-quick", "constant-force"])
+def test_export_of_a_shipped_study_evaluate_folder(name, tmp_path, capsys):
+    # the design that `flexopt evaluate` solved is the one rebuilt (the kind's nominal_design)
+    folder = tmp_path / "ev"
+    assert main(["evaluate", name, "--out", str(folder)]) == 0
+    capsys.readouterr()
+    assert main(["export", str(folder), "--format", "dxf"]) == 0
+    out = capsys.readouterr().out
+    assert "design evaluated" in out and (folder / "design.dxf").is_file()
