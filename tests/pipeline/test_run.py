@@ -30,6 +30,7 @@ from pipeline.run import (
     evaluate_one,
     prepare_run,
     run_study,
+    step_available,
 )
 from pipeline.runfolder import read_records_csv
 from pipeline.studies import StudyKind, register
@@ -229,8 +230,10 @@ def test_run_writes_every_file(tmp_path, capsys):
     assert len(gen_lines) == 4 and gen_lines[-1].startswith("gen 4/4  best ")
     assert "eval/s" in gen_lines[-1] and "feasible" in gen_lines[-1]
     assert "warning" not in captured.err
-    # every file (front.png only with several objectives); no temp files either
-    assert sorted(p.name for p in out.iterdir()) == sorted(set(RUN_FILES) - {"front.png"})
+    # every file (front.png only with several objectives, best.step only with the step extra);
+    # no temp files either
+    absent = {"front.png"} | (set() if step_available() else {"best.step"})
+    assert sorted(p.name for p in out.iterdir()) == sorted(set(RUN_FILES) - absent)
 
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "finished" and record["error"] == ""
