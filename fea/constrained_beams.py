@@ -40,7 +40,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg.lapack import dsytrf
 from scipy.sparse.linalg import splu
+from threadpoolctl import threadpool_limits
 
 from fea.beam import BeamModel
 from fea.errors import FeaError
@@ -51,6 +53,7 @@ __all__ = [
     "ConstraintFunction",
     "LoadFunction",
     "ConstrainedBeams",
+    "kkt_negative_count",
 ]
 
 ConstraintFunction = Callable[[float], tuple[np.ndarray, np.ndarray]]
@@ -109,6 +112,10 @@ class ConstrainedResponse:
     shapes_mm : tuple of (rows, n_nodes_i, 2) float — deformed node positions of each beam.
     iterations : (rows,) int — Newton iterations spent reaching each row.
     converged : (rows,) bool.
+    stable : (rows,) bool — the converged state is a stable equilibrium with the constraints in
+        place: the tangent is positive definite on the null space of C (KKT inertia, see
+        :func:`kkt_negative_count`); False past a bifurcation or limit point (a buckled or
+        snapping design is flagged, never reported as a plain result). False where not converged.
     ok : bool — every row converged.
     message : str — why not, when not ok.
     offsets : (B + 1,) int — beam i owns z[offsets[i]:offsets[i + 1]]; extra unknowns follow.
@@ -126,6 +133,12 @@ class ConstrainedResponse:
     ok: bool
     message: str = ""
     offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=int))
+    stable: np.ndarray | None = None
+
+    @property
+    def unstable(self) -> bool:
+        """Some converged row is not a stable equilibrium (see ``stable``)."""
+        return self.stable is not None and bool((self.converged & ~self.stable).any())
 
     def beam_state(self, i: int) -> np.ndarray:
         """(rows, n_dofs_i) DOFs of beam ``i``."""
@@ -371,6 +384,7 @@ class ConstrainedBeams:
         shapes = [np.full((rows, k, 2), np.nan) for k in n_nodes]
         iterations = np.zeros(rows, dtype=int)
         converged = np.zeros(rows, dtype=bool)
+        stable = np.zeros(rows, dtype=bool)
 
         if start is None:
             z, lam = np.zeros(self.n), np.zeros(m)
@@ -385,6 +399,7 @@ class ConstrainedBeams:
         else:
             self._store(0, z, lam, r, states, internal, mult, peak, peak_s, shapes)
             converged[0] = True
+            stable[0] = self.is_stable(z, p_now)
             h = 1.0  # sub-step as a fraction of the current row's step
             for k in range(1, rows):
                 target = params[k]
@@ -413,6 +428,7 @@ class ConstrainedBeams:
                 p_now = target
                 self._store(k, z, lam, r, states, internal, mult, peak, peak_s, shapes)
                 converged[k] = True
+                stable[k] = self.is_stable(z, p_now)
         return ConstrainedResponse(
             params=params,
             states=states,
@@ -426,7 +442,26 @@ class ConstrainedBeams:
             ok=bool(converged.all()),
             message=message,
             offsets=self.offsets.copy(),
+            stable=stable,
         )
+
+    def is_stable(self, z: np.ndarray, p: float) -> bool:
+        """Whether the equilibrium z at p is stable with the constraints in place.
+
+        The constraints are linear, so the Hessian of the Lagrangian is the tangent itself
+        (minus the load derivative of follower loads, symmetrised: a follower load is not
+        conservative and only its symmetric part enters an energy test). Stable when that is
+        positive definite on the null space of C, i.e. the KKT matrix has exactly m negative
+        eigenvalues (C of full row rank; a redundant C makes Newton's system singular first).
+        An inertia that could not be computed is not claimed unstable.
+        """
+        _, K = self._assemble(z)
+        _, Kf = self._loads(p, z)
+        Kt = sp.csr_matrix(K) if Kf is None else sp.csr_matrix(K) - sp.csr_matrix(Kf)
+        H = 0.5 * (Kt + Kt.T)
+        C, _ = self._constraint_arrays(p)
+        negative = kkt_negative_count(H, sp.csr_matrix(C))
+        return negative < 0 or negative == C.shape[0]
 
     def _store(self, k, z, lam, r, states, internal, mult, peak, peak_s, shapes) -> None:
         states[k] = z
@@ -448,3 +483,50 @@ def _band_entries(n: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.
     inside = np.abs(i - j) <= _BAND
     rows, cols = i[inside], j[inside]
     return rows, cols, (_BAND + rows - cols, cols)
+
+
+def kkt_negative_count(H: sp.spmatrix, G: sp.spmatrix) -> int:
+    """Negative eigenvalues of the symmetric KKT matrix [[H, G^T], [G, 0]] (Sylvester inertia).
+
+    Adding G^T rho G to H is a congruence of the KKT matrix (it does not change the inertia),
+    and makes the primal block regular where H alone is singular (a body's DOFs carry no
+    stiffness). The matrix, primal DOFs first and multipliers last, is then factorised by a
+    sparse LU *without pivoting* in the natural order (the beams' DOFs are numbered along each
+    beam, so the fill stays within the band plus the few rows the constraints couple): for a
+    symmetric matrix that is L D L^T with D = diag(U), and the signs of D are the inertia
+    (Sylvester's law). When SuperLU had to pivot anyway (a zero pivot), a dense Bunch-Kaufman
+    LDL^T (LAPACK dsytrf) with one BLAS thread counts instead: every 2x2 block it chooses is
+    indefinite (one negative eigenvalue). Returns -1 when neither factorisation worked.
+    """
+    Hc = sp.csr_matrix(H)
+    rho = max(float(np.abs(Hc.diagonal()).max(initial=0.0)), 1.0)
+    Kkt = sp.bmat([[Hc + rho * (G.T @ G), G.T], [G, None]], format="csc")
+    try:
+        lu = splu(
+            Kkt,
+            permc_spec="NATURAL",
+            diag_pivot_thresh=0.0,
+            options={"SymmetricMode": True},
+        )
+        if np.array_equal(lu.perm_r, np.arange(Kkt.shape[0])):
+            d = lu.U.diagonal()
+            if np.all(np.isfinite(d)) and np.all(d != 0.0):
+                return int((d < 0.0).sum())
+    except RuntimeError:
+        pass
+    with threadpool_limits(1):  # a dense factorisation of a few hundred rows: threads only cost
+        dense = Kkt.toarray()
+        lu_d, ipiv, info = dsytrf(0.5 * (dense + dense.T), lower=1, overwrite_a=1)
+    if info < 0:
+        return -1
+    n = dense.shape[0]
+    neg = 0
+    k = 0
+    while k < n:
+        if ipiv[k] > 0:
+            neg += int(lu_d[k, k] <= 0.0)  # an exactly zero pivot is not positive definite
+            k += 1
+        else:
+            neg += 1
+            k += 2
+    return neg

@@ -420,6 +420,7 @@ def _pad(res: ConstrainedResponse, rows: int) -> ConstrainedResponse:
         shapes_mm=tuple(grow(s) for s in res.shapes_mm),
         iterations=grow(res.iterations, 0),
         converged=grow(res.converged, False),
+        stable=None if res.stable is None else grow(res.stable, False),
         ok=False,
     )
 

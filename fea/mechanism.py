@@ -39,12 +39,10 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg.lapack import dsytrf
 from scipy.sparse.linalg import splu
-from threadpoolctl import threadpool_limits
 
 from fea.beam import BeamModel, BeamSettings
-from fea.constrained_beams import _BAND, _band_entries
+from fea.constrained_beams import _BAND, _band_entries, kkt_negative_count
 from fea.errors import FeaError
 from fea.materials import Material
 from geometry.profile import BeamProfile
@@ -775,53 +773,6 @@ def _unit(direction: Sequence[float], what: str) -> np.ndarray:
     return d / np.hypot(*d)
 
 
-def _kkt_negative_count(H: sp.spmatrix, G: sp.spmatrix) -> int:
-    """Negative eigenvalues of the symmetric KKT matrix [[H, G^T], [G, 0]] (Sylvester inertia).
-
-    Adding G^T rho G to H is a congruence of the KKT matrix (it does not change the inertia),
-    and makes the primal block regular where H alone is singular (a body's DOFs carry no
-    stiffness). The matrix, primal DOFs first and multipliers last, is then factorised by a
-    sparse LU *without pivoting* in the natural order (the beams' DOFs are numbered along each
-    beam, so the fill stays within the band plus the few rows the constraints couple): for a
-    symmetric matrix that is L D L^T with D = diag(U), and the signs of D are the inertia
-    (Sylvester's law). When SuperLU had to pivot anyway (a zero pivot), a dense Bunch-Kaufman
-    LDL^T (LAPACK dsytrf) with one BLAS thread counts instead: every 2x2 block it chooses is
-    indefinite (one negative eigenvalue). Returns -1 when neither factorisation worked.
-    """
-    Hc = sp.csr_matrix(H)
-    rho = max(float(np.abs(Hc.diagonal()).max(initial=0.0)), 1.0)
-    Kkt = sp.bmat([[Hc + rho * (G.T @ G), G.T], [G, None]], format="csc")
-    try:
-        lu = splu(
-            Kkt,
-            permc_spec="NATURAL",
-            diag_pivot_thresh=0.0,
-            options={"SymmetricMode": True},
-        )
-        if np.array_equal(lu.perm_r, np.arange(Kkt.shape[0])):
-            d = lu.U.diagonal()
-            if np.all(np.isfinite(d)) and np.all(d != 0.0):
-                return int((d < 0.0).sum())
-    except RuntimeError:
-        pass
-    with threadpool_limits(1):  # a dense factorisation of a few hundred rows: threads only cost
-        dense = Kkt.toarray()
-        lu_d, ipiv, info = dsytrf(0.5 * (dense + dense.T), lower=1, overwrite_a=1)
-    if info < 0:
-        return -1
-    n = dense.shape[0]
-    neg = 0
-    k = 0
-    while k < n:
-        if ipiv[k] > 0:
-            neg += int(lu_d[k, k] <= 0.0)  # an exactly zero pivot is not positive definite
-            k += 1
-        else:
-            neg += 1
-            k += 2
-    return neg
-
-
 # ==================================================================================== solver
 
 
@@ -906,7 +857,7 @@ class _Solver:
         if drop_row >= 0:
             keep = np.setdiff1d(np.arange(G.shape[0]), [drop_row])
             G = G[keep]
-        return _kkt_negative_count(s.H, G) == G.shape[0]
+        return kkt_negative_count(s.H, G) == G.shape[0]
 
 
 def solve_mechanism(

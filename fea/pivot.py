@@ -73,6 +73,9 @@ class PivotResponse:
     model : str — "beam" or "plane_stress".
     solve_time_s : float, s.
     extra : dict — mesh and solver counts.
+    stable : (rows,) bool or None — beam: the row is a stable equilibrium with the block's
+        rotation held (:attr:`fea.constrained_beams.ConstrainedResponse.stable`: False past a
+        bifurcation, e.g. a pivot whose members buckle); None for plane stress (not checked).
     """
 
     rotation_rad: np.ndarray
@@ -90,6 +93,7 @@ class PivotResponse:
     model: str
     solve_time_s: float
     extra: dict = field(default_factory=dict)
+    stable: np.ndarray | None = None
 
 
 def tangent_stiffness(angle_rad: np.ndarray, torque_Nmm: np.ndarray) -> np.ndarray:
@@ -213,6 +217,7 @@ def beam_pivot(
         ok=res.ok,
         message=res.message,
         model="beam",
+        stable=res.stable,
         solve_time_s=time.perf_counter() - t0,
         extra={
             "members": len(arms),

@@ -442,6 +442,15 @@ class FlexurePivotProblem:
             res = self._beam(flex, self.study.fidelity.ga_steps)
             if not res.ok:
                 return self._fail(x, f"beam model: {res.message}", t0)
+            if res.stable is not None and not res.stable[res.converged].all():
+                # a pivot whose members buckle within its range is never a safe design
+                k = int(np.flatnonzero(res.converged & ~res.stable)[0])
+                return self._fail(
+                    x,
+                    f"unstable: the members pass a bifurcation (buckle) by "
+                    f"{np.degrees(res.rotation_rad[k]):.3g} deg of the range of motion",
+                    t0,
+                )
             K = res.small_angle_stiffness_Nmm_per_rad
             sigma = float(np.nanmax(res.peak_stress_MPa)) * cf.stress_concentration
             shift = float(res.centre_shift_mm[-1])
@@ -620,6 +629,12 @@ def _pivot_table(res: PivotResponse, cf: PivotClosedForm) -> dict[str, np.ndarra
         "closed_form_torque_Nmm": cf.torque_Nmm(angle),
         "closed_form_stress_MPa": cf.stress_MPa(angle),
         "converged": res.converged,
+        # False on a row past a bifurcation (members buckling): never a plain, safe result
+        "stable": (
+            np.ones(angle.shape, dtype=bool)
+            if res.stable is None
+            else np.asarray(res.stable, dtype=bool)
+        ),
     }
 
 
@@ -736,6 +751,7 @@ def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
         "safety_factor": ev.metrics.get("safety_factor"),
         "centre_shift_at_range_mm": detail.info["centre_shift_at_range_mm"],
         "feasible": ev.feasible,
+        "stable": bool(np.all(table["stable"][table["converged"]])),
     }
     for key in ("stiffness_Nmm_per_rad", "centre_shift_mm", "envelope_length_mm",
                 "envelope_height_mm"):  # fmt: skip

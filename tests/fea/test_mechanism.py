@@ -15,6 +15,7 @@ from scipy.integrate import solve_bvp
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
+from fea.constrained_beams import kkt_negative_count
 from fea.elastica import fixed_guided
 from fea.errors import FeaError
 from fea.materials import Material
@@ -26,7 +27,6 @@ from fea.mechanism import (
     MechDrive,
     MechJoint,
     MechOutput,
-    _kkt_negative_count,
     check_mechanism,
     mass_g,
     solve_mechanism,
@@ -599,7 +599,7 @@ def test_kkt_inertia_count_matches_eigenvalues() -> None:
         G = rng.normal(size=(m, n))
         kkt = np.block([[H, G.T], [G, np.zeros((m, m))]])
         expect = int((np.linalg.eigvalsh(kkt) < 0).sum())
-        assert _kkt_negative_count(sp.csr_matrix(H), sp.csr_matrix(G)) == expect
+        assert kkt_negative_count(sp.csr_matrix(H), sp.csr_matrix(G)) == expect
 
 
 # ---------------------------------------------------------------- refusals and helpers
