@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import flexopt_toys  # registers the toy_faults kind; importable by workers
@@ -56,9 +57,29 @@ def start_cluster(n_workers: int = 2):
     try:
         cluster.wait_for_workers(n_workers, timeout=CLUSTER_TIMEOUT_S)
     except BaseException:
-        cluster.close(timeout=CLUSTER_TIMEOUT_S)
+        close_cluster(cluster)
         raise
     return cluster
+
+
+def close_cluster(cluster) -> None:
+    """Shut a test cluster down, bounded, tolerating distributed's own teardown races.
+
+    After a test killed workers, a nanny may be restarting one when the cluster closes, and
+    distributed then fails its own shutdown ("can only join a started process", seen once in
+    CI). That is not flexopt's code under test: the test's assertions have run. Close once more
+    after a pause (the restarted worker is up by then); if that fails too, leave the processes
+    to distributed's exit handlers rather than fail a test that passed.
+    """
+    for attempt in range(2):
+        try:
+            cluster.close(timeout=CLUSTER_TIMEOUT_S)
+            return
+        except Exception as exc:  # noqa: BLE001 - distributed's teardown, not the code under test
+            if attempt == 1:
+                warnings.warn(f"LocalCluster did not close cleanly: {exc!r}", stacklevel=2)
+                return
+            time.sleep(2.0)
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +89,7 @@ def cluster():
     try:
         yield cluster
     finally:
-        cluster.close(timeout=CLUSTER_TIMEOUT_S)
+        close_cluster(cluster)
 
 
 @pytest.fixture
@@ -78,7 +99,7 @@ def own_cluster():
     try:
         yield cluster
     finally:
-        cluster.close(timeout=CLUSTER_TIMEOUT_S)
+        close_cluster(cluster)
 
 
 @pytest.fixture
