@@ -27,10 +27,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from fea.beam import BeamSettings, EndDrive, solve_beam  # noqa: E402
-from fea.elastica import cantilever_tip_load, fixed_guided  # noqa: E402
-from fea.materials import Material  # noqa: E402
-from geometry.profile import BeamProfile  # noqa: E402
+from flexopt.fea.beam import BeamSettings, EndDrive, solve_beam  # noqa: E402
+from flexopt.fea.elastica import cantilever_tip_load, fixed_guided  # noqa: E402
+from flexopt.fea.materials import Material  # noqa: E402
+from flexopt.geometry.profile import BeamProfile  # noqa: E402
 
 L, T, B = 100.0, 0.1, 5.0
 MAT = Material("ABS", 1800.0, 0.35, 42.5)

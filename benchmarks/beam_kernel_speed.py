@@ -42,9 +42,8 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import beam_vs_opensees as bvo  # noqa: E402
-
-from fea.beam import KERNEL_ENV, BeamModel, BeamSettings  # noqa: E402
-from geometry.profile import BeamProfile  # noqa: E402
+from flexopt.fea.beam import KERNEL_ENV, BeamModel, BeamSettings  # noqa: E402
+from flexopt.geometry.profile import BeamProfile  # noqa: E402
 
 #: matched-accuracy meshes of docs/benchmarks.md, used when OpenSees is not installed
 FALLBACK_MATCH = {"cantilever-force": 10, "cantilever-disp": 8, "fixed-guided": 16}
@@ -53,9 +52,9 @@ _CHILD = """
 import json, sys, time
 c0, w0 = time.process_time(), time.perf_counter()
 sys.path.insert(0, {root!r})
-from fea.beam import BeamModel, BeamSettings, EndDrive
-from fea.materials import get_material
-from geometry.profile import BeamProfile
+from flexopt.fea.beam import BeamModel, BeamSettings, EndDrive
+from flexopt.fea.materials import get_material
+from flexopt.geometry.profile import BeamProfile
 c1, w1 = time.process_time(), time.perf_counter()
 profile = BeamProfile([[0.0, 0.0], [100.0, 0.0]], [0.1, 0.1], 5.0)
 drive = EndDrive("force", (0.0, 1.0), 7.5e-4, 20, "free", "free")
@@ -188,8 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  load avg {load()}\n")
 
     print("3. one constant-force design evaluation (default study, 60 elements, 60 rows)")
-    from pipeline.studies.constant_force import ConstantForceProblem, design_vector
-    from pipeline.study import load_study
+    from flexopt.pipeline.studies.constant_force import ConstantForceProblem, design_vector
+    from flexopt.pipeline.study import load_study
 
     study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
     prob = ConstantForceProblem(study)

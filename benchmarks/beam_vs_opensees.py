@@ -48,14 +48,14 @@ import numpy as np
 # Allow `python benchmarks/beam_vs_opensees.py` from a source checkout without installing.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from fea.beam import BeamModel, BeamSettings, EndDrive  # noqa: E402
-from fea.elastica import (  # noqa: E402
+from flexopt.fea.beam import BeamModel, BeamSettings, EndDrive  # noqa: E402
+from flexopt.fea.elastica import (  # noqa: E402
     cantilever_load_for_deflection,
     cantilever_tip_load,
     fixed_guided,
 )
-from fea.materials import get_material  # noqa: E402
-from geometry.profile import BeamProfile  # noqa: E402
+from flexopt.fea.materials import get_material  # noqa: E402
+from flexopt.geometry.profile import BeamProfile  # noqa: E402
 
 LENGTH_MM = 100.0
 WIDTH_MM = 5.0

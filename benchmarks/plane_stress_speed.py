@@ -45,11 +45,10 @@ from pathlib import Path  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
-
-from fea.materials import get_material  # noqa: E402
-from fea.mesh import mesh_polygon  # noqa: E402
-from fea.plane_stress import Clamp, PlaneStressModel, PlaneStressSettings, Rotate  # noqa: E402
-from geometry.sea_spring import (  # noqa: E402
+from flexopt.fea.materials import get_material  # noqa: E402
+from flexopt.fea.mesh import mesh_polygon  # noqa: E402
+from flexopt.fea.plane_stress import Clamp, PlaneStressModel, PlaneStressSettings, Rotate  # noqa: E402
+from flexopt.geometry.sea_spring import (  # noqa: E402
     TABLE9_BOUNDS,
     SpringFrame,
     build_spring,
@@ -86,8 +85,8 @@ def one(mesh, geom, settings: PlaneStressSettings) -> tuple[float, float, float,
 def spring(kind: str, fillet_segments: int):
     frame = SpringFrame(fillet_segments=fillet_segments)
     if kind == "spiral":
-        from geometry.arm_spring import build_arm_spring, spiral_params
-        from pipeline.study import load_study
+        from flexopt.geometry.arm_spring import build_arm_spring, spiral_params
+        from flexopt.pipeline.study import load_study
 
         study = load_study("sea-spring")
         values = {**study.design, "ST": study.design.get("ST", 10.0)}

@@ -32,10 +32,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from optimise import DesignSpace, Evaluation  # noqa: E402
-from pipeline.parallel import ProcessPool, SerialBackend  # noqa: E402
-from pipeline.run import prepare_run  # noqa: E402
-from pipeline.study import load_study  # noqa: E402
+from flexopt.optimise import DesignSpace, Evaluation  # noqa: E402
+from flexopt.pipeline.parallel import ProcessPool, SerialBackend  # noqa: E402
+from flexopt.pipeline.run import prepare_run  # noqa: E402
+from flexopt.pipeline.study import load_study  # noqa: E402
 
 
 @dataclass
@@ -98,8 +98,7 @@ def main() -> None:
     if not args.no_dask:
         try:
             import distributed
-
-            from pipeline.cluster import DaskBackend
+            from flexopt.pipeline.cluster import DaskBackend
         except ImportError:
             print("(dask.distributed not installed: pip install 'flexopt[dask]')")
         else:

@@ -25,11 +25,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from fea.mesh import mesh_polygon  # noqa: E402
-from fea.plane_stress import Clamp, Rotate  # noqa: E402
-from fea.solid3d import Solid3DSettings, compare_with_plane_stress  # noqa: E402
-from pipeline.studies.sea_spring import SeaSpringProblem, design_vector  # noqa: E402
-from pipeline.study import load_study  # noqa: E402
+from flexopt.fea.mesh import mesh_polygon  # noqa: E402
+from flexopt.fea.plane_stress import Clamp, Rotate  # noqa: E402
+from flexopt.fea.solid3d import Solid3DSettings, compare_with_plane_stress  # noqa: E402
+from flexopt.pipeline.studies.sea_spring import SeaSpringProblem, design_vector  # noqa: E402
+from flexopt.pipeline.study import load_study  # noqa: E402
 
 
 def main() -> None:

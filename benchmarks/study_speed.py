@@ -1,9 +1,9 @@
 """Whole studies end to end, and where their time goes: solve, runner, writes, report (issue 13).
 
-Each run is ``flexopt run STUDY`` in a fresh child process (``pipeline.cli.main``, the command a
-user types, default workers: one per core), timed from the parent as wall time and CPU time (the
-child and its workers, ``RUSAGE_CHILDREN``). Inside the child a few methods are wrapped with
-timers, which changes nothing they do:
+Each run is ``flexopt run STUDY`` in a fresh child process (``flexopt.pipeline.cli.main``, the
+command a user types, default workers: one per core), timed from the parent as wall time and CPU
+time (the child and its workers, ``RUSAGE_CHILDREN``). Inside the child a few methods are wrapped
+with timers, which changes nothing they do:
 
 * **writes** — ``EvaluationStore.append`` / ``sync`` / ``close`` (the store) and
   ``_Run.generation_done`` (evaluations.csv, history.csv, checkpoint.json, run.json, the
@@ -61,8 +61,8 @@ def child(study: str, out: str, store_mode: str, extra: list[str]) -> None:
     """Run ``flexopt run STUDY --out OUT -q`` here, print one JSON line of timings."""
     t_start = time.perf_counter()
     sys.path.insert(0, str(ROOT))
-    from pipeline import checkpoint, run
-    from pipeline.cli import main
+    from flexopt.pipeline import checkpoint, run
+    from flexopt.pipeline.cli import main
 
     timers: dict[str, float] = defaultdict(float)
     depth: dict[str, int] = defaultdict(int)

@@ -23,12 +23,11 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from fea.beam import BeamModel, BeamSettings
-from fea.constrained_beams import ConstrainedBeams, ConstrainedSettings
-from fea.errors import FeaError
-from fea.materials import Material
-from geometry.profile import BeamProfile
+from flexopt.fea.beam import BeamModel, BeamSettings
+from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedSettings
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.geometry.profile import BeamProfile
 
 __all__ = ["ArmBeamResponse", "arm_beam_torque"]
 

@@ -69,14 +69,13 @@ from types import ModuleType
 from typing import Literal, NamedTuple
 
 import numpy as np
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.geometry.profile import BeamProfile
 from scipy.linalg.lapack import dgbsv, dpbtrf
 from skfem import CellBasis, ElementLineP2, MeshLine
 from skfem.quadrature import get_quadrature
 from skfem.refdom import RefLine
-
-from fea.errors import FeaError
-from fea.materials import Material
-from geometry.profile import BeamProfile
 
 __all__ = ["EndDrive", "BeamSettings", "BeamResponse", "BeamModel", "solve_beam"]
 
@@ -240,7 +239,7 @@ _KERNELS = ("numba", "numpy")
 def _compiled() -> ModuleType | None:
     """fea._beam_kernels, or None when numba cannot be imported (the numpy path then runs)."""
     try:
-        from fea import _beam_kernels
+        from flexopt.fea import _beam_kernels
     except Exception as exc:  # ImportError, or a numba that fails on this platform's LLVM
         log.debug("numba beam kernel unavailable (%s: %s); using numpy", type(exc).__name__, exc)
         return None

@@ -53,10 +53,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import quad
-
-from fea.errors import FeaError
-from geometry.flexures import (
+from flexopt.fea.errors import FeaError
+from flexopt.geometry.flexures import (
     CircularNotch,
     CornerFilleted,
     CrossAxis,
@@ -65,6 +63,7 @@ from geometry.flexures import (
     Leaf,
     VariableLeaf,
 )
+from scipy.integrate import quad
 
 __all__ = [
     "PRB_GAMMA",

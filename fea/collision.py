@@ -44,8 +44,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Literal, Protocol
 
 import numpy as np
-
-from fea.errors import FeaError
+from flexopt.fea.errors import FeaError
 
 __all__ = [
     "G_M_PER_S2",

@@ -40,12 +40,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from flexopt.fea.beam import BeamModel
+from flexopt.fea.errors import FeaError
 from scipy.linalg.lapack import dsytrf
 from scipy.sparse.linalg import splu
 from threadpoolctl import threadpool_limits
-
-from fea.beam import BeamModel
-from fea.errors import FeaError
 
 __all__ = [
     "ConstrainedSettings",

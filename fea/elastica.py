@@ -15,10 +15,9 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from flexopt.fea.errors import FeaError
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc, elliprd, elliprf, expit
-
-from fea.errors import FeaError
 
 __all__ = [
     "CantileverTipLoad",

@@ -36,13 +36,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
-
-from fea.beam import BeamModel, BeamSettings
-from fea.constrained_beams import ConstrainedBeams, ConstrainedResponse
-from fea.errors import FeaError
-from fea.materials import Material
-from fea.pivot import tangent_stiffness
-from geometry.leaf_joint import LeafJoint
+from flexopt.fea.beam import BeamModel, BeamSettings
+from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedResponse
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.fea.pivot import tangent_stiffness
+from flexopt.geometry.leaf_joint import LeafJoint
 
 __all__ = [
     "JointResponse",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from fea.errors import FeaError
+from flexopt.fea.errors import FeaError
 
 __all__ = ["Material", "MATERIALS", "get_material"]
 

@@ -39,13 +39,12 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
+from flexopt.fea.beam import BeamModel, BeamSettings
+from flexopt.fea.constrained_beams import _BAND, _band_entries, kkt_negative_count
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.geometry.profile import BeamProfile
 from scipy.sparse.linalg import splu
-
-from fea.beam import BeamModel, BeamSettings
-from fea.constrained_beams import _BAND, _band_entries, kkt_negative_count
-from fea.errors import FeaError
-from fea.materials import Material
-from geometry.profile import BeamProfile
 
 __all__ = [
     "MechBeam",

@@ -16,11 +16,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 import triangle
+from flexopt.fea.errors import FeaError
 from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
-
-from fea.errors import FeaError
 
 __all__ = [
     "MeshSettings",

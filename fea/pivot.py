@@ -27,12 +27,11 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from fea.beam import BeamModel, BeamSettings
-from fea.constrained_beams import ConstrainedBeams, ConstrainedSettings
-from fea.errors import FeaError
-from fea.materials import Material
-from geometry.flexures import Flexure
+from flexopt.fea.beam import BeamModel, BeamSettings
+from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedSettings
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.geometry.flexures import Flexure
 
 __all__ = [
     "PivotResponse",
@@ -285,8 +284,8 @@ def plane_stress_pivot(
         ``centre_force_N`` is the force that holds the nominal centre (small when the pivot
         turns about it by itself); ``centre_shift_mm`` is zero by construction.
     """
-    from fea.mesh import mesh_polygon
-    from fea.plane_stress import Clamp, Rotate, solve_plane_stress
+    from flexopt.fea.mesh import mesh_polygon
+    from flexopt.fea.plane_stress import Clamp, Rotate, solve_plane_stress
 
     if not flexure.is_planar:
         raise FeaError(

@@ -36,6 +36,9 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 import shapely
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.fea.mesh import TriMesh, to_skfem
 from scipy.sparse.linalg import splu
 from shapely.geometry.base import BaseGeometry
 from skfem import (
@@ -48,10 +51,6 @@ from skfem import (
     asm,
 )
 from skfem.helpers import ddot, grad, sym_grad, trace, transpose
-
-from fea.errors import FeaError
-from fea.materials import Material
-from fea.mesh import TriMesh, to_skfem
 
 log = logging.getLogger(__name__)
 
@@ -350,7 +349,7 @@ def _compiled():
     """fea._plane_stress_kernels, or None when numba cannot be imported (numpy then runs)."""
     if not _KERNELS:
         try:
-            from fea import _plane_stress_kernels
+            from flexopt.fea import _plane_stress_kernels
 
             _KERNELS.append(_plane_stress_kernels)
         except Exception as exc:  # ImportError, or a numba that fails on this platform's LLVM

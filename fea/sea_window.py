@@ -38,10 +38,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from flexopt.fea.errors import FeaError
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq, minimize_scalar
-
-from fea.errors import FeaError
 
 __all__ = [
     "PAPER_BANDWIDTH_rad_per_s",

@@ -46,13 +46,12 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 import shapely
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.fea.mesh import Refinement, TriMesh, mesh_polygon
+from flexopt.fea.plane_stress import Clamp, Rotate, Translate
 from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
-
-from fea.errors import FeaError
-from fea.materials import Material
-from fea.mesh import Refinement, TriMesh, mesh_polygon
-from fea.plane_stress import Clamp, Rotate, Translate
 
 __all__ = [
     "Solid3DSettings",
@@ -619,7 +618,7 @@ def compare_with_plane_stress(
     """
     from dataclasses import replace
 
-    from fea.plane_stress import solve_plane_stress
+    from flexopt.fea.plane_stress import solve_plane_stress
 
     d2 = replace(drive, steps=1)
     r2 = solve_plane_stress(mesh, material, thickness_mm, clamp, d2, "linear",
@@ -753,7 +752,7 @@ def converge_peak_stress(
         (last), ``corner`` (the re-entrant vertex near the peak, or None), ``triangles`` per
         round, ``time_s``.
     """
-    from fea.plane_stress import solve_plane_stress
+    from flexopt.fea.plane_stress import solve_plane_stress
 
     t0 = time.perf_counter()
     regions = list(refine or [])

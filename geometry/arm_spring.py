@@ -43,13 +43,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.sea_spring import SpringFrame, SpringGeometry, mounting_holes
 from scipy.interpolate import PchipInterpolator
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Point, Polygon
 from shapely.geometry.base import BaseGeometry
-
-from geometry.errors import GeometryError
-from geometry.sea_spring import SpringFrame, SpringGeometry, mounting_holes
 
 _DEFAULT_FRAME = SpringFrame()
 

@@ -58,11 +58,10 @@ from typing import Any, Protocol
 
 import numpy as np
 import shapely
+from flexopt.geometry.errors import GeometryError
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicHermiteSpline
 from shapely.geometry import MultiPolygon, Point, Polygon
-
-from geometry.errors import GeometryError
 
 __all__ = [
     "PAPER_CORRECTION",
@@ -599,7 +598,7 @@ def cam_outline(profile: CamProfile, settings: CamSettings = CamSettings()) -> P
 
 def cam_stl(profile: CamProfile, settings: CamSettings = CamSettings()) -> bytes:
     """Binary STL of the cam plate extruded by ``layout.thickness_mm`` (mm)."""
-    from geometry.solid import extrude, stl_bytes
+    from flexopt.geometry.solid import extrude, stl_bytes
 
     return stl_bytes(extrude(cam_outline(profile, settings), profile.layout.thickness_mm))
 

@@ -43,11 +43,10 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 import shapely
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.profile import BeamProfile
 from scipy.optimize import lsq_linear, minimize
 from shapely.geometry import Polygon
-
-from geometry.errors import GeometryError
-from geometry.profile import BeamProfile
 
 __all__ = [
     "PRBParams",

@@ -15,10 +15,9 @@ import io
 
 import ezdxf
 import numpy as np
+from flexopt.geometry.errors import GeometryError
 from shapely.geometry import Polygon
 from shapely.geometry.polygon import orient
-
-from geometry.errors import GeometryError
 
 __all__ = ["OUTLINE_LAYER", "HOLES_LAYER", "INSUNITS_MM", "dxf_bytes", "dxf_polygon"]
 

@@ -43,10 +43,9 @@ from typing import ClassVar
 
 import numpy as np
 import shapely
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.profile import BeamProfile
 from shapely.geometry import Polygon, box
-
-from geometry.errors import GeometryError
-from geometry.profile import BeamProfile
 
 __all__ = [
     "Flexure",

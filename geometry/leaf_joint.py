@@ -34,10 +34,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.profile import BeamProfile
 from shapely.geometry import Polygon, box
-
-from geometry.errors import GeometryError
-from geometry.profile import BeamProfile
 
 __all__ = [
     "STRUCTURES",

@@ -28,11 +28,10 @@ from typing import Literal
 
 import numpy as np
 import shapely
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.solid import thin_feature_at
 from shapely.geometry import LineString, MultiPolygon, Point, Polygon
 from shapely.geometry.base import BaseGeometry
-
-from geometry.errors import GeometryError
-from geometry.solid import thin_feature_at
 
 __all__ = [
     "Attachment",

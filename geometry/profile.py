@@ -12,8 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from geometry.errors import GeometryError
+from flexopt.geometry.errors import GeometryError
 
 __all__ = ["BeamProfile"]
 

@@ -58,11 +58,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
+from flexopt.geometry.errors import GeometryError
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Point, Polygon
 from shapely.geometry.base import BaseGeometry
-
-from geometry.errors import GeometryError
 
 __all__ = [
     "GA_VARIABLES",

@@ -22,11 +22,10 @@ import manifold3d
 import numpy as np
 import shapely
 import trimesh
+from flexopt.geometry.errors import GeometryError
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
-
-from geometry.errors import GeometryError
 
 __all__ = [
     "SolidSettings",

@@ -25,11 +25,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from geometry.arm_spring import ArmSpringParams, arm_centreline
-from geometry.errors import GeometryError
-from geometry.profile import BeamProfile
-from geometry.sea_spring import SpringFrame
+from flexopt.geometry.arm_spring import ArmSpringParams, arm_centreline
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.profile import BeamProfile
+from flexopt.geometry.sea_spring import SpringFrame
 
 __all__ = [
     "THRESHOLD_VARIABLES",

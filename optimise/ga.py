@@ -15,6 +15,9 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
+from flexopt.optimise.space import DesignSpace
 from pymoo.algorithms.moo.nsga2 import NSGA2
 from pymoo.algorithms.soo.nonconvex.ga import GA
 from pymoo.core.evaluator import Evaluator
@@ -22,10 +25,6 @@ from pymoo.core.problem import Problem
 from pymoo.operators.sampling.lhs import LHS
 from pymoo.problems.static import StaticProblem
 from pymoo.termination import get_termination
-
-from optimise.errors import OptimiseError
-from optimise.evaluation import INFEASIBLE_VALUE, Evaluation
-from optimise.space import DesignSpace
 
 __all__ = ["GAConfig", "Generation", "GAResult", "run_ga", "best_of", "pareto_front"]
 

@@ -30,8 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
-from optimise.errors import OptimiseError
+from flexopt.optimise.errors import OptimiseError
 
 __all__ = [
     "STANDARD_GRAVITY_M_PER_S2",

@@ -11,10 +11,9 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-
-from optimise.evaluation import Evaluation
-from optimise.requirements import Verdict
-from optimise.space import DesignSpace
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.requirements import Verdict
+from flexopt.optimise.space import DesignSpace
 
 __all__ = ["DesignProblem", "DesignDetail"]
 

@@ -44,10 +44,9 @@ from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
 import numpy as np
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.targets import TargetCurve, TargetSpec, column_unit_factor
 from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-from optimise.errors import OptimiseError
-from optimise.targets import TargetCurve, TargetSpec, column_unit_factor
 
 __all__ = [
     "AllowableStress",
@@ -877,7 +876,7 @@ class RequirementSpec(BaseModel):
 
 def describe_target(curve: TargetCurve, quantity: str = "") -> str:
     """Short words for a target curve in the unit of ``quantity`` (``1.5 N``, ``276 N·m/rad``)."""
-    from optimise.targets import ConstantTarget, LinearTarget, ThresholdTarget
+    from flexopt.optimise.targets import ConstantTarget, LinearTarget, ThresholdTarget
 
     fy = _unit_factor(quantity) if quantity else 1.0
     unit = unit_of(quantity) if quantity else curve.y_unit

@@ -6,8 +6,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
-from optimise.errors import OptimiseError
+from flexopt.optimise.errors import OptimiseError
 
 __all__ = ["DesignSpace"]
 

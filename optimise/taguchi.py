@@ -28,9 +28,8 @@ from functools import cache
 from itertools import combinations, product
 
 import numpy as np
+from flexopt.optimise.errors import OptimiseError
 from scipy import stats
-
-from optimise.errors import OptimiseError
 
 __all__ = [
     "AdditivityCheck",

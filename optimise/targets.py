@@ -35,9 +35,8 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from flexopt.optimise.errors import OptimiseError
 from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-from optimise.errors import OptimiseError
 
 __all__ = [
     "MEASURES",

@@ -41,9 +41,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from flexopt.optimise.space import DesignSpace
 from pydantic import BaseModel, ConfigDict, Field, field_validator
-
-from optimise.space import DesignSpace
 
 __all__ = [
     "PathPart",

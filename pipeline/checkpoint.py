@@ -29,11 +29,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from optimise.evaluation import Evaluation
-from pipeline.errors import StudyError
-from pipeline.runfolder import echo, read_folder_bytes, read_folder_json, to_json, write_atomic
-from pipeline.study import Study, study_to_yaml
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.runfolder import (
+    echo,
+    read_folder_bytes,
+    read_folder_json,
+    to_json,
+    write_atomic,
+)
+from flexopt.pipeline.study import Study, study_to_yaml
 
 __all__ = [
     "CHECKPOINT_FILE",

@@ -24,17 +24,16 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from flexopt.pipeline.errors import StudyError, Terminated
+from flexopt.pipeline.evaluate import EvaluateOutcome, evaluate_study, versions
+from flexopt.pipeline.study import list_examples, load_study, resolve_study_path, workers_problem
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-from pipeline.errors import StudyError, Terminated
-from pipeline.evaluate import EvaluateOutcome, evaluate_study, versions
-from pipeline.study import list_examples, load_study, resolve_study_path, workers_problem
-
 if TYPE_CHECKING:  # pipeline.run imports pymoo (~1 s): only `run` and `export` pay for it
-    from optimise.ga import GAConfig
-    from pipeline.run import GenerationReport, RunOutcome
+    from flexopt.optimise.ga import GAConfig
+    from flexopt.pipeline.run import GenerationReport, RunOutcome
 
 __all__ = ["build_parser", "main"]
 
@@ -336,7 +335,7 @@ def _format_value(value: Any) -> str:
 def _print_verdict(verdicts: Sequence[Any], title: str, console: Console) -> None:
     """The verdict first: one line per requirement (value, bound, margin, MET / NOT MET), then
     the overall word. Never 'feasible' alone: a design is judged by what it must meet."""
-    from optimise.requirements import verdict_lines
+    from flexopt.optimise.requirements import verdict_lines
 
     console.print(f"{title}: requirements", soft_wrap=True, markup=False)
     for line in verdict_lines(verdicts):
@@ -509,8 +508,8 @@ def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from pipeline.parallel import BackendError
-    from pipeline.run import parallel_settings, prepare_run, resume_run, run_study
+    from flexopt.pipeline.parallel import BackendError
+    from flexopt.pipeline.run import parallel_settings, prepare_run, resume_run, run_study
 
     prog = "flexopt run"
     if args.resume is None and args.study is None:
@@ -592,7 +591,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _status(args: argparse.Namespace) -> int:
-    from pipeline.status import format_status, run_status
+    from flexopt.pipeline.status import format_status, run_status
 
     try:
         status = run_status(args.run_dir)
@@ -604,7 +603,7 @@ def _status(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from pipeline.run import rebuild_report
+    from flexopt.pipeline.run import rebuild_report
 
     prog = "flexopt report"
     try:
@@ -625,7 +624,7 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from pipeline.run import ExportError, export_design
+    from flexopt.pipeline.run import ExportError, export_design
 
     prog = "flexopt export"
     try:
@@ -657,7 +656,7 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
-    from pipeline.init_study import catalogue
+    from flexopt.pipeline.init_study import catalogue
 
     found = catalogue()
     width = max(len(name) for name, *_ in found.kinds + found.studies)
@@ -676,7 +675,7 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _init(args: argparse.Namespace) -> int:
-    from pipeline.init_study import starter_study
+    from flexopt.pipeline.init_study import starter_study
 
     prog = "flexopt init"
     out = args.out or Path(f"{args.name}.yaml")
@@ -709,7 +708,7 @@ def _init(args: argparse.Namespace) -> int:
 
 
 def _schema(args: argparse.Namespace) -> int:
-    from pipeline.init_study import study_schema
+    from flexopt.pipeline.init_study import study_schema
 
     prog = "flexopt schema"
     try:
@@ -721,7 +720,7 @@ def _schema(args: argparse.Namespace) -> int:
         sys.stdout.write(text)
         return EXIT_OK
     try:
-        from pipeline.runfolder import write_atomic
+        from flexopt.pipeline.runfolder import write_atomic
 
         args.out.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(args.out, text)  # an editor reading the schema never sees half of it

@@ -50,10 +50,9 @@ from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.diagnostics.plugin import WorkerPlugin
 from distributed.protocol import loads as dask_loads
 from distributed.protocol.utils import unpack_frames
-
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignProblem
-from pipeline.parallel import (
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignProblem
+from flexopt.pipeline.parallel import (
     DASK_CHUNKS_PER_WORKER,
     BackendError,
     chunk_rows,

@@ -12,10 +12,10 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from optimise.requirements import verdict_record
-from pipeline.errors import StudyError
-from pipeline.plots import plot_response
-from pipeline.runfolder import (
+from flexopt.optimise.requirements import verdict_record
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.plots import plot_response
+from flexopt.pipeline.runfolder import (
     check_out_dir,
     make_run_dir,
     new_run_dir_path,
@@ -23,9 +23,9 @@ from pipeline.runfolder import (
     to_json,
     write_atomic,
 )
-from pipeline.studies import EvaluationResult, get_kind
-from pipeline.study import Study, study_to_yaml
-from pipeline.verdict import judge
+from flexopt.pipeline.studies import EvaluationResult, get_kind
+from flexopt.pipeline.study import Study, study_to_yaml
+from flexopt.pipeline.verdict import judge
 
 __all__ = ["EVALUATE_FILES", "EvaluateOutcome", "evaluate_study", "versions"]
 

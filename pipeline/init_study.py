@@ -19,11 +19,9 @@ from importlib import resources
 from typing import Any
 
 import yaml
-from pydantic.json_schema import models_json_schema
-
-from fea.materials import MATERIALS
-from pipeline.errors import StudyError
-from pipeline.studies import (
+from flexopt.fea.materials import MATERIALS
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import (
     builtin_kind_names,
     get_kind,
     kind_summary,
@@ -31,7 +29,8 @@ from pipeline.studies import (
     refused_plugins,
     unavailable_kinds,
 )
-from pipeline.study import _NAME_RE, list_examples, parse_study_text
+from flexopt.pipeline.study import _NAME_RE, list_examples, parse_study_text
+from pydantic.json_schema import models_json_schema
 
 __all__ = [
     "Catalogue",
@@ -55,7 +54,9 @@ SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 
 
 def _example_text(name: str) -> str:
-    return (resources.files("pipeline") / "examples" / f"{name}.yaml").read_text(encoding="utf-8")
+    return (resources.files("flexopt.pipeline") / "examples" / f"{name}.yaml").read_text(
+        encoding="utf-8"
+    )
 
 
 def example_kinds() -> dict[str, str]:

@@ -39,9 +39,8 @@ from multiprocessing.connection import Connection, wait
 from typing import Any, Literal, Protocol
 
 import numpy as np
-
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignProblem
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignProblem
 
 __all__ = [
     "MAX_ATTEMPTS",
@@ -356,7 +355,9 @@ def open_backend(settings: ParallelSettings, problem: DesignProblem) -> Iterator
     backend: Any
     if settings.backend == "dask":
         try:
-            from pipeline.cluster import DaskBackend  # distributed is imported only when used
+            from flexopt.pipeline.cluster import (
+                DaskBackend,  # distributed is imported only when used
+            )
         except ImportError as exc:
             raise BackendError(
                 f"the Dask backend needs dask.distributed ({exc}); pip install 'flexopt[dask]'"
@@ -387,7 +388,7 @@ def _warm_up_kernels() -> None:
     run's: the workers then compile or fall back on their own.
     """
     try:
-        from fea.beam import warm_up
+        from flexopt.fea.beam import warm_up
 
         warm_up()
     except Exception:  # noqa: BLE001 - only an optimisation
@@ -461,7 +462,7 @@ def _context() -> multiprocessing.context.BaseContext:
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
         # the server imports numpy and this module once; each worker forks with them loaded
-        ctx.set_forkserver_preload(["pipeline.parallel"])
+        ctx.set_forkserver_preload(["flexopt.pipeline.parallel"])
         return ctx
     return multiprocessing.get_context("spawn")
 

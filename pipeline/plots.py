@@ -7,11 +7,10 @@ from collections.abc import Mapping
 
 import matplotlib
 import numpy as np
+from flexopt.pipeline import labels as _labels
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
-
-from pipeline import labels as _labels
 
 __all__ = [
     "quantity_name",

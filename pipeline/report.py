@@ -14,11 +14,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignDetail, DesignProblem
-from optimise.requirements import Verdict, overall, verdict_rows
-from pipeline.study import Study
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignDetail, DesignProblem
+from flexopt.optimise.requirements import Verdict, overall, verdict_rows
+from flexopt.pipeline.study import Study
 
 __all__ = ["ReportData", "format_value", "render_info", "render_report", "render_verdict"]
 

@@ -24,11 +24,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignDetail, DesignProblem
-from optimise.requirements import Verdict, overall, verdict_rows
-from pipeline import labels
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignDetail, DesignProblem
+from flexopt.optimise.requirements import Verdict, overall, verdict_rows
+from flexopt.pipeline import labels
 
 __all__ = ["HtmlData", "SECTIONS", "render_html", "sensitivity", "top_designs"]
 
@@ -483,7 +482,7 @@ def _part_mesh(detail: DesignDetail) -> tuple[np.ndarray, np.ndarray] | None:
     """(vertices, faces) of the printable part: the outline extruded, as best.stl is built."""
     if detail.outline is None or not detail.height_mm:
         return None
-    from geometry.solid import extrude
+    from flexopt.geometry.solid import extrude
 
     mesh = extrude(detail.outline, float(detail.height_mm))
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=int)
@@ -536,7 +535,7 @@ def _e(text: Any) -> str:
 
 
 def _cell(value: Any) -> str:
-    from pipeline.report import format_value
+    from flexopt.pipeline.report import format_value
 
     return _e(format_value(value))
 

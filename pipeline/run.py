@@ -29,24 +29,23 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-
-from optimise.errors import OptimiseError
-from optimise.evaluation import Evaluation
-from optimise.ga import GAConfig, GAResult, Generation, best_of, pareto_front, run_ga
-from optimise.problem import DesignDetail, DesignProblem
-from optimise.requirements import Verdict, verdict_record
-from optimise.space import DesignSpace
-from pipeline import plots
-from pipeline.checkpoint import (
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.ga import GAConfig, GAResult, Generation, best_of, pareto_front, run_ga
+from flexopt.optimise.problem import DesignDetail, DesignProblem
+from flexopt.optimise.requirements import Verdict, verdict_record
+from flexopt.optimise.space import DesignSpace
+from flexopt.pipeline import plots
+from flexopt.pipeline.checkpoint import (
     CHECKPOINT_FILE,
     STORE_FILE,
     EvaluationStore,
     study_sha256,
     write_checkpoint,
 )
-from pipeline.errors import StudyError, Terminated
-from pipeline.evaluate import versions
-from pipeline.parallel import (
+from flexopt.pipeline.errors import StudyError, Terminated
+from flexopt.pipeline.evaluate import versions
+from flexopt.pipeline.parallel import (
     BackendError,
     BatchBackend,
     ParallelSettings,
@@ -55,10 +54,10 @@ from pipeline.parallel import (
     evaluate_one,
     open_backend,
 )
-from pipeline.parallel import one_line as _one_line
-from pipeline.report import ReportData, render_report
-from pipeline.report_html import HtmlData, render_html
-from pipeline.runfolder import (
+from flexopt.pipeline.parallel import one_line as _one_line
+from flexopt.pipeline.report import ReportData, render_report
+from flexopt.pipeline.report_html import HtmlData, render_html
+from flexopt.pipeline.runfolder import (
     RunDirLock,
     cell_float,
     check_out_dir,
@@ -75,12 +74,12 @@ from pipeline.runfolder import (
     to_json,
     write_atomic,
 )
-from pipeline.studies import get_kind, kinds
-from pipeline.study import OptimiserSpec, ParallelSpec, Study, load_study, study_to_yaml
-from pipeline.verdict import judge_detail
+from flexopt.pipeline.studies import get_kind, kinds
+from flexopt.pipeline.study import OptimiserSpec, ParallelSpec, Study, load_study, study_to_yaml
+from flexopt.pipeline.verdict import judge_detail
 
 if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
-    from geometry.solid import FlatPart
+    from flexopt.geometry.solid import FlatPart
 
 __all__ = [
     "Evaluator",
@@ -298,7 +297,7 @@ def build_problem(study: Study) -> DesignProblem:
             f"kind '{kind.name}' returned {type(problem).__name__}, which is not a DesignProblem "
             "(space, objective_names, constraint_names, evaluate, detail)"
         )
-    from pipeline.verdict import with_requirement_constraints
+    from flexopt.pipeline.verdict import with_requirement_constraints
 
     return with_requirement_constraints(study, problem)  # requirements: with role: constraint
 
@@ -815,7 +814,7 @@ class _Run:
             return None
 
     def _stl(self, part: FlatPart) -> bytes:
-        from geometry.solid import extrude, stl_bytes
+        from flexopt.geometry.solid import extrude, stl_bytes
 
         mesh = extrude(part.outline, part.thickness_mm)
         lo, hi = mesh.bounds
@@ -1701,7 +1700,7 @@ def part_of(detail: DesignDetail) -> FlatPart:
     GeometryError
         When the outline is not one valid polygon (or a sheet's edge view is not a rectangle).
     """
-    from geometry.solid import SHEET_HINT, flat_part
+    from flexopt.geometry.solid import SHEET_HINT, flat_part
 
     sheet = bool((detail.info or {}).get(SHEET_HINT))
     return flat_part(detail.outline, float(detail.height_mm or 0.0), sheet=sheet)
@@ -1717,12 +1716,12 @@ def part_bytes(part: FlatPart, fmt: str, comment: str = "") -> bytes:
     geometry.solid.StepUnavailable
         For ``step`` without build123d.
     """
-    from geometry.solid import extrude, step_bytes, stl_bytes
+    from flexopt.geometry.solid import extrude, step_bytes, stl_bytes
 
     if fmt == "stl":
         return stl_bytes(extrude(part.outline, part.thickness_mm))
     if fmt == "dxf":
-        from geometry.dxf import dxf_bytes
+        from flexopt.geometry.dxf import dxf_bytes
 
         return dxf_bytes(part.outline, comment)
     if fmt == "step":
@@ -1886,7 +1885,7 @@ def export_design(
         ) from exc
     if detail.outline is None or not detail.height_mm:
         raise ExportError(f"kind '{study.kind}' gives no outline and height_mm to extrude")
-    from geometry.solid import StepUnavailable
+    from flexopt.geometry.solid import StepUnavailable
 
     try:
         part = part_of(detail)

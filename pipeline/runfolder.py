@@ -31,8 +31,7 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None  # type: ignore[assignment]
 
 import numpy as np
-
-from pipeline.errors import StudyError
+from flexopt.pipeline.errors import StudyError
 
 __all__ = [
     "LOCK_FILE",

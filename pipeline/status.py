@@ -15,10 +15,10 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from optimise.evaluation import Evaluation
-from pipeline.checkpoint import STORE_FILE, EvaluationStore
-from pipeline.errors import StudyError
-from pipeline.runfolder import read_run_json
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.pipeline.checkpoint import STORE_FILE, EvaluationStore
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.runfolder import read_run_json
 
 __all__ = ["RunStatus", "format_status", "run_status"]
 

@@ -25,6 +25,10 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import MATERIALS, Material, get_material
+from flexopt.optimise.requirements import RequirementSpec
+from flexopt.pipeline.errors import StudyError
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -33,11 +37,6 @@ from pydantic import (
     field_validator,
     model_validator,
 )
-
-from fea.errors import FeaError
-from fea.materials import MATERIALS, Material, get_material
-from optimise.requirements import RequirementSpec
-from pipeline.errors import StudyError
 
 __all__ = [
     "STUDY_CONFIG",
@@ -327,7 +326,7 @@ _StudyLoader.add_implicit_resolver(
 
 def list_examples() -> list[str]:
     """Names of the studies shipped in ``pipeline/examples`` (without ``.yaml``)."""
-    folder = resources.files("pipeline") / "examples"
+    folder = resources.files("flexopt.pipeline") / "examples"
     return sorted(p.name[: -len(".yaml")] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
@@ -345,7 +344,7 @@ def resolve_study_path(study: str | Path) -> Path:
     name = str(study)
     name = name[: -len(".yaml")] if name.endswith(".yaml") else name
     if name in list_examples():
-        return Path(str(resources.files("pipeline") / "examples" / f"{name}.yaml"))
+        return Path(str(resources.files("flexopt.pipeline") / "examples" / f"{name}.yaml"))
     if path.exists():
         raise StudyError("", f"'{study}' is not a file; give the path of a study YAML file")
     raise StudyError(
@@ -569,7 +568,7 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
     StudyError
         Naming the first offending key path.
     """
-    from pipeline.studies import get_kind  # the registry imports this module
+    from flexopt.pipeline.studies import get_kind  # the registry imports this module
 
     geometry = raw.get("geometry")
     if not isinstance(geometry, dict):
@@ -586,7 +585,7 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         check_no_bool_numbers(raw, study)
         check_lengths(study.model_dump(mode="json", exclude_none=True))
         kind.check(study)
-        from pipeline.verdict import check_requirement_names
+        from flexopt.pipeline.verdict import check_requirement_names
 
         check_requirement_names(study)
     except ValidationError as exc:

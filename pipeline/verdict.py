@@ -24,18 +24,17 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-
-from optimise.errors import OptimiseError
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignDetail
-from optimise.requirements import (
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.requirements import (
     Requirement,
     RequirementSpec,
     Verdict,
     curves_from_table,
 )
-from pipeline.errors import StudyError
-from pipeline.study import Study
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.study import Study
 
 __all__ = [
     "GENERIC_QUANTITIES",
@@ -56,7 +55,7 @@ GENERIC_QUANTITIES = ("envelope_width_mm", "envelope_height_mm")
 
 
 def _kind(study: Study) -> Any:
-    from pipeline.studies import get_kind  # the registry imports this module's users
+    from flexopt.pipeline.studies import get_kind  # the registry imports this module's users
 
     return get_kind(study.kind)
 
@@ -81,7 +80,7 @@ def user_requirements(study: Study) -> tuple[Requirement, ...]:
         key = f"requirements[{i}]"
         table = columns = None
         if spec.target is not None and spec.target.kind == "table" and spec.target.file:
-            from pipeline.studies.cam import read_table_csv
+            from flexopt.pipeline.studies.cam import read_table_csv
 
             table, columns = read_table_csv(
                 spec.target.file, spec.target.columns, f"{key}.target.file"

@@ -27,11 +27,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
-from optimise.problem import DesignProblem
-from optimise.requirements import Requirement, Verdict
-from pipeline.errors import StudyError
-from pipeline.study import Study
+from flexopt.optimise.problem import DesignProblem
+from flexopt.optimise.requirements import Requirement, Verdict
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.study import Study
 
 __all__ = [
     "ENTRY_POINT_GROUP",

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from optimise.requirements import (
+from flexopt.optimise.requirements import (
     AllowableStress,
     Flag,
     MaxValue,
@@ -24,7 +24,7 @@ from optimise.requirements import (
     Requirement,
     TargetBand,
 )
-from optimise.targets import ConstantTarget, measure_key
+from flexopt.optimise.targets import ConstantTarget, measure_key
 
 # --------------------------------------------------------------------------------------------
 # polyline_beam (flexopt evaluate cantilever, fixed_guided)

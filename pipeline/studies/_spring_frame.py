@@ -7,10 +7,9 @@ is not a kind (see :mod:`pipeline.studies`).
 
 from __future__ import annotations
 
+from flexopt.geometry.sea_spring import SpringFrame
+from flexopt.pipeline.study import STUDY_CONFIG
 from pydantic import BaseModel, Field
-
-from geometry.sea_spring import SpringFrame
-from pipeline.study import STUDY_CONFIG
 
 __all__ = ["SpringFrameBlock"]
 

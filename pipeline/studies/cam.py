@@ -32,9 +32,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
-
-from geometry.cam import (
+from flexopt.geometry.cam import (
     PAPER_CORRECTION,
     CamLayout,
     CamProfile,
@@ -52,15 +50,22 @@ from geometry.cam import (
     synthesise_cam,
     torque_from_outline,
 )
-from geometry.errors import GeometryError
-from optimise.errors import OptimiseError
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignDetail
-from optimise.space import DesignSpace
-from optimise.targets import TargetCurve, TargetSpec, ThresholdTarget, curve_error, measure_key
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.geometry.errors import GeometryError
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.space import DesignSpace
+from flexopt.optimise.targets import (
+    TargetCurve,
+    TargetSpec,
+    ThresholdTarget,
+    curve_error,
+    measure_key,
+)
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from pydantic import BaseModel, Field, model_validator
 
 __all__ = [
     "CamGeometry",

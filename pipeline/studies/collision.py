@@ -27,11 +27,7 @@ import time
 from typing import Any, Literal
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-from pydantic import BaseModel, Field
-
-from fea.collision import (
+from flexopt.fea.collision import (
     CollisionModel,
     CollisionResponse,
     CollisionSettings,
@@ -43,14 +39,29 @@ from fea.collision import (
     simulate_cases,
     sweep_result,
 )
-from fea.errors import FeaError
-from fea.materials import get_material
-from geometry.cam import contact_pressure_MPa, onset_pressure_MPa
-from optimise.targets import LinearTarget, TableTarget, TargetCurve, TargetSpec, ThresholdTarget
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.studies.cam import CamGeometry, CamStudy, SpringsSpec, build_cam, resolve_target
-from pipeline.study import STUDY_CONFIG, MaterialSpec, Study, material_record
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import get_material
+from flexopt.geometry.cam import contact_pressure_MPa, onset_pressure_MPa
+from flexopt.optimise.targets import (
+    LinearTarget,
+    TableTarget,
+    TargetCurve,
+    TargetSpec,
+    ThresholdTarget,
+)
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies.cam import (
+    CamGeometry,
+    CamStudy,
+    SpringsSpec,
+    build_cam,
+    resolve_target,
+)
+from flexopt.pipeline.study import STUDY_CONFIG, MaterialSpec, Study, material_record
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from pydantic import BaseModel, Field
 
 __all__ = [
     "CollisionGeometry",
@@ -250,7 +261,7 @@ def check(study: CollisionStudy) -> None:
     """Build the springs (and the cam), and check the initial condition is possible."""
     spring, reference, curve = build_springs(study)
     model = study.impact.model()
-    from fea.collision import initial_deflection_rad
+    from flexopt.fea.collision import initial_deflection_rad
 
     for label, sp in (("spring", spring), ("reference", reference)):
         try:

@@ -36,12 +36,10 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, field_validator, model_validator
-
-from fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
-from fea.errors import FeaError
-from fea.materials import Material, get_material
-from geometry.constant_force import (
+from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material, get_material
+from flexopt.geometry.constant_force import (
     DESIGN_VARIABLE_NAMES,
     TABLE1,
     TABLE3_BOUNDS,
@@ -57,14 +55,15 @@ from geometry.constant_force import (
     prb_force_N,
     stress_limited_stroke_mm,
 )
-from geometry.constant_force import min_feature_mm as design_min_feature_mm
-from geometry.errors import GeometryError
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignDetail
-from optimise.space import DesignSpace
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.geometry.constant_force import min_feature_mm as design_min_feature_mm
+from flexopt.geometry.errors import GeometryError
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.space import DesignSpace
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 __all__ = [
     "ConstantForceGeometry",
@@ -974,10 +973,9 @@ def fidelity_check(
         time; or ``skipped`` with the reason.
     """
     import scipy.sparse.linalg as spla
+    from flexopt.fea.mesh import mesh_polygon
+    from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Translate
     from shapely.geometry import Polygon
-
-    from fea.mesh import mesh_polygon
-    from fea.plane_stress import Clamp, PlaneStressModel, Translate
 
     study = problem.study
     spec = study.fidelity

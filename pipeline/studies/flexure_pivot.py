@@ -45,15 +45,12 @@ import time
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
-from scipy.optimize import brentq
-
-from fea.closed_forms import PivotClosedForm, pivot_closed_form
-from fea.errors import FeaError
-from fea.materials import Material, get_material
-from fea.pivot import PivotResponse, beam_pivot, plane_stress_pivot, pure_moment_centre
-from geometry.errors import GeometryError
-from geometry.flexures import (
+from flexopt.fea.closed_forms import PivotClosedForm, pivot_closed_form
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material, get_material
+from flexopt.fea.pivot import PivotResponse, beam_pivot, plane_stress_pivot, pure_moment_centre
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.flexures import (
     CircularNotch,
     CornerFilleted,
     CrossAxis,
@@ -62,12 +59,14 @@ from geometry.flexures import (
     Leaf,
     VariableLeaf,
 )
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignDetail
-from optimise.space import DesignSpace
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.space import DesignSpace
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from pydantic import BaseModel, Field, model_validator
+from scipy.optimize import brentq
 
 __all__ = [
     "PIVOT_TYPES",
@@ -571,7 +570,7 @@ class FlexurePivotProblem:
         outline = flex.outline()
         if flex.is_planar:
             try:
-                from geometry.solid import min_feature_mm
+                from flexopt.geometry.solid import min_feature_mm
 
                 info["outline_min_feature_mm"] = min_feature_mm(outline)
             except (GeometryError, ValueError) as exc:  # pragma: no cover - defensive

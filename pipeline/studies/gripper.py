@@ -33,10 +33,8 @@ import time
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
-
-from optimise.errors import OptimiseError
-from optimise.gripper import (
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.gripper import (
     FingerGeometry,
     FingerRequirement,
     JawLoad,
@@ -44,9 +42,16 @@ from optimise.gripper import (
     normal_force_for_friction_N,
     overtravel_mm,
 )
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, get_kind, kinds, register
-from pipeline.study import (
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import (
+    EvaluationResult,
+    StudyKind,
+    _builtin,
+    get_kind,
+    kinds,
+    register,
+)
+from flexopt.pipeline.study import (
     STUDY_CONFIG,
     OptimiserSpec,
     Study,
@@ -56,6 +61,7 @@ from pipeline.study import (
     study_to_yaml,
     validate_study,
 )
+from pydantic import BaseModel, Field, model_validator
 
 __all__ = [
     "GripperGeometry",

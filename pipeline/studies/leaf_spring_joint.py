@@ -31,24 +31,23 @@ from dataclasses import replace
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
-
-from fea.errors import FeaError
-from fea.leaf_joint import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.leaf_joint import (
     JointResponse,
     joint_elastic_limit,
     joint_response,
     linear_joint_stiffness_Nmm,
 )
-from fea.materials import Material, get_material
-from geometry.errors import GeometryError
-from geometry.leaf_joint import LeafJoint
-from optimise.evaluation import Evaluation
-from optimise.problem import DesignDetail
-from optimise.space import DesignSpace
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.fea.materials import Material, get_material
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.leaf_joint import LeafJoint
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.space import DesignSpace
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from pydantic import BaseModel, Field, model_validator
 
 __all__ = [
     "LeafJointGeometry",

@@ -58,12 +58,10 @@ from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
-
-from fea.errors import FeaError
-from fea.materials import Material
-from geometry.errors import GeometryError
-from geometry.mechanism import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.mechanism import (
     Attachment,
     BeamShape,
     BodyShape,
@@ -72,10 +70,10 @@ from geometry.mechanism import (
     curve_points,
     mechanism_outline,
 )
-from optimise.errors import OptimiseError
-from optimise.evaluation import INFEASIBLE_VALUE, Evaluation
-from optimise.problem import DesignDetail
-from optimise.requirements import (
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
+from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.requirements import (
     Range,
     Requirement,
     RequirementSpec,
@@ -83,12 +81,18 @@ from optimise.requirements import (
     Verdict,
     unit_of,
 )
-from optimise.space import DesignSpace
-from optimise.variables import DesignVariables, VariableError, VariableSpec, resolve_variables
-from pipeline.errors import StudyError
-from pipeline.runfolder import table_to_csv
-from pipeline.studies import EvaluationResult, StudyKind, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.optimise.space import DesignSpace
+from flexopt.optimise.variables import (
+    DesignVariables,
+    VariableError,
+    VariableSpec,
+    resolve_variables,
+)
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.runfolder import table_to_csv
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
 __all__ = [
     "BeamSpec",
@@ -438,7 +442,8 @@ class MechanismStudy(Study):
 
 
 def _fea():
-    import fea.mechanism as fm  # engineer A's engine; imported late so the kind always registers
+    # the engine, imported late so the kind always registers
+    import flexopt.fea.mechanism as fm
 
     return fm
 

@@ -19,16 +19,15 @@ from dataclasses import asdict
 from typing import Annotated, Any, Literal
 
 import numpy as np
+from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.profile import BeamProfile
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.study import STUDY_CONFIG, Study, material_record
 from pydantic import BaseModel, Field, ValidationInfo, field_validator
-
-from fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
-from fea.errors import FeaError
-from fea.materials import Material
-from geometry.errors import GeometryError
-from geometry.profile import BeamProfile
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.study import STUDY_CONFIG, Study, material_record
 
 __all__ = [
     "BeamBoundary",

@@ -53,18 +53,16 @@ from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
-
-from fea.errors import FeaError
-from fea.materials import Material
-from fea.mesh import mesh_polygon
-from fea.plane_stress import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.fea.mesh import mesh_polygon
+from flexopt.fea.plane_stress import (
     Clamp,
     PlaneStressModel,
     PlaneStressSettings,
     Rotate,
 )
-from geometry.arm_spring import (
+from flexopt.geometry.arm_spring import (
     SPIRAL_BOUNDS,
     SPIRAL_LEVELS,
     SPIRAL_VARIABLES,
@@ -74,8 +72,8 @@ from geometry.arm_spring import (
     spiral_level_values,
     spiral_params,
 )
-from geometry.errors import GeometryError
-from geometry.sea_spring import (
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.sea_spring import (
     TABLE6_LEVELS,
     SpringFrame,
     SpringGeometry,
@@ -87,13 +85,14 @@ from geometry.sea_spring import (
     params_from_vector,
     taguchi_params,
 )
-from optimise.evaluation import INFEASIBLE_VALUE, Evaluation
-from optimise.problem import DesignDetail
-from optimise.space import DesignSpace
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.studies._spring_frame import SpringFrameBlock
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
+from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.space import DesignSpace
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from pydantic import BaseModel, Field, model_validator
 
 __all__ = [
     "PUBLISHED_SPRINGS",
@@ -303,7 +302,7 @@ def target_stiffness_Nm_per_rad(study: SeaSpringStudy) -> tuple[float, dict[str,
     """The stiffness target and where it came from (``stiffness_window`` wins when given)."""
     if study.stiffness_window is None:
         return float(study.target.stiffness_Nm_per_rad), {"source": "target.stiffness_Nm_per_rad"}
-    from fea.sea_window import Gearbox, Motor, rpm_to_rad_per_s, stiffness_window
+    from flexopt.fea.sea_window import Gearbox, Motor, rpm_to_rad_per_s, stiffness_window
 
     w = study.stiffness_window
     window = stiffness_window(
@@ -727,7 +726,7 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
         levels and predicted S/N, the confirmation, the additivity check, the chosen design
         (``chosen``: the better of the confirmed optimum and the best tested run) and timings.
     """
-    from optimise.taguchi import Pool, analyse, confirm, select_array
+    from flexopt.optimise.taguchi import Pool, analyse, confirm, select_array
 
     t0 = time.perf_counter()
     frame = spring_frame(study)
@@ -1098,7 +1097,7 @@ class SeaSpringProblem:
         if self.stage1:
             info["taguchi"] = _stage1_summary(self.stage1)
             if "main_effects" in self.stage1:
-                from pipeline.plots import plot_taguchi
+                from flexopt.pipeline.plots import plot_taguchi
 
                 files["taguchi.png"] = plot_taguchi(
                     self.stage1["main_effects"],
@@ -1212,7 +1211,7 @@ class SeaSpringProblem:
         -------
         dict — N m/rad, MPa, s; ``problem`` alone when the 3D model cannot be built.
         """
-        from fea.solid3d import compare_with_plane_stress
+        from flexopt.fea.solid3d import compare_with_plane_stress
 
         spec, target = self.study.mesh, self.study.target
         t0 = time.perf_counter()
@@ -1383,7 +1382,7 @@ def stress_map_png(stress_map: dict[str, Any], allowable_MPa: float | None = Non
                    title: str = "") -> bytes:  # fmt: skip
     """PNG of a von Mises map of :func:`_stress_map_data` (``flexopt run`` draws the same map
     from ``DesignDetail.field_map`` as ``stress_map.png``)."""
-    from pipeline.plots import plot_field
+    from flexopt.pipeline.plots import plot_field
 
     return plot_field(
         stress_map["points_mm"],

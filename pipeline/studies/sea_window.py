@@ -33,12 +33,8 @@ import time
 from typing import Any, Literal
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-from pydantic import BaseModel, Field, model_validator
-
-from fea.errors import FeaError
-from fea.sea_window import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.sea_window import (
     Gearbox,
     Motor,
     bode_data,
@@ -48,9 +44,12 @@ from fea.sea_window import (
     stiffness_window,
     torque_bandwidth_rad_per_s,
 )
-from pipeline.errors import StudyError
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.study import STUDY_CONFIG, MaterialSpec, Study
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.study import STUDY_CONFIG, MaterialSpec, Study
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from pydantic import BaseModel, Field, model_validator
 
 __all__ = ["SeaWindowStudy", "evaluate", "check", "drive"]
 

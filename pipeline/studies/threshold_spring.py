@@ -16,8 +16,8 @@ the constant-stiffness spring and against the ideal profile.
   allowable, the ST range, the arm spring's clearances (envelope, thinnest arm, slot, hub) and
   the fold margin of the centreline (geometry.threshold_spring.fold_margin_mm).
 * **Fidelity check** (``detail``, ``flexopt evaluate``): the chosen design in plane stress
-  (:func:`pipeline.studies.sea_spring.analyse_spring`, the printable outline with fillets), its
-  torque error against the same target and its von Mises peak.
+  (:func:`flexopt.pipeline.studies.sea_spring.analyse_spring`, the printable outline with
+  fillets), its torque error against the same target and its von Mises peak.
 
 YAML (every key optional but ``name``, ``geometry.kind``, ``material`` and ``target``)::
 
@@ -50,37 +50,36 @@ import time
 from typing import Any, Literal
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-from pydantic import BaseModel, Field, field_validator, model_validator
-from scipy.optimize import minimize_scalar
-
-from fea.arm_beam import ArmBeamResponse, arm_beam_torque
-from fea.collision import ThresholdSpring, score_spring_curve, simulate_collision
-from fea.errors import FeaError
-from geometry.arm_spring import ArmSpringParams, arm_clearances, build_arm_spring
-from geometry.errors import GeometryError
-from geometry.solid import extrude, stl_bytes
-from geometry.threshold_spring import (
+from flexopt.fea.arm_beam import ArmBeamResponse, arm_beam_torque
+from flexopt.fea.collision import ThresholdSpring, score_spring_curve, simulate_collision
+from flexopt.fea.errors import FeaError
+from flexopt.geometry.arm_spring import ArmSpringParams, arm_clearances, build_arm_spring
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.solid import extrude, stl_bytes
+from flexopt.geometry.threshold_spring import (
     THRESHOLD_BOUNDS,
     THRESHOLD_VARIABLES,
     arm_profile,
     fold_margin_mm,
     threshold_params,
 )
-from optimise.errors import OptimiseError
-from optimise.evaluation import INFEASIBLE_VALUE, Evaluation
-from optimise.problem import DesignDetail
-from optimise.space import DesignSpace
-from optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_key
-from pipeline.errors import StudyError
-from pipeline.plots import plot_field
-from pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from pipeline.studies._spring_frame import SpringFrameBlock
-from pipeline.studies.collision import ImpactSpec
-from pipeline.studies.sea_spring import MeshSpec as PlaneStressMesh
-from pipeline.studies.sea_spring import _stress_map_data, analyse_spring
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
+from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.space import DesignSpace
+from flexopt.optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_key
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.plots import plot_field
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
+from flexopt.pipeline.studies.collision import ImpactSpec
+from flexopt.pipeline.studies.sea_spring import MeshSpec as PlaneStressMesh
+from flexopt.pipeline.studies.sea_spring import _stress_map_data, analyse_spring
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from pydantic import BaseModel, Field, field_validator, model_validator
+from scipy.optimize import minimize_scalar
 
 __all__ = [
     "ThresholdSpringStudy",

@@ -6,11 +6,10 @@ import math
 
 import numpy as np
 import pytest
-
-from fea.arm_beam import arm_beam_torque
-from fea.errors import FeaError
-from fea.materials import get_material
-from geometry.profile import BeamProfile
+from flexopt.fea.arm_beam import arm_beam_torque
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import get_material
+from flexopt.geometry.profile import BeamProfile
 
 TI = get_material("Ti-6Al-4V")
 

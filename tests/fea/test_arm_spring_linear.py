@@ -7,11 +7,10 @@ import math
 
 import numpy as np
 import pytest
-
-from fea.closed_forms import arm_spring_linear
-from fea.materials import get_material
-from geometry.arm_spring import arm_centreline, build_arm_spring, spiral_params
-from geometry.sea_spring import SpringFrame
+from flexopt.fea.closed_forms import arm_spring_linear
+from flexopt.fea.materials import get_material
+from flexopt.geometry.arm_spring import arm_centreline, build_arm_spring, spiral_params
+from flexopt.geometry.sea_spring import SpringFrame
 
 E, B = 190_000.0, 10.0  # MPa, mm
 
@@ -61,7 +60,7 @@ def test_plane_stress_spiral_converges_to_the_slender_arm_theory(w):
     # Plane stress (linear, 1 degree) of an Archimedean three-arm spiral with sharp roots against
     # the linear arm theory over the free length. The difference is the root and pad junctions
     # (a slender-beam effect of order w / L): within 2 % at w/L ~ 1 %, and decreasing with w.
-    from pipeline.studies.sea_spring import MeshSpec, analyse_spring
+    from flexopt.pipeline.studies.sea_spring import MeshSpec, analyse_spring
 
     frame = SpringFrame()
     mat = get_material("maraging-300")

@@ -9,13 +9,12 @@ compliance (which the elastica ignores) stay below 1e-4 of the compared quantity
 
 import numpy as np
 import pytest
+from flexopt.fea.beam import BeamModel, BeamSettings, EndDrive, solve_beam
+from flexopt.fea.materials import Material
+from flexopt.geometry.profile import BeamProfile
 from scipy.integrate import solve_bvp
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
-
-from fea.beam import BeamModel, BeamSettings, EndDrive, solve_beam
-from fea.materials import Material
-from geometry.profile import BeamProfile
 
 MAT = Material("test", E_MPa=2000.0, nu=0.3, yield_MPa=50.0)
 

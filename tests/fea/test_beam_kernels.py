@@ -17,16 +17,15 @@ default kernel, the compiled one.
 
 from __future__ import annotations
 
+import flexopt.fea.beam as beam_mod
 import numpy as np
 import pytest
 import test_beam
 import test_beam_stability
-
-import fea.beam as beam_mod
-from fea.beam import BeamModel, BeamSettings, EndDrive
-from fea.errors import FeaError
-from fea.materials import Material, get_material
-from geometry.profile import BeamProfile
+from flexopt.fea.beam import BeamModel, BeamSettings, EndDrive
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material, get_material
+from flexopt.geometry.profile import BeamProfile
 
 numba = pytest.importorskip("numba", reason="the compiled kernel needs numba")
 
@@ -47,7 +46,7 @@ def _half_cosine(span: float, rise: float, t: float, b: float, points: int = 21)
 
 def _constant_force_profile() -> BeamProfile:
     """Paper 003's constant-force beam (Table 3 optimum) as the constant_force study builds it."""
-    from geometry.constant_force import TABLE3_OPTIMUM, beam_profile
+    from flexopt.geometry.constant_force import TABLE3_OPTIMUM, beam_profile
 
     return beam_profile(TABLE3_OPTIMUM, end_flexures="centred")
 
@@ -269,6 +268,6 @@ _rerun(test_beam_stability)
 
 def test_warm_up_compiles_the_kernel_the_models_use():
     # the process pool calls warm_up before it forks, so workers inherit the compiled code
-    from fea.beam import BeamSettings, _resolve_kernel, warm_up
+    from flexopt.fea.beam import BeamSettings, _resolve_kernel, warm_up
 
     assert warm_up() == _resolve_kernel(BeamSettings().kernel)

@@ -19,10 +19,9 @@ shortening d, so under displacement control the critical shortening is d = P L /
 
 import numpy as np
 import pytest
-
-from fea.beam import BeamModel, BeamSettings, EndDrive, _is_positive_definite, solve_beam
-from fea.materials import Material
-from geometry.profile import BeamProfile
+from flexopt.fea.beam import BeamModel, BeamSettings, EndDrive, _is_positive_definite, solve_beam
+from flexopt.fea.materials import Material
+from flexopt.geometry.profile import BeamProfile
 
 MAT = Material("test", E_MPa=2000.0, nu=0.3, yield_MPa=50.0)
 L, T, B = 50.0, 1.0, 8.0  # mm
@@ -216,7 +215,7 @@ def test_a_laterally_loaded_cantilever_is_not_flagged(control, value):
 
 
 def _push_study(tmp_path, max_N: float):
-    from pipeline.study import load_study
+    from flexopt.pipeline.study import load_study
 
     path = tmp_path / "push.yaml"
     path.write_text(
@@ -238,7 +237,7 @@ boundary:
 
 
 def test_polyline_beam_study_reports_a_buckled_strut_as_unstable(tmp_path):
-    from pipeline.studies.polyline_beam import evaluate
+    from flexopt.pipeline.studies.polyline_beam import evaluate
 
     result = evaluate(_push_study(tmp_path, 3.0 * P_CANTILEVER))
     s = result.summary
@@ -251,7 +250,7 @@ def test_polyline_beam_study_reports_a_buckled_strut_as_unstable(tmp_path):
 
 
 def test_polyline_beam_study_below_the_euler_load_is_stable(tmp_path):
-    from pipeline.studies.polyline_beam import evaluate
+    from flexopt.pipeline.studies.polyline_beam import evaluate
 
     result = evaluate(_push_study(tmp_path, 0.9 * P_CANTILEVER))
     assert result.summary["stable"] is True and result.summary["unstable_rows"] == 0

@@ -7,10 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy.linalg import expm
-from scipy.optimize import minimize_scalar
-
-from fea.collision import (
+from flexopt.fea.collision import (
     G_M_PER_S2,
     CollisionModel,
     CollisionSettings,
@@ -26,7 +23,9 @@ from fea.collision import (
     simulate_collisions,
     sweep,
 )
-from fea.errors import FeaError
+from flexopt.fea.errors import FeaError
+from scipy.linalg import expm
+from scipy.optimize import minimize_scalar
 
 V2SOM = ThresholdSpring(max_torque_Nm=15.0, rate_per_rad=37.0)  # (Tmax, T1) = (15, 12) N·m
 CS = equivalent_linear_spring(V2SOM, 12.0)

@@ -11,13 +11,12 @@ shear lowers it by P / kGA (Engesser, 4e-3 here), inside the bracket tested.
 import numpy as np
 import pytest
 import scipy.sparse as sp
-
-from fea.beam import BeamModel, BeamSettings
-from fea.constrained_beams import ConstrainedBeams, kkt_negative_count
-from fea.materials import Material
-from fea.pivot import beam_pivot
-from geometry.flexures import Leaf
-from geometry.profile import BeamProfile
+from flexopt.fea.beam import BeamModel, BeamSettings
+from flexopt.fea.constrained_beams import ConstrainedBeams, kkt_negative_count
+from flexopt.fea.materials import Material
+from flexopt.fea.pivot import beam_pivot
+from flexopt.geometry.flexures import Leaf
+from flexopt.geometry.profile import BeamProfile
 
 MAT = Material("test", E_MPa=2000.0, nu=0.3, yield_MPa=50.0)
 L, T, B = 50.0, 1.0, 8.0  # mm

@@ -7,15 +7,14 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_bvp
-
-from fea.elastica import (
+from flexopt.fea.elastica import (
     _legendre_state,
     cantilever_load_for_deflection,
     cantilever_tip_load,
     fixed_guided,
 )
-from fea.errors import FeaError
+from flexopt.fea.errors import FeaError
+from scipy.integrate import solve_bvp
 
 
 def _bvp_cantilever(alpha: float) -> tuple[float, float, float]:

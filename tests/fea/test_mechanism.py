@@ -11,15 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_bvp
-from scipy.optimize import brentq
-from scipy.special import ellipe, ellipk
-
-from fea.constrained_beams import kkt_negative_count
-from fea.elastica import fixed_guided
-from fea.errors import FeaError
-from fea.materials import Material
-from fea.mechanism import (
+from flexopt.fea.constrained_beams import kkt_negative_count
+from flexopt.fea.elastica import fixed_guided
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.fea.mechanism import (
     LoadCase,
     Mechanism,
     MechBeam,
@@ -31,6 +27,9 @@ from fea.mechanism import (
     mass_g,
     solve_mechanism,
 )
+from scipy.integrate import solve_bvp
+from scipy.optimize import brentq
+from scipy.special import ellipe, ellipk
 
 MAT = Material("test", E_MPa=2000.0, nu=0.3, yield_MPa=50.0, density_kg_m3=1200.0)
 W = 5.0  # mm, out-of-plane width
@@ -688,8 +687,7 @@ def test_newton_jacobian_matches_finite_differences() -> None:
     """The KKT Jacobian with the constraint-Hessian term, at a random state with a body turned,
     against central differences of [r - f - G^T lam, g] (what keeps Newton quadratic)."""
     import scipy.sparse as sp
-
-    from fea.mechanism import MechanismSettings, _Model
+    from flexopt.fea.mechanism import MechanismSettings, _Model
 
     leaf = _straight("leaf", (0.0, 0.0), (40.0, 0.0), 0.4, 3)
     body = MechBody("block", np.array([44.0, 3.0]))

@@ -5,11 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
-from shapely.geometry import LineString, MultiPolygon, Point, Polygon, box
-from skfem import Basis, ElementTriP2, Functional
-
-from fea.errors import FeaError
-from fea.mesh import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.mesh import (
     MeshSettings,
     TriMesh,
     mesh_polygon,
@@ -17,6 +14,8 @@ from fea.mesh import (
     select_nodes,
     to_skfem,
 )
+from shapely.geometry import LineString, MultiPolygon, Point, Polygon, box
+from skfem import Basis, ElementTriP2, Functional
 
 
 def plate_with_hole() -> Polygon:

@@ -5,14 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from scipy.integrate import quad
-from scipy.optimize import brentq
-from shapely.geometry import LineString, Point, Polygon, box
-
-from fea.errors import FeaError
-from fea.materials import Material
-from fea.mesh import mesh_polygon
-from fea.plane_stress import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.fea.mesh import mesh_polygon
+from flexopt.fea.plane_stress import (
     Clamp,
     PlaneStressSettings,
     Rotate,
@@ -20,6 +16,9 @@ from fea.plane_stress import (
     plane_stress_lame,
     solve_plane_stress,
 )
+from scipy.integrate import quad
+from scipy.optimize import brentq
+from shapely.geometry import LineString, Point, Polygon, box
 
 MAT = Material("test", E_MPa=2000.0, nu=0.3, yield_MPa=50.0)
 
@@ -350,7 +349,7 @@ def test_cholesky_and_superlu_paths_agree(kinematics):
 
 
 def test_compiled_assembly_matches_the_numpy_one():
-    from fea.plane_stress import PlaneStressModel, _compiled
+    from flexopt.fea.plane_stress import PlaneStressModel, _compiled
 
     if _compiled() is None:
         pytest.skip("numba not importable")
@@ -393,9 +392,8 @@ def test_indefinite_tangent_falls_back_to_lu():
     np.testing.assert_array_equal(chol.iterations, lu.iterations)
 
     # And one indefinite system on its own: the answer is LU's, the failure counted.
+    from flexopt.fea.plane_stress import PlaneStressModel
     from scipy.sparse.linalg import splu
-
-    from fea.plane_stress import PlaneStressModel
 
     model = PlaneStressModel(mesh, MAT, 1.0, clamp, drive, PlaneStressSettings(solver="cholmod"))
     K = model.state(np.zeros(model.n_dofs), "linear").K
@@ -410,7 +408,7 @@ def test_indefinite_tangent_falls_back_to_lu():
 
 
 def test_solver_and_assembly_picked_by_settings_and_environment(monkeypatch):
-    from fea.plane_stress import PlaneStressModel
+    from flexopt.fea.plane_stress import PlaneStressModel
 
     mesh = mesh_polygon(box(0.0, 0.0, 10.0, 1.0), 0.5)
     kw = dict(

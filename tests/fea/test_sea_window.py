@@ -13,11 +13,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scipy import signal
-from scipy.optimize import brentq
-
-from fea.errors import FeaError
-from fea.sea_window import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.sea_window import (
     PAPER_TORQUE_RATIO_PRINTED,
     Gearbox,
     ImpactSettings,
@@ -41,6 +38,8 @@ from fea.sea_window import (
     torque_bandwidth_rad_per_s,
     torque_transfer,
 )
+from scipy import signal
+from scipy.optimize import brentq
 
 MOTOR = Motor()
 GEARBOX = Gearbox()

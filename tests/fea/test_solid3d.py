@@ -9,13 +9,11 @@ import math
 
 import numpy as np
 import pytest
-from shapely.geometry import LineString, Point, Polygon, box
-
-from fea.errors import FeaError
-from fea.materials import Material
-from fea.mesh import mesh_polygon
-from fea.plane_stress import Clamp, Rotate, Translate, solve_plane_stress
-from fea.solid3d import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.fea.mesh import mesh_polygon
+from flexopt.fea.plane_stress import Clamp, Rotate, Translate, solve_plane_stress
+from flexopt.fea.solid3d import (
     Solid3DSettings,
     _williams_growth,
     converge_peak_stress,
@@ -23,6 +21,7 @@ from fea.solid3d import (
     extrude_mesh,
     solve_solid3d,
 )
+from shapely.geometry import LineString, Point, Polygon, box
 
 E = 200_000.0  # MPa
 # The deep strip of issue 15: 60 mm long, 3 mm wide in the plane, 19.2 mm deep (extruded).

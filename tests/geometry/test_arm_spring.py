@@ -6,10 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from shapely import affinity
-from shapely.geometry import Polygon
-
-from geometry.arm_spring import (
+from flexopt.geometry.arm_spring import (
     SPIRAL_BOUNDS,
     SPIRAL_LEVELS,
     SPIRAL_VARIABLES,
@@ -20,9 +17,11 @@ from geometry.arm_spring import (
     spiral_level_values,
     spiral_params,
 )
-from geometry.errors import GeometryError
-from geometry.sea_spring import SpringFrame
-from geometry.solid import extrude
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.sea_spring import SpringFrame
+from flexopt.geometry.solid import extrude
+from shapely import affinity
+from shapely.geometry import Polygon
 
 FRAME = SpringFrame()
 SPIRAL = {"sweep": 300.0, "R_pad": 30.0, "F1": 1 / 3, "F2": 0.5,
@@ -39,7 +38,7 @@ def test_centreline_of_a_circular_arc_has_the_arc_length_and_band_area():
     length = np.sum(np.hypot(*np.diff(xy, axis=0).T))
     assert length == pytest.approx(r * math.radians(beta), rel=2e-5)
     assert np.allclose(width, w)
-    from geometry.arm_spring import _band
+    from flexopt.geometry.arm_spring import _band
 
     assert _band(xy, width).area == pytest.approx(w * r * math.radians(beta), rel=1e-4)
 

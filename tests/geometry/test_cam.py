@@ -9,9 +9,7 @@ import numpy as np
 import pytest
 import shapely
 import trimesh
-from scipy.integrate import quad
-
-from geometry.cam import (
+from flexopt.geometry.cam import (
     CamLayout,
     CamSprings,
     CorrectedCurve,
@@ -27,7 +25,8 @@ from geometry.cam import (
     synthesise_cam,
     torque_from_outline,
 )
-from geometry.errors import GeometryError
+from flexopt.geometry.errors import GeometryError
+from scipy.integrate import quad
 
 
 class Threshold:

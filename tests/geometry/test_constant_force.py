@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from shapely.geometry import Point, Polygon
-
-from geometry.constant_force import (
+from flexopt.geometry.constant_force import (
     DESIGN_VARIABLE_NAMES,
     FLEXURE_LENGTH_MM,
     TABLE1,
@@ -42,7 +40,8 @@ from geometry.constant_force import (
     stroke_samples_mm,
     table1_force_curve,
 )
-from geometry.errors import GeometryError
+from flexopt.geometry.errors import GeometryError
+from shapely.geometry import Point, Polygon
 
 ABS_E_MPA = 1800.0  # paper Sec. 2.2 (same as fea.materials "ABS")
 ABS_YIELD_MPA = 42.5
@@ -314,8 +313,8 @@ def test_table3_beam_gives_a_flat_post_buckling_force_in_the_beam_solver(steps):
     # ~0.03 mm stroke; with default settings the solver must stay on the branch the 0.086 mm bow
     # selects (the same side as the PRB crank pin) whatever the requested step size, not jump to
     # the mirror image or to a stiff higher-mode state.
-    from fea.beam import BeamSettings, EndDrive, solve_beam
-    from fea.materials import get_material
+    from flexopt.fea.beam import BeamSettings, EndDrive, solve_beam
+    from flexopt.fea.materials import get_material
 
     prof = beam_profile(TABLE3_OPTIMUM)
     drive = EndDrive("displacement", (-1.0, 0.0), 18.0, steps, "fixed", "fixed")

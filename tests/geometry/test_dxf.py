@@ -8,12 +8,9 @@ import sys
 import ezdxf
 import numpy as np
 import pytest
-from shapely import affinity
-from shapely.geometry import Point, Polygon, box
-
-from geometry.dxf import HOLES_LAYER, INSUNITS_MM, OUTLINE_LAYER, dxf_bytes, dxf_polygon
-from geometry.errors import GeometryError
-from geometry.solid import (
+from flexopt.geometry.dxf import HOLES_LAYER, INSUNITS_MM, OUTLINE_LAYER, dxf_bytes, dxf_polygon
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.solid import (
     FlatPart,
     StepUnavailable,
     extrude,
@@ -22,6 +19,8 @@ from geometry.solid import (
     sheet_profile,
     step_bytes,
 )
+from shapely import affinity
+from shapely.geometry import Point, Polygon, box
 
 
 def plate_with_holes() -> Polygon:

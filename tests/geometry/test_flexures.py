@@ -12,11 +12,8 @@ import math
 
 import numpy as np
 import pytest
-from scipy.integrate import quad
-from scipy.optimize import brentq
-
-from fea.beam import BeamModel, BeamSettings, EndDrive, solve_beam
-from fea.closed_forms import (
+from flexopt.fea.beam import BeamModel, BeamSettings, EndDrive, solve_beam
+from flexopt.fea.closed_forms import (
     PRB_GAMMA,
     circular_notch_compliance,
     circular_notch_compliance_simplified,
@@ -24,11 +21,11 @@ from fea.closed_forms import (
     elliptical_notch_compliance_simplified,
     pivot_closed_form,
 )
-from fea.constrained_beams import ConstrainedBeams
-from fea.materials import Material
-from fea.pivot import beam_pivot, plane_stress_pivot, pure_moment_centre
-from geometry.errors import GeometryError
-from geometry.flexures import (
+from flexopt.fea.constrained_beams import ConstrainedBeams
+from flexopt.fea.materials import Material
+from flexopt.fea.pivot import beam_pivot, plane_stress_pivot, pure_moment_centre
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.flexures import (
     FLEXURES,
     CircularNotch,
     CornerFilleted,
@@ -38,8 +35,10 @@ from geometry.flexures import (
     VariableLeaf,
     make_flexure,
 )
-from geometry.profile import BeamProfile
-from geometry.solid import extrude, min_feature_mm
+from flexopt.geometry.profile import BeamProfile
+from flexopt.geometry.solid import extrude, min_feature_mm
+from scipy.integrate import quad
+from scipy.optimize import brentq
 
 MAT = Material("test", E_MPa=2000.0, nu=0.3, yield_MPa=50.0)
 E = MAT.E_MPa
@@ -383,7 +382,10 @@ def test_closed_form_centre_is_the_geometric_middle():
 
 
 def test_prb_load_for_angle_inverts_the_spring():
-    from fea.closed_forms import prb_cantilever_load_for_angle_N, prb_cantilever_stiffness_Nmm
+    from flexopt.fea.closed_forms import (
+        prb_cantilever_load_for_angle_N,
+        prb_cantilever_stiffness_Nmm,
+    )
 
     P = prb_cantilever_load_for_angle_N(E, 5.0, 0.3, 40.0, 0.6)
     K = prb_cantilever_stiffness_Nmm(E, 5.0, 0.3, 40.0)

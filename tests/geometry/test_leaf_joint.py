@@ -39,18 +39,15 @@ import math
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
-from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
-
-from fea.leaf_joint import (
+from flexopt.fea.leaf_joint import (
     elastic_limit_rad,
     fixed_response,
     linear_joint_stiffness_Nmm,
     sliding_response,
 )
-from fea.materials import get_material
-from geometry.errors import GeometryError
-from geometry.leaf_joint import (
+from flexopt.fea.materials import get_material
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.leaf_joint import (
     PAPER_GEARS,
     LeafJoint,
     crank_angle_for_length_rad,
@@ -58,6 +55,8 @@ from geometry.leaf_joint import (
     planet_teeth,
     support_offset_mm,
 )
+from scipy.optimize import brentq
+from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
 
 STEEL = get_material("65Mn")  # E 206 GPa (the paper's), yield 785 MPa
 

@@ -6,9 +6,8 @@ import math
 
 import numpy as np
 import pytest
-
-from geometry.errors import GeometryError
-from geometry.mechanism import (
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.mechanism import (
     Attachment,
     BeamShape,
     BodyShape,
@@ -17,7 +16,7 @@ from geometry.mechanism import (
     end_pad,
     mechanism_outline,
 )
-from geometry.solid import extrude, min_feature_mm
+from flexopt.geometry.solid import extrude, min_feature_mm
 
 
 def _parallel_guide(t: float = 1.0, y: float = 10.0):

@@ -6,11 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from shapely import affinity
-from shapely.geometry import Polygon
-
-from geometry.errors import GeometryError
-from geometry.sea_spring import (
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.sea_spring import (
     GA_VARIABLES,
     TABLE6_LEVELS,
     TABLE9_BOUNDS,
@@ -21,7 +18,9 @@ from geometry.sea_spring import (
     params_to_vector,
     taguchi_params,
 )
-from geometry.solid import extrude
+from flexopt.geometry.solid import extrude
+from shapely import affinity
+from shapely.geometry import Polygon
 
 MID = np.array([0.5 * (lo + hi) for lo, hi in TABLE9_BOUNDS.values()])
 
@@ -55,7 +54,7 @@ def test_vector_round_trip_and_names():
 
 
 def test_every_table6_level_combination_of_the_l25_builds_or_explains():
-    from optimise.taguchi import select_array
+    from flexopt.optimise.taguchi import select_array
 
     lay = select_array({n: len(v) for n, v in TABLE6_LEVELS.items()})
     built = 0
@@ -122,7 +121,7 @@ def test_fillets_round_the_u_turn_corners():
 
 
 def test_other_arc_counts_have_variables_and_bounds():
-    from geometry.sea_spring import ga_bounds, ga_variables
+    from flexopt.geometry.sea_spring import ga_bounds, ga_variables
 
     assert ga_variables(5) == GA_VARIABLES and ga_bounds(5) == TABLE9_BOUNDS
     names, bounds = ga_variables(7), ga_bounds(7)

@@ -5,10 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from shapely.geometry import MultiPolygon, Point, Polygon, box
-
-from geometry.errors import GeometryError
-from geometry.solid import (
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.solid import (
     check_printable,
     check_solid,
     extrude,
@@ -16,6 +14,7 @@ from geometry.solid import (
     stl_bytes,
     thin_feature_at,
 )
+from shapely.geometry import MultiPolygon, Point, Polygon, box
 
 L_SHAPE = Polygon([(0, 0), (10, 0), (10, 2), (2, 2), (2, 10), (0, 10)])
 PLATE_WITH_HOLE = box(0.0, 0.0, 20.0, 10.0).difference(Point(8.0, 5.0).buffer(3.0, quad_segs=16))

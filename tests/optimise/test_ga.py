@@ -2,8 +2,7 @@
 
 import numpy as np
 import pytest
-
-from optimise import DesignSpace, Evaluation, GAConfig, OptimiseError, run_ga
+from flexopt.optimise import DesignSpace, Evaluation, GAConfig, OptimiseError, run_ga
 
 
 def sphere_with_constraint(X):

@@ -6,9 +6,8 @@ import math
 
 import numpy as np
 import pytest
-
-from optimise.errors import OptimiseError
-from optimise.gripper import (
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.gripper import (
     STANDARD_GRAVITY_M_PER_S2,
     FingerGeometry,
     JawLoad,

@@ -7,9 +7,7 @@ import pickle
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
-
-from optimise.requirements import (
+from flexopt.optimise.requirements import (
     AllowableStress,
     Envelope,
     Flag,
@@ -26,7 +24,8 @@ from optimise.requirements import (
     verdict_lines,
     verdict_record,
 )
-from optimise.targets import ConstantTarget, LinearTarget
+from flexopt.optimise.targets import ConstantTarget, LinearTarget
+from pydantic import ValidationError
 
 EPS = 1e-3
 

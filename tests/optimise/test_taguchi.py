@@ -8,10 +8,8 @@ from itertools import product
 
 import numpy as np
 import pytest
-from scipy import stats
-
-from optimise.errors import OptimiseError
-from optimise.taguchi import (
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.taguchi import (
     Pool,
     additivity_check,
     analyse,
@@ -32,6 +30,7 @@ from optimise.taguchi import (
     select_array,
     sn_ratio,
 )
+from scipy import stats
 
 
 def table(text: str) -> np.ndarray:

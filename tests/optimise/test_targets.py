@@ -6,11 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
-from scipy.integrate import quad
-
-from optimise.errors import OptimiseError
-from optimise.targets import (
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.targets import (
     ConstantTarget,
     LinearTarget,
     TableTarget,
@@ -20,6 +17,8 @@ from optimise.targets import (
     curve_error,
     measure_key,
 )
+from pydantic import ValidationError
+from scipy.integrate import quad
 
 
 def test_threshold_curve_matches_eq14_and_its_mode_split():

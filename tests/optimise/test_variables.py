@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
-
-from optimise.variables import (
+from flexopt.optimise.variables import (
     DesignVariables,
     VariableError,
     VariableSpec,
@@ -14,6 +12,7 @@ from optimise.variables import (
     parse_path,
     resolve_variables,
 )
+from pydantic import ValidationError
 
 
 def _root() -> dict:

@@ -30,11 +30,10 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
+from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
 from pydantic import BaseModel, Field
-
-from optimise import DesignDetail, DesignSpace, Evaluation
-from pipeline.studies import StudyKind, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
 
 
 class FaultGeometry(BaseModel):

@@ -16,11 +16,10 @@ from pathlib import Path
 import flexopt_toys
 import pytest
 import yaml
-
-from pipeline.cli import main
-from pipeline.parallel import ParallelSettings
-from pipeline.run import prepare_run, run_study
-from pipeline.study import validate_study
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.parallel import ParallelSettings
+from flexopt.pipeline.run import prepare_run, run_study
+from flexopt.pipeline.study import validate_study
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data" / "bad_studies"
@@ -82,7 +81,7 @@ def test_a_bad_study_is_one_line_and_changes_nothing(
 def test_the_real_command_prints_no_traceback(name, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     done = subprocess.run(
-        [sys.executable, "-m", "pipeline.cli", "run", str(DATA / name)],
+        [sys.executable, "-m", "flexopt.pipeline.cli", "run", str(DATA / name)],
         cwd=tmp_path,
         env=env,
         capture_output=True,

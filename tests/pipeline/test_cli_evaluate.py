@@ -10,15 +10,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import flexopt.pipeline as pipeline
 import numpy as np
 import pytest
 import yaml
-
-import pipeline
-from fea.beam import BeamResponse
-from pipeline.cli import main
-from pipeline.evaluate import EVALUATE_FILES
-from pipeline.study import list_examples, load_study
+from flexopt.fea.beam import BeamResponse
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.evaluate import EVALUATE_FILES
+from flexopt.pipeline.study import list_examples, load_study
 
 COLUMNS = [
     "step",
@@ -168,7 +167,7 @@ class _NotConvergingModel:
 
 
 def test_non_convergence_is_a_result_not_an_error(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("pipeline.studies.polyline_beam.BeamModel", _NotConvergingModel)
+    monkeypatch.setattr("flexopt.pipeline.studies.polyline_beam.BeamModel", _NotConvergingModel)
     out = tmp_path / "run"
     assert main(["evaluate", "cantilever", "--out", str(out)]) == 0
     err = capsys.readouterr().err.strip().splitlines()
@@ -185,7 +184,6 @@ def test_non_convergence_is_a_result_not_an_error(tmp_path, capsys, monkeypatch)
 
 def _env_with_source_tree() -> dict[str, str]:
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(SRC_ROOT), env.get("PYTHONPATH")]))
     env["COLUMNS"] = "100"
     return env
 
@@ -193,7 +191,7 @@ def _env_with_source_tree() -> dict[str, str]:
 def test_module_entry_point_in_a_subprocess(tmp_path):
     out = tmp_path / "run"
     ok = subprocess.run(
-        [sys.executable, "-m", "pipeline.cli", "evaluate", "cantilever", "--out", str(out)],
+        [sys.executable, "-m", "flexopt.pipeline.cli", "evaluate", "cantilever", "--out", str(out)],
         capture_output=True,
         text=True,
         cwd=tmp_path,
@@ -207,7 +205,15 @@ def test_module_entry_point_in_a_subprocess(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("name: x\ngeometry: {kind: polyline_beam, points_mm: [[0, 0]]}\n")
     refused = subprocess.run(
-        [sys.executable, "-m", "pipeline.cli", "evaluate", str(bad), "--out", str(tmp_path / "n")],
+        [
+            sys.executable,
+            "-m",
+            "flexopt.pipeline.cli",
+            "evaluate",
+            str(bad),
+            "--out",
+            str(tmp_path / "n"),
+        ],
         capture_output=True,
         text=True,
         cwd=tmp_path,

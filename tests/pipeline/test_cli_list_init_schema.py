@@ -17,11 +17,10 @@ from pathlib import Path
 
 import pytest
 import yaml
-
-from pipeline.cli import main
-from pipeline.init_study import default_example, example_kinds, starter_study, study_schema
-from pipeline.studies import builtin_kind_names, kinds
-from pipeline.study import list_examples, load_study, resolve_study_path
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.init_study import default_example, example_kinds, starter_study, study_schema
+from flexopt.pipeline.studies import builtin_kind_names, kinds
+from flexopt.pipeline.study import list_examples, load_study, resolve_study_path
 
 ROOT = Path(__file__).resolve().parents[2]
 KINDS = sorted(builtin_kind_names())

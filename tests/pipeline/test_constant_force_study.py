@@ -7,22 +7,21 @@ import pickle
 import time
 from pathlib import Path
 
+import flexopt.pipeline as pipeline
+import flexopt.pipeline.studies.constant_force as cf
 import numpy as np
 import pytest
 import yaml
-from shapely.geometry import Polygon
-
-import pipeline
-import pipeline.studies.constant_force as cf
-from geometry.constant_force import (
+from flexopt.geometry.constant_force import (
     DESIGN_VARIABLE_NAMES,
     TABLE3_OPTIMUM,
     beam_profile,
     design_to_vector,
 )
-from optimise import DesignProblem, GAConfig, run_ga
-from pipeline.errors import StudyError
-from pipeline.study import load_study, validate_study
+from flexopt.optimise import DesignProblem, GAConfig, run_ga
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.study import load_study, validate_study
+from shapely.geometry import Polygon
 
 EXAMPLE_PATH = Path(pipeline.__file__).parent / "examples" / "constant-force.yaml"
 EXAMPLE = yaml.safe_load(EXAMPLE_PATH.read_text())
@@ -97,7 +96,7 @@ def test_defaults_are_the_papers_set_up():
 
 
 def design_from_bounds(which: str) -> np.ndarray:
-    from geometry.constant_force import TABLE3_BOUNDS
+    from flexopt.geometry.constant_force import TABLE3_BOUNDS
 
     return np.asarray(getattr(TABLE3_BOUNDS, which))
 

@@ -12,17 +12,16 @@ from typing import Literal
 import numpy as np
 import pytest
 import trimesh
+from flexopt.geometry.dxf import dxf_polygon
+from flexopt.geometry.solid import SHEET_HINT
+from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.run import prepare_run, run_study
+from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
 from pydantic import BaseModel, Field
 from shapely import affinity
 from shapely.geometry import box
-
-from geometry.dxf import dxf_polygon
-from geometry.solid import SHEET_HINT
-from optimise import DesignDetail, DesignSpace, Evaluation
-from pipeline.cli import main
-from pipeline.run import prepare_run, run_study
-from pipeline.studies import EvaluationResult, StudyKind, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
 
 KIND = "toy_export_part"
 
@@ -156,7 +155,7 @@ def test_export_of_an_evaluate_folder(tmp_path, capsys):
 def test_step_without_the_extra_and_bad_formats_are_one_line_exit_2(tmp_path, capsys, monkeypatch):
     run_dir = _run(tmp_path)
     capsys.readouterr()
-    monkeypatch.setattr("pipeline.run.step_available", lambda: False)
+    monkeypatch.setattr("flexopt.pipeline.run.step_available", lambda: False)
     assert main(["export", str(run_dir), "--format", "step"]) == 2
     assert capsys.readouterr().err == (
         "flexopt export: error: --format step needs the optional extra: "

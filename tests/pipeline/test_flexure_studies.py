@@ -9,19 +9,18 @@ import math
 import pickle
 from pathlib import Path
 
+import flexopt.pipeline as pipeline
 import numpy as np
 import pytest
 import trimesh
 import yaml
-
-import pipeline
-from fea.closed_forms import pivot_closed_form
-from optimise import DesignProblem
-from pipeline.cli import main
-from pipeline.errors import StudyError
-from pipeline.studies.flexure_pivot import FlexurePivotProblem, build_flexure
-from pipeline.studies.leaf_spring_joint import LeafJointProblem, length_range_mm
-from pipeline.study import load_study, validate_study
+from flexopt.fea.closed_forms import pivot_closed_form
+from flexopt.optimise import DesignProblem
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies.flexure_pivot import FlexurePivotProblem, build_flexure
+from flexopt.pipeline.studies.leaf_spring_joint import LeafJointProblem, length_range_mm
+from flexopt.pipeline.study import load_study, validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
 PIVOT = yaml.safe_load((EXAMPLES / "flexure-pivot.yaml").read_text())

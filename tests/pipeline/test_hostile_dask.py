@@ -24,8 +24,7 @@ from pathlib import Path
 
 import flexopt_toys  # registers the toy_faults kind
 import pytest
-
-from pipeline.cli import main
+from flexopt.pipeline.cli import main
 
 pytest.importorskip("distributed")
 

@@ -21,11 +21,10 @@ from pathlib import Path
 
 import flexopt_toys  # registers the toy_faults kind
 import pytest
-
-from pipeline.cli import main
-from pipeline.parallel import ParallelSettings
-from pipeline.run import prepare_run, run_study
-from pipeline.study import (
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.parallel import ParallelSettings
+from flexopt.pipeline.run import prepare_run, run_study
+from flexopt.pipeline.study import (
     MAX_STUDY_BYTES,
     MAX_STUDY_DEPTH,
     MAX_STUDY_NODES,
@@ -240,7 +239,7 @@ def test_a_hostile_study_is_one_quick_line_and_changes_nothing(
 
 
 def test_the_limits_leave_every_shipped_study_alone():
-    from pipeline.study import list_examples, load_study
+    from flexopt.pipeline.study import list_examples, load_study
 
     for name in list_examples():
         load_study(name)  # raises on a false alarm

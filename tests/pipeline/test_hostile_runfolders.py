@@ -23,13 +23,12 @@ from pathlib import Path
 
 import flexopt_toys  # registers the toy_faults kind
 import pytest
-
-from pipeline.checkpoint import EvaluationStore
-from pipeline.cli import main
-from pipeline.parallel import ParallelSettings, design_key
-from pipeline.run import prepare_run, run_study
-from pipeline.runfolder import LOCK_FILE
-from pipeline.study import validate_study
+from flexopt.pipeline.checkpoint import EvaluationStore
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.parallel import ParallelSettings, design_key
+from flexopt.pipeline.run import prepare_run, run_study
+from flexopt.pipeline.runfolder import LOCK_FILE
+from flexopt.pipeline.study import validate_study
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -356,7 +355,7 @@ def test_a_torn_last_store_line_is_read_around_and_never_rewritten_by_readers(
 
 
 def test_report_is_refused_while_a_run_holds_the_folder(base, tmp_path, capsys):
-    from pipeline.runfolder import lock_run_dir
+    from flexopt.pipeline.runfolder import lock_run_dir
 
     run_dir = copy_of(base, tmp_path)
     before = snapshot(run_dir)

@@ -8,15 +8,14 @@ import math
 import numpy as np
 import pytest
 import yaml
-
-from geometry.solid import extrude
-from optimise.gripper import STANDARD_GRAVITY_M_PER_S2
-from pipeline.errors import StudyError
-from pipeline.studies import get_kind
-from pipeline.studies.cam import CamProblem
-from pipeline.studies.collision import extra_files as collision_files
-from pipeline.studies.gripper import extra_files as gripper_files
-from pipeline.study import load_study, parse_study_text, resolve_study_path, validate_study
+from flexopt.geometry.solid import extrude
+from flexopt.optimise.gripper import STANDARD_GRAVITY_M_PER_S2
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import get_kind
+from flexopt.pipeline.studies.cam import CamProblem
+from flexopt.pipeline.studies.collision import extra_files as collision_files
+from flexopt.pipeline.studies.gripper import extra_files as gripper_files
+from flexopt.pipeline.study import load_study, parse_study_text, resolve_study_path, validate_study
 
 
 def raw_example(name: str) -> dict:
@@ -194,7 +193,7 @@ def test_gripper_side_grip_by_friction_differs_from_eq14():
     raw["workpiece"] = {"mass_kg": 0.05, "friction": {"mu": 0.5, "contacts": 2, "safety": 2.0}}
     raw["jaws"] = [{"name": "side", "normal_deg": 180.0, "weight_share": 0.5}]
     study = validate_study(raw)
-    from pipeline.studies.gripper import requirement
+    from flexopt.pipeline.studies.gripper import requirement
 
     req = requirement(study)
     assert req["normal_force_N"] == pytest.approx(2.0 * 0.05 * STANDARD_GRAVITY_M_PER_S2 / 1.0)

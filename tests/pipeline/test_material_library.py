@@ -5,10 +5,9 @@ from __future__ import annotations
 import math
 
 import pytest
-
-from fea.errors import FeaError
-from fea.materials import MATERIALS, get_material
-from pipeline.study import MaterialSpec
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import MATERIALS, get_material
+from flexopt.pipeline.study import MaterialSpec
 
 
 @pytest.mark.parametrize("name", list(MATERIALS))
@@ -35,7 +34,7 @@ def test_lookup_ignores_case_and_separators():
 
 
 def test_library_name_resolves_to_the_full_record():
-    from pipeline.study import Study
+    from flexopt.pipeline.study import Study
 
     class _Only(Study):
         geometry: None = None  # type: ignore[assignment]

@@ -7,17 +7,16 @@ import copy
 import math
 from pathlib import Path
 
+import flexopt.pipeline as pipeline
 import numpy as np
 import pytest
 import yaml
-
-import pipeline
-from geometry.constant_force import DESIGN_VARIABLE_NAMES
-from pipeline.cli import main
-from pipeline.errors import StudyError
-from pipeline.studies import get_kind
-from pipeline.studies.mechanism import MechanismProblem
-from pipeline.study import load_study, validate_study
+from flexopt.geometry.constant_force import DESIGN_VARIABLE_NAMES
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import get_kind
+from flexopt.pipeline.studies.mechanism import MechanismProblem
+from flexopt.pipeline.study import load_study, validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
 E_PA12 = 1650.0  # MPa, the library's PA12 (fea/materials.py)
@@ -238,7 +237,7 @@ def test_constant_force_mechanism_matches_the_constant_force_kind():
 
 
 def test_gripper_amplifier_requires_the_gripper_studys_finger_force():
-    from pipeline.studies.gripper import requirement
+    from flexopt.pipeline.studies.gripper import requirement
 
     f1 = requirement(load_study("gripper"))["finger_force_N"]
     study = load_study("gripper-amplifier")

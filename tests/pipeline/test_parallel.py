@@ -14,9 +14,8 @@ from pathlib import Path
 import flexopt_toys  # registers the toy_faults kind; importable by workers
 import numpy as np
 import pytest
-
-from pipeline.cli import main
-from pipeline.parallel import (
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.parallel import (
     BackendError,
     ParallelSettings,
     ProcessPool,
@@ -26,10 +25,10 @@ from pipeline.parallel import (
     open_backend,
     timeout_reason,
 )
-from pipeline.plots import plot_response, quantity_name
-from pipeline.run import parallel_settings, prepare_run, run_study
-from pipeline.runfolder import read_records_csv
-from pipeline.study import validate_study
+from flexopt.pipeline.plots import plot_response, quantity_name
+from flexopt.pipeline.run import parallel_settings, prepare_run, run_study
+from flexopt.pipeline.runfolder import read_records_csv
+from flexopt.pipeline.study import validate_study
 
 
 def toy_setup(**geometry):

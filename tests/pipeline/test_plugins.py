@@ -27,11 +27,10 @@ import sys
 import textwrap
 from pathlib import Path
 
+import flexopt.pipeline.studies as studies
 import pytest
-
-import pipeline.studies as studies
-from pipeline.cli import main
-from pipeline.study import load_study, validate_study
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.study import load_study, validate_study
 
 # --------------------------------------------------------------------------------------------
 # The plugin packages
@@ -118,7 +117,7 @@ def flexopt(plugin_path: Path, cwd: Path, *args: str) -> subprocess.CompletedPro
     """The ``flexopt`` command, with the plugins' folder on ``PYTHONPATH``."""
     env = {**os.environ, "PYTHONPATH": str(plugin_path)}
     script = Path(sys.executable).with_name("flexopt")
-    command = [str(script)] if script.exists() else [sys.executable, "-m", "pipeline.cli"]
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "flexopt.pipeline.cli"]
     return subprocess.run(
         [*command, *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=600
     )
@@ -203,8 +202,8 @@ FAKES = {
     "fake_module_kind": """\
 from typing import Literal
 from pydantic import BaseModel
-from pipeline.studies import StudyKind, register
-from pipeline.study import STUDY_CONFIG, Study
+from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.study import STUDY_CONFIG, Study
 
 
 class G(BaseModel):
@@ -221,7 +220,7 @@ register(KIND)
 """,
     "fake_objects": """\
 from fake_module_kind import FakeStudy
-from pipeline.studies import StudyKind
+from flexopt.pipeline.studies import StudyKind
 
 KIND = StudyKind("fake_object", FakeStudy, lambda study: None)
 NOT_A_KIND = 42
@@ -240,7 +239,7 @@ def steals_a_builtin():
 """,
     "fake_registers_builtin": """\
 from fake_module_kind import FakeStudy
-from pipeline.studies import StudyKind, register
+from flexopt.pipeline.studies import StudyKind, register
 
 register(StudyKind("mechanism", FakeStudy, lambda study: None))
 """,

@@ -19,15 +19,14 @@ from typing import Literal
 
 import numpy as np
 import pytest
+from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
+from flexopt.pipeline.labels import label, variable_meanings, words
+from flexopt.pipeline.report_html import SECTIONS, sensitivity, top_designs
+from flexopt.pipeline.run import parallel_settings, prepare_run, rebuild_report, run_study
+from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
 from pydantic import BaseModel
 from shapely.geometry import box
-
-from optimise import DesignDetail, DesignSpace, Evaluation
-from pipeline.labels import label, variable_meanings, words
-from pipeline.report_html import SECTIONS, sensitivity, top_designs
-from pipeline.run import parallel_settings, prepare_run, rebuild_report, run_study
-from pipeline.studies import StudyKind, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
 
 # --------------------------------------------------------------------------------------------
 # A toy kind with what the page shows

@@ -21,20 +21,19 @@ from pathlib import Path
 import flexopt_toys  # registers the toy_faults kind
 import numpy as np
 import pytest
-
-from pipeline.checkpoint import (
+from flexopt.pipeline.checkpoint import (
     EvaluationStore,
     evaluation_from_record,
     evaluation_record,
     read_checkpoint,
 )
-from pipeline.cli import main
-from pipeline.errors import StudyError
-from pipeline.parallel import ParallelSettings, design_key
-from pipeline.run import prepare_run, run_study
-from pipeline.runfolder import read_records_csv
-from pipeline.status import run_status
-from pipeline.study import validate_study
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.parallel import ParallelSettings, design_key
+from flexopt.pipeline.run import prepare_run, run_study
+from flexopt.pipeline.runfolder import read_records_csv
+from flexopt.pipeline.status import run_status
+from flexopt.pipeline.study import validate_study
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -233,7 +232,7 @@ def test_status_and_report_of_a_finished_run(tmp_path, capsys):
 
 
 def test_a_full_disk_is_found_before_any_solve(tmp_path, capsys, monkeypatch):
-    import pipeline.runfolder as runfolder
+    import flexopt.pipeline.runfolder as runfolder
 
     def full(fd):
         raise OSError(errno.ENOSPC, "No space left on device")

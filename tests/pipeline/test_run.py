@@ -16,13 +16,10 @@ from typing import Any, Literal
 import numpy as np
 import pytest
 import trimesh
-from pydantic import BaseModel, Field
-from shapely.geometry import box
-
-from optimise import DesignDetail, DesignSpace, Evaluation
-from pipeline.cli import format_generation, main
-from pipeline.report import render_info
-from pipeline.run import (
+from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
+from flexopt.pipeline.cli import format_generation, main
+from flexopt.pipeline.report import render_info
+from flexopt.pipeline.run import (
     RUN_FILES,
     Evaluator,
     GenerationReport,
@@ -32,9 +29,11 @@ from pipeline.run import (
     run_study,
     step_available,
 )
-from pipeline.runfolder import read_records_csv
-from pipeline.studies import StudyKind, register
-from pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
+from flexopt.pipeline.runfolder import read_records_csv
+from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
+from pydantic import BaseModel, Field
+from shapely.geometry import box
 
 # --------------------------------------------------------------------------------------------
 # The toy kind
@@ -487,8 +486,8 @@ def test_info_rendering_keeps_scalars_and_small_tables():
 
 def test_constant_force_quick_smoke(tmp_path):
     """The shipped optimisable example runs end to end (`flexopt run constant-force --quick`)."""
-    from pipeline.studies import kinds
-    from pipeline.study import list_examples
+    from flexopt.pipeline.studies import kinds
+    from flexopt.pipeline.study import list_examples
 
     if "constant_force" not in kinds() or "constant-force" not in list_examples():
         pytest.skip("the constant_force kind or its example is not in this tree yet")

@@ -11,9 +11,8 @@ from datetime import datetime
 
 import numpy as np
 import pytest
-
-from pipeline.errors import StudyError
-from pipeline.runfolder import (
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.runfolder import (
     LOCK_FILE,
     check_out_dir,
     echo,

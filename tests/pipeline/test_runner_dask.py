@@ -24,12 +24,11 @@ from pathlib import Path
 import flexopt_toys  # registers the toy_faults kind; importable by workers
 import numpy as np
 import pytest
-
-from pipeline.cli import main
-from pipeline.parallel import BackendError, ParallelSettings, open_backend, timeout_reason
-from pipeline.run import prepare_run, run_study
-from pipeline.runfolder import read_records_csv
-from pipeline.study import validate_study
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.parallel import BackendError, ParallelSettings, open_backend, timeout_reason
+from flexopt.pipeline.run import prepare_run, run_study
+from flexopt.pipeline.runfolder import read_records_csv
+from flexopt.pipeline.study import validate_study
 
 distributed = pytest.importorskip("distributed")
 
@@ -178,7 +177,7 @@ def test_flexopt_run_on_dask_from_the_command_line(tmp_path, address, capsys):
 def test_a_cluster_whose_workers_all_leave_is_a_backend_error_not_a_hang(own_cluster):
     # The scheduler keeps the tasks of a cluster without workers queued for ever; the backend
     # gives up after its no-worker limit (3 s here) instead of waiting with them.
-    from pipeline.cluster import POLL_S, DaskBackend
+    from flexopt.pipeline.cluster import POLL_S, DaskBackend
 
     problem = toy_setup(sleep_s=0.5).problem
     backend = DaskBackend(

@@ -7,16 +7,20 @@ import math
 import pickle
 from pathlib import Path
 
+import flexopt.pipeline as pipeline
+import flexopt.pipeline.studies.sea_spring as ss
 import numpy as np
 import pytest
 import yaml
-
-import pipeline
-import pipeline.studies.sea_spring as ss
-from geometry.sea_spring import GA_VARIABLES, TABLE9_BOUNDS, build_spring, params_from_vector
-from optimise import DesignProblem
-from pipeline.errors import StudyError
-from pipeline.study import list_examples, load_study, validate_study
+from flexopt.geometry.sea_spring import (
+    GA_VARIABLES,
+    TABLE9_BOUNDS,
+    build_spring,
+    params_from_vector,
+)
+from flexopt.optimise import DesignProblem
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.study import list_examples, load_study, validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
 MINIMAL = {
@@ -148,8 +152,7 @@ def test_quick_example_runs_end_to_end(tmp_path):
     import json
 
     import trimesh
-
-    from pipeline.cli import main
+    from flexopt.pipeline.cli import main
 
     raw = yaml.safe_load((EXAMPLES / "sea-spring-quick.yaml").read_text())
     raw["mesh"].update(COARSE, curve_steps=1)
@@ -202,7 +205,7 @@ def test_spiral_problem_contract_and_solved_thickness():
 
 
 def test_spiral_screening_run_builds_or_explains_every_l25_row():
-    from optimise.taguchi import select_array
+    from flexopt.optimise.taguchi import select_array
 
     study = validate_study(SPIRAL)
     frame = ss.spring_frame(study)
@@ -237,7 +240,7 @@ def test_spiral_taguchi_stage_effects_contributions_and_plot():
     total = sum(parts) + error["percent"] - sum(r["percent"] for r in pooled)
     assert total == pytest.approx(100.0, abs=1e-6)
     assert stage1["chosen"]["RP"] in (2, 3, 4, 5, 6)
-    from pipeline.plots import plot_taguchi
+    from flexopt.pipeline.plots import plot_taguchi
 
     png = plot_taguchi(stage1["main_effects"], stage1["anova"])
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
@@ -245,11 +248,10 @@ def test_spiral_taguchi_stage_effects_contributions_and_plot():
 
 def test_slot_gap_of_a_u_shape_closes_by_what_the_prong_moves():
     # A U: two 2 mm prongs 20 mm long, a 1.0 mm slot between them, joined at x < 0.
+    from flexopt.fea.materials import get_material
+    from flexopt.fea.mesh import mesh_polygon
+    from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Translate
     from shapely.geometry import LineString, box
-
-    from fea.materials import get_material
-    from fea.mesh import mesh_polygon
-    from fea.plane_stress import Clamp, PlaneStressModel, Translate
 
     u_shape = box(-3.0, 0.0, 20.0, 5.0).difference(box(0.0, 2.0, 21.0, 3.0))
     mesh = mesh_polygon(u_shape, 0.5)

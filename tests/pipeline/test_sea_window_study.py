@@ -6,13 +6,12 @@ import json
 import math
 
 import pytest
-
-from fea.sea_window import Gearbox, Motor, rpm_to_rad_per_s, simulate_impact
-from fea.sea_window import torque_bandwidth_rad_per_s as bandwidth
-from pipeline.cli import main
-from pipeline.errors import StudyError
-from pipeline.studies import sea_window as sw
-from pipeline.study import load_study, validate_study
+from flexopt.fea.sea_window import Gearbox, Motor, rpm_to_rad_per_s, simulate_impact
+from flexopt.fea.sea_window import torque_bandwidth_rad_per_s as bandwidth
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import sea_window as sw
+from flexopt.pipeline.study import load_study, validate_study
 
 
 def test_example_window_bounds_meet_their_definitions(tmp_path):

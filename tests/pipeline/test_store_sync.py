@@ -6,9 +6,8 @@ import os
 
 import numpy as np
 import pytest
-
-from optimise.evaluation import Evaluation
-from pipeline.checkpoint import EvaluationStore
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.pipeline.checkpoint import EvaluationStore
 
 
 def evaluation(i: int) -> Evaluation:
@@ -25,7 +24,7 @@ def fsyncs(monkeypatch):
         calls.append(fd)
         real(fd)
 
-    monkeypatch.setattr("pipeline.checkpoint.os.fsync", counted)
+    monkeypatch.setattr("flexopt.pipeline.checkpoint.os.fsync", counted)
     return calls
 
 
@@ -60,7 +59,7 @@ def test_interval_zero_fsyncs_every_line(tmp_path, fsyncs):
 
 def test_append_syncs_by_itself_when_the_last_sync_is_old(tmp_path, fsyncs, monkeypatch):
     now = [1000.0]
-    monkeypatch.setattr("pipeline.checkpoint.time.monotonic", lambda: now[0])
+    monkeypatch.setattr("flexopt.pipeline.checkpoint.time.monotonic", lambda: now[0])
     store = EvaluationStore(tmp_path / "evaluations.jsonl", sync_interval_s=5.0)
     store.append(evaluation(0))
     now[0] += 4.0

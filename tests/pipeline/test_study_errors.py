@@ -5,13 +5,12 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
+import flexopt.pipeline as pipeline
 import pytest
 import yaml
-
-import pipeline
-from pipeline.cli import main
-from pipeline.errors import StudyError
-from pipeline.study import load_study, parse_study_text, validate_study
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.study import load_study, parse_study_text, validate_study
 
 EXAMPLE = yaml.safe_load(
     (Path(pipeline.__file__).parent / "examples" / "cantilever.yaml").read_text()

@@ -9,13 +9,12 @@ import pickle
 
 import numpy as np
 import pytest
-
-from fea.collision import CollisionModel, score_spring_curve
-from optimise.targets import ThresholdTarget, curve_error
-from pipeline.errors import StudyError
-from pipeline.studies import get_kind
-from pipeline.studies import threshold_spring as ts
-from pipeline.study import load_study, parse_study_text, resolve_study_path, validate_study
+from flexopt.fea.collision import CollisionModel, score_spring_curve
+from flexopt.optimise.targets import ThresholdTarget, curve_error
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import get_kind
+from flexopt.pipeline.studies import threshold_spring as ts
+from flexopt.pipeline.study import load_study, parse_study_text, resolve_study_path, validate_study
 
 EXAMPLE = parse_study_text(resolve_study_path("threshold-spring").read_text())
 
@@ -210,8 +209,8 @@ def test_evaluate_writes_plots_and_a_watertight_stl(evaluated):
 
 
 def test_quick_run_end_to_end(tmp_path):
-    from pipeline.parallel import ParallelSettings
-    from pipeline.run import prepare_run, run_study
+    from flexopt.pipeline.parallel import ParallelSettings
+    from flexopt.pipeline.run import prepare_run, run_study
 
     study = study_with(fidelity={"enabled": False})
     outcome = run_study(

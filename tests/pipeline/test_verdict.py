@@ -9,11 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
-from pipeline.cli import main
-from pipeline.evaluate import evaluate_study
-from pipeline.run import build_problem
-from pipeline.study import list_examples, load_study, resolve_study_path, validate_study
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.evaluate import evaluate_study
+from flexopt.pipeline.run import build_problem
+from flexopt.pipeline.study import list_examples, load_study, resolve_study_path, validate_study
 
 
 def _raw(name: str) -> dict:
@@ -119,7 +118,7 @@ def test_an_unknown_quantity_is_refused_at_load_time(tmp_path, capsys):
     ],
 )  # fmt: skip
 def test_bad_requirements_name_their_key(item, where, words):
-    from pipeline.errors import StudyError
+    from flexopt.pipeline.errors import StudyError
 
     raw = _raw("cantilever")
     raw["requirements"] = [item]
