@@ -16,7 +16,12 @@ from flexopt.fea.plane_stress import Clamp, Rotate, Translate, solve_plane_stres
 from flexopt.fea.solid3d import (
     Solid3DSettings,
     _williams_growth,
+    band_reachable,
+    compare_with_plane_stress,
     converge_peak_stress,
+    correct_thickness_3d,
+    corrected_thickness_mm,
+    correction_needed,
     extrude_layers_mm,
     extrude_mesh,
     solve_solid3d,
@@ -225,6 +230,125 @@ def test_uniform_stress_converges_to_the_exact_value():
     )  # fmt: skip
     assert r["converged"] and r["status"] == "converged" and r["corner"] is None
     assert r["last_two_MPa"][-1] == pytest.approx(E * stroke / L, rel=1e-6)
+
+
+def _plate_with_hole(quad_segs: int):
+    """60 x 60 mm plate, a 8 mm hole in its middle sampled by 4 quad_segs facets."""
+    return box(0.0, 0.0, 60.0, 60.0).difference(Point(30.0, 30.0).buffer(4.0, quad_segs=quad_segs))
+
+
+def _pull_plate(outline, max_rounds=6):
+    """nu = 0 plate pulled along x by its ends: a uniform stress far from the hole."""
+    mat = Material("nu0", E, 0.0, 1000.0)
+    clamp = Clamp(LineString([(0, 0), (0, 60)]))
+    drive = Translate(LineString([(60, 0), (60, 60)]), (1.0, 0.0), 0.01, 1)
+    r = converge_peak_stress(outline, 1.0, mat, clamp, drive, 3.0, max_rounds=max_rounds)
+    return r, mat, clamp, drive
+
+
+def test_finely_sampled_hole_converges_to_the_kirsch_heywood_concentration():
+    """A hole whose facets turn by 0.35 deg: the peak converges (its facet creep is ~0.3 % per
+    halving) to Kt times the gross stress, Kt of a finite-width plate from Heywood's formula
+    (Kirsch's 3 for an infinite one)."""
+    outline = _plate_with_hole(256)
+    r, mat, clamp, drive = _pull_plate(outline)
+    assert r["converged"], r["status"]
+    assert "re-entrant vertex" in r["status"] and r["corner"]["interior_angle_deg"] < 180.5
+    rel = abs(r["last_two_MPa"][1] / r["last_two_MPa"][0] - 1.0)
+    assert rel < 0.01
+    # gross stress: the reaction over the plate's section, on the first mesh
+    res = solve_plane_stress(mesh_polygon(outline, 3.0), mat, 1.0, clamp, drive, "linear")
+    sigma_gross = res.force_N[-1] / (60.0 * 1.0)
+    a = 1.0 - 8.0 / 60.0  # Heywood: Kt_net = 2 + 0.284 a - 0.600 a^2 + 1.32 a^3, a = 1 - d/W
+    kt_gross = (2.0 + 0.284 * a - 0.600 * a**2 + 1.32 * a**3) / a
+    assert r["last_two_MPa"][1] / sigma_gross == pytest.approx(kt_gross, rel=0.03)
+
+
+def test_coarsely_sampled_hole_does_not_converge_and_says_how_to_sample():
+    r, *_ = _pull_plate(_plate_with_hole(32), max_rounds=4)  # 2.8 deg facets
+    assert not r["converged"]
+    assert r["corner"]["interior_angle_deg"] == pytest.approx(180.0 + 90.0 / 32, abs=1e-6)
+    assert "sample the curve" in r["corner"]["fix"]
+
+
+# --------------------------------------------------------------------------------------------
+# Correcting the thickness for the 3D stiffness
+
+
+def test_band_reachable_and_the_correction_formula():
+    # the default SEA optimum's two directions in 2D: 3.96 % apart, the +-2 % band admits 4.08 %
+    b = band_reachable([269.66, 280.34], 2.0)
+    assert b["reachable"] and b["max_spread_percent"] == pytest.approx((1.02 / 0.98 - 1) * 100)
+    assert b["spread_percent"] == pytest.approx((280.34 / 269.66 - 1) * 100)
+    assert b["half_spread_percent"] == pytest.approx(5.34 / 275.0 * 100)
+    assert not band_reachable([265.0, 286.0], 2.0)["reachable"]
+    assert corrected_thickness_mm(19.2, [270.0, 290.0], 275.0) == pytest.approx(19.2 * 275 / 280)
+    assert correction_needed(1.0216, 2.0, 0.25) and not correction_needed(1.004, 2.0, 0.25)
+    with pytest.raises(FeaError):
+        corrected_thickness_mm(0.0, [1.0], 1.0)
+
+
+def test_correction_loop_on_a_ratio_that_grows_with_the_depth():
+    """A synthetic spring: 2D stiffness k t in both directions (+-a about it), 3D/2D = 1 + c t^2
+    (as steep as measured on the SEA spring, issue 15: 1.0216 at 19.19 mm, 1.0205 at 18.78 mm).
+    The loop reaches the fixed point t (1 + c t^2) k = K, a root of a cubic, in three checks."""
+    k, c, target, a = 14.0, 5.86e-5, 275.0, 0.0194
+
+    def check(t):
+        ratio = 1.0 + c * t * t
+        k3 = {"ccw": k * t * ratio * (1 - a), "cw": k * t * ratio * (1 + a)}
+        return {"stiffness_3d": k3, "stiffness_ratio_3d_2d": ratio}
+
+    t2d = target / k
+    out = correct_thickness_3d(check, t2d, target, 2.0, 0.25, max_checks=4)
+    roots = np.roots([c * k, 0.0, k, -target])
+    t_exact = float(roots[np.abs(roots.imag) < 1e-12].real.max())
+    assert out["corrected"] and out["thickness_after_mm"] < t2d
+    assert out["thickness_after_mm"] == pytest.approx(t_exact, rel=1e-4)
+    assert out["in_band"] and out["stopped"] == "in the band and centred"
+    assert len(out["checks"]) == 3  # one step leaves ccw at -2.0x %; the second centres it
+    assert not out["checks"][1]["in_band"]
+    assert out["checks"][1]["stiffness_error_percent"]["ccw"] < -2.0
+
+    # too asymmetric for the band: said, with numbers, after one correction
+    def wide_check(t):
+        return {**check(t), "stiffness_3d": {"ccw": k * t * 0.97, "cw": k * t * 1.03}}
+
+    wide = correct_thickness_3d(wide_check, t2d, target, 2.0, max_checks=4)
+    assert not wide["in_band"] and len(wide["checks"]) == 2 and "exceeds" in wide["stopped"]
+    assert not wide["band"]["reachable"]
+
+    # a ratio within a quarter of the band: one check, no correction
+    def near_check(t):
+        return {"stiffness_3d": {"ccw": k * t * 1.003}, "stiffness_ratio_3d_2d": 1.003}
+
+    near = correct_thickness_3d(near_check, t2d, target, 2.0)
+    assert not near["corrected"] and len(near["checks"]) == 1
+    assert near["thickness_after_mm"] == t2d
+
+
+def test_correction_brings_the_deep_strip_to_its_target_in_3d():
+    """The 19.2 mm deep strip designed in plane stress to a target stiffness is ~4.5 % stiffer
+    as a solid; the corrected depth meets the target in 3D within a quarter of a 2 % band."""
+    mat = Material("steel", E, 0.3, 1000.0)
+    mesh = _strip(1.5)
+    clamp, drive = _strip_supports()
+    settings = Solid3DSettings(layers=3)
+
+    def check(t):
+        c = compare_with_plane_stress(mesh, mat, t, clamp, drive, settings)
+        return {"stiffness_3d": {"y": c["stiffness_3d"]},
+                "stiffness_ratio_3d_2d": c["stiffness_ratio"]}  # fmt: skip
+
+    # the plane-stress design: the target is its 2D stiffness at H (plane stress is linear in t)
+    target = compare_with_plane_stress(mesh, mat, H, clamp, drive, settings)["stiffness_2d"]
+    out = correct_thickness_3d(check, H, target, 2.0, 0.25)
+    first = out["checks"][0]
+    assert first["stiffness_ratio_3d_2d"] > 1.03  # issue 15: +4.5 % at this depth
+    assert abs(first["mean_error_percent"]) > 2.0  # the 2D design misses in 3D
+    assert out["corrected"] and out["in_band"]
+    assert abs(out["checks"][-1]["mean_error_percent"]) <= 0.5
+    assert out["thickness_after_mm"] == pytest.approx(H / first["stiffness_ratio_3d_2d"], rel=0.01)
 
 
 # --------------------------------------------------------------------------------------------
