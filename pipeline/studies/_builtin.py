@@ -183,6 +183,24 @@ def sea_spring(study: Any) -> list[Requirement]:
         if getattr(t, "directions", "both") == "both":
             reqs.append(Range("stiffness_cw_Nm_per_rad", "stiffness, clockwise", "check", lo, hi))
     reqs.append(AllowableStress("peak_stress_MPa", "peak stress", "check", t.allowable_stress_MPa))
+    s3 = getattr(study, "solid_3d", None)
+    if s3 is not None and s3.check:
+        # the part as made (issue 15): each direction's 3D stiffness at the corrected ST, the
+        # spread the band admits (a thickness scales both directions alike), the 3D peak
+        if k is not None:
+            pct = f"{t.tolerance_percent:g} %"
+            reqs.append(Range("stiffness_ccw_3d_Nm_per_rad", f"3D stiffness ccw within {pct}",
+                              "check", lo, hi))  # fmt: skip
+            if getattr(t, "directions", "both") == "both":
+                reqs.append(Range("stiffness_cw_3d_Nm_per_rad", f"3D stiffness cw within {pct}",
+                                  "check", lo, hi))  # fmt: skip
+                reqs.append(MaxValue("stiffness_spread_3d_percent",
+                                     "3D cw/ccw spread the band admits", "check",
+                                     ((1 + tol) / (1 - tol) - 1) * 100))  # fmt: skip
+        reqs.append(AllowableStress("peak_stress_3d_MPa", "3D peak stress ≤ allowable", "check",
+                                    t.allowable_stress_MPa))  # fmt: skip
+        if s3.converge_peak:
+            reqs.append(Flag("peak_stress_converged", "peak stress mesh-converged", "check", True))
     if t.max_asymmetry_percent is not None:
         reqs.append(MaxValue("asymmetry_percent", "asymmetry", "constraint",
                              t.max_asymmetry_percent))  # fmt: skip
@@ -196,6 +214,8 @@ SEA_SPRING = (
     "ST_mm", "stiffness_Nm_per_rad", "stiffness_ccw_Nm_per_rad", "stiffness_cw_Nm_per_rad",
     "linear_stiffness_Nm_per_rad", "asymmetry_percent", "peak_stress_MPa", "mass_g",
     "deformed_slot_mm", "torque_Nm", "rotation_deg", "torque_linear_Nm",
+    "stiffness_ccw_3d_Nm_per_rad", "stiffness_cw_3d_Nm_per_rad", "peak_stress_3d_MPa",
+    "stiffness_spread_3d_percent", "stiffness_ratio_3d_2d", "ST_3d_mm", "peak_stress_converged",
 )  # fmt: skip
 
 
