@@ -27,20 +27,31 @@ motion is never jumped and then iterated.
 Everything about one beam (its internal force and tangent, stress recovery) comes from
 :class:`~fea.beam.BeamModel`; this module only adds the constraints and the stepping. It uses the
 model's ``_assemble`` and ``_stress`` (internal to fea.beam, so a change there shows up in
-``tests/geometry/test_flexures.py``). The systems are small (a few hundred unknowns) and solved
-with a sparse LU.
+``tests/geometry/test_flexures.py``). The systems are small (a few hundred unknowns).
+
+Two implementations of the same Newton (``ConstrainedSettings.kernel``; "auto" follows the beam
+kernel's switch, env FLEXOPT_BEAM_KERNEL): the compiled one (numba, fea/_constrained_kernels.py,
+the default) assembles with the beam kernel, solves the KKT system by bordering the beams' band
+(banded LU + a small dense Schur complement) and runs the Newton loop as machine code; the
+reference (numpy) builds scipy sparse matrices and solves with SuperLU. Same decisions, answers
+equal to round-off (tests/fea/test_constrained_kernels.py); where the bordering cannot take a
+system (a beam no local constraint holds) the compiled path runs the reference for that sub-step.
 
 Failure to converge is data (``converged`` flags, ``ok``, ``message``), never raised.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cache
+from types import ModuleType
+from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
-from flexopt.fea.beam import BeamModel
+from flexopt.fea.beam import BeamModel, _resolve_kernel
 from flexopt.fea.errors import FeaError
 from scipy.linalg.lapack import dsytrf
 from scipy.sparse.linalg import splu
@@ -63,6 +74,36 @@ LoadFunction = Callable[[float, np.ndarray], tuple[np.ndarray, "sp.spmatrix | No
 
 #: half-bandwidth of BeamModel's band storage (node-by-node numbering, 3 nodes x 3 fields)
 _BAND = 8
+#: band storage of the compiled kernels: rows per column and the diagonal's row (fea/_beam_kernels)
+_LDAB = 3 * _BAND + 1
+_KV = 2 * _BAND
+
+log = logging.getLogger(__name__)
+
+
+@cache
+def _kernels() -> ModuleType | None:
+    """fea._constrained_kernels, or None when numba cannot be imported (the reference runs)."""
+    try:
+        from flexopt.fea import _constrained_kernels
+    except Exception as exc:  # ImportError, or a numba that fails on this platform's LLVM
+        log.debug("numba constrained kernel unavailable (%s: %s)", type(exc).__name__, exc)
+        return None
+    return _constrained_kernels
+
+
+def _resolve(setting: str) -> str:
+    """The path that runs for ``kernel`` = ``setting``: "numba" or "numpy" (the reference)."""
+    kernel = _resolve_kernel(setting)
+    return "numba" if kernel == "numba" and _kernels() is not None else "numpy"
+
+
+#: texts of the compiled Newton's status codes (fea/_constrained_kernels.py), as the reference's
+_REASONS = {
+    1: "singular system (a mechanism: add a constraint)",
+    2: "the correction became NaN or inf",
+    3: "the internal force became NaN or inf",
+}
 
 
 @dataclass(frozen=True)
@@ -83,6 +124,11 @@ class ConstrainedSettings:
         are scaled down), for the reason given in fea.beam: far from equilibrium a slender beam's
         full Newton step can turn sections by radians.
     dtol : a Newton correction below dtol x the length scale is round-off (converged).
+    kernel : "auto", "numba" or "numpy" — the compiled Newton (fea/_constrained_kernels.py) or
+        the scipy reference; same physics, answers equal to round-off. "auto" follows
+        FLEXOPT_BEAM_KERNEL (numba | numpy; default numba) like ``BeamSettings.kernel``. The
+        compiled path needs every beam on the compiled beam kernel, else the reference runs;
+        ``ConstrainedBeams.kernel`` says which one does.
     """
 
     rtol: float = 1e-9
@@ -92,6 +138,7 @@ class ConstrainedSettings:
     fast_iterations: int = 5
     max_rotation_step: float = 0.5
     dtol: float = 1e-13
+    kernel: Literal["auto", "numba", "numpy"] = "auto"
 
 
 @dataclass(frozen=True)
@@ -225,6 +272,30 @@ class ConstrainedBeams:
             self._band_src.append(src)
         self._k_rows = np.concatenate(rows)
         self._k_cols = np.concatenate(cols)
+        #: "numba" (compiled, fea/_constrained_kernels.py) or "numpy" (the reference)
+        self.kernel = _resolve(settings.kernel)
+        if any(b.kernel != "numba" for b in self.beams):
+            self.kernel = "numpy"
+        if self.kernel == "numba":
+            self._setup_compiled()
+
+    def _setup_compiled(self) -> None:
+        """The beams' kernel tables concatenated along the elements, and the index arrays."""
+        geos = [b._geo for b in self.beams]
+        self._geo = tuple(
+            geos[0][k] if k == 1 else np.ascontiguousarray(np.concatenate([g[k] for g in geos]))
+            for k in range(len(geos[0]))
+        )
+        self._eoff = np.concatenate([[0], np.cumsum([b.n_elements for b in self.beams])]).astype(
+            np.int64
+        )
+        self._offsets64 = self.offsets.astype(np.int64)
+        self._rot64 = self._rot.astype(np.int64)
+        self._n_beam = int(self.offsets[-1])
+        st = self.settings
+        self._fpar = np.array(
+            [st.rtol, st.ctol, st.dtol, st.max_rotation_step, self._length, self._force_floor]
+        )
 
     # ---- helpers for building constraints --------------------------------------------------
 
@@ -280,6 +351,10 @@ class ConstrainedBeams:
         self, z0: np.ndarray, lam0: np.ndarray, p: float
     ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, int, str]:
         """Equilibrium at p from (z0, lam0): (converged, z, lam, r, iterations, reason)."""
+        if self.kernel == "numba":
+            out = self._newton_compiled(z0, lam0, p)
+            if out is not None:
+                return out
         st = self.settings
         C, d = self._constraint_arrays(p)
         z, lam = z0.copy(), lam0.copy()
@@ -326,6 +401,65 @@ class ConstrainedBeams:
             r,
             st.max_iterations,
             (f"Newton did not converge in {st.max_iterations} iterations"),
+        )
+
+    def _newton_compiled(
+        self, z0: np.ndarray, lam0: np.ndarray, p: float
+    ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, int, str] | None:
+        """:meth:`_newton` on the compiled kernel; None when it hands the sub-step back (the
+        bordered solve cannot take this system) and the reference must run it."""
+        kern = _kernels()
+        st = self.settings
+        C, d = self._constraint_arrays(p)
+        C = np.ascontiguousarray(C)
+        z = np.array(z0, dtype=np.float64)
+        lam = np.array(lam0, dtype=np.float64)
+        r = np.empty(self.n)
+        abc = np.empty((self._n_beam, _LDAB))
+        args = (self._geo, self._eoff, self._offsets64, self._frame, self._rot64)
+        if self.loads is None:
+            code, it = kern.newton(z, lam, C, d, *args, self._fpar, st.max_iterations, r, abc)
+        else:
+            code, it = kern.MAX_ITERATIONS, st.max_iterations
+            ptr, idx, val, local = kern.constraint_rows(C, self._n_beam)
+            u, work = np.empty(self.n), np.empty(self.n)
+            kern.assemble_all(z, *args[:4], u, r, abc)
+            rho = max(1.0, float(np.abs(abc[:, _KV]).max(initial=0.0)))
+            f, kf = self._loads_coo(p, z)
+            for i in range(1, st.max_iterations + 1):
+                status, dmax = kern.iterate(
+                    z, lam, r, abc, f, *kf, d, ptr, idx, val, local, rho, *args,
+                    st.max_rotation_step, u, work,
+                )  # fmt: skip
+                if status != kern.OK:
+                    code, it = status, i
+                    break
+                f, kf = self._loads_coo(p, z)
+                fp = self._fpar
+                if kern.converged(z, lam, r, f, d, ptr, idx, val, dmax, *fp[:3], *fp[4:], work):
+                    code, it = kern.OK, i
+                    break
+        if code == kern.FALLBACK:
+            return None
+        if code == kern.OK:
+            return True, z, lam, r, int(it), ""
+        if code == kern.MAX_ITERATIONS:
+            reason = f"Newton did not converge in {st.max_iterations} iterations"
+            return False, z0, lam0, r, st.max_iterations, reason
+        return False, z0, lam0, r, int(it), _REASONS[int(code)]
+
+    def _loads_coo(
+        self, p: float, z: np.ndarray
+    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Applied loads (N,) and their derivative as COO (rows, cols, values) for the kernel."""
+        f, dfdz = self._loads(p, z)
+        if dfdz is None:
+            return np.ascontiguousarray(f), (_NO_INDEX, _NO_INDEX, _NO_VALUE)
+        coo = sp.coo_matrix(dfdz)
+        return np.ascontiguousarray(f), (
+            coo.row.astype(np.int64),
+            coo.col.astype(np.int64),
+            coo.data.astype(np.float64),
         )
 
     def _loads(self, p: float, z: np.ndarray) -> tuple[np.ndarray, sp.spmatrix | None]:
@@ -454,6 +588,18 @@ class ConstrainedBeams:
         eigenvalues (C of full row rank; a redundant C makes Newton's system singular first).
         An inertia that could not be computed is not claimed unstable.
         """
+        if self.kernel == "numba":
+            kern = _kernels()
+            z = np.ascontiguousarray(z, dtype=np.float64)
+            r, u = np.empty(self.n), np.empty(self.n)
+            abc = np.empty((self._n_beam, _LDAB))
+            kern.assemble_all(z, self._geo, self._eoff, self._offsets64, self._frame, u, r, abc)
+            _, kf = self._loads_coo(p, z)
+            C, _ = self._constraint_arrays(p)
+            negative = kern.kkt_negatives_band(abc, self.n, *kf, np.ascontiguousarray(C))
+            if negative >= 0:
+                return negative == C.shape[0]
+            # a zero pivot: the reference's dense Bunch-Kaufman below counts
         _, K = self._assemble(z)
         _, Kf = self._loads(p, z)
         Kt = sp.csr_matrix(K) if Kf is None else sp.csr_matrix(K) - sp.csr_matrix(Kf)
@@ -478,13 +624,19 @@ def _band_entries(n: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.
     The model's tangent is in LAPACK gbsv storage, A[i, j] = ab[kl + ku + i - j, j]; its rows
     kl.. are the plain band (A[i, j] = ab[ku + i - j, j] of ``ab[kl:]``).
     """
-    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    inside = np.abs(i - j) <= _BAND
+    # row by row, columns increasing (what a dense n x n mask would give, in O(n) memory)
+    i = np.repeat(np.arange(n), 2 * _BAND + 1).reshape(n, -1)
+    j = i + np.arange(-_BAND, _BAND + 1)
+    inside = (j >= 0) & (j < n)
     rows, cols = i[inside], j[inside]
     return rows, cols, (_BAND + rows - cols, cols)
 
 
-def kkt_negative_count(H: sp.spmatrix, G: sp.spmatrix) -> int:
+_NO_INDEX = np.zeros(0, dtype=np.int64)
+_NO_VALUE = np.zeros(0)
+
+
+def kkt_negative_count(H: sp.spmatrix, G: sp.spmatrix, kernel: str = "auto") -> int:
     """Negative eigenvalues of the symmetric KKT matrix [[H, G^T], [G, 0]] (Sylvester inertia).
 
     Adding G^T rho G to H is a congruence of the KKT matrix (it does not change the inertia),
@@ -496,7 +648,26 @@ def kkt_negative_count(H: sp.spmatrix, G: sp.spmatrix) -> int:
     (Sylvester's law). When SuperLU had to pivot anyway (a zero pivot), a dense Bunch-Kaufman
     LDL^T (LAPACK dsytrf) with one BLAS thread counts instead: every 2x2 block it chooses is
     indefinite (one negative eigenvalue). Returns -1 when neither factorisation worked.
+
+    ``kernel`` ("auto" follows FLEXOPT_BEAM_KERNEL): on "numba" the same natural-order LDL^T runs
+    compiled in envelope storage (fea/_constrained_kernels.py), and only a zero pivot goes on to
+    the dense count.
     """
+    if _resolve(kernel) == "numba":
+        Hc = sp.coo_matrix(H)
+        Gr = sp.csr_matrix(G)
+        Gr.sum_duplicates()
+        negative = _kernels().kkt_negatives_coo(
+            int(H.shape[0]),
+            Hc.row.astype(np.int64),
+            Hc.col.astype(np.int64),
+            Hc.data.astype(np.float64),
+            Gr.indptr.astype(np.int64),
+            Gr.indices.astype(np.int64),
+            Gr.data.astype(np.float64),
+        )
+        if negative >= 0:
+            return int(negative)
     Hc = sp.csr_matrix(H)
     rho = max(float(np.abs(Hc.diagonal()).max(initial=0.0)), 1.0)
     Kkt = sp.bmat([[Hc + rho * (G.T @ G), G.T], [G, None]], format="csc")
