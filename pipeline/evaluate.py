@@ -27,7 +27,14 @@ from flexopt.pipeline.studies import EvaluationResult, get_kind
 from flexopt.pipeline.study import Study, study_to_yaml
 from flexopt.pipeline.verdict import judge
 
-__all__ = ["EVALUATE_FILES", "EvaluateOutcome", "evaluate_study", "versions"]
+__all__ = [
+    "EVALUATE_FILES",
+    "EvaluateOutcome",
+    "evaluate_study",
+    "response_plot_args",
+    "solve_study",
+    "versions",
+]
 
 log = logging.getLogger(__name__)
 
@@ -79,6 +86,46 @@ def _extra_files(result: EvaluationResult) -> dict[str, bytes]:
     return files
 
 
+def solve_study(study: Study, repeat: int = 1, source: str = "") -> EvaluationResult:
+    """Solve ``study`` ``repeat`` times with its kind's ``evaluate`` and judge the last solve.
+
+    The result's ``verdicts`` are the kind's own, else the study's requirements judged on its
+    summary and table (:func:`pipeline.verdict.judge`). Nothing is written.
+
+    Raises
+    ------
+    StudyError
+        When the kind has no ``evaluate`` (it is only optimised: ``flexopt run``) or the solver
+        refuses the inputs.
+    """
+    kind = get_kind(study.kind)
+    if kind.evaluate is None:
+        raise StudyError(
+            "geometry.kind",
+            f"kind '{kind.name}' is only optimised, not evaluated on its own; "
+            f"run it with `flexopt run {source or 'STUDY'}`",
+            source=source or None,
+        )
+    log.info("evaluating %s (%s), %d repeat(s)", study.name, study.kind, repeat)
+    result = kind.evaluate(study, repeat)
+    if not result.verdicts:
+        result = replace(result, verdicts=judge(study, result.summary, result.table))
+    return result
+
+
+def response_plot_args(study: Study, result: EvaluationResult) -> dict[str, Any]:
+    """The arguments of :func:`pipeline.plots.plot_response` (or ``response_figure``) beyond
+    the table, for the response of ``result``: what force_displacement.png shows."""
+    return {
+        "x": result.plot.get("x", "displacement_mm"),
+        "left": result.plot.get("left", "force_N"),
+        "right": result.plot.get("right", "peak_stress_MPa"),
+        "allowable_MPa": result.plot.get("allowable_MPa"),
+        "title": f"{study.name} ({study.kind})",
+        "labels": result.plot,
+    }
+
+
 def evaluate_study(
     study: Study,
     out: Path | None = None,
@@ -114,21 +161,9 @@ def evaluate_study(
     """
     if out is not None:
         check_out_dir(out)
-    kind = get_kind(study.kind)
-    if kind.evaluate is None:
-        raise StudyError(
-            "geometry.kind",
-            f"kind '{kind.name}' is only optimised, not evaluated on its own; "
-            f"run it with `flexopt run {source or 'STUDY'}`",
-            source=source or None,
-        )
     started = datetime.now().astimezone()
-    log.info("evaluating %s (%s), %d repeat(s)", study.name, study.kind, repeat)
-    result = kind.evaluate(study, repeat)
-
-    verdicts = result.verdicts or judge(study, result.summary, result.table)
-    if not result.verdicts:
-        result = replace(result, verdicts=verdicts)
+    result = solve_study(study, repeat, source)
+    verdicts = result.verdicts
     run_dir = make_run_dir(out or new_run_dir_path(runs_root, study.name, "evaluate", started))
     record = {
         "verdict": verdict_record(verdicts),  # first: what the design meets, and what not
@@ -154,15 +189,7 @@ def evaluate_study(
     )
     write_atomic(run_dir / "response.csv", table_to_csv(result.table))
     write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
-    png = plot_response(
-        result.table,
-        x=result.plot.get("x", "displacement_mm"),
-        left=result.plot.get("left", "force_N"),
-        right=result.plot.get("right", "peak_stress_MPa"),
-        allowable_MPa=result.plot.get("allowable_MPa"),
-        title=f"{study.name} ({study.kind})",
-        labels=result.plot,
-    )
+    png = plot_response(result.table, **response_plot_args(study, result))
     write_atomic(run_dir / "force_displacement.png", png)
     extra = _extra_files(result)
     for name, data in extra.items():

@@ -20,6 +20,7 @@ __all__ = [
     "plot_front",
     "plot_taguchi",
     "plot_response",
+    "response_figure",
     "plot_shapes",
     "plot_stress",
 ]
@@ -64,6 +65,19 @@ def plot_response(
     title: str = "",
     labels: Mapping[str, str] | None = None,
 ) -> bytes:
+    """:func:`response_figure` as a PNG file (bytes)."""
+    return _png(response_figure(table, x, left, right, allowable_MPa, title, labels))
+
+
+def response_figure(
+    table: Mapping[str, np.ndarray],
+    x: str = "displacement_mm",
+    left: str = "force_N",
+    right: str | None = "peak_stress_MPa",
+    allowable_MPa: float | None = None,
+    title: str = "",
+    labels: Mapping[str, str] | None = None,
+) -> Figure:
     """Two panels against ``x``: ``left`` (force, torque, ...) and ``right`` (stress, with the
     allowable line); one panel when ``right`` is None or not in the table.
 
@@ -83,8 +97,8 @@ def plot_response(
 
     Returns
     -------
-    bytes
-        The PNG file.
+    matplotlib.figure.Figure
+        Not attached to pyplot (a notebook shows it as the cell's value).
     """
     labels = dict(labels or {})
     ok = np.asarray(table.get("converged", np.ones(len(table[x]), bool)), dtype=bool)
@@ -118,7 +132,7 @@ def plot_response(
     note = "" if ok.all() else f"  ({int((~ok).sum())} of {ok.size} rows not converged)"
     if title or note:
         fig.suptitle(title + note)
-    return _png(fig)
+    return fig
 
 
 def plot_curve(

@@ -288,6 +288,34 @@ class Study(BaseModel):
         """The geometry kind, the key of the study registry."""
         return str(self.geometry.kind)  # type: ignore[attr-defined]
 
+    def replace(self, **changes: Any) -> Study:
+        """A NEW validated study with top-level blocks replaced: ``study.replace(name="b",
+        material="PLA")``; a block given as None goes back to its default (see
+        :func:`pipeline.study_edit.replace_blocks`).
+
+        Raises
+        ------
+        StudyError
+            Naming the key path of an unknown block or of the first value refused.
+        """
+        from flexopt.pipeline.study_edit import replace_blocks  # it validates through here
+
+        return replace_blocks(self, changes)
+
+    def with_values(self, values: collections.abc.Mapping[str, Any]) -> Study:
+        """A NEW validated study with values set at key paths: ``study.with_values(
+        {"geometry.width_mm": 6.0, "geometry.points_mm[1][0]": 30})`` (``[*]``: every item; see
+        :func:`pipeline.study_edit.set_values`).
+
+        Raises
+        ------
+        StudyError
+            At a path that does not exist (naming the closest one) or the first value refused.
+        """
+        from flexopt.pipeline.study_edit import set_values
+
+        return set_values(self, values)
+
 
 # --------------------------------------------------------------------------------------------
 # Reading YAML

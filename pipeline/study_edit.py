@@ -1,0 +1,210 @@
+"""Changing a validated study: :meth:`Study.replace` and :meth:`Study.with_values`.
+
+A study is frozen; a change returns a NEW study that went through :func:`validate_study` again,
+so the kind's own model and checks run on the changed values exactly as on a study file. The
+study is dumped to plain data (as ``study.yaml`` is written), the changes are set there, and the
+result is validated: a bad value is refused with its key path, as in a file.
+
+Paths use the grammar of design variables (:func:`optimise.variables.parse_path`):
+``geometry.width_mm``, ``geometry.points_mm[1][0]``, ``geometry.thickness_mm[*]`` (every item
+of the list).
+"""
+
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from flexopt.optimise.variables import PathPart, format_path, parse_path
+from flexopt.pipeline.errors import StudyError
+from pydantic import BaseModel
+
+if TYPE_CHECKING:
+    from flexopt.pipeline.study import Study
+
+__all__ = ["replace_blocks", "set_values", "study_data"]
+
+
+def study_data(study: Study) -> dict[str, Any]:
+    """The study as plain data, as study.yaml holds it (unset keys left out): reads back as is."""
+    return study.model_dump(mode="json", exclude_none=True)
+
+
+def _plain(value: Any) -> Any:
+    """A value given in Python as the plain data a study file would hold."""
+    if isinstance(value, BaseModel):
+        return value.model_dump(mode="json", exclude_none=True)
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _validate(data: dict[str, Any]) -> Study:
+    from flexopt.pipeline.study import validate_study
+
+    return validate_study(data)
+
+
+def replace_blocks(study: Study, changes: Mapping[str, Any]) -> Study:
+    """``study`` with top-level blocks replaced (``name``, ``material``, ``geometry``, ...).
+
+    Raises
+    ------
+    StudyError
+        At the key for a block the study's kind does not have (with the closest name), or at
+        the key path of the first value the kind's model or checks refuse.
+    """
+    fields = list(type(study).model_fields)
+    data = study_data(study)
+    for key, value in changes.items():
+        if key not in fields:
+            close = difflib.get_close_matches(key, fields, n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise StudyError(
+                key,
+                f"a {study.kind} study has no block '{key}'; {hint}replace one of "
+                f"{', '.join(fields)} (use with_values for a key inside a block)",
+            )
+        if value is None:
+            data.pop(key, None)  # back to the kind's default (a required block is then missing)
+        else:
+            data[key] = _plain(value)
+    return _validate(data)
+
+
+def _paths(data: Any) -> list[str]:
+    """Every key path in plain study data (mappings and list items, inner nodes too)."""
+    found: list[str] = []
+    stack: list[tuple[Any, tuple[PathPart, ...]]] = [(data, ())]
+    while stack:
+        item, where = stack.pop()
+        if where:
+            found.append(format_path(where))
+        if isinstance(item, Mapping):
+            stack.extend((v, (*where, str(k))) for k, v in item.items())
+        elif isinstance(item, list):
+            stack.extend((v, (*where, i)) for i, v in enumerate(item))
+    return found
+
+
+def _closest(text: str, data: Any, more: Sequence[str] = ()) -> str:
+    close = difflib.get_close_matches(text, [*_paths(data), *more], n=1, cutoff=0.5)
+    return f"; did you mean {close[0]}?" if close else ""
+
+
+def _model_at(model: type[BaseModel], path: Sequence[PathPart]) -> type[BaseModel] | None:
+    """The pydantic model a key path leads to in a study model (None when it is not one)."""
+    from flexopt.pipeline.study import _annotation_at
+
+    current = model if not path else _annotation_at(model, tuple(path))
+    while True:
+        origin = typing.get_origin(current)
+        if origin is typing.Annotated:
+            current = typing.get_args(current)[0]
+        elif origin in (typing.Union, types.UnionType):
+            arms = [a for a in typing.get_args(current) if a is not type(None)]
+            if len(arms) != 1:
+                return None
+            current = arms[0]
+        else:
+            break
+    return current if isinstance(current, type) and issubclass(current, BaseModel) else None
+
+
+def _set_path(
+    data: dict[str, Any], model: type[BaseModel], text: str, value: Any, kind: str
+) -> None:
+    """Set ``value`` at the path ``text`` in ``data`` (in place); ``[*]`` sets every item.
+
+    A key the data does not hold is added only where the model has that field (an optional block
+    left unset, such as ``parallel``); anything else is an unknown path.
+    """
+    try:
+        parts = parse_path(text)
+    except ValueError as exc:
+        raise StudyError(text, str(exc)) from None
+    holders: list[tuple[Any, tuple[PathPart, ...]]] = [(data, ())]
+    for k, part in enumerate(parts):
+        last = k == len(parts) - 1
+        following: list[tuple[Any, tuple[PathPart, ...]]] = []
+        for holder, done in holders:
+            here = format_path(done) or "the study"
+            if isinstance(part, tuple):  # [*]: every item of a list
+                if not isinstance(holder, list):
+                    raise StudyError(
+                        text, f"{here} is not a list, so [*] does not apply{_closest(text, data)}"
+                    )
+                indices: Sequence[PathPart] = range(len(holder))
+            elif isinstance(part, int):
+                if not isinstance(holder, list):
+                    raise StudyError(
+                        text,
+                        f"{here} is not a list, so [{part}] does not apply{_closest(text, data)}",
+                    )
+                if part >= len(holder):
+                    raise StudyError(
+                        text,
+                        f"{here} has {len(holder)} items ([0]..[{len(holder) - 1}]); there is no "
+                        f"[{part}] (to change the length, set the whole list: "
+                        f"{{'{format_path(done)}': [...]}})",
+                    )
+                indices = (part,)
+            else:
+                if not isinstance(holder, dict):
+                    raise StudyError(text, f"{here} is not a block of keys{_closest(text, data)}")
+                if part not in holder:
+                    block = _model_at(model, done)
+                    if block is None or part not in block.model_fields:
+                        allowed = sorted(block.model_fields if block else holder)
+                        more = [format_path((*done, key)) for key in allowed]
+                        raise StudyError(
+                            text,
+                            f"a {kind} study has no key '{format_path((*done, part))}'"
+                            f"{_closest(text, data, more)} (keys of {here}: {', '.join(allowed)})",
+                        )
+                    if not last:
+                        holder[part] = {}  # an optional block left unset: start it empty
+                indices = (part,)
+            for index in indices:
+                if last:
+                    holder[index] = _plain(value)  # type: ignore[index]
+                else:
+                    following.append((holder[index], (*done, index)))  # type: ignore[index]
+        holders = following
+
+
+def set_values(study: Study, values: Mapping[str, Any]) -> Study:
+    """``study`` with the values at the given key paths changed, validated again.
+
+    Parameters
+    ----------
+    values : mapping of key path to value
+        ``{"geometry.width_mm": 6.0, "geometry.points_mm[1][0]": 30}``; a value may be a number,
+        text, a list or a mapping (a whole block), in the key's unit.
+
+    Raises
+    ------
+    StudyError
+        At the path for one that does not exist (naming the closest path that does), or at the
+        key path of the first value the kind's model or checks refuse.
+    """
+    if not isinstance(values, Mapping):
+        raise StudyError(
+            "", f"with_values takes a mapping of key paths to values, not {type(values).__name__}"
+        )
+    data = study_data(study)
+    for text, value in values.items():
+        if not isinstance(text, str):
+            raise StudyError(str(text), "a key path is text, e.g. 'geometry.width_mm'")
+        _set_path(data, type(study), text, value, study.kind)
+    return _validate(data)
