@@ -700,3 +700,52 @@ def kkt_negative_count(H: sp.spmatrix, G: sp.spmatrix, kernel: str = "auto") -> 
             neg += 1
             k += 2
     return neg
+
+
+def warm_up() -> str:
+    """Compile (first call in an install) or load from numba's cache the constrained kernels now.
+
+    Like :func:`fea.beam.warm_up` (which this calls first): a process pool calls it before it
+    forks, so that workers inherit the compiled code. A tiny clamped beam is traced once with its
+    tip pushed (the whole compiled Newton, the inertia) and once under a follower tip force (the
+    one-iteration path), and a small KKT count runs; every compiled function the engine uses is
+    then loaded.
+
+    Returns
+    -------
+    str
+        The path that runs: "numba", or "numpy" when numba is unavailable (nothing to do).
+    """
+    from flexopt.fea.beam import BeamSettings
+    from flexopt.fea.beam import warm_up as beam_warm_up
+    from flexopt.fea.materials import Material
+    from flexopt.geometry.profile import BeamProfile
+
+    beam_warm_up()
+    kernel = _resolve("auto")
+    if kernel != "numba":
+        return kernel
+    material = Material("warm-up", E_MPa=1000.0, nu=0.3, yield_MPa=10.0)
+    profile = BeamProfile(np.array([[0.0, 0.0], [10.0, 0.0]]), np.array([1.0, 1.0]), 1.0)
+    model = BeamModel(profile, material, settings=BeamSettings(n_elements=2))
+    n = model.n_dofs
+
+    def constraints(v: float) -> tuple[np.ndarray, np.ndarray]:
+        C = system.rows(4)
+        d = np.zeros(4)
+        row = system.clamp_start(C, 0, 0)
+        C[row, system.dof(0, -1, 1)] = 1.0
+        d[row] = v
+        return C, d
+
+    def loads(v: float, z: np.ndarray) -> tuple[np.ndarray, sp.spmatrix]:
+        f = np.zeros(n)
+        f[n - 2] = v * np.cos(z[n - 1])
+        return f, sp.coo_matrix(([-v * np.sin(z[n - 1])], ([n - 2], [n - 1])), shape=(n, n))
+
+    system = ConstrainedBeams([model], 0, constraints)
+    system.solve([0.0, 0.1])
+    held = ConstrainedBeams([model], 0, lambda v: (constraints(v)[0][:3], np.zeros(3)), loads)
+    held.solve([0.0, 0.01])
+    kkt_negative_count(sp.identity(3, format="csr"), sp.csr_matrix(np.array([[1.0, 0.0, 0.0]])))
+    return kernel
