@@ -22,14 +22,19 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 __all__ = [
+    "curves_label",
     "NAMES",
     "UNITS",
     "VARIABLES",
     "WORDS",
     "label",
+    "path_words",
+    "siblings",
+    "split_meaning",
     "split_name",
     "unit_of",
     "variable_meanings",
+    "variable_rows",
     "words",
 ]
 
@@ -95,6 +100,8 @@ WORDS: dict[str, str] = {
     "lmax": "l = l_max (soft setting)",
     "rms": "RMS",
     "max": "maximum",
+    "ccw": "counter-clockwise",
+    "cw": "clockwise",
     "min": "minimum",
     "avg": "mean",
     "fe": "FE",
@@ -105,27 +112,137 @@ WORDS: dict[str, str] = {
     "nmm": "N·mm",
 }
 
-#: Design variables with a meaning of their own, by study kind (the kind's ``variable_meanings``
-#: attribute, when it has one, wins).
+
+def _constant_force() -> dict[str, str]:
+    """Paper 003's beam: ten points p1..p10 on the segments S1→S6 (two per segment, Eq. 13),
+    a thickness at each, the two ends and the width."""
+    out: dict[str, str] = {}
+    for j in range(1, 11):
+        k = (j + 1) // 2
+        where = f"where p{j} sits between S{k} and S{k + 1}, 0 at S{k} and 1 at S{k + 1} (–)"
+        out[f"a{j}"] = where
+        for name in (f"t{j}_mm", f"t{j}"):
+            out[name] = f"in-plane thickness of the beam at p{j} (mm)"
+    for name in ("T1_mm", "T1"):
+        out[name] = "in-plane thickness at the clamped end S1 (mm)"
+    for name in ("T6_mm", "T6"):
+        out[name] = "in-plane thickness at the driven end S6 (mm)"
+    for name in ("B_mm", "B"):
+        out[name] = "out-of-plane width of the part (mm)"
+    return out
+
+
+def _sea_spring() -> dict[str, str]:
+    """Paper 004's spring, both topologies: the spiral arm (geometry.arm_spring) and the
+    serpentine of concentric arcs (geometry.sea_spring, Table 9)."""
+    out = {
+        # spiral arms
+        "sweep_deg": "angle the arm sweeps from the hub to its pad (°)",
+        "R_pad_mm": "radius of the pad centre, where the arm ends (mm)",
+        "F1_fraction": "share of the radial rise from hub to pad reached at a third of the sweep "
+        "(1/3 with F2 = 1/2 is an Archimedean spiral) (–)",
+        "F2_fraction": "share of the remaining radial rise reached at two thirds of the sweep (–)",
+        # serpentine
+        "alpha_deg": "angular span of the arcs of one set (°)",
+        "P1_mm": "width of the hub spoke, hub rim to the first arc (mm)",
+        "P2_mm": "radial width of the neck, last arc to the pad (mm)",
+        "ST_mm": "out-of-plane thickness of the spring (the extrusion) (mm)",
+    }
+    for i in range(1, 10):
+        out[f"R{i}_mm"] = f"centre radius of arc {i}, counted from the hub (mm)"
+        out[f"S{i}_mm"] = f"radial thickness of arc {i} (mm)"
+    for i in range(1, 10):  # W1..W4: the spiral's width at t = 0, 1/3, 2/3, 1
+        out[f"W{i}_mm"] = (
+            f"spiral: arm width at the {_FOURTHS.get(i, f'point {i}')}; serpentine: width of "
+            f"link {i}, joining arc {i} to arc {i + 1} (mm)"
+        )
+    return out
+
+
+_FOURTHS = {1: "hub (t = 0)", 2: "first third (t = 1/3)", 3: "second third (t = 2/3)",
+            4: "pad (t = 1)"}  # fmt: skip
+
+
+def _threshold_spring() -> dict[str, str]:
+    """Issue 7's threshold spring (geometry.threshold_spring): four polar control points of the
+    arm at t = 0, 1/3, 2/3, 1."""
+    return {
+        "sweep_deg": "angle from the arm's root at the hub to its pad (°)",
+        "pad_radius_mm": "radius of the pad centre, where the arm ends (mm)",
+        "F1": "radius of the first-third control point, as a share of hub → pad (–)",
+        "F2": "radius of the second-third control point, as a share of hub → pad (–)",
+        "G1": "angle of the first-third control point, as a share of the sweep (–)",
+        "G2": "angle of the second-third control point, as a share of the sweep (–)",
+        "W1_mm": "in-plane width of the arm at the hub (t = 0) (mm)",
+        "W2_mm": "in-plane width of the arm at the first-third point (t = 1/3) (mm)",
+        "W3_mm": "in-plane width of the arm at the second-third point (t = 2/3) (mm)",
+        "W4_mm": "in-plane width of the arm at the pad (t = 1) (mm)",
+    }
+
+
+#: Design variables with a meaning of their own, by study kind (the problem's
+#: ``variable_meanings`` attribute, when it has one, wins). Each ends with its unit in brackets
+#: (``–`` for a fraction or a count). The ``mechanism`` kind's variables are study paths: their
+#: meaning is the path in words (:func:`path_words`).
 VARIABLES: dict[str, dict[str, str]] = {
-    "constant_force": {
-        **{
-            f"a{j}": (
-                f"where p{j} sits between S{(j + 1) // 2} and S{(j + 1) // 2 + 1} "
-                f"(0 at S{(j + 1) // 2}, 1 at S{(j + 1) // 2 + 1}; fraction, –)"
-            )
-            for j in range(1, 11)
-        },
-        **{f"t{j}_mm": f"in-plane thickness of the beam at p{j} (mm)" for j in range(1, 11)},
-        **{f"t{j}": f"in-plane thickness of the beam at p{j} (mm)" for j in range(1, 11)},
-        "T1_mm": "thickness at the clamped end S1 (mm)",
-        "T6_mm": "thickness at the driven end S6 (mm)",
-        "T1": "thickness at the clamped end S1 (mm)",
-        "T6": "thickness at the driven end S6 (mm)",
-        "B_mm": "out-of-plane width of the part (mm)",
-        "B": "out-of-plane width of the part (mm)",
+    "constant_force": _constant_force(),
+    "gripper": _constant_force(),  # the gripper's force is held by a constant-force beam
+    "sea_spring": _sea_spring(),
+    "threshold_spring": _threshold_spring(),
+    "flexure_pivot": {
+        "type_index": "pivot type: the integer part picks one of geometry.candidates, in order (–)",
+        "length_mm": "compliant length: leaf length L, notch length 2R / 2a / L + 2r by type (mm)",
+        "thickness_mm": "thinnest section: leaf thickness t or notch web t (mm)",
+        "shape": "type-specific shape: variable leaf end thickness t (1 + 2 shape), elliptical "
+        "notch depth, corner fillet radius; unused by the other types (–)",
+    },
+    "leaf_spring_joint": {
+        "arm_mm": "joint arm l_j = |OB|, from the joint axis to the leaf's slider (mm)",
+        "thickness_mm": "thickness t of each 65Mn leaf (mm)",
+        "width_mm": "width b of each leaf, along the joint axis (mm)",
+    },
+    "cam": {
+        "rest_radius_mm": "r0: distance of the follower centre from the cam axis at zero "
+        "rotation (mm)",
+        "stiffness_N_per_mm": "K: rate of one extension spring pulling the follower (N/mm)",
+        "free_length_mm": "l0: initial length of one spring (mm)",
+        "offset_mm": "b: lateral offset of the spring's anchor (mm)",
     },
 }
+
+
+def path_words(path: str) -> str:
+    """A study key path in words: ``geometry.beams.upper.thickness_mm`` → ``thickness of beam
+    'upper' (mm)``, ``geometry.beams.beam.points_mm[1][0]`` → ``x of point 1 of beam 'beam'
+    (mm)``; other paths keep their keys, joined by ›, with the unit of the last one."""
+    keys = [k for k in re.split(r"[.\[\]]+", str(path)) if k]
+    axis = {"0": "x", "1": "y", "2": "z"}
+    plural = {"beams": "beam", "bodies": "body", "joints": "joint", "load_cases": "load case",
+              "outputs": "output"}  # fmt: skip
+    if keys and keys[0] == "geometry":
+        keys = keys[1:]
+    if len(keys) < 3 or keys[0] not in plural:
+        last = keys[-1] if keys else str(path)
+        unit = unit_of(last)
+        text = " › ".join(keys[:-1] + [words(last)]) if keys else str(path)
+        return f"{text} ({unit})" if unit else text
+    owner = f"{plural[keys[0]]} '{keys[1]}'"
+    key, rest = keys[2], keys[3:]
+    unit = unit_of(key)
+    what = words(key)
+    if key.startswith("points") and len(rest) == 2:
+        what = f"{axis.get(rest[1], rest[1])} of point {rest[0]}"
+    elif key.startswith("ref") and len(rest) == 1:
+        what = f"{axis.get(rest[0], rest[0])} of the reference point"
+    elif key.startswith("outline") and len(rest) == 2:
+        what = f"{axis.get(rest[1], rest[1])} of outline point {rest[0]}"
+    elif rest == ["*"]:
+        what += " at every point"
+    elif rest:
+        what += " at point " + ", ".join(rest)
+    text = f"{what} of {owner}"
+    return f"{text} ({unit})" if unit else text
+
 
 _LENGTH = re.compile(r"^l(\d+(?:\.\d+)?)$")  # l28: the curve at effective length 28 mm
 _AT = re.compile(r"^(\d+(?:\.\d+)?)(deg|mm|N)$")  # 5deg in at_5deg
@@ -186,9 +303,118 @@ def label(name: str, given: str | None = None) -> str:
     return f"{words(name)} ({unit})" if unit else words(name)
 
 
+def _mechanism_meanings(problem: Any) -> dict[str, str]:
+    """A mechanism study's variables: each one's path in words, its factor and offset, and the
+    keys tied to it (``problem.variables``: optimise.variables.DesignVariables)."""
+    variables = getattr(problem, "variables", None)
+    paths = getattr(variables, "paths", None)
+    targets = getattr(variables, "targets", None)
+    if variables is None or paths is None:
+        return {}
+    out: dict[str, str] = {}
+    for k, (name, path) in enumerate(zip(variables.names, paths, strict=True)):
+        meaning, unit = split_meaning(path_words(path))
+        own = targets[k][0] if targets and targets[k] else None
+        factor = float(getattr(own, "factor", 1.0)) if own is not None else 1.0
+        offset = float(getattr(own, "offset", 0.0)) if own is not None else 0.0
+        if factor != 1.0 or offset != 0.0:
+            sign = "+" if offset >= 0 else "−"
+            meaning += f", set to {factor:.4g} × {name} {sign} {abs(offset):.4g} {unit}"
+            if factor != 1.0:
+                unit = "–"  # the variable is a scaled stand-in for the key, not the key itself
+        ties = len(targets[k]) - 1 if targets else 0
+        if ties > 0:
+            meaning += f"; also sets {ties} tied key{'s' if ties > 1 else ''}"
+        out[name] = f"{meaning} [{path}] ({unit})"
+    return out
+
+
+def split_meaning(text: str) -> tuple[str, str]:
+    """``(meaning, unit)`` of a meaning written ``words (unit)``; the unit is ``–`` when the text
+    ends in no brackets."""
+    m = re.match(r"^(.*\S)\s*\(([^()]*)\)$", text.strip(), re.S)
+    if not m:
+        return text.strip(), "–"
+    return m.group(1), m.group(2)
+
+
 def variable_meanings(kind: str, names: Iterable[str], problem: Any = None) -> dict[str, str]:
-    """What each design variable means: the problem's ``variable_meanings`` mapping, else
-    :data:`VARIABLES` of the kind, else the variable's label (its words and unit)."""
+    """What each design variable means, ``words (unit)``: the problem's ``variable_meanings``
+    mapping, else the study path in words (``mechanism``), else :data:`VARIABLES` of the kind,
+    else the variable's label (its words and unit)."""
     own = getattr(problem, "variable_meanings", None)
-    table: Mapping[str, str] = own if isinstance(own, Mapping) else VARIABLES.get(kind, {})
+    table: Mapping[str, str]
+    if isinstance(own, Mapping):
+        table = own
+    elif kind == "mechanism" and problem is not None:
+        table = _mechanism_meanings(problem)
+    else:
+        table = VARIABLES.get(kind, {})
     return {n: str(table[n]) if n in table else label(n) for n in names}
+
+
+def variable_rows(kind: str, problem: Any, x: Iterable[float]) -> list[list[Any]]:
+    """The rows of a report's variables table: ``variable | meaning | unit | bounds | best
+    value`` of design ``x`` (the bounds ``[lower, upper]`` in the variable's unit)."""
+    space = problem.space
+    meanings = variable_meanings(kind, space.names, problem)
+    rows: list[list[Any]] = []
+    for name, lo, hi, value in zip(space.names, space.lower, space.upper, x, strict=True):
+        meaning, unit = split_meaning(meanings[name])
+        if meaning == name:  # a label with no words beyond the name
+            meaning = "–"
+        rows.append([name, meaning, unit, f"{float(lo):.4g} – {float(hi):.4g}", float(value)])
+    return rows
+
+
+#: Prefixes of a column that compares with another of the same quantity and unit: drawn beside
+#: it (``reference_contact_force_N`` beside ``contact_force_N``, ``closed_form_torque_Nmm``
+#: beside ``torque_Nmm``). ``target_`` columns are targets, drawn as such, never as curves.
+COMPARISONS: tuple[tuple[str, ...], ...] = (
+    ("reference",),
+    ("closed", "form"),
+    ("plane", "stress"),
+)
+
+
+def siblings(table: Mapping[str, Any], column: str) -> list[str]:
+    """``column`` and the other curves to draw with it, ``column`` first.
+
+    Those of the same quantity and unit with another qualifier (the six curves of the
+    leaf-spring joint: ``torque_Nm_sliding_l28`` beside ``torque_Nm_fixed_l40``), then those
+    that compare with it (:data:`COMPARISONS`: ``reference_contact_force_N``); each a 1-D
+    column as long as ``column``.
+    """
+    quantity, unit, _ = split_name(column)
+    if unit is None or column not in table:
+        return [column]
+    n = len(table[column])
+
+    def same_shape(c: str) -> bool:
+        try:
+            return c != column and len(table[c]) == n and getattr(table[c], "ndim", 1) == 1
+        except TypeError:
+            return False
+
+    found = [c for c in table if same_shape(c) and split_name(c)[:2] == (quantity, unit)]
+    for c in table:
+        if c in found or not same_shape(c):
+            continue
+        q, u, _ = split_name(c)
+        if u == unit and any(tuple(q) == (*p, *quantity) for p in COMPARISONS):
+            found.append(c)
+    return [column, *found]
+
+
+def curves_label(column: str, curves: list[str]) -> str:
+    """The axis label of ``column`` drawn with ``curves`` (:func:`siblings`): its own label
+    when alone; of several curves, their common quantity and unit (each curve is named in the
+    legend): ``torque_Nm_sliding_l28`` with five more → ``torque (N·m)``."""
+    if len(curves) <= 1:
+        return label(column)
+    quantity, unit, qualifier = split_name(column)
+    if unit is None:
+        return label(column)
+    tokens = [t for t in column.split("_") if t]
+    unit_tokens = tokens[len(quantity) : len(tokens) - len(qualifier)]
+    return label("_".join([*quantity, *unit_tokens]))

@@ -15,6 +15,7 @@ from matplotlib.ticker import MaxNLocator
 __all__ = [
     "quantity_name",
     "plot_convergence",
+    "curve_figure",
     "plot_curve",
     "plot_field",
     "plot_front",
@@ -69,6 +70,42 @@ def plot_response(
     return _png(response_figure(table, x, left, right, allowable_MPa, title, labels))
 
 
+def _draw_curves(ax, table, x: str, column: str, ok: np.ndarray, colour: str) -> list[str]:
+    """``column`` and its siblings (:func:`pipeline.labels.siblings`: the other curves of a
+    multi-curve kind, a reference or closed form) against ``x``; returns the columns drawn."""
+    xs = np.asarray(table[x], dtype=float)
+    curves = _labels.siblings(table, column)
+    style = "o-" if ok.sum() <= 80 else "-"  # markers hide a curve of hundreds of rows
+    for k, c in enumerate(curves):
+        ys = np.asarray(table[c], dtype=float)
+        good = ok & np.isfinite(ys)
+        sparse = good.sum() < 0.5 * ok.sum()  # a check at a few rows (plane stress): markers
+        ax.plot(
+            xs[good],
+            ys[good],
+            "s" if sparse else style,
+            ms=3 if not sparse else 5,
+            color=colour if k == 0 and len(curves) == 1 else None,
+            label=_labels.words(c),  # shown when there is a legend (curves, a target)
+        )
+    return curves
+
+
+def _draw_target(ax, overlay) -> None:
+    """A target curve (dashed) with its band (shaded), or a range (shaded), in the legend."""
+    if overlay.lower is not None and overlay.upper is not None:
+        ax.fill_between(
+            overlay.x,
+            overlay.lower,
+            overlay.upper,
+            color="tab:green",
+            alpha=0.2,
+            label=overlay.label if overlay.y is None else None,
+        )
+    if overlay.y is not None:
+        ax.plot(overlay.x, overlay.y, "--", color="tab:green", lw=1.4, label=overlay.label)
+
+
 def response_figure(
     table: Mapping[str, np.ndarray],
     x: str = "displacement_mm",
@@ -78,8 +115,10 @@ def response_figure(
     title: str = "",
     labels: Mapping[str, str] | None = None,
 ) -> Figure:
-    """Two panels against ``x``: ``left`` (force, torque, ...) and ``right`` (stress, with the
-    allowable line); one panel when ``right`` is None or not in the table.
+    """The figure of :func:`plot_response`: ``left`` and ``right`` against ``x``, each with every
+    curve of its quantity (the six torque curves of the leaf-spring joint, a reference, a closed
+    form), the target of ``left`` (:func:`pipeline.plot_targets.target_overlay` of the spec) and
+    the allowable line on ``right``.
 
     Only converged rows are drawn; a title note says when some are missing.
 
@@ -90,42 +129,51 @@ def response_figure(
     allowable_MPa : float, MPa, optional
         Drawn as a dashed horizontal line on the right panel.
     labels : mapping, optional
-        Words from the kind's plot dict: ``left_title`` and ``right_title`` (panel titles,
-        default "<left quantity> – <x quantity>", e.g. "torque – rotation"), ``x_label``,
-        ``left_label``, ``right_label`` (axes) and ``allowable_label`` (legend of the line,
-        default "yield <value> MPa" for a stress column, "allowable <value> MPa" otherwise).
+        The kind's plot dict: its target keys (``target``, ``target_curve``, ``target_range``,
+        ``tolerance``, ... see :mod:`pipeline.plot_targets`) and words: ``left_title`` and
+        ``right_title`` (panel titles, default "<left quantity> – <x quantity>", e.g. "torque –
+        rotation"), ``x_label``, ``left_label``, ``right_label`` (axes) and ``allowable_label``
+        (legend of the line, default "yield <value> MPa" for a stress column, "allowable <value>
+        MPa" otherwise).
 
     Returns
     -------
     matplotlib.figure.Figure
         Not attached to pyplot (a notebook shows it as the cell's value).
     """
+    from flexopt.pipeline.plot_targets import target_overlay
+
     labels = dict(labels or {})
     ok = np.asarray(table.get("converged", np.ones(len(table[x]), bool)), dtype=bool)
-    xs = np.asarray(table[x], dtype=float)[ok]
     two = right is not None and right in table
     fig = Figure(figsize=(10 if two else 5.5, 4), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, 2) if two else [fig.subplots(1, 1)]
     x_label = labels.get("x_label") or labels.get("xlabel") or _labels.label(x)
     ax_f = axes[0]
-    ax_f.plot(xs, np.asarray(table[left], dtype=float)[ok], "o-", ms=3, color="tab:blue")
+    curves = _draw_curves(ax_f, table, x, left, ok, "tab:blue")
+    overlay = target_overlay({**labels, "x": x, "y": left}, table, left, _labels.unit_of(left))
+    if overlay is not None:
+        _draw_target(ax_f, overlay)
     ax_f.set_xlabel(x_label)
-    ax_f.set_ylabel(labels.get("left_label") or _labels.label(left))
+    ax_f.set_ylabel(labels.get("left_label") or _curves_label(left, curves))
     ax_f.set_title(labels.get("left_title") or f"{quantity_name(left)} – {quantity_name(x)}")
+    if len(curves) > 1 or overlay is not None:
+        ax_f.legend(loc="best", fontsize="small")
     if two:
         assert right is not None
         ax_s = axes[1]
-        ax_s.plot(xs, np.asarray(table[right], dtype=float)[ok], "o-", ms=3, color="tab:red")
+        stress_curves = _draw_curves(ax_s, table, x, right, ok, "tab:red")
         if allowable_MPa is not None:
             default = "yield" if "stress" in right else "allowable"
             word = labels.get("allowable_label") or default
             ax_s.axhline(
                 allowable_MPa, ls="--", color="k", lw=1, label=f"{word} {allowable_MPa:g} MPa"
             )
-            ax_s.legend(loc="best")
+        if allowable_MPa is not None or len(stress_curves) > 1:
+            ax_s.legend(loc="best", fontsize="small")
         ax_s.set_xlabel(x_label)
-        ax_s.set_ylabel(labels.get("right_label") or _labels.label(right))
+        ax_s.set_ylabel(labels.get("right_label") or _curves_label(right, stress_curves))
         ax_s.set_title(labels.get("right_title") or f"{quantity_name(right)} – {quantity_name(x)}")
     for ax in axes:
         ax.grid(True, alpha=0.3)
@@ -133,6 +181,10 @@ def response_figure(
     if title or note:
         fig.suptitle(title + note)
     return fig
+
+
+def _curves_label(column: str, curves: list[str]) -> str:
+    return _labels.curves_label(column, curves)
 
 
 def plot_curve(
@@ -145,8 +197,27 @@ def plot_curve(
     x_label: str | None = None,
     y_label: str | None = None,
     title: str = "",
+    spec: Mapping[str, object] | None = None,
 ) -> bytes:
     """One response curve (force against displacement), with the target and its tolerance band.
+    The PNG of :func:`curve_figure` (see there)."""
+    return _png(curve_figure(table, x, y, target, tolerance, band_x, x_label, y_label, title, spec))
+
+
+def curve_figure(
+    table: Mapping[str, np.ndarray],
+    x: str = "displacement_mm",
+    y: str = "force_N",
+    target: float | None = None,
+    tolerance: float | None = None,
+    band_x: tuple[float, float] | None = None,
+    x_label: str | None = None,
+    y_label: str | None = None,
+    title: str = "",
+    spec: Mapping[str, object] | None = None,
+) -> Figure:
+    """The figure of :func:`plot_curve`: ``y`` and its sibling curves against ``x``, with the
+    target and its band.
 
     Parameters
     ----------
@@ -158,35 +229,35 @@ def plot_curve(
         Half-width of the band around ``target`` (same unit as ``y``), shaded.
     band_x : (float, float), optional
         Range of ``x`` over which the target applies (default: the whole curve).
-
-    Returns
-    -------
-    bytes
-        The PNG file.
+    spec : mapping, optional
+        The kind's plot dict; its target (a constant, a target curve or a range, see
+        :mod:`pipeline.plot_targets`) is drawn when ``target`` is not given.
     """
+    from flexopt.pipeline.plot_targets import target_overlay
+
     ok = _converged(table, x)
     xs = np.asarray(table[x], dtype=float)
     fig = Figure(figsize=(6.4, 4.2), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.subplots()
-    ax.plot(xs[ok], np.asarray(table[y], dtype=float)[ok], "o-", ms=3, color="tab:blue")
+    curves = _draw_curves(ax, table, x, y, ok, "tab:blue")
+    own: dict[str, object] = {"x": x, "y": y}
     if target is not None:
-        lo, hi = band_x if band_x is not None else (float(np.nanmin(xs)), float(np.nanmax(xs)))
-        label = f"target {target:g}"
-        if tolerance is not None and tolerance > 0:
-            ax.fill_between(
-                [lo, hi], target - tolerance, target + tolerance, color="tab:green", alpha=0.2
-            )
-            label += f" ± {tolerance:g}"
-        ax.plot([lo, hi], [target, target], "--", color="tab:green", lw=1.2, label=label)
-        ax.legend(loc="best")
+        own.update(target=target, tolerance=tolerance, band_x=band_x)
+    elif spec is not None:
+        own = {**spec, **own}
+    overlay = target_overlay(own, table, y, _labels.unit_of(y)) if xs.size else None
+    if overlay is not None:
+        _draw_target(ax, overlay)
+    if overlay is not None or len(curves) > 1:
+        ax.legend(loc="best", fontsize="small")
     ax.set_xlabel(_label(x, x_label))
-    ax.set_ylabel(_label(y, y_label))
+    ax.set_ylabel(y_label or _curves_label(y, curves))
     ax.grid(True, alpha=0.3)
     note = "" if ok.all() else f"  ({int((~ok).sum())} of {ok.size} rows not converged)"
     if title or note:
         ax.set_title(title + note)
-    return _png(fig)
+    return fig
 
 
 def plot_stress(
@@ -214,15 +285,15 @@ def plot_stress(
     fig = Figure(figsize=(6.4, 4.2), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.subplots()
-    xs = np.asarray(table[x], dtype=float)[ok]
-    ax.plot(xs, np.asarray(table[stress], dtype=float)[ok], "o-", ms=3, color="tab:red")
+    curves = _draw_curves(ax, table, x, stress, ok, "tab:red")
     if allowable_MPa is not None:
         ax.axhline(
             allowable_MPa, ls="--", color="k", lw=1, label=f"allowable {allowable_MPa:g} MPa"
         )
-        ax.legend(loc="best")
+    if allowable_MPa is not None or len(curves) > 1:
+        ax.legend(loc="best", fontsize="small")
     ax.set_xlabel(_label(x, x_label))
-    ax.set_ylabel(_label(stress, None))
+    ax.set_ylabel(_curves_label(stress, curves))
     ax.grid(True, alpha=0.3)
     if title:
         ax.set_title(title)

@@ -356,23 +356,6 @@ def _front_fig(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
     return fig
 
 
-def _siblings(table: Mapping[str, Any], column: str) -> list[str]:
-    """``column`` and the columns of the same quantity and unit (the other curves of a
-    multi-curve kind: ``torque_Nm_sliding_l28`` beside ``torque_Nm_fixed_l40``), column first."""
-    quantity, unit, _ = labels.split_name(column)
-    if unit is None:
-        return [column]
-    others = [
-        c
-        for c in table
-        if c != column
-        and labels.split_name(c)[:2] == (quantity, unit)
-        and np.ndim(table[c]) == 1
-        and len(table[c]) == len(table[column])
-    ]
-    return [column, *others]
-
-
 def _float(value: Any) -> float | None:
     try:
         out = float(value)
@@ -381,26 +364,37 @@ def _float(value: Any) -> float | None:
     return out if math.isfinite(out) else None
 
 
-def _response_fig(detail: DesignDetail, y: str, kind: str) -> tuple[Any, str]:
-    """One response plot: every curve of ``y``'s quantity against x, with the target band (or the
-    allowable line for stress). Returns the figure and a sentence on what is drawn as target."""
-    import plotly.graph_objects as go
+def _plain(values: Any) -> list[float | None]:
+    """Floats for plotly's strict JSON: NaN and ±inf become None (a gap)."""
+    return [None if not math.isfinite(v) else float(v) for v in np.asarray(values, dtype=float)]
 
-    spec, table = detail.plot, detail.table
+
+def _response_fig(
+    spec: Mapping[str, Any], table: Mapping[str, Any], y: str, kind: str, whose: str
+) -> tuple[Any, str]:
+    """One response plot: every curve of ``y``'s quantity against x (:func:`labels.siblings`),
+    with the target and its band (:func:`pipeline.plot_targets.target_overlay`: a constant, a
+    target curve or a range), or the allowable line for stress. Returns the figure and a
+    sentence on what is drawn as target."""
+    import plotly.graph_objects as go
+    from flexopt.pipeline.plot_targets import target_overlay
+
     x = spec.get("x", "displacement_mm")
     xs = np.asarray(table[x], dtype=float)
     converged = np.asarray(table.get("converged", np.ones(len(xs), bool)), dtype=bool)
     fig = go.Figure()
-    for column in _siblings(table, y):
+    curves = labels.siblings(table, y)
+    for column in curves:
         ys = np.asarray(table[column], dtype=float)
         ys = np.where(converged & np.isfinite(ys), ys, np.nan)
+        sparse = np.isfinite(ys).sum() < 0.5 * converged.sum()  # a check at a few rows
         fig.add_trace(
             go.Scatter(
                 x=xs.tolist(),
-                y=[None if not math.isfinite(v) else v for v in ys],
-                mode="lines+markers",
+                y=_plain(ys),
+                mode="markers" if sparse else "lines+markers",
                 name=labels.words(column),
-                marker={"size": 4},
+                marker={"size": 7 if sparse else 4, "symbol": "square" if sparse else "circle"},
             )
         )
     lo, hi = (float(np.nanmin(xs)), float(np.nanmax(xs))) if len(xs) else (0.0, 1.0)
@@ -421,49 +415,44 @@ def _response_fig(detail: DesignDetail, y: str, kind: str) -> tuple[Any, str]:
             target_text = f"{word} stress {limit:g} MPa drawn as a dashed line"
         else:
             target_text = "no allowable stress given by the study kind"
-        ylabel = labels.label(y)
+        ylabel = spec.get("right_label") or labels.curves_label(y, curves)
     else:
-        target = _float(spec.get("target"))
-        tol = _float(spec.get("tolerance"))
-        if tol is None and target is not None and _float(spec.get("tolerance_rel")) is not None:
-            tol = abs(target) * float(spec["tolerance_rel"])
-        band = spec.get("band_x")
-        b0, b1 = (float(band[0]), float(band[1])) if band is not None else (lo, hi)
         unit = labels.unit_of(y) or ""
-        if target is not None:
-            if tol:
+        overlay = target_overlay({**spec, "y": y}, table, y, unit)
+        if overlay is not None:
+            if overlay.lower is not None and overlay.upper is not None:
+                band_x = [*overlay.x.tolist(), *overlay.x[::-1].tolist()]
+                band_y = [*_plain(overlay.lower), *_plain(overlay.upper[::-1])]
                 fig.add_trace(
                     go.Scatter(
-                        x=[b0, b1, b1, b0, b0],
-                        y=[target - tol, target - tol, target + tol, target + tol, target - tol],
+                        x=band_x,
+                        y=band_y,
                         fill="toself",
                         mode="lines",
                         line={"width": 0},
                         fillcolor="rgba(44,160,44,0.18)",
-                        name=f"target band ±{tol:g} {unit}",
+                        name=overlay.label if overlay.y is None else "target band",
                     )
                 )
-            fig.add_trace(
-                go.Scatter(
-                    x=[b0, b1],
-                    y=[target, target],
-                    mode="lines",
-                    name=f"target {target:g} {unit}",
-                    line={"color": "#2ca02c", "dash": "dash"},
+            if overlay.y is not None:
+                fig.add_trace(
+                    go.Scatter(
+                        x=overlay.x.tolist(),
+                        y=_plain(overlay.y),
+                        mode="lines",
+                        name=overlay.label,
+                        line={"color": "#2ca02c", "dash": "dash"},
+                    )
                 )
-            )
-            target_text = (
-                f"target {target:g} {unit}"
-                + (f" ± {tol:g} {unit}" if tol else "")
-                + (f" over {b0:g}–{b1:g} of x" if band is not None else "")
-            )
+            target_text = f"{overlay.label} drawn in green"
         else:
             target_text = "no target given by the study kind for this response"
-        ylabel = labels.label(y, spec.get("ylabel") or spec.get("y_label"))
+        given = spec.get("ylabel") or spec.get("y_label") or spec.get("left_label")
+        ylabel = labels.label(y, given) if given else labels.curves_label(y, curves)
     xlabel = labels.label(x, spec.get("xlabel") or spec.get("x_label"))
     fig.update_layout(
         _layout(
-            f"{_no_unit(ylabel)} against {_no_unit(xlabel)} (best design)",
+            f"{_no_unit(ylabel)} against {_no_unit(xlabel)} ({whose})",
             height=440,
             xaxis=_axis(xlabel),
             yaxis=_axis(ylabel),
@@ -488,7 +477,7 @@ def _part_mesh(detail: DesignDetail) -> tuple[np.ndarray, np.ndarray] | None:
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=int)
 
 
-def _part_fig(vertices: np.ndarray, faces: np.ndarray) -> Any:
+def _part_fig(vertices: np.ndarray, faces: np.ndarray, whose: str = "best") -> Any:
     import plotly.graph_objects as go
 
     v, f = vertices, faces
@@ -503,13 +492,13 @@ def _part_fig(vertices: np.ndarray, faces: np.ndarray) -> Any:
             k=f[:, 2].tolist(),
             color="#8fb3d9",
             flatshading=True,
-            name="best design",
+            name=f"{whose} design",
             lighting={"ambient": 0.45, "diffuse": 0.8, "specular": 0.2},
         )
     )
     fig.update_layout(
         _layout(
-            "The best design as printed (best.stl): drag to rotate, scroll to zoom",
+            f"The {whose} design as printed: drag to rotate, scroll to zoom",
             height=560,
             scene={
                 # true proportions (a 0.5 mm leaf must look thin), the longest side 1 so that
@@ -632,14 +621,10 @@ def render_html(data: HtmlData) -> str:
     parts.append(_section("verdict", "Verdict", body))
 
     # -- variables and their meanings
-    meanings = labels.variable_meanings(data.kind, p.space.names, p)
-    rows = [
-        [n, meanings[n], float(lo), float(hi), float(v)]
-        for n, lo, hi, v in zip(
-            p.space.names, p.space.lower, p.space.upper, data.best.x, strict=True
-        )
-    ]
-    body = _table(["variable", "meaning (unit)", "lower bound", "upper bound", "best design"], rows)
+    body = _table(
+        ["variable", "meaning", "unit", "bounds", "best design"],
+        labels.variable_rows(data.kind, p, data.best.x),
+    )
     body += (
         "<p class='note'>Objectives (minimised): "
         + ", ".join(f"<code>{_e(n)}</code> = {_e(labels.label(n))}" for n in p.objective_names)
@@ -737,31 +722,16 @@ def render_html(data: HtmlData) -> str:
 
     # -- response
     parts.append(
-        _section("response", "Response of the best design", _response_section(data, figures))
+        _section(
+            "response", "Response of the best design", _response_section(data.detail, figures)
+        )
     )
 
     # -- 3D part
-    mesh = None
-    why = "the study kind gives no outline and height for this design"
-    if data.detail is not None:
-        try:
-            mesh = _part_mesh(data.detail)
-        except Exception as exc:  # a part that cannot be extruded must not cost the page
-            why = f"the part could not be built: {type(exc).__name__}: {exc}"
-    else:
-        why = "the best design's detail failed"
-    if mesh is not None:
-        v, _ = mesh
-        size = v.max(axis=0) - v.min(axis=0)
-        body = (
-            f"<p class='note'>{len(mesh[1])} triangles, size "
-            + " × ".join(f"{s:.4g}" for s in size)
-            + " mm (the extruded outline as in <a href='best.stl'>best.stl</a>).</p>"
-            + figures.embed(_part_fig(*mesh), "part-3d")
-        )
-    else:
-        body = f"<p>No 3D view: {_e(why)}.</p>"
-    parts.append(_section("part-3d", "The part in 3D", body))
+    why = None if data.detail is not None else "the best design's detail failed"
+    parts.append(
+        _section("part-3d", "The part in 3D", _part_section(data.detail, figures, "best", why))
+    )
 
     # -- the run
     record = data.record
@@ -790,14 +760,48 @@ def render_html(data: HtmlData) -> str:
     )
 
 
+def _part_section(
+    detail: DesignDetail | None,
+    figures: _Figures,
+    whose: str,
+    why: str | None = None,
+    stl: str | None = "best.stl",
+) -> str:
+    """The rotatable 3D view of a design's part (its outline extruded), or why there is none;
+    ``stl`` the file of the run folder that holds it (None: ``flexopt export`` writes it)."""
+    mesh = None
+    why = why or "the study kind gives no outline and height for this design"
+    if detail is not None:
+        try:
+            mesh = _part_mesh(detail)
+        except Exception as exc:  # a part that cannot be extruded must not cost the page
+            why = f"the part could not be built: {type(exc).__name__}: {exc}"
+    if mesh is None:
+        return f"<p>No 3D view: {_e(why)}.</p>"
+    v, _ = mesh
+    size = v.max(axis=0) - v.min(axis=0)
+    return (
+        f"<p class='note'>{len(mesh[1])} triangles, size "
+        + " × ".join(f"{s:.4g}" for s in size)
+        + (
+            f" mm (the extruded outline as in <a href='{stl}'>{stl}</a>).</p>"
+            if stl
+            else " mm (the extruded outline; <code>flexopt export</code> of this folder writes "
+            "it as STL, DXF or STEP).</p>"
+        )
+        + figures.embed(_part_fig(*mesh, whose), "part-3d")
+    )
+
+
 def _section(sid: str, title: str, body: str) -> str:
     return f'<section id="{sid}"><h2>{_e(title)}</h2>{body}</section>'
 
 
-def _response_section(data: HtmlData, figures: _Figures) -> str:
-    detail = data.detail
+def _response_section(
+    detail: DesignDetail | None, figures: _Figures, whose: str = "best design"
+) -> str:
     if detail is None or not detail.table:
-        return "<p>No response: the best design's detail failed or the kind gives no table.</p>"
+        return f"<p>No response: the {whose}'s detail failed or the kind gives no table.</p>"
     spec, table = detail.plot, detail.table
     x = spec.get("x", "displacement_mm")
     y = spec.get("y") or spec.get("left") or "force_N"
@@ -808,8 +812,8 @@ def _response_section(data: HtmlData, figures: _Figures) -> str:
     for column, kind, name in ((y, "response", "response"), (stress, "stress", "response-stress")):
         if column not in table:
             continue
-        fig, target = _response_fig(detail, column, kind)
-        curves = _siblings(table, column)
+        fig, target = _response_fig(spec, table, column, kind, whose)
+        curves = labels.siblings(table, column)
         body += (
             f"<p class='note'>{len(curves)} curve{'s' if len(curves) > 1 else ''}; "
             f"{_e(target)}.</p>" + figures.embed(fig, name)

@@ -565,6 +565,7 @@ def evaluate(study: CamStudy, repeat: int = 1) -> EvaluationResult:
             "right": "contact_pressure_MPa",
             "allowable_MPa": summary["onset_pressure_MPa"],
             "allowable_label": "onset of yield, contact",
+            "target_curve": "target_torque_Nm",  # drawn by pipeline.plot_targets
         },
         headline=tuple(
             k
@@ -676,6 +677,7 @@ class CamProblem:
                 "x": "rotation_deg",
                 "y": "virtual_work_torque_Nm",
                 "stress": "contact_pressure_MPa",
+                "target_curve": "target_torque_Nm",
                 "allowable_MPa": info["onset_pressure_MPa"],
                 "x_label": "cam rotation γ (deg)",
                 "y_label": "torque of the plate by virtual work (N·m)",

@@ -1243,6 +1243,8 @@ def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
             "left": "force_N",
             "right": "peak_stress_MPa",
             "allowable_MPa": prob.allowable_MPa,
+            "target": study.target.force_N,  # the force band, drawn (pipeline.plot_targets)
+            "tolerance": study.target.force_N * study.target.tolerance_percent / 100.0,
         },
         headline=(
             "mean_force_N",

@@ -778,6 +778,13 @@ def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
             "left": "torque_Nmm",
             "right": "peak_stress_MPa",
             "allowable_MPa": prob.allowable_MPa,
+            # the target stiffness as a torque line K theta, with the stiffness band
+            "target_curve": {
+                "x": table["rotation_deg"],
+                "y": prob.target_Nmm * np.radians(table["rotation_deg"]),
+            },
+            "tolerance_rel": prob.tolerance,
+            "target_label": f"target K θ, K = {prob.target_Nmm:g} N·mm/rad",
         },
         headline=(
             "type",

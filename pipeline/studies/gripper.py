@@ -448,6 +448,10 @@ def evaluate(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
             "left": "force_N",
             "right": "peak_stress_MPa",
             "allowable_MPa": study.material.yield_MPa,
+            # the finger's force and the band the beam is held to, over the gripping stroke
+            "target": force,
+            "tolerance": force * resolved.target.tolerance_percent / 100.0,
+            "band_x": list(window),
         },
         headline=(
             "target_force_N",

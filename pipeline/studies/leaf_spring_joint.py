@@ -570,10 +570,12 @@ class LeafJointProblem:
             "x": "deflection_deg",
             "y": "stiffness_Nm_per_rad_lmin",
             "stress": "stress_MPa_lmin",
-            "target": self.study.target.stiffness_range_Nm_per_rad[1],
+            # both settings are drawn (l_min and l_max); the range they are sized to span
+            "target_range": list(self.study.target.stiffness_range_Nm_per_rad),
+            "target_label": "target stiffness range",
             "allowable_MPa": self.allowable_MPa,
             "xlabel": "joint deflection (deg)",
-            "ylabel": "joint stiffness at the stiff setting l_min (N·m/rad)",
+            "ylabel": "joint stiffness (N·m/rad)",
         }
         joint = self.joint(x, l_max)
         overhang = (

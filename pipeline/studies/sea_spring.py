@@ -1634,6 +1634,11 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
             "left": "torque_Nm",
             "right": "peak_stress_MPa",
             "allowable_MPa": study.target.allowable_stress_MPa,
+            # the target stiffness as a torque line K theta, with its band
+            "target_curve": {"x": table["rotation_deg"],
+                             "y": prob.k_target * np.radians(table["rotation_deg"])},
+            "tolerance_rel": study.target.tolerance_percent / 100.0,
+            "target_label": f"target K θ, K = {prob.k_target:g} N·m/rad",
         },  # fmt: skip
         headline=tuple(summary),
     )

@@ -69,6 +69,7 @@ from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_key
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.plot_targets import measure_band
 from flexopt.pipeline.plots import plot_field
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
@@ -528,6 +529,7 @@ class ThresholdSpringProblem:
             "y": "torque_Nm",
             "stress": "peak_stress_MPa",
             "target_curve": "target_torque_Nm",
+            **measure_band(self.measure, study.tolerance),
             "allowable_MPa": self.allowable_MPa,
             "xlabel": "hub rotation (deg)",
             "ylabel": "torque on the hub (N m)",
@@ -774,6 +776,8 @@ def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
         "left": "torque_Nm",
         "right": "peak_stress_MPa",
         "allowable_MPa": prob.allowable_MPa,
+        "target_curve": "target_torque_Nm",  # drawn with its band (pipeline.plot_targets)
+        **measure_band(prob.measure, study.tolerance),
     }
     if not d.table:
         empty = np.zeros(0)

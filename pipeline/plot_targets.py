@@ -1,0 +1,189 @@
+"""The target a response plot draws, read from a kind's plot spec.
+
+A kind's plot dict (``EvaluationResult.plot`` of ``flexopt evaluate``, ``DesignDetail.plot`` of
+``flexopt run``) names its response column (``y``, or ``left`` in an evaluate spec) and may state
+the target of that column in one of three forms, all in the column's unit:
+
+- ``target``: a constant (a force of 1.5 N, a stiffness of 300 N·mm/rad);
+- ``target_curve``: the name of a table column holding the target at each row (the cam's
+  ``target_torque_Nm``), or a mapping ``{"x": (m,) array, "y": (m,) array}`` for a target that
+  is not a column (a flexure pivot's torque ``K θ`` against rotation);
+- ``target_range``: ``[low, high]``, a band with no single target value (a window of
+  stiffness).
+
+The band around a ``target`` or ``target_curve`` is ``tolerance`` (half-width, the column's
+unit), ``tolerance_rel`` (a fraction of the target at each point, 0.02 = ±2 %) or
+``tolerance_of_max`` (a fraction of the largest |target|, as the threshold-spring error
+measure normalises). ``band_x`` ``[x0, x1]`` limits the target to part of the x range;
+``target_label`` names it in the legend (default "target"); ``target_of`` names the column the
+target belongs to when it is not the spec's response column.
+
+:func:`target_overlay` resolves this once into plain arrays, which both the PNG plots
+(``pipeline/plots.py``) and report.html (``pipeline/report_html.py``) draw, so the two show the
+same target.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["TargetOverlay", "measure_band", "response_column", "target_overlay"]
+
+
+@dataclass(frozen=True)
+class TargetOverlay:
+    """A target to draw over a response curve.
+
+    Attributes
+    ----------
+    column : str
+        The response column the target belongs to.
+    x : (m,) float
+        Abscissae of the target, in the unit of the plot's x column.
+    y : (m,) float or None
+        The target, in the column's unit; None for a range without a single target value.
+    lower, upper : (m,) float or None
+        The band around it (the range itself for ``target_range``); None when there is no band.
+    label : str
+        Words for the legend: ``target 1.5 ± 0.03`` or ``target curve ± 5 % of max``.
+    """
+
+    column: str
+    x: np.ndarray
+    y: np.ndarray | None
+    lower: np.ndarray | None
+    upper: np.ndarray | None
+    label: str
+
+
+def _float(value: Any) -> float | None:
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return None
+    return out if math.isfinite(out) else None
+
+
+def measure_band(measure: str, tolerance: float) -> dict[str, float]:
+    """The band key of a plot spec for a tolerance on a target-curve error measure
+    (:data:`optimise.targets.MEASURES`): ``*_normalised`` measures are fractions of the largest
+    target (``tolerance_of_max``), ``*_relative`` ones of the local target (``tolerance_rel``);
+    the absolute measures (``rms``, ``max_abs``) are in the curve's own unit, which the plotted
+    column need not share, so they give no band (the target curve alone is drawn)."""
+    if measure.endswith("_normalised"):
+        return {"tolerance_of_max": float(tolerance)}
+    if measure.endswith("_relative"):
+        return {"tolerance_rel": float(tolerance)}
+    return {}
+
+
+def response_column(spec: Mapping[str, Any]) -> str:
+    """The response column of a plot spec: ``y`` (run), else ``left`` (evaluate), else
+    ``force_N``."""
+    return str(spec.get("y") or spec.get("left") or "force_N")
+
+
+def _band_text(spec: Mapping[str, Any], unit: str) -> str:
+    if _float(spec.get("tolerance")):
+        return f" ± {float(spec['tolerance']):g}{unit}"
+    if _float(spec.get("tolerance_rel")):
+        return f" ± {100 * float(spec['tolerance_rel']):g} %"
+    if _float(spec.get("tolerance_of_max")):
+        return f" ± {100 * float(spec['tolerance_of_max']):g} % of its maximum"
+    return ""
+
+
+def target_overlay(
+    spec: Mapping[str, Any],
+    table: Mapping[str, Any],
+    column: str | None = None,
+    unit: str | None = None,
+) -> TargetOverlay | None:
+    """The target of ``column`` (default: the spec's response column) as arrays, or None.
+
+    None when the spec states no target, when it states one for another column
+    (``target_of``), or when its target curve is not in the table.
+
+    Parameters
+    ----------
+    spec : mapping
+        The kind's plot dict (keys in the module docstring).
+    table : mapping of str to (n,) array
+        The response; ``spec["x"]`` (default ``displacement_mm``) is its abscissa.
+    column : str, optional
+        The column being drawn.
+    unit : str, optional
+        Written after the numbers of the legend (``" N"``), when given.
+    """
+    y_name = response_column(spec)
+    column = column or y_name
+    if column != str(spec.get("target_of") or y_name):
+        return None
+    x_name = spec.get("x", "displacement_mm")
+    if x_name not in table:
+        return None
+    xs = np.asarray(table[x_name], dtype=float)
+    if xs.size == 0:
+        return None
+    u = f" {unit}" if unit else ""
+    word = str(spec.get("target_label") or "target")
+    constant = _float(spec.get("target"))
+    curve = spec.get("target_curve")
+    window = spec.get("target_range")
+    if constant is not None:
+        x = np.array([np.nanmin(xs), np.nanmax(xs)])
+        y = np.full(2, constant)
+        label = f"{word} {constant:g}{u}{_band_text(spec, u)}"
+    elif isinstance(curve, str):
+        if curve not in table:
+            return None
+        x, y = xs, np.asarray(table[curve], dtype=float)
+        label = f"{word}{_band_text(spec, u)}"
+    elif isinstance(curve, Mapping) and "x" in curve and "y" in curve:
+        x = np.asarray(curve["x"], dtype=float).ravel()
+        y = np.asarray(curve["y"], dtype=float).ravel()
+        if x.shape != y.shape or x.size == 0:
+            return None
+        label = f"{word}{_band_text(spec, u)}"
+    elif window is not None and len(window) == 2:
+        lo, hi = sorted(float(v) for v in window)
+        x = np.array([np.nanmin(xs), np.nanmax(xs)])
+        label = f"{word} {lo:g}–{hi:g}{u}"
+        x, lower, upper = _clip(spec, x, np.full(2, lo), np.full(2, hi))
+        return TargetOverlay(column, x, None, lower, upper, label)
+    else:
+        return None
+    lower = upper = None
+    tol = _float(spec.get("tolerance"))
+    rel = _float(spec.get("tolerance_rel"))
+    of_max = _float(spec.get("tolerance_of_max"))
+    if tol:
+        half = np.full_like(y, abs(tol))
+    elif rel:
+        half = abs(rel) * np.abs(y)
+    elif of_max:
+        half = np.full_like(y, abs(of_max) * float(np.nanmax(np.abs(y))))
+    else:
+        half = None
+    if half is not None:
+        lower, upper = y - half, y + half
+    x, y2, lower, upper = _clip(spec, x, y, lower, upper)
+    return TargetOverlay(column, x, y2, lower, upper, label)
+
+
+def _clip(spec: Mapping[str, Any], x: np.ndarray, *arrays: np.ndarray | None) -> tuple:
+    """``x`` and ``arrays`` restricted to ``spec["band_x"]`` (a constant target is drawn from
+    the band's start to its end)."""
+    band = spec.get("band_x")
+    if band is None or len(band) != 2:
+        return (x, *arrays)
+    b0, b1 = sorted(float(v) for v in band)
+    if x.size == 2 and all(a is None or np.ptp(a) == 0 for a in arrays):
+        return (np.array([b0, b1]), *arrays)  # a constant: from the band's start to its end
+    keep = (x >= b0 - 1e-12) & (x <= b1 + 1e-12)
+    return (x[keep], *(None if a is None else a[keep] for a in arrays))
