@@ -218,6 +218,12 @@ class RunResult:
         """Every requirement is MET by the best design."""
         return self.best.met
 
+    def verdict_text(self) -> str:
+        """The best design's verdict as ``flexopt run`` prints it."""
+        from flexopt.optimise.requirements import verdict_lines
+
+        return "\n".join(verdict_lines(self.verdict))
+
     @property
     def notes(self) -> tuple[str, ...]:
         """What the run skipped and why (a plot or file not written), from run.json."""
