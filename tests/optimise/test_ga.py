@@ -86,3 +86,31 @@ def test_a_design_with_a_reason_is_never_ranked_feasible():
 
     r = run_ga(SPACE, lying, 1, 1, GAConfig(pop_size=20, n_gen=8, seed=2))
     assert r.best.feasible and not r.best.reason and r.best.x[2] <= 0.5
+
+
+def test_each_generations_best_is_the_best_of_every_design_so_far():
+    """The best is carried from generation to generation (not re-chosen from every design each
+    time): it must be the very design best_of picks from all evaluations so far, with failed
+    designs, a stretch with no feasible design, and ties (the earliest of equal ones)."""
+    from flexopt.optimise.ga import best_of
+
+    def coarse(X):
+        out = []
+        for x in X:
+            if x[2] > 0.85:
+                out.append(Evaluation.failed(x, 1, 1, "mesh failed"))
+                continue
+            f = np.array([np.round(np.sum((x - 0.3) ** 2), 1)])  # ties are common
+            g = np.array([1.1 - x[0] - 0.2 * x[1]])  # feasible only in a corner
+            out.append(Evaluation(x.copy(), f, g))
+        return out
+
+    r = run_ga(SPACE, coarse, 1, 1, GAConfig(pop_size=12, n_gen=12, seed=5))
+    seen = []
+    kinds = set()
+    for gen in r.generations:
+        seen.extend(gen.evaluations)
+        assert gen.best is best_of(seen)
+        kinds.add((gen.best.feasible, bool(gen.best.reason)))
+    assert r.best is best_of(seen)
+    assert (True, False) in kinds and (False, False) in kinds  # both regimes were crossed
