@@ -342,9 +342,18 @@ def _print_verdict(verdicts: Sequence[Any], title: str, console: Console) -> Non
         console.print(line, soft_wrap=True, markup=False)
 
 
+def _print_robustness(record: dict[str, Any], console: Console) -> None:
+    """One line per requirement with the share of scatter samples that meet it."""
+    from flexopt.pipeline.robustness import robustness_lines
+
+    for line in robustness_lines(record.get("robustness")):
+        console.print(line, soft_wrap=True, markup=False)
+
+
 def _print_summary(outcome: EvaluateOutcome, console: Console) -> None:
     result, record = outcome.result, outcome.record
     _print_verdict(result.verdicts, f"{record['study']} ({record['kind']})", console)
+    _print_robustness(record, console)
     table = Table(title=f"{record['study']} ({record['kind']})", title_justify="left")
     table.add_column("quantity")
     table.add_column("value", justify="right")
@@ -482,6 +491,7 @@ def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
     record, best = outcome.record, outcome.result.best
     verdicts = getattr(outcome, "verdicts", ())
     _print_verdict(verdicts, f"{record['study']} ({record['kind']}): best design", console)
+    _print_robustness(record, console)
     problem_names = (record["variables"], record["objectives"], record["constraints"])
     table = Table(title=f"{record['study']} ({record['kind']}): best design", title_justify="left")
     table.add_column("")

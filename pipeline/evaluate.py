@@ -15,6 +15,7 @@ from typing import Any
 from flexopt.optimise.requirements import verdict_record
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plots import plot_response
+from flexopt.pipeline.robustness import run_robustness
 from flexopt.pipeline.runfolder import (
     check_out_dir,
     make_run_dir,
@@ -164,6 +165,7 @@ def evaluate_study(
     started = datetime.now().astimezone()
     result = solve_study(study, repeat, source)
     verdicts = result.verdicts
+    robust = run_robustness(study, plot=result.plot)  # before the folder: it may refuse
     run_dir = make_run_dir(out or new_run_dir_path(runs_root, study.name, "evaluate", started))
     record = {
         "verdict": verdict_record(verdicts),  # first: what the design meets, and what not
@@ -192,6 +194,11 @@ def evaluate_study(
     png = plot_response(result.table, **response_plot_args(study, result))
     write_atomic(run_dir / "force_displacement.png", png)
     extra = _extra_files(result)
+    if robust is not None:
+        record["robustness"] = robust.record()
+        png = robust.png(f"{study.name}: robustness")
+        if png is not None:
+            extra["robustness.png"] = png
     for name, data in extra.items():
         write_atomic(run_dir / name, data)
     record["files"] = [*EVALUATE_FILES, *extra]

@@ -547,3 +547,54 @@ def plot_taguchi(
     if title:
         fig.suptitle(title)
     return _png(fig)
+
+
+def plot_band(
+    x_values: np.ndarray,
+    nominal: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    x: str = "displacement_mm",
+    y: str = "force_N",
+    title: str = "",
+    note: str = "",
+    target: float | None = None,
+    tolerance: float | None = None,
+) -> bytes:
+    """A response with its robustness band: the nominal curve and, shaded, the per-row min–max
+    over the scatter samples (see :mod:`pipeline.robustness`).
+
+    Parameters
+    ----------
+    x_values, nominal : (n,) float
+        The nominal design's driving column and response, in the units their names carry.
+    low, high : (m,) float
+        Per-row min and max of the response over the samples (same unit as ``nominal``); rows
+        are matched by index with ``x_values`` (the first ``min(n, m)``); NaN rows are left out.
+    target, tolerance : float, optional
+        A constant target of the response and its band half-width (unit of ``nominal``), drawn
+        as dashed lines.
+    """
+    xs = np.asarray(x_values, dtype=float)
+    ys = np.asarray(nominal, dtype=float)
+    n = min(len(xs), len(low), len(high))
+    lo, hi = np.asarray(low, dtype=float)[:n], np.asarray(high, dtype=float)[:n]
+    ok = np.isfinite(xs[:n]) & np.isfinite(lo) & np.isfinite(hi)
+    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.fill_between(
+        xs[:n][ok], lo[ok], hi[ok], color="tab:blue", alpha=0.25, lw=0, label="min–max of samples"
+    )
+    ax.plot(xs, ys, color="tab:blue", lw=1.8, label="nominal design")
+    if target is not None:
+        ax.axhline(target, color="k", ls="--", lw=1.0, label="target")
+        for edge in (target - (tolerance or 0.0), target + (tolerance or 0.0)) if tolerance else ():
+            ax.axhline(edge, color="tab:red", ls=":", lw=1.0)
+    ax.set_xlabel(_label(x, None))
+    ax.set_ylabel(_label(y, None))
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small", title=note or None, title_fontsize="small")
+    if title:
+        ax.set_title(title)
+    return _png(fig)

@@ -383,6 +383,12 @@ def render_report(data: ReportData) -> str:
         for name, caption in plots:
             lines += [f"### {caption}", "", f"![{caption}]({name})", ""]
 
+    if record.get("robustness"):  # the chosen design under the study's scatter
+        from flexopt.pipeline.robustness import robustness_markdown
+
+        png = "robustness.png" if "robustness.png" in data.files else None
+        lines += [*robustness_markdown(record["robustness"], png).splitlines(), ""]
+
     n = record.get("n_evaluations") or 0
     n_failed = record.get("n_failed") or 0
     n_feasible = record.get("n_feasible") or 0

@@ -123,6 +123,7 @@ RUN_FILES = (
     "best.step",
     "report.md",
     "report.html",
+    "robustness.png",
 )
 
 _EXTRA_DISTRIBUTIONS = {
@@ -710,6 +711,12 @@ class _Run:
         if detail is not None and part is not None:  # the footprint in best.json and the report
             detail = replace(detail, info={**detail.info, "part": part.record()})
         best_json = {"verdict": verdict_record(self.verdicts), **best_json}  # the verdict first
+        robust = self.robustness(best, detail)
+        if robust is not None:  # the chosen design under the study's scatter (docs/robustness.md)
+            best_json["robustness"] = robust.record()
+            self.record["robustness"] = {
+                k: v for k, v in best_json["robustness"].items() if k not in ("samples", "band")
+            }
         if detail is not None and detail.info:
             best_json["info"] = detail.info
         if len(result.front) > 1:
@@ -774,6 +781,8 @@ class _Run:
             self.artefact(name, lambda data=data: data)
         if len(result.front) > 1 and len(problem.objective_names) >= 2:
             self.artefact("front.png", lambda: self._front_png(result, title))
+        if robust is not None:
+            self.artefact("robustness.png", lambda: robust.png(f"{study.name}: robustness"))
         if part is not None:
             self.artefact("best.stl", lambda: self._stl(part))
             self.artefact("best.dxf", lambda: part_bytes(part, "dxf", f"{study.name}: best"))
@@ -788,6 +797,28 @@ class _Run:
             study.name, study.kind, problem, tuple(self.evaluator.solved), best,
             tuple(result.front), detail, self.verdicts, self.record)))  # fmt: skip
         return detail
+
+    def robustness(self, best: Evaluation, detail: DesignDetail | None) -> Any:
+        """The chosen design at every sample of the study's ``robustness:`` block, on the run's
+        kind of backend (None without the block; a failure is a note, not the end)."""
+        if getattr(self.setup.study, "robustness", None) is None:
+            return None
+        from flexopt.pipeline.robustness import run_robustness
+
+        spec = {k: v for k, v in self.record["parallel"].items() if k != "description"}
+        try:
+            return run_robustness(
+                self.setup.study,
+                np.array(best.x, dtype=float),
+                ParallelSettings(**spec),
+                plot=detail.plot if detail is not None else None,
+            )
+        except Exception as exc:
+            note = f"robustness not evaluated: {_one_line(f'{type(exc).__name__}: {exc}')}"
+            log.warning(note)
+            log.info("robustness: traceback", exc_info=True)
+            self.notes.append(note)
+            return None
 
     def _front_png(self, result: GAResult, title: str) -> bytes:
         """First two objectives of every feasible evaluation, the front and the chosen one."""

@@ -28,6 +28,7 @@ import yaml
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import MATERIALS, Material, get_material
 from flexopt.optimise.requirements import RequirementSpec
+from flexopt.optimise.robustness import RobustnessSpec
 from flexopt.pipeline.errors import StudyError
 from pydantic import (
     BaseModel,
@@ -251,6 +252,11 @@ class Study(BaseModel):
         None,
         max_length=200,
         description="what the design must meet: a list of {quantity, max/min/target/...}",
+    )
+    robustness: RobustnessSpec | None = Field(
+        None,
+        description="scatter of E, thickness and width: the share of samples meeting each "
+        "requirement and the band of the response (docs/robustness.md)",
     )
 
     @field_validator("name")
@@ -616,6 +622,9 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         from flexopt.pipeline.verdict import check_requirement_names
 
         check_requirement_names(study)
+        from flexopt.pipeline.robustness import check_robustness
+
+        check_robustness(study)
     except ValidationError as exc:
         raise validation_error_to_study_error(exc, kind.model, source) from None
     except StudyError as exc:
@@ -832,6 +841,9 @@ def _model_at(model: type[BaseModel], loc: tuple[int | str, ...]) -> type[BaseMo
         if field is None:
             return None
         current = field.annotation
+        arms = [a for a in typing.get_args(current) if a is not type(None)]
+        if typing.get_origin(current) in (typing.Union, types.UnionType) and len(arms) == 1:
+            current = arms[0]  # an optional block (`parallel:`, `robustness:`): its model
     return current if isinstance(current, type) and issubclass(current, BaseModel) else None
 
 

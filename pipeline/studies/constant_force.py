@@ -630,6 +630,20 @@ class ConstantForceProblem:
         # Table 3 lies outside a narrowed space; the nearest design in it seeds instead.
         return self.space.clip(x)[None, :]
 
+    def scatter_design(
+        self, x: np.ndarray, thickness_delta_mm: float, width_delta_mm: float
+    ) -> np.ndarray:
+        """(23,) ``x`` as printed off by a tolerance (robustness samples, pipeline/robustness):
+        every in-plane thickness (t1..t10, T1, T6) plus ``thickness_delta_mm``, the width B plus
+        ``width_delta_mm``; the positions a1..a10 stay."""
+        x = np.array(x, dtype=float)
+        for i, name in enumerate(DESIGN_VARIABLE_NAMES):
+            if name == "B":
+                x[i] += width_delta_mm
+            elif name not in _FRACTIONS:
+                x[i] += thickness_delta_mm
+        return x
+
     # ---- building and solving
 
     def _design(self, x: np.ndarray) -> ConstantForceDesign:

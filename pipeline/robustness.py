@@ -1,0 +1,660 @@
+"""A design under manufacturing scatter: the ``robustness:`` block of a study, run.
+
+For each sample of :mod:`optimise.robustness` (``E_factor, thickness_delta_mm,
+width_delta_mm``) the design is rebuilt with Young's modulus scaled and every thickness and
+width shifted, solved, and judged against the requirements of the verdict. The samples are
+evaluations like any other: they run through the study's parallel backend (serial, a process
+pool or Dask) as design vectors of :class:`SampleProblem`, a design problem over the three
+scatter variables.
+
+How a sample changes a design
+-----------------------------
+The **study** (:func:`perturb_study`): ``material.E_MPa`` times ``E_factor``; every number under
+a key ending in ``thickness_mm`` plus ``thickness_delta_mm`` and under a key ending in
+``width_mm`` plus ``width_delta_mm`` (``geometry.thickness_mm``, ``geometry.width_mm``,
+``geometry.beams.<b>.thickness_mm``, ``geometry.pad_thickness_mm``, ``design.thickness_mm`` ...),
+except under ``design_space``, ``requirements``, ``optimiser``, ``parallel`` and ``robustness``
+(bounds and limits are not printed). The kind's cross-checks of one design that are reports, not
+requirements (``fidelity``, ``prb``, ``check_3d``), are switched off in a sample: they would
+multiply its cost by ~100 and judge nothing.
+
+The **design vector** of a kind that ``flexopt run`` optimises (:func:`scatter_design`): the
+problem's optional ``scatter_design(x, thickness_delta_mm, width_delta_mm) -> x`` when it has
+one (a kind whose variable names do not say what they are: ``t1_mm``, ``B_mm``), else every
+variable whose name contains ``thickness`` gets ``thickness_delta_mm`` and every one whose name
+contains ``width`` gets ``width_delta_mm``. The record's ``perturbed`` lists exactly what moved.
+
+Which path a sample takes
+-------------------------
+``design``: a kind with a design problem and a design (the chosen design of ``flexopt run``; the
+study's nominal design in ``flexopt evaluate``): the perturbed study's problem gives the
+``detail`` of the shifted design vector, judged as ``flexopt run`` judges its best design.
+``study``: a kind that is only evaluated: the kind's ``evaluate`` of the perturbed study, judged
+as ``flexopt evaluate`` judges it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
+
+import numpy as np
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.requirements import Verdict
+from flexopt.optimise.robustness import (
+    SAMPLE_COLUMNS,
+    RobustnessSpec,
+    met_robustly,
+    response_band,
+    samples_of,
+    share_met,
+)
+from flexopt.optimise.space import DesignSpace
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.study import Study, validate_study
+
+__all__ = [
+    "RobustnessResult",
+    "SampleProblem",
+    "check_robustness",
+    "compact",
+    "perturb_study",
+    "robustness_lines",
+    "robustness_markdown",
+    "run_robustness",
+    "scatter_design",
+]
+
+log = logging.getLogger(__name__)
+
+#: Top-level blocks a sample leaves alone: bounds, limits and run settings are not printed.
+UNPERTURBED_BLOCKS = ("design_space", "requirements", "optimiser", "parallel", "robustness")
+
+#: Cross-checks of one design that are reports, not requirements: off in a sample (the
+#: constant-force fidelity check is 2.6 s of a 2.6 s detail; the beam itself 0.03 s).
+SAMPLE_SWITCHES: tuple[tuple[tuple[str, ...], Any], ...] = (
+    (("fidelity", "enabled"), False),
+    (("check_3d",), False),
+)
+SAMPLE_DROPPED = ("prb",)
+
+#: Key endings shifted by the thickness scatter. The printable minimum moves with the print: it
+#: is a rule on the drawing (every feature at least two extrusion lines), so a sample printed
+#: 0.1 mm thin is judged, and solved, as the print of a printable drawing, not refused as
+#: unprintable (the constant-force problem refuses to solve a design under the minimum).
+THICKNESS_KEYS = ("thickness_mm", "min_feature_mm")
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def perturb_study(
+    study: Study, E_factor: float, thickness_delta_mm: float, width_delta_mm: float
+) -> tuple[Study, tuple[str, ...]]:
+    """The study of one sample, and the key paths it changed.
+
+    Raises
+    ------
+    StudyError
+        When the perturbed study is invalid (a thickness shifted to zero or below, say).
+    """
+    data = study.model_dump(mode="json", exclude_none=True)
+    changed: list[str] = []
+    if E_factor != 1.0:
+        data["material"]["E_MPa"] = float(data["material"]["E_MPa"]) * float(E_factor)
+        changed.append("material.E_MPa")
+
+    def shift(node: Any, path: str, delta: float) -> Any:
+        if _is_number(node):
+            changed.append(path)
+            return float(node) + delta
+        if isinstance(node, list):
+            return [shift(v, f"{path}[{i}]", delta) for i, v in enumerate(node)]
+        return node
+
+    def walk(node: Any, path: str) -> None:
+        if not isinstance(node, dict):
+            if isinstance(node, list):
+                for i, item in enumerate(node):
+                    walk(item, f"{path}[{i}]")
+            return
+        for key, value in node.items():
+            where = f"{path}.{key}" if path else str(key)
+            if not path and key in UNPERTURBED_BLOCKS:
+                continue
+            if str(key).endswith(THICKNESS_KEYS) and thickness_delta_mm != 0.0:
+                node[key] = shift(value, where, thickness_delta_mm)
+            elif str(key).endswith("width_mm") and width_delta_mm != 0.0:
+                node[key] = shift(value, where, width_delta_mm)
+            else:
+                walk(value, where)
+
+    walk(data, "")
+    data.pop("robustness", None)
+    for keys, value in SAMPLE_SWITCHES:
+        node = data
+        for key in keys[:-1]:
+            node = node.get(key) if isinstance(node, dict) else None
+        if isinstance(node, dict) and keys[-1] in node:
+            node[keys[-1]] = value
+    for key in SAMPLE_DROPPED:
+        data.pop(key, None)
+    return validate_study(data), tuple(changed)
+
+
+def scatter_design(
+    problem: Any, x: np.ndarray, thickness_delta_mm: float, width_delta_mm: float
+) -> np.ndarray:
+    """The design vector of one sample (see the module docstring).
+
+    Returns
+    -------
+    (n_var,) float
+        In the units of ``problem.space``.
+    """
+    x = np.array(x, dtype=float)
+    hook = getattr(problem, "scatter_design", None)
+    if callable(hook):
+        out = np.asarray(hook(x.copy(), thickness_delta_mm, width_delta_mm), dtype=float)
+        if out.shape != x.shape:
+            raise TypeError(f"scatter_design() gave shape {out.shape}, expected {x.shape}")
+        return out
+    for i, name in enumerate(problem.space.names):
+        lowered = name.lower()
+        if "thickness" in lowered:
+            x[i] += thickness_delta_mm
+        elif "width" in lowered:
+            x[i] += width_delta_mm
+    return x
+
+
+# --------------------------------------------------------------------------------------------
+# One sample, as a design problem over the scatter
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What a sample carries back beside its Evaluation (in ``metrics['robustness']``)."""
+
+    verdicts: tuple[Verdict, ...]
+    table: dict[str, np.ndarray]
+
+
+class SampleProblem:
+    """A design problem whose design vector is one sample ``(E_factor, thickness_delta_mm,
+    width_delta_mm)`` of a fixed design; picklable, for the parallel backends.
+
+    ``evaluate`` returns one objective, the number of requirements the sample does not meet,
+    no constraint, and in ``metrics['robustness']`` the verdicts and the response table; a
+    sample that cannot be built or solved comes back failed (it meets nothing).
+    """
+
+    objective_names = ("requirements_not_met",)
+    constraint_names: tuple[str, ...] = ()
+
+    def __init__(
+        self,
+        study: Study,
+        mode: Literal["design", "study"],
+        x: np.ndarray | None,
+    ) -> None:
+        self.study = study
+        self.mode = mode
+        self.x = None if x is None else np.asarray(x, dtype=float)
+        self.space = DesignSpace(SAMPLE_COLUMNS, np.array([0.01, -50.0, -50.0]), np.ones(3) * 50)
+
+    def _judge(
+        self, study: Study, values: Mapping[str, Any], table: Mapping[str, Any]
+    ) -> tuple[Verdict, ...]:
+        from flexopt.pipeline.verdict import judge, study_requirements
+
+        # the sample's own study: its printable minimum moved with the print (THICKNESS_KEYS),
+        # every other requirement is the verdict's
+        return judge(study, values, table, study_requirements(study))
+
+    def evaluate(self, s: np.ndarray) -> Evaluation:
+        from flexopt.pipeline.run import build_problem
+        from flexopt.pipeline.studies import get_kind
+        from flexopt.pipeline.verdict import detail_values
+
+        E_factor, dt, dw = (float(v) for v in np.asarray(s, dtype=float).ravel())
+        study, _ = perturb_study(self.study, E_factor, dt, dw)
+        reason = ""
+        if self.mode == "design":
+            problem = build_problem(study)
+            detail = problem.detail(scatter_design(problem, self.x, dt, dw))
+            table = dict(detail.table)
+            verdicts = tuple(detail.verdicts) or self._judge(
+                study, detail_values(detail, detail.evaluation), table
+            )
+            reason = detail.evaluation.reason
+        else:
+            result = get_kind(study.kind).evaluate(study, 1)  # type: ignore[misc]
+            table = dict(result.table)
+            verdicts = tuple(result.verdicts) or self._judge(study, result.summary, table)
+            reason = "" if result.converged else (result.message or "did not converge")
+        n_not_met = sum(not v.met for v in verdicts)
+        return Evaluation(
+            np.asarray(s, dtype=float),
+            np.array([float(n_not_met)]),
+            np.zeros(0),
+            {"robustness": _Outcome(verdicts, table)},
+            reason,
+        )
+
+    def detail(self, s: np.ndarray) -> Any:
+        raise NotImplementedError("a robustness sample has no detail; evaluate it")
+
+
+# --------------------------------------------------------------------------------------------
+# All samples
+
+
+@dataclass(frozen=True)
+class RobustnessResult:
+    """The samples of one design, judged.
+
+    Attributes
+    ----------
+    spec : the ``robustness:`` block.
+    samples : (n_samples, 3) rows ``(E_factor, thickness_delta_mm, width_delta_mm)``; row 0 is
+        the nominal design.
+    perturbed : what a sample changes, in words and key paths.
+    names : (n_req,) requirement names, in verdict order.
+    nominal : (n_req,) verdicts of the nominal sample.
+    met : (n_samples, n_req) bool.
+    share_percent : (n_req,) float, %.
+    robust : (n_req,) bool, share reaches ``spec.share_percent``.
+    worst_margin : (n_req,) float, the smallest margin over the samples (unit of each requirement;
+        NaN where a sample gave none).
+    band : ``{column: (low, high)}`` per-row min/max over the samples (see
+        :func:`optimise.robustness.response_band`).
+    nominal_table : the nominal sample's response columns.
+    reasons : (n_samples,) why a sample failed, "" when it was solved.
+    x, y : the columns to plot (driving quantity, response).
+    """
+
+    spec: RobustnessSpec
+    samples: np.ndarray
+    perturbed: tuple[str, ...]
+    names: tuple[str, ...]
+    nominal: tuple[Verdict, ...]
+    met: np.ndarray
+    share_percent: np.ndarray
+    robust: np.ndarray
+    worst_margin: np.ndarray
+    band: dict[str, tuple[np.ndarray, np.ndarray]]
+    nominal_table: dict[str, np.ndarray]
+    reasons: tuple[str, ...]
+    x: str = "displacement_mm"
+    y: str = "force_N"
+    units: tuple[str, ...] = field(default=())
+    target: float | None = None
+    tolerance: float | None = None
+
+    @property
+    def n_samples(self) -> int:
+        return int(len(self.samples))
+
+    def record(self) -> dict[str, Any]:
+        """JSON-ready: method, counts, what was perturbed, each requirement's share, the band."""
+        spec = self.spec
+
+        def num(v: float) -> float | None:
+            return float(v) if math.isfinite(float(v)) else None
+
+        band_cols = [c for c in (self.x, self.y) if c in self.band]
+        return {
+            "method": spec.method,
+            "n_samples": self.n_samples,
+            "seed": spec.seed if spec.method == "monte_carlo" else None,
+            "scatter": {
+                "E_percent": spec.E_percent,
+                "thickness_mm": spec.thickness_mm,
+                "width_mm": spec.width_mm,
+            },
+            "share_percent_required": spec.share_percent,
+            "n_failed": sum(bool(r) for r in self.reasons),
+            "failure": next((r for r in self.reasons if r), ""),
+            "objective": spec.objective,
+            "perturbed": list(self.perturbed),
+            "requirements": [
+                {
+                    "name": name,
+                    "nominal_margin": num(v.margin) if v is not None else None,
+                    "nominal_verdict": v.word if v is not None else None,
+                    "worst_margin": num(w),
+                    "unit": unit,
+                    "share_percent": float(share),
+                    "met_robustly": bool(ok),
+                }
+                for name, v, w, unit, share, ok in zip(
+                    self.names,
+                    self.nominal,
+                    self.worst_margin,
+                    self.units,
+                    self.share_percent,
+                    self.robust,
+                    strict=True,
+                )
+            ],
+            "samples": [
+                {
+                    **{c: float(s[i]) for i, c in enumerate(SAMPLE_COLUMNS)},
+                    "met": int(row.sum()),
+                    "of": int(row.size),
+                    "reason": reason,
+                }
+                for s, row, reason in zip(self.samples, self.met, self.reasons, strict=True)
+            ],
+            "band": {
+                c: {
+                    "low": [num(v) for v in self.band[c][0]],
+                    "high": [num(v) for v in self.band[c][1]],
+                }
+                for c in band_cols
+            },
+        }
+
+    def lines(self) -> list[str]:
+        """Console lines: one per requirement with its share of samples."""
+        return robustness_lines(self.record())
+
+    def markdown(self, plot_file: str | None = None) -> str:
+        """The report's "Robustness" section (Markdown)."""
+        return robustness_markdown(self.record(), plot_file)
+
+    def png(self, title: str = "") -> bytes | None:
+        """The response with its band (min–max over the samples) around the nominal curve."""
+        from flexopt.pipeline.plots import plot_band
+
+        if self.x not in self.band or self.y not in self.band:
+            return None
+        if self.x not in self.nominal_table or self.y not in self.nominal_table:
+            return None
+        return plot_band(
+            self.nominal_table[self.x],
+            self.nominal_table[self.y],
+            self.band[self.y][0],
+            self.band[self.y][1],
+            x=self.x,
+            y=self.y,
+            title=title,
+            note=f"{self.n_samples} samples: {_scatter_text(self.record())}",
+            target=self.target,
+            tolerance=self.tolerance,
+        )
+
+
+def robustness_lines(record: Mapping[str, Any] | None) -> list[str]:
+    """Console lines of a robustness record (:meth:`RobustnessResult.record`, or its
+    :func:`compact` form): a header, then one line per requirement with its share."""
+    if not record:
+        return []
+    n = record.get("n_samples", 0)
+    required = record.get("share_percent_required", 100.0)
+    out = [
+        f"robustness ({record.get('method')}, {n} samples: {_scatter_text(record)}; MET "
+        f"robustly at >= {required:g} % of samples):"
+    ]
+    reqs = record.get("requirements") or []
+    width = max((len(r["name"]) for r in reqs), default=0)
+    for r in reqs:
+        word = "MET" if r["met_robustly"] else "NOT MET"
+        k = round(r["share_percent"] * n / 100.0) if n else 0
+        out.append(
+            f"  {r['name'].ljust(width)}  {r['share_percent']:5.1f} % of samples ({k}/{n})  {word}"
+        )
+    if not reqs:
+        out.append("  (no requirement to judge)")
+    return out
+
+
+def _scatter_text(record: Mapping[str, Any]) -> str:
+    scatter = record.get("scatter") or {}
+    return ", ".join(
+        text.format(scatter[key])
+        for key, text in (
+            ("E_percent", "E ±{:g} %"),
+            ("thickness_mm", "thickness ±{:g} mm"),
+            ("width_mm", "width ±{:g} mm"),
+        )
+        if scatter.get(key)
+    )
+
+
+def robustness_markdown(record: Mapping[str, Any], plot_file: str | None = None) -> str:
+    """The report's "Robustness" section from a robustness record (Markdown): what was
+    scattered and perturbed, and per requirement the nominal and worst margins, the share of
+    samples that meet it and the robust verdict."""
+    required = record.get("share_percent_required", 100.0)
+    how = f"seed {record.get('seed')}" if record.get("method") == "monte_carlo" else "corners"
+    lines = [
+        "## Robustness",
+        "",
+        f"{record.get('n_samples')} samples ({how}, the nominal design included) of "
+        f"{_scatter_text(record)}. A requirement is MET robustly when at least {required:g} % "
+        "of the samples meet it.",
+        "",
+        "Perturbed: " + "; ".join(record.get("perturbed") or ["nothing"]) + ".",
+        "",
+        "| requirement | nominal margin | worst margin | share of samples MET | "
+        f"robust verdict (at {required:g} %) |",
+        "|---|---|---|---|---|",
+    ]
+
+    def margin(value: Any, unit: str) -> str:
+        if value is None:
+            return "n/a"
+        return f"{value:+.4g}" + (f" {unit}" if unit else "")
+
+    for r in record.get("requirements") or []:
+        lines.append(
+            f"| {r['name']} | {margin(r.get('nominal_margin'), r.get('unit', ''))} | "
+            f"{margin(r.get('worst_margin'), r.get('unit', ''))} | {r['share_percent']:.1f} % | "
+            f"{'MET' if r['met_robustly'] else 'NOT MET'} |"
+        )
+    if not record.get("requirements"):
+        lines.append("| (no requirement to judge) | | | | |")
+    if record.get("n_failed"):
+        lines += [
+            "",
+            f"{record['n_failed']} sample(s) could not be solved or built (they meet what their "
+            f"verdicts say, a missing value meets nothing), e.g.: {record.get('failure')}",
+        ]
+    if plot_file:
+        lines += ["", f"![the response with its band over the samples]({plot_file})"]
+    return "\n".join(lines) + "\n"
+
+
+def compact(record: Mapping[str, Any]) -> dict[str, Any]:
+    """A robustness record without its per-sample rows and band (for run.json)."""
+    return {k: v for k, v in record.items() if k not in ("samples", "band")}
+
+
+def check_robustness(study: Study) -> None:
+    """Refuse what this version cannot do with a ``robustness:`` block.
+
+    Raises
+    ------
+    StudyError
+        At ``robustness.objective`` for ``worst`` (not yet supported).
+    """
+    spec: RobustnessSpec | None = getattr(study, "robustness", None)
+    if spec is not None and spec.objective == "worst":
+        raise StudyError(
+            "robustness.objective",
+            "worst is not yet supported (it would cost "
+            f"{spec.n_samples}x the evaluations of each design); use objective: nominal, which "
+            "optimises the nominal design and reports its robustness",
+        )
+
+
+def _plot_columns(study: Study, mode: str, spec: Mapping[str, Any]) -> tuple[str, str]:
+    if mode == "design":
+        return str(spec.get("x", "displacement_mm")), str(spec.get("y", "force_N"))
+    return str(spec.get("x", "displacement_mm")), str(spec.get("left", "force_N"))
+
+
+def _backend_opener() -> Any:
+    # The backends are moving from pipeline.parallel to pipeline.backends (issue 14 item 1).
+    try:
+        from flexopt.pipeline.backends import open_backend  # type: ignore[import-not-found]
+    except ImportError:
+        from flexopt.pipeline.parallel import open_backend
+    return open_backend
+
+
+def run_robustness(
+    study: Study,
+    x: np.ndarray | None = None,
+    settings: Any = None,
+    plot: Mapping[str, Any] | None = None,
+    backend: Any = None,
+) -> RobustnessResult | None:
+    """Evaluate the study's design at every sample of its ``robustness:`` block.
+
+    Parameters
+    ----------
+    study : Study
+        The nominal study (None is returned when it has no ``robustness:`` block).
+    x : (n_var,) float, optional
+        The design vector (``flexopt run``'s chosen design). Without it, a kind that is
+        optimised takes the study's nominal design; one that is only evaluated takes the study.
+    settings : ParallelSettings, optional
+        Where the samples run (default: the study's ``parallel:`` block).
+    plot : mapping, optional
+        The nominal response's plot dict (``x`` and ``y`` or ``left``): the band's columns.
+    backend : BatchBackend, optional
+        Run the samples here instead of opening the backend ``settings`` describe.
+
+    Raises
+    ------
+    StudyError
+        When the study cannot be perturbed at all (its nominal sample is refused).
+    """
+    spec: RobustnessSpec | None = getattr(study, "robustness", None)
+    if spec is None:
+        return None
+    check_robustness(study)
+    from flexopt.pipeline.run import _nominal_design, build_problem, parallel_settings
+    from flexopt.pipeline.studies import get_kind
+
+    kind = get_kind(study.kind)
+    mode: Literal["design", "study"] = "study"
+    problem = None
+    if kind.problem is not None:
+        problem = build_problem(study)
+        if x is None:
+            try:
+                x = _nominal_design(problem, study)
+            except Exception:  # noqa: BLE001 - no design in the study: evaluate the study
+                x = None
+        mode = "design" if x is not None else "study"
+    if mode == "study" and kind.evaluate is None:
+        raise StudyError("robustness", f"kind '{study.kind}' has neither a design nor evaluate")
+    samples = samples_of(spec)
+    perturbed = _describe(study, spec, problem if mode == "design" else None, x)
+    sample_problem = SampleProblem(study, mode, x)
+    settings = settings if settings is not None else parallel_settings(study)
+    log.info("robustness: %d samples on %s", len(samples), settings.describe())
+    if backend is not None:
+        evaluations = backend(sample_problem, samples)
+    else:
+        with _backend_opener()(settings, sample_problem) as opened:
+            evaluations = opened(sample_problem, samples)
+    result = _collect(spec, samples, perturbed, evaluations, _plot_columns(study, mode, plot or {}))
+    return replace(result, **_target_of(plot or {}))
+
+
+def _target_of(plot: Mapping[str, Any]) -> dict[str, float | None]:
+    """A constant target and its band half-width from a kind's plot dict (else None)."""
+    target = plot.get("target")
+    if not _is_number(target):
+        return {"target": None, "tolerance": None}
+    tolerance = plot.get("tolerance")
+    if not _is_number(tolerance) and _is_number(plot.get("tolerance_rel")):
+        tolerance = abs(float(target)) * float(plot["tolerance_rel"])
+    return {
+        "target": float(target),
+        "tolerance": float(tolerance) if _is_number(tolerance) else None,
+    }
+
+
+def _describe(study: Study, spec: RobustnessSpec, problem: Any, x: np.ndarray | None) -> tuple:
+    """What a sample changes: ``E (material.E_MPa)``, the study keys and design variables."""
+    e = 1.0 + spec.E_percent / 100.0
+    _, changed = perturb_study(study, e, spec.thickness_mm, spec.width_mm)
+    words = []
+    if spec.E_percent:
+        words.append(f"E ±{spec.E_percent:g} % (material.E_MPa)")
+    thick = [c for c in changed if c.split("[")[0].endswith(THICKNESS_KEYS)]
+    wide = [c for c in changed if c.split("[")[0].endswith("width_mm")]
+    if problem is not None and x is not None:
+        names = problem.space.names
+        dt = scatter_design(problem, x, spec.thickness_mm, 0.0) - np.asarray(x, dtype=float)
+        dw = scatter_design(problem, x, 0.0, spec.width_mm) - np.asarray(x, dtype=float)
+        thick += [f"design variable {n}" for n, d in zip(names, dt, strict=True) if d != 0]
+        wide += [f"design variable {n}" for n, d in zip(names, dw, strict=True) if d != 0]
+    if spec.thickness_mm:
+        what = ", ".join(thick) if thick else "nothing: no thickness found in this study"
+        words.append(f"thickness ±{spec.thickness_mm:g} mm: {what}")
+    if spec.width_mm:
+        what = ", ".join(wide) if wide else "nothing: no width found in this study"
+        words.append(f"width ±{spec.width_mm:g} mm: {what}")
+    return tuple(words)
+
+
+def _collect(
+    spec: RobustnessSpec,
+    samples: np.ndarray,
+    perturbed: tuple[str, ...],
+    evaluations: Sequence[Evaluation],
+    columns: tuple[str, str],
+) -> RobustnessResult:
+    outcomes: list[_Outcome | None] = [ev.metrics.get("robustness") for ev in evaluations]
+    reference = next((o for o in outcomes if o is not None and o.verdicts), None)
+    names = tuple(v.name for v in reference.verdicts) if reference else ()
+    units = tuple(v.unit for v in reference.verdicts) if reference else ()
+    met = np.zeros((len(samples), len(names)), dtype=bool)
+    margins = np.full((len(samples), len(names)), np.nan)
+    for i, outcome in enumerate(outcomes):
+        if outcome is None:
+            continue
+        by_name = {v.name: v for v in outcome.verdicts}
+        for j, name in enumerate(names):
+            v = by_name.get(name)
+            if v is not None:
+                met[i, j] = bool(v.met)
+                margins[i, j] = v.margin
+    share = share_met(met) if len(names) else np.zeros(0)
+    nominal = outcomes[0]
+    nominal_verdicts = {v.name: v for v in nominal.verdicts} if nominal else {}
+    with np.errstate(all="ignore"):
+        worst = np.array(
+            [
+                np.nan if np.isnan(margins[:, j]).any() else float(margins[:, j].min())
+                for j in range(len(names))
+            ]
+        )
+    return RobustnessResult(
+        spec=spec,
+        samples=samples,
+        perturbed=perturbed,
+        names=names,
+        nominal=tuple(nominal_verdicts.get(n) for n in names),  # type: ignore[misc]
+        met=met,
+        share_percent=share,
+        robust=met_robustly(share, spec.share_percent),
+        worst_margin=worst,
+        band=response_band([o.table if o else None for o in outcomes]),
+        nominal_table=dict(nominal.table) if nominal else {},
+        reasons=tuple(ev.reason for ev in evaluations),
+        x=columns[0],
+        y=columns[1],
+        units=units,
+    )

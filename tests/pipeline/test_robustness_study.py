@@ -1,0 +1,206 @@
+"""The robustness: block of a study: samples through the backend, shares, band, key-path errors.
+
+The numbers are earned from the cantilever's closed form: at a small tip deflection the tip force
+is F = 3 E I d / L^3 with I = w t^3 / 12, so each sample's force scales as E t^3 w, and a
+requirement that holds F within ±1 % of the nominal is met by the nominal sample only.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import flexopt_toys  # noqa: F401 - registers the toy kind for the run test
+import numpy as np
+import pytest
+from flexopt.fea.materials import get_material
+from flexopt.optimise.robustness import corner_samples
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.evaluate import evaluate_study
+from flexopt.pipeline.robustness import perturb_study, scatter_design
+from flexopt.pipeline.study import validate_study
+
+L_MM, T_MM, W_MM, D_MM = 60.0, 1.5, 8.0, 0.3
+SCATTER = {"E_percent": 10.0, "thickness_mm": 0.1, "width_mm": 0.2}
+
+
+def tip_force_N(E_MPa: float, t_mm: float, w_mm: float) -> float:
+    """Euler-Bernoulli cantilever, tip load: F = 3 E I d / L^3."""
+    return 3.0 * E_MPa * (w_mm * t_mm**3 / 12.0) * D_MM / L_MM**3
+
+
+def cantilever(robustness: dict | None = None, **extra) -> dict:
+    F0 = tip_force_N(get_material("ABS").E_MPa, T_MM, W_MM)
+    raw = {
+        "name": "cantilever-robust",
+        "geometry": {
+            "kind": "polyline_beam",
+            "points_mm": [[0, 0], [L_MM / 2, 0], [L_MM, 0]],
+            "thickness_mm": [T_MM] * 3,
+            "width_mm": W_MM,
+            "elements": 20,
+        },
+        "material": "ABS",
+        "boundary": {
+            "start": "clamped",
+            "end": {
+                "control": "displacement",
+                "direction": [0, 1],
+                "max_mm": D_MM,
+                "steps": 3,
+                "rotation": "free",
+                "transverse": "free",
+            },
+        },
+        # met near the nominal only: every corner moves F by more than 1 %
+        "requirements": [
+            {"quantity": "max_abs_force_N", "name": "tip force", "min": 0.99 * F0, "max": 1.01 * F0}
+        ],
+        "parallel": {"backend": "serial"},
+        **extra,
+    }
+    if robustness is not None:
+        raw["robustness"] = robustness
+    return raw
+
+
+def test_corners_of_a_cantilever_share_and_band(tmp_path):
+    study = validate_study(cantilever(SCATTER))
+    outcome = evaluate_study(study, out=tmp_path / "ev")
+    record = json.loads((tmp_path / "ev" / "evaluation.json").read_text())["robustness"]
+    assert record == json.loads(json.dumps(outcome.record["robustness"]))
+    assert record["method"] == "corners" and record["n_samples"] == 2**3 + 1
+    assert (tmp_path / "ev" / "robustness.png").stat().st_size > 1000
+    joined = " ".join(record["perturbed"])
+    for key in ("material.E_MPa", "geometry.thickness_mm[0]", "geometry.thickness_mm[2]"):
+        assert key in joined
+    assert "geometry.width_mm" in joined
+
+    E = get_material("ABS").E_MPa
+    rows = corner_samples(**SCATTER)
+    forces = [tip_force_N(E * e, T_MM + dt, W_MM + dw) for e, dt, dw in rows]
+    F0 = forces[0]
+    inside = [abs(f / F0 - 1.0) <= 0.01 for f in forces]
+    assert inside[0] and not any(inside[1:])  # the test's premise, from the closed form
+    tip = next(r for r in record["requirements"] if r["name"] == "tip force")
+    assert tip["share_percent"] == pytest.approx(100.0 / 9.0)
+    assert tip["met_robustly"] is False and tip["nominal_verdict"] == "MET"
+    # every sample's verdict: only the nominal (row 0) meets the tip force
+    assert [s["met"] == s["of"] for s in record["samples"]] == inside
+
+    # the band of the force at the last row: the extreme corners, within the beam's accuracy
+    band = record["band"]
+    assert band["force_N"]["low"][-1] == pytest.approx(min(forces), rel=0.01)
+    assert band["force_N"]["high"][-1] == pytest.approx(max(forces), rel=0.01)
+    # the driven displacement is the same in every sample: its band has no width
+    np.testing.assert_allclose(band["displacement_mm"]["low"], band["displacement_mm"]["high"])
+
+
+def test_a_scatter_that_changes_nothing_keeps_every_requirement(tmp_path):
+    # thickness scatter on a study with no thickness key moves nothing: 100 % everywhere
+    raw = cantilever({"E_percent": 0.5})
+    study = validate_study(raw)
+    record = evaluate_study(study, out=tmp_path / "ev").record["robustness"]
+    assert record["n_samples"] == 3
+    tip = record["requirements"][-1]
+    # E +-0.5 % moves F by 0.5 %, inside +-1 %: every sample meets it
+    assert tip["share_percent"] == 100.0 and tip["met_robustly"] is True
+
+
+def test_monte_carlo_is_reproducible(tmp_path):
+    block = {"method": "monte_carlo", "samples": 4, "seed": 3, "E_percent": 20.0}
+    first = evaluate_study(validate_study(cantilever(block)), out=tmp_path / "a").record
+    second = evaluate_study(validate_study(cantilever(block)), out=tmp_path / "b").record
+    assert first["robustness"]["n_samples"] == 5
+    assert first["robustness"]["samples"] == second["robustness"]["samples"]
+    E = [s["E_factor"] for s in first["robustness"]["samples"]]
+    assert E[0] == 1.0 and all(0.8 <= e <= 1.2 for e in E)
+
+
+def test_perturb_study_shifts_printed_sizes_only():
+    raw = cantilever(SCATTER)
+    raw["requirements"].append({"envelope_mm": [100.0, 20.0]})
+    study = validate_study(raw)
+    sample, changed = perturb_study(study, 1.1, 0.1, -0.2)
+    assert sample.material.E_MPa == pytest.approx(1.1 * study.material.E_MPa)
+    assert sample.geometry.thickness_mm == pytest.approx((T_MM + 0.1,) * 3)
+    assert sample.geometry.width_mm == pytest.approx(W_MM - 0.2)
+    assert sample.requirements == study.requirements  # limits are not printed
+    assert sample.robustness is None  # a sample does not sample itself
+    assert set(changed) == {
+        "material.E_MPa",
+        "geometry.thickness_mm[0]",
+        "geometry.thickness_mm[1]",
+        "geometry.thickness_mm[2]",
+        "geometry.width_mm",
+    }
+    with pytest.raises(StudyError, match=r"geometry\.thickness_mm"):
+        perturb_study(study, 1.0, -T_MM, 0.0)  # printed away: the sample's study is refused
+
+
+def test_design_vectors_shift_by_name_or_by_the_kind():
+    class ByName:
+        class space:  # noqa: N801 - a stand-in for a DesignSpace
+            names = ("leaf_thickness_mm", "length_mm", "width_mm")
+
+    x = np.array([1.0, 20.0, 6.0])
+    np.testing.assert_allclose(scatter_design(ByName(), x, 0.1, -0.2), [1.1, 20.0, 5.8])
+
+    from flexopt.pipeline.run import build_problem
+    from flexopt.pipeline.study import load_study
+
+    problem = build_problem(load_study("constant-force"))
+    x = problem.nominal_design()
+    shifted = scatter_design(problem, x, 0.1, -0.2)
+    names = problem.space.names
+    for name, a, b in zip(names, x, shifted, strict=True):
+        expected = 0.0 if name.startswith("a") else (-0.2 if name == "B_mm" else 0.1)
+        assert b - a == pytest.approx(expected), name
+
+
+@pytest.mark.parametrize(
+    ("block", "where", "words"),
+    [
+        ({"E_percent": 10, "sample": 4}, "robustness.sample", "did you mean 'samples'"),
+        ({"method": "monte_carlo", "E_percent": 10}, "robustness", "needs samples"),
+        ({"method": "corners", "samples": 8, "E_percent": 10}, "robustness", "monte_carlo"),
+        ({}, "robustness", "no scatter"),
+        ({"E_percent": 120}, "robustness.E_percent", "100"),
+        ({"thickness_mm": -0.1}, "robustness.thickness_mm", "0"),
+        ({"E_percent": 10, "objective": "worst"}, "robustness.objective", "not yet supported"),
+        ({"E_percent": 10, "method": "latin"}, "robustness.method", "corners"),
+    ],
+)
+def test_bad_blocks_name_the_key(block, where, words, tmp_path, capsys):
+    with pytest.raises(StudyError) as caught:
+        validate_study(cantilever(block))
+    assert caught.value.path == where, str(caught.value)
+    assert words in str(caught.value)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(cantilever(block)))
+    assert main(["evaluate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and where in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_run_reports_the_chosen_designs_robustness(tmp_path, capsys):
+    raw = flexopt_toys.study("toy-robust")
+    raw["optimiser"] = {"pop_size": 4, "n_gen": 2, "seed": 1}
+    raw["robustness"] = {"E_percent": 10.0, "thickness_mm": 0.1}
+    path = tmp_path / "toy.json"
+    path.write_text(json.dumps(raw))
+    out = tmp_path / "run"
+    assert main(["run", str(path), "--out", str(out), "--workers", "1"]) == 0
+    best = json.loads((out / "best.json").read_text())
+    record = best["robustness"]
+    assert record["n_samples"] == 5 and record["method"] == "corners"
+    # the toy has no thickness: the record says so rather than pretending
+    assert any("no thickness found" in p for p in record["perturbed"])
+    assert math.isclose(record["samples"][0]["E_factor"], 1.0)
+    report = (out / "report.md").read_text()
+    assert "## Robustness" in report and "share of samples MET" in report
+    assert "robustness (corners, 5 samples" in capsys.readouterr().out
+    run = json.loads((out / "run.json").read_text())
+    assert run["robustness"]["n_samples"] == 5 and "band" not in run["robustness"]
