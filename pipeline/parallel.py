@@ -10,7 +10,8 @@ bad design never stops a run. The backends only decide *where* it runs:
   at start, and then only design vectors, in chunks. A watchdog terminates and replaces a worker
   whose design exceeds the time limit; a worker that dies has its unfinished designs resubmitted
   (the design it was solving at most :data:`MAX_ATTEMPTS` times in all);
-- :class:`pipeline.cluster.DaskBackend` — the same on a Dask distributed cluster.
+- :class:`pipeline.cluster.DaskBackend` — the same on a Dask distributed cluster
+  (:func:`pipeline.backends.open_backend` opens the one a run asks for).
 
 Every backend reports each design as it finishes (``on_result(row, evaluation)``: the run persists
 it at once) and returns the evaluations in the order of the designs, so results do not depend on
@@ -56,7 +57,6 @@ __all__ = [
     "evaluate_batch",
     "evaluate_one",
     "one_line",
-    "open_backend",
     "pin_threads",
     "timeout_reason",
 ]
@@ -341,58 +341,6 @@ def chunk_rows(
     if chunk_size:
         return max(1, int(chunk_size))
     return max(1, math.ceil(n / (per_worker * max(1, n_workers))))
-
-
-@contextlib.contextmanager
-def open_backend(settings: ParallelSettings, problem: DesignProblem) -> Iterator[BatchBackend]:
-    """The backend ``settings`` ask for, released (workers stopped, client closed) on exit.
-
-    Raises
-    ------
-    BackendError
-        When the problem cannot be sent to workers or the cluster cannot be reached.
-    """
-    backend: Any
-    if settings.backend == "dask":
-        try:
-            from flexopt.pipeline.cluster import (
-                DaskBackend,  # distributed is imported only when used
-            )
-        except ImportError as exc:
-            raise BackendError(
-                f"the Dask backend needs dask.distributed ({exc}); pip install 'flexopt[dask]'"
-            ) from None
-        # DaskBackend turns every failure to connect (also MemoryError, a hung peer) into a
-        # BackendError within its connect limit: the caller prints one line, nothing is written
-        backend = DaskBackend(
-            problem, settings.address or "", settings.eval_timeout_s, settings.chunk_size
-        )
-    elif settings.backend == "processes" and settings.n_workers > 1:
-        _warm_up_kernels()
-        backend = ProcessPool(
-            problem, settings.n_workers, settings.eval_timeout_s, settings.chunk_size
-        )
-    else:
-        backend = SerialBackend(settings.eval_timeout_s)
-    try:
-        yield backend
-    finally:
-        backend.close()
-
-
-def _warm_up_kernels() -> None:
-    """Compile or load the compiled beam kernel once, before the pool forks its workers.
-
-    Forked workers inherit it; otherwise each would compile it on its first design (in a fresh
-    install ~14 s CPU each, all at once) or load it from numba's cache. A failure here is not the
-    run's: the workers then compile or fall back on their own.
-    """
-    try:
-        from flexopt.fea.beam import warm_up
-
-        warm_up()
-    except Exception:  # noqa: BLE001 - only an optimisation
-        log.debug("beam kernel warm-up failed", exc_info=True)
 
 
 class BackendError(RuntimeError):

@@ -36,6 +36,7 @@ from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict, verdict_record
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline import plots
+from flexopt.pipeline.backends import open_backend
 from flexopt.pipeline.checkpoint import (
     CHECKPOINT_FILE,
     STORE_FILE,
@@ -52,7 +53,6 @@ from flexopt.pipeline.parallel import (
     design_key,
     evaluate_batch,
     evaluate_one,
-    open_backend,
 )
 from flexopt.pipeline.parallel import one_line as _one_line
 from flexopt.pipeline.report import ReportData, render_report

@@ -30,6 +30,7 @@ from flexopt.fea.materials import MATERIALS, Material, get_material
 from flexopt.optimise.requirements import RequirementSpec
 from flexopt.optimise.robustness import RobustnessSpec
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies import get_kind
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -602,8 +603,6 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
     StudyError
         Naming the first offending key path.
     """
-    from flexopt.pipeline.studies import get_kind  # the registry imports this module
-
     geometry = raw.get("geometry")
     if not isinstance(geometry, dict):
         problem = (

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from flexopt.optimise.errors import OptimiseError
@@ -34,7 +34,9 @@ from flexopt.optimise.requirements import (
     curves_from_table,
 )
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.study import Study
+
+if TYPE_CHECKING:  # annotations only: study.validate_study calls check_requirement_names
+    from flexopt.pipeline.study import Study
 
 __all__ = [
     "GENERIC_QUANTITIES",
@@ -80,7 +82,7 @@ def user_requirements(study: Study) -> tuple[Requirement, ...]:
         key = f"requirements[{i}]"
         table = columns = None
         if spec.target is not None and spec.target.kind == "table" and spec.target.file:
-            from flexopt.pipeline.studies.cam import read_table_csv
+            from flexopt.pipeline.studies._targets import read_table_csv
 
             table, columns = read_table_csv(
                 spec.target.file, spec.target.columns, f"{key}.target.file"

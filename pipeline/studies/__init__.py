@@ -24,13 +24,15 @@ import pkgutil
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from flexopt.optimise.problem import DesignProblem
 from flexopt.optimise.requirements import Requirement, Verdict
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.study import Study
+
+if TYPE_CHECKING:  # annotations only: study.validate_study looks kinds up here at run time
+    from flexopt.pipeline.study import Study
 
 __all__ = [
     "ENTRY_POINT_GROUP",

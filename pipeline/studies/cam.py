@@ -25,29 +25,21 @@ YAML (units in the key names; see docs/threshold_torque.md)::
 
 from __future__ import annotations
 
-import csv
 import math
 import time
-from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from flexopt.geometry.cam import (
-    PAPER_CORRECTION,
-    CamLayout,
     CamProfile,
-    CamSprings,
-    CorrectedCurve,
     cam_outline,
     contact_pressure_MPa,
-    fit_correction,
     onset_pressure_MPa,
     sab_limits,
     sab_ratio,
     sab_ratio_ideal,
     sab_ratio_series,
     sab_rotation,
-    synthesise_cam,
     torque_from_outline,
 )
 from flexopt.geometry.errors import GeometryError
@@ -57,15 +49,20 @@ from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.targets import (
     TargetCurve,
-    TargetSpec,
     ThresholdTarget,
     curve_error,
     measure_key,
 )
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
-from pydantic import BaseModel, Field, model_validator
+from flexopt.pipeline.studies._cam import (
+    _VARIABLES,
+    CamGeometry,
+    CamStudyFields,
+    SpringsSpec,
+    build_cam,
+)
+from flexopt.pipeline.study import material_record
 
 __all__ = [
     "CamGeometry",
@@ -73,281 +70,14 @@ __all__ = [
     "CamProblem",
     "SpringsSpec",
     "build_cam",
-    "read_table_csv",
-    "resolve_target",
 ]
 
-_EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
-
 # --------------------------------------------------------------------------------------------
-# Target curves from a study (shared with the collision kind)
+# The study file (its blocks and fields: pipeline/studies/_cam.py, shared with collision)
 
 
-def read_table_csv(
-    file: str, columns: tuple[str, str] | None, key: str = "target.file"
-) -> tuple[tuple[np.ndarray, np.ndarray], tuple[str, str]]:
-    """Read two numeric columns of a CSV file with a header row.
-
-    ``file`` is taken relative to the working directory, else to the built-in examples folder.
-    Columns are chosen by name (``columns``) or are the first two.
-
-    Raises
-    ------
-    StudyError
-        At ``key`` when the file is missing, has no such columns, or holds a non-number.
-    """
-    path = Path(file)
-    if not path.is_file() and (_EXAMPLES / file).is_file():
-        path = _EXAMPLES / file
-    try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except OSError as exc:
-        raise StudyError(
-            key, f"cannot read '{file}' ({exc.strerror}); give the path of a CSV file"
-        ) from None
-    rows = [r for r in rows if r and not r[0].lstrip().startswith("#")]
-    if len(rows) < 3:
-        raise StudyError(key, f"'{file}' needs a header row and at least 2 rows of numbers")
-    header = [h.strip() for h in rows[0]]
-    names = columns or (header[0], header[1]) if len(header) >= 2 else None
-    if names is None:
-        raise StudyError(key, f"'{file}' needs at least two columns")
-    missing = [n for n in names if n not in header]
-    if missing:
-        raise StudyError(
-            "target.columns",
-            f"'{file}' has no column {', '.join(missing)}; its columns are {', '.join(header)}",
-        )
-    idx = [header.index(n) for n in names]
-    try:
-        data = np.array([[float(r[i]) for i in idx] for r in rows[1:]])
-    except (ValueError, IndexError):
-        raise StudyError(
-            key, f"'{file}' has a row that is not two numbers in columns {list(names)}"
-        ) from None
-    return (data[:, 0], data[:, 1]), (names[0], names[1])
-
-
-def resolve_target(spec: TargetSpec, key: str = "target") -> TargetCurve:
-    """The :class:`TargetCurve` of a spec, reading a table's file when it has one.
-
-    Raises
-    ------
-    StudyError
-        At ``key`` when the file cannot be read or the curve refuses the values.
-    """
-    table = columns = None
-    if spec.kind == "table" and spec.file is not None:
-        table, columns = read_table_csv(spec.file, spec.columns, f"{key}.file")
-    try:
-        return spec.to_curve(table, columns)
-    except OptimiseError as exc:
-        raise StudyError(key, str(exc)) from exc
-
-
-# --------------------------------------------------------------------------------------------
-# The study file
-
-
-class CamGeometry(BaseModel):
-    """The ``geometry:`` block: where the followers run and the plate (mm, degrees)."""
-
-    model_config = STUDY_CONFIG
-
-    kind: Literal["cam"] = Field(description="cam")
-    rest_radius_mm: float = Field(gt=0, description="r0: follower centre at zero rotation, mm")
-    roller_radius_mm: float = Field(gt=0, description="r1: follower roller radius, mm")
-    followers: int = Field(2, ge=2, le=8, description="followers evenly around the cam (paper 2)")
-    max_rotation_deg: float = Field(
-        90.0, gt=0, le=90, description="synthesised range, degrees (at most 180/followers)"
-    )
-    thickness_mm: float = Field(10.0, gt=0, description="plate thickness = contact width, mm")
-    bore_diameter_mm: float = Field(6.0, ge=0, description="shaft bore, mm (0: none)")
-    points: int = Field(361, ge=11, le=20001, description="synthesis grid points over the range")
-
-
-class SpringsSpec(BaseModel):
-    """The ``springs:`` block (paper Eq. 13): count springs of rate K per follower."""
-
-    model_config = STUDY_CONFIG
-
-    stiffness_N_per_mm: float = Field(gt=0, description="K of one extension spring, N/mm")
-    free_length_mm: float = Field(ge=0, description="l0, initial length, mm")
-    offset_mm: float = Field(0.0, ge=0, description="b, lateral anchor offset, mm")
-    count: int = Field(4, ge=1, le=32, description="springs per follower (paper 4)")
-
-
-class CorrectionSpec(BaseModel):
-    """The ``correction:`` block (Eq. 17): given coefficients or a fit through the SAB."""
-
-    model_config = STUDY_CONFIG
-
-    coefficients: tuple[float, float, float] | None = Field(
-        None, description="[a0, a1, a2] of T_cor = T (a0 + a1 γ + a2 γ²), γ in rad"
-    )
-    fit: bool = Field(False, description="fit [a0, a1, a2] by least squares through sab:")
-
-    @model_validator(mode="after")
-    def _one_source(self) -> CorrectionSpec:
-        if (self.coefficients is None) == (not self.fit):
-            raise ValueError("give coefficients: [a0, a1, a2] or fit: true (needs sab:), not both")
-        return self
-
-
-class SABSpec(BaseModel):
-    """The ``sab:`` block: the stiffness-adjusting block of Eqs. 15–16."""
-
-    model_config = STUDY_CONFIG
-
-    a_mm: float = Field(gt=0, description="lever distance a, mm (Eq. 15a range)")
-    R_mm: float = Field(gt=0, description="ring radius R, mm")
-    R1_over_R2: float = Field(gt=1, description="gear ratio R1/R2 (paper's illustration: 7.5)")
-    max_output_deg: float | None = Field(
-        None, gt=0, description="output range for the fit, degrees (default Eq. 15b's limit)"
-    )
-
-
-class RollerSpec(BaseModel):
-    """The ``roller:`` block: the follower roller's material (for the contact pressure)."""
-
-    model_config = STUDY_CONFIG
-
-    E_MPa: float = Field(210_000.0, gt=0, description="roller Young's modulus (steel), MPa")
-    nu: float = Field(0.3, gt=-1, lt=0.5, description="roller Poisson's ratio")
-
-
-class LimitsSpec(BaseModel):
-    """The ``limits:`` block: what a usable cam must keep to."""
-
-    model_config = STUDY_CONFIG
-
-    max_pressure_angle_deg: float = Field(
-        45.0, gt=0, lt=90, description="largest angle between contact normal and guide, degrees"
-    )
-    max_diameter_mm: float | None = Field(
-        None, gt=0, description="largest mechanism diameter 2 (r_max + r1), mm (optional)"
-    )
-
-
-_VARIABLES = ("rest_radius_mm", "stiffness_N_per_mm", "free_length_mm", "offset_mm")
-
-
-class CamStudy(Study):
+class CamStudy(CamStudyFields):
     """A whole ``cam`` study file."""
-
-    geometry: CamGeometry = Field(description="kind: cam, rest_radius_mm, roller_radius_mm, ...")
-    springs: SpringsSpec = Field(description="stiffness_N_per_mm, free_length_mm, offset_mm, count")
-    friction: float = Field(0.0, ge=0, lt=1, description="μ of the follower guides (Eq. 3)")
-    target: TargetSpec = Field(
-        default_factory=lambda: TargetSpec(
-            kind="threshold", max_torque_Nm=2.05, rate_per_rad=50.0, measure="max_normalised"
-        ),
-        description="the torque-rotation curve to make (default the paper's prototype)",
-    )
-    correction: CorrectionSpec | None = Field(None, description="Eq. 17 profile correction")
-    sab: SABSpec | None = Field(None, description="stiffness-adjusting block, Eqs. 15-16")
-    roller: RollerSpec = Field(default_factory=RollerSpec, description="roller E_MPa and nu")
-    limits: LimitsSpec = Field(default_factory=LimitsSpec, description="max_pressure_angle_deg")
-    rows: int = Field(91, ge=3, le=2001, description="rows of the response table over the range")
-    design_space: dict[str, tuple[float, float]] = Field(
-        default_factory=dict,
-        description="bounds by name for flexopt run: " + ", ".join(_VARIABLES),
-    )
-    objective: Literal["diameter", "pressure_angle"] = Field(
-        "diameter", description="minimise the mechanism diameter or the largest pressure angle"
-    )
-    optimiser: OptimiserSpec = Field(
-        default_factory=lambda: OptimiserSpec(pop_size=24, n_gen=20),
-        description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
-    )
-
-
-# --------------------------------------------------------------------------------------------
-# Build
-
-
-def _layout(study: CamStudy) -> CamLayout:
-    g = study.geometry
-    try:
-        return CamLayout(
-            rest_radius_mm=g.rest_radius_mm,
-            roller_radius_mm=g.roller_radius_mm,
-            followers=g.followers,
-            max_rotation_rad=math.radians(g.max_rotation_deg),
-            friction=study.friction,
-            thickness_mm=g.thickness_mm,
-            bore_diameter_mm=g.bore_diameter_mm,
-        )
-    except GeometryError as exc:
-        raise StudyError("geometry", str(exc)) from exc
-
-
-def _springs(spec: SpringsSpec) -> CamSprings:
-    return CamSprings(spec.stiffness_N_per_mm, spec.free_length_mm, spec.offset_mm, spec.count)
-
-
-def _design_curve(study: CamStudy, target: TargetCurve) -> tuple[Any, dict[str, Any]]:
-    """The curve the cam is cut for: the target, or the target times the Eq. 17 factor."""
-    info: dict[str, Any] = {}
-    spec = study.correction
-    gmax = math.radians(study.geometry.max_rotation_deg)
-    if spec is None:
-        return target, info
-    if spec.coefficients is not None:
-        coefficients = spec.coefficients
-        info["source"] = "given"
-    else:
-        sab = study.sab
-        assert sab is not None  # checked
-        top = None if sab.max_output_deg is None else math.radians(sab.max_output_deg)
-        coefficients, fit = fit_correction(target, sab.a_mm, sab.R_mm, sab.R1_over_R2, top)
-        info["source"] = "least-squares fit through the SAB (Eq. 15)"
-        info["max_relative_error_uncorrected"] = fit["max_relative_error_uncorrected"]
-        info["max_relative_error_corrected"] = fit["max_relative_error_corrected"]
-    info["coefficients"] = list(coefficients)
-    info["paper_coefficients"] = list(PAPER_CORRECTION)
-    return CorrectedCurve(target, coefficients, gmax), info
-
-
-def build_cam(study: CamStudy) -> tuple[TargetCurve, Any, CamProfile, dict[str, Any]]:
-    """Target, design curve, synthesised profile and correction info of a study.
-
-    Raises
-    ------
-    StudyError
-        Naming the key path when the target, springs or layout cannot make a cam.
-    """
-    target = resolve_target(study.target)
-    if target.quantity != "torque":
-        raise StudyError(
-            "target",
-            "a cam makes a torque-rotation curve; give torque keys (torque_Nm, "
-            "stiffness_Nm_per_rad, max_torque_Nm + rate_per_rad, or table columns "
-            "[rotation_deg, torque_Nm])",
-        )
-    layout = _layout(study)
-    try:
-        springs = _springs(study.springs)
-    except GeometryError as exc:
-        raise StudyError("springs", str(exc)) from exc
-    curve, info = _design_curve(study, target)
-    try:
-        profile = synthesise_cam(curve, springs, layout, study.geometry.points)
-    except GeometryError as exc:
-        raise StudyError(_geometry_path(str(exc)), str(exc)) from exc
-    except OptimiseError as exc:  # a table target asked beyond its rows
-        raise StudyError("target", str(exc)) from exc
-    return target, curve, profile, info
-
-
-def _geometry_path(message: str) -> str:
-    if "slack" in message or "self-lock" in message:
-        return "springs"
-    if "target" in message:
-        return "target"
-    return "geometry"
 
 
 def check(study: CamStudy) -> None:

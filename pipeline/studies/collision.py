@@ -28,9 +28,7 @@ from typing import Any, Literal
 
 import numpy as np
 from flexopt.fea.collision import (
-    CollisionModel,
     CollisionResponse,
-    CollisionSettings,
     LinearSpring,
     TabulatedSpring,
     ThresholdSpring,
@@ -51,13 +49,14 @@ from flexopt.optimise.targets import (
 )
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from flexopt.pipeline.studies.cam import (
+from flexopt.pipeline.studies._blocks import ImpactSpec
+from flexopt.pipeline.studies._cam import (
     CamGeometry,
-    CamStudy,
+    CamStudyFields,
     SpringsSpec,
     build_cam,
-    resolve_target,
 )
+from flexopt.pipeline.studies._targets import resolve_target
 from flexopt.pipeline.study import STUDY_CONFIG, MaterialSpec, Study, material_record
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -79,49 +78,6 @@ class CollisionGeometry(BaseModel):
     model_config = STUDY_CONFIG
 
     kind: Literal["collision"] = Field(description="collision")
-
-
-class ImpactSpec(BaseModel):
-    """The ``impact:`` block: Fig. 14's parameters, SI, paper defaults (l. 252–258, Fig. 17)."""
-
-    model_config = STUDY_CONFIG
-
-    neck_damping_N_s_per_m: float = Field(12.0, ge=0, description="d_N")
-    neck_stiffness_N_per_m: float = Field(3300.0, ge=0, description="k_N")
-    head_mass_kg: float = Field(5.09, gt=0, description="M_head")
-    contact_damping_N_s_per_m: float = Field(10.0, ge=0, description="d_c")
-    contact_stiffness_N_per_m: float = Field(1500.0, gt=0, description="k_c")
-    arm_length_m: float = Field(0.6, gt=0, description="l, contact point on the arm")
-    arm_inertia_kg_m2: float = Field(0.14, gt=0, description="I_arm")
-    rotor_inertia_kg_m2: float = Field(0.175, gt=0, description="I_rotor (Fig. 17)")
-    rotor_torque_Nm: float = Field(15.0, ge=0, description="rotor torque during the impact")
-    speed_rad_per_s: float = Field(math.pi, gt=0, description="joint speed at impact")
-    initial_spring: Literal["unloaded", "accelerating", "held"] = Field(
-        "unloaded",
-        description="spring state at impact: unloaded, accelerating (carries the arm's share of "
-        "the rotor torque) or held (carries all of it)",
-    )
-    dt_s: float = Field(2e-4, gt=0, le=1e-3, description="RK4 and output step, s")
-    duration_s: float = Field(0.25, gt=0, le=5, description="simulated time, s")
-
-    def model(self) -> CollisionModel:
-        keys = (
-            "neck_damping_N_s_per_m",
-            "neck_stiffness_N_per_m",
-            "head_mass_kg",
-            "contact_damping_N_s_per_m",
-            "contact_stiffness_N_per_m",
-            "arm_length_m",
-            "arm_inertia_kg_m2",
-            "rotor_inertia_kg_m2",
-            "rotor_torque_Nm",
-            "speed_rad_per_s",
-            "initial_spring",
-        )
-        return CollisionModel(**{k: getattr(self, k) for k in keys})
-
-    def settings(self) -> CollisionSettings:
-        return CollisionSettings(dt_s=self.dt_s, duration_s=self.duration_s)
 
 
 class SweepSpec(BaseModel):
@@ -232,7 +188,7 @@ def build_springs(study: CollisionStudy) -> tuple[Any, LinearSpring, TargetCurve
     return spring, reference, curve
 
 
-def _cam_study(study: CollisionStudy, curve: TargetCurve) -> CamStudy:
+def _cam_study(study: CollisionStudy, curve: TargetCurve) -> CamStudyFields:
     """The cam kind's study for the cam side of the reducer: ``T_γ(γ) = T(γ/N)/N``."""
     cam = study.cam
     assert cam is not None
@@ -247,7 +203,7 @@ def _cam_study(study: CollisionStudy, curve: TargetCurve) -> CamStudy:
         target = TargetSpec(kind="linear", stiffness_Nm_per_rad=curve.stiffness / 1000.0 / n**2)
     else:
         raise StudyError("cam", "the cam check handles threshold and linear springs")
-    return CamStudy(
+    return CamStudyFields(
         name=f"{study.name}-cam",
         geometry=cam.geometry,
         material=study.material,

@@ -16,7 +16,7 @@ the constant-stiffness spring and against the ideal profile.
   allowable, the ST range, the arm spring's clearances (envelope, thinnest arm, slot, hub) and
   the fold margin of the centreline (geometry.threshold_spring.fold_margin_mm).
 * **Fidelity check** (``detail``, ``flexopt evaluate``): the chosen design in plane stress
-  (:func:`flexopt.pipeline.studies.sea_spring.analyse_spring`, the printable outline with
+  (:func:`flexopt.fea.spring_analysis.analyse_spring`, the printable outline with
   fillets), its torque error against the same target and its von Mises peak.
 
 YAML (every key optional but ``name``, ``geometry.kind``, ``material`` and ``target``)::
@@ -53,6 +53,8 @@ import numpy as np
 from flexopt.fea.arm_beam import ArmBeamResponse, arm_beam_torque
 from flexopt.fea.collision import ThresholdSpring, score_spring_curve, simulate_collision
 from flexopt.fea.errors import FeaError
+from flexopt.fea.spring_analysis import analyse_spring
+from flexopt.fea.spring_analysis import stress_map_data as _stress_map_data
 from flexopt.geometry.arm_spring import ArmSpringParams, arm_clearances, build_arm_spring
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.solid import extrude, stl_bytes
@@ -72,10 +74,9 @@ from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plot_targets import measure_band
 from flexopt.pipeline.plots import plot_field
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies._blocks import ImpactSpec
+from flexopt.pipeline.studies._blocks import MeshSpec as PlaneStressMesh
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
-from flexopt.pipeline.studies.collision import ImpactSpec
-from flexopt.pipeline.studies.sea_spring import MeshSpec as PlaneStressMesh
-from flexopt.pipeline.studies.sea_spring import _stress_map_data, analyse_spring
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure

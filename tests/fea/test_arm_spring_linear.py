@@ -60,13 +60,13 @@ def test_plane_stress_spiral_converges_to_the_slender_arm_theory(w):
     # Plane stress (linear, 1 degree) of an Archimedean three-arm spiral with sharp roots against
     # the linear arm theory over the free length. The difference is the root and pad junctions
     # (a slender-beam effect of order w / L): within 2 % at w/L ~ 1 %, and decreasing with w.
-    from flexopt.pipeline.studies.sea_spring import MeshSpec, analyse_spring
+    from flexopt.fea.spring_analysis import SpringMesh, analyse_spring
 
     frame = SpringFrame()
     mat = get_material("maraging-300")
     v = dict(sweep=300.0, R_pad=30.0, F1=1 / 3, F2=0.5, W1=w, W2=w, W3=w, W4=w, ST=B)
     p = spiral_params(v, 3, frame, root_fillet_mm=0.0)
-    r = analyse_spring(build_arm_spring(p, frame), mat, math.radians(1.0), MeshSpec(),
+    r = analyse_spring(build_arm_spring(p, frame), mat, math.radians(1.0), SpringMesh(),
                        nonlinear=False)  # fmt: skip
     xy, ww = _free_arm(p, frame)
     lin = arm_spring_linear(xy, ww, mat.E_MPa, B, 3)

@@ -14,6 +14,7 @@ from pathlib import Path
 import flexopt_toys  # registers the toy_faults kind; importable by workers
 import numpy as np
 import pytest
+from flexopt.pipeline.backends import open_backend
 from flexopt.pipeline.cli import main
 from flexopt.pipeline.parallel import (
     BackendError,
@@ -22,7 +23,6 @@ from flexopt.pipeline.parallel import (
     SerialBackend,
     chunk_rows,
     evaluate_one,
-    open_backend,
     timeout_reason,
 )
 from flexopt.pipeline.plots import plot_response, quantity_name

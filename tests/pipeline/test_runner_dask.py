@@ -24,8 +24,9 @@ from pathlib import Path
 import flexopt_toys  # registers the toy_faults kind; importable by workers
 import numpy as np
 import pytest
+from flexopt.pipeline.backends import open_backend
 from flexopt.pipeline.cli import main
-from flexopt.pipeline.parallel import BackendError, ParallelSettings, open_backend, timeout_reason
+from flexopt.pipeline.parallel import BackendError, ParallelSettings, timeout_reason
 from flexopt.pipeline.run import prepare_run, run_study
 from flexopt.pipeline.runfolder import read_records_csv
 from flexopt.pipeline.study import validate_study

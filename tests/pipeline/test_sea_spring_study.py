@@ -12,6 +12,7 @@ import flexopt.pipeline.studies.sea_spring as ss
 import numpy as np
 import pytest
 import yaml
+from flexopt.fea.spring_analysis import analyse_spring, slot_gaps_mm, stress_map_data
 from flexopt.geometry.sea_spring import (
     GA_VARIABLES,
     TABLE9_BOUNDS,
@@ -120,7 +121,7 @@ def test_problem_contract_and_geometry_violations_skip_the_fe():
 def test_solved_thickness_meets_the_stiffness_and_linear_agrees_at_one_degree():
     prob = ss.SeaSpringProblem(study_with(mesh=COARSE, target={"directions": "positive"}))
     geom = build_spring(params_from_vector(MID, 4), prob.frame)
-    small = ss.analyse_spring(geom, prob.material, math.radians(1.0), prob.study.mesh)
+    small = analyse_spring(geom, prob.material, math.radians(1.0), prob.study.mesh)
     assert small.ok
     # 2 % required; geometric nonlinearity at 1 degree is about 0.6 % (chiral serpentine)
     assert small.stiffness_Nm_per_rad == pytest.approx(small.linear_stiffness_Nm_per_rad, rel=0.02)
@@ -130,9 +131,7 @@ def test_solved_thickness_meets_the_stiffness_and_linear_agrees_at_one_degree():
     assert ev.metrics["stiffness_Nm_per_rad"] == pytest.approx(275.0, rel=1e-9)
     assert ev.f[0] == ev.metrics["peak_stress_MPa"] and ev.f[1] == ev.metrics["mass_g"]
     p = params_from_vector(prob.full_vector(MID[:-1], ev.metrics["ST_mm"]), 4)
-    again = ss.analyse_spring(
-        build_spring(p, prob.frame), prob.material, prob.theta, prob.study.mesh
-    )
+    again = analyse_spring(build_spring(p, prob.frame), prob.material, prob.theta, prob.study.mesh)
     assert again.stiffness_Nm_per_rad == pytest.approx(275.0, rel=1e-5)
     assert again.peak_stress_MPa[-1] == pytest.approx(ev.f[0], rel=1e-5)
 
@@ -140,8 +139,8 @@ def test_solved_thickness_meets_the_stiffness_and_linear_agrees_at_one_degree():
 def test_stress_map_png_is_drawn():
     prob = ss.SeaSpringProblem(study_with(mesh={"max_edge_mm": 4.0, "fillet_segments": 1}))
     geom = build_spring(params_from_vector(MID, 4), prob.frame)
-    r = ss.analyse_spring(geom, prob.material, 0.05, prob.study.mesh, keep_model=True)
-    data = ss._stress_map_data(r)
+    r = analyse_spring(geom, prob.material, 0.05, prob.study.mesh, keep_model=True)
+    data = stress_map_data(r)
     assert len(data["von_mises_MPa"]) == len(data["points_mm"])
     png = ss.stress_map_png(data, 800.0)
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
@@ -265,7 +264,7 @@ def test_slot_gap_of_a_u_shape_closes_by_what_the_prong_moves():
     move[model.iy[upper]] = -0.3 * np.clip(model.xy[upper, 0] / 20.0, 0.0, 1.0)  # tip down 0.3
     shift = np.zeros(model.n_dofs)
     shift[model.ix], shift[model.iy] = 0.7, -0.4  # a rigid translation changes nothing
-    g = ss.slot_gaps_mm(model, {"zero": zero, "tip": move, "shift": shift}, u_shape)
+    g = slot_gaps_mm(model, {"zero": zero, "tip": move, "shift": shift}, u_shape)
     assert g["undeformed"] == pytest.approx(1.0, abs=1e-9)
     assert g["zero"] == pytest.approx(1.0, abs=1e-9) and g["shift"] == pytest.approx(1.0, abs=1e-9)
     assert g["tip"] == pytest.approx(0.7, abs=0.01)

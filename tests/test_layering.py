@@ -1,0 +1,277 @@
+"""The layering the design notes ask for (docs/DESIGN "Layers"), checked on the source.
+
+Every module of geometry/, fea/, optimise/, pipeline/ (and pipeline/api/, the package ``flexopt``
+itself) is parsed with ``ast``; every import counts, also inside functions and under
+``TYPE_CHECKING`` (a lazy import is still a dependency, it only hides it). Asserted:
+
+- imports go one way: geometry ← fea ← optimise ← pipeline (← the public API ``flexopt``);
+- no study kind in ``pipeline/studies/`` imports another kind (modules starting with ``_`` are
+  shared blocks and may be imported by any kind);
+- no import cycle among flexopt modules (imports under ``TYPE_CHECKING`` never run and do not
+  count here).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+# Source folder -> installed package name (pyproject.toml's package-dir).
+PACKAGE_DIRS = {
+    "geometry": "flexopt.geometry",
+    "fea": "flexopt.fea",
+    "optimise": "flexopt.optimise",
+    "pipeline/api": "flexopt",
+    "pipeline": "flexopt.pipeline",
+}
+
+# Rank of each layer: a module may import only from its own layer or a lower one.
+LAYER_RANK = {"geometry": 0, "fea": 1, "optimise": 2, "pipeline": 3, "api": 4}
+
+STUDIES = "flexopt.pipeline.studies"
+
+
+def _module_files() -> dict[str, Path]:
+    """Installed module name -> source file, for every module of the four layers and the API."""
+    modules: dict[str, Path] = {}
+    for folder, package in PACKAGE_DIRS.items():
+        root = REPO / folder
+        for path in sorted(root.rglob("*.py")):
+            rel = path.relative_to(root)
+            if folder == "pipeline" and rel.parts[0] == "api":
+                continue  # the API is its own package, ``flexopt``
+            parts = list(rel.with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            modules[".".join([package, *parts])] = path
+    return modules
+
+
+MODULES = _module_files()
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    if len(parts) == 1:
+        return "api"
+    return parts[1]
+
+
+def _is_package(module: str) -> bool:
+    return MODULES[module].name == "__init__.py"
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    """``if TYPE_CHECKING:`` or ``if typing.TYPE_CHECKING:``."""
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _imports(module: str) -> tuple[set[str], set[str]]:
+    """The flexopt modules ``module`` imports: (all of them, those imported at run time).
+
+    "All" counts every import anywhere in the source, also inside functions and under
+    ``if TYPE_CHECKING:``; "at run time" leaves out the latter (they never execute, so they
+    cannot close an import cycle, but they are still a dependency on a layer).
+    """
+    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"), filename=str(MODULES[module]))
+    package = module if _is_package(module) else module.rpartition(".")[0]
+    every: set[str] = set()
+    runtime: set[str] = set()
+
+    def resolve(name: str) -> str:
+        # ``from flexopt.fea import beam`` names a module, ``from flexopt.fea.beam import X``
+        # names an attribute: take the longest prefix that is a flexopt module.
+        while name and name not in MODULES:
+            name = name.rpartition(".")[0]
+        return name
+
+    def targets(node: ast.Import | ast.ImportFrom) -> list[str]:
+        if isinstance(node, ast.Import):
+            return [resolve(a.name) for a in node.names if a.name.split(".")[0] == "flexopt"]
+        if node.level:
+            base = package.split(".")
+            if node.level > 1:
+                base = base[: -(node.level - 1)]
+            target = ".".join(base + ([node.module] if node.module else []))
+        else:
+            target = node.module or ""
+        if target.split(".")[0] != "flexopt":
+            return []
+        return [
+            resolve(f"{target}.{a.name}" if f"{target}.{a.name}" in MODULES else target)
+            for a in node.names
+        ]
+
+    def visit(node: ast.AST, typing_only: bool) -> None:
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            for target in targets(node):
+                if target and target != module:
+                    every.add(target)
+                    if not typing_only:
+                        runtime.add(target)
+        if isinstance(node, ast.If) and _is_type_checking(node.test):
+            for child in node.body:
+                visit(child, True)
+            for child in node.orelse:
+                visit(child, typing_only)
+            return
+        for child in ast.iter_child_nodes(node):
+            visit(child, typing_only)
+
+    visit(tree, False)
+    return every, runtime
+
+
+_SCANNED = {module: _imports(module) for module in MODULES}
+#: module -> every flexopt module it imports
+GRAPH = {module: scanned[0] for module, scanned in _SCANNED.items()}
+#: module -> the flexopt modules it imports at run time (not under TYPE_CHECKING)
+RUNTIME_GRAPH = {module: scanned[1] for module, scanned in _SCANNED.items()}
+
+
+def test_the_scan_sees_the_layers():
+    # Guards the test itself: a wrong folder map would make every assertion below vacuous.
+    layers = {_layer(m) for m in MODULES}
+    assert layers == set(LAYER_RANK), layers
+    assert "flexopt.fea.beam" in MODULES
+    assert "flexopt.pipeline.study" in GRAPH["flexopt.pipeline.run"]
+    assert "flexopt.fea.beam" in GRAPH["flexopt.fea.mechanism"]
+    # an import inside a function counts, at run time too
+    assert "flexopt.pipeline.verdict" in RUNTIME_GRAPH["flexopt.pipeline.study"]
+    # an import under TYPE_CHECKING counts for the layers, not for cycles
+    assert "flexopt.pipeline.study" in GRAPH["flexopt.pipeline.studies"]
+    assert "flexopt.pipeline.study" not in RUNTIME_GRAPH["flexopt.pipeline.studies"]
+
+
+def test_imports_go_one_way():
+    upward = [
+        f"{module} ({_layer(module)}) imports {target} ({_layer(target)})"
+        for module, targets in sorted(GRAPH.items())
+        for target in sorted(targets)
+        if LAYER_RANK[_layer(target)] > LAYER_RANK[_layer(module)]
+    ]
+    assert not upward, "imports against the layers:\n" + "\n".join(upward)
+
+
+def _is_kind(module: str) -> bool:
+    prefix = STUDIES + "."
+    return module.startswith(prefix) and not module[len(prefix) :].startswith("_")
+
+
+def test_no_kind_imports_another_kind():
+    crossing = [
+        f"{module} imports {target}"
+        for module, targets in sorted(GRAPH.items())
+        if _is_kind(module)
+        for target in sorted(targets)
+        if _is_kind(target)
+    ]
+    assert not crossing, (
+        "a study kind imports another kind (shared schema blocks go into "
+        "pipeline/studies/_*.py, shared physics into fea/):\n" + "\n".join(crossing)
+    )
+
+
+def find_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan), each as one cycle.
+
+    Each cycle is reported as a path ``a -> b -> ... -> a`` found inside its component.
+    """
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    components: list[list[str]] = []
+    counter = 0
+
+    def strongconnect(start: str) -> None:
+        # Iterative Tarjan: the module graph is deep enough to make recursion fragile.
+        nonlocal counter
+        work = [(start, iter(sorted(graph.get(start, ()))))]
+        index[start] = low[start] = counter
+        counter += 1
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            for child in children:
+                if child not in index:
+                    index[child] = low[child] = counter
+                    counter += 1
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                    break
+                if child in on_stack:
+                    low[node] = min(low[node], index[child])
+            else:
+                work.pop()
+                if work:
+                    parent = work[-1][0]
+                    low[parent] = min(low[parent], low[node])
+                if low[node] == index[node]:
+                    component = []
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.append(member)
+                        if member == node:
+                            break
+                    if len(component) > 1:
+                        components.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            strongconnect(node)
+
+    cycles = []
+    for component in components:
+        members = set(component)
+        # Breadth-first search inside the component for a shortest way back to its first module.
+        first = component[0]
+        previous: dict[str, str] = {}
+        frontier = [first]
+        path: list[str] = []
+        while frontier and not path:
+            nxt = []
+            for node in frontier:
+                for child in sorted(graph[node] & members):
+                    if child == first:
+                        path = [node]
+                        while path[-1] != first:
+                            path.append(previous[path[-1]])
+                        path = [first, *reversed(path[:-1]), first]
+                        break
+                    if child not in previous:
+                        previous[child] = node
+                        nxt.append(child)
+                if path:
+                    break
+            frontier = nxt
+        cycles.append(path)
+    return cycles
+
+
+@pytest.mark.parametrize(
+    ("graph", "expected"),
+    [
+        ({"a": {"b"}, "b": {"c"}, "c": set()}, []),
+        ({"a": {"b"}, "b": {"a"}}, [["a", "b", "a"]]),
+        ({"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": set()}, [["a", "b", "c", "a"]]),
+    ],
+)
+def test_find_cycles_on_known_graphs(graph, expected):
+    assert find_cycles(graph) == expected
+
+
+def test_no_import_cycle():
+    cycles = find_cycles(RUNTIME_GRAPH)
+    assert not cycles, "import cycles among flexopt modules:\n" + "\n".join(
+        " -> ".join(cycle) for cycle in cycles
+    )
