@@ -15,6 +15,7 @@ from typing import Any
 from flexopt.optimise.requirements import verdict_record
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plots import plot_response
+from flexopt.pipeline.report_html import evaluate_html
 from flexopt.pipeline.robustness import run_robustness
 from flexopt.pipeline.runfolder import (
     check_out_dir,
@@ -194,6 +195,10 @@ def evaluate_study(
     png = plot_response(result.table, **response_plot_args(study, result))
     write_atomic(run_dir / "force_displacement.png", png)
     extra = _extra_files(result)
+    # report.html: the verdict, the response with its target, the part in 3D (one offline file)
+    html = evaluate_html(study, result, record)
+    if html is not None:
+        extra["report.html"] = html.encode("utf-8")
     if robust is not None:
         record["robustness"] = robust.record()
         png = robust.png(f"{study.name}: robustness")

@@ -29,7 +29,18 @@ from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict, overall, verdict_rows
 from flexopt.pipeline import labels
 
-__all__ = ["HtmlData", "SECTIONS", "render_html", "sensitivity", "top_designs"]
+__all__ = [
+    "EVALUATE_SECTIONS",
+    "EvaluateHtmlData",
+    "HtmlData",
+    "SECTIONS",
+    "evaluate_html",
+    "evaluate_part",
+    "render_evaluate_html",
+    "render_html",
+    "sensitivity",
+    "top_designs",
+]
 
 #: The sections of the page, by element id, in order (a section without data says why).
 SECTIONS = (
@@ -586,7 +597,6 @@ def _finite(value: float) -> float | None:
 
 def render_html(data: HtmlData) -> str:
     """The text of report.html (one file, plotly.js inline, no link to the network)."""
-    from plotly.offline import get_plotlyjs
 
     p = data.problem
     figures = _Figures()
@@ -722,9 +732,7 @@ def render_html(data: HtmlData) -> str:
 
     # -- response
     parts.append(
-        _section(
-            "response", "Response of the best design", _response_section(data.detail, figures)
-        )
+        _section("response", "Response of the best design", _response_section(data.detail, figures))
     )
 
     # -- 3D part
@@ -748,16 +756,194 @@ def render_html(data: HtmlData) -> str:
     ]
     parts.append(_section("run", "The run", _table(["item", "value"], rows)))
 
+    return _page(data.study_name, parts)
+
+
+def _page(title: str, parts: Sequence[str]) -> str:
+    """One HTML file: the sections, plotly.js inline once (the page opens offline), the loader."""
+    from plotly.offline import get_plotlyjs
+
     config = json.dumps(_CONFIG)
     return (
         "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
-        f"<title>{_e(data.study_name)} — flexopt report</title>{_STYLE}"
+        f"<title>{_e(title)} — flexopt report</title>{_STYLE}"
         # plotly.js inline, once: the page opens offline
         f"<script type='text/javascript'>{get_plotlyjs()}</script></head><body>"
         + "\n".join(parts)
         + (_LOADER % config)
         + "</body></html>\n"
     )
+
+
+# --------------------------------------------------------------------------------------------
+# The page of an evaluate folder: one design
+
+
+#: The sections of an evaluate folder's report.html, in order (no design exploration: one design).
+EVALUATE_SECTIONS = ("verdict", "summary", "response", "part-3d")
+
+#: The 3D view of an evaluate folder rebuilds the design (the kind's detail, as ``flexopt export``
+#: does); it is made only when the evaluation itself solved within this time (s), so the page
+#: never doubles a long solve (a SEA spring with its 3D check). Above it the page says how to get
+#: the part instead.
+PART_BUDGET_S = 5.0
+
+
+@dataclass(frozen=True)
+class EvaluateHtmlData:
+    """What an evaluate folder's report.html shows.
+
+    Attributes
+    ----------
+    study_name, kind : the study's name and kind.
+    table : dict of str to (n,) array — the response (response.csv).
+    plot : the kind's plot spec (columns, target, allowable; see :mod:`pipeline.plot_targets`).
+    summary : scalar results; ``headline`` the keys worth a row (all when empty).
+    verdicts : the design against the study's requirements.
+    record : evaluation.json as far as it is written (solve time, convergence, message).
+    part : the design's detail carrying its outline and height (None: no 3D view).
+    part_note : why there is no 3D view, when ``part`` is None.
+    """
+
+    study_name: str
+    kind: str
+    table: Mapping[str, Any]
+    plot: Mapping[str, Any]
+    summary: Mapping[str, Any] = field(default_factory=dict)
+    headline: Sequence[str] = ()
+    verdicts: Sequence[Verdict] = ()
+    record: Mapping[str, Any] = field(default_factory=dict)
+    part: DesignDetail | None = None
+    part_note: str | None = None
+
+
+def render_evaluate_html(data: EvaluateHtmlData) -> str:
+    """The text of an evaluate folder's report.html: the verdict, the summary, the response with
+    its target and the part in 3D (one file, plotly.js inline, no link to the network)."""
+    figures = _Figures()
+    record = data.record
+    verdicts = list(data.verdicts)
+    word = overall(verdicts)
+    nav = " ".join(f'<a href="#{s}">{_e(s.replace("-", " "))}</a>' for s in EVALUATE_SECTIONS)
+    solve = _float(record.get("solve_time_s"))
+    converged = record.get("converged")
+    parts = [
+        f"<h1>{_e(data.study_name)} — flexopt evaluate</h1>"
+        f"<p>Study kind <code>{_e(data.kind)}</code>; one design solved"
+        + (f" in {solve:.3g} s" if solve is not None else "")
+        + (
+            ""
+            if converged is None
+            else ("; every row converged" if converged else "; <b>not every row converged</b>")
+        )
+        + (f" ({_e(record.get('message'))})" if record.get("message") else "")
+        + ". The numbers are in <a href='response.csv'>response.csv</a> and "
+        f"<a href='evaluation.json'>evaluation.json</a>.</p><nav>{nav}</nav>"
+    ]
+    cls = "met" if word == "MET" else "notmet"
+    body = (
+        f'<p><span class="{cls}">{_e(word)}</span> — {sum(v.met for v in verdicts)} of '
+        f"{len(verdicts)} requirements met by this design.</p>"
+    )
+    if verdicts:
+        body += _table(
+            ["requirement", "value", "bound", "margin", "verdict"], verdict_rows(verdicts)
+        )
+    else:
+        body += "<p>No requirement was stated, so nothing is claimed.</p>"
+    parts.append(_section("verdict", "Verdict", body))
+
+    keys = [k for k in (data.headline or data.summary) if k in data.summary]
+    rows = [[labels.label(k), k, _summary_value(data.summary[k])] for k in keys]
+    body = (
+        _table(["quantity", "name", "value"], rows, "num")
+        if rows
+        else "<p>The kind gives no summary.</p>"
+    )
+    parts.append(_section("summary", "Summary", body))
+
+    detail = DesignDetail(Evaluation(np.zeros(0), np.zeros(0), np.zeros(0)), dict(data.table),
+                          dict(data.plot))  # fmt: skip
+    parts.append(
+        _section(
+            "response", "Response of the design", _response_section(detail, figures, "this design")
+        )
+    )
+    parts.append(
+        _section(
+            "part-3d",
+            "The part in 3D",
+            _part_section(data.part, figures, "evaluated", data.part_note, stl=None),
+        )
+    )
+    return _page(data.study_name, parts)
+
+
+def _summary_value(value: Any) -> Any:
+    """A summary value for a table cell: numbers as they are, lists and mappings short."""
+    if isinstance(value, Mapping):
+        return ", ".join(f"{k}: {v}" for k, v in list(value.items())[:6])
+    if isinstance(value, list | tuple):
+        return ", ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in value[:8])
+    return value
+
+
+def evaluate_part(study: Any, solve_time_s: float | None) -> tuple[DesignDetail | None, str]:
+    """The evaluated design's detail (its outline and height, for the 3D view), rebuilt as
+    ``flexopt export`` of an evaluate folder rebuilds it, or None and why not.
+
+    Only when the kind is optimisable (it has a problem with a ``detail``) and the evaluation
+    solved within :data:`PART_BUDGET_S`; never raises.
+    """
+    from flexopt.pipeline.studies import get_kind
+
+    hint = "flexopt export of this folder writes the part as STL, DXF or STEP"
+    try:
+        kind = get_kind(study.kind)
+        if kind.problem is None:
+            return None, "the study kind builds no part (it is not optimised)"
+        if solve_time_s is not None and solve_time_s > PART_BUDGET_S:
+            return None, (
+                f"the design took {solve_time_s:.3g} s to solve, and the 3D view would solve it "
+                f"again (more than {PART_BUDGET_S:g} s); {hint}"
+            )
+        from flexopt.pipeline.run import _nominal_design  # run imports this module
+
+        problem = kind.problem(study)
+        detail = problem.detail(_nominal_design(problem, study))
+    except Exception as exc:  # the page must not cost the evaluation
+        return None, f"the part could not be rebuilt: {type(exc).__name__}: {exc}"
+    if detail.outline is None or not detail.height_mm:
+        return None, "the study kind gives no outline and height for this design"
+    return detail, ""
+
+
+def evaluate_html(study: Any, result: Any, record: Mapping[str, Any]) -> str | None:
+    """report.html of ``flexopt evaluate`` (None, with a warning logged, when it fails: the
+    folder's other files are what the evaluation promised)."""
+    import logging
+
+    try:
+        part, why = evaluate_part(study, _float(record.get("solve_time_s")))
+        return render_evaluate_html(
+            EvaluateHtmlData(
+                study.name,
+                study.kind,
+                result.table,
+                result.plot,
+                result.summary,
+                tuple(result.headline),
+                tuple(result.verdicts),
+                record,
+                part,
+                why or None,
+            )
+        )
+    except Exception as exc:
+        logging.getLogger(__name__).warning(
+            "report.html not written: %s: %s", type(exc).__name__, exc
+        )
+        return None
 
 
 def _part_section(

@@ -883,6 +883,7 @@ def _curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: 
         x_label=_spec_label(spec, "x"),
         y_label=_spec_label(spec, "y"),
         title=title,
+        spec=spec,  # a target curve or range of the kind (pipeline.plot_targets)
     )
 
 

@@ -48,7 +48,8 @@ def test_evaluate_cantilever_writes_the_run_folder(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "max_abs_force_N" in captured.out and str(out) in captured.out
     assert captured.err == ""
-    assert sorted(p.name for p in out.iterdir()) == sorted(EVALUATE_FILES)  # no temp files left
+    # no temp files left; report.html beside them (pipeline/report_html.py, evaluate page)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*EVALUATE_FILES, "report.html"])
 
     header, rows = read_csv(out / "response.csv")
     assert header == COLUMNS
@@ -242,7 +243,7 @@ def test_installed_console_script(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
-    assert sorted(p.name for p in out.iterdir()) == sorted(EVALUATE_FILES)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*EVALUATE_FILES, "report.html"])
 
 
 def test_a_buckled_strut_is_flagged_unstable_in_the_console_and_the_files(tmp_path, capsys):
