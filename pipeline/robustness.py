@@ -20,9 +20,12 @@ multiply its cost by ~100 and judge nothing.
 
 The **design vector** of a kind that ``flexopt run`` optimises (:func:`scatter_design`): the
 problem's optional ``scatter_design(x, thickness_delta_mm, width_delta_mm) -> x`` when it has
-one (a kind whose variable names do not say what they are: ``t1_mm``, ``B_mm``), else every
-variable whose name contains ``thickness`` gets ``thickness_delta_mm`` and every one whose name
-contains ``width`` gets ``width_delta_mm``. The record's ``perturbed`` lists exactly what moved.
+one (a kind whose variable names do not say what they are: ``t1_mm``, ``B_mm``); else, for a
+problem whose ``variables`` are :class:`optimise.variables.DesignVariables` (variables on key
+paths), each variable that sets a ``*thickness_mm`` / ``*width_mm`` key moves that key by the
+delta; else every variable whose name contains ``thickness`` gets ``thickness_delta_mm`` and
+every one whose name contains ``width`` gets ``width_delta_mm``. The record's ``perturbed``
+lists exactly what moved.
 
 Which path a sample takes
 -------------------------
@@ -53,6 +56,7 @@ from flexopt.optimise.robustness import (
     share_met,
 )
 from flexopt.optimise.space import DesignSpace
+from flexopt.optimise.variables import DesignVariables
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.study import Study, validate_study
 
@@ -104,8 +108,9 @@ def perturb_study(
     """
     data = study.model_dump(mode="json", exclude_none=True)
     changed: list[str] = []
-    if E_factor != 1.0:
-        data["material"]["E_MPa"] = float(data["material"]["E_MPa"]) * float(E_factor)
+    material = data.get("material")
+    if E_factor != 1.0 and isinstance(material, dict) and _is_number(material.get("E_MPa")):
+        material["E_MPa"] = float(material["E_MPa"]) * float(E_factor)
         changed.append("material.E_MPa")
 
     def shift(node: Any, path: str, delta: float) -> Any:
@@ -163,6 +168,16 @@ def scatter_design(
         if out.shape != x.shape:
             raise TypeError(f"scatter_design() gave shape {out.shape}, expected {x.shape}")
         return out
+    variables = getattr(problem, "variables", None)
+    if isinstance(variables, DesignVariables):  # variables on key paths (the mechanism kind)
+        for i, targets in enumerate(variables.targets):
+            # the key the variable sets moves by the delta: factor * x' + offset = value + delta
+            key = next((p for p in reversed(targets[0].path) if isinstance(p, str)), "")
+            if key.endswith(THICKNESS_KEYS[0]):
+                x[i] += thickness_delta_mm / targets[0].factor
+            elif key.endswith("width_mm"):
+                x[i] += width_delta_mm / targets[0].factor
+        return x
     for i, name in enumerate(problem.space.names):
         lowered = name.lower()
         if "thickness" in lowered:
@@ -591,7 +606,8 @@ def _describe(study: Study, spec: RobustnessSpec, problem: Any, x: np.ndarray | 
     _, changed = perturb_study(study, e, spec.thickness_mm, spec.width_mm)
     words = []
     if spec.E_percent:
-        words.append(f"E ±{spec.E_percent:g} % (material.E_MPa)")
+        where = "material.E_MPa" if "material.E_MPa" in changed else "nothing: no material E"
+        words.append(f"E ±{spec.E_percent:g} %: {where}")
     thick = [c for c in changed if c.split("[")[0].endswith(THICKNESS_KEYS)]
     wide = [c for c in changed if c.split("[")[0].endswith("width_mm")]
     if problem is not None and x is not None:

@@ -19,7 +19,7 @@ from flexopt.pipeline.cli import main
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.evaluate import evaluate_study
 from flexopt.pipeline.robustness import perturb_study, scatter_design
-from flexopt.pipeline.study import validate_study
+from flexopt.pipeline.study import load_study, validate_study
 
 L_MM, T_MM, W_MM, D_MM = 60.0, 1.5, 8.0, 0.3
 SCATTER = {"E_percent": 10.0, "thickness_mm": 0.1, "width_mm": 0.2}
@@ -148,7 +148,6 @@ def test_design_vectors_shift_by_name_or_by_the_kind():
     np.testing.assert_allclose(scatter_design(ByName(), x, 0.1, -0.2), [1.1, 20.0, 5.8])
 
     from flexopt.pipeline.run import build_problem
-    from flexopt.pipeline.study import load_study
 
     problem = build_problem(load_study("constant-force"))
     x = problem.nominal_design()
@@ -157,6 +156,21 @@ def test_design_vectors_shift_by_name_or_by_the_kind():
     for name, a, b in zip(names, x, shifted, strict=True):
         expected = 0.0 if name.startswith("a") else (-0.2 if name == "B_mm" else 0.1)
         assert b - a == pytest.approx(expected), name
+
+    # variables on key paths (the mechanism kind): the key a variable sets moves by the delta
+    mechanism = build_problem(load_study("parallel-guide"))
+    x = mechanism.nominal_design()
+    shifted = scatter_design(mechanism, x, 0.1, -0.2)
+    for i, targets in enumerate(mechanism.variables.targets):
+        key = [p for p in targets[0].path if isinstance(p, str)][-1]
+        moved = (shifted[i] - x[i]) * targets[0].factor
+        assert moved == pytest.approx(0.1 if key.endswith("thickness_mm") else 0.0), key
+
+
+def test_a_study_without_a_material_is_sampled_without_E():
+    study = load_study("sea-window")
+    same, changed = perturb_study(study, 1.1, 0.1, 0.1)
+    assert changed == () and same == study
 
 
 @pytest.mark.parametrize(
