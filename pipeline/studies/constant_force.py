@@ -37,6 +37,7 @@ from typing import Any, Literal
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
 from flexopt.fea.errors import FeaError
+from flexopt.fea.fidelity import plane_stress_check
 from flexopt.fea.materials import Material, get_material
 from flexopt.geometry.constant_force import (
     DESIGN_VARIABLE_NAMES,
@@ -756,35 +757,6 @@ def _prb_frame_comparison(table: dict[str, np.ndarray], lo: float, hi: float) ->
 # Independent checks
 
 
-def _beam_to_mesh(beam: BeamModel, shape_mm: np.ndarray, points_mm: np.ndarray) -> np.ndarray:
-    """Displacement (k, 2) mm of plane-stress nodes ``points_mm`` (k, 2) that follows the beam.
-
-    Each node is located on the reference centreline (arc length ``s``, normal offset ``eta``)
-    and carried to the deformed centreline point at ``s`` plus ``eta`` along the deformed normal
-    (plane sections stay plane and normal: the beam's kinematics without shear). Nodes beyond the
-    ends (the pads) take the end's motion; their values are replaced by the supports anyway.
-    """
-    import shapely
-    from shapely.geometry import LineString
-
-    s_nodes = beam.s_nodes
-    ref = beam.reference_nodes_mm
-    s = shapely.line_locate_point(LineString(ref), shapely.points(points_mm))
-
-    def frame(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        angle = np.unwrap(
-            np.arctan2(np.gradient(xy[:, 1], s_nodes), np.gradient(xy[:, 0], s_nodes))
-        )
-        a = np.interp(s, s_nodes, angle)
-        base = np.column_stack([np.interp(s, s_nodes, xy[:, 0]), np.interp(s, s_nodes, xy[:, 1])])
-        return base, np.column_stack([-np.sin(a), np.cos(a)])
-
-    base0, n0 = frame(ref)
-    eta = np.einsum("ij,ij->i", points_mm - base0, n0)
-    base, n = frame(np.asarray(shape_mm, dtype=float))
-    return base + eta[:, None] * n - points_mm
-
-
 def fidelity_check(
     problem: ConstantForceProblem,
     design: ConstantForceDesign,
@@ -794,6 +766,7 @@ def fidelity_check(
 ) -> dict[str, Any]:
     """Check the beam model against a plane-stress, geometrically nonlinear FEA of the outline.
 
+    The study's part: the rows and the outline; the FEA is :func:`fea.fidelity.plane_stress_check`.
     The outline (beam plus pads) is meshed with quadratic triangles; the S1 pad is clamped and
     the S6 pad translated along the work direction as a rigid body (transverse motion and
     rotation held: the beam's boundary conditions). At ``fidelity.points`` strokes spread over
@@ -821,11 +794,6 @@ def fidelity_check(
         stresses and transverse forces of both, ``stable``, Newton iterations, mesh size and
         time; or ``skipped`` with the reason.
     """
-    import scipy.sparse.linalg as spla
-    from flexopt.fea.mesh import mesh_polygon
-    from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Translate
-    from shapely.geometry import Polygon
-
     study = problem.study
     spec = study.fidelity
     g = study.geometry
@@ -845,102 +813,24 @@ def fidelity_check(
     try:
         shape = outline(design, TABLE1, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
         beam = problem._beam(design)
-        pts = beam.profile.points_mm
-
-        def pad(end: np.ndarray, outward: np.ndarray) -> Polygon:
-            # The pad, grown by a hair so that nodes on its edges are inside it for the selection.
-            outward = outward / np.linalg.norm(outward)
-            n = np.array([-outward[1], outward[0]]) * (0.5 * g.pad_thickness_mm + 1e-3)
-            far = end + outward * (g.pad_length_mm + 1e-3)
-            return Polygon([end - n, far - n, far + n, end + n])
-
-        clamp = pad(pts[0], pts[0] - pts[1])
-        driven = pad(pts[-1], pts[-1] - pts[-2])
-        mesh = mesh_polygon(shape, spec.max_edge_mm)
-        # The drive's max_mm and steps are not used: each stroke is prescribed directly.
-        model = PlaneStressModel(
-            mesh,
-            problem.material,
-            design.B,
-            Clamp(clamp),
-            Translate(driven, WORK_DIRECTION, hi, 1, "fixed"),
-            stress_ignore=clamp.union(driven),
-        )
     except (GeometryError, FeaError) as exc:
         return {"skipped": f"could not build the plane-stress model: {exc}"}
-    cfg = model.settings
-    direction = np.asarray(WORK_DIRECTION, dtype=float)
-    normal = np.array([-direction[1], direction[0]])
-    out: dict[str, list] = {
-        "force": [],
-        "transverse": [],
-        "stress": [],
-        "iterations": [],
-        "converged": [],
-        "stable": [],
-        "eig": [],
-        "moved": [],
-    }
-    for k in rows:
-        guess = _beam_to_mesh(beam, response.shapes_mm[k], model.xy)
-        u = np.zeros(model.n_dofs)
-        u[model.ix], u[model.iy] = guess[:, 0], guess[:, 1]
-        u = model.P @ (model.PT @ u) + model.prescribed(float(stroke_rows[k]), "nonlinear")
-        u_start = u.copy()
-        converged = False
-        iterations = 0
-        for it in range(1, cfg.max_newton_iter + 1):
-            iterations = it
-            state = model.state(u, "nonlinear")
-            residual = model.PT @ state.f
-            scale = float(np.linalg.norm(state.f))
-            if float(np.linalg.norm(residual)) <= cfg.rtol_residual * scale + cfg.atol_residual_N:
-                converged = state.min_det_F >= cfg.min_det_F
-                break
-            reduced = (model.PT @ state.K @ model.P).tocsc()
-            u = u + model.P @ spla.splu(reduced, permc_spec="MMD_AT_PLUS_A").solve(-residual)
-        reaction = np.array([state.f[model.drive_dofs_x].sum(), state.f[model.drive_dofs_y].sum()])
-        reduced = (model.PT @ state.K @ model.P).tocsc()
-        # The eigenvalue nearest to zero (shift-invert): negative means an unstable equilibrium.
-        eig = float(spla.eigsh(reduced, k=1, sigma=-1e-9, which="LM", return_eigenvectors=False)[0])
-        moved = np.hypot(*(u - u_start)[np.stack([model.ix, model.iy])]).max()
-        out["force"].append(float(reaction @ direction))
-        out["transverse"].append(float(reaction @ normal))
-        out["stress"].append(float(model.peak_stress(u, "nonlinear")[2]))
-        out["iterations"].append(iterations)
-        out["converged"].append(bool(converged))
-        out["eig"].append(eig)
-        out["stable"].append(bool(eig > 0))
-        out["moved"].append(float(moved))
-    beam_f = np.asarray(response.force_N)[rows]
-    ps_f = np.array(out["force"])
-    rel = ps_f / beam_f - 1.0
-    ok = all(out["converged"])
-    return {
-        "model": "plane stress, total Lagrangian SVK, P2 triangles (fea.plane_stress), "
-        "Newton from the beam's deformed shape",
-        "stroke_mm": stroke_rows[rows].tolist(),
-        "beam_force_N": beam_f.tolist(),
-        "plane_stress_force_N": ps_f.tolist(),
-        "relative_difference": rel.tolist(),
-        "max_abs_relative_difference": float(np.max(np.abs(rel))),
-        "within_5_percent": bool(ok and np.max(np.abs(rel)) <= 0.05),
-        "beam_peak_stress_MPa": np.asarray(response.peak_stress_MPa)[rows].tolist(),
-        "plane_stress_peak_nodal_von_mises_MPa": out["stress"],
-        "beam_transverse_force_N": np.asarray(response.transverse_force_N)[rows].tolist(),
-        "plane_stress_transverse_force_N": out["transverse"],
-        "converged": out["converged"],
-        "stable": out["stable"],
-        "min_tangent_eigenvalue_N_per_mm": out["eig"],
-        "newton_iterations": out["iterations"],
-        "max_shape_change_mm": out["moved"],
-        "mesh": {
-            "max_edge_mm": spec.max_edge_mm,
-            "triangles": mesh.n_triangles,
-            "dofs": model.n_dofs,
-        },
-        "time_s": time.perf_counter() - t0,
-    }
+    result = plane_stress_check(
+        beam,
+        shape,
+        problem.material,
+        design.B,
+        g.pad_length_mm,
+        g.pad_thickness_mm,
+        WORK_DIRECTION,
+        response,
+        rows,
+        hi,
+        spec.max_edge_mm,
+    )
+    if "skipped" not in result:
+        result["time_s"] = time.perf_counter() - t0  # the rows' choice counted as before
+    return result
 
 
 def prb_report(

@@ -1,0 +1,212 @@
+"""Checking a beam model against plane stress: the same part meshed, solved from the beam's shape.
+
+The ``constant_force`` kind's independent check (``fidelity:`` block): the outline of the beam
+with its pads is meshed with quadratic triangles and solved geometrically nonlinear (total
+Lagrangian SVK, :mod:`fea.plane_stress`) at chosen strokes, Newton started from the beam's deformed
+shape mapped onto the mesh (:func:`beam_to_mesh`). Moved here from
+``pipeline/studies/constant_force.py`` unchanged (``fidelity_check`` there reads the study and
+calls :func:`plane_stress_check`). Units: mm, N, MPa.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import scipy.sparse.linalg as spla
+from flexopt.fea.beam import BeamModel, BeamResponse
+from flexopt.fea.errors import FeaError
+from flexopt.fea.materials import Material
+from flexopt.fea.mesh import mesh_polygon
+from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Translate
+from flexopt.geometry.errors import GeometryError
+from shapely.geometry import Polygon
+
+__all__ = ["beam_to_mesh", "plane_stress_check"]
+
+
+def beam_to_mesh(beam: BeamModel, shape_mm: np.ndarray, points_mm: np.ndarray) -> np.ndarray:
+    """Displacement (k, 2) mm of plane-stress nodes ``points_mm`` (k, 2) that follows the beam.
+
+    Each node is located on the reference centreline (arc length ``s``, normal offset ``eta``)
+    and carried to the deformed centreline point at ``s`` plus ``eta`` along the deformed normal
+    (plane sections stay plane and normal: the beam's kinematics without shear). Nodes beyond the
+    ends (the pads) take the end's motion; their values are replaced by the supports anyway.
+    """
+    import shapely
+    from shapely.geometry import LineString
+
+    s_nodes = beam.s_nodes
+    ref = beam.reference_nodes_mm
+    s = shapely.line_locate_point(LineString(ref), shapely.points(points_mm))
+
+    def frame(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        angle = np.unwrap(
+            np.arctan2(np.gradient(xy[:, 1], s_nodes), np.gradient(xy[:, 0], s_nodes))
+        )
+        a = np.interp(s, s_nodes, angle)
+        base = np.column_stack([np.interp(s, s_nodes, xy[:, 0]), np.interp(s, s_nodes, xy[:, 1])])
+        return base, np.column_stack([-np.sin(a), np.cos(a)])
+
+    base0, n0 = frame(ref)
+    eta = np.einsum("ij,ij->i", points_mm - base0, n0)
+    base, n = frame(np.asarray(shape_mm, dtype=float))
+    return base + eta[:, None] * n - points_mm
+
+
+def plane_stress_check(
+    beam: BeamModel,
+    shape: Polygon,
+    material: Material,
+    thickness_mm: float,
+    pad_length_mm: float,
+    pad_thickness_mm: float,
+    work_direction: Sequence[float],
+    response: BeamResponse,
+    rows: np.ndarray,
+    hi: float,
+    max_edge_mm: float,
+) -> dict[str, Any]:
+    """Check the beam model against a plane-stress, geometrically nonlinear FEA of the outline.
+
+    The outline (beam plus pads) is meshed with quadratic triangles; the S1 pad is clamped and
+    the S6 pad translated along the work direction as a rigid body (transverse motion and
+    rotation held: the beam's boundary conditions). At ``fidelity.points`` strokes spread over
+    ``[lo, hi]`` (the operative window; the rows of ``response`` nearest to them) the plane-stress
+    equilibrium is solved by Newton's method **started from the beam's deformed shape** mapped
+    onto the mesh, and its force and peak stress are compared with the beam's.
+
+    Why start from the beam: the post-buckled beam is one of several equilibria at a given
+    stroke (higher buckling modes carry 5-10x the force). The plane-stress solver's own path
+    following (uniform load steps from the straight state, no stability check) lands on such a
+    higher branch for some designs even with 1 mm steps. The beam's shape only selects the branch;
+    the force is the plane-stress model's own equilibrium, and the smallest eigenvalue of its
+    tangent (``stable``) confirms that equilibrium is stable, i.e. the physical one.
+    ``max_shape_change_mm`` is how far Newton moved the mesh from the beam's shape.
+
+    Stresses in elements touching the pads are left out: the re-entrant pad corners are singular
+    in 2D elasticity and have no counterpart in the beam. The plane-stress stress is the nodal
+    (vertex-averaged) von Mises stress; the beam's is ``|N|/A + |M| c / I``.
+
+    Parameters
+    ----------
+    beam : BeamModel — the beam that gave ``response`` (its reference centreline and nodes).
+    shape : Polygon — the outline to mesh (beam plus pads), mm.
+    material : Material
+    thickness_mm : float, mm — the out-of-plane width of the part (B).
+    pad_length_mm, pad_thickness_mm : float, mm — the pads at both ends of the beam.
+    work_direction : (2,) float — the drive's direction (unit vector).
+    response : BeamResponse — the beam's traced response.
+    rows : (k,) int — the rows of ``response`` to check.
+    hi : float, mm — the largest stroke (the drive's ``max_mm``; each stroke is prescribed).
+    max_edge_mm : float, mm — the largest triangle edge.
+
+    Returns
+    -------
+    dict
+        ``stroke_mm``, ``beam_force_N``, ``plane_stress_force_N``, ``relative_difference``
+        (plane stress / beam - 1), ``max_abs_relative_difference``, ``within_5_percent``, peak
+        stresses and transverse forces of both, ``stable``, Newton iterations, mesh size and
+        time; or ``skipped`` with the reason.
+    """
+    t0 = time.perf_counter()
+    stroke_rows = np.asarray(response.displacement_mm, dtype=float)
+    try:
+        pts = beam.profile.points_mm
+
+        def pad(end: np.ndarray, outward: np.ndarray) -> Polygon:
+            # The pad, grown by a hair so that nodes on its edges are inside it for the selection.
+            outward = outward / np.linalg.norm(outward)
+            n = np.array([-outward[1], outward[0]]) * (0.5 * pad_thickness_mm + 1e-3)
+            far = end + outward * (pad_length_mm + 1e-3)
+            return Polygon([end - n, far - n, far + n, end + n])
+
+        clamp = pad(pts[0], pts[0] - pts[1])
+        driven = pad(pts[-1], pts[-1] - pts[-2])
+        mesh = mesh_polygon(shape, max_edge_mm)
+        # The drive's max_mm and steps are not used: each stroke is prescribed directly.
+        model = PlaneStressModel(
+            mesh,
+            material,
+            thickness_mm,
+            Clamp(clamp),
+            Translate(driven, work_direction, hi, 1, "fixed"),
+            stress_ignore=clamp.union(driven),
+        )
+    except (GeometryError, FeaError) as exc:
+        return {"skipped": f"could not build the plane-stress model: {exc}"}
+    cfg = model.settings
+    direction = np.asarray(work_direction, dtype=float)
+    normal = np.array([-direction[1], direction[0]])
+    out: dict[str, list] = {
+        "force": [],
+        "transverse": [],
+        "stress": [],
+        "iterations": [],
+        "converged": [],
+        "stable": [],
+        "eig": [],
+        "moved": [],
+    }
+    for k in rows:
+        guess = beam_to_mesh(beam, response.shapes_mm[k], model.xy)
+        u = np.zeros(model.n_dofs)
+        u[model.ix], u[model.iy] = guess[:, 0], guess[:, 1]
+        u = model.P @ (model.PT @ u) + model.prescribed(float(stroke_rows[k]), "nonlinear")
+        u_start = u.copy()
+        converged = False
+        iterations = 0
+        for it in range(1, cfg.max_newton_iter + 1):
+            iterations = it
+            state = model.state(u, "nonlinear")
+            residual = model.PT @ state.f
+            scale = float(np.linalg.norm(state.f))
+            if float(np.linalg.norm(residual)) <= cfg.rtol_residual * scale + cfg.atol_residual_N:
+                converged = state.min_det_F >= cfg.min_det_F
+                break
+            reduced = (model.PT @ state.K @ model.P).tocsc()
+            u = u + model.P @ spla.splu(reduced, permc_spec="MMD_AT_PLUS_A").solve(-residual)
+        reaction = np.array([state.f[model.drive_dofs_x].sum(), state.f[model.drive_dofs_y].sum()])
+        reduced = (model.PT @ state.K @ model.P).tocsc()
+        # The eigenvalue nearest to zero (shift-invert): negative means an unstable equilibrium.
+        eig = float(spla.eigsh(reduced, k=1, sigma=-1e-9, which="LM", return_eigenvectors=False)[0])
+        moved = np.hypot(*(u - u_start)[np.stack([model.ix, model.iy])]).max()
+        out["force"].append(float(reaction @ direction))
+        out["transverse"].append(float(reaction @ normal))
+        out["stress"].append(float(model.peak_stress(u, "nonlinear")[2]))
+        out["iterations"].append(iterations)
+        out["converged"].append(bool(converged))
+        out["eig"].append(eig)
+        out["stable"].append(bool(eig > 0))
+        out["moved"].append(float(moved))
+    beam_f = np.asarray(response.force_N)[rows]
+    ps_f = np.array(out["force"])
+    rel = ps_f / beam_f - 1.0
+    ok = all(out["converged"])
+    return {
+        "model": "plane stress, total Lagrangian SVK, P2 triangles (fea.plane_stress), "
+        "Newton from the beam's deformed shape",
+        "stroke_mm": stroke_rows[rows].tolist(),
+        "beam_force_N": beam_f.tolist(),
+        "plane_stress_force_N": ps_f.tolist(),
+        "relative_difference": rel.tolist(),
+        "max_abs_relative_difference": float(np.max(np.abs(rel))),
+        "within_5_percent": bool(ok and np.max(np.abs(rel)) <= 0.05),
+        "beam_peak_stress_MPa": np.asarray(response.peak_stress_MPa)[rows].tolist(),
+        "plane_stress_peak_nodal_von_mises_MPa": out["stress"],
+        "beam_transverse_force_N": np.asarray(response.transverse_force_N)[rows].tolist(),
+        "plane_stress_transverse_force_N": out["transverse"],
+        "converged": out["converged"],
+        "stable": out["stable"],
+        "min_tangent_eigenvalue_N_per_mm": out["eig"],
+        "newton_iterations": out["iterations"],
+        "max_shape_change_mm": out["moved"],
+        "mesh": {
+            "max_edge_mm": max_edge_mm,
+            "triangles": mesh.n_triangles,
+            "dofs": model.n_dofs,
+        },
+        "time_s": time.perf_counter() - t0,  # the caller may count its own part too
+    }
