@@ -70,6 +70,7 @@ from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_key
+from flexopt.optimise.thickness_fit import fit_thickness
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plot_targets import measure_band
 from flexopt.pipeline.plots import plot_field
@@ -81,14 +82,12 @@ from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from pydantic import BaseModel, Field, field_validator, model_validator
-from scipy.optimize import minimize_scalar
 
 __all__ = [
     "ThresholdSpringStudy",
     "ThresholdSpringProblem",
     "design_space",
     "design_vector",
-    "fit_thickness",
     "check",
     "problem",
     "evaluate",
@@ -297,50 +296,6 @@ def check(study: ThresholdSpringStudy) -> None:
         study.impact.model()
     except FeaError as exc:
         raise StudyError("impact", str(exc)) from exc
-
-
-# --------------------------------------------------------------------------------------------
-# Thickness from the target
-
-
-def fit_thickness(
-    rotation_rad: np.ndarray,
-    torque_per_mm_Nmm: np.ndarray,
-    target: Any,
-    measure: str,
-    window: tuple[float, float],
-) -> tuple[float, float]:
-    """The thickness that brings a shape's torque curve closest to the target.
-
-    The torque is proportional to the thickness, so the error measure of ``c T_1`` (T_1 the
-    torque per mm of thickness) is a one-dimensional function of ``c``; for the max and rms
-    measures it is convex, and a bounded scalar search finds its minimum.
-
-    Parameters
-    ----------
-    rotation_rad : (n,) float, rad.
-    torque_per_mm_Nmm : (n,) float, N·mm per mm of thickness.
-    target : TargetCurve (N·mm over rad).
-    measure : str — a key of optimise.targets.MEASURES.
-    window : (float, float), rad.
-
-    Returns
-    -------
-    (thickness_mm, error) : float, float — the best thickness and the measure there.
-    """
-    x = np.asarray(rotation_rad, dtype=float)
-    y = np.asarray(torque_per_mm_Nmm, dtype=float)
-    level = float(np.max(np.abs(target(x[(x >= window[0]) & (x <= window[1])]))))
-    peak = float(np.max(np.abs(y)))
-    if not (np.all(np.isfinite(y)) and peak > 0):
-        return math.nan, math.inf
-    hi = 4.0 * level / peak
-
-    def err(c: float) -> float:
-        return float(curve_error(target, x, c * y, measure, window))
-
-    res = minimize_scalar(err, bounds=(0.0, hi), method="bounded", options={"xatol": 1e-7 * hi})
-    return float(res.x), float(res.fun)
 
 
 # --------------------------------------------------------------------------------------------
