@@ -45,7 +45,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
-from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.requirements import Verdict
 from flexopt.optimise.robustness import (
     SAMPLE_COLUMNS,
@@ -63,6 +63,7 @@ from flexopt.pipeline.study import Study, validate_study
 __all__ = [
     "RobustnessResult",
     "SampleProblem",
+    "WorstCaseProblem",
     "check_robustness",
     "compact",
     "perturb_study",
@@ -70,6 +71,7 @@ __all__ = [
     "robustness_markdown",
     "run_robustness",
     "scatter_design",
+    "with_worst_case",
 ]
 
 log = logging.getLogger(__name__)
@@ -492,21 +494,106 @@ def compact(record: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def check_robustness(study: Study) -> None:
-    """Refuse what this version cannot do with a ``robustness:`` block.
+    """Refuse a ``robustness:`` block the study's kind cannot use.
 
     Raises
     ------
     StudyError
-        At ``robustness.objective`` for ``worst`` (not yet supported).
+        At ``robustness.objective`` for ``worst`` on a kind that ``flexopt run`` does not
+        optimise (there is no optimiser to score designs by their worst sample).
     """
     spec: RobustnessSpec | None = getattr(study, "robustness", None)
-    if spec is not None and spec.objective == "worst":
+    if spec is None or spec.objective != "worst":
+        return
+    from flexopt.pipeline.studies import get_kind
+
+    if get_kind(study.kind).problem is None:
         raise StudyError(
             "robustness.objective",
-            "worst is not yet supported (it would cost "
-            f"{spec.n_samples}x the evaluations of each design); use objective: nominal, which "
-            "optimises the nominal design and reports its robustness",
+            f"worst scores the designs of an optimisation, but kind {study.kind} is only "
+            "evaluated; use objective: nominal (the samples are reported all the same)",
         )
+
+
+class WorstCaseProblem:
+    """A design problem scored by its worst scatter sample (``robustness.objective: worst``).
+
+    Each design is evaluated at every sample of the block (the problem of the sample's study,
+    the design vector moved by :func:`scatter_design`); its objectives and constraints are the
+    largest over the samples, row by row (every objective is minimised and every constraint is
+    ``g <= 0``, so the largest is the worst), named ``worst_<name>``. A sample that cannot be
+    built or solved makes the design failed, with the sample named in the reason. The metrics
+    are the nominal sample's, with ``worst_sample`` (the row that set the first objective).
+
+    Cost: ``spec.n_samples`` evaluations per design (2^k + 1 for corners: 9 for E, thickness
+    and width). Picklable: the samples' problems are built once per process, on first use.
+    """
+
+    def __init__(self, inner: Any, study: Study) -> None:
+        spec: RobustnessSpec = study.robustness  # type: ignore[attr-defined]
+        self.inner = inner
+        self.study = study
+        self.samples = samples_of(spec)
+        self.space = inner.space
+        self.objective_names = tuple(f"worst_{n}" for n in inner.objective_names)
+        self.constraint_names = tuple(f"worst_{n}" for n in inner.constraint_names)
+        self._problems: dict[int, Any] = {}
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {**self.__dict__, "_problems": {}}  # rebuilt in each worker
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "inner":  # during unpickling, before __dict__ is filled
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def _problem(self, row: int) -> Any:
+        if row not in self._problems:
+            from flexopt.pipeline.run import build_problem
+
+            e, dt, dw = (float(v) for v in self.samples[row])
+            self._problems[row] = build_problem(perturb_study(self.study, e, dt, dw)[0])
+        return self._problems[row]
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        from flexopt.pipeline.parallel import evaluate_one
+
+        x = np.asarray(x, dtype=float)
+        evaluations = []
+        for row, (_, dt, dw) in enumerate(self.samples):
+            problem = self.inner if row == 0 else self._problem(row)
+            xs = x if row == 0 else scatter_design(problem, x, dt, dw)
+            ev = evaluate_one(problem, xs)
+            evaluations.append(ev)
+            if ev.reason and np.any(ev.f >= INFEASIBLE_VALUE):
+                break  # failed: the worst case is this sample's whatever the others give
+        f = np.max([ev.f for ev in evaluations], axis=0)
+        g = np.max([ev.g for ev in evaluations], axis=0)
+        nominal = evaluations[0]
+        worst = int(np.argmax([ev.f[0] for ev in evaluations]))
+        reason = nominal.reason
+        if not reason:
+            failed = next((i for i, ev in enumerate(evaluations) if ev.reason), None)
+            if failed is not None:
+                e, dt, dw = self.samples[failed]
+                reason = (
+                    f"robustness sample {failed} (E x{e:.3g}, thickness {dt:+.3g} mm, width "
+                    f"{dw:+.3g} mm): {evaluations[failed].reason}"
+                )
+        metrics = {**nominal.metrics, "worst_sample": worst}
+        return Evaluation(x, f, g, metrics, reason, sum(ev.time_s for ev in evaluations))
+
+    def detail(self, x: np.ndarray) -> Any:
+        detail = self.inner.detail(x)
+        return replace(detail, evaluation=self.evaluate(x))
+
+
+def with_worst_case(study: Study, problem: Any) -> Any:
+    """``problem`` scored by its worst sample when ``robustness.objective`` is ``worst``."""
+    spec: RobustnessSpec | None = getattr(study, "robustness", None)
+    if spec is None or spec.objective != "worst":
+        return problem
+    return WorstCaseProblem(problem, study)
 
 
 def _plot_columns(study: Study, mode: str, spec: Mapping[str, Any]) -> tuple[str, str]:

@@ -298,9 +298,11 @@ def build_problem(study: Study) -> DesignProblem:
             f"kind '{kind.name}' returned {type(problem).__name__}, which is not a DesignProblem "
             "(space, objective_names, constraint_names, evaluate, detail)"
         )
+    from flexopt.pipeline.robustness import with_worst_case
     from flexopt.pipeline.verdict import with_requirement_constraints
 
-    return with_requirement_constraints(study, problem)  # requirements: with role: constraint
+    # requirements: with role: constraint; robustness.objective: worst scores every sample
+    return with_worst_case(study, with_requirement_constraints(study, problem))
 
 
 def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> RunSetup:

@@ -182,7 +182,7 @@ def test_a_study_without_a_material_is_sampled_without_E():
         ({}, "robustness", "no scatter"),
         ({"E_percent": 120}, "robustness.E_percent", "100"),
         ({"thickness_mm": -0.1}, "robustness.thickness_mm", "0"),
-        ({"E_percent": 10, "objective": "worst"}, "robustness.objective", "not yet supported"),
+        ({"E_percent": 10, "objective": "worst"}, "robustness.objective", "only evaluated"),
         ({"E_percent": 10, "method": "latin"}, "robustness.method", "corners"),
     ],
 )
@@ -218,3 +218,42 @@ def test_run_reports_the_chosen_designs_robustness(tmp_path, capsys):
     assert "robustness (corners, 5 samples" in capsys.readouterr().out
     run = json.loads((out / "run.json").read_text())
     assert run["robustness"]["n_samples"] == 5 and "band" not in run["robustness"]
+
+
+def test_worst_objective_is_the_largest_over_the_samples():
+    """objective: worst scores a design by the largest objective and constraint over the
+    samples, each sample evaluated here on its own (its study, its shifted design vector)."""
+    import pickle
+
+    from flexopt.pipeline.robustness import WorstCaseProblem
+    from flexopt.pipeline.run import build_problem
+
+    raw = yaml_of("constant-force")
+    raw["robustness"] = {"E_percent": 5.0, "width_mm": 0.1, "objective": "worst"}
+    study = validate_study(raw)
+    problem = build_problem(study)
+    assert isinstance(problem, WorstCaseProblem)
+    assert problem.objective_names == ("worst_rms_error_N",)
+    problem = pickle.loads(pickle.dumps(problem))  # as a worker receives it
+    x = problem.nominal_design()
+    worst = problem.evaluate(x)
+
+    f, g = [], []
+    for e, dt, dw in corner_samples(5.0, 0.0, 0.1):
+        sample, _ = perturb_study(study, e, dt, dw)
+        one = build_problem(sample)
+        ev = one.evaluate(scatter_design(one, x, dt, dw))
+        f.append(ev.f)
+        g.append(ev.g)
+    np.testing.assert_allclose(worst.f, np.max(f, axis=0))
+    np.testing.assert_allclose(worst.g, np.max(g, axis=0))
+    # E +5 % and B +0.1 mm both raise the force: the nominal's RMS error is not the worst
+    assert worst.f[0] > f[0][0]
+    assert worst.metrics["worst_sample"] == int(np.argmax([v[0] for v in f]))
+
+
+def yaml_of(name: str) -> dict:
+    import yaml
+    from flexopt.pipeline.study import resolve_study_path
+
+    return yaml.safe_load(resolve_study_path(name).read_text(encoding="utf-8"))
