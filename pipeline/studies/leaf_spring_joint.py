@@ -34,8 +34,9 @@ import numpy as np
 from flexopt.fea.errors import FeaError
 from flexopt.fea.leaf_joint import (
     JointResponse,
-    joint_elastic_limit,
+    curve_summary,
     joint_response,
+    length_range_mm,
     linear_joint_stiffness_Nmm,
 )
 from flexopt.fea.materials import Material, get_material
@@ -56,8 +57,6 @@ __all__ = [
     "LeafJointDesignSpace",
     "LeafSpringJointStudy",
     "LeafJointProblem",
-    "length_range_mm",
-    "curve_summary",
     "check",
     "problem",
     "evaluate",
@@ -267,54 +266,6 @@ def check(study: LeafSpringJointStudy) -> None:
                 _joint(study, l, s)
             except GeometryError as exc:
                 raise StudyError(f"geometry.effective_lengths_mm[{i}]", str(exc)) from exc
-
-
-def length_range_mm(
-    E_MPa: float,
-    arm_mm: float,
-    thickness_mm: float,
-    width_mm: float,
-    n_leaves: int,
-    stiffness_range_Nmm: tuple[float, float],
-) -> tuple[float, float]:
-    """(l_min, l_max): free lengths whose small-deflection stiffness n 3 E I l_j^2 / l^3 is the
-    top and the bottom of the range, mm."""
-    c = n_leaves * 3.0 * E_MPa * width_mm * thickness_mm**3 / 12.0 * arm_mm**2
-    lo, hi = stiffness_range_Nmm
-    return (c / hi) ** (1.0 / 3.0), (c / lo) ** (1.0 / 3.0)
-
-
-def curve_summary(
-    joint: LeafJoint,
-    resp: JointResponse,
-    material: Material,
-    allowable_MPa: float,
-    n_elements: int,
-) -> dict[str, Any]:
-    """Scalars of one torque-deflection curve: small-deflection stiffness (closed form and FE),
-    the elastic limit (traced on its own, whatever range ``resp`` covers) with the torque and
-    stiffness there, and the state at the last converged row of ``resp``."""
-    a = resp.deflection_rad
-    ok = resp.converged
-    limit, trace = joint_elastic_limit(joint, material, allowable_MPa, n_elements)
-    out: dict[str, Any] = {
-        "linear_stiffness_Nm_per_rad": resp.linear_stiffness_Nmm_per_rad / 1000.0,
-        "fe_initial_stiffness_Nm_per_rad": float(resp.stiffness_Nmm_per_rad[0]) / 1000.0,
-        "elastic_limit_deg": None if limit is None else math.degrees(limit),
-    }
-    if limit is not None:
-        t_ok = trace.converged
-        x = trace.deflection_rad[t_ok]
-        out["torque_at_elastic_limit_Nm"] = float(np.interp(limit, x, trace.torque_Nmm[t_ok])) / 1e3
-        out["stiffness_at_elastic_limit_Nm_per_rad"] = (
-            float(np.interp(limit, x, trace.stiffness_Nmm_per_rad[t_ok])) / 1e3
-        )
-    if ok.any():
-        out["last_row_deg"] = float(np.degrees(a[ok][-1]))
-        out["torque_at_last_row_Nm"] = float(resp.torque_Nmm[ok][-1]) / 1e3
-        out["stiffness_at_last_row_Nm_per_rad"] = float(resp.stiffness_Nmm_per_rad[ok][-1]) / 1e3
-        out["peak_stress_at_last_row_MPa"] = float(resp.peak_stress_MPa[ok][-1])
-    return out
 
 
 # --------------------------------------------------------------------------------------------

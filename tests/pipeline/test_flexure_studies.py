@@ -15,11 +15,12 @@ import pytest
 import trimesh
 import yaml
 from flexopt.fea.closed_forms import pivot_closed_form
+from flexopt.fea.leaf_joint import length_range_mm
 from flexopt.optimise import DesignProblem
 from flexopt.pipeline.cli import main
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies.flexure_pivot import FlexurePivotProblem, build_flexure
-from flexopt.pipeline.studies.leaf_spring_joint import LeafJointProblem, length_range_mm
+from flexopt.pipeline.studies.leaf_spring_joint import LeafJointProblem
 from flexopt.pipeline.study import load_study, validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
