@@ -321,6 +321,14 @@ def render_report(data: ReportData) -> str:
         "",
     ]
 
+    from flexopt.pipeline.labels import variable_rows
+
+    lines += ["## Design variables", ""]
+    lines += _table(
+        ["variable", "meaning", "unit", "bounds", "best value"],
+        variable_rows(study.kind, problem, best.x),
+    )
+
     generation, index = data.best_where
     lines += ["## Best design", ""]
     where = (

@@ -20,11 +20,34 @@ from typing import Literal
 import numpy as np
 import pytest
 from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
-from flexopt.pipeline.labels import label, variable_meanings, words
-from flexopt.pipeline.report_html import SECTIONS, sensitivity, top_designs
+from flexopt.pipeline.evaluate import evaluate_study, response_plot_args
+from flexopt.pipeline.labels import (
+    label,
+    path_words,
+    siblings,
+    variable_meanings,
+    variable_rows,
+    words,
+)
+from flexopt.pipeline.plot_targets import measure_band, target_overlay
+from flexopt.pipeline.plots import curve_figure, response_figure
+from flexopt.pipeline.report_html import (
+    EVALUATE_SECTIONS,
+    SECTIONS,
+    EvaluateHtmlData,
+    render_evaluate_html,
+    sensitivity,
+    top_designs,
+)
 from flexopt.pipeline.run import parallel_settings, prepare_run, rebuild_report, run_study
-from flexopt.pipeline.studies import StudyKind, register
-from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
+from flexopt.pipeline.studies import StudyKind, get_kind, register
+from flexopt.pipeline.study import (
+    STUDY_CONFIG,
+    OptimiserSpec,
+    Study,
+    load_study,
+    validate_study,
+)
 from pydantic import BaseModel
 from shapely.geometry import box
 
@@ -213,6 +236,9 @@ def test_run_writes_a_self_contained_report_html(run_dir):
     assert "[report.html](report.html)" in report_md.split("## Settings")[0]  # linked at the top
     assert "serial evaluation" not in report_md
     assert f"| evaluation backend | {record['parallel']['description']} |" in report_md
+    # the variables table of report.md: meaning and unit from the kind, bounds, best value
+    assert "| variable | meaning | unit | bounds | best value |" in report_md
+    assert "| a3 | where p3 sits between S2 and S3 | fraction, – | 0 – 1 |" in report_md
 
     page, figures = _page(run_dir)
     assert page.sections == list(SECTIONS)
@@ -338,3 +364,220 @@ def test_report_html_draws_offline_in_a_headless_browser(run_dir, tmp_path):
         tag = dom[dom.rindex("<div", 0, at) : dom.index(">", at)]
         assert "js-plotly-plot" in tag, name  # plotly.js drew into the div
     assert dom.count('class="main-svg"') >= 6
+
+
+# --------------------------------------------------------------------------------------------
+# Targets, curves and variable meanings of the shipped kinds (issue 14 item 5 leftovers)
+
+
+def _lines(ax) -> dict[str, np.ndarray]:
+    """The lines of a matplotlib axes by legend label: {label: (2, n) x and y}."""
+    return {ln.get_label(): np.asarray(ln.get_data(), dtype=float) for ln in ax.lines}
+
+
+def test_target_overlay_forms_against_numbers_computed_here():
+    x = np.linspace(0.0, 20.0, 11)
+    table = {"rotation_deg": x, "torque_Nmm": 3.0 * x, "target_Nmm": 2.0 * x + 1.0}
+    k, tol = 300.0, 0.05  # a stiffness target as the line K theta with a ±5 % band
+    line = {"x": x, "y": k * np.radians(x)}
+    spec = {"x": "rotation_deg", "left": "torque_Nmm", "target_curve": line, "tolerance_rel": tol}
+    o = target_overlay(spec, table, unit="N·mm")
+    np.testing.assert_allclose(o.y, k * np.radians(x))
+    np.testing.assert_allclose(o.lower, (1 - tol) * k * np.radians(x))
+    np.testing.assert_allclose(o.upper, (1 + tol) * k * np.radians(x))
+    assert o.label == "target ± 5 %"
+    # a column of the table, its band a share of its largest value, limited to band_x
+    spec = {
+        "x": "rotation_deg",
+        "y": "torque_Nmm",
+        "target_curve": "target_Nmm",
+        "tolerance_of_max": 0.1,
+        "band_x": [4.0, 12.0],
+    }
+    o = target_overlay(spec, table)
+    np.testing.assert_allclose(o.x, [4.0, 6.0, 8.0, 10.0, 12.0])
+    np.testing.assert_allclose(o.upper - o.y, 0.1 * 41.0)  # max |2 x + 1| over 0..20 is 41
+    # a constant from the band's start to its end; a range has no single value
+    o = target_overlay(
+        {
+            "x": "rotation_deg",
+            "y": "torque_Nmm",
+            "target": 5.0,
+            "tolerance": 0.5,
+            "band_x": [2.0, 8.0],
+        },
+        table,
+    )
+    np.testing.assert_allclose([o.x, o.y, o.lower], [[2, 8], [5, 5], [4.5, 4.5]])
+    o = target_overlay({"x": "rotation_deg", "y": "torque_Nmm", "target_range": [9, 4]}, table)
+    assert o.y is None and list(o.lower) == [4, 4] and list(o.upper) == [9, 9]
+    # no target, a target of another column, a missing target column: nothing drawn
+    assert target_overlay({"x": "rotation_deg", "y": "torque_Nmm"}, table) is None
+    assert target_overlay({**spec, "target_of": "force_N"}, table) is None
+    assert target_overlay({**spec, "target_curve": "nothing_Nmm"}, table) is None
+    # a tolerance on an error measure: normalised by the largest target, relative, absolute
+    assert measure_band("max_normalised", 0.05) == {"tolerance_of_max": 0.05}
+    assert measure_band("rms_relative", 0.02) == {"tolerance_rel": 0.02}
+    assert measure_band("rms", 0.3) == {}
+
+
+def test_siblings_are_the_curves_of_one_quantity_and_their_comparisons():
+    n = np.zeros(3)
+    table = {
+        "deflection_deg": n,
+        "torque_Nm_sliding_l28": n,
+        "stress_MPa_sliding_l28": n,
+        "torque_Nm_fixed_l40": n,
+        "target_torque_Nm": n,
+        "reference_torque_Nm": n,
+        "torque_Nm": n,
+        "closed_form_torque_Nmm": n,
+        "torque_Nmm": n,
+        "short_Nm": n[:2],
+    }
+    assert siblings(table, "torque_Nm_sliding_l28") == [
+        "torque_Nm_sliding_l28",
+        "torque_Nm_fixed_l40",
+        "torque_Nm",
+        "reference_torque_Nm",
+    ]
+    assert siblings(table, "torque_Nm") == [
+        "torque_Nm",
+        "torque_Nm_sliding_l28",
+        "torque_Nm_fixed_l40",
+        "reference_torque_Nm",
+    ]  # the target is a target, never a curve; N·mm is another unit
+    assert siblings(table, "torque_Nmm") == ["torque_Nmm", "closed_form_torque_Nmm"]
+
+
+@pytest.fixture(scope="module")
+def leaf_result():
+    study = load_study("leaf-spring-joint")
+    return study, get_kind(study.kind).evaluate(study, 1)
+
+
+def test_leaf_joint_png_and_html_show_all_six_curves(leaf_result):
+    study, result = leaf_result
+    curves = [c for c in result.table if c.startswith("torque_Nm_")]
+    assert len(curves) == 6  # three effective lengths x two structures in the shipped study
+    fig = response_figure(result.table, **response_plot_args(study, result))
+    torque, stress = fig.axes[:2]
+    drawn = _lines(torque)
+    assert sorted(drawn) == sorted(words(c) for c in curves)
+    for c in curves:
+        np.testing.assert_array_equal(drawn[words(c)][1], result.table[c])
+    assert len([k for k in _lines(stress) if k.startswith("stress")]) == 6
+    assert torque.get_ylabel() == "torque (N·m)"  # the common quantity; curves in the legend
+    assert torque.get_legend() is not None
+
+    page = render_evaluate_html(EvaluateHtmlData(study.name, study.kind, result.table, result.plot))
+    figures = {
+        attrs["id"]: json.loads(text)
+        for attrs, text in _feed(page).scripts
+        if attrs.get("type") == "application/json"
+    }
+    traces = [t for t in figures["fig-response"]["data"] if t["mode"] == "lines+markers"]
+    assert sorted(t["name"] for t in traces) == sorted(words(c) for c in curves)
+
+
+def test_leaf_joint_run_plot_draws_both_settings_and_the_stiffness_range():
+    study = load_study("leaf-spring-joint")
+    problem = get_kind(study.kind).problem(study)
+    detail = problem.detail(np.array([80.0, 0.5, 10.0]))  # arm, leaf thickness, width (mm)
+    spec = detail.plot
+    fig = curve_figure(detail.table, spec["x"], spec["y"], spec=spec)
+    (ax,) = fig.axes
+    assert {words("stiffness_Nm_per_rad_lmin"), words("stiffness_Nm_per_rad_lmax")} <= set(
+        _lines(ax)
+    )
+    (band,) = ax.collections  # the target stiffness range, shaded
+    lo, hi = study.target.stiffness_range_Nm_per_rad
+    ys = band.get_paths()[0].vertices[:, 1]
+    assert ys.min() == pytest.approx(lo) and ys.max() == pytest.approx(hi)
+    assert "target stiffness range" in band.get_label()
+
+
+def test_flexure_pivot_and_cam_plots_draw_their_targets(tmp_path):
+    # flexure pivot: the target stiffness K (N·mm/rad) as the torque line K theta, ±tolerance
+    study = load_study("flexure-pivot")
+    result = get_kind(study.kind).evaluate(study, 1)
+    k, tol = study.target.stiffness_Nmm_per_rad, study.target.tolerance_percent / 100
+    theta = np.radians(result.table["rotation_deg"])
+    torque = response_figure(result.table, **response_plot_args(study, result)).axes[0]
+    (target,) = [v for name, v in _lines(torque).items() if name.startswith("target")]
+    np.testing.assert_allclose(target[1], k * theta)
+    (band,) = torque.collections
+    ys = band.get_paths()[0].vertices[:, 1]
+    assert ys.max() == pytest.approx((1 + tol) * k * theta.max())
+    assert torque.get_xlabel() == "rotation (°)" and torque.get_ylabel() == "torque (N·mm)"
+
+    # cam (through flexopt evaluate): the target torque curve in the PNG and in report.html
+    out = evaluate_study(load_study("threshold-cam"), out=tmp_path / "cam").run_dir
+    with (out / "response.csv").open() as handle:
+        rows = list(__import__("csv").DictReader(handle))
+    wanted = np.array([float(r["target_torque_Nm"]) for r in rows])
+    page = _feed((out / "report.html").read_text(encoding="utf-8"))
+    assert page.sections == list(EVALUATE_SECTIONS)
+    figures = {
+        attrs["id"]: json.loads(text)
+        for attrs, text in page.scripts
+        if attrs.get("type") == "application/json"
+    }
+    (line,) = [t for t in figures["fig-response"]["data"] if t["name"] == "target"]
+    np.testing.assert_allclose(line["y"], wanted, rtol=1e-9)
+    assert {"fig-response", "fig-response-stress", "fig-part-3d"} <= set(figures)
+    # the verdict table, as evaluation.json judges it
+    record = json.loads((out / "evaluation.json").read_text())
+    assert "report.html" in record["files"]
+    assert page.headers[:5] == ["requirement", "value", "bound", "margin", "verdict"]
+    text = (out / "report.html").read_text(encoding="utf-8")
+    assert f">{record['verdict']['overall']}</span>" in text
+    for fig in figures.values():
+        for key, axis in fig["layout"].items():
+            if key.startswith(("xaxis", "yaxis")) and _axis_title(axis):
+                assert "_" not in _axis_title(axis), _axis_title(axis)
+
+
+def _feed(text: str) -> _Page:
+    page = _Page()
+    page.feed(text)
+    return page
+
+
+def test_every_optimising_kind_says_what_its_variables_mean():
+    import flexopt
+
+    seen = set()
+    for info in flexopt.list_studies():
+        study = load_study(info.name)
+        kind = get_kind(study.kind)
+        if kind.problem is None:
+            continue
+        if study.kind == "sea_spring":  # without its Taguchi stage (~30 s): the same names
+            from flexopt.pipeline.studies.sea_spring import SeaSpringProblem
+
+            problem = SeaSpringProblem(study, stage1={})
+        else:
+            problem = kind.problem(study)
+        rows = variable_rows(study.kind, problem, problem.space.lower)
+        assert [r[0] for r in rows] == list(problem.space.names)
+        for name, meaning, unit, bounds, _ in rows:
+            # words of its own, not the name spelled out: a meaning from the kind
+            assert meaning not in ("–", words(name), label(name)), (info.name, name)
+            assert unit and " – " in bounds, (info.name, name)
+        seen.add(study.kind)
+    optimising = {
+        "constant_force",
+        "sea_spring",
+        "threshold_spring",
+        "flexure_pivot",
+        "leaf_spring_joint",
+        "cam",
+        "gripper",
+        "mechanism",
+    }
+    assert optimising <= seen
+    assert path_words("geometry.beams.upper.points_mm[1][0]") == "x of point 1 of beam 'upper' (mm)"
+    assert path_words("geometry.bodies.shuttle.ref_mm.0") == (
+        "x of the reference point of body 'shuttle' (mm)"
+    )
