@@ -265,7 +265,41 @@ def gbsv(abc: np.ndarray, b: np.ndarray, ipiv: np.ndarray) -> int:
                 t = abc[c, KV + j + jp - c]
                 abc[c, KV + j + jp - c] = abc[c, KV + j - c]
                 abc[c, KV + j - c] = t
-        if km > 0:
+        if km == KL:
+            # the full-band case (all but the last KL columns) with the multipliers in
+            # registers: the same operations as below, which the compiler cannot keep out of
+            # memory there (it cannot tell that column j and column c do not overlap)
+            rp = 1.0 / abc[j, KV]
+            l1 = abc[j, KV + 1] * rp
+            l2 = abc[j, KV + 2] * rp
+            l3 = abc[j, KV + 3] * rp
+            l4 = abc[j, KV + 4] * rp
+            l5 = abc[j, KV + 5] * rp
+            l6 = abc[j, KV + 6] * rp
+            l7 = abc[j, KV + 7] * rp
+            l8 = abc[j, KV + 8] * rp
+            abc[j, KV + 1] = l1
+            abc[j, KV + 2] = l2
+            abc[j, KV + 3] = l3
+            abc[j, KV + 4] = l4
+            abc[j, KV + 5] = l5
+            abc[j, KV + 6] = l6
+            abc[j, KV + 7] = l7
+            abc[j, KV + 8] = l8
+            for c in range(j + 1, ju + 1):
+                o = KV + j - c
+                y = abc[c, o]
+                if y != 0.0:
+                    t = -y
+                    abc[c, o + 1] += l1 * t
+                    abc[c, o + 2] += l2 * t
+                    abc[c, o + 3] += l3 * t
+                    abc[c, o + 4] += l4 * t
+                    abc[c, o + 5] += l5 * t
+                    abc[c, o + 6] += l6 * t
+                    abc[c, o + 7] += l7 * t
+                    abc[c, o + 8] += l8 * t
+        elif km > 0:
             rp = 1.0 / abc[j, KV]
             for i in range(1, km + 1):
                 abc[j, KV + i] *= rp
@@ -293,7 +327,8 @@ def gbsv(abc: np.ndarray, b: np.ndarray, ipiv: np.ndarray) -> int:
         if b[j] != 0.0:
             b[j] = b[j] / abc[j, KV]
             t = b[j]
-            for i in range(j - 1, max(0, j - KV) - 1, -1):
+            # each b[i] gets one update per j: the order over i is free (forward vectorises)
+            for i in range(max(0, j - KV), j):
                 b[i] -= t * abc[j, KV + i - j]
     return 0
 
@@ -329,6 +364,7 @@ def is_positive_definite(abc: np.ndarray, fixed: np.ndarray, up: np.ndarray) -> 
         for j in range(c, min(n, c + KD + 1)):
             up[j, KD + c - j] = 0.0  # row c right of the diagonal
         up[c, KD] = 1.0
+    x = np.empty(KD + 1)  # row j of U, gathered once (it is strided in ``up``)
     for j in range(n):
         ajj = up[j, KD]
         if ajj <= 0.0:
@@ -340,12 +376,13 @@ def is_positive_definite(abc: np.ndarray, fixed: np.ndarray, up: np.ndarray) -> 
             rinv = 1.0 / ajj
             for m in range(1, kn + 1):
                 up[j + m, KD - m] *= rinv
+                x[m] = up[j + m, KD - m]
             for bc in range(1, kn + 1):
-                xb = up[j + bc, KD - bc]
+                xb = x[bc]
                 if xb != 0.0:
                     t = -xb
                     for a in range(1, bc + 1):
-                        up[j + bc, KD + a - bc] += up[j + a, KD - a] * t
+                        up[j + bc, KD + a - bc] += x[a] * t
     return True
 
 

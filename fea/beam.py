@@ -288,11 +288,19 @@ def _reference_tables(points: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray
     return n, dn
 
 
+@cache
 def _gauss_rule() -> tuple[np.ndarray, np.ndarray]:
-    """2-point Gauss rule on [0, 1], asked for explicitly (intorder 3 -> 2 points)."""
+    """2-point Gauss rule on [0, 1], asked for explicitly (intorder 3 -> 2 points).
+
+    Made once per process (scikit-fem computes it with numpy's leggauss, ~0.3 ms, which was
+    paid by every model, i.e. every design of a run); read-only, as it is shared.
+    """
     x, w = get_quadrature(RefLine, 3)
     assert x.shape[1] == 2, "the P2 beam needs exactly the 2-point rule (reduced integration)"
-    return x[0], w
+    x, w = np.array(x[0]), np.array(w)
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
 
 
 # -- the model ------------------------------------------------------------------------------------
