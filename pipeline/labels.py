@@ -32,6 +32,7 @@ __all__ = [
     "siblings",
     "split_meaning",
     "split_name",
+    "strip_unit",
     "unit_of",
     "variable_meanings",
     "variable_rows",
@@ -275,10 +276,10 @@ def _token_words(token: str) -> str:
     return token
 
 
-def words(name: str) -> str:
+def words(name: str, plain: bool = False) -> str:
     """The words of a name without its unit: ``torque_Nm_sliding_l28`` → ``torque, sliding,
-    l = 28 mm``."""
-    if name in NAMES:
+    l = 28 mm`` (``plain``: not from :data:`NAMES`)."""
+    if name in NAMES and not plain:
         return re.sub(r"\s*\([^()]*\)$", "", NAMES[name])
     quantity, _, qualifier = split_name(name)
     text = " ".join(_token_words(t) for t in quantity) or str(name)
@@ -292,15 +293,18 @@ def unit_of(name: str) -> str | None:
     return split_name(name)[1]
 
 
-def label(name: str, given: str | None = None) -> str:
+def label(name: str, given: str | None = None, plain: bool = False) -> str:
     """Words with the unit in brackets: ``torque_Nm_sliding_l28`` → ``torque, sliding, l = 28 mm
-    (N·m)``; ``given`` (a label the study kind chose) wins."""
+    (N·m)``; ``given`` (a label the study kind chose) wins. ``plain``: from the name's own
+    words only, not :data:`NAMES` (a user's output named ``force_N`` is not the beam's end
+    force)."""
     if given:
         return given
-    if name in NAMES:
+    if name in NAMES and not plain:
         return NAMES[name]
     unit = unit_of(name)
-    return f"{words(name)} ({unit})" if unit else words(name)
+    text = words(name, plain)
+    return f"{text} ({unit})" if unit else text
 
 
 def _mechanism_meanings(problem: Any) -> dict[str, str]:
@@ -418,3 +422,9 @@ def curves_label(column: str, curves: list[str]) -> str:
     tokens = [t for t in column.split("_") if t]
     unit_tokens = tokens[len(quantity) : len(tokens) - len(qualifier)]
     return label("_".join([*quantity, *unit_tokens]))
+
+
+def strip_unit(text: str) -> str:
+    """A label without its trailing ``(unit)``: ``torque on the hub (N m)`` → ``torque on the
+    hub``."""
+    return re.sub(r"\s*\([^()]*\)$", "", str(text))

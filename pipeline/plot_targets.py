@@ -26,13 +26,13 @@ same target.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["TargetOverlay", "measure_band", "response_column", "target_overlay"]
+__all__ = ["TargetOverlay", "band_spec", "measure_band", "response_column", "target_overlay"]
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,51 @@ def measure_band(measure: str, tolerance: float) -> dict[str, float]:
         return {"tolerance_of_max": float(tolerance)}
     if measure.endswith("_relative"):
         return {"tolerance_rel": float(tolerance)}
+    return {}
+
+
+def band_spec(
+    requirements: Iterable[Any],
+    table: Mapping[str, Any],
+    x: str,
+    key: str = "y",
+    prefix: str = "",
+) -> dict[str, Any]:
+    """Plot-spec entries drawing a study's target band (an
+    :class:`optimise.requirements.TargetBand` on a column of ``table`` against ``x``): that
+    column as the response (``key``: ``y`` of a run spec, ``left`` of an evaluate spec), its
+    target curve at the rows of ``over`` and the band's tolerance. ``prefix`` (``case.``) keeps
+    the requirements of one load case of a multi-case study. Empty when there is none.
+    """
+    from flexopt.optimise.requirements import TargetBand
+
+    for r in requirements:
+        if not isinstance(r, TargetBand) or not r.quantity.startswith(prefix):
+            continue
+        column, along = r.quantity[len(prefix) :], r.x.removeprefix(prefix)
+        if column not in table or along != x or x not in table:
+            continue
+        xs = np.asarray(table[x], dtype=float)
+        if r.over is not None:
+            xs = xs[(xs >= r.over[0] - 1e-12) & (xs <= r.over[1] + 1e-12)]
+        try:
+            ys = r._target_in_y_units(xs)  # noqa: SLF001 - the target in the column's unit
+        except Exception:  # a target outside its table: nothing to draw, never a failure
+            continue
+        band = {"tolerance": r.tolerance} if r.tolerance is not None else {}
+        if r.tolerance_rel is not None:
+            band = {"tolerance_rel": r.tolerance_rel}
+        from flexopt.pipeline.labels import label
+
+        words = label(column, plain=True)  # a study's own column: its own words, not NAMES
+        return {
+            key: column,
+            "ylabel": words,
+            "left_label": words,
+            "target_curve": {"x": xs, "y": ys},
+            **band,
+            "target_label": f"target ({r.label})" if r.label else "target",
+        }
     return {}
 
 

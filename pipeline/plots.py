@@ -152,6 +152,8 @@ def response_figure(
     x_label = labels.get("x_label") or labels.get("xlabel") or _labels.label(x)
     ax_f = axes[0]
     curves = _draw_curves(ax_f, table, x, left, ok, "tab:blue")
+    if labels.get("left_label") and len(curves) == 1:  # the kind's words name the curve too
+        ax_f.lines[0].set_label(_labels.strip_unit(labels["left_label"]))
     overlay = target_overlay({**labels, "x": x, "y": left}, table, left, _labels.unit_of(left))
     if overlay is not None:
         _draw_target(ax_f, overlay)
@@ -241,6 +243,8 @@ def curve_figure(
     FigureCanvasAgg(fig)
     ax = fig.subplots()
     curves = _draw_curves(ax, table, x, y, ok, "tab:blue")
+    if y_label and len(curves) == 1:  # the kind's words name the curve too
+        ax.lines[0].set_label(_labels.strip_unit(y_label))
     own: dict[str, object] = {"x": x, "y": y}
     if target is not None:
         own.update(target=target, tolerance=tolerance, band_x=band_x)

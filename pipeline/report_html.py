@@ -10,7 +10,13 @@ The page is one self-contained HTML file: plotly.js is embedded once (~3.5–4.5
 without a network (a report is read on a workshop laptop or archived with the part). Each figure's
 plotly JSON sits in a ``<script type="application/json" id="fig-…">`` element that a small inline
 script draws, so a test (or a script) can read the figures back with ``json.loads``. Every axis
-and column is labelled in words with its unit from :mod:`pipeline.labels`.
+and column is labelled in words with its unit from :mod:`pipeline.labels`; the target of a
+response (a constant, a curve or a range, with its band) comes from the kind's plot spec through
+:mod:`pipeline.plot_targets`, as in the PNGs.
+
+``flexopt evaluate`` writes a page of the same make for its one design
+(:func:`render_evaluate_html`): the verdict, a summary, the response with its target and the part
+in 3D, without the design-exploration views.
 """
 
 from __future__ import annotations
@@ -399,12 +405,16 @@ def _response_fig(
         ys = np.asarray(table[column], dtype=float)
         ys = np.where(converged & np.isfinite(ys), ys, np.nan)
         sparse = np.isfinite(ys).sum() < 0.5 * converged.sum()  # a check at a few rows
+        given = spec.get("ylabel") or spec.get("y_label") or spec.get("left_label")
+        name = labels.words(column)
+        if kind != "stress" and given and len(curves) == 1:  # the kind's words name it too
+            name = labels.strip_unit(given)
         fig.add_trace(
             go.Scatter(
                 x=xs.tolist(),
                 y=_plain(ys),
                 mode="markers" if sparse else "lines+markers",
-                name=labels.words(column),
+                name=name,
                 marker={"size": 7 if sparse else 4, "symbol": "square" if sparse else "circle"},
             )
         )

@@ -74,7 +74,9 @@ class EvaluationResult:
     plot : dict
         Names of the columns to plot: ``x``, ``left``, ``right`` and the ``allowable_MPa`` line;
         optional words: ``left_title``, ``right_title``, ``x_label``, ``left_label``,
-        ``right_label``, ``allowable_label`` (see :func:`pipeline.plots.plot_response`).
+        ``right_label``, ``allowable_label`` (see :func:`pipeline.plots.plot_response`);
+        the target of ``left``: ``target``, ``target_curve`` or ``target_range`` with its band
+        (see :mod:`pipeline.plot_targets`), drawn in the PNG and report.html.
     headline : tuple of str
         The summary keys worth a line in the CLI's table (all of them when empty).
     files : dict of str to bytes

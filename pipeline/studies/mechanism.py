@@ -89,6 +89,8 @@ from flexopt.optimise.variables import (
     resolve_variables,
 )
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.labels import label as column_label
+from flexopt.pipeline.plot_targets import band_spec
 from flexopt.pipeline.runfolder import table_to_csv
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
@@ -1233,7 +1235,12 @@ class MechanismProblem:
         return DesignDetail(
             evaluation=ev,
             table=solved.tables[first],
-            plot=_plot_spec(self.study, first, self.material),
+            plot={
+                **_plot_spec(self.study, first, self.material),
+                **band_spec(self.requirements, solved.tables[first],
+                            _plot_spec(self.study, first, self.material)["x"], "y",
+                            _prefix(self.study, first)),  # a target band, drawn
+            },  # fmt: skip
             outline=solved.outline.polygon,
             height_mm=solved.width_mm,
             info={
@@ -1377,7 +1384,7 @@ def response_png(
         for k, name in enumerate(names):
             y = np.asarray(table[name], dtype=float)
             colour = f"C{k}"
-            ax.plot(x[ok], y[ok], "-", color=colour, lw=1.3, label=name)
+            ax.plot(x[ok], y[ok], "-", color=colour, lw=1.3, label=column_label(name, plain=True))
             ax.plot(x[ok & stable], y[ok & stable], "o", ms=3, color=colour)
             ax.plot(x[ok & ~stable], y[ok & ~stable], "o", ms=3, mfc="none", color=colour)
             for r in requirements:
@@ -1535,6 +1542,8 @@ def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:
     if "verdicts" in {f.name for f in dataclasses.fields(EvaluationResult)}:
         kwargs["verdicts"] = verdicts
     plot = _plot_spec(study, first, ev.material)
+    plot.update(band_spec(ev.requirements, solved.tables[first], plot["x"], "y",
+                          _prefix(study, first)))  # a target band, drawn  # fmt: skip
     return EvaluationResult(
         table=solved.tables[first],
         summary=summary,
@@ -1548,6 +1557,7 @@ def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:
             **_info(study, solved),
         },
         plot={
+            **plot,  # the target band of a requirement, when the study has one
             "x": plot["x"],
             "left": plot["y"],
             "right": "peak_stress_MPa",

@@ -581,3 +581,20 @@ def test_every_optimising_kind_says_what_its_variables_mean():
     assert path_words("geometry.bodies.shuttle.ref_mm.0") == (
         "x of the reference point of body 'shuttle' (mm)"
     )
+
+
+def test_a_mechanism_study_draws_its_target_band_requirement():
+    # constant-force-mechanism.yaml: force_N within ±2 % of 1.5 N over a drive of 0.5..30 mm
+    study = load_study("constant-force-mechanism")
+    result = get_kind(study.kind).evaluate(study, 1)
+    fig = response_figure(result.table, **response_plot_args(study, result))
+    force = fig.axes[0]
+    (target,) = [v for name, v in _lines(force).items() if name.startswith("target")]
+    drive = np.asarray(result.table["drive_mm"], dtype=float)
+    inside = drive[(drive >= 0.5) & (drive <= 30.0)]
+    np.testing.assert_allclose(target, [inside, np.full(inside.size, 1.5)])
+    (band,) = force.collections
+    ys = band.get_paths()[0].vertices[:, 1]
+    assert ys.min() == pytest.approx(1.5 * 0.98) and ys.max() == pytest.approx(1.5 * 1.02)
+    # the user's output named force_N in its own words, not the beam kinds' end force
+    assert force.get_ylabel() == "force (N)"
