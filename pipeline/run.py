@@ -123,7 +123,6 @@ RUN_FILES = (
     "best.step",
     "report.md",
     "report.html",
-    "robustness.png",
 )
 
 _EXTRA_DISTRIBUTIONS = {
