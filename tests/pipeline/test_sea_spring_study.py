@@ -268,3 +268,46 @@ def test_slot_gap_of_a_u_shape_closes_by_what_the_prong_moves():
     assert g["undeformed"] == pytest.approx(1.0, abs=1e-9)
     assert g["zero"] == pytest.approx(1.0, abs=1e-9) and g["shift"] == pytest.approx(1.0, abs=1e-9)
     assert g["tip"] == pytest.approx(0.7, abs=0.01)
+
+
+def test_slot_gaps_from_the_segment_tree_equal_the_whole_ring_measurement():
+    # A serpentine with round bends (a ring of ~100 vertices, slots 1.2 mm wide) under random
+    # displacements: the nodes found on the outline through the ring's segment tree, and their
+    # positions along it, must give exactly the gaps of measuring every node against the ring.
+    import math
+
+    import shapely
+    from flexopt.fea.materials import get_material
+    from flexopt.fea.mesh import mesh_polygon
+    from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Translate
+    from scipy.spatial import cKDTree
+    from shapely.geometry import LineString
+
+    path = LineString([(0, 0), (20, 0), (20, 3), (0, 3), (0, 6), (20, 6)])
+    shape = path.buffer(0.9, cap_style="flat", quad_segs=8)
+    model = PlaneStressModel(
+        mesh_polygon(shape, 0.5), get_material("PLA"), 1.0,
+        Clamp(LineString([(0, -0.9), (0, 0.9)])),
+        Translate(LineString([(20, 5.1), (20, 6.9)]), (0.0, 1.0), 0.1, 1),
+    )  # fmt: skip
+    rng = np.random.default_rng(4)
+    states = {f"s{k}": 0.2 * rng.standard_normal(model.n_dofs) for k in range(3)}
+
+    def whole_ring(states):  # the measurement as it was: every node against the whole ring
+        xy, ring = np.asarray(model.xy), shape.exterior
+        idx = np.flatnonzero(np.asarray(shapely.distance(shapely.points(xy), ring)) < 1e-6)
+        pts = xy[idx]
+        s = np.asarray(shapely.line_locate_point(ring, shapely.points(pts)))
+        pairs = cKDTree(pts).query_pairs(3.0, output_type="ndarray")
+        ds = np.abs(s[pairs[:, 0]] - s[pairs[:, 1]])
+        pairs = pairs[np.minimum(ds, ring.length - ds) > 9.0]
+        out = {"undeformed": float(np.hypot(*(pts[pairs[:, 0]] - pts[pairs[:, 1]]).T).min())}
+        for name, u in states.items():
+            p = pts + np.column_stack([u[model.ix][idx], u[model.iy][idx]])
+            out[name] = float(np.hypot(*(p[pairs[:, 0]] - p[pairs[:, 1]]).T).min())
+        return out
+
+    got = slot_gaps_mm(model, states, shape)
+    assert got == whole_ring(states)
+    assert math.isclose(got["undeformed"], 1.2, abs_tol=0.05)  # 3 mm pitch - 1.8 mm legs
+    assert len(set(got.values())) == 4  # the states move the gap: a real comparison
