@@ -67,6 +67,7 @@ UNITS: dict[tuple[str, ...], str] = {
     ("ms",): "ms",
     ("g",): "g",  # grams (mass_g) or standard gravity (head_acceleration_g): both written g
     ("kg",): "kg",
+    ("kg", "m2"): "kg·m²",
     ("J",): "J",
     ("mJ",): "mJ",
     ("Hz",): "Hz",

@@ -135,7 +135,7 @@ def response_column(spec: Mapping[str, Any]) -> str:
 
 def _band_text(spec: Mapping[str, Any], unit: str) -> str:
     if _float(spec.get("tolerance")):
-        return f" ± {float(spec['tolerance']):g}{unit}"
+        return f" ± {float(spec['tolerance']):.4g}{unit}"
     if _float(spec.get("tolerance_rel")):
         return f" ± {100 * float(spec['tolerance_rel']):g} %"
     if _float(spec.get("tolerance_of_max")):
@@ -183,7 +183,7 @@ def target_overlay(
     if constant is not None:
         x = np.array([np.nanmin(xs), np.nanmax(xs)])
         y = np.full(2, constant)
-        label = f"{word} {constant:g}{u}{_band_text(spec, u)}"
+        label = f"{word} {constant:.4g}{u}{_band_text(spec, u)}"
     elif isinstance(curve, str):
         if curve not in table:
             return None

@@ -48,6 +48,7 @@ from flexopt.optimise.targets import (
     ThresholdTarget,
 )
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.labels import label as column_label
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.studies._blocks import ImpactSpec
 from flexopt.pipeline.studies._cam import (
@@ -454,7 +455,7 @@ def extra_files(study: CollisionStudy, result: EvaluationResult) -> dict[str, by
                 ax = axes[row, col]
                 for name, style in (("spring", "o-"), ("reference", "s--")):
                     ax.plot(x, np.asarray(rec[key][name], dtype=float), style, ms=4, label=name)
-                ax.set_xlabel(parameter)
+                ax.set_xlabel(column_label(parameter))  # words and unit, not the key
                 ax.set_ylabel(label)
                 ax.grid(True, alpha=0.3)
                 ax.legend(loc="best")
