@@ -59,6 +59,7 @@ __all__ = [
     "check_mechanism",
     "solve_mechanism",
     "mass_g",
+    "stable_positions",
 ]
 
 
@@ -1156,3 +1157,21 @@ def mass_g(mech: Mechanism, body_thickness_mm: float = 0.0) -> float:
             area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
             vol += area * body_thickness_mm
     return vol * rho
+
+
+def stable_positions(drive: np.ndarray, reaction: np.ndarray) -> tuple[int, float | None]:
+    """Equilibria the drive can be released at (reaction 0 with positive stiffness): the
+    undeformed state, plus every upward zero crossing of the reaction along the drive."""
+    ok = np.isfinite(reaction)
+    x, f = drive[ok], reaction[ok]
+    if x.size < 2:
+        return 0, None
+    order = np.argsort(x)
+    x, f = x[order], f[order]
+    count, second = 1, None
+    for k in range(len(x) - 1):
+        if f[k] < 0.0 <= f[k + 1] and not (x[k] <= 0.0 <= x[k + 1]):
+            at = float(x[k] - f[k] * (x[k + 1] - x[k]) / (f[k + 1] - f[k]))
+            count += 1
+            second = at if second is None else second
+    return count, second

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from flexopt.geometry.errors import GeometryError
 
-__all__ = ["BeamProfile"]
+__all__ = ["BeamProfile", "first_crossing"]
 
 
 @dataclass(frozen=True)
@@ -113,3 +113,41 @@ class BeamProfile:
         d = np.diff(self.points_mm, axis=0)
         chord_angle = np.arctan2(d[:, 1], d[:, 0])
         return chord_angle - self.curvature_per_mm * self.segment_lengths_mm / 2
+
+
+def first_crossing(
+    points: tuple[tuple[float, float], ...],
+) -> tuple[int, int, tuple[float, float]] | None:
+    """The first two non-adjacent segments (chords) that touch, and where; None if none do.
+
+    A beam that crosses itself cannot be built (or printed): the solver would not notice.
+    """
+    p = np.asarray(points, dtype=float)
+    n = len(p) - 1
+    for i in range(n - 1):  # adjacent segments meet only by folding straight back
+        r1, r2 = p[i + 1] - p[i], p[i + 2] - p[i + 1]
+        cross = r1[0] * r2[1] - r1[1] * r2[0]
+        if abs(cross) <= 1e-9 * np.linalg.norm(r1) * np.linalg.norm(r2) and np.dot(r1, r2) < 0:
+            return i, i + 1, (float(p[i + 1][0]), float(p[i + 1][1]))
+    for i in range(n):
+        a, b = p[i], p[i + 1]
+        for j in range(i + 2, n):
+            if i == 0 and j == n - 1 and np.allclose(p[0], p[-1]):
+                continue  # a closed loop meets itself at its ends by design
+            c, d = p[j], p[j + 1]
+            r, q = b - a, d - c
+            den = r[0] * q[1] - r[1] * q[0]
+            if abs(den) < 1e-12:  # parallel: touching only if collinear and overlapping
+                if abs((c - a)[0] * r[1] - (c - a)[1] * r[0]) > 1e-9:
+                    continue
+                t = [float(np.dot(e - a, r) / np.dot(r, r)) for e in (c, d)]
+                if max(t) < 0 or min(t) > 1:
+                    continue
+                hit = a + r * min(max(min(t), 0.0), 1.0)
+                return i, j, (float(hit[0]), float(hit[1]))
+            t = ((c - a)[0] * q[1] - (c - a)[1] * q[0]) / den
+            u = ((c - a)[0] * r[1] - (c - a)[1] * r[0]) / den
+            if -1e-12 <= t <= 1 + 1e-12 and -1e-12 <= u <= 1 + 1e-12:
+                hit = a + t * r
+                return i, j, (float(hit[0]), float(hit[1]))
+    return None

@@ -909,24 +909,6 @@ def _case_table(
     return table
 
 
-def _stable_positions(drive: np.ndarray, reaction: np.ndarray) -> tuple[int, float | None]:
-    """Equilibria the drive can be released at (reaction 0 with positive stiffness): the
-    undeformed state, plus every upward zero crossing of the reaction along the drive."""
-    ok = np.isfinite(reaction)
-    x, f = drive[ok], reaction[ok]
-    if x.size < 2:
-        return 0, None
-    order = np.argsort(x)
-    x, f = x[order], f[order]
-    count, second = 1, None
-    for k in range(len(x) - 1):
-        if f[k] < 0.0 <= f[k + 1] and not (x[k] <= 0.0 <= x[k + 1]):
-            at = float(x[k] - f[k] * (x[k + 1] - x[k]) / (f[k + 1] - f[k]))
-            count += 1
-            second = at if second is None else second
-    return count, second
-
-
 def _stat(values: np.ndarray, how: str) -> float | None:
     v = np.asarray(values, dtype=float)
     finite = v[np.isfinite(v)]
@@ -965,7 +947,7 @@ def _metrics(
         drive = table[f"drive_{spec.unit}"]
         reaction = table[f"drive_reaction_{_REACTION_UNIT[spec.control]}"]
         if spec.control in ("displacement", "rotation"):
-            count, second = _stable_positions(drive, reaction)
+            count, second = _fea().stable_positions(drive, reaction)
         else:
             count, second = None, None
         m[f"{p}stable_positions"] = count
