@@ -332,3 +332,31 @@ def test_unknown_kind_still_lists_every_kind(fake_registry):
 def test_shipped_examples_unaffected(fake_registry):
     fake_registry([("missing", "no_module_of_this_name")])
     assert load_study("cantilever").kind == "polyline_beam"
+
+
+def test_a_builtin_kind_is_found_without_importing_the_other_kinds():
+    # get_kind of a built-in name imports that kind's module only (the start of every run and
+    # evaluate); the full discovery afterwards still lists every kind, the same object included,
+    # and an unknown name still gets the list of all kinds.
+    code = textwrap.dedent(
+        """
+        import sys
+        from flexopt.pipeline.errors import StudyError
+        from flexopt.pipeline.studies import builtin_kind_names, get_kind, kinds
+        pre = "flexopt.pipeline.studies."
+        kind = get_kind("constant_force")
+        loaded = sorted(m[len(pre):] for m in sys.modules if m.startswith(pre))
+        assert [m for m in loaded if not m.startswith("_")] == ["constant_force"], loaded
+        assert kinds()["constant_force"] is kind
+        assert {"constant_force", "sea_spring", "mechanism"} <= builtin_kind_names()
+        try:
+            get_kind("no_such_kind")
+        except StudyError as exc:
+            assert "sea_spring" in str(exc) and "constant_force" in str(exc), exc
+        else:
+            raise AssertionError("an unknown kind was accepted")
+        print("ok")
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
