@@ -917,10 +917,10 @@ def evaluate_part(study: Any, solve_time_s: float | None) -> tuple[DesignDetail 
                 f"the design took {solve_time_s:.3g} s to solve, and the 3D view would solve it "
                 f"again (more than {PART_BUDGET_S:g} s); {hint}"
             )
-        from flexopt.pipeline.run import _nominal_design  # run imports this module
+        from flexopt.pipeline.problems import nominal_design
 
         problem = kind.problem(study)
-        detail = problem.detail(_nominal_design(problem, study))
+        detail = problem.detail(nominal_design(problem, study))
     except Exception as exc:  # the page must not cost the evaluation
         return None, f"the part could not be rebuilt: {type(exc).__name__}: {exc}"
     if detail.outline is None or not detail.height_mm:
@@ -928,13 +928,18 @@ def evaluate_part(study: Any, solve_time_s: float | None) -> tuple[DesignDetail 
     return detail, ""
 
 
-def evaluate_html(study: Any, result: Any, record: Mapping[str, Any]) -> str | None:
+def evaluate_html(
+    study: Any, result: Any, record: Mapping[str, Any], evaluation_wall_s: float | None = None
+) -> str | None:
     """report.html of ``flexopt evaluate`` (None, with a warning logged, when it fails: the
-    folder's other files are what the evaluation promised)."""
+    folder's other files are what the evaluation promised). ``evaluation_wall_s``: what the
+    whole evaluation took, s (the part is rebuilt only when that is within the budget)."""
     import logging
 
     try:
-        part, why = evaluate_part(study, _float(record.get("solve_time_s")))
+        costs = [_float(record.get("solve_time_s")), evaluation_wall_s]
+        known = [c for c in costs if c is not None]
+        part, why = evaluate_part(study, max(known) if known else None)
         return render_evaluate_html(
             EvaluateHtmlData(
                 study.name,

@@ -58,7 +58,7 @@ from flexopt.optimise.robustness import (
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.variables import DesignVariables
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.study import Study, validate_study
+from flexopt.pipeline.study import Study, check_robustness, validate_study
 
 __all__ = [
     "RobustnessResult",
@@ -234,7 +234,7 @@ class SampleProblem:
         return judge(study, values, table, study_requirements(study))
 
     def evaluate(self, s: np.ndarray) -> Evaluation:
-        from flexopt.pipeline.run import build_problem
+        from flexopt.pipeline.problems import build_base_problem
         from flexopt.pipeline.studies import get_kind
         from flexopt.pipeline.verdict import detail_values
 
@@ -242,7 +242,7 @@ class SampleProblem:
         study, _ = perturb_study(self.study, E_factor, dt, dw)
         reason = ""
         if self.mode == "design":
-            problem = build_problem(study)
+            problem = build_base_problem(study)
             detail = problem.detail(scatter_design(problem, self.x, dt, dw))
             table = dict(detail.table)
             verdicts = tuple(detail.verdicts) or self._judge(
@@ -493,28 +493,6 @@ def compact(record: Mapping[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in record.items() if k not in ("samples", "band")}
 
 
-def check_robustness(study: Study) -> None:
-    """Refuse a ``robustness:`` block the study's kind cannot use.
-
-    Raises
-    ------
-    StudyError
-        At ``robustness.objective`` for ``worst`` on a kind that ``flexopt run`` does not
-        optimise (there is no optimiser to score designs by their worst sample).
-    """
-    spec: RobustnessSpec | None = getattr(study, "robustness", None)
-    if spec is None or spec.objective != "worst":
-        return
-    from flexopt.pipeline.studies import get_kind
-
-    if get_kind(study.kind).problem is None:
-        raise StudyError(
-            "robustness.objective",
-            f"worst scores the designs of an optimisation, but kind {study.kind} is only "
-            "evaluated; use objective: nominal (the samples are reported all the same)",
-        )
-
-
 class WorstCaseProblem:
     """A design problem scored by its worst scatter sample (``robustness.objective: worst``).
 
@@ -549,10 +527,10 @@ class WorstCaseProblem:
 
     def _problem(self, row: int) -> Any:
         if row not in self._problems:
-            from flexopt.pipeline.run import build_problem
+            from flexopt.pipeline.problems import build_base_problem
 
             e, dt, dw = (float(v) for v in self.samples[row])
-            self._problems[row] = build_problem(perturb_study(self.study, e, dt, dw)[0])
+            self._problems[row] = build_base_problem(perturb_study(self.study, e, dt, dw)[0])
         return self._problems[row]
 
     def evaluate(self, x: np.ndarray) -> Evaluation:
@@ -643,17 +621,17 @@ def run_robustness(
     if spec is None:
         return None
     check_robustness(study)
-    from flexopt.pipeline.run import _nominal_design, build_problem, parallel_settings
+    from flexopt.pipeline.problems import build_base_problem, nominal_design, parallel_settings
     from flexopt.pipeline.studies import get_kind
 
     kind = get_kind(study.kind)
     mode: Literal["design", "study"] = "study"
     problem = None
     if kind.problem is not None:
-        problem = build_problem(study)
+        problem = build_base_problem(study)
         if x is None:
             try:
-                x = _nominal_design(problem, study)
+                x = nominal_design(problem, study)
             except Exception:  # noqa: BLE001 - no design in the study: evaluate the study
                 x = None
         mode = "design" if x is not None else "study"

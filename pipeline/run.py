@@ -55,6 +55,12 @@ from flexopt.pipeline.parallel import (
     evaluate_one,
 )
 from flexopt.pipeline.parallel import one_line as _one_line
+from flexopt.pipeline.problems import (
+    ExportError,
+    build_base_problem,
+    parallel_settings,
+)
+from flexopt.pipeline.problems import nominal_design as _nominal_design
 from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.report_html import HtmlData, render_html
 from flexopt.pipeline.runfolder import (
@@ -74,8 +80,8 @@ from flexopt.pipeline.runfolder import (
     to_json,
     write_atomic,
 )
-from flexopt.pipeline.studies import get_kind, kinds
-from flexopt.pipeline.study import OptimiserSpec, ParallelSpec, Study, load_study, study_to_yaml
+from flexopt.pipeline.studies import get_kind
+from flexopt.pipeline.study import OptimiserSpec, Study, load_study, study_to_yaml
 from flexopt.pipeline.verdict import judge_detail
 
 if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
@@ -133,8 +139,6 @@ _EXTRA_DISTRIBUTIONS = {
 }
 
 
-class ExportError(RuntimeError):
-    """A design could not be rebuilt or turned into a solid (the message says why)."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -264,44 +268,20 @@ class RunSetup:
     initial: np.ndarray | None = None
 
 
-def _optimisable() -> str:
-    names = sorted(name for name, kind in kinds().items() if kind.problem is not None)
-    return ", ".join(names) if names else "(none yet)"
-
-
 def build_problem(study: Study) -> DesignProblem:
-    """The kind's design problem for ``study``.
+    """The kind's design problem for ``study``, as ``flexopt run`` optimises it: the kind's own
+    problem with the study's ``role: constraint`` requirements as g rows
+    (:func:`pipeline.problems.build_base_problem`), scored by its worst scatter sample when
+    ``robustness.objective`` is ``worst``.
 
     Raises
     ------
     StudyError
         When the kind cannot be optimised, or refuses the study while building the problem.
     """
-    kind = get_kind(study.kind)
-    if kind.problem is None:
-        raise StudyError(
-            "geometry.kind",
-            f"kind '{kind.name}' has nothing to optimise; solve it with `flexopt evaluate`, or "
-            f"use a kind that `flexopt run` optimises: {_optimisable()}",
-        )
-    try:
-        problem = kind.problem(study)
-    except StudyError:
-        raise
-    except (ValueError, OptimiseError) as exc:  # geometry/fea/optimise refusals are ValueErrors
-        raise StudyError(
-            "", f"the design problem cannot be set up: {type(exc).__name__}: {exc}"
-        ) from exc
-    if not isinstance(problem, DesignProblem) or not isinstance(problem.space, DesignSpace):
-        raise TypeError(
-            f"kind '{kind.name}' returned {type(problem).__name__}, which is not a DesignProblem "
-            "(space, objective_names, constraint_names, evaluate, detail)"
-        )
     from flexopt.pipeline.robustness import with_worst_case
-    from flexopt.pipeline.verdict import with_requirement_constraints
 
-    # requirements: with role: constraint; robustness.objective: worst scores every sample
-    return with_worst_case(study, with_requirement_constraints(study, problem))
+    return with_worst_case(study, build_base_problem(study))
 
 
 def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> RunSetup:
@@ -912,38 +892,6 @@ class Resume:
     restored: tuple[Evaluation, ...]
 
 
-def parallel_settings(
-    study: Study,
-    workers: int | None = None,
-    dask: str | None = None,
-    eval_timeout_s: float | None = None,
-) -> ParallelSettings:
-    """The study's ``parallel:`` block with the command line's options applied.
-
-    ``workers`` 1 means serial in this process; ``dask`` selects the Dask backend at that address.
-
-    Raises
-    ------
-    StudyError
-        When the Dask backend is asked for without a scheduler address.
-    """
-    spec = getattr(study, "parallel", None) or ParallelSpec()
-    backend, address = spec.backend, spec.address
-    n_workers = workers if workers is not None else spec.workers
-    if dask is not None:
-        backend, address = "dask", dask
-    elif workers is not None:
-        backend = "serial" if workers == 1 else "processes"
-    elif backend == "processes" and n_workers == 1:
-        backend = "serial"
-    if backend == "dask" and not address:
-        raise StudyError(
-            "parallel.address",
-            "backend dask needs the scheduler's address; add address: tcp://host:8786 or give "
-            "--dask tcp://host:8786",
-        )
-    timeout = eval_timeout_s if eval_timeout_s is not None else spec.eval_timeout_s
-    return ParallelSettings(backend, n_workers, address, timeout, spec.chunk_size)
 
 
 def run_study(
@@ -1783,53 +1731,6 @@ def _export_format(fmt: str | None, out: Path | None) -> str:
     return fmt
 
 
-def _nominal_design(problem: DesignProblem, study: Study) -> np.ndarray:
-    """The design a study file describes, the one ``flexopt evaluate`` solves.
-
-    The problem's optional ``nominal_design()`` (beyond the DesignProblem protocol) when it has
-    one; else each design variable read from the study by its name (the ``design:`` block
-    first, then a key of that name found once anywhere in the study).
-
-    Raises
-    ------
-    ExportError
-        When neither says what the design is.
-    """
-    method = getattr(problem, "nominal_design", None)
-    names = problem.space.names
-    if callable(method):
-        x = np.asarray(method(), dtype=float).ravel()
-        if x.shape != (len(names),) or not np.all(np.isfinite(x)):
-            raise ExportError(
-                f"kind '{study.kind}': nominal_design() gave shape {x.shape}, expected "
-                f"({len(names)},) finite values"
-            )
-        return x
-    data = study.model_dump(mode="python")
-    found: dict[str, list[float]] = {}
-
-    def walk(node: Any) -> None:
-        if isinstance(node, Mapping):
-            for key, value in node.items():
-                if key in names and isinstance(value, int | float) and not isinstance(value, bool):
-                    found.setdefault(key, []).append(float(value))
-                walk(value)
-
-    design = data.get("design")
-    walk({k: v for k, v in data.items() if k != "design"})
-    if isinstance(design, Mapping):  # the design: block wins
-        for key, value in design.items():
-            if key in names and isinstance(value, int | float) and not isinstance(value, bool):
-                found[key] = [float(value)]
-    unclear = [n for n in names if len(found.get(n, ())) != 1]
-    if unclear:
-        shown = ", ".join(unclear[:3]) + (" …" if len(unclear) > 3 else "")
-        raise ExportError(
-            f"kind '{study.kind}' does not say which design its study.yaml describes (no "
-            f"nominal_design(), and {shown} are not keys found once in the study); export a "
-            "design of a flexopt run of this study instead"
-        )
-    return np.array([found[n][0] for n in names], dtype=float)
 
 
 def _evaluate_folder_study(run_dir: Path) -> Study:

@@ -31,6 +31,8 @@ from flexopt.optimise.requirements import RequirementSpec
 from flexopt.optimise.robustness import RobustnessSpec
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import get_kind
+from flexopt.pipeline.study_edit import annotation_at as _annotation_at
+from flexopt.pipeline.study_edit import replace_blocks, set_values
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -305,9 +307,7 @@ class Study(BaseModel):
         StudyError
             Naming the key path of an unknown block or of the first value refused.
         """
-        from flexopt.pipeline.study_edit import replace_blocks  # it validates through here
-
-        return replace_blocks(self, changes)
+        return replace_blocks(self, changes, validate_study)
 
     def with_values(self, values: collections.abc.Mapping[str, Any]) -> Study:
         """A NEW validated study with values set at key paths: ``study.with_values(
@@ -319,9 +319,7 @@ class Study(BaseModel):
         StudyError
             At a path that does not exist (naming the closest one) or the first value refused.
         """
-        from flexopt.pipeline.study_edit import set_values
-
-        return set_values(self, values)
+        return set_values(self, values, validate_study)
 
 
 # --------------------------------------------------------------------------------------------
@@ -592,6 +590,28 @@ def parse_study_text(text: str, source: str = "<study>") -> dict[str, Any]:
     return data
 
 
+def check_robustness(study: Study) -> None:
+    """Refuse a ``robustness:`` block the study's kind cannot use.
+
+    Raises
+    ------
+    StudyError
+        At ``robustness.objective`` for ``worst`` on a kind that ``flexopt run`` does not
+        optimise (there is no optimiser to score designs by their worst sample).
+    """
+    spec: RobustnessSpec | None = getattr(study, "robustness", None)
+    if spec is None or spec.objective != "worst":
+        return
+    from flexopt.pipeline.studies import get_kind  # the registry imports this module lazily
+
+    if get_kind(study.kind).problem is None:
+        raise StudyError(
+            "robustness.objective",
+            f"worst scores the designs of an optimisation, but kind {study.kind} is only "
+            "evaluated; use objective: nominal (the samples are reported all the same)",
+        )
+
+
 def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
     """Validate a raw mapping into the frozen study model of its geometry kind.
 
@@ -621,8 +641,6 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         from flexopt.pipeline.verdict import check_requirement_names
 
         check_requirement_names(study)
-        from flexopt.pipeline.robustness import check_robustness
-
         check_robustness(study)
     except ValidationError as exc:
         raise validation_error_to_study_error(exc, kind.model, source) from None
@@ -681,38 +699,6 @@ def _number_types(annotation: Any) -> tuple[set[type], bool]:
     if annotation is Any or not isinstance(annotation, type):
         return set(), origin is None  # a Literal, a container: not a number leaf
     return {annotation}, False
-
-
-def _annotation_at(model: type[BaseModel], path: tuple[int | str, ...]) -> Any:
-    """The type annotation a raw key path leads to in a study model (None when unknown)."""
-    current: Any = model
-    for part in path:
-        while typing.get_origin(current) is typing.Annotated:
-            current = typing.get_args(current)[0]
-        origin = typing.get_origin(current)
-        if origin in (typing.Union, types.UnionType):
-            arms = [a for a in typing.get_args(current) if a is not type(None)]
-            if len(arms) != 1:
-                return None  # several shapes: the validated value decides (second check)
-            current = arms[0]
-            origin = typing.get_origin(current)
-        if isinstance(current, type) and issubclass(current, BaseModel):
-            field = current.model_fields.get(str(part))
-            if field is None:
-                return None
-            current = field.annotation
-        elif origin in (list, tuple, collections.abc.Sequence) and isinstance(part, int):
-            args = typing.get_args(current)
-            if origin is tuple and args and args[-1] is not Ellipsis:
-                current = args[part] if part < len(args) else None
-            else:
-                current = args[0] if args else None
-        elif origin is dict:
-            args = typing.get_args(current)
-            current = args[1] if len(args) == 2 else None
-        else:
-            return None
-    return current
 
 
 def check_no_bool_numbers(raw: dict[str, Any], study: BaseModel | type[BaseModel]) -> None:

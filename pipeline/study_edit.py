@@ -15,7 +15,8 @@ from __future__ import annotations
 import difflib
 import types
 import typing
-from collections.abc import Mapping, Sequence
+from collections import abc
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -49,13 +50,12 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _validate(data: dict[str, Any]) -> Study:
-    from flexopt.pipeline.study import validate_study
+#: ``pipeline.study.validate_study``, passed in by the caller: this module sits below
+#: pipeline/study.py (whose Study methods call it), so it does not import it.
+Validator = Callable[[dict[str, Any]], "Study"]
 
-    return validate_study(data)
 
-
-def replace_blocks(study: Study, changes: Mapping[str, Any]) -> Study:
+def replace_blocks(study: Study, changes: Mapping[str, Any], validate: Validator) -> Study:
     """``study`` with top-level blocks replaced (``name``, ``material``, ``geometry``, ...).
 
     Raises
@@ -79,7 +79,7 @@ def replace_blocks(study: Study, changes: Mapping[str, Any]) -> Study:
             data.pop(key, None)  # back to the kind's default (a required block is then missing)
         else:
             data[key] = _plain(value)
-    return _validate(data)
+    return validate(data)
 
 
 def _paths(data: Any) -> list[str]:
@@ -102,11 +102,41 @@ def _closest(text: str, data: Any, more: Sequence[str] = ()) -> str:
     return f"; did you mean {close[0]}?" if close else ""
 
 
+def annotation_at(model: type[BaseModel], path: tuple[int | str, ...]) -> Any:
+    """The type annotation a raw key path leads to in a study model (None when unknown)."""
+    current: Any = model
+    for part in path:
+        while typing.get_origin(current) is typing.Annotated:
+            current = typing.get_args(current)[0]
+        origin = typing.get_origin(current)
+        if origin in (typing.Union, types.UnionType):
+            arms = [a for a in typing.get_args(current) if a is not type(None)]
+            if len(arms) != 1:
+                return None  # several shapes: the validated value decides (second check)
+            current = arms[0]
+            origin = typing.get_origin(current)
+        if isinstance(current, type) and issubclass(current, BaseModel):
+            field = current.model_fields.get(str(part))
+            if field is None:
+                return None
+            current = field.annotation
+        elif origin in (list, tuple, abc.Sequence) and isinstance(part, int):
+            args = typing.get_args(current)
+            if origin is tuple and args and args[-1] is not Ellipsis:
+                current = args[part] if part < len(args) else None
+            else:
+                current = args[0] if args else None
+        elif origin is dict:
+            args = typing.get_args(current)
+            current = args[1] if len(args) == 2 else None
+        else:
+            return None
+    return current
+
+
 def _model_at(model: type[BaseModel], path: Sequence[PathPart]) -> type[BaseModel] | None:
     """The pydantic model a key path leads to in a study model (None when it is not one)."""
-    from flexopt.pipeline.study import _annotation_at
-
-    current = model if not path else _annotation_at(model, tuple(path))
+    current = model if not path else annotation_at(model, tuple(path))
     while True:
         origin = typing.get_origin(current)
         if origin is typing.Annotated:
@@ -183,7 +213,7 @@ def _set_path(
         holders = following
 
 
-def set_values(study: Study, values: Mapping[str, Any]) -> Study:
+def set_values(study: Study, values: Mapping[str, Any], validate: Validator) -> Study:
     """``study`` with the values at the given key paths changed, validated again.
 
     Parameters
@@ -207,4 +237,4 @@ def set_values(study: Study, values: Mapping[str, Any]) -> Study:
         if not isinstance(text, str):
             raise StudyError(str(text), "a key path is text, e.g. 'geometry.width_mm'")
         _set_path(data, type(study), text, value, study.kind)
-    return _validate(data)
+    return validate(data)

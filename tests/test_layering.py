@@ -275,26 +275,7 @@ def test_find_cycles_on_known_graphs(graph, expected):
 #: from here when it is gone). They came with work committed beside the layering (e72d909,
 #: fe988c4, and the HTML report's) in files other sessions own; none may be added without the
 #: lead.
-KNOWN_CYCLE_EDGES = {
-    ("flexopt.pipeline.study", "flexopt.pipeline.robustness"): (
-        "validate_study calls robustness.check_robustness, and pipeline/robustness.py imports "
-        "pipeline.study; to go: check_robustness into a module below study (or a validator of "
-        "optimise.robustness.RobustnessSpec)"
-    ),
-    ("flexopt.pipeline.robustness", "flexopt.pipeline.run"): (
-        "robustness uses run.build_problem, run.parallel_settings and run._nominal_design, and "
-        "run imports robustness; to go: those three into a module below run (e.g. "
-        "pipeline/setup.py) that both import"
-    ),
-    ("flexopt.pipeline.report_html", "flexopt.pipeline.run"): (
-        "the HTML report of an evaluate folder uses run._nominal_design, and run (through "
-        "evaluate) imports report_html; to go: with the robustness edge, into that module below run"
-    ),
-    ("flexopt.pipeline.study", "flexopt.pipeline.study_edit"): (
-        "Study.replace / Study.with_values import study_edit, which imports validate_study; to "
-        "go: study_edit takes the validator as an argument, or the two functions move into study"
-    ),
-}
+KNOWN_CYCLE_EDGES: dict[tuple[str, str], str] = {}
 
 
 def test_known_cycle_edges_still_exist():
