@@ -51,7 +51,7 @@ def open_backend(settings: ParallelSettings, problem: DesignProblem) -> Iterator
             problem, settings.address or "", settings.eval_timeout_s, settings.chunk_size
         )
     elif settings.backend == "processes" and settings.n_workers > 1:
-        _warm_up_kernels()
+        _warm_up_kernels(problem)
         backend = ProcessPool(
             problem, settings.n_workers, settings.eval_timeout_s, settings.chunk_size
         )
@@ -63,16 +63,22 @@ def open_backend(settings: ParallelSettings, problem: DesignProblem) -> Iterator
         backend.close()
 
 
-def _warm_up_kernels() -> None:
-    """Compile or load the compiled beam kernel once, before the pool forks its workers.
+def _warm_up_kernels(problem: DesignProblem) -> None:
+    """Compile or load the compiled kernels the problem uses once, before the pool forks.
 
-    Forked workers inherit it; otherwise each would compile it on its first design (in a fresh
-    install ~14 s CPU each, all at once) or load it from numba's cache. A failure here is not the
-    run's: the workers then compile or fall back on their own.
+    Forked workers inherit them; otherwise each would compile them on its first design (in a
+    fresh install ~14 s CPU each, all at once) or load them from numba's cache. A problem names
+    its kernels by an optional ``warm_up()`` (the constrained-beam kinds load the constrained
+    engine's too, ~18 s CPU once per install); else the beam kernel, which most kinds use, is
+    loaded. A failure here is not the run's: the workers then compile or fall back on their own.
     """
     try:
-        from flexopt.fea.beam import warm_up
+        hook = getattr(problem, "warm_up", None)
+        if callable(hook):
+            hook()
+        else:
+            from flexopt.fea.beam import warm_up
 
-        warm_up()
+            warm_up()
     except Exception:  # noqa: BLE001 - only an optimisation
-        log.debug("beam kernel warm-up failed", exc_info=True)
+        log.debug("kernel warm-up failed", exc_info=True)

@@ -396,6 +396,13 @@ class FlexurePivotProblem:
 
     objective_names = ("stress_ratio",)
 
+    def warm_up(self) -> None:
+        """Load the compiled beam and constrained-beam kernels (a pool calls this before it
+        forks its workers, :func:`pipeline.backends.open_backend`)."""
+        from flexopt.fea.constrained_beams import warm_up
+
+        warm_up()
+
     def __init__(self, study: FlexurePivotStudy) -> None:
         self.study = study
         self.space = design_space(study)

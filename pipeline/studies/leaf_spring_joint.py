@@ -391,6 +391,13 @@ class LeafJointProblem:
     objective_names = ("stress_ratio",)
     constraint_names = ("min_length", "hub", "stress")
 
+    def warm_up(self) -> None:
+        """Load the compiled beam and constrained-beam kernels (a pool calls this before it
+        forks its workers, :func:`pipeline.backends.open_backend`)."""
+        from flexopt.fea.constrained_beams import warm_up
+
+        warm_up()
+
     def __init__(self, study: LeafSpringJointStudy) -> None:
         self.study = study
         self.space = design_space(study)

@@ -1041,6 +1041,13 @@ class MechanismProblem:
     """The :class:`optimise.DesignProblem` of a ``mechanism`` study (picklable, deterministic,
     never raises for a bad design)."""
 
+    def warm_up(self) -> None:
+        """Load the compiled beam and constrained-beam kernels (a pool calls this before it
+        forks its workers, :func:`pipeline.backends.open_backend`)."""
+        from flexopt.fea.constrained_beams import warm_up
+
+        warm_up()
+
     def __init__(self, study: MechanismStudy) -> None:
         self.study = study
         self.variables = _variables(study)
