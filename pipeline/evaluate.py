@@ -6,6 +6,7 @@ import logging
 import platform
 import re
 import statistics
+import time
 from dataclasses import dataclass, replace
 from datetime import datetime
 from importlib import metadata
@@ -164,7 +165,11 @@ def evaluate_study(
     if out is not None:
         check_out_dir(out)
     started = datetime.now().astimezone()
+    started_s = time.perf_counter()
     result = solve_study(study, repeat, source)
+    # the whole evaluation (a kind's extra checks, e.g. the SEA spring's 3D ones, included):
+    # what rebuilding the part for report.html would cost again
+    evaluation_wall_s = (time.perf_counter() - started_s) / max(repeat, 1)
     verdicts = result.verdicts
     robust = run_robustness(study, plot=result.plot)  # before the folder: it may refuse
     run_dir = make_run_dir(out or new_run_dir_path(runs_root, study.name, "evaluate", started))
@@ -196,7 +201,7 @@ def evaluate_study(
     write_atomic(run_dir / "force_displacement.png", png)
     extra = _extra_files(result)
     # report.html: the verdict, the response with its target, the part in 3D (one offline file)
-    html = evaluate_html(study, result, record)
+    html = evaluate_html(study, result, record, evaluation_wall_s)
     if html is not None:
         extra["report.html"] = html.encode("utf-8")
     if robust is not None:
