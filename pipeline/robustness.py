@@ -27,6 +27,14 @@ delta; else every variable whose name contains ``thickness`` gets ``thickness_de
 every one whose name contains ``width`` gets ``width_delta_mm``. The record's ``perturbed``
 lists exactly what moved.
 
+A quantity the problem **solves per design** (the SEA and threshold springs' thickness ST, from
+the stiffness target) is not re-solved in a sample, or every sample would meet the target by
+construction: the problem's optional ``held_state(evaluation) -> {name: value}`` takes it from
+the nominal design's evaluation, and ``hold_solved(held, thickness_delta_mm, width_delta_mm)``
+makes the sample's problem use it, moved by the scatter (ST by ``width_delta_mm``: a plate's
+thickness is the out-of-plane width of the print or cut). ``held_scatter`` (``{name: "width"}``)
+names it in ``perturbed``.
+
 Which path a sample takes
 -------------------------
 ``design``: a kind with a design problem and a design (the chosen design of ``flexopt run``; the
@@ -84,6 +92,7 @@ UNPERTURBED_BLOCKS = ("design_space", "requirements", "optimiser", "parallel", "
 SAMPLE_SWITCHES: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("fidelity", "enabled"), False),
     (("check_3d",), False),
+    (("solid_3d", "check"), False),  # sea_spring, threshold_spring: ~20 s and ~3 GB per check
 )
 SAMPLE_DROPPED = ("prb",)
 
@@ -189,6 +198,24 @@ def scatter_design(
     return x
 
 
+def held_state(problem: Any, evaluation: Evaluation) -> dict[str, float]:
+    """What the problem solved for the nominal design and a print holds (``{}`` when the
+    problem solves nothing per design): see the module docstring."""
+    hook = getattr(problem, "held_state", None)
+    return dict(hook(evaluation)) if callable(hook) else {}
+
+
+def hold_solved(
+    problem: Any, held: Mapping[str, float], thickness_delta_mm: float, width_delta_mm: float
+) -> None:
+    """Make a sample's problem use the nominal design's solved quantities, moved by the
+    scatter, instead of solving them again (an empty ``held`` makes it solve them again: the
+    worst-case problem reuses a sample's problem for every design)."""
+    hook = getattr(problem, "hold_solved", None)
+    if callable(hook):
+        hook(held, thickness_delta_mm, width_delta_mm)
+
+
 # --------------------------------------------------------------------------------------------
 # One sample, as a design problem over the scatter
 
@@ -218,10 +245,12 @@ class SampleProblem:
         study: Study,
         mode: Literal["design", "study"],
         x: np.ndarray | None,
+        held: Mapping[str, float] | None = None,
     ) -> None:
         self.study = study
         self.mode = mode
         self.x = None if x is None else np.asarray(x, dtype=float)
+        self.held = dict(held or {})  # solved at the nominal design, held in a sample
         self.space = DesignSpace(SAMPLE_COLUMNS, np.array([0.01, -50.0, -50.0]), np.ones(3) * 50)
 
     def _judge(
@@ -243,6 +272,7 @@ class SampleProblem:
         reason = ""
         if self.mode == "design":
             problem = build_base_problem(study)
+            hold_solved(problem, self.held, dt, dw)
             detail = problem.detail(scatter_design(problem, self.x, dt, dw))
             table = dict(detail.table)
             verdicts = tuple(detail.verdicts) or self._judge(
@@ -537,12 +567,17 @@ class WorstCaseProblem:
         from flexopt.pipeline.parallel import evaluate_one
 
         x = np.asarray(x, dtype=float)
-        evaluations = []
+        evaluations: list[Evaluation] = []
+        held: dict[str, float] = {}
         for row, (_, dt, dw) in enumerate(self.samples):
             problem = self.inner if row == 0 else self._problem(row)
+            if row > 0:
+                hold_solved(problem, held, dt, dw)
             xs = x if row == 0 else scatter_design(problem, x, dt, dw)
             ev = evaluate_one(problem, xs)
             evaluations.append(ev)
+            if row == 0:
+                held = held_state(self.inner, ev)
             if ev.reason and np.any(ev.f >= INFEASIBLE_VALUE):
                 break  # failed: the worst case is this sample's whatever the others give
         f = np.max([ev.f for ev in evaluations], axis=0)
@@ -639,7 +674,10 @@ def run_robustness(
         raise StudyError("robustness", f"kind '{study.kind}' has neither a design nor evaluate")
     samples = samples_of(spec)
     perturbed = _describe(study, spec, problem if mode == "design" else None, x)
-    sample_problem = SampleProblem(study, mode, x)
+    held: dict[str, float] = {}
+    if mode == "design" and callable(getattr(problem, "held_state", None)):
+        held = held_state(problem, problem.evaluate(x))  # one solve: ST for the target
+    sample_problem = SampleProblem(study, mode, x, held)
     settings = settings if settings is not None else parallel_settings(study)
     log.info("robustness: %d samples on %s", len(samples), settings.describe())
     if backend is not None:
@@ -681,6 +719,10 @@ def _describe(study: Study, spec: RobustnessSpec, problem: Any, x: np.ndarray | 
         dw = scatter_design(problem, x, 0.0, spec.width_mm) - np.asarray(x, dtype=float)
         thick += [f"design variable {n}" for n, d in zip(names, dt, strict=True) if d != 0]
         wide += [f"design variable {n}" for n, d in zip(names, dw, strict=True) if d != 0]
+        for name, which in (getattr(problem, "held_scatter", None) or {}).items():
+            (wide if which == "width" else thick).append(
+                f"{name} (solved for the nominal design, then held)"
+            )
     if spec.thickness_mm:
         what = ", ".join(thick) if thick else "nothing: no thickness found in this study"
         words.append(f"thickness ±{spec.thickness_mm:g} mm: {what}")

@@ -797,6 +797,45 @@ class SeaSpringProblem:
         self.n_sets = int(stage1["chosen"]["RP"]) if stage1 else design_sets(study)
         if study.geometry.n_sets:
             self.n_sets = int(study.geometry.n_sets)
+        # a robustness sample holds the nominal design's solved ST (hold_solved), mm
+        self.held_st_mm: float | None = None
+
+    # -- robustness samples (pipeline/robustness.py) -------------------------------------------
+
+    def scatter_design(
+        self, x: np.ndarray, thickness_delta_mm: float, width_delta_mm: float
+    ) -> np.ndarray:
+        """(n_var,) ``x`` as cut or printed off by a tolerance: every in-plane member width
+        (spiral W1..W4; serpentine arcs S1..Sn, links W1..W(n-1), hub spoke P1, pad neck P2)
+        plus ``thickness_delta_mm``; the plate thickness ST (a variable with ``thickness:
+        search``) plus ``width_delta_mm``; radii, angles and fractions stay."""
+        x = np.array(x, dtype=float)
+        for i, name in enumerate(n.removesuffix("_mm") for n in self.space.names):
+            if name == "ST":
+                x[i] += width_delta_mm
+            elif name in ("P1", "P2") or (name[:1] in "SW" and name[1:].isdigit()):
+                x[i] += thickness_delta_mm
+        return x
+
+    @property
+    def held_scatter(self) -> dict[str, str]:
+        """The solved quantity a sample holds and the scatter that moves it."""
+        return {"ST": "width"} if self.solve_st else {}
+
+    def held_state(self, evaluation: Evaluation) -> dict[str, float]:
+        """ST solved for the nominal design (``thickness: solve``), else nothing."""
+        st = evaluation.metrics.get("ST_mm")
+        if not self.solve_st or st is None or not math.isfinite(st):
+            return {}
+        return {"ST_mm": float(st)}
+
+    def hold_solved(
+        self, held: dict[str, float], thickness_delta_mm: float, width_delta_mm: float
+    ) -> None:
+        """Solve at the held ST plus ``width_delta_mm`` (the plate's thickness tolerance)
+        instead of the ST of the stiffness target; an empty ``held`` solves ST again."""
+        st = held.get("ST_mm")
+        self.held_st_mm = None if st is None else float(st) + width_delta_mm
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -856,8 +895,10 @@ class SeaSpringProblem:
                            gaps=keep_model or self.min_gap is not None)  # fmt: skip
         if not self.solve_st or not r.ok:
             return p, geom, r, p.thickness_mm
-        # The thickness at which the (mean) secant stiffness is the target.
+        # The thickness at which the (mean) secant stiffness is the target (or the held one).
         scale = self.k_target / r.mean_stiffness_Nm_per_rad
+        if self.held_st_mm is not None:
+            scale = self.held_st_mm / p.thickness_mm
         st = p.thickness_mm * scale
         p = self.params(x, st)
         geom = build(p, self.frame)

@@ -332,6 +332,38 @@ class ThresholdSpringProblem:
             "ST_below_min_mm",
             *(f"{k[:-3]}_shortfall_mm" for k in _MARGINS),
         )
+        # a robustness sample holds the nominal design's solved ST (hold_solved), mm
+        self.held_st_mm: float | None = None
+
+    # -- robustness samples (pipeline/robustness.py) -------------------------------------------
+
+    def scatter_design(
+        self, x: np.ndarray, thickness_delta_mm: float, width_delta_mm: float
+    ) -> np.ndarray:
+        """(10,) ``x`` as cut or printed off by a tolerance: the in-plane arm widths W1..W4
+        plus ``thickness_delta_mm``; sweep, pad radius and the fractions stay (ST, solved, is
+        held and moved by ``width_delta_mm``: :meth:`hold_solved`)."""
+        x = np.array(x, dtype=float)
+        for i, name in enumerate(THRESHOLD_VARIABLES):
+            if name.startswith("W") and name.endswith("_mm"):
+                x[i] += thickness_delta_mm
+        return x
+
+    #: The solved quantity a robustness sample holds and the scatter that moves it.
+    held_scatter = {"ST": "width"}
+
+    def held_state(self, evaluation: Evaluation) -> dict[str, float]:
+        """ST solved for the nominal design (``{}`` when it was not solved)."""
+        st = evaluation.metrics.get("ST_mm")
+        return {"ST_mm": float(st)} if st is not None and math.isfinite(st) else {}
+
+    def hold_solved(
+        self, held: dict[str, float], thickness_delta_mm: float, width_delta_mm: float
+    ) -> None:
+        """Solve at the held ST plus ``width_delta_mm`` (the plate's thickness tolerance)
+        instead of fitting ST to the target; an empty ``held`` fits ST again."""
+        st = held.get("ST_mm")
+        self.held_st_mm = None if st is None else float(st) + width_delta_mm
 
     def params(self, x: np.ndarray, st_mm: float = _REFERENCE_ST_MM) -> ArmSpringParams:
         values = dict(zip(THRESHOLD_VARIABLES, map(float, x), strict=True))
@@ -358,9 +390,14 @@ class ThresholdSpringProblem:
         )
         if not r.ok:
             return p, r, math.nan, math.inf
-        st, err = fit_thickness(
-            r.rotation_rad, r.torque_Nmm / p.thickness_mm, self.curve, self.measure, self.window
-        )
+        if self.held_st_mm is None:
+            st, err = fit_thickness(
+                r.rotation_rad, r.torque_Nmm / p.thickness_mm, self.curve, self.measure, self.window
+            )
+        else:  # a robustness sample: the nominal design's ST, moved by the scatter
+            st = self.held_st_mm
+            torque = r.torque_Nmm * (st / p.thickness_mm)
+            err = float(curve_error(self.curve, r.rotation_rad, torque, self.measure, self.window))
         scale = st / p.thickness_mm
         r = ArmBeamResponse(
             rotation_rad=r.rotation_rad,

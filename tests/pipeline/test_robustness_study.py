@@ -257,3 +257,85 @@ def yaml_of(name: str) -> dict:
     from flexopt.pipeline.study import resolve_study_path
 
     return yaml.safe_load(resolve_study_path(name).read_text(encoding="utf-8"))
+
+
+def _spring_samples(name: str, extra: dict) -> tuple:
+    """The nominal evaluation of a spring study and a function that evaluates one sample the
+    way pipeline/robustness does (perturbed study, held ST, moved design vector)."""
+    from flexopt.pipeline.problems import build_base_problem, nominal_design
+    from flexopt.pipeline.robustness import held_state, hold_solved
+
+    raw = {**yaml_of(name), **extra, "parallel": {"backend": "serial"}}
+    study = validate_study(raw)
+    problem = build_base_problem(study)
+    x = nominal_design(problem, study)
+    nominal = problem.evaluate(x)
+    held = held_state(problem, nominal)
+
+    def sample(e: float, dt: float, dw: float):
+        one = build_base_problem(perturb_study(study, e, dt, dw)[0])
+        hold_solved(one, held, dt, dw)
+        xs = scatter_design(one, x, dt, dw)
+        return xs, one.evaluate(xs)
+
+    return study, problem, x, nominal, held, sample
+
+
+def test_sea_spring_scatter_moves_the_arms_and_holds_the_solved_plate():
+    """sea_spring (thickness: solve): the thickness scatter moves the in-plane arm widths
+    W1..W4 by exactly the delta, ST is solved for the nominal design and then held, the width
+    scatter moves it; wider arms are stiffer, and the plane-stress torque is proportional to ST
+    (so the width sample's stiffness is K_target (ST + dw) / ST to solver precision)."""
+    from flexopt.pipeline.robustness import _describe
+
+    study, problem, x, nominal, held, sample = _spring_samples(
+        "sea-spring-quick", {"solid_3d": {"check": False}, "robustness": {"thickness_mm": 0.2}}
+    )
+    k_target = study.target.stiffness_Nm_per_rad
+    assert nominal.reason == ""
+    st = nominal.metrics["ST_mm"]
+    assert held == {"ST_mm": st}
+    assert nominal.metrics["stiffness_Nm_per_rad"] == pytest.approx(k_target, rel=1e-9)
+    is_arm = np.array([n.startswith("W") for n in problem.space.names])
+    assert is_arm.sum() == 4
+
+    x_wide, wide = sample(1.0, 0.2, 0.0)
+    x_thin, thin = sample(1.0, -0.2, 0.0)
+    np.testing.assert_allclose(x_wide - x, np.where(is_arm, 0.2, 0.0), atol=1e-12)
+    np.testing.assert_allclose(x_thin - x, np.where(is_arm, -0.2, 0.0), atol=1e-12)
+    assert wide.metrics["ST_mm"] == thin.metrics["ST_mm"] == st  # held, not re-solved
+    # wider arms -> stiffer (not re-solved to the target, which would hide the scatter)
+    assert thin.metrics["stiffness_Nm_per_rad"] < k_target < wide.metrics["stiffness_Nm_per_rad"]
+
+    x_plate, plate = sample(1.0, 0.0, 0.3)
+    np.testing.assert_array_equal(x_plate, x)
+    assert plate.metrics["ST_mm"] == pytest.approx(st + 0.3, rel=1e-12)
+    assert plate.metrics["stiffness_Nm_per_rad"] == pytest.approx(
+        k_target * (st + 0.3) / st, rel=1e-6
+    )
+
+    spec = validate_study({**yaml_of("sea-spring-quick"), "robustness": SCATTER}).robustness
+    words = _describe(study, spec, problem, x)
+    assert any(w.startswith("thickness") and "design variable W1_mm" in w for w in words)
+    assert any(w.startswith("width") and "ST (solved for the nominal design" in w for w in words)
+
+
+def test_threshold_spring_scatter_moves_the_arms_and_holds_the_solved_plate():
+    """threshold_spring: W1_mm..W4_mm move by the thickness scatter; ST is fitted to the target
+    for the nominal design and held (a fit per sample would hide the scatter); wider arms give
+    more torque, and the torque is proportional to ST."""
+    _, problem, x, nominal, held, sample = _spring_samples("threshold-spring", {})
+    st = nominal.metrics["ST_mm"]
+    assert held == {"ST_mm": st}
+    is_arm = np.array([n.startswith("W") for n in problem.space.names])
+    assert is_arm.sum() == 4
+    x_wide, wide = sample(1.0, 0.1, 0.0)
+    np.testing.assert_allclose(x_wide - x, np.where(is_arm, 0.1, 0.0), atol=1e-12)
+    assert wide.metrics["ST_mm"] == st
+    assert wide.metrics["torque_at_range_Nm"] > nominal.metrics["torque_at_range_Nm"]
+    error = problem.error_name
+    assert wide.metrics[error] > nominal.metrics[error]  # off the fitted optimum
+    _, plate = sample(1.0, 0.0, 0.5)
+    assert plate.metrics["torque_at_range_Nm"] == pytest.approx(
+        nominal.metrics["torque_at_range_Nm"] * (st + 0.5) / st, rel=1e-9
+    )
