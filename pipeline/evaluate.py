@@ -200,12 +200,13 @@ def evaluate_study(
     png = plot_response(result.table, **response_plot_args(study, result))
     write_atomic(run_dir / "force_displacement.png", png)
     extra = _extra_files(result)
+    if robust is not None:  # before report.html, which draws its band
+        record["robustness"] = robust.record()
     # report.html: the verdict, the response with its target, the part in 3D (one offline file)
     html = evaluate_html(study, result, record, evaluation_wall_s)
     if html is not None:
         extra["report.html"] = html.encode("utf-8")
     if robust is not None:
-        record["robustness"] = robust.record()
         png = robust.png(f"{study.name}: robustness")
         if png is not None:
             extra["robustness.png"] = png

@@ -97,6 +97,8 @@ class HtmlData:
     detail: DesignDetail | None = None
     verdicts: Sequence[Verdict] = ()
     record: Mapping[str, Any] = field(default_factory=dict)
+    #: best.json's robustness record (with its band); else run.json's, without the band
+    robustness: Mapping[str, Any] | None = None
 
 
 # --------------------------------------------------------------------------------------------
@@ -617,7 +619,9 @@ def render_html(data: HtmlData) -> str:
     word = overall(verdicts)
     parts: list[str] = []
 
-    nav = " ".join(f'<a href="#{s}">{_e(s.replace("-", " "))}</a>' for s in SECTIONS)
+    robust = data.robustness or data.record.get("robustness")
+    ids = _with_robustness(SECTIONS, robust)
+    nav = " ".join(f'<a href="#{s}">{_e(s.replace("-", " "))}</a>' for s in ids)
     parts.append(
         f"<h1>{_e(data.study_name)} — flexopt run</h1>"
         f"<p>Study kind <code>{_e(data.kind)}</code>; {len(evaluations)} designs evaluated, "
@@ -744,6 +748,10 @@ def render_html(data: HtmlData) -> str:
     parts.append(
         _section("response", "Response of the best design", _response_section(data.detail, figures))
     )
+    if robust:
+        table = data.detail.table if data.detail else {}
+        spec = data.detail.plot if data.detail else {}
+        parts.append(_robustness_section(robust, table, spec, figures, "best design"))
 
     # -- 3D part
     why = None if data.detail is not None else "the best design's detail failed"
@@ -825,6 +833,8 @@ class EvaluateHtmlData:
     record: Mapping[str, Any] = field(default_factory=dict)
     part: DesignDetail | None = None
     part_note: str | None = None
+    #: evaluation.json's robustness record (default: ``record['robustness']``)
+    robustness: Mapping[str, Any] | None = None
 
 
 def render_evaluate_html(data: EvaluateHtmlData) -> str:
@@ -834,7 +844,9 @@ def render_evaluate_html(data: EvaluateHtmlData) -> str:
     record = data.record
     verdicts = list(data.verdicts)
     word = overall(verdicts)
-    nav = " ".join(f'<a href="#{s}">{_e(s.replace("-", " "))}</a>' for s in EVALUATE_SECTIONS)
+    robust = data.robustness or record.get("robustness")
+    ids = _with_robustness(EVALUATE_SECTIONS, robust)
+    nav = " ".join(f'<a href="#{s}">{_e(s.replace("-", " "))}</a>' for s in ids)
     solve = _float(record.get("solve_time_s"))
     converged = record.get("converged")
     parts = [
@@ -879,6 +891,8 @@ def render_evaluate_html(data: EvaluateHtmlData) -> str:
             "response", "Response of the design", _response_section(detail, figures, "this design")
         )
     )
+    if robust:
+        parts.append(_robustness_section(robust, data.table, data.plot, figures, "this design"))
     parts.append(
         _section(
             "part-3d",
@@ -1020,3 +1034,108 @@ def _response_section(
             f"{_e(target)}.</p>" + figures.embed(fig, name)
         )
     return body or "<p>The response table has none of the plotted columns.</p>"
+
+
+# --------------------------------------------------------------------------------------------
+# Robustness (docs/robustness.md): the band of the response over the samples, the shares
+
+#: The id of the robustness section: after the response, only when there is a record.
+ROBUSTNESS_SECTION = "robustness"
+
+
+def _with_robustness(sections: Sequence[str], record: Any) -> tuple[str, ...]:
+    ids = tuple(sections)
+    if not record or "response" not in ids:
+        return ids
+    i = ids.index("response") + 1
+    return (*ids[:i], ROBUSTNESS_SECTION, *ids[i:])
+
+
+def _robustness_section(
+    record: Mapping[str, Any],
+    table: Mapping[str, Any],
+    spec: Mapping[str, Any],
+    figures: _Figures,
+    whose: str,
+) -> str:
+    """The response's band (min-max over the samples, shaded) around the nominal curve, and
+    per requirement its nominal margin, share of samples MET and robust verdict."""
+    import plotly.graph_objects as go
+    from flexopt.pipeline.robustness import _scatter_text
+
+    required = float(record.get("share_percent_required", 100.0))
+    method = record.get("method")
+    how = f"Monte Carlo, seed {record.get('seed')}" if method == "monte_carlo" else "corners"
+    body = (
+        f"<p>{_e(record.get('n_samples'))} samples ({_e(how)}, the nominal included) of "
+        f"{_e(_scatter_text(record))}; a requirement is MET robustly when at least "
+        f"{required:g} % of the samples meet it. Perturbed: "
+        f"{_e('; '.join(record.get('perturbed') or ['nothing']))}.</p>"
+    )
+
+    def margin(value: Any, unit: str) -> str:
+        return "n/a" if value is None else f"{value:+.4g}" + (f" {unit}" if unit else "")
+
+    rows = [
+        [
+            r["name"],
+            margin(r.get("nominal_margin"), r.get("unit", "")),
+            f"{r['share_percent']:.1f} %",
+            "MET" if r["met_robustly"] else "NOT MET",
+        ]
+        for r in record.get("requirements") or []
+    ]
+    header = ["requirement", "nominal margin", "share of samples MET",
+              f"robust verdict (at {required:g} %)"]  # fmt: skip
+    body += _table(header, rows) if rows else "<p>No requirement to judge.</p>"
+    band = record.get("band") or {}
+    x = spec.get("x", "displacement_mm")
+    y = next((c for c in band if c != x), None)
+    if y is None:
+        return _section(
+            ROBUSTNESS_SECTION,
+            "Robustness",
+            body + "<p class='note'>No band in this record (run.json keeps none: it is in "
+            "best.json and robustness.png).</p>",
+        )
+    low = np.array([np.nan if v is None else v for v in band[y]["low"]], dtype=float)
+    high = np.array([np.nan if v is None else v for v in band[y]["high"]], dtype=float)
+    xs = np.asarray(table[x], dtype=float) if x in table else None
+    if xs is None or len(xs) != len(low):
+        xs = np.array([np.nan if v is None else v for v in band[x]["low"]], dtype=float)
+    ok = np.isfinite(xs) & np.isfinite(low) & np.isfinite(high)
+    fig = go.Figure()
+    fig.add_trace(
+        go.Scatter(
+            x=[*xs[ok].tolist(), *xs[ok][::-1].tolist()],
+            y=[*low[ok].tolist(), *high[ok][::-1].tolist()],
+            fill="toself",
+            mode="lines",
+            line={"width": 0},
+            fillcolor="rgba(255,127,14,0.25)",
+            name=f"band over the {record.get('n_samples')} samples (min-max)",
+        )
+    )
+    if y in table and len(table[y]) == len(xs):
+        fig.add_trace(
+            go.Scatter(
+                x=xs.tolist(),
+                y=_plain(np.asarray(table[y], dtype=float)),
+                mode="lines+markers",
+                name="nominal",
+                marker={"size": 4},
+                line={"color": "#1f77b4"},
+            )
+        )
+    xlabel = labels.label(x, spec.get("xlabel") or spec.get("x_label"))
+    ylabel = labels.label(y)
+    fig.update_layout(
+        _layout(
+            f"{_no_unit(ylabel)} under scatter ({whose})",
+            height=420,
+            xaxis=_axis(xlabel),
+            yaxis=_axis(ylabel),
+            legend={"orientation": "h", "y": -0.22},
+        )
+    )
+    return _section(ROBUSTNESS_SECTION, "Robustness", body + figures.embed(fig, "robustness"))

@@ -776,7 +776,8 @@ class _Run:
         # every design to explore, offline (plotly.js inline); a failure is a note
         self.artefact("report.html", lambda: render_html(HtmlData(
             study.name, study.kind, problem, tuple(self.evaluator.solved), best,
-            tuple(result.front), detail, self.verdicts, self.record)))  # fmt: skip
+            tuple(result.front), detail, self.verdicts, self.record,
+            best_json.get("robustness"))))  # fmt: skip
         return detail
 
     def robustness(self, best: Evaluation, detail: DesignDetail | None) -> Any:

@@ -598,3 +598,59 @@ def test_a_mechanism_study_draws_its_target_band_requirement():
     assert ys.min() == pytest.approx(1.5 * 0.98) and ys.max() == pytest.approx(1.5 * 1.02)
     # the user's output named force_N in its own words, not the beam kinds' end force
     assert force.get_ylabel() == "force (N)"
+
+
+def test_evaluate_report_html_draws_the_robustness_band_and_shares(tmp_path):
+    """A cantilever under E ±10 % (corners: the nominal, E x0.9, E x1.1). Under displacement
+    control the force is proportional to E row by row, so the band drawn in report.html is
+    0.9 and 1.1 times the nominal curve; a tip force held within ±1 % of the closed form
+    F = 3 E I d / L^3 is met by the nominal sample only (1 of 3: NOT MET at 95 %)."""
+    from flexopt.fea.materials import get_material
+
+    L, t, w, d = 60.0, 1.5, 8.0, 0.3
+    F0 = 3.0 * get_material("ABS").E_MPa * (w * t**3 / 12.0) * d / L**3
+    raw = {
+        "name": "cantilever-robust-html",
+        "geometry": {"kind": "polyline_beam", "points_mm": [[0, 0], [L / 2, 0], [L, 0]],
+                     "thickness_mm": [t] * 3, "width_mm": w, "elements": 20},
+        "material": "ABS",
+        "boundary": {"start": "clamped",
+                     "end": {"control": "displacement", "direction": [0, 1], "max_mm": d,
+                             "steps": 3, "rotation": "free", "transverse": "free"}},
+        "requirements": [{"quantity": "max_abs_force_N", "name": "tip force",
+                          "min": 0.99 * F0, "max": 1.01 * F0}],
+        "robustness": {"E_percent": 10.0},
+        "parallel": {"backend": "serial"},
+    }  # fmt: skip
+    out = evaluate_study(validate_study(raw), out=tmp_path / "ev").run_dir
+    text = (out / "report.html").read_text(encoding="utf-8")
+    page = _feed(text)
+    assert page.sections == ["verdict", "summary", "response", "robustness", "part-3d"]
+    figures = {
+        attrs["id"]: json.loads(body)
+        for attrs, body in page.scripts
+        if attrs.get("type") == "application/json"
+    }
+    band, nominal = figures["fig-robustness"]["data"]
+    assert band["fill"] == "toself" and nominal["name"] == "nominal"
+    n = len(nominal["x"])
+    force = np.abs(np.asarray(nominal["y"], dtype=float))
+    low, high = np.asarray(band["y"][:n]), np.asarray(band["y"][n:][::-1])
+    np.testing.assert_allclose(np.abs(low), 0.9 * force, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(np.abs(high), 1.1 * force, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(band["x"][:n], nominal["x"])
+    layout = figures["fig-robustness"]["layout"]
+    assert "_" not in _axis_title(layout["yaxis"]) and "_" not in _axis_title(layout["xaxis"])
+    # the table: requirement | nominal margin | share of samples MET | robust verdict
+    section = text.split('<section id="robustness">')[1].split("</section>")[0]
+    table = _feed(section)
+    assert table.headers == [
+        "requirement",
+        "nominal margin",
+        "share of samples MET",
+        "robust verdict (at 95 %)",
+    ]
+    record = json.loads((out / "evaluation.json").read_text())["robustness"]
+    (tip,) = [r for r in record["requirements"] if r["name"] == "tip force"]
+    assert tip["share_percent"] == pytest.approx(100.0 / 3.0) and not tip["met_robustly"]
+    assert "<td>tip force</td>" in section and "<td>33.3 %</td><td>NOT MET</td>" in section
