@@ -229,16 +229,28 @@ def threshold_spring(study: Any) -> list[Requirement]:
     measure = getattr(study, "measure", None) or getattr(study.target, "measure", "rms")
     name = measure_key(measure, curve) if curve is not None else f"{measure}_error"
     allowable = study.allowable_stress_MPa or 0.9 * study.material.yield_MPa
-    return [
+    reqs: list[Requirement] = [
         MaxValue(name, "target curve error", "constraint", study.tolerance),
         AllowableStress("peak_stress_MPa", "peak stress", "constraint", allowable),
     ]
+    s3 = getattr(study, "solid_3d", None)
+    if s3 is not None and s3.check and getattr(study.fidelity, "enabled", True):
+        # the part as made (issue 15): the plane-stress curve times the 3D/2D stiffness ratio,
+        # and the 3D peak; checks only (the GA's metrics have no 3D answers)
+        reqs += [
+            MaxValue(f"{name}_3d", "3D target curve error", "check", study.tolerance),
+            AllowableStress("peak_stress_3d_MPa", "3D peak stress ≤ allowable", "check", allowable),
+        ]
+    return reqs
 
 
 THRESHOLD_SPRING = (
     "ST_mm", "max_normalised_error", "rms_normalised_error", "max_relative_error",
     "rms_relative_error", "peak_stress_MPa", "torque_at_range_Nm",
     "initial_stiffness_Nm_per_rad", "rotation_deg", "torque_Nm", "target_torque_Nm",
+    "stiffness_ratio_3d_2d", "linear_stiffness_3d_Nm_per_rad", "max_normalised_error_3d",
+    "rms_normalised_error_3d", "max_relative_error_3d", "rms_relative_error_3d",
+    "peak_stress_3d_MPa", "peak_stress_ratio_3d_2d",
 )  # fmt: skip
 
 

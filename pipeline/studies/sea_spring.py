@@ -90,7 +90,7 @@ from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from flexopt.pipeline.studies._blocks import MeshSpec
+from flexopt.pipeline.studies._blocks import MeshSpec, Solid3DSpec
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from pydantic import BaseModel, Field, model_validator
@@ -226,54 +226,6 @@ class TaguchiSpec(BaseModel):
     min_error_dof: int = Field(4, ge=0, le=20, description="pool until this many error dof")
     extra_runs: int = Field(5, ge=0, le=50, description="off-array runs for the additivity check")
     seed: int = Field(1, ge=0, description="seed of the extra runs")
-
-
-class Solid3DSpec(BaseModel):
-    """The ``solid_3d:`` block: the chosen design checked as a 3D solid, corrected for it, and
-    its peak stress checked for mesh convergence (issue 15; docs/solid3d.md)."""
-
-    model_config = STUDY_CONFIG
-
-    check: bool = Field(
-        True,
-        description="check the chosen design as a 3D solid (fea/solid3d.py, linear P2 "
-        "tetrahedra, ~20 s and ~3 GB per check): stiffness and peak stress beside plane stress",
-    )
-    correct: bool = Field(
-        True,
-        description="correct ST for the 3D stiffness (ST x target / mean 3D stiffness, "
-        "re-checked in 3D) when the 3D/2D ratio is off 1 by more than "
-        "max_fraction_of_tolerance of the stiffness band",
-    )
-    max_fraction_of_tolerance: float = Field(
-        0.25,
-        gt=0,
-        le=1,
-        description="correct when |3D/2D - 1| > this x target.tolerance_percent; also how "
-        "close to the target the corrected mean must come",
-    )
-    max_checks: int = Field(
-        3, ge=2, le=5, description="3D checks at most (calibration, then re-checks)"
-    )
-    layers: int = Field(
-        4,
-        ge=1,
-        le=12,
-        description="prism layers through the half thickness (fea.solid3d.Solid3DSettings: 4 "
-        "resolve the free-face layer; the SEA stiffness moves < 0.1 % from 4 to 8)",
-    )
-    converge_peak: bool = Field(
-        True,
-        description="refine the plane mesh at the peak stress of the chosen design until it "
-        "moves < 1 %, on an outline sampled every curve_step_mm",
-    )
-    curve_step_mm: float = Field(
-        0.1,
-        gt=0.01,
-        le=0.5,
-        description="arm sampling of that outline, mm (the optimiser's is ~0.5 mm: 1.4 deg "
-        "facets on which the peak does not converge)",
-    )
 
 
 class SeaSpringStudy(Study):

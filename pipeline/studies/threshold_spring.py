@@ -30,6 +30,7 @@ YAML (every key optional but ``name``, ``geometry.kind``, ``material`` and ``tar
     allowable_stress_MPa: 43.2      # default 0.9 x the material's yield
     beam: {elements: 24, rows: 24}
     fidelity: {enabled: true, max_edge_mm: 2.0, elements_through: 2.0, steps: 6}
+    solid_3d: {check: true, layers: 4}  # the chosen design as a 3D solid (docs/solid3d.md)
     stack_plates: 10                # plates on one hub in the impact (torque x 10)
     impact: {rotor_torque_Nm: 1.0}  # fea.collision's paper defaults otherwise
     design_space: {sweep_deg: [20, 120]}
@@ -75,7 +76,7 @@ from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plot_targets import measure_band
 from flexopt.pipeline.plots import plot_field
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
-from flexopt.pipeline.studies._blocks import ImpactSpec
+from flexopt.pipeline.studies._blocks import ImpactSpec, Solid3DCheckSpec
 from flexopt.pipeline.studies._blocks import MeshSpec as PlaneStressMesh
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
@@ -158,6 +159,11 @@ class ThresholdSpringStudy(Study):
     )
     beam: BeamSpec = Field(default_factory=BeamSpec, description="search model")
     fidelity: FidelitySpec = Field(default_factory=FidelitySpec, description="plane stress")
+    solid_3d: Solid3DCheckSpec = Field(
+        default_factory=Solid3DCheckSpec,
+        description="the chosen design as a 3D solid on the fidelity mesh: 3D/2D stiffness "
+        "ratio, 3D torque error and peak stress (reported; ST is not corrected)",
+    )
     stack_plates: int = Field(
         1,
         ge=1,
@@ -516,6 +522,9 @@ class ThresholdSpringProblem:
             if ps_rows is not None:
                 table["plane_stress_torque_Nm"] = ps_rows[0]
                 table["plane_stress_peak_stress_MPa"] = ps_rows[1]
+            if study.solid_3d.check:
+                info["solid_3d"] = self.solid_3d(geom, info["plane_stress"])
+                info.update(solid_3d_scalars(info["solid_3d"], self.error_name))
         info["impact"] = self._impact(r.rotation_rad, r.torque_Nmm * 1e-3, table)
         plot = {
             "x": "rotation_deg",
@@ -587,6 +596,85 @@ class ThresholdSpringProblem:
         smap = _stress_map_data(ps) if ps.ok else None
         return rec, cols, smap
 
+    def solid_3d(self, geom: Any, ps: dict[str, Any]) -> dict[str, Any]:
+        """The chosen design as a 3D solid beside plane stress (issue 15; docs/solid3d.md).
+
+        :func:`fea.solid3d.compare_with_plane_stress` on the fidelity check's plane mesh
+        extruded to ST (P2 tetrahedra, half the thickness, hub turned rigidly to the end of the
+        design range, pads held through the thickness), linear, beside linear plane stress on
+        the same mesh. The stiffness ratio scales the plane-stress torque curve ``ps`` (the
+        :meth:`_fidelity` record) into the 3D curve, whose error measure against the target is
+        reported; the vertex-averaged peak-stress ratio scales the plane-stress peak.
+
+        ST is not corrected: the requirement is an error measure on a curve, not a stiffness
+        band per direction (:func:`fea.solid3d.correct_thickness_3d`'s target). The ST that
+        fits the 3D curve best (:func:`optimise.thickness_fit.fit_thickness`, as the search
+        solves ST) and its error are reported as what a correction would make (not
+        re-checked in 3D).
+
+        Returns
+        -------
+        dict — N m/rad, MPa, mm, s; ``problem`` alone when the check cannot be made.
+        """
+        from flexopt.fea.mesh import mesh_polygon
+        from flexopt.fea.plane_stress import Clamp, Rotate
+        from flexopt.fea.solid3d import Solid3DSettings, compare_with_plane_stress
+
+        if "torque_Nm" not in ps or "peak_stress_max_MPa" not in ps:
+            return {"problem": "3D check not made: the plane-stress check has no curve"}
+        fs, s3 = self.study.fidelity, self.study.solid_3d
+        t0 = time.perf_counter()
+        try:
+            m = mesh_polygon(geom.fe_outline, fs.max_edge_mm, refine=geom.mesh_regions(
+                fs.elements_through, fs.max_edge_mm))  # fmt: skip
+            c = compare_with_plane_stress(
+                m, self.material, geom.thickness_mm, Clamp(geom.pad_region),
+                Rotate(geom.hub_region, (0.0, 0.0), self.range_rad, 1),
+                Solid3DSettings(layers=s3.layers),
+                stress_ignore=geom.hub_region.union(geom.pad_region).buffer(0.05),
+            )  # fmt: skip
+        except FeaError as exc:
+            return {"problem": f"3D check not made: {exc}"}
+        ratio = c["stiffness_ratio"]
+        rot_rad = np.radians(np.asarray(ps["rotation_deg"], dtype=float))
+        torque_3d_Nm = ratio * np.asarray(ps["torque_Nm"], dtype=float)
+        ok = np.isfinite(torque_3d_Nm)
+        err_3d = float(
+            curve_error(self.curve, rot_rad[ok], torque_3d_Nm[ok] * 1e3, self.measure, self.window)
+        )
+        peak_2d = float(ps["peak_stress_max_MPa"])
+        peak_3d = peak_2d * c["peak_stress_ratio"]
+        # the ST whose 3D curve fits the target best (torque proportional to ST, the ratio
+        # taken as constant over the step): what a correction would make; not re-checked
+        st = float(geom.thickness_mm)
+        st_fit, err_fit = fit_thickness(
+            rot_rad[ok], torque_3d_Nm[ok] * 1e3 / st, self.curve, self.measure, self.window
+        )
+        return {
+            "method": "linear 3D / linear plane stress on the fidelity mesh at the end of the "
+            "design range; the ratio applied to the nonlinear plane-stress curve; ST not "
+            "corrected (reported only)",
+            "ST_mm": st,
+            "stiffness_ratio_3d_2d": ratio,
+            "linear_stiffness_2d_Nm_per_rad": c["stiffness_2d"] * 1e-3,
+            "linear_stiffness_3d_Nm_per_rad": c["stiffness_3d"] * 1e-3,
+            "torque_3d_Nm": torque_3d_Nm.tolist(),
+            f"{self.error_name}_2d": ps.get(self.error_name),
+            f"{self.error_name}_3d": err_3d,
+            "within_tolerance_3d": bool(err_3d <= self.study.tolerance),
+            "ST_fit_3d_mm": float(st_fit),
+            f"{self.error_name}_3d_at_ST_fit": float(err_fit),
+            "peak_stress_ratio_3d_2d": c["peak_stress_ratio"],
+            "peak_stress_2d_MPa": peak_2d,
+            "peak_stress_3d_MPa": peak_3d,
+            "allowable_stress_MPa": self.allowable_MPa,
+            "stress_ok_3d": bool(peak_3d <= self.allowable_MPa),
+            "layers": s3.layers,
+            "dofs": c["solid3d"]["n_dofs"],
+            "solver": c["solid3d"]["solver"],
+            "time_s": time.perf_counter() - t0,
+        }
+
     def _impact(
         self, rot_rad: np.ndarray, torque_Nm: np.ndarray, table: dict[str, np.ndarray]
     ) -> dict[str, Any]:
@@ -638,6 +726,16 @@ class ThresholdSpringProblem:
                 "max_deflection_deg": math.degrees(ideal.max_deflection_rad),
             }
         return rec
+
+
+def solid_3d_scalars(s3: dict[str, Any], error_name: str) -> dict[str, Any]:
+    """The scalars of :meth:`ThresholdSpringProblem.solid_3d` the verdict judges (info /
+    summary)."""
+    keys = (
+        "stiffness_ratio_3d_2d", "linear_stiffness_3d_Nm_per_rad", f"{error_name}_3d",
+        "peak_stress_3d_MPa", "peak_stress_ratio_3d_2d",
+    )  # fmt: skip
+    return {k: s3[k] for k in keys if k in s3}
 
 
 def problem(study: ThresholdSpringStudy) -> ThresholdSpringProblem:
@@ -733,6 +831,7 @@ def _summary(prob: ThresholdSpringProblem, d: DesignDetail) -> dict[str, Any]:
     s["plane_stress_peak_stress_MPa"] = ps.get("peak_stress_max_MPa")
     peaks = [v for v in (m.get("peak_stress_MPa"), ps.get("peak_stress_max_MPa")) if v is not None]
     s["stress_yield_ratio"] = max(peaks) / prob.material.yield_MPa if peaks else None
+    s.update(solid_3d_scalars(info.get("solid_3d", {}), prob.error_name))
     imp = info.get("impact", {})
     if "spring" in imp:
         s.update(
