@@ -137,7 +137,8 @@ def test_torque_is_proportional_to_the_solved_thickness(shipped):
 
 @pytest.fixture(scope="module")
 def evaluated():
-    study = load_study("threshold-spring")
+    # without the 3D check (one 3D solve: ~35 s and 3.6 GB; test_threshold_spring_solid3d.py)
+    study = load_study("threshold-spring").with_values({"solid_3d.check": False})
     return study, get_kind("threshold_spring").evaluate(study, 1)
 
 
