@@ -267,8 +267,8 @@ def build_arm_spring(
         the outline only by 1e-5 mm) instead of the optimiser's 0.5 mm. A flank of radius R
         sampled at step s turns by s / R rad at every vertex, a weak re-entrant corner on its
         concave side: 0.43 mm on the default optimum's R = 18 mm flank is 1.4 deg, which keeps
-        the peak stress there from converging (docs/solid3d.md); 0.1 mm gives 0.3 deg. For the final stress check only:
-        finer boundary segments mean more triangles.
+        the peak stress there from converging (docs/solid3d.md); 0.1 mm gives 0.3 deg. For the
+        final stress check only: finer boundary segments mean more triangles.
 
     Returns
     -------
