@@ -108,6 +108,19 @@ class CurveSolid3DSpec(Solid3DCheckSpec):
         description="when the 3D curve error exceeds the tolerance, adopt the ST that fits "
         "the 3D curve best (ST_fit_3d_mm) and re-check it in 3D (a second 3D solve)",
     )
+    converge_peak: bool = Field(
+        True,
+        description="refine the plane mesh at the peak stress of the chosen design (end of "
+        "the design range, nonlinear) until it moves < 1 %, on an outline sampled every "
+        "curve_step_mm; the 3D peak is that value times the 3D/2D peak ratio",
+    )
+    curve_step_mm: float = Field(
+        0.1,
+        gt=0.01,
+        le=0.5,
+        description="arm sampling of that outline, mm (the optimiser's is ~0.5 mm: facets on "
+        "which the peak does not converge)",
+    )
 
 
 class Solid3DSpec(Solid3DCheckSpec):

@@ -241,6 +241,8 @@ def threshold_spring(study: Any) -> list[Requirement]:
             MaxValue(f"{name}_3d", "3D target curve error", "check", study.tolerance),
             AllowableStress("peak_stress_3d_MPa", "3D peak stress ≤ allowable", "check", allowable),
         ]
+        if getattr(s3, "converge_peak", False):
+            reqs.append(Flag("peak_stress_converged", "peak stress mesh-converged", "check", True))
     return reqs
 
 
@@ -250,7 +252,7 @@ THRESHOLD_SPRING = (
     "initial_stiffness_Nm_per_rad", "rotation_deg", "torque_Nm", "target_torque_Nm",
     "stiffness_ratio_3d_2d", "linear_stiffness_3d_Nm_per_rad", "max_normalised_error_3d",
     "rms_normalised_error_3d", "max_relative_error_3d", "rms_relative_error_3d",
-    "peak_stress_3d_MPa", "peak_stress_ratio_3d_2d",
+    "peak_stress_3d_MPa", "peak_stress_ratio_3d_2d", "peak_stress_converged",
 )  # fmt: skip
 
 
