@@ -26,13 +26,16 @@ Discretisation and speed
   sampling points) come from scikit-fem once per process and are rescaled by the element lengths;
   the mesh is a :class:`skfem.MeshLine` in ``s``. DOFs are numbered node by node along ``s``
   (scikit-fem numbers the P2 interior DOFs after all vertex DOFs, which would destroy the band), so
-  the tangent is banded with half-bandwidth 8 and is factorised with LAPACK ``dgbsv``.
+  the tangent is banded with half-bandwidth 8 and is factorised by banded Cholesky (LAPACK
+  ``dpbtrf``) where it is positive definite, by banded LU with partial pivoting (``dgbsv``)
+  where it is not (see :func:`_solve_constrained`).
 * Two implementations of the same formulation (``BeamSettings.kernel``, env FLEXOPT_BEAM_KERNEL):
   the compiled kernel (numba, fea/_beam_kernels.py, the default) runs the element integrals, the
-  band assembly, the banded LU with partial pivoting (a port of LAPACK's dgbtf2/dgbtrs) and
-  Cholesky check (dpbtf2) and the whole tracing loop below as machine code; the numpy reference
-  path batches the element integrals over elements x Gauss points, assembles with one
-  ``np.bincount`` into band storage and calls LAPACK through scipy. Both make the same decisions
+  band assembly, the banded Cholesky solve (a port of LAPACK's dpbtf2/dpbtrs, also the stability
+  check) with the banded LU with partial pivoting (dgbtf2/dgbtrs) as its fallback, and the whole
+  tracing loop below as machine code; the numpy reference path batches the element integrals over
+  elements x Gauss points, assembles with one ``np.bincount`` into band storage and calls LAPACK
+  through scipy. Both make the same decisions
   and agree to round-off (tests/fea/test_beam_kernels.py); the numpy path is the fallback where
   numba does not import.
 
@@ -72,7 +75,7 @@ import numpy as np
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.geometry.profile import BeamProfile
-from scipy.linalg.lapack import dgbsv, dpbtrf
+from scipy.linalg.lapack import dgbsv, dpbtrf, dpbtrs
 from skfem import CellBasis, ElementLineP2, MeshLine
 from skfem.quadrature import get_quadrature
 from skfem.refdom import RefLine
@@ -1100,6 +1103,16 @@ def _solve_constrained(
     rhs[bc.fixed] = 0.0
     if bc.driven >= 0:
         rhs[bc.driven] = increment
+    # Banded Cholesky when the held tangent is positive definite (a stable state: most Newton
+    # iterations), about a third of the LU's work; the pivoting LU otherwise (past a bifurcation
+    # or limit point, or far from equilibrium, where the tangent is indefinite). The tangent is
+    # symmetric (the Hessian of the strain energy under dead loads and prescribed displacements),
+    # so both solve the same system. The compiled kernel makes the same choice by the same test.
+    up = np.array(ab[_BAND : 2 * _BAND + 1], order="F")  # the upper band (kd + 1, n)
+    factor, info = dpbtrf(up, lower=0, overwrite_ab=1)
+    if info == 0:
+        x, info = dpbtrs(factor, rhs[:, None], lower=0, overwrite_b=1)
+        return x[:, 0], info
     _, _, x, info = dgbsv(_BAND, _BAND, ab, rhs, overwrite_ab=1, overwrite_b=1)
     return x, info
 

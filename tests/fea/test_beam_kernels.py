@@ -271,3 +271,93 @@ def test_warm_up_compiles_the_kernel_the_models_use():
     from flexopt.fea.beam import BeamSettings, _resolve_kernel, warm_up
 
     assert warm_up() == _resolve_kernel(BeamSettings().kernel)
+
+
+# -- the linear solve: banded Cholesky first, the pivoting LU when it fails ----------------------
+
+
+def _band_matrix(n: int, rng: np.random.Generator, shift: float) -> np.ndarray:
+    """Dense symmetric matrix with half-bandwidth 8, rows scaled like a beam's (u, v, theta)
+    fields (1e4 : 1e4 : 1): ``shift`` moves its spectrum (positive definite for a large shift)."""
+    a = rng.normal(size=(n, n))
+    a = np.triu(np.tril(a, 8), -8)
+    a = a + a.T + shift * np.eye(n)
+    s = np.tile([1e2, 1e2, 1.0], n // 3 + 1)[:n]
+    return a * s[:, None] * s[None, :]
+
+
+def _to_gbsv(a: np.ndarray) -> np.ndarray:
+    """Dense -> LAPACK gbsv storage (kl = ku = 8), Fortran-ordered."""
+    n, k = a.shape[0], beam_mod._BAND
+    ab = np.zeros((3 * k + 1, n), order="F")
+    for j in range(n):
+        for i in range(max(0, j - k), min(n, j + k + 1)):
+            ab[2 * k + i - j, j] = a[i, j]
+    return ab
+
+
+@pytest.mark.parametrize("shift", [40.0, -3.0], ids=["definite", "indefinite"])
+def test_the_band_solve_takes_cholesky_or_falls_back_to_lu(shift):
+    """Both paths solve A x = b exactly (to round-off of a dense solve) whether A is positive
+    definite (banded Cholesky) or indefinite (Cholesky refuses: b untouched, then the LU)."""
+    from flexopt.fea import _beam_kernels as bk
+
+    rng = np.random.default_rng(7)
+    n = 45
+    a = _band_matrix(n, rng, shift)
+    definite = bool(np.all(np.linalg.eigvalsh(a) > 0))
+    assert definite == (shift > 0)  # the two cases are what they are named for
+    b = rng.normal(size=n)
+    exact = np.linalg.solve(a, b)
+    ab = _to_gbsv(a)
+
+    # the compiled Cholesky alone: solves, or refuses without touching b
+    up = np.empty((n, bk.KD + 1))
+    x = b.copy()
+    assert bk.pbsv(ab.T.copy(), x, up) == definite
+    if definite:
+        np.testing.assert_allclose(x, exact, rtol=0, atol=1e-10 * np.abs(exact).max())
+    else:
+        np.testing.assert_array_equal(x, b)
+
+    # the held solve on both paths (nothing held): same solution either way
+    x = b.copy()
+    info = bk._solve_held(
+        ab.T.copy(), x, np.zeros(0, np.int64), -1, 0.0,
+        np.empty(n, np.int64), up,
+    )  # fmt: skip
+    assert info == 0
+    np.testing.assert_allclose(x, exact, rtol=0, atol=1e-10 * np.abs(exact).max())
+    none = np.zeros(0, int)
+    bc = beam_mod._Constraints(none, np.arange(n), none, none, none, -1, -1)
+    x, info = beam_mod._solve_constrained(ab.copy(order="F"), b.copy(), bc, 0.0)
+    assert info == 0
+    np.testing.assert_allclose(x, exact, rtol=0, atol=1e-10 * np.abs(exact).max())
+
+
+def test_most_newton_solves_of_a_constant_force_design_are_cholesky(monkeypatch):
+    """The speed of the kernel rests on the held tangent being symmetric positive definite in
+    most Newton iterations (a stable post-buckled path): count the numpy path's LAPACK calls on
+    paper 003's Table 3 design. A tangent that lost its symmetry, or a solve that stopped trying
+    Cholesky first, would show here as LU solves."""
+    calls = {"cholesky": 0, "lu": 0}
+    pbtrs, gbsv = beam_mod.dpbtrs, beam_mod.dgbsv
+
+    def count(key, fn):
+        def wrapped(*args, **kwargs):
+            calls[key] += 1
+            return fn(*args, **kwargs)
+
+        return wrapped
+
+    monkeypatch.setattr(beam_mod, "dpbtrs", count("cholesky", pbtrs))
+    monkeypatch.setattr(beam_mod, "dgbsv", count("lu", gbsv))
+    model = BeamModel(
+        _constant_force_profile(),
+        get_material("PLA"),
+        settings=BeamSettings(n_elements=60, kernel="numpy"),
+    )
+    response = model.solve(EndDrive("displacement", (-1.0, 0.0), 30.0, 30, "fixed", "fixed"))
+    assert response.ok
+    total = calls["cholesky"] + calls["lu"]
+    assert total > 60 and calls["cholesky"] >= 0.8 * total, calls
