@@ -644,19 +644,25 @@ class BeamModel:
         d = d / np.hypot(*d)
         return np.array([d, [-d[1], d[0]]])
 
-    def _constraints(self, drive: EndDrive) -> _Constraints:
-        """The held and prescribed DOFs of the supports and of ``drive`` (generalised numbering)."""
+    def _fixed_dofs(self, drive: EndDrive) -> np.ndarray:
+        """(n_fixed,) int64, sorted: the held and prescribed DOFs (generalised numbering)."""
         n = self.n_dofs
-        ia, it, ir = n - 3, n - 2, n - 1
-        is_disp = drive.control == "displacement"
         fixed = [0, 1] + ([2] if self.start == "clamped" else [])
-        if is_disp:
-            fixed.append(ia)
+        if drive.control == "displacement":
+            fixed.append(n - 3)
         if drive.transverse == "fixed":
-            fixed.append(it)
+            fixed.append(n - 2)
         if drive.rotation == "fixed":
-            fixed.append(ir)
-        fixed = np.array(sorted(fixed))
+            fixed.append(n - 1)
+        return np.array(sorted(fixed), dtype=np.int64)
+
+    def _constraints(self, drive: EndDrive) -> _Constraints:
+        """The held and prescribed DOFs of the supports and of ``drive`` (generalised numbering),
+        with the band indices the numpy path zeroes (the compiled path needs only the DOFs)."""
+        n = self.n_dofs
+        ia = n - 3
+        is_disp = drive.control == "displacement"
+        fixed = self._fixed_dofs(drive)
         return _Constraints(
             fixed=fixed,
             free=np.setdiff1d(np.arange(n), fixed),
@@ -762,7 +768,7 @@ class BeamModel:
         n = self.n_dofs
         frame = np.ascontiguousarray(self._frame(drive))
         is_disp = drive.control == "displacement"
-        bc = self._constraints(drive)
+        ia = n - 3
         steps = int(drive.steps)
         targets = drive.max_value * np.arange(steps + 1) / steps
         fpar = np.array(
@@ -788,9 +794,9 @@ class BeamModel:
             self._sgeo,
             float(self.material.E_MPa),
             frame,
-            bc.fixed.astype(np.int64),
-            int(bc.driven),
-            int(bc.loaded),
+            self._fixed_dofs(drive),
+            ia if is_disp else -1,
+            -1 if is_disp else ia,
             targets.astype(np.float64),
             fpar,
             ipar,
