@@ -49,6 +49,7 @@ __all__ = [
     "read_checkpoint",
     "study_sha256",
     "write_checkpoint",
+    "checkpoint_text",
 ]
 
 log = logging.getLogger(__name__)
@@ -314,9 +315,14 @@ class EvaluationStore:
                 self._fd = None
 
 
+def checkpoint_text(data: Mapping[str, Any]) -> str:
+    """The text of ``checkpoint.json`` for ``data`` (``format`` added)."""
+    return to_json({"format": FORMAT, **data})
+
+
 def write_checkpoint(run_dir: Path, data: Mapping[str, Any]) -> None:
     """Write ``checkpoint.json`` atomically (``format`` added)."""
-    write_atomic(run_dir / CHECKPOINT_FILE, to_json({"format": FORMAT, **data}))
+    write_atomic(run_dir / CHECKPOINT_FILE, checkpoint_text(data))
 
 
 def read_checkpoint(run_dir: Path, option: str = "RUN_DIR") -> dict[str, Any] | None:

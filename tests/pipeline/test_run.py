@@ -502,3 +502,60 @@ def test_constant_force_quick_smoke(tmp_path):
     assert expected | {"stress.png", "shapes.png", "best.stl", "report.md"} <= set(record["files"])
     assert trimesh.load(out / "best.stl").is_watertight
     assert "## From the study kind" in (out / "report.md").read_text()
+
+
+# --------------------------------------------------------------------------------------------
+# The per-generation files, written by the writer thread (issue 13)
+
+
+def test_generation_files_are_written_off_the_main_thread_in_order(tmp_path, monkeypatch):
+    """evaluations.csv, history.csv, checkpoint.json and run.json of each generation are written
+    by one writer thread, in that order, each generation after the previous one, and all of
+    them are on disk, complete, before the run goes on to its report."""
+    import threading
+
+    import flexopt.pipeline.run as run_mod
+
+    writes: list[tuple[str, str]] = []
+    real = run_mod.write_atomic
+
+    def recording(path, data):
+        writes.append((threading.current_thread().name, Path(path).name))
+        real(path, data)
+
+    monkeypatch.setattr(run_mod, "write_atomic", recording)
+    outcome = run_toy(tmp_path)
+    per_generation = ["evaluations.csv", "history.csv", "checkpoint.json", "run.json"]
+    threaded = [name for thread, name in writes if thread.startswith("flexopt-writes")]
+    assert threaded == per_generation * 4  # n_gen = 4, in order
+    # the main thread's first write after the optimisation comes after the last threaded one
+    last = max(i for i, (thread, _) in enumerate(writes) if thread.startswith("flexopt-writes"))
+    assert all(t.startswith("flexopt-writes") or i > last or n in ("study.yaml", "run.json")
+               for i, (t, n) in enumerate(writes))  # fmt: skip
+    rows = read_records_csv(outcome.run_dir / "evaluations.csv")
+    assert len(rows) == outcome.record["n_evaluations"] == 8 * 4
+    checkpoint = json.loads((outcome.run_dir / "checkpoint.json").read_text())
+    assert checkpoint["generation"] == 4 and checkpoint["n_evaluations"] == len(rows)
+
+
+def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monkeypatch):
+    """A write the writer thread could not make (a full disk) is not lost in the thread: the
+    run stops with that error, and run.json says so."""
+    import flexopt.pipeline.run as run_mod
+
+    real = run_mod.write_atomic
+    count = {"checkpoint": 0}
+
+    def failing(path, data):
+        if Path(path).name == "checkpoint.json":
+            count["checkpoint"] += 1
+            if count["checkpoint"] == 2:
+                raise OSError(28, "No space left on device")
+        real(path, data)
+
+    monkeypatch.setattr(run_mod, "write_atomic", failing)
+    with pytest.raises(OSError, match="No space left"):
+        run_toy(tmp_path)
+    (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    record = json.loads((run_dir / "run.json").read_text())
+    assert record["status"] == "failed" and "No space left" in record["error"]
