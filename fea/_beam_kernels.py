@@ -352,6 +352,107 @@ def hold(abc: np.ndarray, fixed: np.ndarray) -> None:
 
 
 @_jit
+def _cholesky_band(up: np.ndarray) -> bool:
+    """Banded Cholesky factorisation A = U^T U in place, upper band storage ``up`` (n, KD + 1)
+    with ``up[j, KD + i - j] = A[i, j]`` for ``j - KD <= i <= j``. Returns False at the first
+    pivot that is not positive (``up`` then holds a partial factor). Port of LAPACK's ``dpbtf2``
+    (upper): per column a scaling of row j of U and a rank-1 (``dsyr``) update of the trailing
+    KD x KD triangle, in LAPACK's order. The full-band columns (all but the last KD) keep row j
+    of U in eight scalars and their 36 updates unrolled: the same operations in the same order,
+    which the compiler then schedules without reloading them (~15-20 % of the factorisation)."""
+    n = up.shape[0]
+    x = np.empty(KD + 1)  # row j of U in the last KD columns, gathered once
+    for j in range(n):
+        ajj = up[j, KD]
+        if not ajj > 0.0:  # also NaN
+            return False
+        ajj = math.sqrt(ajj)
+        up[j, KD] = ajj
+        kn = min(KD, n - 1 - j)
+        rinv = 1.0 / ajj
+        if kn == KD:
+            x1 = up[j + 1, KD - 1] * rinv
+            up[j + 1, KD - 1] = x1
+            x2 = up[j + 2, KD - 2] * rinv
+            up[j + 2, KD - 2] = x2
+            x3 = up[j + 3, KD - 3] * rinv
+            up[j + 3, KD - 3] = x3
+            x4 = up[j + 4, KD - 4] * rinv
+            up[j + 4, KD - 4] = x4
+            x5 = up[j + 5, KD - 5] * rinv
+            up[j + 5, KD - 5] = x5
+            x6 = up[j + 6, KD - 6] * rinv
+            up[j + 6, KD - 6] = x6
+            x7 = up[j + 7, KD - 7] * rinv
+            up[j + 7, KD - 7] = x7
+            x8 = up[j + 8, KD - 8] * rinv
+            up[j + 8, KD - 8] = x8
+            if x1 != 0.0:
+                t = -x1
+                up[j + 1, KD + 0] += x1 * t
+            if x2 != 0.0:
+                t = -x2
+                up[j + 2, KD + -1] += x1 * t
+                up[j + 2, KD + 0] += x2 * t
+            if x3 != 0.0:
+                t = -x3
+                up[j + 3, KD + -2] += x1 * t
+                up[j + 3, KD + -1] += x2 * t
+                up[j + 3, KD + 0] += x3 * t
+            if x4 != 0.0:
+                t = -x4
+                up[j + 4, KD + -3] += x1 * t
+                up[j + 4, KD + -2] += x2 * t
+                up[j + 4, KD + -1] += x3 * t
+                up[j + 4, KD + 0] += x4 * t
+            if x5 != 0.0:
+                t = -x5
+                up[j + 5, KD + -4] += x1 * t
+                up[j + 5, KD + -3] += x2 * t
+                up[j + 5, KD + -2] += x3 * t
+                up[j + 5, KD + -1] += x4 * t
+                up[j + 5, KD + 0] += x5 * t
+            if x6 != 0.0:
+                t = -x6
+                up[j + 6, KD + -5] += x1 * t
+                up[j + 6, KD + -4] += x2 * t
+                up[j + 6, KD + -3] += x3 * t
+                up[j + 6, KD + -2] += x4 * t
+                up[j + 6, KD + -1] += x5 * t
+                up[j + 6, KD + 0] += x6 * t
+            if x7 != 0.0:
+                t = -x7
+                up[j + 7, KD + -6] += x1 * t
+                up[j + 7, KD + -5] += x2 * t
+                up[j + 7, KD + -4] += x3 * t
+                up[j + 7, KD + -3] += x4 * t
+                up[j + 7, KD + -2] += x5 * t
+                up[j + 7, KD + -1] += x6 * t
+                up[j + 7, KD + 0] += x7 * t
+            if x8 != 0.0:
+                t = -x8
+                up[j + 8, KD + -7] += x1 * t
+                up[j + 8, KD + -6] += x2 * t
+                up[j + 8, KD + -5] += x3 * t
+                up[j + 8, KD + -4] += x4 * t
+                up[j + 8, KD + -3] += x5 * t
+                up[j + 8, KD + -2] += x6 * t
+                up[j + 8, KD + -1] += x7 * t
+                up[j + 8, KD + 0] += x8 * t
+        elif kn > 0:
+            for m in range(1, kn + 1):
+                up[j + m, KD - m] *= rinv
+                x[m] = up[j + m, KD - m]
+            for bc in range(1, kn + 1):
+                xb = x[bc]
+                if xb != 0.0:
+                    t = -xb
+                    for a in range(1, bc + 1):
+                        up[j + bc, KD + a - bc] += x[a] * t
+    return True
+
+
+@_jit
 def is_positive_definite(abc: np.ndarray, fixed: np.ndarray, up: np.ndarray) -> bool:
     """Is the tangent ``abc`` (n, LDAB) with the ``fixed`` rows and columns eliminated positive
     definite? ``up`` (n, KD + 1) is scratch. See :func:`fea.beam._is_positive_definite`.
@@ -370,26 +471,7 @@ def is_positive_definite(abc: np.ndarray, fixed: np.ndarray, up: np.ndarray) -> 
         for j in range(c, min(n, c + KD + 1)):
             up[j, KD + c - j] = 0.0  # row c right of the diagonal
         up[c, KD] = 1.0
-    x = np.empty(KD + 1)  # row j of U, gathered once (it is strided in ``up``)
-    for j in range(n):
-        ajj = up[j, KD]
-        if ajj <= 0.0:
-            return False
-        ajj = math.sqrt(ajj)
-        up[j, KD] = ajj
-        kn = min(KD, n - 1 - j)
-        if kn > 0:
-            rinv = 1.0 / ajj
-            for m in range(1, kn + 1):
-                up[j + m, KD - m] *= rinv
-                x[m] = up[j + m, KD - m]
-            for bc in range(1, kn + 1):
-                xb = x[bc]
-                if xb != 0.0:
-                    t = -xb
-                    for a in range(1, bc + 1):
-                        up[j + bc, KD + a - bc] += x[a] * t
-    return True
+    return _cholesky_band(up)
 
 
 # -- the traced path ------------------------------------------------------------------------------
@@ -422,25 +504,8 @@ def pbsv(abc: np.ndarray, b: np.ndarray, up: np.ndarray) -> bool:
     for j in range(n):
         for m in range(KD + 1):
             up[j, m] = abc[j, KL + m]
-    x = np.empty(KD + 1)  # row j of U, gathered once (it is strided in ``up``)
-    for j in range(n):
-        ajj = up[j, KD]
-        if not ajj > 0.0:  # also NaN
-            return False
-        ajj = math.sqrt(ajj)
-        up[j, KD] = ajj
-        kn = min(KD, n - 1 - j)
-        if kn > 0:
-            rinv = 1.0 / ajj
-            for m in range(1, kn + 1):
-                up[j + m, KD - m] *= rinv
-                x[m] = up[j + m, KD - m]
-            for bc in range(1, kn + 1):
-                xb = x[bc]
-                if xb != 0.0:
-                    t = -xb
-                    for a in range(1, bc + 1):
-                        up[j + bc, KD + a - bc] += x[a] * t
+    if not _cholesky_band(up):
+        return False
     # U^T y = b (dtbsv upper, transpose): column j of U is up[j, KD - (j - i)], i < j
     for j in range(n):
         t = b[j]
