@@ -95,6 +95,102 @@ def csr_pattern(dofs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 @njit(cache=True)
+def csr_pattern_paired(
+    nodes: np.ndarray, n_nodes: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`csr_pattern` of a vector element whose DOFs come in pairs, in a quarter the work.
+
+    When component ``c`` of scalar function ``a`` is DOF ``2 * nodes[e, a] + c`` (scikit-fem's
+    ElementVector numbering), the rows ``2 s`` and ``2 s + 1`` of node ``s`` have the same
+    columns, two per neighbouring node. So the pattern is found on the nodes (a row's columns
+    gathered with a marker, then sorted: a node row is a quarter of its DOF rows) and expanded,
+    and each element entry's position follows from its column's rank in the node's row (no
+    binary search). The output is exactly :func:`csr_pattern`'s for
+    ``dofs = [2 nodes, 2 nodes + 1]`` (the pattern of sorted unique entries is unique):
+    ~4 ms instead of ~17 ms for the 30k DOFs of an SEA spring.
+
+    Parameters
+    ----------
+    nodes : (E, ns) int64 — scalar node of each element's scalar function.
+    n_nodes : int — number of scalar nodes (the vector has ``2 n_nodes`` DOFs).
+
+    Returns
+    -------
+    indptr : (2 n_nodes + 1,) int64, indices : (nnz,) int64, where : (E * (2 ns)^2,) int64 —
+        as :func:`csr_pattern`.
+    """
+    E, ns = nodes.shape
+    m = 2 * ns
+    count = np.zeros(n_nodes + 1, np.int64)
+    for e in range(E):
+        for a in range(ns):
+            count[nodes[e, a] + 1] += 1
+    start = np.cumsum(count)
+    fill = start[:-1].copy()
+    elems = np.empty(start[-1], np.int64)
+    local = np.empty(start[-1], np.int64)
+    for e in range(E):
+        for a in range(ns):
+            s = nodes[e, a]
+            elems[fill[s]] = e
+            local[fill[s]] = a
+            fill[s] += 1
+    # Node rows: the nodes of the node's elements, deduplicated with a marker, then sorted.
+    mark = np.full(n_nodes, -1, np.int64)
+    sptr = np.zeros(n_nodes + 1, np.int64)
+    scols = np.empty(ns * start[-1], np.int64)  # upper bound: no node shared
+    nz = 0
+    for s in range(n_nodes):
+        row0 = nz
+        for t in range(start[s], start[s + 1]):
+            e = elems[t]
+            for b in range(ns):
+                c = nodes[e, b]
+                if mark[c] != s:
+                    mark[c] = s
+                    scols[nz] = c
+                    nz += 1
+        for i in range(row0 + 1, nz):  # insertion sort: ~20 nodes (np.sort: 10x slower here)
+            c = scols[i]
+            j = i
+            while j > row0 and scols[j - 1] > c:
+                scols[j] = scols[j - 1]
+                j -= 1
+            scols[j] = c
+        sptr[s + 1] = nz
+    # Expand: row 2 s + c holds 2 k entries (2 col, 2 col + 1 per neighbour col), in order.
+    indptr = np.empty(2 * n_nodes + 1, np.int64)
+    indices = np.empty(4 * nz, np.int64)
+    where = np.empty(E * m * m, np.int64)
+    rank = np.zeros(n_nodes, np.int64)
+    rk = np.empty(ns, np.int64)
+    for s in range(n_nodes):
+        k = sptr[s + 1] - sptr[s]
+        base = 4 * sptr[s]
+        indptr[2 * s] = base
+        indptr[2 * s + 1] = base + 2 * k
+        for j in range(k):
+            col = scols[sptr[s] + j]
+            rank[col] = j
+            for c in range(2):
+                indices[base + c * 2 * k + 2 * j] = 2 * col
+                indices[base + c * 2 * k + 2 * j + 1] = 2 * col + 1
+        for t in range(start[s], start[s + 1]):
+            e = elems[t]
+            a = local[t]
+            for b in range(ns):
+                rk[b] = 2 * rank[nodes[e, b]]
+            for c in range(2):
+                row = base + c * 2 * k
+                p = e * m * m + (c * ns + a) * m
+                for d in range(2):
+                    for b in range(ns):
+                        where[p + d * ns + b] = row + rk[b] + d
+    indptr[2 * n_nodes] = 4 * nz
+    return indptr, indices, where
+
+
+@njit(cache=True)
 def svk_assemble(
     u: np.ndarray,
     dofs: np.ndarray,
