@@ -19,6 +19,7 @@ import logging
 import os
 import platform
 import socket
+import sys
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, MutableMapping
@@ -499,6 +500,9 @@ class _Run:
         # the writer thread of the per-generation files (see generation_done)
         self._writer: ThreadPoolExecutor | None = None
         self._pending: Future | None = None
+        # files made in forked children at the end of the run (see artefact)
+        self._groups: dict[str, list[tuple[str, Callable[[], str | bytes | None]]]] = {}
+        self._started: list[_ForkedMakes] = []
         self._csv_header: list[str] | None = None
         self._csv_body: list[str] = []
         self._csv_rows = 0
@@ -670,20 +674,47 @@ class _Run:
 
     # -- the end of a run ----------------------------------------------------------------------
 
-    def artefact(self, name: str, make: Callable[[], str | bytes | None]) -> None:
-        """Write one result file; a failure to *make* it is a note, not the end of the run."""
+    def artefact(
+        self, name: str, make: Callable[[], str | bytes | None], group: str | None = None
+    ) -> None:
+        """Write one result file; a failure to *make* it is a note, not the end of the run.
+
+        With a ``group`` the file is only queued: :meth:`start_groups` makes each group's files
+        in a forked child process while this one goes on, :meth:`collect_groups` writes them.
+        """
+        if group is not None:
+            self._groups.setdefault(group, []).append((name, make))
+            return
         try:
             data = make()
         except Exception as exc:
-            note = f"{name} not written: {_one_line(f'{type(exc).__name__}: {exc}')}"
-            log.warning(note)  # the CLI prints the notes; the traceback only with -v
             log.info("%s: traceback", name, exc_info=True)
+            self._made(name, None, _one_line(f"{type(exc).__name__}: {exc}"))
+            return
+        self._made(name, data, None)
+
+    def _made(self, name: str, data: str | bytes | None, error: str | None) -> None:
+        if error is not None:
+            note = f"{name} not written: {error}"
+            log.warning(note)  # the CLI prints the notes; the traceback only with -v
             self.notes.append(note)
             return
         if data is None:
             return
         write_atomic(self.run_dir / name, data)
         self.files.append(name)
+
+    def start_groups(self) -> None:
+        """Make each queued group of files in a child process (see :class:`_ForkedMakes`)."""
+        self._started = [_ForkedMakes(items) for items in self._groups.values()]
+        self._groups = {}
+
+    def collect_groups(self) -> None:
+        """Write the files the children made, in the order they were queued."""
+        started, self._started = self._started, []
+        for job in started:
+            for name, data, error in job.results():
+                self._made(name, data, error)
 
     def best_record(self, best: Evaluation) -> dict[str, Any]:
         generation, index = self.where.get(design_key(best.x), (None, None))
@@ -757,7 +788,9 @@ class _Run:
         elif detail is not None:
             self.notes.append("the kind gives no response table: no best_response.csv")
         if x in table and y in table:
-            self.artefact("force_displacement.png", lambda: _curve_png(table, spec, title))
+            self.artefact(
+                "force_displacement.png", lambda: _curve_png(table, spec, title), group="png"
+            )
         elif table:
             self.notes.append(f"force_displacement.png skipped: no columns '{x}' and '{y}'")
         if x in table and stress in table:
@@ -771,10 +804,13 @@ class _Run:
                     x_label=_spec_label(spec, "x"),
                     title=title,
                 ),
+                group="png",
             )
         elif table:
             self.notes.append(f"stress.png skipped: the response has no '{stress}' column")
-        self.artefact("convergence.png", lambda: _convergence_png(self.history, self.columns))
+        self.artefact(
+            "convergence.png", lambda: _convergence_png(self.history, self.columns), group="png"
+        )
         if detail is not None and detail.shapes_mm is not None:
             values = table.get(x)
             shapes = np.asarray(detail.shapes_mm)
@@ -783,6 +819,7 @@ class _Run:
             self.artefact(
                 "shapes.png",
                 lambda: plots.plot_shapes(shapes, values, value_label=x, title=title),
+                group="png",
             )
         fmap = getattr(detail, "field_map", None) if detail is not None else None
         if fmap:
@@ -796,6 +833,7 @@ class _Run:
                     limit=_float_or_none(fmap.get("limit")),
                     title=title,
                 ),
+                group="png",
             )
         for name, data in (getattr(detail, "files", None) or {}).items():
             if name in RUN_FILES or "/" in name or name.startswith("."):
@@ -803,23 +841,29 @@ class _Run:
                 continue
             self.artefact(name, lambda data=data: data)
         if len(result.front) > 1 and len(problem.objective_names) >= 2:
-            self.artefact("front.png", lambda: self._front_png(result, title))
+            self.artefact("front.png", lambda: self._front_png(result, title), group="png")
         if robust is not None:
-            self.artefact("robustness.png", lambda: robust.png(f"{study.name}: robustness"))
+            self.artefact(
+                "robustness.png", lambda: robust.png(f"{study.name}: robustness"), group="png"
+            )
         if part is not None:
             self.artefact("best.stl", lambda: self._stl(part))
             self.artefact("best.dxf", lambda: part_bytes(part, "dxf", f"{study.name}: best"))
             if step_available():  # the optional extra; without it no STEP and no note
-                self.artefact("best.step", lambda: part_bytes(part, "step"))
+                self.artefact("best.step", lambda: part_bytes(part, "step"), group="step")
         elif detail is not None and (detail.outline is None or not detail.height_mm):
             self.notes.append(
                 "best.stl and best.dxf skipped: the kind gives no outline and height_mm"
             )
+        # The plots and the STEP solid are made in forked children while this process writes
+        # report.html: the report phase otherwise runs on one core with the other idle.
+        self.start_groups()
         # every design to explore, offline (plotly.js inline); a failure is a note
         self.artefact("report.html", lambda: render_html(HtmlData(
             study.name, study.kind, problem, tuple(self.evaluator.solved), best,
             tuple(result.front), detail, self.verdicts, self.record,
             best_json.get("robustness"))))  # fmt: skip
+        self.collect_groups()
         return detail
 
     def robustness(self, best: Evaluation, detail: DesignDetail | None) -> Any:
@@ -1235,6 +1279,79 @@ def _run_in(
         raise
     log.info("finished %s in %.3g s", run_dir, record["wall_s"])
     return RunOutcome(run_dir, result, detail, record, tuple(run.notes), run.verdicts)
+
+
+class _ForkedMakes:
+    """Make some result files in a forked child process while this one goes on.
+
+    ``items`` are (name, make) pairs; the child runs each ``make`` in order and sends back
+    (name, data, None) or (name, None, error text). Forking shares everything already imported
+    and computed (matplotlib, the detail), so nothing is pickled on the way in. Where fork is not
+    available (Windows, macOS) or the child cannot start, the files are made here, in order. A
+    child that dies without an answer (a crash in a native library) gives each of its files a
+    note instead of bringing the run down with it.
+    """
+
+    def __init__(self, items: list[tuple[str, Callable[[], str | bytes | None]]]) -> None:
+        self.items = items
+        self.conn: Any = None
+        self.process: Any = None
+        ctx = _fork_context()
+        if ctx is None:
+            return
+        try:
+            receive, send = ctx.Pipe(duplex=False)
+            self.process = ctx.Process(
+                target=_make_in_child, args=(send, items), name="flexopt-report", daemon=True
+            )
+            self.process.start()
+            send.close()
+            self.conn = receive
+        except Exception as exc:  # no fork here: make them in this process
+            log.info("report files made in this process: %s", _one_line(str(exc)))
+            self.conn = self.process = None
+
+    def results(self) -> list[tuple[str, str | bytes | None, str | None]]:
+        if self.conn is None:
+            return _make_here(self.items)
+        try:
+            return self.conn.recv()
+        except (EOFError, OSError):
+            self.process.join(5)
+            code = self.process.exitcode
+            how = f"signal {-code}" if code is not None and code < 0 else f"exit code {code}"
+            return [(name, None, f"the process making it died ({how})") for name, _ in self.items]
+        finally:
+            self.conn.close()
+            self.process.join(5)
+
+
+def _fork_context() -> Any:
+    """multiprocessing's fork context where forking is safe (Linux and the like), else None."""
+    import multiprocessing as mp
+
+    if sys.platform in ("darwin", "win32") or "fork" not in mp.get_all_start_methods():
+        return None
+    return mp.get_context("fork")
+
+
+def _make_here(
+    items: list[tuple[str, Callable[[], str | bytes | None]]],
+) -> list[tuple[str, str | bytes | None, str | None]]:
+    out: list[tuple[str, str | bytes | None, str | None]] = []
+    for name, make in items:
+        try:
+            out.append((name, make(), None))
+        except Exception as exc:
+            out.append((name, None, _one_line(f"{type(exc).__name__}: {exc}")))
+    return out
+
+
+def _make_in_child(conn: Any, items: list[tuple[str, Callable[[], str | bytes | None]]]) -> None:
+    try:
+        conn.send(_make_here(items))
+    finally:
+        conn.close()
 
 
 def _write_files(run_dir: Path, files: Iterable[tuple[str, str]]) -> None:

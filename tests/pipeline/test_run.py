@@ -559,3 +559,35 @@ def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monke
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     record = json.loads((run_dir / "run.json").read_text())
     assert record["status"] == "failed" and "No space left" in record["error"]
+
+
+def test_report_files_are_made_in_a_forked_child_and_its_failures_are_notes(monkeypatch):
+    """_ForkedMakes: the files come from another process, in order; a failing make is that
+    file's note; a child that dies is a note for each of its files, not a crash of the run;
+    without fork the files are made here."""
+    import os
+
+    from flexopt.pipeline import run as run_mod
+
+    if run_mod._fork_context() is None:
+        pytest.skip("no fork on this platform")
+
+    def boom() -> bytes:
+        raise ValueError("no such column")
+
+    items = [("a.png", lambda: str(os.getpid()).encode()), ("b.png", boom), ("c.png", lambda: None)]
+    out = run_mod._ForkedMakes(items).results()
+    assert [name for name, _, _ in out] == ["a.png", "b.png", "c.png"]
+    assert out[0][1] != str(os.getpid()).encode() and out[0][2] is None  # another process
+    assert out[1] == ("b.png", None, "ValueError: no such column")
+    assert out[2] == ("c.png", None, None)
+
+    dead = run_mod._ForkedMakes([("d.png", lambda: os._exit(3)), ("e.png", lambda: b"x")])
+    assert [(n, d, e) for n, d, e in dead.results()] == [
+        ("d.png", None, "the process making it died (exit code 3)"),
+        ("e.png", None, "the process making it died (exit code 3)"),
+    ]
+
+    monkeypatch.setattr(run_mod, "_fork_context", lambda: None)
+    here = run_mod._ForkedMakes([("a.png", lambda: str(os.getpid()).encode())]).results()
+    assert here == [("a.png", str(os.getpid()).encode(), None)]
