@@ -167,7 +167,9 @@ def _boundary_edges(triangles: np.ndarray) -> np.ndarray:
     """Edges used by exactly one triangle, oriented as in that (counter-clockwise) triangle."""
     edges = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     key = np.sort(edges, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    # One int64 per edge: unique over a 1-D key is ~10x faster than over rows (axis=0).
+    code = key[:, 0] * (int(key.max()) + 1) + key[:, 1]
+    _, inverse, counts = np.unique(code, return_inverse=True, return_counts=True)
     return edges[counts[inverse.ravel()] == 1]
 
 
@@ -296,8 +298,21 @@ def mesh_polygon(
     graph = _planar_graph(poly, max_edge_mm)
     out = triangle.triangulate(graph, f"{opts}a{_EQUILATERAL_AREA * max_edge_mm**2:.17g}")
     local = _size_field(refine)
+    # The smallest size the regions ask for: no triangle needs refining while every one is
+    # within the area that size allows (exactly the loop's own test with its smallest target,
+    # so the same meshes; spares testing every triangle against every region, ~25 ms a spring).
+    floor = (
+        None
+        if local is None or callable(refine)
+        else min((float(s) for _, s in refine), default=float("inf"))
+    )
     if local is not None:
         for _ in range(settings.max_refine_passes):
+            if floor is not None:
+                areas = np.abs(_signed_areas(out["vertices"], out["triangles"]))
+                least = _EQUILATERAL_AREA * min(floor, max_edge_mm) ** 2
+                if np.all(areas <= settings.area_slack * least):
+                    break
             corners = out["vertices"][out["triangles"]]
             target = np.minimum(local(corners), max_edge_mm)
             max_area = _EQUILATERAL_AREA * target**2

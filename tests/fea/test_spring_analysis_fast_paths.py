@@ -192,3 +192,44 @@ def test_warm_up_loads_the_plane_stress_kernels_before_any_design():
     assert before == [0, 0, 0]
     assert after == [1, 1, 1]
     assert used == after  # a design needs no kernel (or type signature) the warm-up missed
+
+
+@pytest.mark.parametrize("elements_through", [1.0, 3.0])  # no refinement pass; several
+def test_region_refined_mesh_is_the_mesh_of_testing_every_triangle(spring, elements_through):
+    import triangle
+    from flexopt.fea import mesh as fm
+
+    geom = spring[0]
+    regions = geom.mesh_regions(elements_through, 3.0)
+    got = mesh_polygon(geom.fe_outline, 3.0, refine=regions)
+    # The loop as it was: every pass sizes every triangle by the regions it touches.
+    cfg = fm.MeshSettings()
+    poly = shapely.geometry.polygon.orient(geom.fe_outline, sign=1.0)
+    opts = f"pq{cfg.min_angle_deg:g}"
+    out = triangle.triangulate(
+        fm._planar_graph(poly, 3.0), f"{opts}a{fm._EQUILATERAL_AREA * 9:.17g}"
+    )
+    local, passes = fm._size_field(regions), 0
+    for _ in range(cfg.max_refine_passes):
+        target = np.minimum(local(out["vertices"][out["triangles"]]), 3.0)
+        max_area = fm._EQUILATERAL_AREA * target**2
+        if np.all(
+            np.abs(fm._signed_areas(out["vertices"], out["triangles"])) <= cfg.area_slack * max_area
+        ):
+            break
+        passes += 1
+        out = triangle.triangulate(
+            {"vertices": out["vertices"], "triangles": out["triangles"],
+             "segments": out["segments"], "triangle_max_area": max_area},
+            f"r{opts}a",
+        )  # fmt: skip
+    assert (passes > 0) == (elements_through > 1.0)
+    want = fm.TriMesh(out["vertices"], out["triangles"])
+    assert np.array_equal(got.points, want.points)
+    assert np.array_equal(got.triangles, want.triangles)
+    # boundary edges: the unique over (sorted) rows they were found by
+    tri = got.triangles
+    edges = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    _, inverse, counts = np.unique(np.sort(edges, axis=1), axis=0, return_inverse=True,
+                                   return_counts=True)  # fmt: skip
+    assert np.array_equal(got.boundary_edges, edges[counts[inverse.ravel()] == 1])
