@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import io
 from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
-import matplotlib
 import numpy as np
 from flexopt.pipeline import labels as _labels
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator
+
+if TYPE_CHECKING:  # matplotlib is imported when the first figure is made (~0.3 s)
+    from matplotlib.figure import Figure
 
 __all__ = [
     "quantity_name",
@@ -25,6 +25,18 @@ __all__ = [
     "plot_shapes",
     "plot_stress",
 ]
+
+
+def _new_figure(**kwargs: Any) -> Figure:
+    """An off-screen figure with its Agg canvas. matplotlib is imported here, not with this
+    module: a run imports this module at its start but makes its plots at the end, in a forked
+    child (pipeline/run.py), so the import stays off the run's critical path."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(**kwargs)
+    FigureCanvasAgg(fig)
+    return fig
 
 
 def _png(fig: Figure) -> bytes:
@@ -146,8 +158,7 @@ def response_figure(
     labels = dict(labels or {})
     ok = np.asarray(table.get("converged", np.ones(len(table[x]), bool)), dtype=bool)
     two = right is not None and right in table
-    fig = Figure(figsize=(10 if two else 5.5, 4), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(10 if two else 5.5, 4), layout="constrained")
     axes = fig.subplots(1, 2) if two else [fig.subplots(1, 1)]
     x_label = labels.get("x_label") or labels.get("xlabel") or _labels.label(x)
     ax_f = axes[0]
@@ -239,8 +250,7 @@ def curve_figure(
 
     ok = _converged(table, x)
     xs = np.asarray(table[x], dtype=float)
-    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(6.4, 4.2), layout="constrained")
     ax = fig.subplots()
     curves = _draw_curves(ax, table, x, y, ok, "tab:blue")
     if y_label and len(curves) == 1:  # the kind's words name the curve too
@@ -286,8 +296,7 @@ def plot_stress(
         The PNG file.
     """
     ok = _converged(table, x)
-    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(6.4, 4.2), layout="constrained")
     ax = fig.subplots()
     curves = _draw_curves(ax, table, x, stress, ok, "tab:red")
     if allowable_MPa is not None:
@@ -335,8 +344,7 @@ def plot_convergence(
     best = np.asarray(best, dtype=float).reshape(len(generation), -1)
     ok = np.asarray(best_feasible, dtype=bool)
     n_obj = best.shape[1]
-    fig = Figure(figsize=(6.4, 2.4 * (n_obj + 1)), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(6.4, 2.4 * (n_obj + 1)), layout="constrained")
     axes = fig.subplots(n_obj + 1, 1, sharex=True, squeeze=False)[:, 0]
     for k, ax in enumerate(axes[:n_obj]):
         values = np.where(ok, best[:, k], np.nan)
@@ -355,6 +363,8 @@ def plot_convergence(
     ax_f.set_ylim(-5, 105)
     ax_f.set_ylabel("feasible designs (%)")
     ax_f.set_xlabel("generation")
+    from matplotlib.ticker import MaxNLocator
+
     ax_f.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax_f.grid(True, alpha=0.3)
     if title:
@@ -391,9 +401,10 @@ def plot_shapes(
     if shapes.ndim != 3 or shapes.shape[2] != 2:
         raise ValueError(f"shapes_mm has shape {shapes.shape}; expected (n_rows, n_nodes, 2)")
     rows = np.unique(np.linspace(0, len(shapes) - 1, min(max_shapes, len(shapes))).round())
-    fig = Figure(figsize=(6.4, 5.0), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(6.4, 5.0), layout="constrained")
     ax = fig.subplots()
+    import matplotlib
+
     colours = matplotlib.colormaps["viridis"](np.linspace(0, 0.9, len(rows)))
     for colour, row in zip(colours, rows.astype(int), strict=True):
         label = f"row {row}"
@@ -443,8 +454,7 @@ def plot_field(
     p = np.asarray(points_mm, dtype=float)
     v = np.asarray(values, dtype=float)
     tri = Triangulation(p[:, 0], p[:, 1], np.asarray(triangles, dtype=int))
-    fig = Figure(figsize=(6.8, 5.6), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(6.8, 5.6), layout="constrained")
     ax = fig.subplots()
     vmax = max(float(np.nanmax(v)), limit or 0.0)
     cs = ax.tripcolor(tri, v, shading="gouraud", cmap="viridis", vmin=0.0, vmax=vmax)
@@ -487,8 +497,7 @@ def plot_front(
     f = np.asarray(objectives, dtype=float).reshape(-1, np.shape(front)[-1])
     pf = np.asarray(front, dtype=float)
     pf = pf[np.argsort(pf[:, 0])]
-    fig = Figure(figsize=(6.4, 4.8), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(6.4, 4.8), layout="constrained")
     ax = fig.subplots()
     if len(f):
         ax.plot(f[:, 0], f[:, 1], ".", color="0.6", ms=4, label="feasible designs")
@@ -524,8 +533,7 @@ def plot_taguchi(
         The PNG file.
     """
     names = list(main_effects)
-    fig = Figure(figsize=(2.0 * len(names) + 1.0, 6.4), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(2.0 * len(names) + 1.0, 6.4), layout="constrained")
     grid = fig.add_gridspec(2, len(names))
     top = [fig.add_subplot(grid[0, i]) for i in range(len(names))]
     lows = [min(e["sn_dB"]) for e in main_effects.values()]
@@ -584,8 +592,7 @@ def plot_band(
     n = min(len(xs), len(low), len(high))
     lo, hi = np.asarray(low, dtype=float)[:n], np.asarray(high, dtype=float)[:n]
     ok = np.isfinite(xs[:n]) & np.isfinite(lo) & np.isfinite(hi)
-    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _new_figure(figsize=(6.4, 4.2), layout="constrained")
     ax = fig.subplots()
     ax.fill_between(
         xs[:n][ok], lo[ok], hi[ok], color="tab:blue", alpha=0.25, lw=0, label="min–max of samples"
