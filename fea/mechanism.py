@@ -33,14 +33,17 @@ any solve. Units: mm, N, N·mm, rad, MPa, g.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cache
+from types import ModuleType
 from typing import Literal, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 from flexopt.fea.beam import BeamModel, BeamSettings
-from flexopt.fea.constrained_beams import _BAND, _band_entries, kkt_negative_count
+from flexopt.fea.constrained_beams import _BAND, _LDAB, _band_entries, _resolve, kkt_negative_count
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.geometry.profile import BeamProfile
@@ -253,6 +256,13 @@ class MechanismSettings:
         then the crossing is accepted as genuine (and the rows are flagged unstable).
     check_stability : compute the KKT inertia at every accepted state (``stable``); False skips
         it (all rows report stable=True, the crossing guard is off): faster for big meshes.
+    kernel : "auto", "numba" or "numpy" — the compiled Newton (fea/_mechanism_kernels.py: the
+        beam kernel's assembly, the KKT system solved by bordering the beams' band, the loop as
+        machine code) or the reference (scipy sparse matrices and SuperLU every iteration, the
+        loop in Python). "auto" follows FLEXOPT_BEAM_KERNEL (numba | numpy; default numba) like
+        ``BeamSettings.kernel``. Same decisions, answers equal to round-off
+        (tests/fea/test_mechanism_kernels.py); where the bordering cannot take a system the
+        compiled path runs the reference for that sub-step.
     """
 
     default_elements: int = 30
@@ -268,6 +278,7 @@ class MechanismSettings:
     min_path_cosine: float = 0.8
     min_critical_substep: float = 1e-3
     check_stability: bool = True
+    kernel: Literal["auto", "numba", "numpy"] = "auto"
 
 
 @dataclass(frozen=True)
@@ -312,6 +323,28 @@ class MechanismResponse:
 
 _GROUND = "ground"
 _ENDS = ("start", "end")
+
+log = logging.getLogger(__name__)
+
+
+@cache
+def _kernels() -> ModuleType | None:
+    """fea._mechanism_kernels, or None when numba cannot be imported (the reference runs)."""
+    try:
+        from flexopt.fea import _mechanism_kernels
+    except Exception as exc:  # ImportError, or a numba that fails on this platform's LLVM
+        log.debug("numba mechanism kernel unavailable (%s: %s)", type(exc).__name__, exc)
+        return None
+    return _mechanism_kernels
+
+
+#: texts of the compiled Newton's status codes (fea/_mechanism_kernels.py), as the reference's
+_REASONS = {
+    1: "singular system (a mechanism or a limit point)",
+    2: "singular system (a mechanism or a limit point)",
+    3: "the internal force became NaN or inf",
+    6: "Newton diverged",
+}
 
 
 @dataclass
@@ -777,11 +810,18 @@ def _unit(direction: Sequence[float], what: str) -> np.ndarray:
 
 
 class _State(NamedTuple):
+    """A converged state: z (N,), lam (m,), internal force r (N,), and the Hessian of the
+    Lagrangian and the constraint Jacobian, as scipy matrices H (N, N), G (m, N) (reference) or
+    as the compiled kernel's arrays: the beams' band tangent ``abc`` (N_b, LDAB), the
+    constraint-Hessian term ``kf`` (k,) on the nonlinear rows' theta DOFs and G dense (m, N)."""
+
     z: np.ndarray
     lam: np.ndarray
     r: np.ndarray
-    H: sp.csr_matrix
-    G: sp.csr_matrix
+    H: sp.csr_matrix | None
+    G: sp.csr_matrix | np.ndarray
+    abc: np.ndarray | None = None
+    kf: np.ndarray | None = None
 
 
 class _Solver:
@@ -790,11 +830,80 @@ class _Solver:
     def __init__(self, model: _Model) -> None:
         self.model = model
         self.st = model.settings
+        kernel = _resolve(self.st.kernel)
+        if kernel == "numba" and (
+            _kernels() is None or any(m.kernel != "numba" for m in model.models)
+        ):
+            kernel = "numpy"
+        #: "numba" (compiled, fea/_mechanism_kernels.py) or "numpy" (the reference)
+        self.kernel = kernel
+        if kernel == "numba":
+            self._setup_compiled()
+
+    def _setup_compiled(self) -> None:
+        """The beams' kernel tables concatenated along the elements, the constraint rows as
+        dense arrays, the index arrays in the kernel's types."""
+        md = self.model
+        geos = [m._geo for m in md.models]
+        self._geo = tuple(
+            geos[0][k] if k == 1 else np.ascontiguousarray(np.concatenate([g[k] for g in geos]))
+            for k in range(len(geos[0]))
+        )
+        self._eoff = np.concatenate([[0], np.cumsum([m.n_elements for m in md.models])]).astype(
+            np.int64
+        )
+        self._offsets = md.offsets.astype(np.int64)
+        self._rot = md.rot_dofs.astype(np.int64)
+        self._frame = np.eye(2)
+        self._A = np.ascontiguousarray(md.A.toarray())
+        self._nl_row = md.nl_row.astype(np.int64)
+        self._nl_theta = md.nl_theta.astype(np.int64)
+        self._nl_off = np.ascontiguousarray(md.nl_off)
+        self._nl_w = np.ascontiguousarray(md.nl_w)
+        st = self.st
+        self._fpar = np.array(
+            [st.rtol, st.ctol, st.dtol, st.max_rotation_step, md.length, md.force_floor]
+        )
+
+    def _newton_compiled(
+        self, z0: np.ndarray, lam0: np.ndarray, p: float, predictor: tuple | None
+    ) -> tuple[bool, _State | None, np.ndarray | None, int, str] | None:
+        """:meth:`newton` on the compiled kernel; None when it hands the sub-step back (the
+        bordered solve cannot take this system) and the reference must run it."""
+        md = self.model
+        start = (z0, lam0) if predictor is None else predictor
+        z = np.array(start[0], dtype=np.float64)
+        lam = np.array(start[1], dtype=np.float64)
+        r = np.empty(md.n)
+        abc = np.empty((md.n_beam_dofs, _LDAB))
+        G = np.empty((md.m, md.n))
+        kf = np.empty(self._nl_row.shape[0])
+        z_pred = np.empty(md.n)
+        status, it = _kernels().newton(
+            z, lam, float(p), md.loads(p), predictor is not None, self._A, md.b0, md.bp,
+            self._nl_row, self._nl_theta, self._nl_off, self._nl_w, self._geo, self._eoff,
+            self._offsets, self._frame, self._rot, self._fpar, int(self.st.max_iterations), r,
+            abc, G, kf, z_pred,
+        )  # fmt: skip
+        kern = _kernels()
+        if status == kern.OK:
+            return True, _State(z, lam, r, None, G, abc, kf), z_pred, int(it), ""
+        if status == kern.FALLBACK:
+            return None
+        if status == kern.MAX_ITERATIONS:
+            reason = f"Newton did not converge in {self.st.max_iterations} iterations"
+        else:
+            reason = _REASONS[int(status)]
+        return False, None, None, int(it), reason
 
     def newton(
         self, z0: np.ndarray, lam0: np.ndarray, p: float, predictor: tuple | None
     ) -> tuple[bool, _State | None, np.ndarray | None, int, str]:
         """Equilibrium at p: (converged, state, predicted z, iterations, reason)."""
+        if self.kernel == "numba":
+            out = self._newton_compiled(z0, lam0, p, predictor)
+            if out is not None:
+                return out
         md, st = self.model, self.st
         if predictor is not None:
             z, lam = predictor
@@ -853,6 +962,18 @@ class _Solver:
         """Constrained stability: Z^T H Z positive definite on the null space of G (see module)."""
         if not self.st.check_stability:
             return True
+        if s.abc is not None:
+            md = self.model
+            C = s.G if drop_row < 0 else np.delete(s.G, drop_row, axis=0)
+            negative = _kernels().kkt_negatives_band(
+                s.abc, md.n, self._nl_theta, self._nl_theta, s.kf, np.ascontiguousarray(C)
+            )
+            if negative >= 0:
+                return negative == C.shape[0]
+            # a zero pivot: the reference's count (dense Bunch-Kaufman) below decides
+            _, K = md.assemble(s.z)
+            _, G, ro = md.constraints(s.z, 0.0)  # G and its curvature do not depend on p
+            s = s._replace(H=md.hessian(K, s.lam, ro), G=G)
         G = s.G
         if drop_row >= 0:
             keep = np.setdiff1d(np.arange(G.shape[0]), [drop_row])
