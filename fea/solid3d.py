@@ -60,6 +60,7 @@ __all__ = [
     "extrude_layers_mm",
     "extrude_mesh",
     "solve_solid3d",
+    "Solid3DModel",
     "check_solid3d",
     "compare_with_plane_stress",
     "converge_peak_stress",
@@ -93,11 +94,24 @@ class Solid3DSettings:
     # see _Solver for the measured difference.
     solver: Literal["auto", "cholmod", "superlu"] = "auto"
     # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
-    # (20 000 blocks use ~150 MB each) independently of the mesh size.
+    # (20 000 blocks use ~150 MB each) independently of the mesh size. Solid3DModel's
+    # assembly uses blocks of 2 000 at most (its batched products run ~10x faster in cache).
     block_elements: int = 20_000
     # A model this large is a units or settings mistake on a 24 GB machine (a 1.2 M-DOF P2
     # tetrahedral model factorises in ~6 GB).
     max_dofs: int = 1_500_000
+    # Solid3DModel.solve at a thickness after the first: "pcg" solves by conjugate gradients
+    # preconditioned with the Cholesky factor of the first thickness (a model a few percent
+    # deeper or shallower: ~5 iterations, each a pair of triangular solves, against a new
+    # factorisation; the SEA spring's corrections, docs/solid3d.md); "direct" factorises each
+    # thickness anew (the reference).
+    later_solves: Literal["pcg", "direct"] = "pcg"
+    # PCG stops when |K q - b| <= pcg_rtol |b| (true residual, reduced system). The direct
+    # Cholesky solve of a 400k-DOF P2 model leaves ~1e-15-1e-14; at 1e-12 the stiffness and
+    # peak stress agree with it to ~1e-10.
+    pcg_rtol: float = 1e-12
+    # More iterations than this means the factorised thickness is too far off: factorise anew.
+    pcg_max_iterations: int = 40
 
 
 @dataclass(frozen=True)
@@ -140,6 +154,8 @@ class Solid3DResult:
     symmetric: bool
     solver: str
     times_s: dict = field(default_factory=dict)
+    # conjugate-gradient iterations (Solid3DModel's later thicknesses); 0 for a direct solve
+    iterations: int = 0
 
     @property
     def solve_time_s(self) -> float:
@@ -164,6 +180,7 @@ class Solid3DResult:
             "n_layers": self.n_layers,
             "symmetric": self.symmetric,
             "solver": self.solver,
+            "iterations": self.iterations,
             "times_s": dict(self.times_s),
         }
 
@@ -299,10 +316,16 @@ class _Solver:
     ~5 s for SuperLU. "superlu": scipy's, the fallback when cvxopt does not import.
     """
 
-    def __init__(self, K: sp.csr_matrix, which: str) -> None:
+    def __init__(self, K: sp.spmatrix | None, which: str, lower: tuple | None = None) -> None:
+        """``K`` (n, n) symmetric, or ``lower`` = (values, rows, cols, n): its lower triangle
+        as triplets (rows >= cols, no duplicates), which CHOLMOD reads as they are."""
         if which not in ("auto", "cholmod", "superlu"):
             raise FeaError(f"solver '{which}' unknown; use 'auto', 'cholmod' or 'superlu'")
-        self.n = K.shape[0]
+        if lower is None:
+            assert K is not None
+            L = sp.tril(K, format="coo")
+            lower = (L.data, L.row, L.col, K.shape[0])
+        vals, rows, cols, self.n = lower
         if which in ("auto", "cholmod"):
             try:
                 from cvxopt import cholmod, matrix, spmatrix
@@ -310,9 +333,12 @@ class _Solver:
                 if which == "cholmod":
                     raise FeaError(f"solver 'cholmod' needs cvxopt ({exc})") from exc
             else:
-                L = sp.tril(K, format="coo")
-                A = spmatrix(matrix(L.data.astype(float)), matrix(L.row.astype(np.int64)),
-                             matrix(L.col.astype(np.int64)), (self.n, self.n))  # fmt: skip
+                A = spmatrix(
+                    matrix(np.asarray(vals, dtype=float)),
+                    matrix(np.asarray(rows, dtype=np.int64)),
+                    matrix(np.asarray(cols, dtype=np.int64)),
+                    (self.n, self.n),
+                )
                 self._cholmod, self._matrix = cholmod, matrix
                 self._F = cholmod.symbolic(A, uplo="L")
                 try:
@@ -326,8 +352,11 @@ class _Solver:
                 return
         from scipy.sparse.linalg import splu
 
+        if K is None:
+            L = sp.coo_matrix((vals, (rows, cols)), shape=(self.n, self.n)).tocsc()
+            K = L + L.T - sp.diags(L.diagonal())
         # Minimum degree on A^T + A suits symmetric matrices (as in fea.plane_stress).
-        self._lu = splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A")
+        self._lu = splu(sp.csc_matrix(K), permc_spec="MMD_AT_PLUS_A")
         self.name = "superlu"
 
     def solve(self, b: np.ndarray) -> np.ndarray:
@@ -422,9 +451,52 @@ def solve_solid3d(
     K = _stiffness(sbasis, lam, mu, settings.block_elements)
     ndof = K.shape[0]
     times["assemble"] = time.perf_counter() - t1
+    if ndof > settings.max_dofs:
+        raise FeaError(f"{ndof} DOFs exceed max_dofs = {settings.max_dofs}")
 
-    # Supports. DOF of component c at scalar node s is 3 s + c.
-    locs = sbasis.doflocs.T  # (Ns, 3)
+    sup = _supports(sbasis.doflocs.T, ndof, clamp, drive, settings)
+
+    t2 = time.perf_counter()
+    P = sup.P
+    Kr = (P.T @ K @ P).tocsr()
+    solver = _Solver(Kr, settings.solver)
+    q = solver.solve(-(P.T @ (K @ sup.ubar)))
+    u = sup.ubar + P @ q
+    times["factorise_solve"] = time.perf_counter() - t2
+    rx = _reactions(K @ u, sup, settings)  # internal force = force applied by the supports
+
+    t3 = time.perf_counter()
+    peak, where, peak_n, where_n = _peak_stress(tmesh, sbasis, u, lam, mu, mesh, stress_ignore,
+                                                settings)  # fmt: skip
+    times["stress"] = time.perf_counter() - t3
+    times["total"] = time.perf_counter() - t0
+    return _result(sup, rx, (peak, where, peak_n, where_n), ndof, tmesh.t.shape[1], z.size - 1,
+                   settings, solver.name, times)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _Supports:
+    """The clamp and drive of a 3D model: prescribed displacements and the free unknowns.
+
+    DOF of component c at scalar P2 node s is ``3 s + c``. ``u = ubar + P q`` with q the
+    unknowns; ``free`` are the DOFs P selects one to one (``P`` holds one more column, the
+    common transverse slide, with ``transverse = "free"``).
+    """
+
+    clamp_nodes: np.ndarray  # (nc,) int, scalar nodes
+    drive_nodes: np.ndarray  # (nd,) int
+    ubar: np.ndarray  # (ndof,) float, mm
+    P: sp.csr_matrix  # (ndof, nq)
+    free: np.ndarray  # (nfree,) int, DOFs
+    arm_mm: np.ndarray  # (nd, 2) float, mm: drive node minus the centre
+    direction: np.ndarray  # (2,) unit
+    value: float  # rad or mm
+    is_rot: bool
+
+
+def _supports(locs: np.ndarray, ndof: int, clamp: Clamp, drive: Drive,
+              settings: Solid3DSettings) -> _Supports:  # fmt: skip
+    """Clamp, drive and mid-plane symmetry on the P2 nodes ``locs`` (Ns, 3) mm."""
     tol = settings.select_tol_mm
     clamp_nodes = _select(locs[:, :2], clamp.region, "clamp", tol)
     drive_nodes = _select(locs[:, :2], drive.region, "drive", tol)
@@ -468,63 +540,72 @@ def solve_solid3d(
         cols.append(sp.csr_matrix((vals, (rows, np.zeros(rows.size, dtype=int))), (ndof, 1)))
     elif not is_rot and drive.transverse != "fixed":
         raise FeaError(f"transverse = '{drive.transverse}' must be 'fixed' or 'free'")
-    P = sp.hstack(cols).tocsr()
-    if ndof > settings.max_dofs:
-        raise FeaError(f"{ndof} DOFs exceed max_dofs = {settings.max_dofs}")
+    return _Supports(clamp_nodes, drive_nodes, ubar, sp.hstack(cols).tocsr(), free, X - centre,
+                     direction, value, is_rot)  # fmt: skip
 
-    t2 = time.perf_counter()
-    Kr = (P.T @ K @ P).tocsr()
-    solver = _Solver(Kr, settings.solver)
-    q = solver.solve(-(P.T @ (K @ ubar)))
-    u = ubar + P @ q
-    f = K @ u  # internal force = force applied by the supports, N (half model)
-    times["factorise_solve"] = time.perf_counter() - t2
 
+def _reactions(f: np.ndarray, sup: _Supports, settings: Solid3DSettings) -> dict:
+    """Drive and clamp reactions of the whole part from the internal force ``f`` (ndof,) N."""
     # Whole part: the half model carries half the in-plane forces; the z forces of the two
     # mirrored halves are equal and opposite, so the part's is 0.
     scale = 2.0 if settings.symmetric else 1.0
     keep_z = 0.0 if settings.symmetric else 1.0
-    fd = np.array([f[3 * drive_nodes + c].sum() for c in range(3)]) * scale
-    fc = np.array([f[3 * clamp_nodes + c].sum() for c in range(3)]) * scale
+    dn, cn, arm = sup.drive_nodes, sup.clamp_nodes, sup.arm_mm
+    fd = np.array([f[3 * dn + c].sum() for c in range(3)]) * scale
+    fc = np.array([f[3 * cn + c].sum() for c in range(3)]) * scale
     fd[2] *= keep_z
     fc[2] *= keep_z
-    arm = X - centre
-    torque = float(np.sum(arm[:, 0] * f[3 * drive_nodes + 1] - arm[:, 1] * f[3 * drive_nodes]))
-    torque *= scale
-    force = float(fd[:2] @ direction)
-    stiffness = torque / value if is_rot else force / value
+    torque = float(np.sum(arm[:, 0] * f[3 * dn + 1] - arm[:, 1] * f[3 * dn])) * scale
+    force = float(fd[:2] @ sup.direction)
+    stiffness = torque / sup.value if sup.is_rot else force / sup.value
+    return {"fd": fd, "fc": fc, "torque": torque, "force": force, "stiffness": stiffness}
 
-    t3 = time.perf_counter()
-    peak, where, peak_n, where_n = _peak_stress(tmesh, sbasis, u, lam, mu, mesh, stress_ignore,
-                                                settings)  # fmt: skip
-    times["stress"] = time.perf_counter() - t3
-    times["total"] = time.perf_counter() - t0
+
+def _result(sup: _Supports, rx: dict, peaks: tuple, ndof: int, n_tets: int, n_layers: int,
+            settings: Solid3DSettings, solver: str, times: dict,
+            iterations: int = 0) -> Solid3DResult:  # fmt: skip
+    peak, where, peak_n, where_n = peaks
     return Solid3DResult(
-        drive="rotate" if is_rot else "translate",
-        drive_value=value,
-        reaction_N=fd,
-        torque_Nmm=torque,
-        force_N=force,
-        stiffness=float(stiffness),
-        clamp_reaction_N=fc,
+        drive="rotate" if sup.is_rot else "translate",
+        drive_value=sup.value,
+        reaction_N=rx["fd"],
+        torque_Nmm=rx["torque"],
+        force_N=rx["force"],
+        stiffness=float(rx["stiffness"]),
+        clamp_reaction_N=rx["fc"],
         peak_stress_MPa=peak,
         peak_stress_xyz_mm=where,
         peak_nodal_stress_MPa=peak_n,
         peak_nodal_stress_xyz_mm=where_n,
         n_dofs=int(ndof),
-        n_tets=int(tmesh.t.shape[1]),
-        n_layers=int(z.size - 1),
+        n_tets=int(n_tets),
+        n_layers=int(n_layers),
         symmetric=bool(settings.symmetric),
-        solver=solver.name,
+        solver=solver,
         times_s=times,
+        iterations=int(iterations),
     )
 
 
 def _peak_stress(tmesh, sbasis, u, lam, mu, mesh: TriMesh, ignore, settings):
     """Peak von Mises at quadrature points and vertex-averaged, with (x, y, z) locations."""
-    from skfem import Basis, ElementTetP2
+    from skfem import Basis
 
-    nel = tmesh.t.shape[1]
+    mask = _stress_mask(tmesh.t.shape[1], mesh, ignore)
+    cb = Basis(tmesh, sbasis.elem, quadrature=_CORNERS)
+    return _peaks(u, sbasis.element_dofs.T, _gradients(sbasis),
+                  np.asarray(sbasis.global_coordinates()), _gradients(cb), tmesh.t.T, tmesh.p,
+                  mask, lam, mu)  # fmt: skip
+
+
+# The four corners of the reference tetrahedron as a "quadrature" (weights unused): the P2
+# gradient there gives the vertex values of the stress.
+_CORNERS = (np.array([[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]),
+            np.full(4, 1.0 / 24.0))  # fmt: skip
+
+
+def _stress_mask(nel: int, mesh: TriMesh, ignore: BaseGeometry | None) -> np.ndarray:
+    """(nel,) bool: the tetrahedra whose plane footprint does not touch ``ignore``."""
     mask = np.ones(nel, dtype=bool)
     if ignore is not None:
         tris = shapely.polygons(mesh.points[mesh.triangles])
@@ -534,23 +615,33 @@ def _peak_stress(tmesh, sbasis, u, lam, mu, mesh: TriMesh, ignore, settings):
         mask = ~hit[j]
         if not mask.any():
             raise FeaError("stress_ignore covers every element; nothing left to check")
-    dofs = sbasis.element_dofs.T  # (nel, 10)
+    return mask
+
+
+def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0):
+    """Peak von Mises at quadrature points and vertex-averaged, with their (x, y, z), mm.
+
+    u (ndof,) mm; dofs (nel, 10) scalar P2 DOFs; G (nel, nqp, 10, 3) and Gc (nel, 4, 10, 3)
+    scalar basis gradients, 1/mm, at the quadrature points and the corners; xyz_qp
+    (3, nel, nqp) mm; t (nel, 4) vertices; p (3, nv) mm; mask (nel,) bool: elements judged.
+    z_scale: the mesh the gradients belong to stretched by this along z (their z components
+    divided by it; xyz_qp and p are the stretched mesh's).
+    """
     ue = u.reshape(-1, 3)[dofs]  # (nel, 10, 3)
 
     def grad_u(G: np.ndarray) -> np.ndarray:  # G (nel, nqp, 10, 3) -> (nel, nqp, 3, 3)
-        return np.einsum("eac,eqaj->eqcj", ue, G)
+        g = np.einsum("eac,eqaj->eqcj", ue, G)
+        if z_scale != 1.0:
+            g[..., 2] /= z_scale
+        return g
 
-    vm = _von_mises(grad_u(_gradients(sbasis)), lam, mu)  # (nel, nqp)
+    vm = _von_mises(grad_u(G), lam, mu)  # (nel, nqp)
     vm_m = np.where(mask[:, None], vm, -np.inf)
     e, qp = np.unravel_index(np.argmax(vm_m), vm_m.shape)
-    xyz = np.asarray(sbasis.global_coordinates())[:, e, qp]
+    xyz = xyz_qp[:, e, qp]
     # Vertex values: the P2 gradient at the tetrahedron's corners, averaged over its elements.
-    corners = (np.array([[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]),
-               np.full(4, 1.0 / 24.0))  # fmt: skip
-    cb = Basis(tmesh, ElementTetP2(), quadrature=corners)
-    vc = _von_mises(grad_u(_gradients(cb)), lam, mu)  # (nel, 4) in t order
-    t = tmesh.t.T
-    n = tmesh.p.shape[1]
+    vc = _von_mises(grad_u(Gc), lam, mu)  # (nel, 4) in t order
+    n = p.shape[1]
     total = np.bincount(t.ravel(), weights=vc.ravel(), minlength=n)
     count = np.bincount(t.ravel(), minlength=n)
     nodal = total / np.maximum(count, 1)
@@ -558,7 +649,294 @@ def _peak_stress(tmesh, sbasis, u, lam, mu, mesh: TriMesh, ignore, settings):
     allowed[t[mask].ravel()] = True
     nodal[~allowed] = -np.inf
     k = int(np.argmax(nodal))
-    return float(vm[e, qp]), xyz.copy(), float(nodal[k]), tmesh.p[:, k].copy()
+    return float(vm[e, qp]), xyz.copy(), float(nodal[k]), p[:, k].copy()
+
+
+# --------------------------------------------------------------------------------------------
+# One model for every thickness
+
+
+# Components (c, d) of a 3x3 node block that each part of the stiffness fills: the in-plane
+# part (both gradients in-plane) has the in-plane block and, from mu delta_cd g_a.g_b, the
+# (z, z) entry; the mixed part the four entries with one z; the out-of-plane part the
+# diagonal (lam + 2 mu on (z, z), mu g_az g_bz on the in-plane ones).
+_PP = ((0, 0), (0, 1), (1, 0), (1, 1), (2, 2))
+_PZ = ((0, 2), (1, 2), (2, 0), (2, 1))
+_ZZ = ((0, 0), (1, 1), (2, 2))
+
+
+def _stiffness_parts(G: np.ndarray, dx: np.ndarray, dofs: np.ndarray, n_scalar: int,
+                     lam: float, mu: float, block: int):  # fmt: skip
+    """The stiffness split by the directions of the two gradients, on one block pattern.
+
+    ``K_(a c)(b d) = sum_q dx (lam g_ac g_bd + mu g_ad g_bc + mu delta_cd g_a . g_b)``
+    (:func:`_stiffness`); each product of two gradient components is in-plane x in-plane,
+    mixed, or z x z. Stretching the mesh along z by s multiplies them by s, 1 and 1 / s
+    (g_z scales by 1 / s, dx by s), so ``K(s) = s K_pp + K_pz + K_zz / s`` exactly.
+
+    Parameters
+    ----------
+    G : (nel, nqp, 10, 3) float, 1/mm — scalar gradients; dx : (nel, nqp) float, mm^3.
+    dofs : (nel, 10) int — scalar P2 DOFs; n_scalar : int — their number.
+    lam, mu : float, MPa; block : int — elements per batch (bounds the memory).
+
+    Returns
+    -------
+    indptr (n_scalar + 1,), indices (nnzb,) — the scalar (block-row) pattern, sorted;
+    parts : dict "pp", "pz", "zz" -> (len(_PP | _PZ | _ZZ), nnzb) float, N/mm — the entries
+    of each node block listed in _PP, _PZ, _ZZ.
+    """
+    nel, nloc = dofs.shape
+    # (element, a, b) -> node block: one sort of the 100 pairs of every element (a stable
+    # sort: the elements' order already groups most pairs, np.unique's sort is ~3x slower)
+    keys = np.repeat(dofs.astype(np.int64) * n_scalar, nloc, axis=1)
+    keys += np.tile(dofs, (1, nloc))
+    keys = keys.ravel()
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    del keys
+    first = np.empty(sk.size, dtype=bool)
+    first[0] = True
+    np.not_equal(sk[1:], sk[:-1], out=first[1:])
+    uniq = sk[first]
+    del sk
+    inv = np.empty(order.size, dtype=np.int64)
+    inv[order] = np.cumsum(first) - 1
+    del order, first
+    nnzb = uniq.size
+    brow, bcol = np.divmod(uniq, n_scalar)
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(brow, minlength=n_scalar))])
+    del uniq, brow
+    parts = {k: np.zeros((len(c), nnzb)) for k, c in (("pp", _PP), ("pz", _PZ), ("zz", _ZZ))}
+    per = nloc * nloc
+    for s in range(0, nel, block):
+        Gb, dxb = G[s : s + block], dx[s : s + block]
+        m = Gb.shape[0]
+        Gw = (Gb * dxb[:, :, None, None]).reshape(m, -1, 3 * nloc)
+        # M[e, a, b, i, j] = sum_q dx g_ai g_bj (small blocks: the batched product is ~10x
+        # slower once its operands leave the cache)
+        M = np.matmul(Gw.transpose(0, 2, 1), Gb.reshape(m, -1, 3 * nloc))
+        M = M.reshape(m, nloc, 3, nloc, 3).transpose(0, 1, 3, 2, 4)
+        # the block's own node blocks: summing into them, then into the whole pattern, keeps
+        # each sum as long as the block (not nnzb)
+        used, ib = np.unique(inv[s * per : (s + m) * per], return_inverse=True)
+        inplane = mu * (M[..., 0, 0] + M[..., 1, 1])
+        for name, comps in (("pp", _PP), ("pz", _PZ), ("zz", _ZZ)):
+            for j, (c, d) in enumerate(comps):
+                if name == "pp" and c == 2:
+                    w = inplane  # mu delta_cd g_a.g_b, in-plane gradients, on (z, z)
+                elif name == "zz":
+                    # (z, z): lam + mu (swapped) + mu (delta); in-plane diagonal: the delta's
+                    w = (lam + 2.0 * mu if c == 2 else mu) * M[..., 2, 2]
+                else:
+                    w = lam * M[..., c, d] + mu * M[..., d, c]
+                    if c == d:
+                        w = w + inplane
+                parts[name][j, used] += np.bincount(ib, weights=w.ravel(), minlength=used.size)
+    return indptr, bcol, parts
+
+
+def _pcg(matvec: Callable, b: np.ndarray, precondition: Callable, x0: np.ndarray,
+         rtol: float, max_iterations: int) -> tuple[np.ndarray, int, bool]:  # fmt: skip
+    """Preconditioned conjugate gradients for a symmetric positive definite system.
+
+    Stops when the true residual |b - A x| <= rtol |b| (checked whenever the recursive one
+    says so, so round-off in the recursion cannot end it early). Returns (x, iterations,
+    converged).
+    """
+    bnorm = float(np.linalg.norm(b))
+    if bnorm == 0.0:
+        return np.zeros_like(b), 0, True
+    x = np.array(x0, dtype=float)
+    r = b - matvec(x)
+    z = precondition(r)
+    p = z.copy()
+    rz = float(r @ z)
+    for it in range(1, max_iterations + 1):
+        Ap = matvec(p)
+        alpha = rz / float(p @ Ap)
+        x += alpha * p
+        r -= alpha * Ap
+        if np.linalg.norm(r) <= rtol * bnorm:
+            r = b - matvec(x)  # the true residual decides
+            if np.linalg.norm(r) <= rtol * bnorm:
+                return x, it, True
+        z = precondition(r)
+        rz_new = float(r @ z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return x, max_iterations, False
+
+
+class Solid3DModel:
+    """The 3D model of a plane mesh at any thickness: extruded, assembled and supported once.
+
+    The layer heights are proportional to the thickness (:func:`extrude_layers_mm`), so the
+    model at thickness t is the 1 mm model stretched by t along z: its stiffness is
+    ``K(t) = t K_pp + K_pz + K_zz / t`` (:func:`_stiffness_parts`), assembled once, and its
+    stresses follow from the 1 mm model's basis gradients with their z components divided by
+    t. Every node keeps its (x, y), so the supports select the same DOFs at every thickness.
+    The first :meth:`solve` factorises K (CHOLMOD, as :func:`solve_solid3d`); with
+    ``settings.later_solves = "pcg"`` a later thickness is solved by conjugate gradients
+    preconditioned with that factor, to ``pcg_rtol``; with "direct" it is factorised anew.
+    :func:`solve_solid3d` is the reference (assembled at its thickness, factorised); the
+    answers agree to solver round-off (tests/fea/test_solid3d_model.py).
+
+    Parameters
+    ----------
+    mesh : TriMesh — the plane mesh, (n, 2) mm; material : Material
+    clamp : Clamp; drive : Rotate or Translate — as :func:`solve_solid3d`
+    settings : Solid3DSettings; stress_ignore : shapely geometry, optional
+
+    Memory: the factor of the first thickness is kept (~2 GB for 400k DOFs) while the model
+    lives.
+    """
+
+    #: the thickness the model is built at, mm (any: the parts are exact at every thickness)
+    REFERENCE_THICKNESS_MM = 1.0
+
+    def __init__(
+        self,
+        mesh: TriMesh,
+        material: Material,
+        clamp: Clamp,
+        drive: Drive,
+        settings: Solid3DSettings = Solid3DSettings(),
+        stress_ignore: BaseGeometry | None = None,
+    ) -> None:
+        from skfem import Basis, ElementTetP2
+
+        t0 = time.perf_counter()
+        if not isinstance(drive, Translate | Rotate):
+            raise FeaError(f"drive must be Translate or Rotate, got {type(drive).__name__}")
+        if settings.later_solves not in ("pcg", "direct"):
+            raise FeaError(f"later_solves '{settings.later_solves}': use 'pcg' or 'direct'")
+        self.mesh, self.material, self.settings = mesh, material, settings
+        self.clamp, self.drive, self.stress_ignore = clamp, drive, stress_ignore
+        z = extrude_layers_mm(self.REFERENCE_THICKNESS_MM, settings)
+        est = 3 * (2 * (z.size - 1) + 1) * 4 * mesh.n_points
+        if est > settings.max_dofs:
+            raise FeaError(
+                f"the 3D model would have about {est} DOFs (cap {settings.max_dofs}); use "
+                "fewer layers or a coarser plane mesh"
+            )
+        self._n_layers = z.size - 1
+        tmesh = extrude_mesh(mesh, z)
+        sbasis = Basis(tmesh, ElementTetP2(), intorder=2)
+        cbasis = Basis(tmesh, sbasis.elem, quadrature=_CORNERS)
+        self._dofs = sbasis.element_dofs.T  # (nel, 10)
+        self._G = _gradients(sbasis)  # (nel, nqp, 10, 3), 1/mm at 1 mm
+        self._Gc = _gradients(cbasis)  # (nel, 4, 10, 3)
+        self._xyz_qp = np.asarray(sbasis.global_coordinates())  # (3, nel, nqp), mm at 1 mm
+        self._t, self._p = tmesh.t.T, tmesh.p  # (nel, 4), (3, nv)
+        self._mask = _stress_mask(tmesh.t.shape[1], mesh, stress_ignore)
+        self.n_dofs = 3 * sbasis.N
+        if self.n_dofs > settings.max_dofs:
+            raise FeaError(f"{self.n_dofs} DOFs exceed max_dofs = {settings.max_dofs}")
+        self._sup = _supports(sbasis.doflocs.T, self.n_dofs, clamp, drive, settings)
+        t1 = time.perf_counter()
+        self._lam, self._mu = _lame(material)
+        self._indptr, self._indices, self._parts = _stiffness_parts(
+            self._G, sbasis.dx, self._dofs, sbasis.N, self._lam, self._mu,
+            min(2_000, settings.block_elements),
+        )  # fmt: skip
+        self._lower = self._reduced_lower_pattern()
+        self._build_times = {"mesh": t1 - t0, "assemble": time.perf_counter() - t1}
+        self._factor: _Solver | None = None
+        self._q: np.ndarray | None = None
+
+    def _reduced_lower_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Where the reduced matrix's lower triangle sits in the blocks: (flat index into the
+        (nnzb, 3, 3) block values, reduced row, reduced column), or None when the unknowns are
+        not a selection of DOFs (a common transverse slide): then P^T K P is formed."""
+        sup = self._sup
+        if sup.P.shape[1] != sup.free.size:
+            return None
+        red = np.full(self.n_dofs, -1, dtype=np.int64)
+        red[sup.free] = np.arange(sup.free.size)
+        nb = np.diff(self._indptr)
+        brow = np.repeat(np.arange(nb.size), nb)
+        kb = np.flatnonzero(self._indices >= brow)  # blocks on or above the diagonal
+        br, bc = brow[kb], self._indices[kb]
+        del brow
+        free3 = (red >= 0).reshape(-1, 3)  # (node, component)
+        keep = free3[br][:, :, None] & free3[bc][:, None, :]  # (block, c, d)
+        keep[br == bc] &= np.triu(np.ones((3, 3), dtype=bool))  # upper part of diagonal blocks
+        k, cd = np.divmod(np.flatnonzero(keep.ravel()), 9)
+        del keep
+        c, d = np.divmod(cd, 3)
+        flat = 9 * kb[k] + cd
+        # the upper triangle of K (row 3 br + c, column 3 bc + d) is the lower of its transpose
+        return flat, red[3 * bc[k] + d], red[3 * br[k] + c]
+
+    def stiffness_matrix(self, thickness_mm: float) -> sp.bsr_matrix:
+        """K(t), (ndof, ndof) N/mm, DOF ``3 s + c`` (as :func:`_stiffness` at that thickness)."""
+        s = float(thickness_mm) / self.REFERENCE_THICKNESS_MM
+        B = np.zeros((self._indices.size, 3, 3))
+        for name, comps, f in (("pp", _PP, s), ("pz", _PZ, 1.0), ("zz", _ZZ, 1.0 / s)):
+            for j, (c, d) in enumerate(comps):
+                B[:, c, d] += f * self._parts[name][j]
+        return sp.bsr_matrix((B, self._indices, self._indptr),
+                             shape=(self.n_dofs, self.n_dofs))  # fmt: skip
+
+    def solve(self, thickness_mm: float) -> Solid3DResult:
+        """The linear 3D answer at ``thickness_mm``, as :func:`solve_solid3d` gives it.
+
+        ``times_s``: the first solve carries the model's meshing and assembly; a later one
+        "assemble" is forming K(t). ``iterations``: PCG's (0 when factorised).
+        """
+        t0 = time.perf_counter()
+        if not (np.isfinite(thickness_mm) and thickness_mm > 0):
+            raise FeaError(f"thickness_mm = {thickness_mm} must be > 0 mm")
+        st = self.settings
+        first = self._factor is None
+        times = dict(self._build_times) if first else {"mesh": 0.0}
+        K = self.stiffness_matrix(thickness_mm)
+        t1 = time.perf_counter()
+        times["assemble"] = times.get("assemble", 0.0) + (t1 - t0)
+        sup = self._sup
+        P = sup.P
+        b = -(P.T @ (K @ sup.ubar))
+        iterations = 0
+        q = None
+        if not first and st.later_solves == "pcg":
+            assert self._factor is not None and self._q is not None
+            q, iterations, ok = _pcg(
+                lambda x: P.T @ (K @ (P @ x)), b, self._factor.solve, self._q,
+                st.pcg_rtol, st.pcg_max_iterations,
+            )  # fmt: skip
+            if not ok:
+                q = None  # too far from the factorised thickness: factorise this one
+        if q is None:
+            iterations = 0
+            self._factor = None  # release the old factor before the new one is built
+            if self._lower is not None:
+                flat, rows, cols = self._lower
+                lower = (K.data.ravel()[flat], rows, cols, P.shape[1])
+                self._factor = _Solver(None, st.solver, lower)
+            else:
+                self._factor = _Solver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
+            q = self._factor.solve(b)
+        self._q = q
+        u = sup.ubar + P @ q
+        times["factorise_solve"] = time.perf_counter() - t1
+        rx = _reactions(K @ u, sup, st)  # internal force = force applied by the supports
+        t2 = time.perf_counter()
+        zs = float(thickness_mm) / self.REFERENCE_THICKNESS_MM
+        stretch = np.array([1.0, 1.0, zs])
+        peaks = _peaks(u, self._dofs, self._G, self._xyz_qp * stretch[:, None, None], self._Gc,
+                       self._t, self._p * stretch[:, None], self._mask, self._lam, self._mu,
+                       z_scale=zs)  # fmt: skip
+        times["stress"] = time.perf_counter() - t2
+        times["total"] = sum(times.values())
+        solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"
+        return _result(sup, rx, peaks, self.n_dofs, self._t.shape[0], self._n_layers, st,
+                       solver, times, iterations)  # fmt: skip
+
+    def compare_with_plane_stress(self, thickness_mm: float) -> dict:
+        """:func:`compare_with_plane_stress` at ``thickness_mm`` with this model's 3D solve."""
+        return _compare(self.mesh, self.material, thickness_mm, self.clamp, self.drive,
+                        self.stress_ignore, self.solve(thickness_mm))  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------------
@@ -621,6 +999,12 @@ def compare_with_plane_stress(
         peaks, as plane stress reports them), ``solid3d`` (:meth:`Solid3DResult.summary`),
         ``time_2d_s``.
     """
+    r3 = solve_solid3d(mesh, material, thickness_mm, clamp, drive, settings, stress_ignore)
+    return _compare(mesh, material, thickness_mm, clamp, drive, stress_ignore, r3)
+
+
+def _compare(mesh, material, thickness_mm, clamp, drive, stress_ignore, r3) -> dict:
+    """compare_with_plane_stress's record from the 3D answer ``r3``: the 2D solve and ratios."""
     from dataclasses import replace
 
     from flexopt.fea.plane_stress import solve_plane_stress
@@ -633,7 +1017,6 @@ def compare_with_plane_stress(
     else:
         k2 = float(r2.force_N[-1] / drive.max_mm)
     s2 = float(r2.peak_nodal_stress_MPa[-1])
-    r3 = solve_solid3d(mesh, material, thickness_mm, clamp, drive, settings, stress_ignore)
     return {
         "stiffness_2d": k2,
         "stiffness_3d": r3.stiffness,

@@ -88,6 +88,7 @@ from flexopt.geometry.sea_spring import (
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
+from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.studies._blocks import MeshSpec, Solid3DSpec
@@ -936,6 +937,7 @@ class SeaSpringProblem:
         }
         return Evaluation(x, f, g, metrics, "", time.perf_counter() - t0), (p, geom, r, st)
 
+    @no_numpy_hugepages  # large arrays ahead (pipeline/_hugepages.py)
     def detail(self, x: np.ndarray) -> DesignDetail:
         x = np.asarray(x, dtype=float)
         study = self.study
@@ -1064,6 +1066,7 @@ class SeaSpringProblem:
             files=files,
         )
 
+    @no_numpy_hugepages  # the 3D model's arrays (pipeline/_hugepages.py)
     def solid_3d(self, geom: SpringGeometry, r: SpringResponse) -> dict[str, Any]:
         """The design as a 3D solid, its thickness corrected for it, its peak stress converged
         (issue 15; docs/solid3d.md; the study's ``solid_3d:`` block).
@@ -1087,15 +1090,17 @@ class SeaSpringProblem:
            is left as it is (its 1.4 deg facets cost nothing in the GA and the stress
            objective only ranks designs; finer sampling would triple its triangles).
 
+        Cost (docs/solid3d.md): the checks share one 3D model (:class:`fea.solid3d.Solid3DModel`:
+        the mesh extruded and assembled once, ST only scales its parts; the first check
+        factorises, the re-checks solve by conjugate gradients preconditioned with that
+        factor); the peak convergence, which needs no 3D answer until its last product, runs
+        meanwhile in a second process.
+
         Returns
         -------
         dict — N m/rad, MPa, mm, s; ``problem`` alone when the 3D model cannot be built.
         """
-        from flexopt.fea.solid3d import (
-            Solid3DSettings,
-            compare_with_plane_stress,
-            correct_thickness_3d,
-        )
+        from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings, correct_thickness_3d
 
         spec, target, s3 = self.study.mesh, self.study.target, self.study.solid_3d
         t0 = time.perf_counter()
@@ -1107,12 +1112,13 @@ class SeaSpringProblem:
         if math.isfinite(r.reverse_stiffness_Nm_per_rad):
             k2d["cw"] = r.reverse_stiffness_Nm_per_rad
         peak2d = r.worst_peak_stress_MPa  # plane stress: independent of ST
+        # the 2D peak convergence needs none of the 3D answers: the second core does it
+        peak_job = _PeakJob.start(self, geom, r) if s3.converge_peak else None
+        model: Solid3DModel | None = None
 
         def check(st: float) -> dict[str, Any]:
-            c = compare_with_plane_stress(
-                m, self.material, st, clamp, Rotate(geom.hub_region, (0.0, 0.0), self.theta, 1),
-                Solid3DSettings(layers=s3.layers), stress_ignore=ignore,
-            )  # fmt: skip
+            assert model is not None
+            c = model.compare_with_plane_stress(st)
             ratio = c["stiffness_ratio"]
             k2 = {d: k * st / st0 for d, k in k2d.items()}  # torque is proportional to ST
             return {
@@ -1125,11 +1131,15 @@ class SeaSpringProblem:
                 "peak_stress_3d_MPa": peak2d * c["peak_stress_ratio"],
                 "dofs": c["solid3d"]["n_dofs"],
                 "solver": c["solid3d"]["solver"],
+                "iterations": c["solid3d"]["iterations"],
                 "time_s": c["solid3d"]["times_s"]["total"] + c["time_2d_s"],
             }
 
         try:
             m = mesh_polygon(geom.fe_outline, spec.max_edge_mm, refine=regions)
+            drive = Rotate(geom.hub_region, (0.0, 0.0), self.theta, 1)
+            settings = Solid3DSettings(layers=s3.layers)
+            model = Solid3DModel(m, self.material, clamp, drive, settings, stress_ignore=ignore)
             corr = correct_thickness_3d(
                 check,
                 st0,
@@ -1139,7 +1149,15 @@ class SeaSpringProblem:
                 s3.max_checks,
             )
         except FeaError as exc:
+            if peak_job is not None:
+                peak_job.cancel()
             return {"problem": f"3D check not made: {exc}"}
+        except BaseException:
+            if peak_job is not None:
+                peak_job.cancel()
+            raise
+        finally:
+            model = None  # its factor holds ~2 GB
         checks = []
         for c in corr["checks"]:
             row = {"ST_mm": c["thickness_mm"], "stiffness_ratio_3d_2d": c["stiffness_ratio_3d_2d"]}
@@ -1153,6 +1171,8 @@ class SeaSpringProblem:
                     "peak_stress_ratio_3d_2d": c["peak_stress_ratio_3d_2d"],
                     "peak_stress_3d_MPa": c["peak_stress_3d_MPa"],
                     "dofs": c["dofs"],
+                    "solver": c["solver"],
+                    "iterations": c["iterations"],
                     "time_s": c["time_s"],
                 }
             )
@@ -1192,7 +1212,9 @@ class SeaSpringProblem:
             }
         )
         if s3.converge_peak:
-            out["peak_convergence"] = self._converged_peak(geom, r, last["peak_stress_ratio_3d_2d"])
+            out["peak_convergence"] = self._converged_peak(
+                geom, r, last["peak_stress_ratio_3d_2d"], peak_job
+            )
             conv = out["peak_convergence"]
             if "problem" not in conv:
                 out["peak_stress_3d_MPa"] = conv["peak_stress_3d_MPa"]
@@ -1201,30 +1223,25 @@ class SeaSpringProblem:
         return out
 
     def _converged_peak(
-        self, geom: SpringGeometry, r: SpringResponse, ratio_3d_2d: float
+        self,
+        geom: SpringGeometry,
+        r: SpringResponse,
+        ratio_3d_2d: float,
+        job: _PeakJob | None = None,
     ) -> dict[str, Any]:
         """The 2D peak of the worse direction on a finely sampled outline, refined until it
-        moves < 1 % (:func:`fea.solid3d.converge_peak_stress`), and the 3D peak from it."""
-        from flexopt.fea.solid3d import converge_peak_stress
-        from flexopt.geometry.arm_spring import ArmSpringParams
+        moves < 1 % (:func:`fea.solid3d.converge_peak_stress`), and the 3D peak from it.
 
-        spec, s3 = self.study.mesh, self.study.solid_3d
+        ``job``: the same computation already running in a second process
+        (:meth:`_PeakJob.start`); without one (or if that process failed to run) it runs
+        here."""
+        s3 = self.study.solid_3d
         t0 = time.perf_counter()
-        rev = r.reverse_peak_stress_MPa
-        sign = -1.0 if rev is not None and float(rev[-1]) > float(r.peak_stress_MPa[-1]) else 1.0
+        sign = _worse_direction(r)
         try:
-            if isinstance(geom.params, ArmSpringParams):
-                smooth = build_arm_spring(geom.params, self.frame, curve_step_mm=s3.curve_step_mm)
-            else:  # serpentine: its arcs sampled at 0.25 deg
-                frame = replace(self.frame, arc_step_deg=0.25, arc_step_mm=s3.curve_step_mm)
-                smooth = build_spring(geom.params, frame)
-            c = converge_peak_stress(
-                smooth.fe_outline, smooth.thickness_mm, self.material, Clamp(smooth.pad_region),
-                Rotate(smooth.hub_region, (0.0, 0.0), sign * self.theta, 1), spec.max_edge_mm,
-                refine=smooth.mesh_regions(spec.elements_through, spec.max_edge_mm),
-                stress_ignore=smooth.hub_region.union(smooth.pad_region).buffer(0.05),
-                kinematics="nonlinear",
-            )  # fmt: skip
+            c = job.result() if job is not None else None
+            if c is None:
+                c = _peak_convergence(self, geom.params, sign)
         except (FeaError, GeometryError) as exc:
             return {"problem": f"peak-stress convergence not made: {exc}"}
         return {
@@ -1239,8 +1256,103 @@ class SeaSpringProblem:
             "corner": c["corner"],
             "peak_stress_2d_MPa": c["last_two_MPa"][-1],
             "peak_stress_3d_MPa": c["last_two_MPa"][-1] * ratio_3d_2d,
-            "time_s": time.perf_counter() - t0,
+            # the convergence's own time (in the second process, beside the 3D checks) and
+            # how long the report waited for it here
+            "time_s": c["time_s"],
+            "wait_s": time.perf_counter() - t0,
+            "process": "second" if job is not None and job.ran else "this",
         }
+
+
+def _worse_direction(r: SpringResponse) -> float:
+    """+1 (ccw) or -1 (cw): the direction of the larger 2D peak stress."""
+    rev = r.reverse_peak_stress_MPa
+    return -1.0 if rev is not None and float(rev[-1]) > float(r.peak_stress_MPa[-1]) else 1.0
+
+
+def _peak_convergence(
+    prob: SeaSpringProblem, params: SpringParams | ArmSpringParams, sign: float
+) -> dict[str, Any]:
+    """:func:`fea.solid3d.converge_peak_stress` on the design rebuilt with its arms sampled
+    every ``solid_3d.curve_step_mm``, nonlinear, hub turned by ``sign`` theta_T (picklable:
+    :class:`_PeakJob` runs it in a second process). Raises FeaError, GeometryError."""
+    from flexopt.fea.solid3d import converge_peak_stress
+
+    spec, s3 = prob.study.mesh, prob.study.solid_3d
+    if isinstance(params, ArmSpringParams):
+        smooth = build_arm_spring(params, prob.frame, curve_step_mm=s3.curve_step_mm)
+    else:  # serpentine: its arcs sampled at 0.25 deg
+        frame = replace(prob.frame, arc_step_deg=0.25, arc_step_mm=s3.curve_step_mm)
+        smooth = build_spring(params, frame)
+    return converge_peak_stress(
+        smooth.fe_outline, smooth.thickness_mm, prob.material, Clamp(smooth.pad_region),
+        Rotate(smooth.hub_region, (0.0, 0.0), sign * prob.theta, 1), spec.max_edge_mm,
+        refine=smooth.mesh_regions(spec.elements_through, spec.max_edge_mm),
+        stress_ignore=smooth.hub_region.union(smooth.pad_region).buffer(0.05),
+        kinematics="nonlinear",
+    )  # fmt: skip
+
+
+def _peak_job_main(prob: SeaSpringProblem, params: Any, sign: float) -> dict[str, Any]:
+    """The second process's work: one BLAS thread (the first process factorises beside it)."""
+    try:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(1)
+    except ImportError:
+        pass
+    return _peak_convergence(prob, params, sign)
+
+
+class _PeakJob:
+    """The peak convergence of :meth:`SeaSpringProblem._converged_peak` in a second process.
+
+    The report's 3D checks keep one core busy (assembly, one factorisation, triangular
+    solves); the convergence (nonlinear plane-stress solves on refined meshes, ~15 s on the
+    default study) depends only on the design, so it runs beside them. Where a process cannot
+    be started (a daemonic worker, no fork/forkserver/spawn) ``result`` gives None and the
+    caller runs it itself; errors of the computation (FeaError, GeometryError) come back
+    as raised.
+    """
+
+    def __init__(self, pool: Any, handle: Any) -> None:
+        self._pool, self._handle = pool, handle
+        self.ran = False
+
+    @classmethod
+    def start(cls, prob: SeaSpringProblem, geom: SpringGeometry, r: SpringResponse) -> _PeakJob:
+        try:
+            from flexopt.pipeline.parallel import _context
+
+            pool = _context().Pool(1)
+            handle = pool.apply_async(_peak_job_main, (prob, geom.params, _worse_direction(r)))
+        except Exception as exc:  # no second process here: the caller runs it in this one
+            log.info("peak convergence in this process (%s)", exc)
+            return cls(None, None)
+        return cls(pool, handle)
+
+    def result(self) -> dict[str, Any] | None:
+        """The convergence's dict, or None when it must run in this process."""
+        if self._pool is None:
+            return None
+        try:
+            out = self._handle.get()
+            self.ran = True
+            return out
+        except (FeaError, GeometryError):
+            raise
+        except Exception as exc:  # the process died or could not unpickle: run it here
+            log.warning("peak convergence process failed (%s); running it here", exc)
+            return None
+        finally:
+            self.cancel()
+
+    def cancel(self) -> None:
+        """Stop the process (at once; its result is not needed)."""
+        if self._pool is not None:
+            self._pool.terminate()
+            self._pool.join()
+            self._pool = None
 
 
 def solid_3d_scalars(s3: dict[str, Any]) -> dict[str, Any]:
