@@ -9,8 +9,8 @@ load changes hit both alike), as CPU time (``time.process_time``) and wall time,
   the small-angle solve and 10 rows to the range of motion);
 * ``leaf-spring-joint`` — ``flexopt evaluate``'s solves: both structures at three lengths, each
   traced and its elastic limit found (the follower-load path for structure b);
-* ``bistable-switch`` — one GA evaluation of the mechanism study's design. fea.mechanism has its
-  own Newton (scipy); only its stability count (``kkt_negative_count``) is compiled here.
+* ``bistable-switch`` — one GA evaluation of the mechanism study's design (fea.mechanism: its
+  own Newton, compiled in fea/_mechanism_kernels.py; the reference column switches that off too).
 
 ``reference`` is the engine as it was before the compiled path: scipy sparse matrices, SuperLU,
 the Newton loop in Python (the beams' own kernel stays compiled in both columns). The first-call
@@ -43,17 +43,20 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import flexopt.fea.constrained_beams as cb  # noqa: E402
+import flexopt.fea.mechanism as fm  # noqa: E402
 import numpy as np  # noqa: E402
 from flexopt.pipeline.studies import get_kind  # noqa: E402
 from flexopt.pipeline.study import load_study  # noqa: E402
 
 _KERNELS = cb._kernels
+_MECH_KERNELS = fm._kernels
 
 
 def _path(name: str) -> None:
     """Select the engine's path: "compiled" (default) or "reference" (as if numba were absent;
     the beams' kernel is untouched)."""
     cb._kernels = _KERNELS if name == "compiled" else (lambda: None)
+    fm._kernels = _MECH_KERNELS if name == "compiled" else (lambda: None)
 
 
 def _pivot():

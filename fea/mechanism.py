@@ -63,6 +63,7 @@ __all__ = [
     "solve_mechanism",
     "mass_g",
     "stable_positions",
+    "warm_up",
 ]
 
 
@@ -1278,6 +1279,42 @@ def mass_g(mech: Mechanism, body_thickness_mm: float = 0.0) -> float:
             area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
             vol += area * body_thickness_mm
     return vol * rho
+
+
+def warm_up() -> str:
+    """Compile (first call in an install) or load from numba's cache the mechanism kernels now.
+
+    Like :func:`fea.constrained_beams.warm_up` (which this calls first): a process pool calls it
+    before it forks, so that workers inherit the compiled code. A tiny lever (a body pinned to
+    the ground, turned through a leaf: the nonlinear rows) is traced two rows on the compiled
+    path, with its stability counted.
+
+    Returns
+    -------
+    str
+        The path that runs: "numba", or "numpy" when numba is unavailable (nothing to do).
+    """
+    from flexopt.fea.constrained_beams import warm_up as constrained_warm_up
+
+    constrained_warm_up()
+    kernel = _resolve("auto")
+    if kernel != "numba" or _kernels() is None:
+        return "numpy"
+    material = Material("warm-up", E_MPa=1000.0, nu=0.3, yield_MPa=10.0)
+    leaf = MechBeam("leaf", np.array([[2.0, 0.0], [-8.0, 0.0]]), np.array([1.0, 1.0]), 1.0, 2)
+    mech = Mechanism(
+        (leaf,),
+        (MechBody("arm", np.zeros(2)),),
+        (
+            MechJoint("arm", "ground", "pinned"),
+            MechJoint("leaf.start", "arm@2,0", "pinned"),
+            MechJoint("leaf.end", "ground"),
+        ),
+        material,
+    )
+    case = LoadCase("warm-up", MechDrive("arm@-2,0", "displacement", 0.1, 2, (0.0, 1.0)))
+    solve_mechanism(mech, case, (), MechanismSettings(kernel="numba"))
+    return kernel
 
 
 def stable_positions(drive: np.ndarray, reaction: np.ndarray) -> tuple[int, float | None]:
