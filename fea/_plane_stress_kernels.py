@@ -210,7 +210,7 @@ def svk_assemble(
     u : (N,) mm — displacement.
     dofs : (E, 2 ns) int64; g : (E, Q, ns, 2) 1/mm; dx : (E, Q) mm^2 — the mesh tables.
     thickness : mm. lam, mu : plane-stress Lamé constants, MPa.
-    where : (E * (2 ns)^2,) int64 — CSR positions from :func:`csr_pattern`; nnz : its size.
+    where : (E * (2 ns)^2,) int32 or int64 — CSR positions from :func:`csr_pattern`; nnz : its size.
     want_tangent : False skips the tangent (the data array is then all zeros).
 
     Returns

@@ -435,9 +435,11 @@ class _VectorAssembly:
             self.nnz = int(keys.size)
             self.indptr = np.searchsorted(self._rows, np.arange(self.N + 1)).astype(np.int32)
         self.indices = self._cols.astype(np.int32)
-        self._keep: np.ndarray | None = None
+        self._keep: np.ndarray | None = None  # (k,) positions of the reduced entries
         self._dofs64 = np.ascontiguousarray(self.dofs, dtype=np.int64)
         self._g = np.ascontiguousarray(self.g, dtype=float)
+        # the compiled kernel reads 1e6 positions a tangent: int32 halves that stream (~6 %)
+        self._where = self._map.astype(np.int32) if self.nnz < 2**31 else self._map
 
     def reduce_to(self, free: np.ndarray) -> None:
         """Also write the sub-matrix K[free][:, free] with every tangent (free sorted)."""
@@ -446,6 +448,8 @@ class _VectorAssembly:
         self._keep = (pos[self._rows] >= 0) & (pos[self._cols] >= 0)
         # pos is increasing on free, so the kept entries stay in CSR order.
         r, c = pos[self._rows[self._keep]], pos[self._cols[self._keep]]
+        # positions, not the mask: np.take of 600k values is ~3x faster than a boolean mask
+        self._keep = np.flatnonzero(self._keep)
         self._r_indices = c.astype(np.int32)
         # r is sorted: the row pointers are the cumulated row counts (a searchsorted of 30k
         # rows in 600k entries took ~10 ms).
@@ -489,7 +493,7 @@ class _VectorAssembly:
         if self._keep is not None:
             n = self._n_free
             K._reduced = sp.csr_matrix(  # read by PlaneStressModel._reduced
-                (data[self._keep], self._r_indices, self._r_indptr), shape=(n, n)
+                (np.take(data, self._keep), self._r_indices, self._r_indptr), shape=(n, n)
             )
         return K
 
@@ -503,7 +507,7 @@ class _VectorAssembly:
         """
         f, data, min_det = _compiled().svk_assemble(
             np.ascontiguousarray(u, dtype=float), self._dofs64, self._g, self.dx,
-            float(thickness), float(lam), float(mu), self._map, self.nnz, want_tangent,
+            float(thickness), float(lam), float(mu), self._where, self.nnz, want_tangent,
         )  # fmt: skip
         return f, (self.matrix(data) if want_tangent else None), float(min_det)
 
