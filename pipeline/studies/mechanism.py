@@ -1042,11 +1042,11 @@ class MechanismProblem:
     never raises for a bad design)."""
 
     def warm_up(self) -> None:
-        """Load the compiled beam and constrained-beam kernels (a pool calls this before it
-        forks its workers, :func:`pipeline.backends.open_backend`)."""
-        from flexopt.fea.constrained_beams import warm_up
+        """Load the compiled beam, constrained-beam and mechanism kernels (a pool calls this
+        before it forks its workers, :func:`pipeline.backends.open_backend`)."""
+        from flexopt.fea.mechanism import warm_up
 
-        warm_up()
+        warm_up()  # calls fea.constrained_beams.warm_up (and so fea.beam's) first
 
     def __init__(self, study: MechanismStudy) -> None:
         self.study = study

@@ -244,3 +244,26 @@ def test_gripper_amplifier_requires_the_gripper_studys_finger_force():
     jaw = next(r for r in study.requirements if r.name == "jaw_force")
     assert jaw.min >= f1 and jaw.min == pytest.approx(f1, rel=1e-3)
     assert math.isfinite(f1)
+
+
+def test_warm_up_loads_the_mechanism_kernel_before_any_design():
+    # A pool calls problem.warm_up() before it forks: the mechanism Newton kernel must be among
+    # what the workers inherit (in a fresh interpreter, nothing is loaded before the warm-up).
+    import json
+    import subprocess
+    import sys
+
+    pytest.importorskip("numba")
+    code = (
+        "import json\n"
+        "from flexopt.fea import _mechanism_kernels as k\n"
+        "from flexopt.pipeline.studies.mechanism import MechanismProblem\n"
+        "from flexopt.pipeline.study import load_study\n"
+        "prob = MechanismProblem(load_study('bistable-switch'))\n"
+        "before = len(k.newton.signatures)\n"
+        "prob.warm_up()\n"
+        "print(json.dumps([before, len(k.newton.signatures)]))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    before, after = json.loads(out.stdout.strip().splitlines()[-1])
+    assert before == 0 and after >= 1
