@@ -927,7 +927,9 @@ class PlaneStressModel:
         self.drive_dofs_x = self.ix[drive_nodes]
         self.drive_dofs_y = self.iy[drive_nodes]
         fixed = np.concatenate([self.clamp_dofs, self.drive_dofs_x, self.drive_dofs_y])
-        free = np.setdiff1d(np.arange(self.n_dofs), fixed)
+        is_free = np.ones(self.n_dofs, dtype=bool)
+        is_free[fixed] = False
+        free = np.flatnonzero(is_free)  # = setdiff1d(arange, fixed), without its sort (~3 ms)
         # u = P q + ubar(value): q holds the free DOFs and, for a translation free transversely,
         # one more unknown shared by the driven nodes (their common sideways slide).
         cols = [
