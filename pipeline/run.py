@@ -1183,6 +1183,7 @@ def _run_in(
     restored = resume.restored if resume is not None else ()
     run = _Run(setup, run_dir, record, on_generation, on_result, backend, store, restored)
     t_start = time.perf_counter()
+    preload = _preload_report(setup.problem, settings)
 
     def close(status: str, error: str = "", write: bool = True) -> None:
         wall = time.perf_counter() - t_start
@@ -1250,6 +1251,8 @@ def _run_in(
                 run.finish_writes(raise_errors=optimised)
         record["optimise_wall_s"] = time.perf_counter() - t_start
         run.files += ["evaluations.csv", "history.csv"]
+        if preload is not None:
+            preload.join()
         detail = run.finish(result)
         run.files.append("report.md")
         close("finished", write=False)  # the numbers the report shows
@@ -1279,6 +1282,38 @@ def _run_in(
         raise
     log.info("finished %s in %.3g s", run_dir, record["wall_s"])
     return RunOutcome(run_dir, result, detail, record, tuple(run.notes), run.verdicts)
+
+
+def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
+    """Import and load what the report will need, in a thread, while the workers solve.
+
+    The report runs in this process after the optimisation, on the run's critical path; what it
+    first has to import and load (matplotlib for the plots, and the problem's
+    ``warm_up_detail``: e.g. the constant-force study's plane-stress kernels, ~1.5 s from numba's
+    cache) is loaded here instead, while this process mostly waits for its workers. Only with
+    worker processes: a serial run solves in this process, where the thread would compete. A
+    failure is only logged: the report then loads what it needs itself. Returns the thread or
+    None.
+    """
+    if settings.backend == "serial":
+        return None
+    import threading
+
+    warm = getattr(problem, "warm_up_detail", None)
+
+    def load() -> None:
+        try:
+            import matplotlib.backends.backend_agg  # noqa: F401  (the plots' first import)
+            import matplotlib.figure  # noqa: F401
+
+            if callable(warm):
+                warm()
+        except Exception as exc:  # the report loads it again, and says what fails
+            log.info("preloading the report failed: %s", _one_line(f"{type(exc).__name__}: {exc}"))
+
+    thread = threading.Thread(target=load, name="flexopt-preload", daemon=True)
+    thread.start()
+    return thread
 
 
 class _ForkedMakes:

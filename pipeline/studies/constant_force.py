@@ -451,6 +451,15 @@ class ConstantForceProblem:
 
     # ---- what the run pipeline may ask besides evaluate/detail
 
+    def warm_up_detail(self) -> None:
+        """Load what :meth:`detail` needs beyond the beam: the plane-stress check's modules and
+        compiled kernels (a run calls this in a thread while its workers solve, so the report
+        does not start with ~1.5 s of imports and kernel loading)."""
+        if self.study.fidelity.enabled:
+            from flexopt.fea.plane_stress import warm_up
+
+            warm_up()
+
     def nominal_design(self) -> np.ndarray:
         """(23,) the design the study file describes (what ``flexopt evaluate`` solves)."""
         return design_vector(self.study)

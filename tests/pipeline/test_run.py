@@ -591,3 +591,32 @@ def test_report_files_are_made_in_a_forked_child_and_its_failures_are_notes(monk
     monkeypatch.setattr(run_mod, "_fork_context", lambda: None)
     here = run_mod._ForkedMakes([("a.png", lambda: str(os.getpid()).encode())]).results()
     assert here == [("a.png", str(os.getpid()).encode(), None)]
+
+
+def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():
+    """_preload_report: the problem's warm_up_detail runs in a background thread while worker
+    processes solve; never in a serial run (it would compete with the solving thread); a
+    failing preload is only logged."""
+    import threading
+
+    from flexopt.pipeline.parallel import ParallelSettings
+    from flexopt.pipeline.run import _preload_report
+
+    seen: list[str] = []
+
+    class Problem:
+        def warm_up_detail(self) -> None:
+            seen.append(threading.current_thread().name)
+
+    class Failing:
+        def warm_up_detail(self) -> None:
+            raise RuntimeError("no kernels here")
+
+    assert _preload_report(Problem(), ParallelSettings(backend="serial")) is None
+    assert seen == []
+    thread = _preload_report(Problem(), ParallelSettings(backend="processes", workers=2))
+    thread.join(60)
+    assert seen == ["flexopt-preload"]
+    failing = _preload_report(Failing(), ParallelSettings(backend="processes", workers=2))
+    failing.join(60)
+    assert not failing.is_alive()
