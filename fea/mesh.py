@@ -248,8 +248,14 @@ def _size_field(refine: Refinement | None) -> Callable[[np.ndarray], np.ndarray]
     def from_regions(corners: np.ndarray) -> np.ndarray:
         tris = shapely.polygons(np.concatenate([corners, corners[:, :1]], axis=1))
         h = np.full(corners.shape[0], np.inf)
+        lo, hi = corners.min(axis=1), corners.max(axis=1)
         for geom, size in regions:
-            hit = shapely.intersects(geom, tris)
+            # only a triangle whose box meets the region's box can touch it (the exact test
+            # for those alone: a spring's 24 arm pieces each cover a few % of the triangles)
+            x0, y0, x1, y1 = geom.bounds
+            near = (hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0) & (lo[:, 1] <= y1)
+            hit = np.flatnonzero(near)
+            hit = hit[shapely.intersects(geom, tris[hit])]
             h[hit] = np.minimum(h[hit], float(size))
         return h
 

@@ -209,7 +209,16 @@ def test_region_refined_mesh_is_the_mesh_of_testing_every_triangle(spring, eleme
     out = triangle.triangulate(
         fm._planar_graph(poly, 3.0), f"{opts}a{fm._EQUILATERAL_AREA * 9:.17g}"
     )
-    local, passes = fm._size_field(regions), 0
+    passes = 0
+
+    def local(corners):  # every triangle against every region
+        tris = shapely.polygons(np.concatenate([corners, corners[:, :1]], axis=1))
+        h = np.full(len(corners), np.inf)
+        for region, size in regions:
+            hit = shapely.intersects(region, tris)
+            h[hit] = np.minimum(h[hit], size)
+        return h
+
     for _ in range(cfg.max_refine_passes):
         target = np.minimum(local(out["vertices"][out["triangles"]]), 3.0)
         max_area = fm._EQUILATERAL_AREA * target**2
