@@ -18,7 +18,6 @@ import numpy as np
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.space import DesignSpace
-from pymoo.algorithms.moo.nsga2 import NSGA2
 from pymoo.algorithms.soo.nonconvex.ga import GA
 from pymoo.core.evaluator import Evaluator
 from pymoo.core.problem import Problem
@@ -160,7 +159,12 @@ def run_ga(
         n_fill = max(config.pop_size - len(initial), 0)
         fill = space.lower + rng.random((n_fill, space.n_var)) * (space.upper - space.lower)
         sampling = np.vstack([space.clip(initial), fill])[: config.pop_size]
-    cls = GA if config.algorithm == "ga" else NSGA2
+    if config.algorithm == "ga":
+        cls = GA
+    else:  # imported here: NSGA-II pulls in scipy.spatial (~0.4 s) a single-objective run skips
+        from pymoo.algorithms.moo.nsga2 import NSGA2
+
+        cls = NSGA2
     algorithm = cls(pop_size=config.pop_size, sampling=sampling, eliminate_duplicates=True)
     algorithm.setup(problem, termination=get_termination("n_gen", config.n_gen), seed=config.seed)
 
