@@ -32,6 +32,10 @@ Physics
     answer: the ratio is a property of the cross-sections (measured 1.022 at 1 and 11 degrees
     on the SEA spring, issue 15), so this check is linear. Solved by a sparse Cholesky
     factorisation (CHOLMOD through cvxopt; SuperLU when cvxopt does not import).
+Several thicknesses (:class:`Solid3DModel`)
+    The layers scale with the thickness, so one assembly serves every thickness (the
+    stiffness is a sum of three parts weighted by t, 1 and 1/t); a thickness after the first
+    is solved by conjugate gradients preconditioned with the first one's factor.
 
 Units: mm, N, MPa, N·mm, rad. See docs/solid3d.md.
 """
@@ -281,7 +285,9 @@ def _gradients(basis) -> np.ndarray:
 def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
     """Linear-elastic stiffness in the DOF numbering ``3 s + c`` (s scalar P2 DOF, c component).
 
-    Per element, with g_a the scalar gradient of local function a and dx the quadrature weights:
+    The element-by-element reference assembly (the tests check :func:`_stiffness_parts`
+    against it). Per element, with g_a the scalar gradient of local function a and dx the
+    quadrature weights:
     ``K_(a c)(b d) = sum_q dx (lam g_ac g_bd + mu g_ad g_bc + mu delta_cd g_a . g_b)``,
     N/mm per mm of height (the mesh carries the height).
     """
@@ -427,54 +433,18 @@ def solve_solid3d(
     ------
     FeaError
         Bad thickness or regions, a model over ``max_dofs``.
-    """
-    from skfem import Basis, ElementTetP2
 
-    t0 = time.perf_counter()
-    times: dict[str, float] = {}
+    Notes
+    -----
+    The reference answer: a :class:`Solid3DModel` built at this thickness (its stiffness
+    parts summed with unit weights, no stretch) and factorised. ``_stiffness`` assembles the
+    same matrix element by element (the tests compare them entry by entry).
+    """
     if not (np.isfinite(thickness_mm) and thickness_mm > 0):
         raise FeaError(f"thickness_mm = {thickness_mm} must be > 0 mm")
-    if not isinstance(drive, Translate | Rotate):
-        raise FeaError(f"drive must be Translate or Rotate, got {type(drive).__name__}")
-    z = extrude_layers_mm(thickness_mm, settings)
-    # Estimate P2 node count (vertices + edges, about 4 n per layer interface and mid-layer)
-    # before building anything large.
-    est = 3 * (2 * (z.size - 1) + 1) * 4 * mesh.n_points
-    if est > settings.max_dofs:
-        raise FeaError(
-            f"the 3D model would have about {est} DOFs (cap {settings.max_dofs}); use fewer "
-            "layers or a coarser plane mesh"
-        )
-    tmesh = extrude_mesh(mesh, z)
-    sbasis = Basis(tmesh, ElementTetP2(), intorder=2)
-    times["mesh"] = time.perf_counter() - t0
-
-    t1 = time.perf_counter()
-    lam, mu = _lame(material)
-    K = _stiffness(sbasis, lam, mu, settings.block_elements)
-    ndof = K.shape[0]
-    times["assemble"] = time.perf_counter() - t1
-    if ndof > settings.max_dofs:
-        raise FeaError(f"{ndof} DOFs exceed max_dofs = {settings.max_dofs}")
-
-    sup = _supports(sbasis.doflocs.T, ndof, clamp, drive, settings)
-
-    t2 = time.perf_counter()
-    P = sup.P
-    Kr = (P.T @ K @ P).tocsr()
-    solver = _Solver(Kr, settings.solver)
-    q = solver.solve(-(P.T @ (K @ sup.ubar)))
-    u = sup.ubar + P @ q
-    times["factorise_solve"] = time.perf_counter() - t2
-    rx = _reactions(K @ u, sup, settings)  # internal force = force applied by the supports
-
-    t3 = time.perf_counter()
-    peak, where, peak_n, where_n = _peak_stress(tmesh, sbasis, u, lam, mu, mesh, stress_ignore,
-                                                settings)  # fmt: skip
-    times["stress"] = time.perf_counter() - t3
-    times["total"] = time.perf_counter() - t0
-    return _result(sup, rx, (peak, where, peak_n, where_n), ndof, tmesh.t.shape[1], z.size - 1,
-                   settings, solver.name, times)  # fmt: skip
+    model = Solid3DModel(mesh, material, clamp, drive, settings, stress_ignore,
+                         reference_thickness_mm=float(thickness_mm))  # fmt: skip
+    return model.solve(thickness_mm)
 
 
 @dataclass(frozen=True)
@@ -588,17 +558,6 @@ def _result(sup: _Supports, rx: dict, peaks: tuple, ndof: int, n_tets: int, n_la
         times_s=times,
         iterations=int(iterations),
     )
-
-
-def _peak_stress(tmesh, sbasis, u, lam, mu, mesh: TriMesh, ignore, settings):
-    """Peak von Mises at quadrature points and vertex-averaged, with (x, y, z) locations."""
-    from skfem import Basis
-
-    mask = _stress_mask(tmesh.t.shape[1], mesh, ignore)
-    cb = Basis(tmesh, sbasis.elem, quadrature=_CORNERS)
-    return _peaks(u, sbasis.element_dofs.T, _gradients(sbasis),
-                  np.asarray(sbasis.global_coordinates()), _gradients(cb), tmesh.t.T, tmesh.p,
-                  mask, lam, mu)  # fmt: skip
 
 
 # The four corners of the reference tetrahedron as a "quadrature" (weights unused): the P2
@@ -779,11 +738,12 @@ class Solid3DModel:
     model at thickness t is the 1 mm model stretched by t along z: its stiffness is
     ``K(t) = t K_pp + K_pz + K_zz / t`` (:func:`_stiffness_parts`), assembled once, and its
     stresses follow from the 1 mm model's basis gradients with their z components divided by
-    t. Every node keeps its (x, y), so the supports select the same DOFs at every thickness.
-    The first :meth:`solve` factorises K (CHOLMOD, as :func:`solve_solid3d`); with
+    t (any reference thickness in place of 1 mm). Every node keeps its (x, y), so the
+    supports select the same DOFs at every thickness. The first :meth:`solve` factorises K
+    (CHOLMOD; SuperLU without cvxopt); with
     ``settings.later_solves = "pcg"`` a later thickness is solved by conjugate gradients
     preconditioned with that factor, to ``pcg_rtol``; with "direct" it is factorised anew.
-    :func:`solve_solid3d` is the reference (assembled at its thickness, factorised); the
+    :func:`solve_solid3d` is the reference (a model built at its thickness, factorised); the
     answers agree to solver round-off (tests/fea/test_solid3d_model.py).
 
     Parameters
@@ -791,13 +751,12 @@ class Solid3DModel:
     mesh : TriMesh — the plane mesh, (n, 2) mm; material : Material
     clamp : Clamp; drive : Rotate or Translate — as :func:`solve_solid3d`
     settings : Solid3DSettings; stress_ignore : shapely geometry, optional
+    reference_thickness_mm : float, mm — the extrusion the model is built at (1 mm; a
+        model solved at its reference thickness involves no stretch: solve_solid3d)
 
     Memory: the factor of the first thickness is kept (~2 GB for 400k DOFs) while the model
     lives.
     """
-
-    #: the thickness the model is built at, mm (any: the parts are exact at every thickness)
-    REFERENCE_THICKNESS_MM = 1.0
 
     def __init__(
         self,
@@ -807,6 +766,7 @@ class Solid3DModel:
         drive: Drive,
         settings: Solid3DSettings = Solid3DSettings(),
         stress_ignore: BaseGeometry | None = None,
+        reference_thickness_mm: float = 1.0,
     ) -> None:
         from skfem import Basis, ElementTetP2
 
@@ -817,7 +777,9 @@ class Solid3DModel:
             raise FeaError(f"later_solves '{settings.later_solves}': use 'pcg' or 'direct'")
         self.mesh, self.material, self.settings = mesh, material, settings
         self.clamp, self.drive, self.stress_ignore = clamp, drive, stress_ignore
-        z = extrude_layers_mm(self.REFERENCE_THICKNESS_MM, settings)
+        # the thickness the model is built at, mm (any: the parts are exact at every one)
+        self.reference_thickness_mm = float(reference_thickness_mm)
+        z = extrude_layers_mm(self.reference_thickness_mm, settings)
         est = 3 * (2 * (z.size - 1) + 1) * 4 * mesh.n_points
         if est > settings.max_dofs:
             raise FeaError(
@@ -875,7 +837,7 @@ class Solid3DModel:
 
     def stiffness_matrix(self, thickness_mm: float) -> sp.bsr_matrix:
         """K(t), (ndof, ndof) N/mm, DOF ``3 s + c`` (as :func:`_stiffness` at that thickness)."""
-        s = float(thickness_mm) / self.REFERENCE_THICKNESS_MM
+        s = float(thickness_mm) / self.reference_thickness_mm
         # (12, 9): part column -> block entry, times the part's power of s
         table = np.zeros((len(_PP) + len(_PZ) + len(_ZZ), 9))
         j = 0
@@ -930,7 +892,7 @@ class Solid3DModel:
         times["factorise_solve"] = time.perf_counter() - t1
         rx = _reactions(K @ u, sup, st)  # internal force = force applied by the supports
         t2 = time.perf_counter()
-        zs = float(thickness_mm) / self.REFERENCE_THICKNESS_MM
+        zs = float(thickness_mm) / self.reference_thickness_mm
         stretch = np.array([1.0, 1.0, zs])
         peaks = _peaks(u, self._dofs, self._G, self._xyz_qp * stretch[:, None, None], self._Gc,
                        self._t, self._p * stretch[:, None], self._mask, self._lam, self._mu,

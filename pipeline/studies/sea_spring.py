@@ -980,18 +980,29 @@ class SeaSpringProblem:
             return DesignDetail(evaluation, info=info)
         p, geom, r, st = solved
         info["design"] = dict(zip(self.names, map(float, self.full_vector(x, st)), strict=True))
+        # The 3D checks keep this process busy; a second one takes what needs no 3D answer:
+        # the peak convergence and the two 2D solves below (_SideProcess).
+        s3, side = study.solid_3d, None
+        if s3.check and s3.converge_peak:
+            side = _SideProcess.start()
+            side.submit("peak", _peak_job_main, self, geom.params, _worse_direction(r))
+            side.submit("analyses", _detail_analyses, self, geom)
+        solid = self.solid_3d(geom, r, side) if s3.check else None
+        got = side.get("analyses") if side is not None else None
+        if side is not None:
+            side.close()
+        check, small = got if got is not None else _detail_analyses(self, geom)
         if self.solve_st:
             # ST was computed from a solve at the reference thickness; solving again at ST
             # shows the proportionality (the stiffness must be the target to solver precision).
             # (one direction suffices to show it; torques scale with ST in both).
-            check = analyse_spring(geom, self.material, self.theta, study.mesh)
+            assert check is not None
             info["thickness_solved"] = {
                 "ST_mm": st,
                 "ccw_stiffness_scaled_from_reference_Nm_per_rad": r.stiffness_Nm_per_rad,
                 "ccw_stiffness_resolved_at_ST_Nm_per_rad": check.stiffness_Nm_per_rad,
                 "ccw_peak_stress_resolved_at_ST_MPa": float(check.peak_stress_MPa[-1]),
             }
-        small = analyse_spring(geom, self.material, math.radians(1.0), study.mesh)
         table = _curve_table(r)
         volume = geom.volume_mm3
         mass = geom.mass_kg(self.material.density_kg_m3)
@@ -1033,8 +1044,8 @@ class SeaSpringProblem:
             }
         )
         height_mm = p.thickness_mm
-        if study.solid_3d.check:
-            info["solid_3d"] = self.solid_3d(geom, r)
+        if solid is not None:
+            info["solid_3d"] = solid
             info.update(solid_3d_scalars(info["solid_3d"]))
             # the part to make is the corrected one (its STL, DXF, footprint)
             height_mm = info["solid_3d"].get("ST_after_mm", height_mm)
@@ -1073,7 +1084,9 @@ class SeaSpringProblem:
         )
 
     @no_numpy_hugepages  # the 3D model's arrays (pipeline/_hugepages.py)
-    def solid_3d(self, geom: SpringGeometry, r: SpringResponse) -> dict[str, Any]:
+    def solid_3d(
+        self, geom: SpringGeometry, r: SpringResponse, side: _SideProcess | None = None
+    ) -> dict[str, Any]:
         """The design as a 3D solid, its thickness corrected for it, its peak stress converged
         (issue 15; docs/solid3d.md; the study's ``solid_3d:`` block).
 
@@ -1100,7 +1113,8 @@ class SeaSpringProblem:
         the mesh extruded and assembled once, ST only scales its parts; the first check
         factorises, the re-checks solve by conjugate gradients preconditioned with that
         factor); the peak convergence, which needs no 3D answer until its last product, runs
-        meanwhile in a second process.
+        meanwhile in a second process (``side``'s "peak" task when the caller started one,
+        else its own).
 
         Returns
         -------
@@ -1119,7 +1133,10 @@ class SeaSpringProblem:
             k2d["cw"] = r.reverse_stiffness_Nm_per_rad
         peak2d = r.worst_peak_stress_MPa  # plane stress: independent of ST
         # the 2D peak convergence needs none of the 3D answers: the second core does it
-        peak_job = _PeakJob.start(self, geom, r) if s3.converge_peak else None
+        own = side is None and s3.converge_peak
+        if own:
+            side = _SideProcess.start()
+            side.submit("peak", _peak_job_main, self, geom.params, _worse_direction(r))
         model: Solid3DModel | None = None
 
         def check(st: float) -> dict[str, Any]:
@@ -1155,12 +1172,12 @@ class SeaSpringProblem:
                 s3.max_checks,
             )
         except FeaError as exc:
-            if peak_job is not None:
-                peak_job.cancel()
+            if own:
+                side.close()
             return {"problem": f"3D check not made: {exc}"}
         except BaseException:
-            if peak_job is not None:
-                peak_job.cancel()
+            if own:
+                side.close()
             raise
         finally:
             model = None  # its factor holds ~2 GB
@@ -1219,8 +1236,10 @@ class SeaSpringProblem:
         )
         if s3.converge_peak:
             out["peak_convergence"] = self._converged_peak(
-                geom, r, last["peak_stress_ratio_3d_2d"], peak_job
+                geom, r, last["peak_stress_ratio_3d_2d"], side
             )
+            if own:
+                side.close()
             conv = out["peak_convergence"]
             if "problem" not in conv:
                 out["peak_stress_3d_MPa"] = conv["peak_stress_3d_MPa"]
@@ -1233,19 +1252,19 @@ class SeaSpringProblem:
         geom: SpringGeometry,
         r: SpringResponse,
         ratio_3d_2d: float,
-        job: _PeakJob | None = None,
+        side: _SideProcess | None = None,
     ) -> dict[str, Any]:
         """The 2D peak of the worse direction on a finely sampled outline, refined until it
         moves < 1 % (:func:`fea.solid3d.converge_peak_stress`), and the 3D peak from it.
 
-        ``job``: the same computation already running in a second process
-        (:meth:`_PeakJob.start`); without one (or if that process failed to run) it runs
-        here."""
+        ``side``: a second process already computing it (its "peak" task); without one (or if
+        that process could not run it) it runs here."""
         s3 = self.study.solid_3d
         t0 = time.perf_counter()
         sign = _worse_direction(r)
         try:
-            c = job.result() if job is not None else None
+            c = side.get("peak") if side is not None else None
+            ran = c is not None
             if c is None:
                 c = _peak_convergence(self, geom.params, sign)
         except (FeaError, GeometryError) as exc:
@@ -1266,7 +1285,7 @@ class SeaSpringProblem:
             # how long the report waited for it here
             "time_s": c["time_s"],
             "wait_s": time.perf_counter() - t0,
-            "process": "second" if job is not None and job.ran else "this",
+            "process": "second" if ran else "this",
         }
 
 
@@ -1281,7 +1300,7 @@ def _peak_convergence(
 ) -> dict[str, Any]:
     """:func:`fea.solid3d.converge_peak_stress` on the design rebuilt with its arms sampled
     every ``solid_3d.curve_step_mm``, nonlinear, hub turned by ``sign`` theta_T (picklable:
-    :class:`_PeakJob` runs it in a second process). Raises FeaError, GeometryError."""
+    :class:`_SideProcess` runs it in a second process). Raises FeaError, GeometryError."""
     from flexopt.fea.solid3d import converge_peak_stress
 
     spec, s3 = prob.study.mesh, prob.study.solid_3d
@@ -1300,7 +1319,8 @@ def _peak_convergence(
 
 
 def _peak_job_main(prob: SeaSpringProblem, params: Any, sign: float) -> dict[str, Any]:
-    """The second process's work: one BLAS thread (the first process factorises beside it)."""
+    """The side process's peak convergence: one BLAS thread (the first process factorises
+    beside it)."""
     try:
         from threadpoolctl import threadpool_limits
 
@@ -1310,55 +1330,66 @@ def _peak_job_main(prob: SeaSpringProblem, params: Any, sign: float) -> dict[str
     return _peak_convergence(prob, params, sign)
 
 
-class _PeakJob:
-    """The peak convergence of :meth:`SeaSpringProblem._converged_peak` in a second process.
+def _detail_analyses(
+    prob: SeaSpringProblem, geom: SpringGeometry
+) -> tuple[SpringResponse | None, SpringResponse]:
+    """The detail's two extra 2D solves: the design re-solved at its ST (solve mode only; it
+    shows the proportionality) and at 1 degree (the linear-vs-nonlinear row)."""
+    spec = prob.study.mesh
+    check = analyse_spring(geom, prob.material, prob.theta, spec) if prob.solve_st else None
+    return check, analyse_spring(geom, prob.material, math.radians(1.0), spec)
 
-    The report's 3D checks keep one core busy (assembly, one factorisation, triangular
-    solves); the convergence (nonlinear plane-stress solves on refined meshes, ~15 s on the
-    default study) depends only on the design, so it runs beside them. Where a process cannot
-    be started (a daemonic worker, no fork/forkserver/spawn) ``result`` gives None and the
-    caller runs it itself; errors of the computation (FeaError, GeometryError) come back
-    as raised.
+
+class _SideProcess:
+    """One worker process for the report's work that needs no 3D answer.
+
+    The 3D checks keep this process busy (assembly, one factorisation, triangular solves);
+    the peak convergence (nonlinear plane-stress solves on refined meshes, ~10 s CPU on the
+    default study) and the detail's two extra 2D solves depend only on the design, so they
+    run beside them on the second core. Where a process cannot be started (a daemonic
+    worker) or a task dies, :meth:`get` gives None and the caller computes it itself;
+    FeaError and GeometryError of a task come back raised.
     """
 
-    def __init__(self, pool: Any, handle: Any) -> None:
-        self._pool, self._handle = pool, handle
-        self.ran = False
+    def __init__(self, pool: Any) -> None:
+        self._pool = pool
+        self._tasks: dict[str, Any] = {}
 
     @classmethod
-    def start(cls, prob: SeaSpringProblem, geom: SpringGeometry, r: SpringResponse) -> _PeakJob:
+    def start(cls) -> _SideProcess:
         try:
             from flexopt.pipeline.parallel import _context
 
-            pool = _context().Pool(1)
-            handle = pool.apply_async(_peak_job_main, (prob, geom.params, _worse_direction(r)))
-        except Exception as exc:  # no second process here: the caller runs it in this one
-            log.info("peak convergence in this process (%s)", exc)
-            return cls(None, None)
-        return cls(pool, handle)
+            return cls(_context().Pool(1))
+        except Exception as exc:  # no second process here: the callers compute in this one
+            log.info("report work in this process only (%s)", exc)
+            return cls(None)
 
-    def result(self) -> dict[str, Any] | None:
-        """The convergence's dict, or None when it must run in this process."""
-        if self._pool is None:
+    def submit(self, name: str, func: Any, *args: Any) -> None:
+        if self._pool is not None:
+            self._tasks[name] = self._pool.apply_async(func, args)
+
+    def get(self, name: str) -> Any:
+        """The task's result, or None when the caller must compute it."""
+        task = self._tasks.pop(name, None)
+        if task is None:
             return None
         try:
-            out = self._handle.get()
-            self.ran = True
-            return out
+            return task.get()
         except (FeaError, GeometryError):
             raise
-        except Exception as exc:  # the process died or could not unpickle: run it here
-            log.warning("peak convergence process failed (%s); running it here", exc)
+        except Exception as exc:  # the process died, or a value did not pickle
+            log.warning("report task %s failed in the second process (%s); redone here", name,
+                        exc)  # fmt: skip
             return None
-        finally:
-            self.cancel()
 
-    def cancel(self) -> None:
-        """Stop the process (at once; its result is not needed)."""
+    def close(self) -> None:
+        """Stop the process (at once: a result not fetched is not needed)."""
         if self._pool is not None:
             self._pool.terminate()
             self._pool.join()
             self._pool = None
+            self._tasks.clear()
 
 
 def solid_3d_scalars(s3: dict[str, Any]) -> dict[str, Any]:

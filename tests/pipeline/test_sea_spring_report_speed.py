@@ -1,0 +1,124 @@
+"""The sea_spring report's fast paths (issue 13) give the reference answers, computed here:
+the 3D checks on one Solid3DModel (assembled once, re-checks by PCG) against
+:func:`fea.solid3d.compare_with_plane_stress` at each checked ST, and the work done in the
+second process (peak convergence, the two extra 2D solves) against the same calls made in
+this one. A coarse four-arm spiral with one prism layer keeps it to seconds."""
+
+from __future__ import annotations
+
+import math
+
+import flexopt.pipeline.studies.sea_spring as ss
+import numpy as np
+import pytest
+from flexopt.fea.mesh import mesh_polygon
+from flexopt.fea.plane_stress import Clamp, Rotate
+from flexopt.fea.solid3d import Solid3DSettings, compare_with_plane_stress
+from flexopt.fea.spring_analysis import analyse_spring
+from flexopt.pipeline._hugepages import without_numpy_hugepages
+from flexopt.pipeline.study import validate_study
+
+STUDY = {
+    "name": "sea-fast",
+    "geometry": {"kind": "sea_spring", "topology": "spiral", "n_sets": 4},
+    "material": "maraging-300",
+    "taguchi": {"enabled": False},
+    "mesh": {"max_edge_mm": 6.0, "elements_through": 0.5, "fillet_segments": 1},
+    "design": {"sweep": 300.0, "R_pad": 30.0, "F1": 1 / 3, "F2": 0.5,
+               "W1": 3.0, "W2": 2.5, "W3": 2.5, "W4": 3.0},
+    # a tiny max_fraction_of_tolerance: the calibration is followed by a re-check (PCG on its
+    # factor) whatever the ratio
+    "solid_3d": {"converge_peak": False, "max_checks": 2, "layers": 1,
+                 "max_fraction_of_tolerance": 0.001},
+}  # fmt: skip
+
+
+def _solved(study_dict):
+    study = validate_study(study_dict)
+    prob = ss.SeaSpringProblem(study, stage1={})
+    x = np.delete(ss.design_vector(study), prob.names.index("ST"))
+    return prob, x
+
+
+def test_every_3d_check_equals_the_reference_check_at_its_st():
+    prob, x = _solved(STUDY)
+    _, geom, r, _ = prob.solve(x, 1)
+    out = prob.solid_3d(geom, r)
+    assert "problem" not in out, out
+    assert [c["solver"] for c in out["checks"]][1:] == ["pcg (cholmod)"] * (len(out["checks"]) - 1)
+    assert len(out["checks"]) >= 2
+    # the reference: the plane mesh solid_3d meshes, compare_with_plane_stress at each ST
+    spec = prob.study.mesh
+    regions = geom.mesh_regions(spec.elements_through, spec.max_edge_mm)
+    mesh = mesh_polygon(geom.fe_outline, spec.max_edge_mm, refine=regions)
+    ignore = geom.hub_region.union(geom.pad_region).buffer(0.05)
+    drive = Rotate(geom.hub_region, (0.0, 0.0), prob.theta, 1)
+    # the re-check (PCG on the calibration's factor; the direct first solve is fea's test)
+    for c in out["checks"][1:]:
+        with without_numpy_hugepages():  # as solid_3d runs (else ~4x slower here, same values)
+            ref = compare_with_plane_stress(mesh, prob.material, c["ST_mm"], Clamp(geom.pad_region),
+                                            drive, Solid3DSettings(layers=1), ignore)  # fmt: skip
+        assert c["stiffness_ratio_3d_2d"] == pytest.approx(ref["stiffness_ratio"], rel=1e-8)
+        assert c["peak_stress_ratio_3d_2d"] == pytest.approx(ref["peak_stress_ratio"], rel=1e-8)
+        assert c["dofs"] == ref["solid3d"]["n_dofs"]
+
+
+def test_second_process_work_equals_this_process_work(monkeypatch):
+    """detail with the side process: the two extra 2D solves are the values the same calls
+    give here, and the peak convergence comes back from the other process with the arguments
+    it was given (the convergence itself is a stand-in here: a deterministic function of
+    those arguments that names its process; fea/solid3d's tests check the real one)."""
+    import multiprocessing
+    import os
+
+    import flexopt.pipeline.parallel as parallel
+
+    def fake_convergence(prob, params, sign):
+        peaks = [100.0 * sign + params.thickness_mm, 200.0 + prob.theta]
+        return {"converged": True, "status": "converged", "last_two_MPa": peaks,
+                "peaks_MPa": peaks, "local_edge_mm": [1.0, 0.5], "peak_xy_mm": [0.0, 0.0],
+                "corner": None, "time_s": float(os.getpid())}  # fmt: skip
+
+    # fork (the CLI's choice on Linux) carries the stand-in into the side process
+    monkeypatch.setattr(parallel, "_context", lambda: multiprocessing.get_context("fork"))
+    monkeypatch.setattr(ss, "_peak_convergence", fake_convergence)
+    # one 3D check (correct: false): its ratio is all the peak needs
+    study = {**STUDY, "solid_3d": {"converge_peak": True, "correct": False, "layers": 1}}
+    prob, x = _solved(study)
+    info = prob.detail(x).info
+    conv = info["solid_3d"]["peak_convergence"]
+    assert conv["process"] == "second" and conv["time_s"] != float(os.getpid())
+    _, geom, r, _ = prob.solve(x, prob.study.mesh.curve_steps)
+    here = fake_convergence(prob, geom.params, ss._worse_direction(r))
+    assert conv["peaks_MPa"] == here["peaks_MPa"]
+    ratio = info["solid_3d"]["checks"][-1]["peak_stress_ratio_3d_2d"]
+    assert conv["peak_stress_3d_MPa"] == here["last_two_MPa"][-1] * ratio
+    assert info["peak_stress_3d_MPa"] == conv["peak_stress_3d_MPa"]
+    check = analyse_spring(geom, prob.material, prob.theta, prob.study.mesh)
+    small = analyse_spring(geom, prob.material, math.radians(1.0), prob.study.mesh)
+    solved = info["thickness_solved"]
+    assert solved["ccw_stiffness_resolved_at_ST_Nm_per_rad"] == check.stiffness_Nm_per_rad
+    assert solved["ccw_peak_stress_resolved_at_ST_MPa"] == float(check.peak_stress_MPa[-1])
+    lin = (small.stiffness_Nm_per_rad / small.linear_stiffness_Nm_per_rad - 1) * 100
+    assert info["linear_vs_nonlinear"]["at_1_deg_percent"] == lin
+
+
+def test_without_a_second_process_the_work_is_done_here(monkeypatch):
+    """No process can be started (a daemonic worker): solid_3d computes it in this one."""
+    import flexopt.pipeline.parallel as parallel
+
+    def refuse():
+        raise AssertionError("daemonic processes are not allowed to have children")
+
+    monkeypatch.setattr(parallel, "_context", refuse)
+    monkeypatch.setattr(ss, "_peak_convergence", lambda prob, params, sign: {
+        "converged": False, "status": "not converged", "last_two_MPa": [1.0, 2.0],
+        "peaks_MPa": [1.0, 2.0], "local_edge_mm": [1.0, 0.5], "peak_xy_mm": [0.0, 0.0],
+        "corner": None, "time_s": 0.0})  # fmt: skip
+    study = {**STUDY, "solid_3d": {"converge_peak": True, "correct": False, "layers": 1}}
+    prob, x = _solved(study)
+    _, geom, r, _ = prob.solve(x, 1)
+    out = prob.solid_3d(geom, r)
+    conv = out["peak_convergence"]
+    assert conv["process"] == "this" and conv["peaks_MPa"] == [1.0, 2.0]
+    assert out["peak_stress_3d_MPa"] == 2.0 * out["checks"][-1]["peak_stress_ratio_3d_2d"]
