@@ -303,6 +303,8 @@ def mesh_polygon(
     opts = f"pq{settings.min_angle_deg:g}"
     graph = _planar_graph(poly, max_edge_mm)
     out = triangle.triangulate(graph, f"{opts}a{_EQUILATERAL_AREA * max_edge_mm**2:.17g}")
+    if refine is not None and not callable(refine):
+        refine = list(refine)  # read twice below: an iterator would be spent by the first
     local = _size_field(refine)
     # The smallest size the regions ask for: no triangle needs refining while every one is
     # within the area that size allows (exactly the loop's own test with its smallest target,

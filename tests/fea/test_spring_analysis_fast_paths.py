@@ -268,3 +268,12 @@ def test_force_only_state_at_convergence_changes_no_iterate(problem, spring, mon
     assert np.array_equal(lazy.u, full.u) and np.array_equal(lazy.reverse_u, full.reverse_u)
     assert lazy.iterations == full.iterations
     assert lazy.model.counters["tangents"] == full.model.counters["tangents"] - 2
+
+
+def test_refinement_regions_given_as_an_iterator_mesh_as_a_list(spring):
+    geom = spring[0]
+    regions = geom.mesh_regions(3.0, 3.0)  # thin enough to refine
+    a = mesh_polygon(geom.fe_outline, 3.0, refine=regions)
+    b = mesh_polygon(geom.fe_outline, 3.0, refine=iter(regions))
+    assert np.array_equal(a.points, b.points) and np.array_equal(a.triangles, b.triangles)
+    assert a.n_triangles > mesh_polygon(geom.fe_outline, 3.0).n_triangles  # it did refine
