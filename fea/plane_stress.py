@@ -901,13 +901,16 @@ class PlaneStressModel:
             # Only a triangle whose bounding box meets one of the region's parts' boxes can
             # touch it; the exact test is made for those (the hub and pad footprints of a
             # spring: a few hundred of 7k triangles, ~12 ms -> ~2 ms).
+            # Part by part (a triangle touches a multi-part region when it touches a part), each
+            # part a prepared copy (get_parts clones): ~3 ms -> ~1 ms for a spring's footprints.
             corners = self.mesh.points[self.mesh.triangles]  # (m, 3, 2)
             lo, hi = corners.min(axis=1), corners.max(axis=1)
-            near = np.zeros(self.mesh.n_triangles, dtype=bool)
-            for x0, y0, x1, y1 in shapely.bounds(shapely.get_parts(ignore)).reshape(-1, 4):
-                near |= (hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0) & (lo[:, 1] <= y1)
-            idx = np.flatnonzero(near)
-            mask[idx[shapely.intersects(ignore, shapely.polygons(corners[idx]))]] = False
+            parts = shapely.get_parts(ignore)
+            shapely.prepare(parts)
+            for part, (x0, y0, x1, y1) in zip(parts, shapely.bounds(parts), strict=True):
+                near = (hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0) & (lo[:, 1] <= y1)
+                idx = np.flatnonzero(near & mask)
+                mask[idx[shapely.intersects(part, shapely.polygons(corners[idx]))]] = False
             if not mask.any():
                 raise FeaError("stress_ignore covers every element; nothing left to check")
         return mask
