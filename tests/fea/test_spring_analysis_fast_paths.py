@@ -277,3 +277,17 @@ def test_refinement_regions_given_as_an_iterator_mesh_as_a_list(spring):
     b = mesh_polygon(geom.fe_outline, 3.0, refine=iter(regions))
     assert np.array_equal(a.points, b.points) and np.array_equal(a.triangles, b.triangles)
     assert a.n_triangles > mesh_polygon(geom.fe_outline, 3.0).n_triangles  # it did refine
+
+
+def test_facet_table_is_scikit_fems_own(spring):
+    from flexopt.fea.mesh import to_skfem
+    from flexopt.fea.plane_stress import _set_facets
+
+    model = spring[1].model
+    mine = to_skfem(model.mesh)
+    _set_facets(mine)
+    theirs = to_skfem(model.mesh)
+    facets, t2f = type(theirs).build_entities(theirs.t, theirs.elem.refdom.facets)
+    assert np.array_equal(mine.facets, facets) and mine.facets.dtype == facets.dtype
+    assert np.array_equal(mine.t2f, t2f) and mine.t2f.dtype == t2f.dtype
+    assert np.array_equal(model.skmesh.facets, facets)  # what the model's bases were built on
