@@ -987,10 +987,12 @@ class SeaSpringProblem:
             side = _SideProcess.start()
             side.submit("peak", _peak_job_main, self, geom.params, _worse_direction(r))
             side.submit("analyses", _detail_analyses, self, geom)
-        solid = self.solid_3d(geom, r, side) if s3.check else None
-        got = side.get("analyses") if side is not None else None
-        if side is not None:
-            side.close()
+        try:
+            solid = self.solid_3d(geom, r, side) if s3.check else None
+            got = side.get("analyses") if side is not None else None
+        finally:
+            if side is not None:
+                side.close()
         check, small = got if got is not None else _detail_analyses(self, geom)
         if self.solve_st:
             # ST was computed from a solve at the reference thickness; solving again at ST
@@ -1319,14 +1321,7 @@ def _peak_convergence(
 
 
 def _peak_job_main(prob: SeaSpringProblem, params: Any, sign: float) -> dict[str, Any]:
-    """The side process's peak convergence: one BLAS thread (the first process factorises
-    beside it)."""
-    try:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(1)
-    except ImportError:
-        pass
+    """The side process's peak convergence (module level: the pool pickles it by name)."""
     return _peak_convergence(prob, params, sign)
 
 
@@ -1340,6 +1335,43 @@ def _detail_analyses(
     return check, analyse_spring(geom, prob.material, math.radians(1.0), spec)
 
 
+def _side_main(conn: Any) -> None:
+    """The side process: run the tasks it is sent, one after the other, until told to stop
+    (None), its pipe closes or its parent is gone. Starts as pipeline.parallel's workers."""
+    import os
+    import signal
+
+    from flexopt.pipeline.parallel import PARENT_CHECK_S, _limit_loaded_pools, pin_threads
+
+    pin_threads()  # one BLAS thread: the first process factorises beside it
+    _limit_loaded_pools()
+    # Ctrl-C reaches the whole process group: the first process decides (and ends this one);
+    # a forked child inherits the CLI's SIGTERM handler, but is ended by its parent and must
+    # then end at once, as a process normally does
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    parent = os.getppid()
+    while True:
+        try:
+            while not conn.poll(PARENT_CHECK_S):
+                if os.getppid() != parent:  # orphaned (a forked copy of the pipe stays open)
+                    return
+            task = conn.recv()
+        except (EOFError, OSError):
+            return
+        if task is None:
+            return
+        name, func, args = task
+        try:
+            out: tuple[str, Any] = ("ok", func(*args))
+        except Exception as exc:
+            out = ("error", exc)
+        try:
+            conn.send((name, out))
+        except Exception as exc:  # a result or an exception that does not pickle
+            conn.send((name, ("error", RuntimeError(f"{type(exc).__name__}: {exc}"))))
+
+
 class _SideProcess:
     """One worker process for the report's work that needs no 3D answer.
 
@@ -1347,49 +1379,79 @@ class _SideProcess:
     the peak convergence (nonlinear plane-stress solves on refined meshes, ~10 s CPU on the
     default study) and the detail's two extra 2D solves depend only on the design, so they
     run beside them on the second core. Where a process cannot be started (a daemonic
-    worker) or a task dies, :meth:`get` gives None and the caller computes it itself;
-    FeaError and GeometryError of a task come back raised.
+    worker), or dies or fails on a task, :meth:`get` gives None and the caller computes it
+    itself; FeaError and GeometryError of a task come back raised.
     """
 
-    def __init__(self, pool: Any) -> None:
-        self._pool = pool
-        self._tasks: dict[str, Any] = {}
+    def __init__(self, process: Any = None, conn: Any = None) -> None:
+        self._process, self._conn = process, conn
+        self._sent: set[str] = set()
+        self._results: dict[str, tuple[str, Any]] = {}
 
     @classmethod
     def start(cls) -> _SideProcess:
         try:
             from flexopt.pipeline.parallel import _context
 
-            return cls(_context().Pool(1))
+            ctx = _context()
+            conn, child_conn = ctx.Pipe()
+            process = ctx.Process(target=_side_main, args=(child_conn,), daemon=True,
+                                  name="flexopt-report-side")  # fmt: skip
+            process.start()
+            child_conn.close()
+            return cls(process, conn)
         except Exception as exc:  # no second process here: the callers compute in this one
             log.info("report work in this process only (%s)", exc)
-            return cls(None)
+            return cls()
 
     def submit(self, name: str, func: Any, *args: Any) -> None:
-        if self._pool is not None:
-            self._tasks[name] = self._pool.apply_async(func, args)
+        if self._conn is None:
+            return
+        try:
+            self._conn.send((name, func, args))
+            self._sent.add(name)
+        except Exception as exc:  # an argument that does not pickle: computed here
+            log.info("report task %s stays in this process (%s)", name, exc)
 
     def get(self, name: str) -> Any:
         """The task's result, or None when the caller must compute it."""
-        task = self._tasks.pop(name, None)
-        if task is None:
+        if name not in self._sent:
             return None
+        self._sent.discard(name)
+        from flexopt.pipeline.parallel import PARENT_CHECK_S
+
         try:
-            return task.get()
-        except (FeaError, GeometryError):
-            raise
-        except Exception as exc:  # the process died, or a value did not pickle
-            log.warning("report task %s failed in the second process (%s); redone here", name,
+            while name not in self._results:
+                if self._conn.poll(PARENT_CHECK_S):
+                    done, out = self._conn.recv()
+                    self._results[done] = out
+                elif not self._process.is_alive():
+                    raise RuntimeError(f"it ended (exit code {self._process.exitcode})")
+        except Exception as exc:  # died (killed, out of memory) or a broken pipe
+            log.warning("report task %s: the second process failed (%s); redone here", name,
                         exc)  # fmt: skip
+            self.close()
             return None
+        status, value = self._results.pop(name)
+        if status == "ok":
+            return value
+        if isinstance(value, FeaError | GeometryError):
+            raise value
+        log.warning("report task %s failed in the second process (%s); redone here", name,
+                    value)  # fmt: skip
+        return None
 
     def close(self) -> None:
         """Stop the process (at once: a result not fetched is not needed)."""
-        if self._pool is not None:
-            self._pool.terminate()
-            self._pool.join()
-            self._pool = None
-            self._tasks.clear()
+        if self._process is not None:
+            self._process.terminate()
+            self._process.join(5.0)
+            if self._process.is_alive():
+                self._process.kill()
+                self._process.join()
+            self._conn.close()
+        self._process = self._conn = None
+        self._sent.clear()
 
 
 def solid_3d_scalars(s3: dict[str, Any]) -> dict[str, Any]:

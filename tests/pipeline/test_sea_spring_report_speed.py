@@ -122,3 +122,36 @@ def test_without_a_second_process_the_work_is_done_here(monkeypatch):
     conv = out["peak_convergence"]
     assert conv["process"] == "this" and conv["peaks_MPa"] == [1.0, 2.0]
     assert out["peak_stress_3d_MPa"] == 2.0 * out["checks"][-1]["peak_stress_ratio_3d_2d"]
+
+
+def _exit_now() -> None:
+    import os
+
+    os._exit(3)  # a process killed under its task (out of memory, a signal)
+
+
+def _fail_fea() -> None:
+    from flexopt.fea.errors import FeaError
+
+    raise FeaError("the solve failed")
+
+
+def test_side_process_death_and_errors_come_back(monkeypatch):
+    """A side process that dies under a task gives None (the caller redoes it; no hang), a
+    FeaError of a task comes back raised, a plain value comes back as it is."""
+    import multiprocessing
+
+    import flexopt.pipeline.parallel as parallel
+    from flexopt.fea.errors import FeaError
+
+    monkeypatch.setattr(parallel, "_context", lambda: multiprocessing.get_context("fork"))
+    side = ss._SideProcess.start()
+    side.submit("sum", sum, [1.0, 2.5])
+    side.submit("fea", _fail_fea)
+    assert side.get("sum") == 3.5
+    with pytest.raises(FeaError, match="the solve failed"):
+        side.get("fea")
+    side.submit("exit", _exit_now)
+    assert side.get("exit") is None
+    assert side.get("never submitted") is None
+    side.close()
