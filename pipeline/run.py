@@ -1308,6 +1308,11 @@ def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
 
             if callable(warm):
                 warm()
+            # the part's STL (trimesh, ~0.5 s) and DXF (ezdxf). Not build123d for best.step
+            # (~2.6 s): the STEP file is made in a forked child that imports it and exits
+            # without the ~1 s of interpreter teardown OpenCascade adds to a process.
+            import flexopt.geometry.dxf  # noqa: F401
+            import flexopt.geometry.solid  # noqa: F401
         except Exception as exc:  # the report loads it again, and says what fails
             log.info("preloading the report failed: %s", _one_line(f"{type(exc).__name__}: {exc}"))
 
