@@ -216,3 +216,33 @@ def test_usage_docs_show_the_editor_hook():
     assert "flexopt init" in usage and "flexopt list" in usage
     plugins = (ROOT / "docs" / "plugins.md").read_text()
     assert '[project.entry-points."flexopt.kinds"]' in plugins
+
+
+def test_the_command_skips_the_teardown_but_not_the_exit_handlers(tmp_path):
+    """cli.entry (the `flexopt` command) ends the process with os._exit after main: a plugin's
+    atexit handler still runs and the printed output is complete; a non-daemon thread still
+    running gets the normal exit, which waits for it."""
+    import subprocess
+    import sys
+
+    code = (
+        "import atexit, sys, threading, time\n"
+        "atexit.register(lambda: print('handler ran', flush=True))\n"
+        "if sys.argv[1] == 'thread':\n"
+        "    threading.Thread(target=lambda: (time.sleep(0.5), print('thread done'))).start()\n"
+        "sys.argv = ['flexopt', 'list']\n"
+        "from flexopt.pipeline.cli import entry\n"
+        "entry()\n"
+    )
+    for mode in ("plain", "thread"):
+        out = subprocess.run(
+            [sys.executable, "-c", code, mode], capture_output=True, text=True, timeout=120
+        )
+        assert out.returncode == 0, out.stderr
+        assert "constant-force" in out.stdout and "handler ran" in out.stdout
+        assert ("thread done" in out.stdout) == (mode == "thread")
+    bad = subprocess.run(
+        [sys.executable, "-m", "flexopt.pipeline.cli", "run", "no-such-study"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert bad.returncode == 2 and "no-such-study" in bad.stderr
