@@ -654,3 +654,21 @@ def test_evaluate_report_html_draws_the_robustness_band_and_shares(tmp_path):
     (tip,) = [r for r in record["requirements"] if r["name"] == "tip force"]
     assert tip["share_percent"] == pytest.approx(100.0 / 3.0) and not tip["met_robustly"]
     assert "<td>tip force</td>" in section and "<td>33.3 %</td><td>NOT MET</td>" in section
+
+
+def test_rank_correlation_is_scipys_spearman_with_ties():
+    """The report's own Spearman (no scipy.stats import at report time) against scipy's, with
+    ties, constant stretches and both signs."""
+    from flexopt.pipeline.report_html import _spearman
+    from scipy.stats import spearmanr
+
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        n = int(rng.integers(3, 60))
+        x = rng.integers(0, 6, n).astype(float)  # many ties
+        y = np.where(rng.random(n) < 0.5, -x, x) + rng.integers(0, 3, n)
+        if np.ptp(x) == 0 or np.ptp(y) == 0:
+            continue
+        assert _spearman(x, y) == pytest.approx(spearmanr(x, y).statistic, abs=1e-12)
+    x = rng.random(40)
+    assert _spearman(x, 3 * x + 1) == pytest.approx(1.0) and _spearman(x, -x) == pytest.approx(-1)
