@@ -571,7 +571,10 @@ class _Run:
         # generation, 5-15 ms each on the development machine) no longer hold the workers idle.
         # The store, the only file a resume needs, was fsynced above, before anything counts the
         # generation. The writes keep their order; one generation's are in flight at most.
-        files = self.table_texts()
+        # The CSV rows are formatted on the writer thread too (~10 ms a generation at the end
+        # of a 2400-design run), from a snapshot: the header, the row count, the history.
+        snapshot = (self.columns.header(), len(self.rows), list(self.history))
+        files: list[Any] = [lambda: self.table_texts(*snapshot)]
         files.append((CHECKPOINT_FILE, checkpoint_text(self.checkpoint_data(gen))))
         files.append(("run.json", to_json(self.record)))
         self.write_later(files)
@@ -587,8 +590,9 @@ class _Run:
         if self.on_generation is not None:
             self.on_generation(report)
 
-    def write_later(self, files: list[tuple[str, str]]) -> None:
-        """Write ``files`` ((name, text) in the run folder, in order) on the writer thread.
+    def write_later(self, files: list[Any]) -> None:
+        """Write ``files`` ((name, text) in the run folder, or callables that make such pairs,
+        in order) on the writer thread.
 
         Waits for the previous generation's writes first, so at most one generation's files are
         in flight and a failed write (a full disk) raises here, one generation late.
@@ -652,24 +656,33 @@ class _Run:
         self.drain_writes()
         _write_files(self.run_dir, self.table_texts())
 
-    def table_texts(self) -> list[tuple[str, str]]:
-        """(name, text) of evaluations.csv and history.csv as they stand."""
+    def table_texts(
+        self,
+        header: list[str] | None = None,
+        upto: int | None = None,
+        history: list[dict[str, Any]] | None = None,
+    ) -> list[tuple[str, str]]:
+        """(name, text) of evaluations.csv and history.csv: as they stand, or with ``header``,
+        the first ``upto`` rows and ``history`` (a snapshot; the writer thread formats it while
+        this thread goes on appending rows)."""
+        header = self.columns.header() if header is None else header
+        upto = len(self.rows) if upto is None else upto
+        history = self.history if history is None else history
         # evaluations.csv is rewritten whole (atomically) every generation, but each row is
         # formatted once: formatting all rows every generation made a 2400-design run spend
         # ~1 s per generation at the end in records_to_csv, with the workers idle. A row's text
         # depends only on the header, which grows when a new metric appears: then all again.
-        header = self.columns.header()
         if header != self._csv_header:
             self._csv_header, self._csv_body, self._csv_rows = header, [], 0
-        new = self.rows[self._csv_rows :]
+        new = self.rows[self._csv_rows : upto]
         if new:
             text = records_to_csv(new, header, exact=set(self.columns.variables))
             self._csv_body.append(text[text.index("\n") + 1 :])  # without its header line
-            self._csv_rows = len(self.rows)
+            self._csv_rows = upto
         head = records_to_csv([], header)
         files = [("evaluations.csv", head + "".join(self._csv_body))]
-        if self.history:
-            files.append(("history.csv", records_to_csv(self.history, list(self.history[0]))))
+        if history:
+            files.append(("history.csv", records_to_csv(history, list(history[0]))))
         return files
 
     # -- the end of a run ----------------------------------------------------------------------
@@ -1394,10 +1407,12 @@ def _make_in_child(conn: Any, items: list[tuple[str, Callable[[], str | bytes | 
         conn.close()
 
 
-def _write_files(run_dir: Path, files: Iterable[tuple[str, str]]) -> None:
-    """Write each (name, text) into ``run_dir`` atomically, in order."""
-    for name, text in files:
-        write_atomic(run_dir / name, text)
+def _write_files(run_dir: Path, files: Iterable[Any]) -> None:
+    """Write each (name, text) into ``run_dir`` atomically, in order; an item may also be a
+    callable that returns such pairs (formatted here, on the writer thread)."""
+    for item in files:
+        for name, text in item() if callable(item) else (item,):
+            write_atomic(run_dir / name, text)
 
 
 def _n_workers(settings: ParallelSettings) -> int:
