@@ -173,6 +173,15 @@ def main() -> None:
         return
     print(f"date      {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC")
     print(f"machine   {platform.machine()}, {os.cpu_count()} cores, {platform.system()}")
+    # what the run can use: the plane-stress solver (CHOLMOD with the cholmod extra, else
+    # SuperLU) and best.step (the step extra) change the figures
+    import importlib.util
+
+    extras = [
+        f"{name} {'yes' if importlib.util.find_spec(mod) else 'no'}"
+        for name, mod in (("cholmod (cvxopt)", "cvxopt"), ("step (build123d)", "build123d"))
+    ]
+    print(f"python    {sys.executable}; extras: {', '.join(extras)}")
     print(f"load avg  {load()} (1, 5, 15 min) at start")
     cases = [(s, m) for s in args.studies for m in args.store_modes]
     runs: dict[tuple[str, str], list[dict]] = {c: [] for c in cases}
