@@ -1226,9 +1226,13 @@ class MechanismProblem:
             table=solved.tables[first],
             plot={
                 **_plot_spec(self.study, first, self.material),
-                **band_spec(self.requirements, solved.tables[first],
-                            _plot_spec(self.study, first, self.material)["x"], "y",
-                            _prefix(self.study, first)),  # a target band, drawn
+                **band_spec(
+                    self.requirements,
+                    solved.tables[first],
+                    _plot_spec(self.study, first, self.material)["x"],
+                    "y",
+                    _prefix(self.study, first),
+                ),  # a target band, drawn
             },  # fmt: skip
             outline=solved.outline.polygon,
             height_mm=solved.width_mm,

@@ -1596,8 +1596,10 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
             "right": "peak_stress_MPa",
             "allowable_MPa": study.target.allowable_stress_MPa,
             # the target stiffness as a torque line K theta, with its band
-            "target_curve": {"x": table["rotation_deg"],
-                             "y": prob.k_target * np.radians(table["rotation_deg"])},
+            "target_curve": {
+                "x": table["rotation_deg"],
+                "y": prob.k_target * np.radians(table["rotation_deg"]),
+            },
             "tolerance_rel": study.target.tolerance_percent / 100.0,
             "target_label": f"target K θ, K = {prob.k_target:g} N·m/rad",
         },  # fmt: skip
