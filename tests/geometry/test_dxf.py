@@ -123,3 +123,21 @@ def test_step_writes_a_solid_in_mm():
         solid = bd.import_step(str(path))
     assert solid.volume == pytest.approx(part.outline.area * 2.0, rel=1e-6)
     assert isinstance(part, FlatPart) and np.isfinite(solid.volume)
+
+
+def test_step_refuses_an_outline_that_is_not_a_valid_polygon():
+    # step_bytes checks the outline with shapely instead of OpenCascade's shape analyser: a
+    # self-crossing ring (a bow tie) must still be refused, before any solid is made
+    pytest.importorskip("build123d")
+    bow_tie = Polygon([(0, 0), (10, 10), (10, 0), (0, 10)])
+    assert not bow_tie.is_valid
+    with pytest.raises(GeometryError, match="not a valid polygon"):
+        step_bytes(FlatPart(bow_tie, 2.0, (10.0, 10.0)))
+
+
+def test_step_face_count_check_ignores_repeated_vertices():
+    # a repeated vertex is no edge of the solid: the count of side faces must not include it
+    pytest.importorskip("build123d")
+    ring = [(0, 0), (10, 0), (10, 0), (10, 5), (0, 5)]
+    data = step_bytes(FlatPart(Polygon(ring), 2.0, (10.0, 5.0)))
+    assert data.startswith(b"ISO-10303-21;")
