@@ -502,7 +502,8 @@ class _Run:
         self._pending: Future | None = None
         # files made in forked children at the end of the run (see artefact)
         self._groups: dict[str, list[tuple[str, Callable[[], str | bytes | None]]]] = {}
-        self._started: list[_ForkedMakes] = []
+        self._started: list[_ForkedMakes | _EarlyStep] = []
+        self._early: _EarlyStep | None = None  # best.step's child, once it has the part
         self._csv_header: list[str] | None = None
         self._csv_body: list[str] = []
         self._csv_rows = 0
@@ -759,6 +760,16 @@ class _Run:
             return ()
 
     def finish(self, result: GAResult) -> DesignDetail | None:
+        # best.step's child is forked first: it imports build123d (~3 s) while the best
+        # design's detail is solved, once a core is idle (see _EarlyStep)
+        early = _EarlyStep.start() if step_available() else None
+        try:
+            return self._finish(result, early)
+        finally:
+            if early is not None:
+                early.close()
+
+    def _finish(self, result: GAResult, early: _EarlyStep | None) -> DesignDetail | None:
         study, problem = self.setup.study, self.problem
         best = result.best
         title = f"{study.name}: best design"
@@ -862,7 +873,9 @@ class _Run:
         if part is not None:
             self.artefact("best.stl", lambda: self._stl(part))
             self.artefact("best.dxf", lambda: part_bytes(part, "dxf", f"{study.name}: best"))
-            if step_available():  # the optional extra; without it no STEP and no note
+            if early is not None and early.send(part):
+                self._early = early
+            elif step_available():  # the optional extra; without it no STEP and no note
                 self.artefact("best.step", lambda: part_bytes(part, "step"), group="step")
         elif detail is not None and (detail.outline is None or not detail.height_mm):
             self.notes.append(
@@ -871,6 +884,9 @@ class _Run:
         # The plots and the STEP solid are made in forked children while this process writes
         # report.html: the report phase otherwise runs on one core with the other idle.
         self.start_groups()
+        if self._early is not None:
+            self._started.append(self._early)
+            self._early = None
         # every design to explore, offline (plotly.js inline); a failure is a note
         self.artefact("report.html", lambda: render_html(HtmlData(
             study.name, study.kind, problem, tuple(self.evaluator.solved), best,
@@ -1377,6 +1393,119 @@ class _ForkedMakes:
         finally:
             self.conn.close()
             self.process.join(5)
+
+
+class _EarlyStep:
+    """best.step made in a child forked when the report starts, before the part is known.
+
+    The STEP writer's import (build123d and OpenCascade, ~3 s) needs nothing of the run, so the
+    child does it while the best design's detail is solved, but only once a core is idle
+    (:func:`_wait_for_idle_core`): the SEA spring's 3D checks keep one core busy and its peak
+    convergence the other for their first ~10 s, and an import beside them would slow the
+    checks. When the part arrives (:meth:`send`) the child imports at once if it has not yet,
+    makes the file and sends it back (:meth:`results`, as :class:`_ForkedMakes`). Where fork is
+    not available or the child cannot start, :meth:`start` gives None and the file is made as
+    before (a "step" group).
+    """
+
+    items = (("best.step", None),)  # what it makes, for a dead child's notes
+
+    def __init__(self, conn: Any, process: Any) -> None:
+        self.conn, self.process = conn, process
+        self._sent = False
+
+    @classmethod
+    def start(cls) -> _EarlyStep | None:
+        ctx = _fork_context()
+        if ctx is None:
+            return None
+        try:
+            ours, theirs = ctx.Pipe(duplex=True)
+            process = ctx.Process(
+                target=_early_step_main, args=(theirs,), name="flexopt-step", daemon=True
+            )
+            process.start()
+            theirs.close()
+        except Exception as exc:
+            log.info("best.step made later: %s", _one_line(str(exc)))
+            return None
+        return cls(ours, process)
+
+    def send(self, part: FlatPart) -> bool:
+        """Hand the child the part; False when it is gone (then make the file another way)."""
+        try:
+            self.conn.send(part)
+        except (OSError, ValueError, EOFError):
+            return False
+        self._sent = True
+        return True
+
+    def results(self) -> list[tuple[str, str | bytes | None, str | None]]:
+        try:
+            return self.conn.recv()
+        except (EOFError, OSError):
+            self.process.join(5)
+            code = self.process.exitcode
+            how = f"signal {-code}" if code is not None and code < 0 else f"exit code {code}"
+            return [("best.step", None, f"the process making it died ({how})")]
+
+    def close(self) -> None:
+        """End the child: told there is no part when it has none, else its answer was read."""
+        if not self._sent:
+            with contextlib.suppress(OSError, ValueError):
+                self.conn.send(None)
+        self.conn.close()
+        self.process.join(5)
+        if self.process.is_alive():  # stuck in OpenCascade: a file is not worth a hung run
+            self.process.kill()
+            self.process.join(5)
+
+
+def _early_step_main(conn: Any) -> None:
+    """:class:`_EarlyStep`'s child: import the STEP writer when a core is idle, then make the
+    part it is sent (None: nothing to make)."""
+    try:
+        _wait_for_idle_core(conn.poll)
+        with contextlib.suppress(Exception):  # step_bytes says what fails, as a note
+            import build123d  # noqa: F401
+        part = conn.recv()
+        if part is not None:
+            conn.send(_make_here([("best.step", lambda: part_bytes(part, "step"))]))
+    except (EOFError, OSError):  # the parent is gone or closed the pipe
+        pass
+    finally:
+        conn.close()
+
+
+def _wait_for_idle_core(ready: Callable[[float], bool], period_s: float = 0.2,
+                        idle_cores: float = 0.6, limit_s: float = 600.0) -> None:  # fmt: skip
+    """Return once the machine has ``idle_cores`` of idle CPU over a ``period_s`` (from
+    /proc/stat), or ``ready(period_s)`` says there is work, or after ``limit_s``.
+
+    Where /proc/stat cannot be read (not Linux) it returns at once."""
+
+    def idle_total() -> tuple[float, float]:
+        with open("/proc/stat") as fh:
+            v = [float(x) for x in fh.readline().split()[1:]]
+        return v[3] + v[4], sum(v[:8])  # idle + iowait; user .. steal
+
+    try:
+        last = idle_total()
+    except (OSError, ValueError, IndexError):
+        return
+    n_cpu = os.cpu_count() or 1
+    t_end = time.monotonic() + limit_s
+    while time.monotonic() < t_end:
+        if ready(period_s):
+            return
+        try:
+            now = idle_total()
+        except (OSError, ValueError, IndexError):
+            return
+        d_idle, d_total = now[0] - last[0], now[1] - last[1]
+        last = now
+        if d_total > 0 and d_idle / d_total * n_cpu >= idle_cores:
+            return
 
 
 def _fork_context() -> Any:

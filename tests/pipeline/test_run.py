@@ -593,6 +593,65 @@ def test_report_files_are_made_in_a_forked_child_and_its_failures_are_notes(monk
     assert here == [("a.png", str(os.getpid()).encode(), None)]
 
 
+def test_best_step_child_is_forked_early_and_makes_the_part_it_is_sent(monkeypatch):
+    """_EarlyStep: forked before the part is known, it makes best.step in another process once
+    sent the part; without a part it ends when closed; a child that dies is a note."""
+    import os
+    import sys
+    import types
+
+    from flexopt.pipeline import run as run_mod
+
+    if run_mod._fork_context() is None:
+        pytest.skip("no fork on this platform")
+    # the child's import of the STEP writer is instant here, and its "STEP" says who made it
+    monkeypatch.setitem(sys.modules, "build123d", types.ModuleType("build123d"))
+    monkeypatch.setattr(
+        run_mod, "part_bytes", lambda part, fmt: f"{fmt} {part} {os.getpid()}".encode()
+    )
+    early = run_mod._EarlyStep.start()
+    assert early is not None and early.send("plate")
+    ((name, data, error),) = early.results()
+    early.close()
+    assert name == "best.step" and error is None
+    fmt, part, pid = data.decode().split()
+    assert (fmt, part) == ("step", "plate") and int(pid) != os.getpid()
+    assert not early.process.is_alive()
+
+    idle = run_mod._EarlyStep.start()  # no part (a kind without an outline): closed, it ends
+    idle.close()
+    assert not idle.process.is_alive() and idle.process.exitcode == 0
+
+    monkeypatch.setattr(run_mod, "part_bytes", lambda part, fmt: os._exit(3))
+    dead = run_mod._EarlyStep.start()
+    assert dead.send("plate")
+    assert dead.results() == [("best.step", None, "the process making it died (exit code 3)")]
+    dead.close()
+
+
+def test_waiting_for_an_idle_core_ends_on_work_or_at_its_limit():
+    """_wait_for_idle_core: at once when there is work, after one period when any idle share
+    will do, at its time limit when the idle share asked for cannot happen."""
+    import time
+
+    from flexopt.pipeline.run import _wait_for_idle_core
+
+    t0 = time.monotonic()
+    _wait_for_idle_core(lambda timeout: True, idle_cores=1e9)
+    assert time.monotonic() - t0 < 0.5
+
+    def no_work(timeout: float) -> bool:
+        time.sleep(timeout)
+        return False
+
+    t0 = time.monotonic()
+    _wait_for_idle_core(no_work, period_s=0.05, idle_cores=1e9, limit_s=0.3)
+    assert 0.25 <= time.monotonic() - t0 < 2.0
+    t0 = time.monotonic()
+    _wait_for_idle_core(no_work, period_s=0.05, idle_cores=0.0, limit_s=30.0)
+    assert time.monotonic() - t0 < 2.0
+
+
 def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():
     """_preload_report: the problem's warm_up_detail runs in a background thread while worker
     processes solve; never in a serial run (it would compete with the solving thread); a
