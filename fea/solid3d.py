@@ -116,6 +116,13 @@ class Solid3DSettings:
     pcg_rtol: float = 1e-12
     # More iterations than this means the factorised thickness is too far off: factorise anew.
     pcg_max_iterations: int = 40
+    # "compiled": the P2 tables from the vertex coordinates, the node-block pattern and the
+    # stiffness parts row by row, and the reduced lower triangle in compressed-column order,
+    # in numba kernels (fea/_solid3d_kernels.py): the SEA spring's 405k-DOF build and first
+    # solve spend ~1 s outside CHOLMOD instead of ~8 s (docs/solid3d.md, "Cost"). "numpy":
+    # scikit-fem's Basis and a global sort of the node pairs, the reference (the tests check
+    # that both agree to round-off); also what runs when numba does not import.
+    assembly: Literal["compiled", "numpy"] = "compiled"
 
 
 @dataclass(frozen=True)
@@ -313,6 +320,29 @@ def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
     return K
 
 
+def _flat(a) -> np.ndarray:
+    """A numpy array or a cvxopt (n, 1) matrix as an (n,) numpy array (a view, writable)."""
+    return np.asarray(a).reshape(-1)
+
+
+def _index_buffer(n: int):
+    """(n,) int64 to be written in place: a cvxopt integer matrix when cvxopt imports (CHOLMOD's
+    matrix is then built from it without a copy; ``np.asarray`` of it is a writable view),
+    else a numpy array."""
+    try:
+        from cvxopt import matrix
+    except ImportError:
+        return np.empty(n, dtype=np.int64)
+    return matrix(0, (n, 1), "i")
+
+
+def _value_buffer(n: int):
+    """(n,) float in a cvxopt matrix, to be written in place through ``np.asarray``."""
+    from cvxopt import matrix
+
+    return matrix(0.0, (n, 1))
+
+
 class _Solver:
     """Factorise a symmetric positive definite matrix once and solve with it.
 
@@ -339,10 +369,12 @@ class _Solver:
                 if which == "cholmod":
                     raise FeaError(f"solver 'cholmod' needs cvxopt ({exc})") from exc
             else:
+                # cvxopt matrices are used as they are (the compiled pattern writes them);
+                # triplets sorted by column build ~10x faster than unsorted ones
                 A = spmatrix(
-                    matrix(np.asarray(vals, dtype=float)),
-                    matrix(np.asarray(rows, dtype=np.int64)),
-                    matrix(np.asarray(cols, dtype=np.int64)),
+                    vals if isinstance(vals, matrix) else matrix(np.asarray(vals, dtype=float)),
+                    rows if isinstance(rows, matrix) else matrix(np.asarray(rows, np.int64)),
+                    cols if isinstance(cols, matrix) else matrix(np.asarray(cols, np.int64)),
                     (self.n, self.n),
                 )
                 self._cholmod, self._matrix = cholmod, matrix
@@ -359,6 +391,7 @@ class _Solver:
         from scipy.sparse.linalg import splu
 
         if K is None:
+            vals, rows, cols = _flat(vals), _flat(rows), _flat(cols)
             L = sp.coo_matrix((vals, (rows, cols)), shape=(self.n, self.n)).tocsc()
             K = L + L.T - sp.diags(L.diagonal())
         # Minimum degree on A^T + A suits symmetric matrices (as in fea.plane_stress).
@@ -382,11 +415,24 @@ def _von_mises(grad_u: np.ndarray, lam: float, mu: float) -> np.ndarray:
     return np.sqrt(1.5 * np.einsum("...ij,...ij->...", dev, dev))
 
 
-def _select(xy: np.ndarray, region: BaseGeometry, what: str, tol: float) -> np.ndarray:
-    # Every node lies above a vertex or an edge midpoint of the plane mesh: measure each
-    # distinct (x, y) once (a ninth of the nodes with 4 layers).
-    uxy, back = np.unique(xy, axis=0, return_inverse=True)
-    d = shapely.distance(region, shapely.points(uxy))[back.ravel()]
+def _distinct_xy(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of ``xy`` (n, 2) and each row's index among them (n,).
+
+    Every node lies above a vertex or an edge midpoint of the plane mesh, so there are a
+    ninth as many with 4 layers. One unique over (x, y) read as a complex number: the rows
+    of ``np.unique(xy, axis=0)`` in the same order, ~6x faster.
+    """
+    xc = np.ascontiguousarray(xy, dtype=float).view(np.complex128).ravel()
+    u, back = np.unique(xc, return_inverse=True)
+    return np.column_stack([u.real, u.imag]), back.ravel()
+
+
+def _select(xy: np.ndarray, region: BaseGeometry, what: str, tol: float,
+            distinct: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:  # fmt: skip
+    """The nodes (rows of ``xy`` (n, 2) mm) within ``tol`` mm of ``region``, each distinct
+    (x, y) measured once (``distinct``: :func:`_distinct_xy` of ``xy``, if known)."""
+    uxy, back = distinct if distinct is not None else _distinct_xy(xy)
+    d = shapely.distance(region, shapely.points(uxy))[back]
     nodes = np.flatnonzero(d <= tol)
     if nodes.size == 0:
         raise FeaError(
@@ -471,17 +517,19 @@ def _supports(locs: np.ndarray, ndof: int, clamp: Clamp, drive: Drive,
               settings: Solid3DSettings) -> _Supports:  # fmt: skip
     """Clamp, drive and mid-plane symmetry on the P2 nodes ``locs`` (Ns, 3) mm."""
     tol = settings.select_tol_mm
-    clamp_nodes = _select(locs[:, :2], clamp.region, "clamp", tol)
-    drive_nodes = _select(locs[:, :2], drive.region, "drive", tol)
-    both = np.intersect1d(clamp_nodes, drive_nodes)
-    if both.size:
-        raise FeaError(f"{both.size} node(s) are both clamped and driven; separate the regions")
+    distinct = _distinct_xy(locs[:, :2])
+    clamp_nodes = _select(locs[:, :2], clamp.region, "clamp", tol, distinct)
+    drive_nodes = _select(locs[:, :2], drive.region, "drive", tol, distinct)
+    held = np.zeros((locs.shape[0], 3), dtype=bool)  # (node, component) prescribed
+    held[clamp_nodes] = True
+    both = np.count_nonzero(held[drive_nodes, 0])
+    if both:
+        raise FeaError(f"{both} node(s) are both clamped and driven; separate the regions")
+    held[drive_nodes] = True
     ubar = np.zeros(ndof)
-    fixed = [3 * clamp_nodes + c for c in range(3)] + [3 * drive_nodes + c for c in range(3)]
     if settings.symmetric:
         # Mid-plane symmetry: no out-of-plane motion at z = 0.
-        mid = np.flatnonzero(np.abs(locs[:, 2]) <= tol)
-        fixed.append(3 * mid + 2)
+        held[np.abs(locs[:, 2]) <= tol, 2] = True
     X = locs[drive_nodes, :2]
     is_rot = isinstance(drive, Rotate)
     if is_rot:
@@ -500,8 +548,7 @@ def _supports(locs: np.ndarray, ndof: int, clamp: Clamp, drive: Drive,
         move = np.broadcast_to(value * direction, X.shape)
     ubar[3 * drive_nodes] = move[:, 0]
     ubar[3 * drive_nodes + 1] = move[:, 1]
-    fixed_dofs = np.unique(np.concatenate(fixed))
-    free = np.setdiff1d(np.arange(ndof), fixed_dofs)
+    free = np.flatnonzero(~held.ravel())  # DOF 3 s + c
     cols = [sp.csr_matrix((np.ones(free.size), (free, np.arange(free.size))), (ndof, free.size))]
     if not is_rot and drive.transverse == "free":
         # One shared unknown: the driven nodes slide together perpendicular to the direction.
@@ -580,15 +627,20 @@ def _stress_mask(nel: int, mesh: TriMesh, ignore: BaseGeometry | None) -> np.nda
     return mask
 
 
-def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0):
+def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=None):
     """Peak von Mises at quadrature points and vertex-averaged, with their (x, y, z), mm.
 
     u (ndof,) mm; dofs (nel, 10) scalar P2 DOFs; G (nel, nqp, 10, 3) and Gc (nel, 4, 10, 3)
     scalar basis gradients, 1/mm, at the quadrature points and the corners; xyz_qp
     (3, nel, nqp) mm; t (nel, 4) vertices; p (3, nv) mm; mask (nel,) bool: elements judged.
     z_scale: the mesh the gradients belong to stretched by this along z (their z components
-    divided by it; xyz_qp and p are the stretched mesh's).
+    divided by it; xyz_qp and p are the stretched mesh's). kernels: the compiled module
+    (:func:`fea._solid3d_kernels.von_mises`, one pass over the elements) or None (numpy).
     """
+    if kernels is not None:
+        vm = kernels.von_mises(u, dofs, G, mu, z_scale)  # (nel, nqp)
+        vc = kernels.von_mises(u, dofs, Gc, mu, z_scale)  # (nel, 4)
+        return _peak_values(vm, vc, xyz_qp, t, p, mask)
     ue = u.reshape(-1, 3)[dofs]  # (nel, 10, 3)
 
     def grad_u(G: np.ndarray) -> np.ndarray:  # G (nel, nqp, 10, 3) -> (nel, nqp, 3, 3)
@@ -598,11 +650,16 @@ def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0):
         return g
 
     vm = _von_mises(grad_u(G), lam, mu)  # (nel, nqp)
+    # Vertex values: the P2 gradient at the tetrahedron's corners, averaged over its elements.
+    vc = _von_mises(grad_u(Gc), lam, mu)  # (nel, 4) in t order
+    return _peak_values(vm, vc, xyz_qp, t, p, mask)
+
+
+def _peak_values(vm, vc, xyz_qp, t, p, mask):
+    """_peaks' answer from the von Mises stress vm (nel, nqp) and vc (nel, 4), MPa."""
     vm_m = np.where(mask[:, None], vm, -np.inf)
     e, qp = np.unravel_index(np.argmax(vm_m), vm_m.shape)
     xyz = xyz_qp[:, e, qp]
-    # Vertex values: the P2 gradient at the tetrahedron's corners, averaged over its elements.
-    vc = _von_mises(grad_u(Gc), lam, mu)  # (nel, 4) in t order
     n = p.shape[1]
     total = np.bincount(t.ravel(), weights=vc.ravel(), minlength=n)
     count = np.bincount(t.ravel(), minlength=n)
@@ -616,6 +673,55 @@ def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0):
 
 # --------------------------------------------------------------------------------------------
 # One model for every thickness
+
+
+_KERNELS: list = []
+
+
+def _compiled():
+    """fea._solid3d_kernels, or None when numba cannot be imported (the numpy path then runs)."""
+    if not _KERNELS:
+        try:
+            from flexopt.fea import _solid3d_kernels
+
+            _KERNELS.append(_solid3d_kernels)
+        except Exception:  # ImportError, or a numba that fails on this platform's LLVM
+            _KERNELS.append(None)
+    return _KERNELS[0]
+
+
+def _p2_tables(tmesh, kernels) -> tuple:
+    """The P2 tables of a tetrahedral mesh without scikit-fem's Basis (the compiled path).
+
+    scikit-fem's numbering (the tests check it): the vertices, then one node per edge, the
+    edges sorted by (lower vertex, higher vertex); an element's local nodes are its 4
+    vertices, then its edges in ``kernels._EDGES`` order. Gradients from the vertex
+    coordinates (:func:`fea._solid3d_kernels.p2_tables`) at scikit-fem's order-2 rule.
+
+    Returns
+    -------
+    dofs : (nel, 10) int64; n_scalar : int; doflocs : (n_scalar, 3) float, mm;
+    G : (nel, nqp, 10, 3), 1/mm; dx : (nel, nqp), mm^3; Gc : (nel, 4, 10, 3), 1/mm (at the
+    corners, in t order); xyz_qp : (3, nel, nqp), mm.
+    """
+    from skfem.quadrature import get_quadrature
+    from skfem.refdom import RefTet
+
+    p = np.ascontiguousarray(tmesh.p, dtype=float)
+    t = np.ascontiguousarray(tmesh.t.T, dtype=np.int64)
+    nv = p.shape[1]
+    ends = kernels._EDGES
+    a, b = t[:, ends[:, 0]], t[:, ends[:, 1]]
+    key = (np.minimum(a, b) * nv + np.maximum(a, b)).ravel()
+    uniq, inv = np.unique(key, return_inverse=True)
+    dofs = np.hstack([t, nv + inv.reshape(-1, 6)])
+    lo, hi = np.divmod(uniq, nv)
+    doflocs = np.hstack([p, 0.5 * (p[:, lo] + p[:, hi])]).T
+    X, w = get_quadrature(RefTet, 2)
+    G, dx, xyz = kernels.p2_tables(p, t, np.ascontiguousarray(X, dtype=float),
+                                   np.ascontiguousarray(w, dtype=float), ends)  # fmt: skip
+    Gc = kernels.p2_tables(p, t, _CORNERS[0], _CORNERS[1], ends)[0]
+    return dofs, nv + uniq.size, doflocs, G, dx, Gc, xyz
 
 
 # Components (c, d) of a 3x3 node block that each part of the stiffness fills: the in-plane
@@ -786,40 +892,68 @@ class Solid3DModel:
                 f"the 3D model would have about {est} DOFs (cap {settings.max_dofs}); use "
                 "fewer layers or a coarser plane mesh"
             )
+        if settings.assembly not in ("compiled", "numpy"):
+            raise FeaError(f"assembly '{settings.assembly}': use 'compiled' or 'numpy'")
+        kernels = _compiled() if settings.assembly == "compiled" else None
+        # what runs: "numpy" also when numba does not import (the same answers)
+        self.assembly = "compiled" if kernels is not None else "numpy"
+        self._kernels = kernels
         self._n_layers = z.size - 1
         tmesh = extrude_mesh(mesh, z)
-        sbasis = Basis(tmesh, ElementTetP2(), intorder=2)
-        cbasis = Basis(tmesh, sbasis.elem, quadrature=_CORNERS)
-        self._dofs = sbasis.element_dofs.T  # (nel, 10)
-        self._G = _gradients(sbasis)  # (nel, nqp, 10, 3), 1/mm at 1 mm
-        self._Gc = _gradients(cbasis)  # (nel, 4, 10, 3)
-        self._xyz_qp = np.asarray(sbasis.global_coordinates())  # (3, nel, nqp), mm at 1 mm
+        if kernels is not None:
+            self._dofs, n_scalar, doflocs, self._G, dx, self._Gc, self._xyz_qp = _p2_tables(
+                tmesh, kernels
+            )
+        else:
+            sbasis = Basis(tmesh, ElementTetP2(), intorder=2)
+            cbasis = Basis(tmesh, sbasis.elem, quadrature=_CORNERS)
+            self._dofs = sbasis.element_dofs.T  # (nel, 10)
+            self._G = _gradients(sbasis)  # (nel, nqp, 10, 3), 1/mm at 1 mm
+            self._Gc = _gradients(cbasis)  # (nel, 4, 10, 3)
+            self._xyz_qp = np.asarray(sbasis.global_coordinates())  # (3, nel, nqp), mm at 1 mm
+            n_scalar, doflocs, dx = sbasis.N, sbasis.doflocs.T, sbasis.dx
         self._t, self._p = tmesh.t.T, tmesh.p  # (nel, 4), (3, nv)
         self._mask = _stress_mask(tmesh.t.shape[1], mesh, stress_ignore)
-        self.n_dofs = 3 * sbasis.N
+        self.n_dofs = 3 * n_scalar
         if self.n_dofs > settings.max_dofs:
             raise FeaError(f"{self.n_dofs} DOFs exceed max_dofs = {settings.max_dofs}")
-        self._sup = _supports(sbasis.doflocs.T, self.n_dofs, clamp, drive, settings)
+        self._sup = _supports(doflocs, self.n_dofs, clamp, drive, settings)
         t1 = time.perf_counter()
         self._lam, self._mu = _lame(material)
-        self._indptr, self._indices, self._parts = _stiffness_parts(
-            self._G, sbasis.dx, self._dofs, sbasis.N, self._lam, self._mu,
-            min(2_000, settings.block_elements),
-        )  # fmt: skip
-        self._lower = self._reduced_lower_pattern()
+        if kernels is not None:
+            self._indptr, self._indices, self._parts = kernels.block_pattern_parts(
+                self._dofs, n_scalar, self._G, dx, self._lam, self._mu
+            )
+        else:
+            self._indptr, self._indices, self._parts = _stiffness_parts(
+                self._G, dx, self._dofs, n_scalar, self._lam, self._mu,
+                min(2_000, settings.block_elements),
+            )  # fmt: skip
+        self._lower = self._reduced_lower_pattern(kernels)
         self._build_times = {"mesh": t1 - t0, "assemble": time.perf_counter() - t1}
         self._factor: _Solver | None = None
         self._q: np.ndarray | None = None
 
-    def _reduced_lower_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    def _reduced_lower_pattern(self, kernels=None) -> tuple | None:
         """Where the reduced matrix's lower triangle sits in the blocks: (flat index into the
         (nnzb, 3, 3) block values, reduced row, reduced column), or None when the unknowns are
-        not a selection of DOFs (a common transverse slide): then P^T K P is formed."""
+        not a selection of DOFs (a common transverse slide): then P^T K P is formed.
+        ``kernels``: the compiled module (the entries sorted by column, then row: cvxopt
+        builds CHOLMOD's matrix from them ~10x faster than from the numpy path's order; rows
+        and columns in cvxopt matrices when it imports), or None (numpy)."""
         sup = self._sup
         if sup.P.shape[1] != sup.free.size:
             return None
         red = np.full(self.n_dofs, -1, dtype=np.int64)
         red[sup.free] = np.arange(sup.free.size)
+        if kernels is not None:
+            colptr = kernels.reduced_lower_count(self._indptr, self._indices, red)
+            nnz = int(colptr[-1])
+            flat = np.empty(nnz, dtype=np.int64)
+            rows, cols = _index_buffer(nnz), _index_buffer(nnz)
+            kernels.reduced_lower_fill(self._indptr, self._indices, red, colptr, flat,
+                                       _flat(rows), _flat(cols))  # fmt: skip
+            return flat, rows, cols
         nb = np.diff(self._indptr)
         brow = np.repeat(np.arange(nb.size), nb)
         kb = np.flatnonzero(self._indices >= brow)  # blocks on or above the diagonal
@@ -882,7 +1016,11 @@ class Solid3DModel:
             self._factor = None  # release the old factor before the new one is built
             if self._lower is not None:
                 flat, rows, cols = self._lower
-                lower = (K.data.ravel()[flat], rows, cols, P.shape[1])
+                # into a cvxopt matrix when the pattern is one (CHOLMOD's, no copy)
+                vals = (np.empty(flat.size) if isinstance(rows, np.ndarray)
+                        else _value_buffer(flat.size))  # fmt: skip
+                np.take(K.data.ravel(), flat, out=_flat(vals))
+                lower = (vals, rows, cols, P.shape[1])
                 self._factor = _Solver(None, st.solver, lower)
             else:
                 self._factor = _Solver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
@@ -896,7 +1034,7 @@ class Solid3DModel:
         stretch = np.array([1.0, 1.0, zs])
         peaks = _peaks(u, self._dofs, self._G, self._xyz_qp * stretch[:, None, None], self._Gc,
                        self._t, self._p * stretch[:, None], self._mask, self._lam, self._mu,
-                       z_scale=zs)  # fmt: skip
+                       z_scale=zs, kernels=self._kernels)  # fmt: skip
         times["stress"] = time.perf_counter() - t2
         times["total"] = sum(times.values())
         solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"

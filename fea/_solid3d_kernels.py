@@ -1,0 +1,323 @@
+"""Compiled (numba) kernels of the 3D model's build in :mod:`fea.solid3d`.
+
+The numpy path (``Solid3DSettings(assembly="numpy")``) builds the P2 tables with scikit-fem's
+generic ``Basis`` and finds the node-block pattern by a global sort of the 100 node pairs of
+every element; on the SEA spring's 405k-DOF model that is ~6 s. Here:
+
+* :func:`p2_tables`: the quadratic tetrahedron's gradients from the vertex coordinates (the
+  mesh is affine: each element's barycentric gradients are constant), with the quadrature
+  weights and points, in one pass over the elements;
+* :func:`block_pattern_parts`: the node-block sparsity pattern (per node row: its elements'
+  nodes, deduplicated with a marker, sorted) and the twelve stiffness "parts" of each node block
+  (:func:`fea.solid3d._stiffness_parts`), summed row by row into the pattern;
+* :func:`reduced_lower_count`, :func:`reduced_lower_fill`: where the reduced matrix's lower
+  triangle sits in the node blocks, listed column by column (rows ascending): the
+  compressed-column order CHOLMOD reads;
+* :func:`von_mises`: the stress at the quadrature points and corners of a solution.
+
+Notation: ``G[e, q, a, j]`` is ``d phi_a / d x_j`` of local P2 function ``a`` (4 vertices, then
+the edges (0,1), (1,2), (0,2), (0,3), (1,3), (2,3): scikit-fem's ElementTetP2) at quadrature
+point ``q`` of element ``e``, 1/mm; ``dx[e, q]`` its weight times the Jacobian, mm^3.
+
+Every function is ``@njit(cache=True)``: compiled once per install (the cache sits in
+``fea/__pycache__`` or ``NUMBA_CACHE_DIR``), not per process. ``fastmath`` stays off, so the
+sums run in a fixed order and agree with the numpy path to round-off.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# local P2 edge functions: (first vertex, second vertex), in scikit-fem's order
+_EDGES = np.array([[0, 1], [1, 2], [0, 2], [0, 3], [1, 3], [2, 3]], dtype=np.int64)
+
+
+@njit(cache=True)
+def p2_tables(p: np.ndarray, t: np.ndarray, X: np.ndarray, w: np.ndarray, edges: np.ndarray):
+    """Gradients, weights and points of the P2 functions of affine tetrahedra.
+
+    Parameters
+    ----------
+    p : (3, nv) float, mm — vertices; t : (nel, 4) int — each element's vertices.
+    X : (3, nq) float — points in the reference tetrahedron (0,0,0), (1,0,0), (0,1,0), (0,0,1).
+    w : (nq,) float — their weights (sum 1/6).
+    edges : (6, 2) int — the local edges, as :data:`_EDGES`.
+
+    Returns
+    -------
+    G : (nel, nq, 10, 3) float, 1/mm; dx : (nel, nq) float, mm^3 (|det J| w);
+    xyz : (3, nel, nq) float, mm — the points mapped into each element.
+    """
+    nel = t.shape[0]
+    nq = X.shape[1]
+    G = np.empty((nel, nq, 10, 3))
+    dx = np.empty((nel, nq))
+    xyz = np.empty((3, nel, nq))
+    J = np.empty((3, 3))
+    gl = np.empty((4, 3))  # barycentric gradients
+    lam = np.empty(4)
+    for e in range(nel):
+        v0 = t[e, 0]
+        for i in range(3):
+            for k in range(3):
+                J[i, k] = p[i, t[e, k + 1]] - p[i, v0]
+        # inverse by cofactors: row k of J^-1 is grad lambda_(k+1)
+        c00 = J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1]
+        c01 = J[1, 2] * J[2, 0] - J[1, 0] * J[2, 2]
+        c02 = J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]
+        det = J[0, 0] * c00 + J[0, 1] * c01 + J[0, 2] * c02
+        inv = 1.0 / det
+        gl[1, 0] = c00 * inv
+        gl[1, 1] = (J[0, 2] * J[2, 1] - J[0, 1] * J[2, 2]) * inv
+        gl[1, 2] = (J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]) * inv
+        gl[2, 0] = c01 * inv
+        gl[2, 1] = (J[0, 0] * J[2, 2] - J[0, 2] * J[2, 0]) * inv
+        gl[2, 2] = (J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]) * inv
+        gl[3, 0] = c02 * inv
+        gl[3, 1] = (J[0, 1] * J[2, 0] - J[0, 0] * J[2, 1]) * inv
+        gl[3, 2] = (J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]) * inv
+        for k in range(3):
+            gl[0, k] = -(gl[1, k] + gl[2, k] + gl[3, k])
+        adet = abs(det)
+        for q in range(nq):
+            lam[1] = X[0, q]
+            lam[2] = X[1, q]
+            lam[3] = X[2, q]
+            lam[0] = 1.0 - X[0, q] - X[1, q] - X[2, q]
+            dx[e, q] = adet * w[q]
+            for i in range(3):
+                xyz[i, e, q] = p[i, v0] + J[i, 0] * X[0, q] + J[i, 1] * X[1, q] + J[i, 2] * X[2, q]
+            for a in range(4):  # lambda_a (2 lambda_a - 1)
+                f = 4.0 * lam[a] - 1.0
+                for k in range(3):
+                    G[e, q, a, k] = f * gl[a, k]
+            for m in range(6):  # 4 lambda_i lambda_j
+                i = edges[m, 0]
+                j = edges[m, 1]
+                for k in range(3):
+                    G[e, q, 4 + m, k] = 4.0 * (lam[i] * gl[j, k] + lam[j] * gl[i, k])
+    return G, dx, xyz
+
+
+@njit(cache=True)
+def block_pattern_parts(dofs: np.ndarray, n: int, G: np.ndarray, dx: np.ndarray, lam: float,
+                        mu: float):  # fmt: skip
+    """Node-block pattern of the P2 stiffness and its twelve parts per block.
+
+    ``M_(ab)[c, d] = sum_q dx g_ac g_bd`` for the local functions a, b of an element; the parts
+    are (as :func:`fea.solid3d._stiffness_parts`, columns in the order of _PP, _PZ, _ZZ):
+    (0,0), (1,1): ``lam M[c,c] + mu M[c,c] + mu (M00 + M11)``; (0,1), (1,0):
+    ``lam M[c,d] + mu M[d,c]``; (2,2) in-plane: ``mu (M00 + M11)``; (0,2), (1,2), (2,0),
+    (2,1): ``lam M[c,d] + mu M[d,c]``; (0,0), (1,1) out-of-plane: ``mu M22``; (2,2):
+    ``(lam + 2 mu) M22``.
+
+    Parameters
+    ----------
+    dofs : (nel, 10) int64 — scalar P2 nodes of each element; n : int — their number.
+    G : (nel, nq, 10, 3) float, 1/mm; dx : (nel, nq) float, mm^3; lam, mu : float, MPa.
+
+    Returns
+    -------
+    indptr : (n + 1,) int64, indices : (nnzb,) int64 — node rows, sorted columns;
+    parts : (nnzb, 12) float, N/mm.
+    """
+    nel, m = dofs.shape
+    nq = dx.shape[1]
+    # Elements of each node (and the node's local index there), in element order.
+    count = np.zeros(n + 1, np.int64)
+    for e in range(nel):
+        for a in range(m):
+            count[dofs[e, a] + 1] += 1
+    start = np.cumsum(count)
+    fill = start[:-1].copy()
+    elems = np.empty(start[-1], np.int64)
+    local = np.empty(start[-1], np.int64)
+    for e in range(nel):
+        for a in range(m):
+            s = dofs[e, a]
+            elems[fill[s]] = e
+            local[fill[s]] = a
+            fill[s] += 1
+    # Node rows: the nodes of the node's elements, deduplicated with a marker, then sorted.
+    mark = np.full(n, -1, np.int64)
+    indptr = np.zeros(n + 1, np.int64)
+    cols = np.empty(m * start[-1], np.int64)  # upper bound: no node shared
+    nz = 0
+    for s in range(n):
+        row0 = nz
+        for k in range(start[s], start[s + 1]):
+            e = elems[k]
+            for b in range(m):
+                c = dofs[e, b]
+                if mark[c] != s:
+                    mark[c] = s
+                    cols[nz] = c
+                    nz += 1
+        for i in range(row0 + 1, nz):  # insertion sort: a row has tens of nodes
+            c = cols[i]
+            j = i
+            while j > row0 and cols[j - 1] > c:
+                cols[j] = cols[j - 1]
+                j -= 1
+            cols[j] = c
+        indptr[s + 1] = nz
+    indices = cols[:nz].copy()
+    # Parts, row by row: each (element, a = the row's node, b) adds its block at b's rank.
+    parts = np.zeros((nz, 12))
+    rank = np.zeros(n, np.int64)
+    Gf = G.reshape(nel, nq, 3 * m)  # (e, q, 3 b + j)
+    Mt = np.empty((3, 3 * m))  # Mt[i, 3 b + j] = M_(ab)[i, j]
+    M = np.empty((3, 3))
+    for s in range(n):
+        for k in range(indptr[s], indptr[s + 1]):
+            rank[indices[k]] = k
+        for k in range(start[s], start[s + 1]):
+            e = elems[k]
+            a = local[k]
+            Mt[:] = 0.0
+            for q in range(nq):  # the sum over q in order, each a contiguous row of 30
+                for i in range(3):
+                    wa = G[e, q, a, i] * dx[e, q]
+                    for bj in range(3 * m):
+                        Mt[i, bj] += wa * Gf[e, q, bj]
+            for b in range(m):
+                for i in range(3):
+                    for j in range(3):
+                        M[i, j] = Mt[i, 3 * b + j]
+                inplane = mu * (M[0, 0] + M[1, 1])
+                P = parts[rank[dofs[e, b]]]
+                # _PP: (0,0), (0,1), (1,0), (1,1), (2,2)
+                P[0] += lam * M[0, 0] + mu * M[0, 0] + inplane
+                P[1] += lam * M[0, 1] + mu * M[1, 0]
+                P[2] += lam * M[1, 0] + mu * M[0, 1]
+                P[3] += lam * M[1, 1] + mu * M[1, 1] + inplane
+                P[4] += inplane
+                # _PZ: (0,2), (1,2), (2,0), (2,1)
+                P[5] += lam * M[0, 2] + mu * M[2, 0]
+                P[6] += lam * M[1, 2] + mu * M[2, 1]
+                P[7] += lam * M[2, 0] + mu * M[0, 2]
+                P[8] += lam * M[2, 1] + mu * M[1, 2]
+                # _ZZ: (0,0), (1,1), (2,2)
+                P[9] += mu * M[2, 2]
+                P[10] += mu * M[2, 2]
+                P[11] += (lam + 2.0 * mu) * M[2, 2]
+    return indptr, indices, parts
+
+
+@njit(cache=True)
+def reduced_lower_count(indptr: np.ndarray, indices: np.ndarray, red: np.ndarray) -> np.ndarray:
+    """Column pointers of the reduced matrix's lower triangle (see :func:`reduced_lower_fill`).
+
+    Parameters
+    ----------
+    indptr, indices : the node-block pattern (sorted columns); red : (3 n,) int64 — each DOF's
+        reduced index, -1 where prescribed (the unknowns are a selection of DOFs, in order).
+
+    Returns
+    -------
+    colptr : (nfree + 1,) int64 — where each reduced column starts; colptr[-1] = nnz.
+    """
+    n = indptr.size - 1
+    nfree = 0
+    for i in range(red.size):
+        if red[i] >= 0:
+            nfree += 1
+    colptr = np.zeros(nfree + 1, np.int64)
+    for br in range(n):
+        for c in range(3):
+            col = red[3 * br + c]
+            if col < 0:
+                continue
+            cnt = 0
+            for k in range(indptr[br], indptr[br + 1]):
+                bc = indices[k]
+                if bc < br:
+                    continue
+                for d in range(c if bc == br else 0, 3):
+                    if red[3 * bc + d] >= 0:
+                        cnt += 1
+            colptr[col + 1] = cnt
+    for j in range(nfree):
+        colptr[j + 1] += colptr[j]
+    return colptr
+
+
+@njit(cache=True)
+def reduced_lower_fill(indptr: np.ndarray, indices: np.ndarray, red: np.ndarray,
+                       colptr: np.ndarray, flat: np.ndarray, rows: np.ndarray,
+                       cols: np.ndarray) -> None:  # fmt: skip
+    """The reduced matrix's lower triangle in the node blocks, column by column.
+
+    The lower triangle of K is the upper of its transpose: block (br, bc) with bc >= br, entry
+    (c, d), is the lower entry (3 bc + d, 3 br + c). Walking the block rows br, then c, then the
+    row's blocks bc (ascending), then d lists the entries sorted by reduced column and, within
+    a column, by row: the compressed-column order (CHOLMOD's), so the matrix is built without
+    a sort.
+
+    Parameters
+    ----------
+    indptr, indices, red : as :func:`reduced_lower_count`; colptr : its answer.
+    flat, rows, cols : (nnz,) int64, written — index into the (nnzb, 3, 3) block values (C
+        order), reduced row, reduced column (rows >= cols).
+    """
+    n = indptr.size - 1
+    for br in range(n):
+        for c in range(3):
+            col = red[3 * br + c]
+            if col < 0:
+                continue
+            p = colptr[col]
+            for k in range(indptr[br], indptr[br + 1]):
+                bc = indices[k]
+                if bc < br:
+                    continue
+                for d in range(c if bc == br else 0, 3):
+                    row = red[3 * bc + d]
+                    if row >= 0:
+                        flat[p] = 9 * k + 3 * c + d
+                        rows[p] = row
+                        cols[p] = col
+                        p += 1
+
+
+@njit(cache=True)
+def von_mises(u: np.ndarray, dofs: np.ndarray, G: np.ndarray, mu: float,
+              z_scale: float) -> np.ndarray:  # fmt: skip
+    """Von Mises stress at each point of ``G`` (as :func:`fea.solid3d._von_mises`), MPa.
+
+    u : (3 n,) mm, DOF ``3 s + c``; dofs : (nel, 10) int64; G : (nel, nq, 10, 3) 1/mm;
+    mu : float, MPa (the deviatoric stress is 2 mu dev(eps)); z_scale : the mesh stretched by
+    this along z (the z gradients divided by it).
+    Returns (nel, nq) MPa.
+    """
+    nel, nq = G.shape[0], G.shape[1]
+    m = dofs.shape[1]
+    out = np.empty((nel, nq))
+    ue = np.empty((m, 3))
+    H = np.empty((3, 3))
+    for e in range(nel):
+        for a in range(m):
+            for c in range(3):
+                ue[a, c] = u[3 * dofs[e, a] + c]
+        for q in range(nq):
+            for c in range(3):  # H[c, j] = du_c / dx_j
+                for j in range(3):
+                    acc = 0.0
+                    for a in range(m):
+                        acc += ue[a, c] * G[e, q, a, j]
+                    H[c, j] = acc
+            for c in range(3):
+                H[c, 2] /= z_scale
+            tr3 = (H[0, 0] + H[1, 1] + H[2, 2]) / 3.0
+            # deviatoric stress 2 mu (eps - tr eps / 3 I); von Mises sqrt(3/2 s:s)
+            ss = 0.0
+            for i in range(3):
+                for j in range(3):
+                    eps = 0.5 * (H[i, j] + H[j, i])
+                    if i == j:
+                        eps -= tr3
+                    sij = 2.0 * mu * eps
+                    ss += sij * sij
+            out[e, q] = np.sqrt(1.5 * ss)
+    return out
