@@ -525,6 +525,211 @@ def _screen_one(
     return r.linear_stiffness_Nm_per_rad, r.linear_peak_stress_MPa / theta, ""
 
 
+#: Stage 1 solves its screening runs in two processes where fork is available (this one and a
+#: forked child, each on one core); False: all in this process, in order. The results are the
+#: same bit for bit (each run is an independent solve; tests/pipeline/test_sea_spring_stage1.py).
+TAGUCHI_FORK = True
+
+
+def _fork_context_here() -> Any:
+    """multiprocessing's fork context where forking is safe here, else None: not on macOS or
+    Windows (pipeline.run._fork_context's test), and only from a single-threaded process (a
+    lock another thread holds at the fork stays held for ever in the child)."""
+    import multiprocessing as mp
+    import sys
+    import threading
+
+    if sys.platform in ("darwin", "win32") or "fork" not in mp.get_all_start_methods():
+        return None
+    if threading.active_count() != 1:
+        return None
+    return mp.get_context("fork")
+
+
+class _Screening:
+    """Stage 1's screening runs ``jobs`` (level tuples; the array rows first), solved by this
+    process and, where fork is available, one forked child beside it.
+
+    Both take the next unsolved run from a shared counter, so the two cores stay busy whatever
+    each run costs (a row that cannot be built takes milliseconds, a spring ~0.1 s); the child
+    sends back ``(index, result)`` through a pipe. Fork shares the study, so nothing is pickled
+    on the way in. :meth:`get` returns the results of the first runs in order, solving here
+    what is not taken yet and waiting for what the child took: the confirmation run (which needs
+    the array's analysis) is solved while the child goes on with the extra runs. Where fork is
+    not available or the child cannot start, every run is solved here; a child that dies leaves
+    its runs to this process, and one that keeps a run much longer than the slowest run here
+    took (stuck, or starved of CPU) has it solved here too. The results do not depend on which
+    process solved a run.
+    """
+
+    def __init__(
+        self, jobs: list[tuple[int, ...]], frame: SpringFrame, material: Material,
+        study: SeaSpringStudy, fork: bool = True,
+    ) -> None:  # fmt: skip
+        self.jobs = jobs
+        self._args = (frame, material, study)
+        self.results: list[tuple[float, float, str] | None] = [None] * len(jobs)
+        self.in_child = 0  # results of the child's that were used (for the log)
+        self._slowest_s = 0.0  # the longest run solved here, s
+        self._process: Any = None
+        self._conn: Any = None
+        self._gone = ""  # why the child is no longer of use ("" while it is)
+        if fork and len(jobs) > 1:
+            self._start()
+
+    def solve(self, levels: tuple[int, ...]) -> tuple[float, float, str]:
+        """One run, in this process: :func:`_screen_one`."""
+        t0 = time.perf_counter()
+        out = _screen_one(levels, *self._args)
+        self._slowest_s = max(self._slowest_s, time.perf_counter() - t0)
+        return out
+
+    def _start(self) -> None:
+        import sys
+
+        ctx = _fork_context_here()
+        if ctx is None:
+            return
+        try:
+            from flexopt.fea.plane_stress import warm_up
+
+            # the compiled kernels and the sparse Cholesky loaded once, here, for both (~0.4 s
+            # CPU each process would spend on its first run; the pool's warm-up then finds them)
+            warm_up()
+            self._lock = ctx.Lock()
+            self._next = ctx.RawValue("i", 0)
+            receive, send = ctx.Pipe(duplex=False)
+            # output buffered here would be written a second time by the child at its exit
+            sys.stdout.flush()
+            sys.stderr.flush()
+            process = ctx.Process(target=_screening_child, args=(self, receive, send),
+                                  name="flexopt-taguchi", daemon=True)  # fmt: skip
+            process.start()
+            send.close()
+        except Exception as exc:  # a daemonic process, no more processes: all solved here
+            log.info("stage 1 in this process only (%s)", exc)
+            return
+        self._process, self._conn = process, receive
+
+    def claim(self, keep_trying: Any) -> int | None:
+        """The next run nobody has taken (``len(jobs)`` when all are), or None when the lock
+        stays held elsewhere and ``keep_trying()`` is False (the other process died or hangs
+        holding it: it is held for microseconds)."""
+        from flexopt.pipeline.parallel import PARENT_CHECK_S
+
+        while not self._lock.acquire(timeout=PARENT_CHECK_S):
+            if not keep_trying():
+                return None
+        try:
+            i = self._next.value
+            if i < len(self.jobs):
+                self._next.value = i + 1
+            return i
+        finally:
+            self._lock.release()
+
+    def get(self, n: int) -> list[tuple[float, float, str]]:
+        """The results of runs ``0 .. n-1``: (stiffness N m/rad, peak stress per radian
+        MPa/rad, reason) each, as :func:`_screen_one` gives them."""
+        while True:
+            if self._process is not None:
+                self._receive(0.0)
+            missing = [i for i in range(n) if self.results[i] is None]
+            if not missing:
+                return self.results[:n]  # type: ignore[return-value]
+            if self._process is not None and self._gone:
+                self._drop()
+            if self._process is None:
+                self.results[missing[0]] = self.solve(self.jobs[missing[0]])
+            elif self._next.value < n:  # a run of these nobody has taken: solve it here
+                i = self.claim(lambda: False)
+                if i is None:  # the child holds the lock: dead or stuck
+                    self._process.join(0.1)
+                    code = self._process.exitcode
+                    self._gone = "is stuck" if code is None else f"ended (exit code {code})"
+                elif i < len(self.jobs):
+                    self.results[i] = self.solve(self.jobs[i])
+            elif not self._receive(2.0 * self._slowest_s + 0.05) and not self._gone:
+                # the child has the rest of these, and has kept the first much longer than
+                # the slowest run here took: solve it here (its answer would be the same)
+                log.debug("stage 1: run %d taken over from the second process", missing[0])
+                self.results[missing[0]] = self.solve(self.jobs[missing[0]])
+
+    def _receive(self, timeout_s: float) -> bool:
+        """Take the child's results that have arrived, waiting up to ``timeout_s`` for one;
+        whether one came. Sets ``_gone`` when the child has ended."""
+        try:
+            if not self._conn.poll(timeout_s):
+                if not self._process.is_alive() and not self._conn.poll():
+                    self._gone = f"ended (exit code {self._process.exitcode})"
+                return False
+            while self._conn.poll():
+                i, result = self._conn.recv()
+                if self.results[i] is None:  # else solved here meanwhile: the same answer
+                    self.results[i] = result
+                    self.in_child += 1
+            return True
+        except (EOFError, OSError):  # its end of the pipe closed: it has ended
+            self._process.join(5.0)
+            self._gone = f"ended (exit code {self._process.exitcode})"
+            return True
+
+    def _drop(self) -> None:
+        log.warning("stage 1: the second process %s before it sent all its runs; they are "
+                    "solved here", self._gone)  # fmt: skip
+        self.close()
+
+    def close(self) -> None:
+        """Stop the child (at once when it is not done: its results are not needed) and reap
+        it; idempotent."""
+        if self._process is not None:
+            log.info("stage 1: %d of %d runs solved in the second process", self.in_child,
+                     len(self.jobs))  # fmt: skip
+            if not self._gone and all(r is not None for r in self.results):
+                self._process.join(0.5)  # it has found nothing left to take and is exiting
+            if self._process.is_alive():
+                self._process.terminate()
+                self._process.join(5.0)
+            if self._process.is_alive():
+                self._process.kill()
+                self._process.join()
+            self._conn.close()
+        self._process = self._conn = None
+
+
+def _screening_child(screening: _Screening, receive: Any, send: Any) -> None:
+    """The forked child of :class:`_Screening`: takes runs until none is left, sends each
+    result; ends when its parent is gone. Starts as pipeline.parallel's workers."""
+    import os
+    import signal
+
+    from flexopt.pipeline.parallel import _limit_loaded_pools, pin_threads
+
+    receive.close()  # the parent's end: a send to a parent that died then fails at once
+    pin_threads()
+    _limit_loaded_pools()  # one BLAS thread beside the parent's, whatever its caller set
+    # Ctrl-C reaches the whole process group: the parent decides (and ends this one); a
+    # forked child inherits the CLI's SIGTERM handler, but is ended by its parent and must
+    # then end at once, as a process normally does
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    parent = os.getppid()
+
+    def parent_alive() -> bool:
+        return os.getppid() == parent
+
+    try:
+        while parent_alive():
+            i = screening.claim(parent_alive)
+            if i is None or i >= len(screening.jobs):
+                return
+            send.send((i, screening.solve(screening.jobs[i])))
+    except Exception:  # the parent is gone, or a run raised: the parent solves it again
+        return  # (and raises it, where the error belongs)
+    finally:
+        send.close()
+
+
 def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
     """Stage 1: the paper's L25 screening of Table 6, reproduced step by step.
 
@@ -539,7 +744,7 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
         levels and predicted S/N, the confirmation, the additivity check, the chosen design
         (``chosen``: the better of the confirmed optimum and the best tested run) and timings.
     """
-    from flexopt.optimise.taguchi import Pool, analyse, confirm, select_array
+    from flexopt.optimise.taguchi import select_array
 
     t0 = time.perf_counter()
     frame = spring_frame(study)
@@ -549,7 +754,31 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
     theta_t = math.degrees(torque / k_target)
     table = factor_levels(study)
     lay = select_array({n: len(v) for n, v in table.items()})
-    runs = [_screen_one(tuple(row), frame, material, study) for row in lay.design]
+    spec = study.taguchi
+    # the extra runs are drawn before any result is known, so they are solved beside the array
+    rng = np.random.default_rng(spec.seed)
+    extra = rng.integers(0, 5, size=(spec.extra_runs, len(table)))
+    n_array = len(lay.design)
+    jobs = [tuple(int(v) for v in row) for row in (*lay.design, *extra)]
+    screening = _Screening(jobs, frame, material, study, fork=TAGUCHI_FORK)
+    try:
+        runs = screening.get(n_array)
+        stage1 = _taguchi_analysis(study, lay, table, runs, extra, screening, torque, theta_t)
+    finally:
+        screening.close()
+    stage1["time_s"] = time.perf_counter() - t0  # wall time of the whole stage
+    return stage1
+
+
+def _taguchi_analysis(
+    study: SeaSpringStudy, lay: Any, table: dict[str, tuple[float, ...]],
+    runs: list[tuple[float, float, str]], extra: np.ndarray, screening: _Screening,
+    torque: float, theta_t: float,
+) -> dict[str, Any]:  # fmt: skip
+    """:func:`run_taguchi` from the array's results ``runs``: the analysis, the confirmation
+    run (solved here) and the ``extra`` runs (from ``screening``, solved beside the array)."""
+    from flexopt.optimise.taguchi import Pool, analyse, confirm
+
     k = np.array([r[0] for r in runs])
     sig_per_rad = np.array([r[1] for r in runs])
     theta = np.degrees(torque / k)
@@ -578,19 +807,18 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
     )
     best = tuple(int(v) for v in result.best_levels)
 
-    def measure(levels: tuple[int, ...]) -> tuple[float, float, float, float]:
-        kk, sp, _ = _screen_one(levels, frame, material, study)
+    def measure(run: tuple[float, float, str]) -> tuple[float, float, float, float]:
+        kk, sp, _ = run
         if not math.isfinite(kk):
             return math.nan, math.nan, math.nan, float(C.max())
         th = math.degrees(torque / kk)
         sg = sp * math.radians(th)
         return kk, th, sg, cost(sg, abs(th - theta_t))
 
-    kb, thb, sgb, cb = measure(best)
+    kb, thb, sgb, cb = measure(screening.solve(best))
     conf = confirm(result, responses=[cb])
-    rng = np.random.default_rng(spec.seed)
-    extra = rng.integers(0, 5, size=(spec.extra_runs, len(table)))
-    extra_c = np.array([measure(tuple(int(v) for v in row))[3] for row in extra])
+    n_array = len(runs)
+    extra_c = np.array([measure(r)[3] for r in screening.get(len(screening.jobs))[n_array:]])
     additivity = (
         result.additivity(extra_levels=extra, extra_sn=-10.0 * np.log10(extra_c**2))
         if spec.extra_runs
@@ -659,7 +887,6 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
             **_levels_to_values(lay.design[i_run], table),
         },
         "chosen": {"from": chosen_from, **_levels_to_values(chosen_levels, table)},
-        "time_s": time.perf_counter() - t0,
     }
 
 
