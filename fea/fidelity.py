@@ -8,11 +8,12 @@ shape mapped onto the mesh (:func:`beam_to_mesh`). Moved here from
 :func:`plane_stress_check`).
 
 Speed (issue 13, the constant-force run's report): Newton factorises through the model's own
-solver (CHOLMOD with the pattern's analysis kept when cvxopt imports, SuperLU where a tangent is
-not positive definite, SuperLU alone otherwise) on the reduced matrix the assembly writes, the
-stability eigenvalue reuses the model's factor of the converged tangent, and the mesh nodes are
-located on the beam once. Same answers to Newton tolerance (forces 1e-10, eigenvalue 1e-8);
-the shipped study's check 1.2-1.7 s -> 0.27-0.31 s CPU. Units: mm, N, MPa.
+solver (CHOLMOD with the pattern's analysis kept when cvxopt imports, else QDLDL's LDLᵀ the same
+way; SuperLU where a tangent is not positive definite, SuperLU alone otherwise) on the reduced
+matrix the assembly writes, the stability eigenvalue reuses the model's factor of the converged
+tangent, and the mesh nodes are located on the beam once. Same answers to Newton tolerance
+(forces 1e-10, eigenvalue 1e-8); the shipped study's check 1.2-1.7 s -> 0.27-0.31 s CPU.
+Units: mm, N, MPa.
 """
 
 from __future__ import annotations
@@ -87,10 +88,10 @@ def _norm(v: np.ndarray) -> float:
 def _eigenvalue_nearest_zero(model: PlaneStressModel, K: sp.csr_matrix) -> float:
     """Eigenvalue (N/mm) of the reduced tangent ``P^T K P`` nearest to zero, by shift-invert.
 
-    With the model's CHOLMOD solver, K is factorised the model's way (the pattern's analysis
-    kept; SuperLU where K is not positive definite) and that factor is the shift-invert operator
-    at shift 0: one numerical Cholesky instead of the SuperLU of ``K + 1e-9 I`` that ``eigsh``
-    makes by itself, which still runs for the other solvers.
+    With the model's Cholesky solver (CHOLMOD, or QDLDL's LDLᵀ), K is factorised the model's
+    way (the pattern's analysis kept; SuperLU where K is not positive definite) and that factor
+    is the shift-invert operator at shift 0: one numerical Cholesky instead of the SuperLU of
+    ``K + 1e-9 I`` that ``eigsh`` makes by itself, which still runs for the other solvers.
     """
     reduced = model._reduced(K)
     if model._chol is not None:
@@ -135,11 +136,12 @@ def plane_stress_check(
     tangent (``stable``) confirms that equilibrium is stable, i.e. the physical one.
     ``max_shape_change_mm`` is how far Newton moved the mesh from the beam's shape.
 
-    Newton's linear solves are the model's (``PlaneStressModel._reduced_solve``: CHOLMOD, and
-    SuperLU for a tangent that is not positive definite); the eigenvalue is shift-invert Lanczos
-    on the model's factor of the converged tangent (:func:`_eigenvalue_nearest_zero`). Before,
-    every iteration and every eigenvalue made a fresh SuperLU factorisation (~40 ms each on the
-    shipped study's 11k DOFs, against ~3 ms for CHOLMOD's numerical factorisation).
+    Newton's linear solves are the model's (``PlaneStressModel._reduced_solve``: CHOLMOD or
+    QDLDL, and SuperLU for a tangent that is not positive definite); the eigenvalue is
+    shift-invert Lanczos on the model's factor of the converged tangent
+    (:func:`_eigenvalue_nearest_zero`). Before, every iteration and every eigenvalue made a fresh
+    SuperLU factorisation (~40 ms each on the shipped study's 11k DOFs, against ~3 ms for
+    CHOLMOD's numerical factorisation).
 
     Stresses in elements touching the pads are left out: the re-entrant pad corners are singular
     in 2D elasticity and have no counterpart in the beam. The plane-stress stress is the nodal

@@ -184,12 +184,16 @@ class PlaneStressSettings:
     # than SuperLU on the spring (docs/plane_stress.md). "cholmod": sparse Cholesky (CHOLMOD,
     # supernodal, through cvxopt's wheels), the fill-reducing analysis of the fixed pattern done
     # once per model and only the numerical factorisation per tangent: ~11 ms against SuperLU's
-    # ~120 ms at 30k DOFs. Past a bifurcation or limit point the tangent is indefinite and
-    # Cholesky stops; that tangent is then factorised by SuperLU (counters["cholesky_failures"],
-    # which at a converged state says the equilibrium is unstable under the drive). "auto": the
-    # environment variable FLEXOPT_PLANE_STRESS_SOLVER if set, else cholmod when cvxopt imports,
-    # else pardiso when pypardiso and MKL load, else "direct".
-    solver: Literal["auto", "cholmod", "pardiso", "direct", "krylov"] = "auto"
+    # ~120 ms at 30k DOFs. cvxopt is GPL-3.0, hence an optional extra. "qdldl": sparse LDLᵀ
+    # (QDLDL, AMD ordering; Apache-2.0, a dependency of flexopt), the analysis kept the same
+    # way: 14-21 ms per tangent at 26-30k DOFs, the solver of a plain install; a tangent with a
+    # pivot <= 0 counts as not positive definite. Past a bifurcation or limit point the tangent
+    # is indefinite and Cholesky (or LDLᵀ) stops; that tangent is then factorised by SuperLU
+    # (counters["cholesky_failures"], which at a converged state says the equilibrium is
+    # unstable under the drive). "auto": the environment variable FLEXOPT_PLANE_STRESS_SOLVER if
+    # set, else cholmod when cvxopt imports, else qdldl when it imports, else pardiso when
+    # pypardiso and MKL load, else "direct".
+    solver: Literal["auto", "cholmod", "qdldl", "pardiso", "direct", "krylov"] = "auto"
     # CG stops at this residual relative to the right-hand side: Newton then keeps its
     # quadratic rate down to ~1e-10 of the force (an inexact solve of 1e-10 costs 2-3 more CG
     # iterations than 1e-6 and spares Newton iterations).
@@ -229,9 +233,9 @@ class PlaneStressResponse:
     dofs : (N,) the full solution vector at the last converged row (scikit-fem DOF order).
     n_dofs : int — number of unknowns (2 per P2 node).
     solve_time_s : float — model build plus solve.
-    extra : solver and assembly that ran ("cholmod" / "pardiso" / "direct" / "krylov";
+    extra : solver and assembly that ran ("cholmod" / "qdldl" / "pardiso" / "direct" / "krylov";
         "compiled" / "vectorised" / "skfem"), and cholesky_failures: tangents the Cholesky
-        path found indefinite and handed to LU, counted over the model's life.
+        (or LDLᵀ) path found indefinite and handed to LU, counted over the model's life.
     """
 
     drive: str
@@ -692,7 +696,79 @@ class _Cholmod:
         return np.asarray(x).ravel()
 
 
-SOLVERS = ("auto", "cholmod", "pardiso", "direct", "krylov")
+class _Qdldl:
+    """QDLDL sparse LDLᵀ (the OSQP project's, AMD ordering; package qdldl) on a fixed pattern.
+
+    The interface of :class:`_Cholmod`, for a plain install: qdldl is Apache-2.0 with wheels for
+    Linux, macOS and Windows and needs only numpy and scipy, where cvxopt (CHOLMOD) is GPL-3.0
+    and so an extra. The ordering and symbolic analysis run when the solver is built on the
+    first matrix of a pattern; later matrices of it are refactorised numerically
+    (``Solver.update``): ~14-21 ms for the SEA spring's 26-30k free DOFs against CHOLMOD's
+    11-13 ms and SuperLU's 65-88 ms.
+
+    LDLᵀ without pivoting also factorises an indefinite matrix (when no pivot is exactly zero),
+    so "positive definite" is decided here from D: by Sylvester's law of inertia K is positive
+    definite exactly when every pivot is > 0. An indefinite K returns False as CHOLMOD's
+    refusal does, and the model hands it to LU; ``cholesky_failures`` keeps its meaning.
+
+    Raises
+    ------
+    ImportError
+        qdldl is not installed.
+    """
+
+    def __init__(self) -> None:
+        import qdldl
+
+        self._qdldl = qdldl
+        self._indptr: np.ndarray | None = None  # the CSR pattern analysed, (n + 1,) and (nnz,)
+        self._indices: np.ndarray | None = None
+        self._lower: np.ndarray | None = None  # (k,) int: positions of the entries col <= row
+        self._U: sp.csc_matrix | None = None  # the upper triangle, CSC, on the pattern
+        self._solver = None  # qdldl.Solver of the pattern (analysis kept)
+
+    _same_pattern = _Cholmod._same_pattern
+
+    def factorise(self, K: sp.csr_matrix) -> bool:
+        """Factorise a symmetric (n, n) CSR matrix; False when it is not positive definite.
+
+        Only its lower triangle is read (as the upper triangle of the CSC transpose, which is
+        the same storage): K must be symmetric.
+        """
+        if not K.has_sorted_indices:
+            K = K.sorted_indices()
+        n = K.shape[0]
+        try:
+            if not self._same_pattern(K) or self._solver is None:
+                rows = np.repeat(np.arange(n), np.diff(K.indptr))
+                self._lower = np.flatnonzero(K.indices <= rows)
+                # CSR's lower triangle, read column-major, is the CSC upper triangle with its
+                # rows sorted in each column: the values keep their order in the matrix.
+                indptr = np.concatenate(
+                    [[0], np.cumsum(np.bincount(rows[self._lower], minlength=n))]
+                )
+                self._U = sp.csc_matrix(
+                    (K.data[self._lower], K.indices[self._lower], indptr), shape=(n, n)
+                )
+                self._solver = None  # a failed build below leaves no stale factor behind
+                self._indptr, self._indices = K.indptr, K.indices
+                self._solver = self._qdldl.Solver(self._U, upper=True)
+            else:
+                self._U.data = np.take(K.data, self._lower)
+                self._solver.update(self._U, upper=True)
+        except RuntimeError:  # a zero pivot (QDLDL: "not quasi-definite")
+            return False
+        # factors() copies L too (~2 ms at 30k DOFs, ~10 % of the refactorisation); it is the
+        # only way the package gives D. A zero pivot in update() leaves zeros here, not an error.
+        d = self._solver.factors()[1]
+        return bool(np.all(d > 0.0))  # False for any D <= 0 and for NaN
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """x (n,) with K x = rhs (n,), K the last matrix factorised."""
+        return np.asarray(self._solver.solve(np.asarray(rhs, dtype=float)), dtype=float).ravel()
+
+
+SOLVERS = ("auto", "cholmod", "qdldl", "pardiso", "direct", "krylov")
 """PlaneStressSettings.solver values."""
 SOLVER_ENV = "FLEXOPT_PLANE_STRESS_SOLVER"
 """Environment variable that sets the solver where the settings say "auto"."""
@@ -856,12 +932,13 @@ class PlaneStressModel:
         solver = _pick("solver", settings.solver, SOLVERS, SOLVER_ENV)
         self._pardiso = None  # PARDISO handle (symbolic analysis kept) and what it holds
         self._pardiso_K = None
-        self._chol = None  # CHOLMOD handle (analysis kept), the K it holds, and its LU stand-in
+        # Cholesky handle (_Cholmod or _Qdldl, analysis kept), the K it holds, its LU stand-in
+        self._chol = None
         self._chol_K = None
         self._chol_lu = None
         if solver == "auto":
             solver = "direct"
-            for name, make in (("cholmod", _Cholmod), ("pardiso", _Pardiso)):
+            for name, make in (("cholmod", _Cholmod), ("qdldl", _Qdldl), ("pardiso", _Pardiso)):
                 try:
                     make()
                 except ImportError:
@@ -875,6 +952,14 @@ class PlaneStressModel:
                 raise FeaError(
                     f"solver 'cholmod' needs cvxopt ({exc}); pip install cvxopt, or use 'direct'"
                 ) from exc
+        elif solver == "qdldl":
+            try:
+                self._chol = _Qdldl()
+            except ImportError as exc:
+                raise FeaError(
+                    f"solver 'qdldl' needs the package qdldl ({exc}); pip install qdldl, "
+                    "or use 'direct'"
+                ) from exc
         elif solver == "pardiso":
             try:
                 self._pardiso = _Pardiso()
@@ -883,7 +968,7 @@ class PlaneStressModel:
                     f"solver 'pardiso' needs pypardiso and Intel MKL ({exc}); "
                     "pip install pypardiso mkl, or use solver 'direct'"
                 ) from exc
-        #: the solver that runs: "cholmod", "pardiso", "direct" or "krylov"
+        #: the solver that runs: "cholmod", "qdldl", "pardiso", "direct" or "krylov"
         self.solver = solver
         self._asm = _VectorAssembly(self.basis) if self.assembly != "skfem" else None
         # von_mises' gradient tables by basis (the basis kept alive beside them, so its id stays
