@@ -11,8 +11,8 @@ every element; on the SEA spring's 405k-DOF model that is ~6 s. Here:
   nodes, deduplicated with a marker, sorted) and the twelve stiffness "parts" of each node block
   (:func:`fea.solid3d._stiffness_parts`), summed row by row into the pattern;
 * :func:`reduced_lower_count`, :func:`reduced_lower_fill`: where the reduced matrix's lower
-  triangle sits in the node blocks, listed column by column (rows ascending): the
-  compressed-column order CHOLMOD reads;
+  triangle sits in the node blocks, in compressed columns (rows ascending): CHOLMOD's
+  matrix is made from them without cvxopt's triplet constructor;
 * :func:`von_mises`: the stress at the quadrature points and corners of a solution.
 
 Notation: ``G[e, q, a, j]`` is ``d phi_a / d x_j`` of local P2 function ``a`` (4 vertices, then
@@ -123,7 +123,6 @@ def block_pattern_parts(dofs: np.ndarray, n: int, G: np.ndarray, dx: np.ndarray,
     parts : (nnzb, 12) float, N/mm.
     """
     nel, m = dofs.shape
-    nq = dx.shape[1]
     # Elements of each node (and the node's local index there), in element order.
     count = np.zeros(n + 1, np.int64)
     for e in range(nel):
@@ -163,6 +162,17 @@ def block_pattern_parts(dofs: np.ndarray, n: int, G: np.ndarray, dx: np.ndarray,
             cols[j] = c
         indptr[s + 1] = nz
     indices = cols[:nz].copy()
+    parts = _block_parts(dofs, n, G, dx, lam, mu, indptr, indices, start, elems, local)
+    return indptr, indices, parts
+
+
+@njit(cache=True)
+def _block_parts(dofs, n, G, dx, lam, mu, indptr, indices, start, elems, local):
+    """block_pattern_parts' parts on its pattern; ``elems[start[s]:start[s + 1]]`` are node s's
+    elements and ``local`` its local index in each."""
+    nel, m = dofs.shape
+    nq = dx.shape[1]
+    nz = indices.size
     # Parts, row by row: each (element, a = the row's node, b) adds its block at b's rank.
     parts = np.zeros((nz, 12))
     rank = np.zeros(n, np.int64)
@@ -202,7 +212,7 @@ def block_pattern_parts(dofs: np.ndarray, n: int, G: np.ndarray, dx: np.ndarray,
                 P[9] += mu * M[2, 2]
                 P[10] += mu * M[2, 2]
                 P[11] += (lam + 2.0 * mu) * M[2, 2]
-    return indptr, indices, parts
+    return parts
 
 
 @njit(cache=True)
@@ -245,8 +255,7 @@ def reduced_lower_count(indptr: np.ndarray, indices: np.ndarray, red: np.ndarray
 
 @njit(cache=True)
 def reduced_lower_fill(indptr: np.ndarray, indices: np.ndarray, red: np.ndarray,
-                       colptr: np.ndarray, flat: np.ndarray, rows: np.ndarray,
-                       cols: np.ndarray) -> None:  # fmt: skip
+                       colptr: np.ndarray, flat: np.ndarray, rows: np.ndarray) -> None:  # fmt: skip
     """The reduced matrix's lower triangle in the node blocks, column by column.
 
     The lower triangle of K is the upper of its transpose: block (br, bc) with bc >= br, entry
@@ -258,8 +267,8 @@ def reduced_lower_fill(indptr: np.ndarray, indices: np.ndarray, red: np.ndarray,
     Parameters
     ----------
     indptr, indices, red : as :func:`reduced_lower_count`; colptr : its answer.
-    flat, rows, cols : (nnz,) int64, written — index into the (nnzb, 3, 3) block values (C
-        order), reduced row, reduced column (rows >= cols).
+    flat, rows : (nnz,) int64, written — index into the (nnzb, 3, 3) block values (C order)
+        and reduced row (>= the column) of each entry; column j's are ``colptr[j]:colptr[j+1]``.
     """
     n = indptr.size - 1
     for br in range(n):
@@ -277,7 +286,6 @@ def reduced_lower_fill(indptr: np.ndarray, indices: np.ndarray, red: np.ndarray,
                     if row >= 0:
                         flat[p] = 9 * k + 3 * c + d
                         rows[p] = row
-                        cols[p] = col
                         p += 1
 
 
@@ -321,3 +329,28 @@ def von_mises(u: np.ndarray, dofs: np.ndarray, G: np.ndarray, mu: float,
                     ss += sij * sij
             out[e, q] = np.sqrt(1.5 * ss)
     return out
+
+
+@njit(cache=True)
+def stiffness_blocks(parts: np.ndarray, s: float) -> np.ndarray:
+    """The node blocks of ``K(s) = s K_pp + K_pz + K_zz / s`` from the parts (nnzb, 12).
+
+    Each entry of a 3x3 block is one part, or (on the diagonal) an in-plane part times s plus
+    an out-of-plane one over s: the product of the parts with fea.solid3d's (12, 9) table
+    without its zeros (nothing larger than a block is formed). Returns (nnzb, 3, 3), N/mm.
+    """
+    nb = parts.shape[0]
+    B = np.empty((nb, 3, 3))
+    inv = 1.0 / s
+    for k in range(nb):
+        P = parts[k]
+        B[k, 0, 0] = P[0] * s + P[9] * inv
+        B[k, 0, 1] = P[1] * s
+        B[k, 1, 0] = P[2] * s
+        B[k, 1, 1] = P[3] * s + P[10] * inv
+        B[k, 2, 2] = P[4] * s + P[11] * inv
+        B[k, 0, 2] = P[5]
+        B[k, 1, 2] = P[6]
+        B[k, 2, 0] = P[7]
+        B[k, 2, 1] = P[8]
+    return B

@@ -320,27 +320,59 @@ def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
     return K
 
 
-def _flat(a) -> np.ndarray:
-    """A numpy array or a cvxopt (n, 1) matrix as an (n,) numpy array (a view, writable)."""
-    return np.asarray(a).reshape(-1)
+def _spmatrix_from_columns(colptr: np.ndarray, rows: np.ndarray, vals: np.ndarray, n: int):
+    """A cvxopt spmatrix (n, n) from compressed columns, or None where this cannot be done.
 
+    cvxopt builds a sparse matrix only from triplets, and its constructor scans a column's
+    slots for a duplicate at every entry and sorts every column: ~1 s for the 13.7M entries
+    of the SEA spring's 405k-DOF lower triangle. The compressed columns are known here, so
+    the matrix is made as cvxopt's conversion of an all-ones dense (m, n) matrix, m n >= nnz
+    (its arrays then hold room for m n entries, all written by cvxopt, ~0.2 s), and its
+    column pointers, row indices and values are overwritten with these (and its row count
+    with n): ~0.3 s in all. This writes into cvxopt's C structure (``ccs``: values,
+    colptr, rowind pointers, then nrows, ncols, the type id), so the layout is checked on
+    the matrix first (type size, pointers' values, dimensions, type id, column pointers,
+    64-bit indices); on any mismatch None is returned and the caller builds from triplets.
+    The tests compare both constructions entry by entry.
 
-def _index_buffer(n: int):
-    """(n,) int64 to be written in place: a cvxopt integer matrix when cvxopt imports (CHOLMOD's
-    matrix is then built from it without a copy; ``np.asarray`` of it is a writable view),
-    else a numpy array."""
-    try:
-        from cvxopt import matrix
-    except ImportError:
-        return np.empty(n, dtype=np.int64)
-    return matrix(0, (n, 1), "i")
+    colptr : (n + 1,) int; rows : (nnz,) int, sorted within each column; vals : (nnz,) float.
+    """
+    import ctypes
+    import sys
 
+    from cvxopt import matrix, sparse, spmatrix
 
-def _value_buffer(n: int):
-    """(n,) float in a cvxopt matrix, to be written in place through ``np.asarray``."""
-    from cvxopt import matrix
-
-    return matrix(0.0, (n, 1))
+    nnz = int(colptr[-1])
+    if (sys.maxsize < 2**62 or ctypes.sizeof(ctypes.c_void_p) != 8 or n < 1
+            or np.asarray(matrix(0, (1, 1), "i")).dtype != np.int64):  # fmt: skip
+        return None
+    m = max(1, -(-nnz // n))
+    A = sparse(matrix(1.0, (m, n)))
+    # the spmatrix object ends with its ccs pointer (after the PyObject header)
+    if type(A) is not spmatrix or spmatrix.__basicsize__ < 24:
+        return None
+    obj = ctypes.c_void_p.from_address(id(A) + spmatrix.__basicsize__ - 8).value
+    if not obj:
+        return None
+    pv, pc, pr = (ctypes.c_void_p.from_address(obj + 8 * k).value for k in range(3))
+    nrows, ncols = (ctypes.c_int64.from_address(obj + 24 + 8 * k).value for k in (0, 1))
+    kind = ctypes.c_int.from_address(obj + 40).value
+    if not (pv and pc and pr and (nrows, ncols, kind) == (m, n, 1)):
+        return None
+    cp = np.ctypeslib.as_array((ctypes.c_int64 * (n + 1)).from_address(pc))
+    if not (cp[0] == 0 and cp[1] == m and cp[n] == m * n):
+        return None
+    rw = np.ctypeslib.as_array((ctypes.c_int64 * nnz).from_address(pr))
+    vv = np.ctypeslib.as_array((ctypes.c_double * nnz).from_address(pv))
+    if not (rw[: min(nnz, m)] == np.arange(min(nnz, m))).all():
+        return None
+    rw[:] = rows
+    vv[:] = vals
+    cp[:] = colptr
+    ctypes.c_int64.from_address(obj + 24).value = n
+    if A.size != (n, n):
+        return None
+    return A
 
 
 class _Solver:
@@ -352,16 +384,23 @@ class _Solver:
     ~5 s for SuperLU. "superlu": scipy's, the fallback when cvxopt does not import.
     """
 
-    def __init__(self, K: sp.spmatrix | None, which: str, lower: tuple | None = None) -> None:
-        """``K`` (n, n) symmetric, or ``lower`` = (values, rows, cols, n): its lower triangle
-        as triplets (rows >= cols, no duplicates), which CHOLMOD reads as they are."""
+    def __init__(self, K: sp.spmatrix | None, which: str, lower: tuple | None = None,
+                 columns: tuple | None = None) -> None:  # fmt: skip
+        """``K`` (n, n) symmetric; or ``lower`` = (values, rows, cols, n): its lower triangle
+        as triplets (rows >= cols, no duplicates); or ``columns`` = (values, rows, colptr, n):
+        its lower triangle in compressed columns (rows sorted within each)."""
         if which not in ("auto", "cholmod", "superlu"):
             raise FeaError(f"solver '{which}' unknown; use 'auto', 'cholmod' or 'superlu'")
-        if lower is None:
+        if lower is None and columns is None:
             assert K is not None
             L = sp.tril(K, format="coo")
             lower = (L.data, L.row, L.col, K.shape[0])
-        vals, rows, cols, self.n = lower
+        if columns is not None:
+            vals, rows, colptr, self.n = columns
+            cols = None
+        else:
+            assert lower is not None
+            vals, rows, cols, self.n = lower
         if which in ("auto", "cholmod"):
             try:
                 from cvxopt import cholmod, matrix, spmatrix
@@ -369,14 +408,18 @@ class _Solver:
                 if which == "cholmod":
                     raise FeaError(f"solver 'cholmod' needs cvxopt ({exc})") from exc
             else:
-                # cvxopt matrices are used as they are (the compiled pattern writes them);
-                # triplets sorted by column build ~10x faster than unsorted ones
-                A = spmatrix(
-                    vals if isinstance(vals, matrix) else matrix(np.asarray(vals, dtype=float)),
-                    rows if isinstance(rows, matrix) else matrix(np.asarray(rows, np.int64)),
-                    cols if isinstance(cols, matrix) else matrix(np.asarray(cols, np.int64)),
-                    (self.n, self.n),
-                )
+                A = None
+                if columns is not None:
+                    A = _spmatrix_from_columns(colptr, rows, vals, self.n)
+                    if A is None:
+                        cols = np.repeat(np.arange(self.n), np.diff(colptr))
+                if A is None:
+                    A = spmatrix(
+                        matrix(np.asarray(vals, dtype=float)),
+                        matrix(np.asarray(rows, dtype=np.int64)),
+                        matrix(np.asarray(cols, dtype=np.int64)),
+                        (self.n, self.n),
+                    )
                 self._cholmod, self._matrix = cholmod, matrix
                 self._F = cholmod.symbolic(A, uplo="L")
                 try:
@@ -391,8 +434,10 @@ class _Solver:
         from scipy.sparse.linalg import splu
 
         if K is None:
-            vals, rows, cols = _flat(vals), _flat(rows), _flat(cols)
-            L = sp.coo_matrix((vals, (rows, cols)), shape=(self.n, self.n)).tocsc()
+            if columns is not None:
+                L = sp.csc_matrix((vals, rows, colptr), shape=(self.n, self.n))
+            else:
+                L = sp.coo_matrix((vals, (rows, cols)), shape=(self.n, self.n)).tocsc()
             K = L + L.T - sp.diags(L.diagonal())
         # Minimum degree on A^T + A suits symmetric matrices (as in fea.plane_stress).
         self._lu = splu(sp.csc_matrix(K), permc_spec="MMD_AT_PLUS_A")
@@ -416,7 +461,7 @@ def _von_mises(grad_u: np.ndarray, lam: float, mu: float) -> np.ndarray:
 
 
 def _distinct_xy(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct rows of ``xy`` (n, 2) and each row's index among them (n,).
+    """The distinct rows of ``xy`` (n, 2) as shapely points, and each row's index among them.
 
     Every node lies above a vertex or an edge midpoint of the plane mesh, so there are a
     ninth as many with 4 layers. One unique over (x, y) read as a complex number: the rows
@@ -424,15 +469,15 @@ def _distinct_xy(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     xc = np.ascontiguousarray(xy, dtype=float).view(np.complex128).ravel()
     u, back = np.unique(xc, return_inverse=True)
-    return np.column_stack([u.real, u.imag]), back.ravel()
+    return shapely.points(np.column_stack([u.real, u.imag])), back.ravel()
 
 
 def _select(xy: np.ndarray, region: BaseGeometry, what: str, tol: float,
             distinct: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:  # fmt: skip
     """The nodes (rows of ``xy`` (n, 2) mm) within ``tol`` mm of ``region``, each distinct
     (x, y) measured once (``distinct``: :func:`_distinct_xy` of ``xy``, if known)."""
-    uxy, back = distinct if distinct is not None else _distinct_xy(xy)
-    d = shapely.distance(region, shapely.points(uxy))[back]
+    points, back = distinct if distinct is not None else _distinct_xy(xy)
+    d = shapely.distance(region, points)[back]
     nodes = np.flatnonzero(d <= tol)
     if nodes.size == 0:
         raise FeaError(
@@ -938,9 +983,10 @@ class Solid3DModel:
         """Where the reduced matrix's lower triangle sits in the blocks: (flat index into the
         (nnzb, 3, 3) block values, reduced row, reduced column), or None when the unknowns are
         not a selection of DOFs (a common transverse slide): then P^T K P is formed.
-        ``kernels``: the compiled module (the entries sorted by column, then row: cvxopt
-        builds CHOLMOD's matrix from them ~10x faster than from the numpy path's order; rows
-        and columns in cvxopt matrices when it imports), or None (numpy)."""
+        ``kernels``: the compiled module, whose entries come sorted by column, then row, and
+        whose third array is the column pointers (nfree + 1,) instead of the columns: CHOLMOD's
+        matrix is made from the compressed columns (:func:`_spmatrix_from_columns`); or None
+        (numpy: triplets)."""
         sup = self._sup
         if sup.P.shape[1] != sup.free.size:
             return None
@@ -948,12 +994,10 @@ class Solid3DModel:
         red[sup.free] = np.arange(sup.free.size)
         if kernels is not None:
             colptr = kernels.reduced_lower_count(self._indptr, self._indices, red)
-            nnz = int(colptr[-1])
-            flat = np.empty(nnz, dtype=np.int64)
-            rows, cols = _index_buffer(nnz), _index_buffer(nnz)
-            kernels.reduced_lower_fill(self._indptr, self._indices, red, colptr, flat,
-                                       _flat(rows), _flat(cols))  # fmt: skip
-            return flat, rows, cols
+            flat = np.empty(colptr[-1], dtype=np.int64)
+            rows = np.empty(colptr[-1], dtype=np.int64)
+            kernels.reduced_lower_fill(self._indptr, self._indices, red, colptr, flat, rows)
+            return flat, rows, colptr
         nb = np.diff(self._indptr)
         brow = np.repeat(np.arange(nb.size), nb)
         kb = np.flatnonzero(self._indices >= brow)  # blocks on or above the diagonal
@@ -972,6 +1016,10 @@ class Solid3DModel:
     def stiffness_matrix(self, thickness_mm: float) -> sp.bsr_matrix:
         """K(t), (ndof, ndof) N/mm, DOF ``3 s + c`` (as :func:`_stiffness` at that thickness)."""
         s = float(thickness_mm) / self.reference_thickness_mm
+        if self._kernels is not None:
+            B = self._kernels.stiffness_blocks(self._parts, s)
+            return sp.bsr_matrix((B, self._indices, self._indptr),
+                                 shape=(self.n_dofs, self.n_dofs))  # fmt: skip
         # (12, 9): part column -> block entry, times the part's power of s
         table = np.zeros((len(_PP) + len(_PZ) + len(_ZZ), 9))
         j = 0
@@ -1015,13 +1063,12 @@ class Solid3DModel:
             iterations = 0
             self._factor = None  # release the old factor before the new one is built
             if self._lower is not None:
-                flat, rows, cols = self._lower
-                # into a cvxopt matrix when the pattern is one (CHOLMOD's, no copy)
-                vals = (np.empty(flat.size) if isinstance(rows, np.ndarray)
-                        else _value_buffer(flat.size))  # fmt: skip
-                np.take(K.data.ravel(), flat, out=_flat(vals))
-                lower = (vals, rows, cols, P.shape[1])
-                self._factor = _Solver(None, st.solver, lower)
+                flat, rows, third = self._lower
+                vals = K.data.ravel()[flat]
+                if self._kernels is not None:  # compressed columns
+                    self._factor = _Solver(None, st.solver, columns=(vals, rows, third, P.shape[1]))
+                else:  # triplets
+                    self._factor = _Solver(None, st.solver, (vals, rows, third, P.shape[1]))
             else:
                 self._factor = _Solver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
             q = self._factor.solve(b)

@@ -25,6 +25,7 @@ from flexopt.fea.solid3d import (
     _gradients,
     _lame,
     _p2_tables,
+    _spmatrix_from_columns,
     _stiffness_parts,
     _von_mises,
     extrude_layers_mm,
@@ -100,13 +101,27 @@ def _annulus():
     return mesh, clamp, drive, Point(0.0, 0.0).buffer(6.0)
 
 
-def test_reduced_lower_triangle_is_the_numpy_one_sorted_by_column():
-    """The same entries (block positions, reduced rows and columns) as the numpy path, listed
-    by column then row: CHOLMOD's compressed-column order; the values K(t) gives them match."""
+def test_stiffness_blocks_equal_the_table_product():
+    """K(t)'s blocks from the parts: the compiled model's against the numpy model's (the
+    parts times the (12, 9) table), at three thicknesses."""
     clamp = Clamp(LineString([(0.0, 0.0), (0.0, 3.0)]))
     drive = Translate(LineString([(30.0, 0.0), (30.0, 3.0)]), (0.0, 1.0), 0.1, 1)
     fast, ref = _models(_strip_mesh(), clamp, drive, Solid3DSettings(layers=2))
-    flat, rows, cols = (np.asarray(a).reshape(-1) for a in fast._lower)
+    for t in (0.5, 1.0, 7.3):
+        a, b = fast.stiffness_matrix(t), ref.stiffness_matrix(t)
+        np.testing.assert_array_equal(a.indices, b.indices)
+        np.testing.assert_array_equal(a.indptr, b.indptr)
+        np.testing.assert_allclose(a.data, b.data, rtol=0, atol=1e-13 * np.abs(b.data).max())
+
+
+def test_reduced_lower_triangle_is_the_numpy_one_sorted_by_column():
+    """The same entries (block positions, reduced rows and columns) as the numpy path, in
+    compressed columns (rows ascending); the values K(t) gives them are the reduced matrix's."""
+    clamp = Clamp(LineString([(0.0, 0.0), (0.0, 3.0)]))
+    drive = Translate(LineString([(30.0, 0.0), (30.0, 3.0)]), (0.0, 1.0), 0.1, 1)
+    fast, ref = _models(_strip_mesh(), clamp, drive, Solid3DSettings(layers=2))
+    flat, rows, colptr = fast._lower
+    cols = np.repeat(np.arange(colptr.size - 1), np.diff(colptr))
     rflat, rrows, rcols = ref._lower
     # sorted: columns non-decreasing, rows strictly increasing within a column, lower triangle
     assert np.all(np.diff(cols) >= 0) and np.all(rows >= cols)
@@ -166,3 +181,31 @@ def test_refuses_an_unknown_assembly():
     drive = Translate(LineString([(30.0, 0.0), (30.0, 3.0)]), (0.0, 1.0), 0.1, 1)
     with pytest.raises(FeaError, match="assembly"):
         Solid3DModel(mesh, STEEL, clamp, drive, Solid3DSettings(assembly="fast"))  # type: ignore[arg-type]
+
+
+def test_cholmod_matrix_from_compressed_columns_is_the_triplet_one():
+    """_spmatrix_from_columns (cvxopt's arrays overwritten) against cvxopt's triplet
+    constructor, entry by entry, and CHOLMOD factorises it: the solution of a small SPD
+    system (a 1D Laplacian plus a long-range coupling) against numpy's dense solve."""
+    cvxopt = pytest.importorskip("cvxopt")
+    from cvxopt import cholmod
+
+    n = 60
+    A = 4.0 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
+    A[0, n - 1] = A[n - 1, 0] = 0.5
+    L = sp.tril(sp.csc_matrix(A)).tocsc()
+    L.sort_indices()
+    mine = _spmatrix_from_columns(L.indptr.astype(np.int64), L.indices.astype(np.int64),
+                                  L.data, n)  # fmt: skip
+    assert mine is not None and mine.size == (n, n)
+    coo = L.tocoo()
+    ref = cvxopt.spmatrix(cvxopt.matrix(coo.data), cvxopt.matrix(coo.row.astype(np.int64)),
+                          cvxopt.matrix(coo.col.astype(np.int64)), (n, n))  # fmt: skip
+    for a, b in zip(mine.CCS, ref.CCS, strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    b = np.arange(1.0, n + 1.0)
+    x = cvxopt.matrix(b)
+    F = cholmod.symbolic(mine, uplo="L")
+    cholmod.numeric(mine, F)
+    cholmod.solve(F, x)
+    np.testing.assert_allclose(np.asarray(x).ravel(), np.linalg.solve(A, b), rtol=1e-13)
