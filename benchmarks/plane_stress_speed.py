@@ -8,6 +8,8 @@ rounds after one warm-up round (which loads the compiled kernels):
 
 * ``cholmod compiled`` — the default path: compiled (numba) assembly, CHOLMOD sparse Cholesky
   with the analysis kept (cvxopt);
+* ``qdldl compiled`` — the same with QDLDL's LDLᵀ (package qdldl, analysis kept): what a plain
+  install runs, without the cholmod extra;
 * ``superlu vectorised`` — the previous default: numpy assembly, SuperLU per tangent;
 * ``superlu compiled``, ``cholmod vectorised`` — each change alone;
 * ``pardiso compiled`` — when pypardiso and MKL import (optional);
@@ -115,6 +117,7 @@ def main() -> None:
     nl = dict(rtol_residual=1e-7)  # what the sea_spring study uses
     cases = {
         "cholmod  compiled": PlaneStressSettings(solver="cholmod", assembly="compiled", **nl),
+        "qdldl    compiled": PlaneStressSettings(solver="qdldl", assembly="compiled", **nl),
         "superlu  vectorised (previous)": PlaneStressSettings(
             solver="direct", assembly="vectorised", **nl
         ),
