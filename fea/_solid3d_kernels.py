@@ -178,7 +178,6 @@ def _block_parts(dofs, n, G, dx, lam, mu, indptr, indices, start, elems, local):
     rank = np.zeros(n, np.int64)
     Gf = G.reshape(nel, nq, 3 * m)  # (e, q, 3 b + j)
     Mt = np.empty((3, 3 * m))  # Mt[i, 3 b + j] = M_(ab)[i, j]
-    M = np.empty((3, 3))
     for s in range(n):
         for k in range(indptr[s], indptr[s + 1]):
             rank[indices[k]] = k
@@ -192,9 +191,7 @@ def _block_parts(dofs, n, G, dx, lam, mu, indptr, indices, start, elems, local):
                     for bj in range(3 * m):
                         Mt[i, bj] += wa * Gf[e, q, bj]
             for b in range(m):
-                for i in range(3):
-                    for j in range(3):
-                        M[i, j] = Mt[i, 3 * b + j]
+                M = Mt[:, 3 * b : 3 * b + 3]
                 inplane = mu * (M[0, 0] + M[1, 1])
                 P = parts[rank[dofs[e, b]]]
                 # _PP: (0,0), (0,1), (1,0), (1,1), (2,2)
@@ -267,8 +264,9 @@ def reduced_lower_fill(indptr: np.ndarray, indices: np.ndarray, red: np.ndarray,
     Parameters
     ----------
     indptr, indices, red : as :func:`reduced_lower_count`; colptr : its answer.
-    flat, rows : (nnz,) int64, written — index into the (nnzb, 3, 3) block values (C order)
-        and reduced row (>= the column) of each entry; column j's are ``colptr[j]:colptr[j+1]``.
+    flat, rows : (nnz,) int (int32 or int64), written — index into the (nnzb, 3, 3) block
+        values (C order) and reduced row (>= the column) of each entry; column j's are
+        ``colptr[j]:colptr[j+1]``.
     """
     n = indptr.size - 1
     for br in range(n):

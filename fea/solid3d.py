@@ -994,8 +994,11 @@ class Solid3DModel:
         red[sup.free] = np.arange(sup.free.size)
         if kernels is not None:
             colptr = kernels.reduced_lower_count(self._indptr, self._indices, red)
-            flat = np.empty(colptr[-1], dtype=np.int64)
-            rows = np.empty(colptr[-1], dtype=np.int64)
+            # int32 halves the two largest arrays the model keeps (max_dofs bounds the 9
+            # entries of the blocks far below 2^31)
+            index = np.int32 if 9 * self._indices.size < 2**31 else np.int64
+            flat = np.empty(colptr[-1], dtype=index)
+            rows = np.empty(colptr[-1], dtype=index)
             kernels.reduced_lower_fill(self._indptr, self._indices, red, colptr, flat, rows)
             return flat, rows, colptr
         nb = np.diff(self._indptr)
