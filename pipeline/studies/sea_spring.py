@@ -554,8 +554,9 @@ class _Screening:
     each run costs (a row that cannot be built takes milliseconds, a spring ~0.1 s); the child
     sends back ``(index, result)`` through a pipe. Fork shares the study, so nothing is pickled
     on the way in. :meth:`get` returns the results of the first runs in order, solving here
-    what is not taken yet and waiting for what the child took: the confirmation run (which needs
-    the array's analysis) is solved while the child goes on with the extra runs. Where fork is
+    what is not taken yet (later runs too, while the child finishes one of these) and then
+    waiting for what the child took: the confirmation run (which needs the array's analysis)
+    is solved while the child goes on with the extra runs. Where fork is
     not available or the child cannot start, every run is solved here; a child that dies leaves
     its runs to this process, and one that keeps a run much longer than the slowest run here
     took (stuck, or starved of CPU) has it solved here too. The results do not depend on which
@@ -641,7 +642,9 @@ class _Screening:
                 self._drop()
             if self._process is None:
                 self.results[missing[0]] = self.solve(self.jobs[missing[0]])
-            elif self._next.value < n:  # a run of these nobody has taken: solve it here
+            elif self._next.value < len(self.jobs):
+                # a run nobody has taken: solve it here, also when it is not one of these
+                # (rather than wait for the child's last run of these, idle)
                 i = self.claim(lambda: False)
                 if i is None:  # the child holds the lock: dead or stuck
                     self._process.join(0.1)
