@@ -36,6 +36,13 @@ Several thicknesses (:class:`Solid3DModel`)
     The layers scale with the thickness, so one assembly serves every thickness (the
     stiffness is a sum of three parts weighted by t, 1 and 1/t); a thickness after the first
     is solved by conjugate gradients preconditioned with the first one's factor.
+Assembly
+    ``Solid3DSettings.assembly = "compiled"``: the P2 tables, the node-block pattern with the
+    stiffness parts, K(t)'s blocks, the reduced lower triangle (in compressed columns, from which
+    CHOLMOD's matrix is made without cvxopt's triplet constructor) and the stress in numba
+    kernels (fea/_solid3d_kernels.py); "numpy" is the reference (scikit-fem's Basis, one sort of
+    every element's node pairs), and what runs without numba. Both give the same matrix to
+    round-off (tests/fea/test_solid3d_kernels.py).
 
 Units: mm, N, MPa, N·mm, rad. See docs/solid3d.md.
 """
