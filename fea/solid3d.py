@@ -327,7 +327,7 @@ def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
     return K
 
 
-def _spmatrix_from_columns(colptr: np.ndarray, rows: np.ndarray, vals: np.ndarray, n: int):
+def _spmatrix_from_columns(colptr: np.ndarray, rows: np.ndarray, vals, n: int):
     """A cvxopt spmatrix (n, n) from compressed columns, or None where this cannot be done.
 
     cvxopt builds a sparse matrix only from triplets, and its constructor scans a column's
@@ -342,7 +342,8 @@ def _spmatrix_from_columns(colptr: np.ndarray, rows: np.ndarray, vals: np.ndarra
     64-bit indices); on any mismatch None is returned and the caller builds from triplets.
     The tests compare both constructions entry by entry.
 
-    colptr : (n + 1,) int; rows : (nnz,) int, sorted within each column; vals : (nnz,) float.
+    colptr : (n + 1,) int; rows : (nnz,) int, sorted within each column; vals : (nnz,) float,
+    or a pair (data, flat) for ``data[flat]`` (gathered straight into cvxopt's array).
     """
     import ctypes
     import sys
@@ -374,12 +375,20 @@ def _spmatrix_from_columns(colptr: np.ndarray, rows: np.ndarray, vals: np.ndarra
     if not (rw[: min(nnz, m)] == np.arange(min(nnz, m))).all():
         return None
     rw[:] = rows
-    vv[:] = vals
+    if isinstance(vals, tuple):
+        np.take(vals[0], vals[1], out=vv)
+    else:
+        vv[:] = vals
     cp[:] = colptr
     ctypes.c_int64.from_address(obj + 24).value = n
     if A.size != (n, n):
         return None
     return A
+
+
+def _gathered(vals) -> np.ndarray:
+    """Values given as an array, or as a pair (data, flat) for ``data[flat]``."""
+    return vals[0][vals[1]] if isinstance(vals, tuple) else vals
 
 
 class _Solver:
@@ -395,7 +404,8 @@ class _Solver:
                  columns: tuple | None = None) -> None:  # fmt: skip
         """``K`` (n, n) symmetric; or ``lower`` = (values, rows, cols, n): its lower triangle
         as triplets (rows >= cols, no duplicates); or ``columns`` = (values, rows, colptr, n):
-        its lower triangle in compressed columns (rows sorted within each)."""
+        its lower triangle in compressed columns (rows sorted within each), the values
+        possibly as a pair (data, flat) for ``data[flat]``."""
         if which not in ("auto", "cholmod", "superlu"):
             raise FeaError(f"solver '{which}' unknown; use 'auto', 'cholmod' or 'superlu'")
         if lower is None and columns is None:
@@ -420,6 +430,7 @@ class _Solver:
                     A = _spmatrix_from_columns(colptr, rows, vals, self.n)
                     if A is None:
                         cols = np.repeat(np.arange(self.n), np.diff(colptr))
+                        vals = _gathered(vals)
                 if A is None:
                     A = spmatrix(
                         matrix(np.asarray(vals, dtype=float)),
@@ -442,7 +453,7 @@ class _Solver:
 
         if K is None:
             if columns is not None:
-                L = sp.csc_matrix((vals, rows, colptr), shape=(self.n, self.n))
+                L = sp.csc_matrix((_gathered(vals), rows, colptr), shape=(self.n, self.n))
             else:
                 L = sp.coo_matrix((vals, (rows, cols)), shape=(self.n, self.n)).tocsc()
             K = L + L.T - sp.diags(L.diagonal())
@@ -1074,10 +1085,11 @@ class Solid3DModel:
             self._factor = None  # release the old factor before the new one is built
             if self._lower is not None:
                 flat, rows, third = self._lower
-                vals = K.data.ravel()[flat]
-                if self._kernels is not None:  # compressed columns
-                    self._factor = _Solver(None, st.solver, columns=(vals, rows, third, P.shape[1]))
+                if self._kernels is not None:  # compressed columns, K's values at flat
+                    cols = ((K.data.ravel(), flat), rows, third, P.shape[1])
+                    self._factor = _Solver(None, st.solver, columns=cols)
                 else:  # triplets
+                    vals = K.data.ravel()[flat]
                     self._factor = _Solver(None, st.solver, (vals, rows, third, P.shape[1]))
             else:
                 self._factor = _Solver((P.T @ K.tocsr() @ P).tocsr(), st.solver)

@@ -203,9 +203,30 @@ def test_cholmod_matrix_from_compressed_columns_is_the_triplet_one():
                           cvxopt.matrix(coo.col.astype(np.int64)), (n, n))  # fmt: skip
     for a, b in zip(mine.CCS, ref.CCS, strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # the values gathered from a larger array (data[flat]), as the model passes K's blocks
+    data = np.concatenate([L.data, -L.data])[::-1].copy()
+    flat = L.data.size - 1 - np.arange(L.data.size) + L.data.size
+    again = _spmatrix_from_columns(L.indptr.astype(np.int64), L.indices.astype(np.int64),
+                                   (data, flat), n)  # fmt: skip
+    np.testing.assert_array_equal(np.asarray(again.CCS[2]), np.asarray(ref.CCS[2]))
     b = np.arange(1.0, n + 1.0)
     x = cvxopt.matrix(b)
     F = cholmod.symbolic(mine, uplo="L")
     cholmod.numeric(mine, F)
     cholmod.solve(F, x)
     np.testing.assert_allclose(np.asarray(x).ravel(), np.linalg.solve(A, b), rtol=1e-13)
+
+
+def test_triplet_fallback_gives_the_same_answer(monkeypatch):
+    """Where cvxopt's layout check fails, CHOLMOD's matrix comes from the triplet
+    constructor: the same answer as the compressed columns."""
+    pytest.importorskip("cvxopt")
+    import flexopt.fea.solid3d as solid3d
+
+    mesh, clamp, drive, ignore = _annulus()
+    settings = Solid3DSettings(layers=1)
+    fast = Solid3DModel(mesh, STEEL, clamp, drive, settings, stress_ignore=ignore).solve(8.0)
+    monkeypatch.setattr(solid3d, "_spmatrix_from_columns", lambda *a: None)
+    slow = Solid3DModel(mesh, STEEL, clamp, drive, settings, stress_ignore=ignore).solve(8.0)
+    assert slow.stiffness == pytest.approx(fast.stiffness, rel=1e-12)
+    assert slow.peak_nodal_stress_MPa == pytest.approx(fast.peak_nodal_stress_MPa, rel=1e-12)
