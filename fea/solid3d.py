@@ -126,7 +126,8 @@ class Solid3DSettings:
     # "compiled": the P2 tables from the vertex coordinates, the node-block pattern and the
     # stiffness parts row by row, and the reduced lower triangle in compressed-column order,
     # in numba kernels (fea/_solid3d_kernels.py): the SEA spring's 405k-DOF build and first
-    # solve spend ~1 s outside CHOLMOD instead of ~8 s (docs/solid3d.md, "Cost"). "numpy":
+    # solve spend ~2 s beside CHOLMOD's factorisation instead of ~8 s (docs/solid3d.md,
+    # "Build and first solve"). "numpy":
     # scikit-fem's Basis and a global sort of the node pairs, the reference (the tests check
     # that both agree to round-off); also what runs when numba does not import.
     assembly: Literal["compiled", "numpy"] = "compiled"
