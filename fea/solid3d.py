@@ -101,9 +101,9 @@ class Solid3DSettings:
     symmetric: bool = True
     # Distance under which a node counts as on a clamp / drive geometry, mm (the plane model's).
     select_tol_mm: float = 1e-6
-    # "auto": CHOLMOD's supernodal Cholesky (through cvxopt) when it imports, else SuperLU;
-    # see _Solver for the measured difference.
-    solver: Literal["auto", "cholmod", "superlu"] = "auto"
+    # "auto": CHOLMOD's supernodal Cholesky (through cvxopt) when it imports, else QDLDL's
+    # LDLᵀ, else SuperLU; see _Solver for the measured difference.
+    solver: Literal["auto", "cholmod", "qdldl", "superlu"] = "auto"
     # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
     # (20 000 blocks use ~150 MB each) independently of the mesh size. Solid3DModel's
     # assembly uses blocks of 2 000 at most (its batched products run ~10x faster in cache).
@@ -328,65 +328,6 @@ def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
     return K
 
 
-def _spmatrix_from_columns(colptr: np.ndarray, rows: np.ndarray, vals, n: int):
-    """A cvxopt spmatrix (n, n) from compressed columns, or None where this cannot be done.
-
-    cvxopt builds a sparse matrix only from triplets, and its constructor scans a column's
-    slots for a duplicate at every entry and sorts every column: ~1 s for the 13.7M entries
-    of the SEA spring's 405k-DOF lower triangle. The compressed columns are known here, so
-    the matrix is made as cvxopt's conversion of an all-ones dense (m, n) matrix, m n >= nnz
-    (its arrays then hold room for m n entries, all written by cvxopt, ~0.2 s), and its
-    column pointers, row indices and values are overwritten with these (and its row count
-    with n): ~0.3 s in all. This writes into cvxopt's C structure (``ccs``: values,
-    colptr, rowind pointers, then nrows, ncols, the type id), so the layout is checked on
-    the matrix first (type size, pointers' values, dimensions, type id, column pointers,
-    64-bit indices); on any mismatch None is returned and the caller builds from triplets.
-    The tests compare both constructions entry by entry.
-
-    colptr : (n + 1,) int; rows : (nnz,) int, sorted within each column; vals : (nnz,) float,
-    or a pair (data, flat) for ``data[flat]`` (gathered straight into cvxopt's array).
-    """
-    import ctypes
-    import sys
-
-    from cvxopt import matrix, sparse, spmatrix
-
-    nnz = int(colptr[-1])
-    if (sys.maxsize < 2**62 or ctypes.sizeof(ctypes.c_void_p) != 8 or n < 1
-            or np.asarray(matrix(0, (1, 1), "i")).dtype != np.int64):  # fmt: skip
-        return None
-    m = max(1, -(-nnz // n))
-    A = sparse(matrix(1.0, (m, n)))
-    # the spmatrix object ends with its ccs pointer (after the PyObject header)
-    if type(A) is not spmatrix or spmatrix.__basicsize__ < 24:
-        return None
-    obj = ctypes.c_void_p.from_address(id(A) + spmatrix.__basicsize__ - 8).value
-    if not obj:
-        return None
-    pv, pc, pr = (ctypes.c_void_p.from_address(obj + 8 * k).value for k in range(3))
-    nrows, ncols = (ctypes.c_int64.from_address(obj + 24 + 8 * k).value for k in (0, 1))
-    kind = ctypes.c_int.from_address(obj + 40).value
-    if not (pv and pc and pr and (nrows, ncols, kind) == (m, n, 1)):
-        return None
-    cp = np.ctypeslib.as_array((ctypes.c_int64 * (n + 1)).from_address(pc))
-    if not (cp[0] == 0 and cp[1] == m and cp[n] == m * n):
-        return None
-    rw = np.ctypeslib.as_array((ctypes.c_int64 * nnz).from_address(pr))
-    vv = np.ctypeslib.as_array((ctypes.c_double * nnz).from_address(pv))
-    if not (rw[: min(nnz, m)] == np.arange(min(nnz, m))).all():
-        return None
-    rw[:] = rows
-    if isinstance(vals, tuple):
-        np.take(vals[0], vals[1], out=vv)
-    else:
-        vv[:] = vals
-    cp[:] = colptr
-    ctypes.c_int64.from_address(obj + 24).value = n
-    if A.size != (n, n):
-        return None
-    return A
-
-
 def _gathered(vals) -> np.ndarray:
     """Values given as an array, or as a pair (data, flat) for ``data[flat]``."""
     return vals[0][vals[1]] if isinstance(vals, tuple) else vals
@@ -395,10 +336,14 @@ def _gathered(vals) -> np.ndarray:
 class _Solver:
     """Factorise a symmetric positive definite matrix once and solve with it.
 
-    "cholmod": CHOLMOD's supernodal Cholesky through cvxopt (a runtime dependency of flexopt,
-    see fea/plane_stress.py), reading the lower triangle only. Measured on a 39k-DOF strip:
-    ~0.3 s against ~3 s for cholespy (its wheels carry CHOLMOD's simplicial method only) and
-    ~5 s for SuperLU. "superlu": scipy's, the fallback when cvxopt does not import.
+    "cholmod": CHOLMOD's supernodal Cholesky through cvxopt (the optional ``cholmod`` extra,
+    see fea/plane_stress.py), reading the lower triangle only. "qdldl": QDLDL's LDLᵀ (a
+    runtime dependency), the upper triangle, what "auto" takes without cvxopt. "superlu":
+    scipy's LU, the last fallback. Measured on the SEA-spring study's chosen design extruded
+    (372k free DOFs, one BLAS thread, under load 2-3): CHOLMOD 5-8 s (analysis and numeric
+    factorisation), QDLDL 34-39 s (a simplicial method: no dense blocks), SuperLU 135 s; on a
+    39k-DOF strip ~0.3 s for CHOLMOD against ~3 s for cholespy (CHOLMOD's simplicial method
+    only) and ~5 s for SuperLU.
     """
 
     def __init__(self, K: sp.spmatrix | None, which: str, lower: tuple | None = None,
@@ -407,14 +352,15 @@ class _Solver:
         as triplets (rows >= cols, no duplicates); or ``columns`` = (values, rows, colptr, n):
         its lower triangle in compressed columns (rows sorted within each), the values
         possibly as a pair (data, flat) for ``data[flat]``."""
-        if which not in ("auto", "cholmod", "superlu"):
-            raise FeaError(f"solver '{which}' unknown; use 'auto', 'cholmod' or 'superlu'")
+        if which not in ("auto", "cholmod", "qdldl", "superlu"):
+            raise FeaError(f"solver '{which}' unknown; use 'auto', 'cholmod', 'qdldl' or 'superlu'")
         if lower is None and columns is None:
             assert K is not None
             L = sp.tril(K, format="coo")
             lower = (L.data, L.row, L.col, K.shape[0])
         if columns is not None:
             vals, rows, colptr, self.n = columns
+            vals = _gathered(vals)
             cols = None
         else:
             assert lower is not None
@@ -426,41 +372,55 @@ class _Solver:
                 if which == "cholmod":
                     raise FeaError(f"solver 'cholmod' needs cvxopt ({exc})") from exc
             else:
-                A = None
-                if columns is not None:
-                    A = _spmatrix_from_columns(colptr, rows, vals, self.n)
-                    if A is None:
-                        cols = np.repeat(np.arange(self.n), np.diff(colptr))
-                        vals = _gathered(vals)
-                if A is None:
-                    A = spmatrix(
-                        matrix(np.asarray(vals, dtype=float)),
-                        matrix(np.asarray(rows, dtype=np.int64)),
-                        matrix(np.asarray(cols, dtype=np.int64)),
-                        (self.n, self.n),
-                    )
+                if cols is None:
+                    cols = np.repeat(np.arange(self.n), np.diff(colptr))
+                A = spmatrix(
+                    matrix(np.asarray(vals, dtype=float)),
+                    matrix(np.asarray(rows, dtype=np.int64)),
+                    matrix(np.asarray(cols, dtype=np.int64)),
+                    (self.n, self.n),
+                )
                 self._cholmod, self._matrix = cholmod, matrix
                 self._F = cholmod.symbolic(A, uplo="L")
                 try:
                     cholmod.numeric(A, self._F)
                 except ArithmeticError as exc:
-                    raise FeaError(
-                        f"the 3D stiffness is not positive definite ({exc}): a part not held "
-                        "by the clamp and drive (a free body), or a degenerate element"
-                    ) from exc
+                    raise self._not_definite(exc) from exc
                 self.name = "cholmod"
+                return
+        if columns is not None:
+            L = sp.csc_matrix((vals, rows, colptr), shape=(self.n, self.n))
+        else:
+            L = sp.coo_matrix((vals, (rows, cols)), shape=(self.n, self.n)).tocsc()
+        if which in ("auto", "qdldl"):
+            try:
+                import qdldl
+            except ImportError as exc:
+                if which == "qdldl":
+                    raise FeaError(f"solver 'qdldl' needs the package qdldl ({exc})") from exc
+            else:
+                try:
+                    self._qdldl = qdldl.Solver(L.T.tocsc(), upper=True)
+                except RuntimeError as exc:  # a zero pivot
+                    raise self._not_definite(exc) from exc
+                # LDLᵀ without pivoting also factorises an indefinite matrix: D's signs say
+                if not np.all(self._qdldl.factors()[1] > 0.0):
+                    raise self._not_definite("a pivot <= 0")
+                self.name = "qdldl"
                 return
         from scipy.sparse.linalg import splu
 
-        if K is None:
-            if columns is not None:
-                L = sp.csc_matrix((_gathered(vals), rows, colptr), shape=(self.n, self.n))
-            else:
-                L = sp.coo_matrix((vals, (rows, cols)), shape=(self.n, self.n)).tocsc()
-            K = L + L.T - sp.diags(L.diagonal())
+        K = L + L.T - sp.diags(L.diagonal())
         # Minimum degree on A^T + A suits symmetric matrices (as in fea.plane_stress).
         self._lu = splu(sp.csc_matrix(K), permc_spec="MMD_AT_PLUS_A")
         self.name = "superlu"
+
+    @staticmethod
+    def _not_definite(why: object) -> FeaError:
+        return FeaError(
+            f"the 3D stiffness is not positive definite ({why}): a part not held by the clamp "
+            "and drive (a free body), or a degenerate element"
+        )
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """x (n,) with K x = b (n,)."""
@@ -468,6 +428,8 @@ class _Solver:
             x = self._matrix(np.array(b, dtype=float))
             self._cholmod.solve(self._F, x)
             return np.asarray(x).ravel()
+        if self.name == "qdldl":
+            return self._qdldl.solve(np.asarray(b, dtype=float))
         return self._lu.solve(b)
 
 
@@ -1004,7 +966,7 @@ class Solid3DModel:
         not a selection of DOFs (a common transverse slide): then P^T K P is formed.
         ``kernels``: the compiled module, whose entries come sorted by column, then row, and
         whose third array is the column pointers (nfree + 1,) instead of the columns: CHOLMOD's
-        matrix is made from the compressed columns (:func:`_spmatrix_from_columns`); or None
+        matrix is made from the compressed columns; or None
         (numpy: triplets)."""
         sup = self._sup
         if sup.P.shape[1] != sup.free.size:

@@ -25,7 +25,6 @@ from flexopt.fea.solid3d import (
     _gradients,
     _lame,
     _p2_tables,
-    _spmatrix_from_columns,
     _stiffness_parts,
     _von_mises,
     extrude_layers_mm,
@@ -183,50 +182,32 @@ def test_refuses_an_unknown_assembly():
         Solid3DModel(mesh, STEEL, clamp, drive, Solid3DSettings(assembly="fast"))  # type: ignore[arg-type]
 
 
-def test_cholmod_matrix_from_compressed_columns_is_the_triplet_one():
-    """_spmatrix_from_columns (cvxopt's arrays overwritten) against cvxopt's triplet
-    constructor, entry by entry, and CHOLMOD factorises it: the solution of a small SPD
-    system (a 1D Laplacian plus a long-range coupling) against numpy's dense solve."""
-    cvxopt = pytest.importorskip("cvxopt")
-    from cvxopt import cholmod
-
-    n = 60
-    A = 4.0 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
-    A[0, n - 1] = A[n - 1, 0] = 0.5
-    L = sp.tril(sp.csc_matrix(A)).tocsc()
-    L.sort_indices()
-    mine = _spmatrix_from_columns(L.indptr.astype(np.int64), L.indices.astype(np.int64),
-                                  L.data, n)  # fmt: skip
-    assert mine is not None and mine.size == (n, n)
-    coo = L.tocoo()
-    ref = cvxopt.spmatrix(cvxopt.matrix(coo.data), cvxopt.matrix(coo.row.astype(np.int64)),
-                          cvxopt.matrix(coo.col.astype(np.int64)), (n, n))  # fmt: skip
-    for a, b in zip(mine.CCS, ref.CCS, strict=True):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    # the values gathered from a larger array (data[flat]), as the model passes K's blocks
-    data = np.concatenate([L.data, -L.data])[::-1].copy()
-    flat = L.data.size - 1 - np.arange(L.data.size) + L.data.size
-    again = _spmatrix_from_columns(L.indptr.astype(np.int64), L.indices.astype(np.int64),
-                                   (data, flat), n)  # fmt: skip
-    np.testing.assert_array_equal(np.asarray(again.CCS[2]), np.asarray(ref.CCS[2]))
-    b = np.arange(1.0, n + 1.0)
-    x = cvxopt.matrix(b)
-    F = cholmod.symbolic(mine, uplo="L")
-    cholmod.numeric(mine, F)
-    cholmod.solve(F, x)
-    np.testing.assert_allclose(np.asarray(x).ravel(), np.linalg.solve(A, b), rtol=1e-13)
-
-
-def test_triplet_fallback_gives_the_same_answer(monkeypatch):
-    """Where cvxopt's layout check fails, CHOLMOD's matrix comes from the triplet
-    constructor: the same answer as the compressed columns."""
+@pytest.mark.parametrize("solver", ["qdldl", "superlu"])
+def test_every_solver_gives_cholmods_answer(solver):
+    """The 3D model on each factorisation (QDLDL what a plain install runs, SuperLU the last
+    fallback), from the same compressed columns: CHOLMOD's answer to round-off, and a later
+    thickness by PCG on that factor."""
     pytest.importorskip("cvxopt")
-    import flexopt.fea.solid3d as solid3d
-
     mesh, clamp, drive, ignore = _annulus()
-    settings = Solid3DSettings(layers=1)
-    fast = Solid3DModel(mesh, STEEL, clamp, drive, settings, stress_ignore=ignore).solve(8.0)
-    monkeypatch.setattr(solid3d, "_spmatrix_from_columns", lambda *a: None)
-    slow = Solid3DModel(mesh, STEEL, clamp, drive, settings, stress_ignore=ignore).solve(8.0)
-    assert slow.stiffness == pytest.approx(fast.stiffness, rel=1e-12)
-    assert slow.peak_nodal_stress_MPa == pytest.approx(fast.peak_nodal_stress_MPa, rel=1e-12)
+    ref_model = Solid3DModel(mesh, STEEL, clamp, drive, Solid3DSettings(layers=1),
+                             stress_ignore=ignore)  # fmt: skip
+    model = Solid3DModel(mesh, STEEL, clamp, drive, Solid3DSettings(layers=1, solver=solver),
+                         stress_ignore=ignore)  # fmt: skip
+    for t in (8.0, 7.5):
+        ref, got = ref_model.solve(t), model.solve(t)
+        assert got.solver.endswith(solver if t == 8.0 else f"({solver})")
+        assert got.stiffness == pytest.approx(ref.stiffness, rel=1e-9)
+        assert got.peak_nodal_stress_MPa == pytest.approx(ref.peak_nodal_stress_MPa, rel=1e-9)
+
+
+def test_qdldl_refuses_an_indefinite_stiffness():
+    """LDLᵀ without pivoting factorises an indefinite matrix too: _Solver reads D's signs and
+    refuses it as CHOLMOD does, and solves a definite one."""
+    from flexopt.fea.solid3d import _Solver
+
+    A = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, -3.0, 1.0], [0.0, 1.0, 4.0]]))
+    with pytest.raises(FeaError, match="not positive definite"):
+        _Solver(A, "qdldl")
+    B = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 4.0]]))
+    x = _Solver(B, "qdldl").solve(np.array([1.0, 2.0, 3.0]))
+    np.testing.assert_allclose(B @ x, [1.0, 2.0, 3.0], rtol=1e-13)
