@@ -174,13 +174,17 @@ def main() -> None:
     print(f"date      {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC")
     print(f"machine   {platform.machine()}, {os.cpu_count()} cores, {platform.system()}")
     # what the run can use: the plane-stress solver (CHOLMOD with the cholmod extra, else
-    # SuperLU) and best.step (the step extra) change the figures
+    # QDLDL; FLEXOPT_PLANE_STRESS_SOLVER overrides) and best.step (the step extra) change the
+    # figures
     import importlib.util
 
     extras = [
         f"{name} {'yes' if importlib.util.find_spec(mod) else 'no'}"
         for name, mod in (("cholmod (cvxopt)", "cvxopt"), ("step (build123d)", "build123d"))
     ]
+    forced = os.environ.get("FLEXOPT_PLANE_STRESS_SOLVER", "").strip()
+    if forced:
+        extras.append(f"plane-stress solver forced to '{forced}' (FLEXOPT_PLANE_STRESS_SOLVER)")
     print(f"python    {sys.executable}; extras: {', '.join(extras)}")
     print(f"load avg  {load()} (1, 5, 15 min) at start")
     cases = [(s, m) for s in args.studies for m in args.store_modes]
