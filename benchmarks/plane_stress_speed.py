@@ -6,7 +6,10 @@ One evaluation of the ``sea_spring`` study: build the model on a meshed spring, 
 hit every case alike, as CPU time (``time.process_time``) and wall time, medians of ``--repeat``
 rounds after one warm-up round (which loads the compiled kernels):
 
-* ``cholmod compiled`` — the default path: compiled (numba) assembly, CHOLMOD sparse Cholesky
+* ``cholmod compiled, series guess`` — the default path as a study runs it: the nonlinear solve
+  starts from ``PlaneStressModel.series_predictor`` (docs/plane_stress.md, "Newton's starting
+  point");
+* ``cholmod compiled`` — compiled (numba) assembly, CHOLMOD sparse Cholesky
   with the analysis kept (cvxopt);
 * ``qdldl compiled`` — the same with QDLDL's LDLᵀ (package qdldl, analysis kept): what a plain
   install runs, without the cholmod extra;
@@ -65,8 +68,11 @@ def load() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
 
-def one(mesh, geom, settings: PlaneStressSettings) -> tuple[float, float, float, dict]:
-    """(cpu s, wall s, torque N m, counters) of model build + linear + nonlinear solve."""
+def one(
+    mesh, geom, settings: PlaneStressSettings, guess: bool = False
+) -> tuple[float, float, float, dict]:
+    """(cpu s, wall s, torque N m, counters) of model build + linear + nonlinear solve; with
+    ``guess`` the nonlinear solve starts from ``series_predictor`` as analyse_spring's does."""
     c0, w0 = time.process_time(), time.perf_counter()
     model = PlaneStressModel(
         mesh,
@@ -77,7 +83,11 @@ def one(mesh, geom, settings: PlaneStressSettings) -> tuple[float, float, float,
         settings=settings,
     )
     model.solve("linear")
-    res = model.solve("nonlinear")
+    if guess:
+        u_odd, u_even = model.series_predictor(THETA)
+        res = model.solve("nonlinear", guess=u_odd + u_even)
+    else:
+        res = model.solve("nonlinear")
     assert res.ok, res.message
     cpu, wall = time.process_time() - c0, time.perf_counter() - w0
     info = dict(model.counters, solver=model.solver, assembly=model.assembly)
@@ -115,35 +125,67 @@ def main() -> None:
     t_mesh = time.perf_counter() - t0
     print(f"spring    {label}, {mesh.n_triangles} P2 triangles, mesh {t_mesh:.2f} s (not timed)")
     nl = dict(rtol_residual=1e-7)  # what the sea_spring study uses
-    cases = {
-        "cholmod  compiled": PlaneStressSettings(solver="cholmod", assembly="compiled", **nl),
-        "qdldl    compiled": PlaneStressSettings(solver="qdldl", assembly="compiled", **nl),
-        "superlu  vectorised (previous)": PlaneStressSettings(
-            solver="direct", assembly="vectorised", **nl
-        ),
-        "superlu  compiled": PlaneStressSettings(solver="direct", assembly="compiled", **nl),
-        "cholmod  vectorised": PlaneStressSettings(solver="cholmod", assembly="vectorised", **nl),
-    }
+    try:
+        import cvxopt  # noqa: F401
+
+        has_cholmod = True
+    except ImportError:  # a plain install: no cholmod extra
+        has_cholmod = False
+        print("cvxopt not importable: CHOLMOD cases skipped (pip install '.[cholmod]')")
+    # name -> (settings, start the nonlinear solve from series_predictor as analyse_spring does)
+    cases: dict[str, tuple[PlaneStressSettings, bool]] = {}
+    if has_cholmod:
+        cases["cholmod  compiled, series guess"] = (
+            PlaneStressSettings(solver="cholmod", assembly="compiled", **nl),
+            True,
+        )
+        cases["cholmod  compiled"] = (
+            PlaneStressSettings(solver="cholmod", assembly="compiled", **nl),
+            False,
+        )
+    cases["qdldl    compiled, series guess"] = (
+        PlaneStressSettings(solver="qdldl", assembly="compiled", **nl),
+        True,
+    )
+    cases["qdldl    compiled"] = (
+        PlaneStressSettings(solver="qdldl", assembly="compiled", **nl),
+        False,
+    )
+    cases["superlu  vectorised (previous)"] = (
+        PlaneStressSettings(solver="direct", assembly="vectorised", **nl),
+        False,
+    )
+    cases["superlu  compiled"] = (
+        PlaneStressSettings(solver="direct", assembly="compiled", **nl),
+        False,
+    )
+    if has_cholmod:
+        cases["cholmod  vectorised"] = (
+            PlaneStressSettings(solver="cholmod", assembly="vectorised", **nl),
+            False,
+        )
     try:
         import pypardiso  # noqa: F401
 
-        cases["pardiso  compiled"] = PlaneStressSettings(
-            solver="pardiso", assembly="compiled", **nl
+        cases["pardiso  compiled"] = (
+            PlaneStressSettings(solver="pardiso", assembly="compiled", **nl),
+            False,
         )
     except ImportError:
         print("pypardiso not importable: PARDISO case skipped (pip install '.[fast]')")
     if args.old:
-        cases["superlu  skfem (first path)"] = PlaneStressSettings(
-            solver="direct", assembly="skfem", **nl
+        cases["superlu  skfem (first path)"] = (
+            PlaneStressSettings(solver="direct", assembly="skfem", **nl),
+            False,
         )
-    for settings in cases.values():  # warm-up: numba loads its cache, CHOLMOD its library
-        one(mesh, geom, settings)
+    for settings, guess in cases.values():  # warm-up: numba loads its cache, CHOLMOD its library
+        one(mesh, geom, settings, guess)
     cpu: dict[str, list[float]] = {name: [] for name in cases}
     wall: dict[str, list[float]] = {name: [] for name in cases}
     info = {}
     for _ in range(args.repeat):  # interleaved, so load changes hit every case alike
-        for name, settings in cases.items():
-            c, w, torque, counters = one(mesh, geom, settings)
+        for name, (settings, guess) in cases.items():
+            c, w, torque, counters = one(mesh, geom, settings, guess)
             cpu[name].append(c)
             wall[name].append(w)
             info[name] = (torque, counters)
