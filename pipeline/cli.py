@@ -470,11 +470,13 @@ class _RunProgress:
 
 def _where(run_dir: Path) -> str:
     """``, on processes (2 workers)``: where the run evaluates, from its run.json."""
+    # run.json was just written by this run, but the line is only decoration: whatever is in
+    # the file (a hand-edited or damaged record), a wrong shape leaves it out, never raises.
     try:
         record = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
         where = f", on {record['parallel']['description']}"
         restored = record.get("resumed") and record["resumed"][-1].get("n_in_store")
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError, LookupError, TypeError, AttributeError):
         return ""
     return where + (f"; resuming with {restored} designs from the store" if restored else "")
 
