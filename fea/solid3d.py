@@ -872,7 +872,7 @@ class Solid3DModel:
     stresses follow from the 1 mm model's basis gradients with their z components divided by
     t (any reference thickness in place of 1 mm). Every node keeps its (x, y), so the
     supports select the same DOFs at every thickness. The first :meth:`solve` factorises K
-    (CHOLMOD; SuperLU without cvxopt); with
+    (``settings.solver``: CHOLMOD, else QDLDL without cvxopt, else SuperLU); with
     ``settings.later_solves = "pcg"`` a later thickness is solved by conjugate gradients
     preconditioned with that factor, to ``pcg_rtol``; with "direct" it is factorised anew.
     :func:`solve_solid3d` is the reference (a model built at its thickness, factorised); the
