@@ -85,11 +85,21 @@ PARENT_CHECK_S = 1.0
 
 #: Chunks per worker and batch. A chunk is one message (pool) or one task (Dask); the last chunks
 #: of a batch leave workers idle while others finish, so chunks should be small - as small as the
-#: per-chunk cost allows: ~0.15 ms a round trip in the pool (so ~16 chunks per worker cost nothing
-#: against 50-150 ms solves), ~1-3 ms a task on Dask (4 per worker thread).
-#: See benchmarks/runner_overhead.py.
-POOL_CHUNKS_PER_WORKER = 16
+#: per-chunk cost allows: ~0.15 ms a round trip in the pool (so ~32 chunks per worker cost nothing
+#: against 10-150 ms solves), ~1-3 ms a task on Dask (4 per worker thread).
+#: See benchmarks/runner_overhead.py. The pool keeps one chunk queued in a worker's pipe behind
+#: the design it solves (:data:`POOL_QUEUED_DESIGNS`), so its chunks are half the size the same
+#: idle tail at a batch's end allowed without that queue (16 chunks per worker).
+POOL_CHUNKS_PER_WORKER = 32
 DASK_CHUNKS_PER_WORKER = 4
+
+#: The pool sends a worker its next chunk when at most this many of its designs are unreported
+#: (the one it solves): the next design is then already in its pipe when it reports the last, and
+#: it does not wait for the run process to wake up, handle its reports and answer. With one
+#: chunk at a time the two workers of a constant-force run (2400 designs of ~5-10 ms, chunks of
+#: 2) found no design waiting 449 times within the batches, 1.1 s of their time; with one queued,
+#: 29 times (0.6 s: when this process itself was held up, e.g. by its report preload thread).
+POOL_QUEUED_DESIGNS = 1
 
 
 class BatchBackend(Protocol):
@@ -384,6 +394,10 @@ def _worker_main(conn: Connection, payload: bytes) -> None:
         if task is None:
             return
         for row, x in task:
+            # Designs wait queued in the pipe (POOL_QUEUED_DESIGNS): an orphan solves none of
+            # them, only the one it was solving when the run was killed.
+            if os.getppid() != parent:
+                return
             # No timer here: the parent's watchdog owns the time limit (it also stops a worker
             # stuck in C code, which a signal cannot interrupt).
             conn.send(("done", row, evaluate_one(problem, x)))
@@ -561,15 +575,19 @@ class ProcessPool:
                 queue.extendleft(reversed(pending))
 
         while n_left:
-            # Keep n_workers alive, and give every idle ready worker a chunk.
+            # Keep n_workers alive, and give every ready worker a chunk whenever at most
+            # POOL_QUEUED_DESIGNS of its designs are unreported (one queued behind the one it
+            # solves: it goes on without waiting for this process).
             while len(self.workers) < self.n_workers:
                 self._start()
             now = time.perf_counter()
             for worker in self.workers:
-                if worker.ready and not worker.task and queue:
+                while worker.ready and queue and len(worker.task or ()) <= POOL_QUEUED_DESIGNS:
                     chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
-                    worker.task = deque(chunk)
-                    worker.started = now
+                    if not worker.task:  # idle: its first design starts now
+                        worker.task = deque()
+                        worker.started = now
+                    worker.task.extend(chunk)
                     worker.conn.send(chunk)
             timeout = None
             if self.timeout_s is not None:

@@ -18,8 +18,10 @@ import contextlib
 import logging
 import os
 import platform
+import signal
 import socket
 import sys
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, MutableMapping
@@ -132,6 +134,10 @@ RUN_FILES = (
     "report.md",
     "report.html",
 )
+
+#: The nice level of best.step's child while the workers solve: the lowest priority, so its
+#: import of build123d takes only the CPU time the workers and this process leave idle.
+EARLY_STEP_NICE = 19
 
 _EXTRA_DISTRIBUTIONS = {
     "pymoo": "pymoo",
@@ -574,10 +580,17 @@ class _Run:
         # generation. The writes keep their order; one generation's are in flight at most.
         # The CSV rows are formatted on the writer thread too (~10 ms a generation at the end
         # of a 2400-design run), from a snapshot: the header, the row count, the history.
+        # checkpoint.json and run.json are formatted there too (indented JSON is encoded in
+        # Python, ~3 ms a generation), from their data as it stands now: the checkpoint's dict
+        # is built here and the record copied (generation_done only replaces its values).
         snapshot = (self.columns.header(), len(self.rows), list(self.history))
-        files: list[Any] = [lambda: self.table_texts(*snapshot)]
-        files.append((CHECKPOINT_FILE, checkpoint_text(self.checkpoint_data(gen))))
-        files.append(("run.json", to_json(self.record)))
+        checkpoint = self.checkpoint_data(gen)
+        record = dict(self.record)
+        files: list[Any] = [
+            lambda: self.table_texts(*snapshot),
+            lambda: [(CHECKPOINT_FILE, checkpoint_text(checkpoint))],
+            lambda: [("run.json", to_json(record))],
+        ]
         self.write_later(files)
         log.info(
             "generation %d/%d: %d evaluations, best %s, %.0f%% feasible, %.3g eval/s",
@@ -759,10 +772,12 @@ class _Run:
             self.notes.append(note)
             return ()
 
-    def finish(self, result: GAResult) -> DesignDetail | None:
-        # best.step's child is forked first: it imports build123d (~3 s) while the best
-        # design's detail is solved, once a core is idle (see _EarlyStep)
-        early = _EarlyStep.start() if step_available() else None
+    def finish(self, result: GAResult, early: _EarlyStep | None = None) -> DesignDetail | None:
+        # best.step's child: the one the run started (``early``, it imported build123d at low
+        # priority while the workers solved), else forked now: it imports build123d (~3 s)
+        # while the best design's detail is solved, once a core is idle (see _EarlyStep)
+        if early is None and step_available():
+            early = _EarlyStep.start()
         try:
             return self._finish(result, early)
         finally:
@@ -1205,6 +1220,15 @@ def _run_in(
         write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
     write_atomic(run_dir / "run.json", to_json(record))
     log.info("run folder %s; %s; %s", run_dir, config, settings.describe())
+    # best.step's child now, while this process runs no other thread (forked later, a thread
+    # could hold a lock the child needs): it imports build123d (~3 s CPU) at the lowest
+    # priority, in the moments a core idles while the workers solve (generation barriers),
+    # instead of on the report's critical path.
+    early = (
+        _EarlyStep.start(nice=EARLY_STEP_NICE)
+        if threading.active_count() == 1 and step_available()
+        else None
+    )
     if on_start is not None:
         on_start(run_dir, config)
 
@@ -1282,7 +1306,8 @@ def _run_in(
         run.files += ["evaluations.csv", "history.csv"]
         if preload is not None:
             preload.join()
-        detail = run.finish(result)
+        early, handed = None, early
+        detail = run.finish(result, handed)
         run.files.append("report.md")
         close("finished", write=False)  # the numbers the report shows
         report = ReportData(
@@ -1309,6 +1334,9 @@ def _run_in(
     except BaseException as exc:
         abandon("failed", _one_line(f"{type(exc).__name__}: {exc}"))
         raise
+    finally:
+        if early is not None:  # the run ended before its report: the child has nothing to make
+            early.close()
     log.info("finished %s in %.3g s", run_dir, record["wall_s"])
     return RunOutcome(run_dir, result, detail, record, tuple(run.notes), run.verdicts)
 
@@ -1326,8 +1354,6 @@ def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
     """
     if settings.backend == "serial":
         return None
-    import threading
-
     warm = getattr(problem, "warm_up_detail", None)
 
     def load() -> None:
@@ -1396,7 +1422,8 @@ class _ForkedMakes:
 
 
 class _EarlyStep:
-    """best.step made in a child forked when the report starts, before the part is known.
+    """best.step made in a child forked before the part is known: when the run starts, at the
+    lowest priority (:data:`EARLY_STEP_NICE`), or else when the report starts.
 
     The STEP writer's import (build123d and OpenCascade, ~3 s) needs nothing of the run, so the
     child does it while the best design's detail is solved, but only once a core is idle
@@ -1415,14 +1442,16 @@ class _EarlyStep:
         self._sent = False
 
     @classmethod
-    def start(cls) -> _EarlyStep | None:
+    def start(cls, nice: int = 0) -> _EarlyStep | None:
+        """Fork the child; with ``nice`` > 0 it runs at that lower priority and imports at once
+        (it only takes CPU time no other process wants)."""
         ctx = _fork_context()
         if ctx is None:
             return None
         try:
             ours, theirs = ctx.Pipe(duplex=True)
             process = ctx.Process(
-                target=_early_step_main, args=(theirs,), name="flexopt-step", daemon=True
+                target=_early_step_main, args=(theirs, nice), name="flexopt-step", daemon=True
             )
             process.start()
             theirs.close()
@@ -1461,14 +1490,33 @@ class _EarlyStep:
             self.process.join(5)
 
 
-def _early_step_main(conn: Any) -> None:
-    """:class:`_EarlyStep`'s child: import the STEP writer when a core is idle, then make the
-    part it is sent (None: nothing to make)."""
+def _early_step_main(conn: Any, nice: int = 0) -> None:
+    """:class:`_EarlyStep`'s child: import the STEP writer when a core is idle (at once when
+    ``nice`` > 0: at that priority it only gets idle CPU time), then make the part it is sent
+    (None: nothing to make)."""
+    # Ctrl-C reaches the whole process group and a forked child inherits the CLI's SIGTERM
+    # handler: the run decides what stops, and closes this child (as a pool worker).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
-        _wait_for_idle_core(conn.poll)
+        priority = None
+        if nice > 0:
+            with contextlib.suppress(OSError, AttributeError):
+                priority = os.getpriority(os.PRIO_PROCESS, 0)
+                os.nice(nice)
+                # Linux: SCHED_IDLE runs only when no other task wants the core (a worker that
+                # wakes takes it back at once); the nice level alone still slowed the workers
+                os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+        else:
+            _wait_for_idle_core(conn.poll)
         with contextlib.suppress(Exception):  # step_bytes says what fails, as a note
             import build123d  # noqa: F401
         part = conn.recv()
+        if priority is not None:  # the report waits for the part now: back to the run's
+            # priority where the system allows it (root, RLIMIT_NICE); else it stays low
+            with contextlib.suppress(OSError, AttributeError):
+                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+                os.setpriority(os.PRIO_PROCESS, 0, priority)
         if part is not None:
             conn.send(_make_here([("best.step", lambda: part_bytes(part, "step"))]))
     except (EOFError, OSError):  # the parent is gone or closed the pipe

@@ -59,7 +59,8 @@ def test_settings_from_the_study_and_the_command_line(tmp_path):
     assert (dask.backend, dask.address, dask.eval_timeout_s) == ("dask", "tcp://h:8786", 1.0)
     default = parallel_settings(validate_study(flexopt_toys.study()))
     assert default.backend == "processes" and default.n_workers >= 1
-    assert chunk_rows(40, 2) == 2 and chunk_rows(40, 2, per_worker=4) == 5
+    assert chunk_rows(40, 2) == 1 and chunk_rows(40, 2, per_worker=4) == 5
+    assert chunk_rows(400, 2) == 7  # 32 chunks per worker: one more is queued in its pipe
     assert chunk_rows(3, 2) == 1 and chunk_rows(40, 2, 7) == 7
 
     raw["parallel"] = {"backend": "dask"}

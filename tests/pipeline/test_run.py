@@ -598,6 +598,7 @@ def test_best_step_child_is_forked_early_and_makes_the_part_it_is_sent(monkeypat
     sent the part; without a part it ends when closed; a child that dies is a note."""
     import os
     import sys
+    import time
     import types
 
     from flexopt.pipeline import run as run_mod
@@ -627,6 +628,25 @@ def test_best_step_child_is_forked_early_and_makes_the_part_it_is_sent(monkeypat
     assert dead.send("plate")
     assert dead.results() == [("best.step", None, "the process making it died (exit code 3)")]
     dead.close()
+
+    # started with the run: at the lowest priority, importing at once (no wait for an idle core)
+    monkeypatch.setattr(run_mod, "_wait_for_idle_core", lambda *a, **k: os._exit(4))
+    monkeypatch.setattr(
+        run_mod, "part_bytes", lambda part, fmt: str(os.getpriority(os.PRIO_PROCESS, 0)).encode()
+    )
+    low = run_mod._EarlyStep.start(nice=run_mod.EARLY_STEP_NICE)
+    assert low.process.is_alive()
+    lowered = min(19, os.getpriority(os.PRIO_PROCESS, 0) + run_mod.EARLY_STEP_NICE)
+    deadline = time.monotonic() + 30.0  # it lowers its priority first thing
+    while os.getpriority(os.PRIO_PROCESS, low.process.pid) != lowered:
+        assert time.monotonic() < deadline, "the child did not lower its priority"
+        time.sleep(0.01)
+    assert low.send("plate")
+    ((name, data, error),) = low.results()
+    low.close()
+    assert (name, error) == ("best.step", None)
+    # with the part it goes back to the run's priority where it may (root), else stays low
+    assert int(data) in (os.getpriority(os.PRIO_PROCESS, 0), lowered)
 
 
 def test_waiting_for_an_idle_core_ends_on_work_or_at_its_limit():

@@ -133,3 +133,40 @@ def test_a_forked_worker_does_not_keep_the_folder_locked(tmp_path):
     finally:
         worker.terminate()
         worker.join()
+
+
+def test_to_json_fast_paths_match_the_general_conversion():
+    """to_json's exact-type fast paths (floats, lists, numeric arrays) give the text of the
+    general conversion: numpy scalars as Python ones, NaN and inf as null, arrays as lists."""
+    import json
+    import math
+    from collections.abc import Mapping
+
+    import numpy as np
+    from flexopt.pipeline.runfolder import to_json
+
+    def general(value):  # the conversion before the fast paths, as the reference
+        if isinstance(value, Mapping):
+            return {str(k): general(v) for k, v in value.items()}
+        if isinstance(value, list | tuple | np.ndarray):
+            return [general(v) for v in value]
+        if isinstance(value, np.generic):
+            value = value.item()
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        return value
+
+    rng = np.random.default_rng(3)
+    data = {
+        "population": [[float(v) for v in row] for row in rng.random((4, 3))],
+        "array": rng.random((2, 3)),
+        "with_nan": np.array([np.nan, 1.0, -np.inf]),
+        "ints": np.array([1, 2], dtype=np.int32),
+        "flags": np.array([True, False]),
+        "scalars": [np.float32(1.5), np.int64(7), np.float64("nan"), True, None, "x", 3],
+        "nested": {1: (float("inf"), [np.array([0.25])])},
+        "words": np.array(["a", "b"]),
+        "empty": np.empty((0, 2)),
+    }
+    expected = json.dumps(general(data), indent=2, allow_nan=False, default=str) + "\n"
+    assert to_json(data) == expected
