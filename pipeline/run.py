@@ -1226,7 +1226,7 @@ def _run_in(
     # instead of on the report's critical path.
     early = (
         _EarlyStep.start(nice=EARLY_STEP_NICE)
-        if threading.active_count() == 1 and step_available()
+        if threading.active_count() == 1 and step_available() and _can_restore_priority()
         else None
     )
     if on_start is not None:
@@ -1488,6 +1488,26 @@ class _EarlyStep:
         if self.process.is_alive():  # stuck in OpenCascade: a file is not worth a hung run
             self.process.kill()
             self.process.join(5)
+
+
+def _can_restore_priority(nice: int = EARLY_STEP_NICE) -> bool:
+    """Whether a child lowered by ``nice`` (and put on SCHED_IDLE) may come back to this
+    process's priority: root, or an RLIMIT_NICE that allows it (Linux's rule for leaving
+    SCHED_IDLE is the same). An ordinary user's limit is 0: a child there would build best.step
+    at the lowest priority, starved while the report's processes keep the cores busy, so the
+    run then starts the child when the report starts instead (the path before issue 13's
+    early child)."""
+    try:
+        if os.geteuid() == 0:
+            return True
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_NICE)[0]
+        here = os.getpriority(os.PRIO_PROCESS, 0)
+    except (AttributeError, OSError, ValueError, ImportError):
+        return False
+    # RLIMIT_NICE r lets a process lower its nice value down to 20 - r
+    return limit == resource.RLIM_INFINITY or 20 - limit <= here
 
 
 def _early_step_main(conn: Any, nice: int = 0) -> None:

@@ -699,3 +699,28 @@ def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():
     failing = _preload_report(Failing(), ParallelSettings(backend="processes", workers=2))
     failing.join(60)
     assert not failing.is_alive()
+
+
+def test_the_early_step_child_is_lowered_only_where_it_can_come_back(monkeypatch):
+    """_can_restore_priority: root may; an ordinary user with RLIMIT_NICE 0 may not (the child
+    would stay SCHED_IDLE and starve while the report runs), so the run starts it at the report
+    instead; a limit that reaches the run's nice value may."""
+    import os
+    import resource
+
+    from flexopt.pipeline import run as run_mod
+
+    monkeypatch.setattr(os, "geteuid", lambda: 0)
+    assert run_mod._can_restore_priority()
+    monkeypatch.setattr(os, "geteuid", lambda: 1000)
+    monkeypatch.setattr(os, "getpriority", lambda *a: 0)
+    monkeypatch.setattr(resource, "getrlimit", lambda what: (0, 0))
+    assert not run_mod._can_restore_priority()
+    monkeypatch.setattr(resource, "getrlimit", lambda what: (20, 20))  # down to nice 0
+    assert run_mod._can_restore_priority()
+    monkeypatch.setattr(os, "getpriority", lambda *a: -5)  # a run at nice -5 needs 25
+    assert not run_mod._can_restore_priority()
+    monkeypatch.setattr(
+        resource, "getrlimit", lambda what: (resource.RLIM_INFINITY, resource.RLIM_INFINITY)
+    )
+    assert run_mod._can_restore_priority()
