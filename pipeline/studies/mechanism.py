@@ -1445,8 +1445,9 @@ def _interference(
     Parts: every beam as a band of its thickness along its deformed centreline (the beams as
     made), every body at its pose, the grounded ends' pads and the ground outlines (fixed).
     A beam's roots (a disc about each held end: its fillets) are left out, and parts joined there
-    (a beam end and its body, pad or the beam end it is joined to; a grounded end and every fixed
-    part) are checked only for overlap elsewhere; every other pair also for its distance.
+    (a beam end and its body, its pad or the beam end it is joined to; a grounded end and the
+    ground outlines) are checked only for overlap elsewhere; every other pair also for its
+    distance.
 
     Returns
     -------
@@ -1497,8 +1498,10 @@ def _interference(
                     if to not in ("ground", *geometry.bodies):  # another beam's end
                         radius = 2.0 * t[k]
                         joined.add(f"beam {to.rsplit('.', 1)[0]}")
-                    elif to == "ground":
-                        joined |= {label for label, _ in fixed}
+                    elif to == "ground":  # its own pad, and the ground outlines holding it
+                        joined |= {f"pad {name}.{end}"} | {
+                            label for label, _ in fixed if label.startswith("ground outline")
+                        }
                     else:
                         joined.add(f"body {to}")
                     discs.append(Point(pts[k]).buffer(radius, quad_segs=8))

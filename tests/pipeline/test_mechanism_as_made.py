@@ -1,0 +1,200 @@
+"""The mechanism kind analyses the part as made: beams clipped at the bodies they enter, sharp
+corners refused, clamps where the pads are, filleted roots with their stress-concentration
+factor, and interference of the deformed parts over every row of every load case."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+from flexopt.geometry.mechanism import shoulder_kt
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies.mechanism import _Evaluator
+from flexopt.pipeline.study import validate_study
+
+
+def _hub(inner_x: float = 5.0, max_deg: float = 5.0, frames=(), **geometry) -> dict:
+    """A square hub (10 x 10 mm) turned about its centre by two radial leaves, each clamped to
+    the ground 35 mm out: a rotary flexure. ``inner_x``: where the leaves start (5 = the hub's
+    edge, less = inside the hub)."""
+    raw = {
+        "name": "hub",
+        "geometry": {
+            "kind": "mechanism",
+            "width_mm": 5.0,
+            "beams": {
+                "right": {
+                    "points_mm": [[inner_x, 0], [40, 0]],
+                    "thickness_mm": 1.2,
+                    "elements": 12,
+                },
+                "left": {
+                    "points_mm": [[-inner_x, 0], [-40, 0]],
+                    "thickness_mm": 1.2,
+                    "elements": 12,
+                },
+            },  # fmt: skip
+            "bodies": {
+                "hub": {"ref_mm": [0, 0], "outline_mm": [[-5, -5], [5, -5], [5, 5], [-5, 5]]}
+            },
+            "joints": [
+                {"a": "right.start", "b": "hub"},
+                {"a": "left.start", "b": "hub"},
+                {"a": "right.end", "b": "ground"},
+                {"a": "left.end", "b": "ground"},
+            ],
+            "ground_outlines_mm": [list(map(list, f)) for f in frames],
+            **geometry,
+        },
+        "material": "PA12",
+        "load_cases": {
+            "turn": {
+                "drive": {
+                    "part": "hub",
+                    "control": "rotation",
+                    "max_deg": max_deg,
+                    "steps": 10,
+                    "transverse": "held",
+                },
+            }  # fmt: skip
+        },
+        "outputs": {"torque_Nmm": {"quantity": "reaction"}},
+        "requirements": [{"quantity": "max_torque_Nmm", "max": 1e6}],
+    }
+    return raw
+
+
+def _solve(raw: dict):
+    prob = _Evaluator(validate_study(raw))
+    solved = prob.solve(None)
+    assert not isinstance(solved, tuple), solved
+    return prob, solved
+
+
+def test_a_leaf_run_into_its_hub_is_clipped_at_the_hubs_outline():
+    _, edge = _solve(_hub(5.0))
+    _, inside = _solve(_hub(0.4))  # 4.6 mm of each leaf inside the hub
+    made = inside.outline.beams["right"]
+    assert made.start.clipped_mm == pytest.approx(4.6, abs=1e-12)
+    assert made.shape.points_mm[0] == pytest.approx([5.0, 0.0], abs=1e-12)
+    assert edge.outline.beams["right"].start.clipped_mm == 0.0
+    t_edge = edge.tables["turn"]["torque_Nmm"]
+    t_in = inside.tables["turn"]["torque_Nmm"]
+    assert np.max(np.abs(t_in[1:] / t_edge[1:] - 1.0)) < 0.01  # the issue's bar; here exact:
+    np.testing.assert_allclose(t_in, t_edge, rtol=1e-9, atol=1e-12)
+    # the info says what was clipped; the printed outline is the same part
+    assert inside.outline.polygon.symmetric_difference(edge.outline.polygon).area < 1e-6
+    # solved as flexible (the defect this guards against), the leaves would be 4.6/35 longer:
+    # the torque of a leaf turned at its end falls as ~1/L, far more than 1 %
+    from flexopt.pipeline.studies.mechanism import _load_case, _mechanism
+
+    study = validate_study(_hub(0.4))
+    fm = __import__("flexopt.fea.mechanism", fromlist=["solve_mechanism"])
+    flexible = fm.solve_mechanism(
+        _mechanism(study, study.geometry), _load_case(study, "turn"),
+        [fm.MechOutput("t", "reaction")],
+    )  # fmt: skip
+    assert flexible.outputs["t"][-1] < 0.9 * t_edge[-1]
+
+
+def test_a_leaf_ending_outside_its_hub_or_a_hairpin_corner_is_refused():
+    raw = _hub(6.0)  # 1 mm short of the hub
+    with pytest.raises(StudyError, match=r"ends 1 mm outside body 'hub'"):
+        validate_study(raw)
+    raw = _hub()
+    raw["geometry"]["beams"]["right"]["points_mm"] = [[5, 0], [30, 0], [12, 2.5]]
+    raw["geometry"]["beams"]["right"]["thickness_mm"] = 1.2
+    raw["geometry"]["joints"][2] = {"a": "right.end", "b": "ground"}
+    with pytest.raises(StudyError) as err:
+        validate_study(raw)
+    assert err.value.path == "geometry"
+    assert "turns 172 deg at point [1] (30, 0) mm, sharper than 90 deg" in err.value.problem
+    assert "round the corner" in err.value.problem
+    raw["geometry"]["max_corner_deg"] = 175.0  # the key is named in docs/mechanism.md
+    with pytest.raises(StudyError, match="cross|thin|runs into|pieces"):
+        validate_study(raw)  # then the legs' merged material is refused as a thin wall/overlap
+
+
+def test_a_hub_turn_that_drives_a_leaf_through_a_ground_outline_is_not_met_with_the_row():
+    # a ground bar 0.9 mm above the right leaf, tied to its clamping pad
+    bar = [[8, 1.5], [46, 1.5], [46, 3.5], [8, 3.5]]
+    prob, solved = _solve(_hub(5.0, max_deg=20.0, frames=[bar]))
+    verdict = next(v for v in prob.verdicts(solved) if v.name == "no_interference")
+    assert not verdict.met and verdict.value > 0
+    assert "load case turn, row" in verdict.detail
+    assert "beam right passes through ground outline [0]" in verdict.detail
+    row = int(verdict.detail.split("row ")[1].split(" ")[0])
+    assert 0 < row <= 10
+    ev = prob._evaluation(np.zeros(0), solved, 0.0)  # noqa: SLF001
+    assert ev.metrics["verdict"] == "NOT MET"
+    # a smaller turn keeps clear of it: MET, and the clearance is reported
+    prob, solved = _solve(_hub(5.0, max_deg=2.0, frames=[bar]))
+    verdict = next(v for v in prob.verdicts(solved) if v.name == "no_interference")
+    assert verdict.met and solved.metrics["interference_mm2"] == 0.0
+
+
+def test_smallest_clearance_of_a_parallel_guide_is_its_closed_form():
+    # leaves 1.2 mm thick at y = +-10, 4 mm pads at x < 0: the closest parts that are not joined
+    # are a leaf and the other leaf's pad. The leaf's root (a disc of 0.6 + 1.5 r + 0.001 mm,
+    # its fillets, r = 0.01 mm here) is left out, so its edge y = 9.4 starts at
+    # x0 = sqrt(R^2 - 0.6^2) and the pad's corner (0, -8) is sqrt(x0^2 + 17.4^2) away
+    from tests.pipeline.test_mechanism_study import _guide
+
+    prob, solved = _solve(_guide())
+    radius = 0.6 + 1.5 * 0.01 + 1e-3
+    expected = math.hypot(math.sqrt(radius**2 - 0.36), 17.4)
+    assert solved.metrics["min_clearance_mm"] == pytest.approx(expected, abs=1e-4)
+    assert "pad" in solved.clearance["clearance_at"]
+    assert solved.metrics["interference_mm2"] == 0.0
+
+
+def test_shoulder_kt_follows_the_fit_and_its_limits():
+    # continuous where the fit changes coefficients (h/r = 2), within the fit's stated accuracy
+    for d in (1.0, 2.0):
+        r = 0.5
+        below = shoulder_kt(d + 2 * (2 * r) * (1 - 1e-9), d, r)
+        above = shoulder_kt(d + 2 * (2 * r) * (1 + 1e-9), d, r)
+        assert below == pytest.approx(above, rel=0.02)
+    # no shoulder, no concentration; a smaller fillet concentrates more; a body (an unbounded
+    # shoulder) is the fit's h/r = 20
+    assert shoulder_kt(1.2, 1.2, 0.5) == 1.0
+    kts = [shoulder_kt(4.0, 1.0, r) for r in (1.5, 1.0, 0.5, 0.2, 0.1)]
+    assert all(a < b for a, b in zip(kts, kts[1:], strict=False))
+    assert shoulder_kt(1e6, 1.0, 0.5) == shoulder_kt(1.0 + 40 * 0.5, 1.0, 0.5)
+    # the fit's own value at D/d = 2, r/d = 0.1 (h/r = 5): Kt = 1.917 from its coefficients
+    q, w = 5.0, math.sqrt(5.0)
+    c = (1.042 + 0.982 * w - 0.036 * q, -3.599 + 1.619 * w - 0.431 * q,
+         6.084 - 5.607 * w + 1.158 * q, -2.527 + 3.006 * w - 0.691 * q)  # fmt: skip
+    x = 0.5
+    assert shoulder_kt(2.0, 1.0, 0.1) == pytest.approx(
+        c[0] + c[1] * x + c[2] * x**2 + c[3] * x**3, rel=1e-12
+    )
+
+
+def test_the_verdicts_stress_carries_the_roots_concentration_factor():
+    from tests.pipeline.test_mechanism_study import _guide
+
+    raw = copy.deepcopy(_guide())
+    raw["geometry"]["fillet_mm"] = 0.5
+    prob, solved = _solve(raw)
+    resp = solved.responses["push"]
+    made = solved.outline.beams
+    kt = made["upper"].start.kt
+    assert kt == pytest.approx(shoulder_kt(4.0, 1.2, 0.5))
+    # a clamped-guided leaf bends most at its roots: the as-made peak is Kt x the stress over
+    # the flare at the pad (the shuttle's root has a smaller Kt: its shoulder is a body's)
+    last = [
+        max(resp.peak_stress_MPa[-1, i], m.start.kt * resp.root_stress_MPa[-1, i, 0],
+            m.end.kt * resp.root_stress_MPa[-1, i, 1])
+        for i, m in enumerate(made.values())
+    ]  # fmt: skip
+    assert solved.tables["push"]["peak_stress_MPa"][-1] == pytest.approx(max(last), rel=1e-12)
+    assert solved.tables["push"]["peak_stress_MPa"][-1] > 1.2 * resp.peak_stress_MPa[-1].max()
+    # the root stress is the beam model's at the fillet's toe: a clamped-guided leaf of length
+    # L between the toes, deflected delta = 0.4 mm: sigma = (6 E I delta / L^2) / (b t^2 / 6) =
+    # 3 E t delta / L^2 (the flares, the shear and the free shuttle: within 10 %)
+    length = 40.0 - 2 * 0.5
+    sigma = 3 * 1650.0 * 1.2 * 0.4 / length**2
+    assert resp.root_stress_MPa[-1, 0, 0] == pytest.approx(sigma, rel=0.1)
