@@ -393,7 +393,11 @@ class MechanismGeometry(BaseModel):
         1.0, gt=0, description="fillet radius where a beam meets a pad or a body, mm"
     )
     max_corner_deg: float = Field(
-        90.0, gt=0, le=180, description="sharpest corner of a beam's centreline accepted, deg"
+        90.0,
+        gt=0,
+        le=90,
+        description="sharpest corner (turn at a point) of a beam's centreline accepted, deg; at "
+        "most 90 (past it the legs merge into a block the beam model does not see)",
     )
 
     @field_validator("beams", "bodies")
@@ -676,7 +680,9 @@ def check(study: MechanismStudy) -> None:
     try:
         shapes, outline = _outline(geometry)
     except GeometryError as exc:
-        raise StudyError("geometry", f"the initial design is not buildable: {exc}") from None
+        raise StudyError(
+            _geometry_path(str(exc)), f"the initial design is not buildable: {exc}"
+        ) from None
     fm = _fea()
     mech = _mechanism(study, geometry, made=outline.beams)
     for case in study.load_cases:
@@ -684,6 +690,15 @@ def check(study: MechanismStudy) -> None:
             fm.check_mechanism(mech, _load_case(study, case))
         except FeaError as exc:
             raise StudyError(_fea_path(study, case, str(exc)), _fea_fix(str(exc))) from None
+
+
+def _geometry_path(message: str) -> str:
+    """The key path a geometry refusal is about: the beam it names (and the point), else the
+    geometry."""
+    m = re.match(r"beam '([A-Za-z][A-Za-z0-9_-]*)'(?: turns .* at point \[(\d+)\])?", message)
+    if m is None:
+        return "geometry"
+    return f"geometry.beams.{m[1]}" + (f".points_mm[{m[2]}]" if m[2] else "")
 
 
 def _check_width_solve(study: MechanismStudy, labels: Mapping[str, Requirement]) -> None:

@@ -109,12 +109,17 @@ def test_a_leaf_ending_outside_its_hub_or_a_hairpin_corner_is_refused():
     raw["geometry"]["joints"][2] = {"a": "right.end", "b": "ground"}
     with pytest.raises(StudyError) as err:
         validate_study(raw)
-    assert err.value.path == "geometry"
+    assert err.value.path == "geometry.beams.right.points_mm[1]"
     assert "turns 172 deg at point [1] (30, 0) mm, sharper than 90 deg" in err.value.problem
     assert "round the corner" in err.value.problem
-    raw["geometry"]["max_corner_deg"] = 175.0  # the key is named in docs/mechanism.md
-    with pytest.raises(StudyError, match="cross|thin|runs into|pieces"):
-        validate_study(raw)  # then the legs' merged material is refused as a thin wall/overlap
+    raw["geometry"]["max_corner_deg"] = 175.0  # stricter only: past 90 deg the legs merge
+    with pytest.raises(StudyError) as err:
+        validate_study(raw)
+    assert err.value.path == "geometry.max_corner_deg"
+    raw["geometry"]["max_corner_deg"] = 60.0
+    raw["geometry"]["beams"]["right"]["points_mm"] = [[5, 0], [30, 0], [40, 10]]  # 45 deg: fine
+    raw["geometry"]["beams"]["left"]["points_mm"] = [[-5, 0], [-30, 0], [-40, -10]]
+    validate_study(raw)
 
 
 def test_a_hub_turn_that_drives_a_leaf_through_a_ground_outline_is_not_met_with_the_row():
