@@ -799,6 +799,11 @@ def mechanism_outline(
     polygon = shapely.set_precision(union, 1e-6)
     if not isinstance(polygon, Polygon) or not polygon.is_valid:
         polygon = shapely.make_valid(union)
+    # drop vertices in the middle of a straight edge (a fillet that reaches its pad's edge meets
+    # the pad's side there): a CAD kernel merges such edges, and the STEP export counts faces
+    simpler = shapely.simplify(polygon, 1e-9)
+    if isinstance(simpler, Polygon) and simpler.is_valid:
+        polygon = simpler
     if check_walls:
         try:
             spot = thin_feature_at(polygon, min_feature_mm)
