@@ -1449,25 +1449,29 @@ def _as_made_stress(response: Any, made: Mapping[str, AsMadeBeam] | None) -> np.
 _INTERFERENCE_MM2 = 1e-3
 
 
-def _deformed_band(points_mm: np.ndarray, thickness_mm: np.ndarray) -> Any:
-    """A beam as a band of its thickness along a deformed centreline (nodes (n, 2) mm, thickness
-    (n,) mm): one polygon, both edges offset at the nodes along the mitred normals (by
-    ``t / 2 / cos(turn / 2)``, so a kink's outer corner is the mitre, which holds the round
-    corner of the material: a touch of extra material, never less). A fraction of a millisecond
-    where :func:`geometry.mechanism.beam_band`'s union takes tens."""
-    from shapely.geometry import Polygon
+def _deformed_bands(points_mm: np.ndarray, thickness_mm: np.ndarray) -> np.ndarray:
+    """A beam as a band of its thickness along its deformed centreline at every row: nodes
+    (rows, n, 2) mm and thickness (n,) mm -> (rows,) shapely Polygons. Both edges are offset at
+    the nodes along the mitred normals (by ``t / 2 / cos(turn / 2)``, so a kink's outer corner
+    is the mitre, which holds the round corner of the material: a touch of extra material,
+    never less); one polygon per row, made for all rows at once."""
+    import shapely
 
     p = np.asarray(points_mm, dtype=float)
-    d = np.diff(p, axis=0)
-    u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
-    tangent = np.vstack([u[:1], u[:-1] + u[1:], u[-1:]])
-    tangent /= np.hypot(tangent[:, 0], tangent[:, 1])[:, None]
-    cos_half = np.ones(len(p))
-    cos_half[1:-1] = np.sum(u[:-1] * tangent[1:-1], axis=1)  # cos of half the turn
-    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
-    offset = (0.5 * np.asarray(thickness_mm, float) / np.maximum(cos_half, 0.5))[:, None] * normal
-    band = Polygon(np.vstack([p + offset, (p - offset)[::-1]]))
-    return band if band.is_valid else band.buffer(0)  # an inner edge folded at a kink
+    d = np.diff(p, axis=1)
+    u = d / np.linalg.norm(d, axis=2, keepdims=True)
+    tangent = np.concatenate([u[:, :1], u[:, :-1] + u[:, 1:], u[:, -1:]], axis=1)
+    tangent /= np.linalg.norm(tangent, axis=2, keepdims=True)
+    cos_half = np.ones(p.shape[:2])
+    cos_half[:, 1:-1] = np.sum(u[:, :-1] * tangent[:, 1:-1], axis=2)  # cos of half the turn
+    normal = np.stack([-tangent[..., 1], tangent[..., 0]], axis=2)
+    half = 0.5 * np.asarray(thickness_mm, dtype=float)[None, :] / np.maximum(cos_half, 0.5)
+    offset = half[..., None] * normal
+    bands = shapely.polygons(np.concatenate([p + offset, (p - offset)[:, ::-1]], axis=1))
+    bad = ~shapely.is_valid(bands)
+    if bad.any():  # an inner edge folded at a kink
+        bands[bad] = shapely.buffer(bands[bad], 0.0)
+    return bands
 
 
 def _interference(
@@ -1483,7 +1487,7 @@ def _interference(
     A beam's roots (a disc about each held end: its fillets) are left out, and parts joined there
     (a beam end and its body, its pad or the beam end it is joined to; a grounded end and the
     ground outlines) are checked only for overlap elsewhere; every other pair also for its
-    distance.
+    distance. Each pair is checked at all rows of a case at once (shapely's array functions).
 
     Returns
     -------
@@ -1493,75 +1497,80 @@ def _interference(
     when none) and ``interference_at`` (text, "" when none).
     """
     import shapely
-    from shapely.affinity import affine_transform
-    from shapely.geometry import Point, Polygon
+    from shapely.geometry import Polygon
 
     made = outline.beams
     held = {(a.beam, a.end): a.to for a in _attachments(geometry)}
-    body_names = [n for n, b in geometry.bodies.items() if b.outline_mm is not None]
     grounded_bodies = {j.a for j in geometry.joints if j.b == "ground" and j.a in geometry.bodies}
     fixed = [(f"pad {k}", g) for k, g in outline.pads.items()]
     fixed += [(f"ground outline [{k}]", Polygon(np.array(o, dtype=float)))
               for k, o in enumerate(geometry.ground_outlines_mm)]  # fmt: skip
-    beam_names = list(geometry.beams)
     best: tuple[float, str] = (math.inf, "")
     worst: tuple[float, str] = (0.0, "")
     for case, resp in responses.items():
+        rows = np.flatnonzero(np.asarray(resp.converged, dtype=bool))
+        if rows.size == 0:
+            continue
         d = study.load_cases[case].drive
         drive = np.asarray(resp.drive, dtype=float)
         if d.control == "rotation":
             drive = np.degrees(drive)
-        for row in np.flatnonzero(np.asarray(resp.converged, dtype=bool)):
-            where = f"load case {case}, row {row} (drive {drive[row]:.4g} {d.unit})"
-            parts: list[tuple[str, Any, set[str]]] = []  # label, shape, what it is joined to
-            for i, name in enumerate(beam_names):
-                pts = np.asarray(resp.shapes_mm[i][row], dtype=float)
-                t = np.asarray(resp.thickness_at_nodes_mm[i], dtype=float)
-                band = _deformed_band(pts, t)
-                joined: set[str] = set()
-                discs = []
-                for end, k in (("start", 0), ("end", -1)):
-                    to = held.get((name, end))
-                    if to is None:
-                        continue
-                    junction = made[name].start if end == "start" else made[name].end
-                    radius = 0.5 * t[k] + 1.5 * junction.fillet_mm + 1e-3
-                    if to not in ("ground", *geometry.bodies):  # another beam's end
-                        radius = 2.0 * t[k]
-                        joined.add(f"beam {to.rsplit('.', 1)[0]}")
-                    elif to == "ground":  # its own pad, and the ground outlines holding it
-                        joined |= {f"pad {name}.{end}"} | {
-                            label for label, _ in fixed if label.startswith("ground outline")
-                        }
-                    else:
-                        joined.add(f"body {to}")
-                    discs.append(Point(pts[k]).buffer(radius, quad_segs=8))
-                free = band.difference(shapely.union_all(discs)) if discs else band
-                parts.append((f"beam {name}", free, joined))
-            for k_body, name in enumerate(geometry.bodies):
-                if name not in body_names:
+
+        at = [f"load case {case}, row {r} (drive {drive[r]:.4g} {d.unit})" for r in rows]
+        parts: list[tuple[str, Any, set[str]]] = []  # label, (rows,) shapes, what it is joined to
+        for i, name in enumerate(geometry.beams):
+            pts = np.asarray(resp.shapes_mm[i], dtype=float)[rows]
+            t = np.asarray(resp.thickness_at_nodes_mm[i], dtype=float)
+            free = _deformed_bands(pts, t)
+            joined: set[str] = set()
+            for end, k in (("start", 0), ("end", -1)):
+                to = held.get((name, end))
+                if to is None:
                     continue
-                b = geometry.bodies[name]
-                x, y, th = resp.body_poses[row, k_body]
-                ref = np.array(b.ref_mm, dtype=float)
-                c, s = math.cos(th), math.sin(th)
-                poly = affine_transform(
-                    Polygon(np.array(b.outline_mm, dtype=float)),
-                    [c, -s, s, c, x - (c * ref[0] - s * ref[1]), y - (s * ref[0] + c * ref[1])],
-                )
-                joined = {label for label, _ in fixed} if name in grounded_bodies else set()
-                parts.append((f"body {name}", poly, joined))
-            everything = [*parts, *((label, g, set()) for label, g in fixed)]
-            for i, (la, ga, ja) in enumerate(parts):
-                for lb, gb, jb in everything[i + 1 :]:
-                    is_joined = lb in ja or la in jb
-                    area = ga.intersection(gb).area if ga.intersects(gb) else 0.0
-                    if area > worst[0] and area > _INTERFERENCE_MM2:
-                        worst = (area, f"{where}: {la} passes through {lb} ({area:.3g} mm²)")
-                    if not is_joined:
-                        gap = float(ga.distance(gb))
-                        if gap < best[0]:
-                            best = (gap, f"{where}: {la} and {lb}")
+                junction = made[name].start if end == "start" else made[name].end
+                radius = 0.5 * t[k] + 1.5 * junction.fillet_mm + 1e-3
+                if to not in ("ground", *geometry.bodies):  # another beam's end
+                    radius = 2.0 * t[k]
+                    joined.add(f"beam {to.rsplit('.', 1)[0]}")
+                elif to == "ground":  # its own pad, and the ground outlines holding it
+                    joined |= {f"pad {name}.{end}"} | {
+                        label for label, _ in fixed if label.startswith("ground outline")
+                    }
+                else:
+                    joined.add(f"body {to}")
+                discs = shapely.buffer(shapely.points(pts[:, k]), radius, quad_segs=8)
+                free = shapely.difference(free, discs)
+            parts.append((f"beam {name}", free, joined))
+        for k_body, (name, b) in enumerate(geometry.bodies.items()):
+            if b.outline_mm is None:
+                continue
+            pose = np.asarray(resp.body_poses, dtype=float)[rows, k_body]  # (R, 3)
+            c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+            rel = np.array(b.outline_mm, dtype=float) - np.array(b.ref_mm, dtype=float)
+            xy = np.stack(
+                [c[:, None] * rel[:, 0] - s[:, None] * rel[:, 1] + pose[:, :1],
+                 s[:, None] * rel[:, 0] + c[:, None] * rel[:, 1] + pose[:, 1:2]],
+                axis=2,
+            )  # fmt: skip
+            joined = {label for label, _ in fixed} if name in grounded_bodies else set()
+            parts.append((f"body {name}", shapely.polygons(xy), joined))
+        everything = [*parts, *((label, g, set()) for label, g in fixed)]
+        for i, (la, ga, ja) in enumerate(parts):
+            for lb, gb, jb in everything[i + 1 :]:
+                area = np.zeros(rows.size)
+                hit = shapely.intersects(ga, gb)
+                if hit.any():
+                    gb_hit = gb[hit] if isinstance(gb, np.ndarray) else gb
+                    area[hit] = shapely.area(shapely.intersection(ga[hit], gb_hit))
+                k = int(np.argmax(area))
+                if area[k] > max(worst[0], _INTERFERENCE_MM2):
+                    worst = (float(area[k]), f"{at[k]}: {la} passes through {lb} "
+                             f"({area[k]:.3g} mm²)")  # fmt: skip
+                if lb not in ja and la not in jb:
+                    gap = shapely.distance(ga, gb)
+                    k = int(np.argmin(gap))
+                    if gap[k] < best[0]:
+                        best = (float(gap[k]), f"{at[k]}: {la} and {lb}")
     return {
         "min_clearance_mm": None if not math.isfinite(best[0]) else best[0],
         "clearance_at": best[1],
