@@ -68,7 +68,6 @@ from flexopt.geometry.mechanism import (
     BeamShape,
     BodyShape,
     MechanismOutline,
-    beam_band,
     curve_points,
     mechanism_outline,
 )
@@ -1714,13 +1713,12 @@ def shapes_png(study: MechanismStudy, solved: _Solved, title: str, n_shapes: int
         cmap = __import__("matplotlib").colormaps["viridis"]
         for j, row in enumerate(rows):
             colour = cmap(j / max(1, len(rows) - 1))
-            for i, name in enumerate(geometry.beams):
+            for i in range(len(geometry.beams)):
                 pts = np.asarray(response.shapes_mm[i][row], dtype=float)
                 t = np.asarray(response.thickness_at_nodes_mm[i], dtype=float)
-                try:
-                    draw(ax, beam_band(BeamShape(name, pts, t)), colour, 0.55)
-                except GeometryError:
-                    ax.plot(pts[:, 0], pts[:, 1], color=colour)
+                # the band the interference check uses (a disc per node would bulge at the
+                # roots' flares, where the thickness changes fast)
+                draw(ax, _deformed_bands(pts[None], t)[0], colour, 0.55)
             for k, (_, body) in enumerate(bodies):
                 if body.outline_mm is None:
                     continue
