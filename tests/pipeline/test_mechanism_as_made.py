@@ -234,3 +234,25 @@ def test_the_fillets_stiffen_the_leaves_as_a_beam_of_their_thickness_would():
     assert got == pytest.approx(k, rel=1e-4)  # 3.5e-6 measured, 20 to 80 elements alike
     plain = 2 * 12 * E_PA12 * (b * 1.2**3 / 12) / 40.0**3
     assert got > 1.05 * plain
+
+
+def test_root_stress_over_the_whole_beam_is_its_peak():
+    # the fea hook samples the same points as the beam's own peak stress: over a root as long
+    # as the beam it is the peak (both kernels' numbers), over none the end section's
+    from flexopt.fea import mechanism as fm
+    from flexopt.fea.materials import get_material
+
+    mat = get_material("PA12")
+    for root in ((40.0, 40.0), (0.0, 0.0)):
+        beam = fm.MechBeam("leaf", np.array([[0, 0], [40, 0]]), np.array([1.2, 1.2]), 6.0, 12,
+                           None, root)  # fmt: skip
+        mech = fm.Mechanism((beam,), (), (fm.MechJoint("leaf.start", "ground"),), mat)
+        case = fm.LoadCase("tip", fm.MechDrive("leaf.end", "displacement", 4.0, 2, (0.0, 1.0)))
+        resp = fm.solve_mechanism(mech, case, [fm.MechOutput("f", "reaction")])
+        peak = resp.peak_stress_MPa[1:, 0]
+        if root[0] > 0:
+            np.testing.assert_allclose(resp.root_stress_MPa[1:, 0, 0], peak, rtol=1e-12)
+            np.testing.assert_allclose(resp.root_stress_MPa[1:, 0, 1], peak, rtol=1e-12)
+        else:  # a cantilever bends most at its clamp, least (zero moment) at its loaded tip
+            np.testing.assert_allclose(resp.root_stress_MPa[1:, 0, 0], peak, rtol=1e-12)
+            assert np.all(resp.root_stress_MPa[1:, 0, 1] < 0.05 * peak)
