@@ -168,6 +168,9 @@ def test_shoulder_kt_follows_the_fit_and_its_limits():
     kts = [shoulder_kt(4.0, 1.0, r) for r in (1.5, 1.0, 0.5, 0.2, 0.1)]
     assert all(a < b for a, b in zip(kts, kts[1:], strict=False))
     assert shoulder_kt(1e6, 1.0, 0.5) == shoulder_kt(1.0 + 40 * 0.5, 1.0, 0.5)
+    for r in (0.05, 0.1, 0.2, 0.5, 1.0, 2.0):  # levelled off there: a body's shoulder
+        assert shoulder_kt(1 + 40 * r, 1.0, r) == pytest.approx(shoulder_kt(1 + 20 * r, 1.0, r),
+                                                                rel=4e-3)  # fmt: skip
     # the fit's own value at D/d = 2, r/d = 0.1 (h/r = 5): Kt = 1.917 from its coefficients
     q, w = 5.0, math.sqrt(5.0)
     c = (1.042 + 0.982 * w - 0.036 * q, -3.599 + 1.619 * w - 0.431 * q,
