@@ -340,10 +340,10 @@ def shoulder_kt(wide_mm: float, narrow_mm: float, radius_mm: float) -> float:
     A bar of thickness ``narrow_mm`` (d) enters a wider part of thickness ``wide_mm`` (D) with a
     fillet of ``radius_mm`` (r) on both sides; the peak stress at the fillet is ``Kt`` times the
     nominal bending stress ``6 M / (b d^2)`` of the narrow section at the shoulder. The fit of
-    Young & Budynas, *Roark's Formulas for Stress and Strain*, 7th ed., Table 17.1 case 5b
-    (square shoulder with fillet in a member of rectangular section, in-plane bending; the same
-    data as Pilkey & Pilkey, *Peterson's Stress Concentration Factors*, 3rd ed., Chart 3.9),
-    with the step height ``h = (D - d) / 2``::
+    Young & Budynas, *Roark's Formulas for Stress and Strain*, 7th ed., Table 17.1, "square
+    shoulder with fillet in a member of rectangular section", in-plane bending (a fit to the
+    flat-bar shoulder-fillet data collected in Pilkey & Pilkey, *Peterson's Stress
+    Concentration Factors*, 3rd ed., ch. 3), with the step height ``h = (D - d) / 2``::
 
         Kt = C1 + C2 (2h/D) + C3 (2h/D)^2 + C4 (2h/D)^3
         0.1 <= h/r <= 2:  C1 =  1.007 + 1.000 sqrt(h/r) - 0.031 h/r
