@@ -80,6 +80,9 @@ class MechBeam:
     elements : int — P2 elements of this beam; 0 chooses automatically (see MechanismSettings).
     curvature_per_mm : (n - 1,) float, 1/mm, optional — signed curvature of each segment (an exact
         circular arc between two points, as geometry.profile.BeamProfile); None: straight segments.
+    root_mm : (2,) float, mm — arc length from the start / end over which
+        ``MechanismResponse.root_stress_MPa`` takes its largest stress (a filleted root's
+        flare, whose stress a concentration factor multiplies; 0: the end section only).
     """
 
     name: str
@@ -88,6 +91,7 @@ class MechBeam:
     width_mm: float
     elements: int = 0
     curvature_per_mm: np.ndarray | None = None
+    root_mm: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -303,6 +307,8 @@ class MechanismResponse:
         reaction (what force control would see); equals ``stable`` under force / moment control.
     critical_drive : float — drive value where a stable path first became unstable (bracketed to
         ``min_critical_substep`` of a row step); NaN when it never did.
+    root_stress_MPa : (rows, n_beams, 2) float — per beam, the largest |N|/A + |M| c/I within
+        ``MechBeam.root_mm`` of its start and of its end (NaN where not converged).
     """
 
     case: str
@@ -318,6 +324,7 @@ class MechanismResponse:
     message: str
     stable_released: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     critical_drive: float = float("nan")
+    root_stress_MPa: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
 
 
 # ==================================================================================== model
@@ -713,6 +720,17 @@ class _Model:
             ]
         )
 
+    def root_stresses(self, z: np.ndarray) -> np.ndarray:
+        """(B, 2) largest stress (MPa) within ``root_mm`` of each beam's start and end."""
+        out = np.empty((len(self.models), 2))
+        for i, m in enumerate(self.models):
+            sigma, s = _stress_samples(m, z[self.offsets[i] : self.offsets[i + 1]])
+            root = self.mech.beams[i].root_mm
+            length = float(m.profile.length_mm)
+            out[i, 0] = sigma[s <= float(root[0]) + 1e-9].max()
+            out[i, 1] = sigma[s >= length - float(root[1]) - 1e-9].max()
+        return out
+
     # ---- checks -----------------------------------------------------------------------------
 
     def check_rank(self) -> None:
@@ -792,6 +810,24 @@ class _Model:
             + " can move without deforming any beam; add a joint or a support, or drive that "
             "motion under displacement/rotation control"
         )
+
+
+def _stress_samples(m: BeamModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """|N|/A + |M| c/I (MPa) at every stress sampling point of a beam and their arc lengths (mm),
+    both flat: the numbers :meth:`fea.beam.BeamModel._stress` takes the largest of (its numpy
+    path, whichever kernel the model runs)."""
+    if not hasattr(m, "_NgT"):
+        m._precompute_kernels(m._N)
+    qe = q[m._edofs3]
+    grad = m._dN @ qe
+    theta = m._theta0 + qe[:, :, 2] @ m._NgT
+    g1 = np.cos(theta) * (m._c0 + grad[..., 0]) + np.sin(theta) * (m._s0 + grad[..., 1]) - 1.0
+    kappa = np.einsum("eqk,ek->eq", m._dNs, qe[:, :, 2])
+    sigma = (
+        m.material.E_MPa * np.abs(g1 @ m._gauss_to_samples)
+        + np.abs(m._EI_s * kappa) / m._section_modulus_s
+    )
+    return sigma.ravel(), m._s_samp.ravel()
 
 
 def _row(pt: _Point, w: np.ndarray, group: int) -> tuple:
@@ -1040,6 +1076,7 @@ def solve_mechanism(
     LAM = np.full((n_rows, md.m), np.nan)
     R = np.full((n_rows, md.n), np.nan)
     peak = np.full((n_rows, nb), np.nan)
+    roots = np.full((n_rows, nb, 2), np.nan)
     converged = np.zeros(n_rows, dtype=bool)
     stable = np.zeros(n_rows, dtype=bool)
     released = np.zeros(n_rows, dtype=bool)
@@ -1105,6 +1142,7 @@ def solve_mechanism(
                 break
             Z[k], LAM[k], R[k] = state.z, state.lam, state.r
             peak[k] = md.stresses(state.z)
+            roots[k] = md.root_stresses(state.z)
             converged[k] = True
             stable[k] = row_stable
             released[k] = solver.is_stable(state, md.drive_row) if md.drive_row >= 0 else row_stable
@@ -1151,6 +1189,7 @@ def solve_mechanism(
         message=message,
         stable_released=released & converged,
         critical_drive=critical,
+        root_stress_MPa=roots,
     )
 
 

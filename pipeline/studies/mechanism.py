@@ -62,11 +62,12 @@ from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.mechanism import (
+    FILLET_CHORDS,
+    AsMadeBeam,
     Attachment,
     BeamShape,
     BodyShape,
     MechanismOutline,
-    beam_band,
     curve_points,
     mechanism_outline,
 )
@@ -387,6 +388,16 @@ class MechanismGeometry(BaseModel):
     ground_outlines_mm: tuple[tuple[tuple[float, float], ...], ...] = Field(
         (), description="fixed frame outlines printed with the part (not analysed), mm"
     )
+    fillet_mm: float = Field(
+        1.0, gt=0, description="fillet radius where a beam meets a pad or a body, mm"
+    )
+    max_corner_deg: float = Field(
+        90.0,
+        gt=0,
+        le=90,
+        description="sharpest corner (turn at a point) of a beam's centreline accepted, deg; at "
+        "most 90 (past it the legs merge into a block the beam model does not see)",
+    )
 
     @field_validator("beams", "bodies")
     @classmethod
@@ -497,6 +508,7 @@ def _outputs_in(study: MechanismStudy, case: str) -> list[str]:
 def metric_names(study: MechanismStudy) -> tuple[str, ...]:
     """Every scalar metric a design of ``study`` reports (what requirements may name)."""
     names = {"mass_g", "max_peak_stress_MPa", "stress_yield_ratio", "width_mm"}
+    names |= {"min_clearance_mm", "interference_mm2"}
     names |= {"min_thickness_mm", "stable", "unstable_rows"}
     for case, spec in study.load_cases.items():
         p = _prefix(study, case)
@@ -667,15 +679,25 @@ def check(study: MechanismStudy) -> None:
     try:
         shapes, outline = _outline(geometry)
     except GeometryError as exc:
-        raise StudyError("geometry", f"the initial design is not buildable: {exc}") from None
-    del shapes, outline
+        raise StudyError(
+            _geometry_path(str(exc)), f"the initial design is not buildable: {exc}"
+        ) from None
     fm = _fea()
-    mech = _mechanism(study, geometry)
+    mech = _mechanism(study, geometry, made=outline.beams)
     for case in study.load_cases:
         try:
             fm.check_mechanism(mech, _load_case(study, case))
         except FeaError as exc:
             raise StudyError(_fea_path(study, case, str(exc)), _fea_fix(str(exc))) from None
+
+
+def _geometry_path(message: str) -> str:
+    """The key path a geometry refusal is about: the beam it names (and the point), else the
+    geometry."""
+    m = re.match(r"beam '([A-Za-z][A-Za-z0-9_-]*)'(?: turns .* at point \[(\d+)\])?", message)
+    if m is None:
+        return "geometry"
+    return f"geometry.beams.{m[1]}" + (f".points_mm[{m[2]}]" if m[2] else "")
 
 
 def _check_width_solve(study: MechanismStudy, labels: Mapping[str, Requirement]) -> None:
@@ -776,26 +798,68 @@ def _outline(geometry: MechanismGeometry) -> tuple[list[BeamShape], MechanismOut
         pad_length_mm=geometry.pad_length_mm,
         pad_thickness_mm=geometry.pad_thickness_mm,
         ground_outlines_mm=[np.array(o, dtype=float) for o in geometry.ground_outlines_mm],
+        fillet_mm=geometry.fillet_mm,
+        max_corner_deg=geometry.max_corner_deg,
     )
+    for name, b in geometry.beams.items():
+        _curvature_as_made(name, b, outline.beams[name])  # refuses what it cannot follow
     return shapes, outline
 
 
-def _mechanism(study: MechanismStudy, geometry: MechanismGeometry, width_mm: float | None = None):
+def _curvature_as_made(name: str, spec: BeamSpec, made: AsMadeBeam) -> np.ndarray | None:
+    """``curvature_per_mm`` of the beam as made: a straight (0) value for each chord of a flare
+    added on a straight end segment. Raises GeometryError for a clipped beam or a flared curved
+    end segment (the flare is laid along the chord)."""
+    if spec.curvature_per_mm is None:
+        return None
+    curv = list(spec.curvature_per_mm)
+    if made.start.clipped_mm > 0 or made.end.clipped_mm > 0:
+        raise GeometryError(
+            f"beam '{name}' (geometry.beams.{name}.curvature_per_mm) runs into the body it is "
+            "attached to; a beam of exact arcs must end on the body's outline"
+        )
+    for junction, k in ((made.start, 0), (made.end, -1)):
+        if junction.fillet_mm > 0 and curv[k] != 0:
+            raise GeometryError(
+                f"beam '{name}' (geometry.beams.{name}.curvature_per_mm): its root fillet needs "
+                "a straight end segment; give that segment curvature 0 (add a point)"
+            )
+    added = len(made.shape.points_mm) - len(spec.points_mm or ())
+    n_start = FILLET_CHORDS if made.start.fillet_mm > 0 else 0
+    return np.array([0.0] * n_start + curv + [0.0] * (added - n_start), dtype=float)
+
+
+def _mechanism(
+    study: MechanismStudy,
+    geometry: MechanismGeometry,
+    width_mm: float | None = None,
+    made: Mapping[str, AsMadeBeam] | None = None,
+):
+    """The solver's mechanism; with ``made`` (``MechanismOutline.beams``) the beams as made:
+    clipped at the bodies they enter, flared into their roots' fillets, with the flares' lengths
+    as the roots whose stress the concentration factors multiply."""
     fm = _fea()
     width = geometry.width_mm if width_mm is None else width_mm
     beams = []
     for name, b in geometry.beams.items():
         curvature = None
-        if b.curvature_per_mm is not None:
+        points, thickness, root = b.centreline(), b.thickness(), (0.0, 0.0)
+        if made is not None:
+            shape = made[name].shape
+            points, thickness = shape.points_mm, shape.thickness_mm
+            root = (made[name].start.root_mm, made[name].end.root_mm)
+            curvature = _curvature_as_made(name, b, made[name])
+        elif b.curvature_per_mm is not None:
             curvature = np.array(b.curvature_per_mm, dtype=float)
         beams.append(
             fm.MechBeam(
                 name,
-                b.centreline(),
-                b.thickness(),
+                points,
+                thickness,
                 float(b.width_mm if b.width_mm is not None else width),
                 int(b.elements),
                 curvature,
+                root,
             )
         )
     bodies = [
@@ -860,12 +924,18 @@ class _Solved:
     metrics: dict[str, Any]
     curves_table: dict[str, np.ndarray]  # every case's columns, prefixed: what requirements read
     reason: str = ""
+    clearance: dict[str, Any] = dataclasses.field(default_factory=dict)  # _interference()
 
 
 def _case_table(
-    study: MechanismStudy, case: str, response: Any, scale: float
+    study: MechanismStudy,
+    case: str,
+    response: Any,
+    scale: float,
+    made: Mapping[str, AsMadeBeam] | None = None,
 ) -> dict[str, np.ndarray]:
-    """The case's response as columns (forces scaled by ``scale`` = width / reference width)."""
+    """The case's response as columns (forces scaled by ``scale`` = width / reference width);
+    with ``made`` the stresses are the beams' as made (:func:`_as_made_stress`)."""
     spec = study.load_cases[case]
     d = spec.drive
     drive = np.asarray(response.drive, dtype=float)
@@ -903,7 +973,13 @@ def _case_table(
             pending.remove(name)
     for name in pending:  # refers to an output not read in this case
         table[name] = np.full(len(drive), np.nan)
-    table["peak_stress_MPa"] = np.nanmax(np.asarray(response.peak_stress_MPa, float), axis=1)
+    per_beam = _as_made_stress(response, made)
+    for name in _outputs_in(study, case):  # a peak stress output reads the roots' factors too
+        o = study.outputs[name]
+        if o.quantity == "peak_stress" and made is not None:
+            i = list(made).index(o.part) if o.part in made else None
+            table[name] = np.nanmax(per_beam, axis=1) if i is None else per_beam[:, i]
+    table["peak_stress_MPa"] = np.nanmax(per_beam, axis=1)
     table["converged"] = np.asarray(response.converged, dtype=bool)
     table["stable"] = np.asarray(response.stable, dtype=bool)
     return table
@@ -936,6 +1012,7 @@ def _metrics(
     tables: Mapping[str, Mapping[str, np.ndarray]],
     width_mm: float,
     material: Material,
+    made: Mapping[str, AsMadeBeam] | None = None,
 ) -> dict[str, Any]:
     fm = _fea()
     m: dict[str, Any] = {}
@@ -964,7 +1041,7 @@ def _metrics(
     m["stress_yield_ratio"] = None if peak_all is None else peak_all / material.yield_MPa
     m["width_mm"] = float(width_mm)
     m["min_thickness_mm"] = float(min(np.min(b.thickness()) for b in geometry.beams.values()))
-    mech = _mechanism(study, geometry, width_mm)
+    mech = _mechanism(study, geometry, width_mm, made)
     mass = fm.mass_g(mech, body_thickness_mm=width_mm)
     m["mass_g"] = float(mass) if math.isfinite(mass) else None
     m["stable"] = unstable == 0
@@ -1065,7 +1142,7 @@ class MechanismProblem:
         self.objectives = tuple(o.key for o in objectives)
         self.objective_names = tuple(self._objective_name(k, n) for k, n in self.objectives)
         self.constraints = _curve_constraints(self.requirements)
-        self.constraint_names = tuple(f"req_{r.label}" for r in self.constraints)
+        self.constraint_names = (*(f"req_{r.label}" for r in self.constraints), "no_interference")
 
     def _default_objectives(self) -> list[ObjectiveSpec]:
         for r in self.requirements:
@@ -1109,7 +1186,7 @@ class MechanismProblem:
         except GeometryError as exc:
             return None, f"invalid geometry: {exc}"
         fm = _fea()
-        mech = _mechanism(study, geometry)
+        mech = _mechanism(study, geometry, made=outline.beams)
         responses = {}
         for case in study.load_cases:
             try:
@@ -1120,7 +1197,7 @@ class MechanismProblem:
                 return None, f"cannot solve load case {case}: {exc}"
             responses[case] = response
         width = geometry.width_mm
-        ref = {c: _case_table(study, c, r, 1.0) for c, r in responses.items()}
+        ref = {c: _case_table(study, c, r, 1.0, outline.beams) for c, r in responses.items()}
         reason = next(
             (f"load case {c} did not converge: {r.message}" for c, r in responses.items()
              if not r.ok),
@@ -1134,11 +1211,14 @@ class MechanismProblem:
         if not math.isfinite(width):
             width = geometry.width_mm
         scale = width / geometry.width_mm
-        tables = {c: _case_table(study, c, r, scale) for c, r in responses.items()}
-        metrics = _metrics(study, geometry, tables, width, self.material)
+        tables = {c: _case_table(study, c, r, scale, outline.beams) for c, r in responses.items()}
+        metrics = _metrics(study, geometry, tables, width, self.material, outline.beams)
+        clearance = _interference(study, geometry, outline, responses)
+        metrics["min_clearance_mm"] = clearance["min_clearance_mm"]
+        metrics["interference_mm2"] = clearance["interference_mm2"]
         return _Solved(
             geometry, shapes, outline, width, responses, tables, metrics,
-            _curves_table(study, tables), reason,
+            _curves_table(study, tables), reason, clearance,
         )  # fmt: skip
 
     def verdicts(self, solved: _Solved) -> tuple[Verdict, ...]:
@@ -1153,7 +1233,8 @@ class MechanismProblem:
         for key, col in solved.curves_table.items():  # a column judged by its worst value
             if key not in values:
                 values[key] = _stat(col, "max_abs")
-        return tuple(r.check(values, curves) for r in self.requirements)
+        judged = tuple(r.check(values, curves) for r in self.requirements)
+        return (*judged, _interference_verdict(solved))
 
     def _objective_values(self, solved: _Solved) -> np.ndarray:
         out = []
@@ -1181,6 +1262,11 @@ class MechanismProblem:
         for r in self.constraints:
             v = next(v for v in verdicts if v.name == r.label)
             g.append(-v.margin / r.scale() if math.isfinite(v.margin) else 1.0e6)
+        # no interference: the overlap area (mm^2) when parts interfere, else minus the smallest
+        # clearance (mm), so that the optimiser is drawn away from touching parts
+        area = solved.metrics.get("interference_mm2")
+        gap = solved.metrics.get("min_clearance_mm")
+        g.append(1.0e6 if area is None else area if area > _INTERFERENCE_MM2 else -(gap or 0.0))
         ev = Evaluation(
             np.asarray(x, dtype=float), f, np.array(g, dtype=float), metrics, solved.reason,
             time.perf_counter() - t0,
@@ -1329,12 +1415,206 @@ def _info(study: MechanismStudy, solved: _Solved) -> dict[str, Any]:
             n: {
                 "points_mm": b.centreline().round(6).tolist(),
                 "thickness_mm": b.thickness().round(6).tolist(),
+                **_as_made_info(solved.outline.beams.get(n)),
             }
             for n, b in g.beams.items()
         },
+        "clearance": dict(solved.clearance),
         "bodies": {n: {"ref_mm": list(b.ref_mm)} for n, b in g.bodies.items()},
         "cases": {c: {"ok": bool(r.ok), "message": r.message} for c, r in solved.responses.items()},
     }
+
+
+# --------------------------------------------------------------------------------------------
+# The part as made: its roots' stress and its parts' clearance over the stroke
+
+
+def _as_made_stress(response: Any, made: Mapping[str, AsMadeBeam] | None) -> np.ndarray:
+    """(rows, beams) peak stress of each beam as made, MPa: the beam model's peak, and at each
+    filleted root the shoulder's Kt times the largest beam-model stress over the root's flare
+    (``EndJunction.kt``, :func:`geometry.mechanism.shoulder_kt`): the flare is modelled as a
+    thickening beam, whose stress at the fillet's toe is the nominal stress Kt multiplies."""
+    peak = np.asarray(response.peak_stress_MPa, dtype=float)
+    roots = np.asarray(getattr(response, "root_stress_MPa", np.zeros((0, 0, 2))), dtype=float)
+    if made is None or roots.shape[:2] != peak.shape:
+        return peak
+    kt = np.array([[m.start.kt, m.end.kt] for m in made.values()], dtype=float)  # (beams, 2)
+    with np.errstate(invalid="ignore"):
+        return np.fmax(peak, np.max(roots * kt[None], axis=2))
+
+
+#: Overlap area (mm^2) of two deformed parts that counts as interference (round-off of bands
+#: built from the solver's node positions is far smaller).
+_INTERFERENCE_MM2 = 1e-3
+
+
+def _deformed_bands(points_mm: np.ndarray, thickness_mm: np.ndarray) -> np.ndarray:
+    """A beam as a band of its thickness along its deformed centreline at every row: nodes
+    (rows, n, 2) mm and thickness (n,) mm -> (rows,) shapely Polygons. Both edges are offset at
+    the nodes along the mitred normals (by ``t / 2 / cos(turn / 2)``, so a kink's outer corner
+    is the mitre, which holds the round corner of the material: a touch of extra material,
+    never less); one polygon per row, made for all rows at once."""
+    import shapely
+
+    p = np.asarray(points_mm, dtype=float)
+    d = np.diff(p, axis=1)
+    u = d / np.linalg.norm(d, axis=2, keepdims=True)
+    tangent = np.concatenate([u[:, :1], u[:, :-1] + u[:, 1:], u[:, -1:]], axis=1)
+    tangent /= np.linalg.norm(tangent, axis=2, keepdims=True)
+    cos_half = np.ones(p.shape[:2])
+    cos_half[:, 1:-1] = np.sum(u[:, :-1] * tangent[:, 1:-1], axis=2)  # cos of half the turn
+    normal = np.stack([-tangent[..., 1], tangent[..., 0]], axis=2)
+    half = 0.5 * np.asarray(thickness_mm, dtype=float)[None, :] / np.maximum(cos_half, 0.5)
+    offset = half[..., None] * normal
+    bands = shapely.polygons(np.concatenate([p + offset, (p - offset)[:, ::-1]], axis=1))
+    bad = ~shapely.is_valid(bands)
+    if bad.any():  # an inner edge folded at a kink
+        bands[bad] = shapely.buffer(bands[bad], 0.0)
+    return bands
+
+
+def _interference(
+    study: MechanismStudy,
+    geometry: MechanismGeometry,
+    outline: MechanismOutline,
+    responses: Mapping[str, Any],
+) -> dict[str, Any]:
+    """Interference and clearance of the deformed parts at every converged row of every case.
+
+    Parts: every beam as a band of its thickness along its deformed centreline (the beams as
+    made), every body at its pose, the grounded ends' pads and the ground outlines (fixed).
+    A beam's roots (a disc about each held end: its fillets) are left out, and parts joined there
+    (a beam end and its body, its pad or the beam end it is joined to; a grounded end and the
+    ground outlines) are checked only for overlap elsewhere; every other pair also for its
+    distance. Each pair is checked at all rows of a case at once (shapely's array functions).
+
+    Returns
+    -------
+    dict — ``min_clearance_mm`` (float | None: the smallest distance between parts that are not
+    joined, over every row; None with fewer than two such parts), ``clearance_at`` (text: case,
+    row, drive and the parts), ``interference_mm2`` (largest overlap area of any row, mm^2, 0
+    when none) and ``interference_at`` (text, "" when none).
+    """
+    import shapely
+    from shapely.geometry import Polygon
+
+    made = outline.beams
+    held = {(a.beam, a.end): a.to for a in _attachments(geometry)}
+    grounded_bodies = {j.a for j in geometry.joints if j.b == "ground" and j.a in geometry.bodies}
+    fixed = [(f"pad {k}", g) for k, g in outline.pads.items()]
+    fixed += [(f"ground outline [{k}]", Polygon(np.array(o, dtype=float)))
+              for k, o in enumerate(geometry.ground_outlines_mm)]  # fmt: skip
+    best: tuple[float, str] = (math.inf, "")
+    worst: tuple[float, str] = (0.0, "")
+    for case, resp in responses.items():
+        rows = np.flatnonzero(np.asarray(resp.converged, dtype=bool))
+        if rows.size == 0:
+            continue
+        d = study.load_cases[case].drive
+        drive = np.asarray(resp.drive, dtype=float)
+        if d.control == "rotation":
+            drive = np.degrees(drive)
+
+        at = [f"load case {case}, row {r} (drive {drive[r]:.4g} {d.unit})" for r in rows]
+        parts: list[tuple[str, Any, set[str]]] = []  # label, (rows,) shapes, what it is joined to
+        for i, name in enumerate(geometry.beams):
+            pts = np.asarray(resp.shapes_mm[i], dtype=float)[rows]
+            t = np.asarray(resp.thickness_at_nodes_mm[i], dtype=float)
+            free = _deformed_bands(pts, t)
+            joined: set[str] = set()
+            for end, k in (("start", 0), ("end", -1)):
+                to = held.get((name, end))
+                if to is None:
+                    continue
+                junction = made[name].start if end == "start" else made[name].end
+                radius = 0.5 * t[k] + 1.5 * junction.fillet_mm + 1e-3
+                if to not in ("ground", *geometry.bodies):  # another beam's end
+                    radius = 2.0 * t[k]
+                    joined.add(f"beam {to.rsplit('.', 1)[0]}")
+                elif to == "ground":  # its own pad, and the ground outlines holding it
+                    joined |= {f"pad {name}.{end}"} | {
+                        label for label, _ in fixed if label.startswith("ground outline")
+                    }
+                else:
+                    joined.add(f"body {to}")
+                discs = shapely.buffer(shapely.points(pts[:, k]), radius, quad_segs=8)
+                free = shapely.difference(free, discs)
+            parts.append((f"beam {name}", free, joined))
+        for k_body, (name, b) in enumerate(geometry.bodies.items()):
+            if b.outline_mm is None:
+                continue
+            pose = np.asarray(resp.body_poses, dtype=float)[rows, k_body]  # (R, 3)
+            c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+            rel = np.array(b.outline_mm, dtype=float) - np.array(b.ref_mm, dtype=float)
+            xy = np.stack(
+                [c[:, None] * rel[:, 0] - s[:, None] * rel[:, 1] + pose[:, :1],
+                 s[:, None] * rel[:, 0] + c[:, None] * rel[:, 1] + pose[:, 1:2]],
+                axis=2,
+            )  # fmt: skip
+            joined = {label for label, _ in fixed} if name in grounded_bodies else set()
+            parts.append((f"body {name}", shapely.polygons(xy), joined))
+        everything = [*parts, *((label, g, set()) for label, g in fixed)]
+        for i, (la, ga, ja) in enumerate(parts):
+            for lb, gb, jb in everything[i + 1 :]:
+                area = np.zeros(rows.size)
+                hit = shapely.intersects(ga, gb)
+                if hit.any():
+                    gb_hit = gb[hit] if isinstance(gb, np.ndarray) else gb
+                    area[hit] = shapely.area(shapely.intersection(ga[hit], gb_hit))
+                k = int(np.argmax(area))
+                if area[k] > max(worst[0], _INTERFERENCE_MM2):
+                    worst = (float(area[k]), f"{at[k]}: {la} passes through {lb} "
+                             f"({area[k]:.3g} mm²)")  # fmt: skip
+                if lb not in ja and la not in jb:
+                    gap = shapely.distance(ga, gb)
+                    k = int(np.argmin(gap))
+                    if gap[k] < best[0]:
+                        best = (float(gap[k]), f"{at[k]}: {la} and {lb}")
+    return {
+        "min_clearance_mm": None if not math.isfinite(best[0]) else best[0],
+        "clearance_at": best[1],
+        "interference_mm2": worst[0],
+        "interference_at": worst[1],
+    }
+
+
+def _as_made_info(made: AsMadeBeam | None) -> dict[str, Any]:
+    """What of a beam was clipped (rigid, inside its body) and filleted, [start, end]."""
+    if made is None:
+        return {}
+    ends = (made.start, made.end)
+    return {
+        "clipped_mm": [round(e.clipped_mm, 6) for e in ends],
+        "fillet_mm": [round(e.fillet_mm, 6) for e in ends],
+        "root_kt": [round(e.kt, 4) for e in ends],
+    }
+
+
+def _interference_verdict(solved: _Solved) -> Verdict:
+    """The built-in requirement of every mechanism: no part passes through another at any row
+    of any load case (contact is not modelled, so a part that would touch is NOT MET)."""
+    area = solved.metrics.get("interference_mm2")
+    info = solved.clearance
+    clearance = info.get("min_clearance_mm")
+    shown = (
+        ""
+        if clearance is None
+        else f"; smallest clearance {clearance:.3g} mm at {info['clearance_at']}"
+    )
+    met = area is not None and area <= _INTERFERENCE_MM2
+    detail = (info.get("interference_at") or "no interference at any row") + shown
+    return Verdict(
+        name="no_interference",
+        quantity="interference_mm2",
+        value=float(area) if area is not None else math.nan,
+        bound="0 mm² at every row (contact is not modelled)",
+        margin=0.0 - float(area) if area is not None else math.nan,
+        margin_rel=None,
+        met=bool(met),
+        unit="mm²",
+        role="constraint",
+        detail=detail,
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -1433,13 +1713,12 @@ def shapes_png(study: MechanismStudy, solved: _Solved, title: str, n_shapes: int
         cmap = __import__("matplotlib").colormaps["viridis"]
         for j, row in enumerate(rows):
             colour = cmap(j / max(1, len(rows) - 1))
-            for i, name in enumerate(geometry.beams):
+            for i in range(len(geometry.beams)):
                 pts = np.asarray(response.shapes_mm[i][row], dtype=float)
                 t = np.asarray(response.thickness_at_nodes_mm[i], dtype=float)
-                try:
-                    draw(ax, beam_band(BeamShape(name, pts, t)), colour, 0.55)
-                except GeometryError:
-                    ax.plot(pts[:, 0], pts[:, 1], color=colour)
+                # the band the interference check uses (a disc per node would bulge at the
+                # roots' flares, where the thickness changes fast)
+                draw(ax, _deformed_bands(pts[None], t)[0], colour, 0.55)
             for k, (_, body) in enumerate(bodies):
                 if body.outline_mm is None:
                     continue
@@ -1497,7 +1776,7 @@ class _Evaluator(MechanismProblem):
         self.objectives = tuple(o.key for o in objectives)
         self.objective_names = tuple(self._objective_name(k, n) for k, n in self.objectives)
         self.constraints = _curve_constraints(self.requirements)
-        self.constraint_names = tuple(f"req_{r.label}" for r in self.constraints)
+        self.constraint_names = (*(f"req_{r.label}" for r in self.constraints), "no_interference")
 
 
 def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:

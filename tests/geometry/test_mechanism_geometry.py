@@ -65,11 +65,25 @@ def test_parallel_guide_is_one_printable_body():
     out = mechanism_outline(beams, bodies, attachments, min_feature_mm=0.8)
     assert set(out.pads) == {"upper.start", "lower.start"}
     pad = end_pad(beams[0], "start", 6.0, 4.0)
-    assert pad.bounds == pytest.approx((-6.0, 8.0, 0.5, 12.0))
-    expected = 2 * 40 * 1.0 + 8 * 26 + 2 * (6.5 * 4 - 0.5 * 1.0)  # pads reach 0.5 mm into the beam
-    assert out.area_mm2 == pytest.approx(expected, rel=1e-9)
+    # the pad starts at the beam's end face (1 um of overlap, below any printer's resolution):
+    # the printed leaf is as long as the analysed one
+    assert pad.bounds == pytest.approx((-6.0, 8.0, 0.001, 12.0))
+    # 8 fillets of r = 1 mm (a pad's shoulder is 1.5 mm, a body's unbounded): r^2 (1 - pi/4)
+    # each, drawn with 6 chords, which add a circular segment r^2/2 (a - sin a), a = 15 deg, each
+    r = 1.0
+    a = math.radians(15.0)
+    fillets = 8 * r**2 * (1 - math.pi / 4)
+    # pads 6.001 x 4 mm less their 0.001 mm overlap with the flares, 3 mm wide there
+    expected = 2 * 40 * 1.0 + 8 * 26 + 2 * (6.001 * 4 - 0.001 * 3) + fillets
+    chords = 8 * 6 * 0.5 * r**2 * (a - math.sin(a))
+    assert out.area_mm2 == pytest.approx(expected + chords, abs=1e-4)  # the 1e-6 mm grid
+    for made in out.beams.values():
+        assert made.start.fillet_mm == made.end.fillet_mm == 1.0
+        assert made.start.clipped_mm == made.end.clipped_mm == 0.0
+        # the flexible beam still runs from the pad's face to the body's edge
+        assert made.shape.points_mm[[0, -1], 0] == pytest.approx([0.0, 40.0], abs=1e-12)
     mesh = extrude(out.polygon, 5.0)
-    assert mesh.is_watertight and mesh.volume == pytest.approx(expected * 5.0, rel=1e-6)
+    assert mesh.is_watertight and mesh.volume == pytest.approx(out.area_mm2 * 5.0, rel=1e-6)
     assert min_feature_mm(out.polygon) == pytest.approx(1.0, abs=0.02)
 
 
