@@ -303,3 +303,22 @@ def test_a_study_error_echoes_no_control_character(tmp_path, capsys):
     with pytest.raises(StudyError) as info:
         raise StudyError("a\x1b[2Jb", "c\x07d")
     assert str(info.value).isprintable()
+
+
+def test_a_text_cell_a_spreadsheet_would_run_is_written_as_text():
+    from flexopt.pipeline.runfolder import records_to_csv, text_cell
+
+    rows = [
+        {"reason": '=HYPERLINK("http://x","y")', "a": -1.5},
+        {"reason": "@SUM(A1)", "a": 2.0},
+        {"reason": "+1+1", "a": 0.0},
+        {"reason": "-2.5", "a": 0.0},  # a number stays a number
+        {"reason": "MeshError: the outline could not be meshed", "a": 1.0},
+    ]
+    text = records_to_csv(rows, ["a", "reason"])
+    cells = [line.split(",", 1)[1] for line in text.splitlines()[1:]]
+    assert cells[0].startswith("\"'=HYPERLINK") and cells[1] == "'@SUM(A1)"
+    assert cells[2] == "'+1+1" and cells[3] == "-2.5" and cells[4].startswith("MeshError")
+    assert text.splitlines()[1].startswith("-1.5,")  # numbers as they are
+    for lead in ("=", "+", "-", "@", "\t", "\r"):
+        assert text_cell(lead + "x").startswith("'")
