@@ -337,6 +337,13 @@ def print(
     builtins.print(*shown, sep=sep, end=end, file=file, flush=flush)
 
 
+class _PrintableFormatter(logging.Formatter):
+    """Log lines of ``-v`` with control characters escaped, as every line this module prints."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return printable(super().format(record), keep_newlines=True)
+
+
 def _format_value(value: Any) -> str:
     if isinstance(value, bool):
         return "yes" if value else "no"
@@ -766,7 +773,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     args.argv = argv
     if args.verbose:
-        logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+        handler = logging.StreamHandler()
+        handler.setFormatter(_PrintableFormatter("%(levelname)s %(name)s: %(message)s"))
+        logging.basicConfig(level=logging.INFO, handlers=[handler])
     else:
         # Without -v nothing is logged: what a user must know is printed by this module as one
         # line, and logging's last-resort handler would print warnings (and their tracebacks)

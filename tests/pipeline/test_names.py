@@ -322,3 +322,19 @@ def test_a_text_cell_a_spreadsheet_would_run_is_written_as_text():
     assert text.splitlines()[1].startswith("-1.5,")  # numbers as they are
     for lead in ("=", "+", "-", "@", "\t", "\r"):
         assert text_cell(lead + "x").startswith("'")
+
+
+def test_every_line_the_cli_prints_escapes_control_characters():
+    import io
+    import logging
+
+    from flexopt.pipeline import cli
+    from flexopt.pipeline.errors import printable
+
+    assert printable("a\x1b[2Jb\x07c\u202ed\x9b") == "a\\x1b[2Jb\\x07c\\u202ed\\x9b"
+    assert printable("one\ntwo\x1b", keep_newlines=True) == "one\ntwo\\x1b"
+    buffer = io.StringIO()
+    cli.print("flexopt: warning:", "\x1b]0;PWNED\x07 note", file=buffer)
+    assert buffer.getvalue() == "flexopt: warning: \\x1b]0;PWNED\\x07 note\n"
+    record = logging.LogRecord("x", logging.WARNING, "f", 1, "bad %s", ("\x1b[2J",), None)
+    assert "\x1b" not in cli._PrintableFormatter("%(message)s").format(record)
