@@ -338,3 +338,11 @@ def test_every_line_the_cli_prints_escapes_control_characters():
     assert buffer.getvalue() == "flexopt: warning: \\x1b]0;PWNED\\x07 note\n"
     record = logging.LogRecord("x", logging.WARNING, "f", 1, "bad %s", ("\x1b[2J",), None)
     assert "\x1b" not in cli._PrintableFormatter("%(message)s").format(record)
+
+
+@pytest.mark.parametrize("name", ["abc\n", "abc\r\n", "a" * 101, "a b"])
+def test_the_study_name_is_matched_whole(name):
+    study = {**_mechanism(), "name": name}
+    with pytest.raises(StudyError) as info:
+        validate_study(study)
+    assert str(info.value).startswith("name:") and str(info.value).isprintable()
