@@ -45,8 +45,9 @@ from typing import Any, Literal
 
 import numpy as np
 from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.names import NAME_MAX_CHARS, check_name
 from flexopt.optimise.targets import TargetCurve, TargetSpec, column_unit_factor
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 __all__ = [
     "AllowableStress",
@@ -718,7 +719,9 @@ class RequirementSpec(BaseModel):
         max_length=100,
         description="the metric or response column judged, units in the name (force_N)",
     )
-    name: str | None = Field(None, max_length=100, description="label in the verdict")
+    name: str | None = Field(
+        None, max_length=NAME_MAX_CHARS, description="label in the verdict (docs/usage.md, Names)"
+    )
     role: Role = Field("check", description="constraint (also optimised) or check (only judged)")
     max: float | None = Field(None, description="upper bound, unit of the quantity")
     min: float | None = Field(None, description="lower bound, unit of the quantity")
@@ -750,6 +753,11 @@ class RequirementSpec(BaseModel):
     tolerance_percent: float | None = Field(
         None, gt=0, lt=1000, description="target: band half-width in percent (2 = ±2 %)"
     )
+
+    @field_validator("name")
+    @classmethod
+    def _name_rule(cls, value: str | None) -> str | None:  # the one rule of names (docs/usage.md)
+        return value if value is None else check_name(value, "requirement name")
 
     @model_validator(mode="before")
     @classmethod

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from flexopt.optimise.names import NAME_MAX_CHARS, check_name
 from flexopt.optimise.space import DesignSpace
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -118,7 +119,14 @@ class VariableSpec(BaseModel):
         description="the initial design's value (default: from the value at path, "
         "(value - offset) / factor)",
     )
-    name: str | None = Field(None, description="name in reports (default: the path)")
+    name: str | None = Field(
+        None, max_length=NAME_MAX_CHARS, description="name in reports (default: the path)"
+    )
+
+    @field_validator("name")
+    @classmethod
+    def _name_rule(cls, value: str | None) -> str | None:  # the one rule of names (docs/usage.md)
+        return value if value is None else check_name(value, "variable name")
 
     @field_validator("factor")
     @classmethod

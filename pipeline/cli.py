@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import builtins
 import json
 import logging
 import math
@@ -26,7 +27,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from flexopt.pipeline.errors import StudyError, Terminated
+from flexopt.pipeline.errors import StudyError, Terminated, printable
 from flexopt.pipeline.evaluate import EvaluateOutcome, evaluate_study, versions
 from flexopt.pipeline.study import list_examples, load_study, resolve_study_path, workers_problem
 from rich.console import Console
@@ -326,6 +327,23 @@ def _add_study_tools(commands: Any) -> None:
     schema.set_defaults(handler=_schema)
 
 
+def print(
+    *values: Any, sep: str = " ", end: str = "\n", file: Any = None, flush: bool = False
+) -> None:
+    """:func:`builtins.print` for every line this module prints, with each control character
+    of the values escaped (:func:`pipeline.errors.printable`): a name, a path, a plugin's text
+    or an exception's message cannot retitle, clear or move the user's terminal."""
+    shown = (printable(v, keep_newlines=True) for v in values)
+    builtins.print(*shown, sep=sep, end=end, file=file, flush=flush)
+
+
+class _PrintableFormatter(logging.Formatter):
+    """Log lines of ``-v`` with control characters escaped, as every line this module prints."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return printable(super().format(record), keep_newlines=True)
+
+
 def _format_value(value: Any) -> str:
     if isinstance(value, bool):
         return "yes" if value else "no"
@@ -339,9 +357,9 @@ def _print_verdict(verdicts: Sequence[Any], title: str, console: Console) -> Non
     the overall word. Never 'feasible' alone: a design is judged by what it must meet."""
     from flexopt.optimise.requirements import verdict_lines
 
-    console.print(f"{title}: requirements", soft_wrap=True, markup=False)
+    console.print(printable(f"{title}: requirements"), soft_wrap=True, markup=False)
     for line in verdict_lines(verdicts):
-        console.print(line, soft_wrap=True, markup=False)
+        console.print(printable(line), soft_wrap=True, markup=False)
 
 
 def _print_robustness(record: dict[str, Any], console: Console) -> None:
@@ -755,7 +773,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     args.argv = argv
     if args.verbose:
-        logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+        handler = logging.StreamHandler()
+        handler.setFormatter(_PrintableFormatter("%(levelname)s %(name)s: %(message)s"))
+        logging.basicConfig(level=logging.INFO, handlers=[handler])
     else:
         # Without -v nothing is logged: what a user must know is printed by this module as one
         # line, and logging's last-resort handler would print warnings (and their tracebacks)

@@ -2,7 +2,33 @@
 
 from __future__ import annotations
 
-__all__ = ["MAX_PROBLEM_CHARS", "StudyError", "Terminated"]
+import re
+
+__all__ = ["MAX_PROBLEM_CHARS", "StudyError", "Terminated", "printable"]
+
+#: Characters never printed as they are: C0 controls (escape sequences start with ESC), DEL, C1
+#: controls, and the bidirectional and zero-width formatting characters that make a line read
+#: otherwise than it is (docs/usage.md, "Names").
+_UNPRINTABLE = re.compile(
+    "[\x00-\x1f\x7f-\x9f\u200b-\u200f\u2028\u2029\u202a-\u202e\u2060-\u2064\u2066-\u2069\ufeff]"
+)
+
+
+def _escaped(match: re.Match[str]) -> str:
+    code = ord(match.group())
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+
+
+def printable(text: object, keep_newlines: bool = False) -> str:
+    """``str(text)`` with every control and formatting character written as an escape
+    (``\\x1b``, ``\\u202e``): text from a study, a run folder or a plugin cannot move the
+    cursor, retitle or clear the terminal, or hide part of a line. The one helper of every
+    message flexopt prints; ``keep_newlines`` keeps ``\\n`` (a text of several lines)."""
+    value = str(text)
+    if keep_newlines:
+        return "\n".join(_UNPRINTABLE.sub(_escaped, line) for line in value.split("\n"))
+    return _UNPRINTABLE.sub(_escaped, value)
+
 
 #: Longest problem text of one error: echoed values are cut at their source to ~60 characters,
 #: and this is the safety net for any that are not (the start and the fix at the end are kept).
@@ -24,10 +50,17 @@ class StudyError(ValueError):
     """
 
     def __init__(self, path: str, problem: str, source: str | None = None) -> None:
+        # One line with no control character from the input (an unknown key made of escape
+        # bytes is echoed escaped, a key of 200 000 characters cut).
+        path = printable(" ".join(str(path)[: 2 * MAX_PROBLEM_CHARS].split()))
+        if len(path) > 200:
+            path = path[:150] + "…" + path[-40:]
         self.path = path
+        problem = str(problem)
         if len(problem) > 2 * MAX_PROBLEM_CHARS:  # bound the work of split() on a huge echo
             problem = problem[:MAX_PROBLEM_CHARS] + " ... " + problem[-200:]
-        problem = " ".join(problem.split())  # the CLI promises one line
+        problem = printable(" ".join(problem.split()))  # the CLI promises one line
+        source = None if source is None else printable(source)
         if len(problem) > MAX_PROBLEM_CHARS:  # an echoed value must not flood the terminal
             problem = problem[: MAX_PROBLEM_CHARS - 205] + " ... " + problem[-200:]
         self.problem = problem

@@ -267,6 +267,10 @@ def _splom(data: HtmlData, rows: Sequence[Evaluation], rho: np.ndarray) -> Any:
         for i, n in enumerate(p.objective_names)
     ]
     fig = go.Figure()
+    if len(dims) <= 2:
+        # One panel: plotly's splom with two dimensions and no upper half or diagonal throws
+        # ("reading 'makeCalcdata'") and draws nothing; a plain scatter is the same panel.
+        return _scatter_panel(dims, rows), [names[j] for j in order]
     for feasible, colour, word in (
         (False, _INFEASIBLE, "infeasible"),
         (True, _FEASIBLE, "feasible"),
@@ -292,6 +296,44 @@ def _splom(data: HtmlData, rows: Sequence[Evaluation], rho: np.ndarray) -> Any:
         )
     )
     return fig, [names[j] for j in order]
+
+
+def _scatter_panel(dims: Sequence[Mapping[str, Any]], rows: Sequence[Evaluation]) -> Any:
+    """The scatter matrix of one variable and one objective: its one panel, as a scatter
+    (x the first dimension, y the second; one dimension alone against the design's number)."""
+    import plotly.graph_objects as go
+
+    if len(dims) == 2:
+        x_dim, y_dim = dims
+        x_title = x_dim["label"]
+    else:
+        x_dim = {"label": "design (order solved)", "values": list(range(len(rows)))}
+        y_dim, x_title = dims[0], "design (order solved)"
+    fig = go.Figure()
+    for feasible, colour, word in (
+        (False, _INFEASIBLE, "infeasible"),
+        (True, _FEASIBLE, "feasible"),
+    ):
+        subset = [k for k, ev in enumerate(rows) if ev.feasible is feasible]
+        fig.add_trace(
+            go.Scatter(
+                x=[float(x_dim["values"][k]) for k in subset],
+                y=_plain([y_dim["values"][k] for k in subset]),
+                mode="markers",
+                name=f"{word} ({len(subset)})",
+                marker={"color": colour, "size": 6, "opacity": 0.7},
+            )
+        )
+    fig.update_layout(
+        _layout(
+            "Scatter matrix of the variable and the objective",
+            height=480,
+            xaxis=_axis(x_title),
+            yaxis=_axis(y_dim["label"]),
+            showlegend=True,
+        )
+    )
+    return fig
 
 
 def _sensitivity_fig(data: HtmlData, rho: np.ndarray, basis: str) -> Any:
@@ -407,7 +449,12 @@ def _plain(values: Any) -> list[float | None]:
 
 
 def _response_fig(
-    spec: Mapping[str, Any], table: Mapping[str, Any], y: str, kind: str, whose: str
+    spec: Mapping[str, Any],
+    table: Mapping[str, Any],
+    y: str,
+    kind: str,
+    whose: str,
+    limit: tuple[float, Verdict] | None = None,
 ) -> tuple[Any, str]:
     """One response plot: every curve of ``y``'s quantity against x (:func:`labels.siblings`),
     with the target and its band (:func:`pipeline.plot_targets.target_overlay`: a constant, a
@@ -441,19 +488,28 @@ def _response_fig(
     lo, hi = (float(np.nanmin(xs)), float(np.nanmax(xs))) if len(xs) else (0.0, 1.0)
     target_text: str
     if kind == "stress":
-        limit = _float(spec.get("allowable_MPa"))
-        if limit is not None:
-            word = spec.get("allowable_label") or "allowable"
+        # the line is the allowable the verdict judges (yield / safety factor of a stress
+        # requirement); the kind's own figure only where no requirement bounds the stress
+        value = limit[0] if limit is not None else _float(spec.get("allowable_MPa"))
+        if value is not None:
+            if limit is not None:
+                word = "allowable"
+                name = f"allowable {value:.4g} MPa ({limit[1].name}: {limit[1].bound})"
+                said = f"the allowable {value:.4g} MPa of requirement {limit[1].name} "
+            else:
+                word = spec.get("allowable_label") or "allowable"
+                name = f"{word} {value:.4g} MPa"
+                said = f"{word} stress {value:.4g} MPa (no stress requirement) "
             fig.add_trace(
                 go.Scatter(
                     x=[lo, hi],
-                    y=[limit, limit],
+                    y=[value, value],
                     mode="lines",
-                    name=f"{word} {limit:g} MPa",
+                    name=name,
                     line={"color": "black", "dash": "dash"},
                 )
             )
-            target_text = f"{word} stress {limit:g} MPa drawn as a dashed line"
+            target_text = f"{said}drawn as a dashed line"
         else:
             target_text = "no allowable stress given by the study kind"
         ylabel = spec.get("right_label") or labels.curves_label(y, curves)
@@ -587,7 +643,7 @@ class _Figures:
         self.count += 1
         spec = json.loads(fig.to_json())  # plotly's encoder turns numpy into lists
         text = json.dumps(spec, separators=(",", ":"), allow_nan=False)
-        text = text.replace("</", "<\\/")  # a "</script>" in a label must not end the element
+        text = script_json(text)
         return (
             f'<div class="figure" id="plot-{name}"></div>'
             f'<script type="application/json" class="plotly-figure" id="fig-{name}" '
@@ -595,13 +651,43 @@ class _Figures:
         )
 
 
+def script_json(text: str) -> str:
+    """JSON text safe inside a ``<script>`` element: ``<``, ``>`` and ``&`` as ``\\u003c``,
+    ``\\u003e``, ``\\u0026`` (the same JSON value).
+
+    Escaping ``</`` alone is not enough: ``<!--`` followed by ``<script`` puts the HTML parser
+    in its "double-escaped" state, where the element's own ``</script>`` no longer ends it and
+    every figure after it is swallowed (a variable named ``<!--<script>x`` blanked the page).
+    With no ``<`` left in the text, no label can change how the element is parsed.
+    """
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+#: Draws each figure on its own: a figure that plotly.js cannot draw (it throws, or its promise
+#: is rejected) gets a message in its place, and the figures after it are still drawn.
 _LOADER = """
 <script>
 // Draw every embedded figure once plotly.js (above, inline) is loaded: no network needed.
-document.querySelectorAll('script.plotly-figure').forEach(function (el) {
-  var spec = JSON.parse(el.textContent);
-  Plotly.newPlot(el.dataset.target, spec.data, spec.layout || {}, %s);
-});
+(function () {
+  function failed(el, err) {
+    var div = document.getElementById(el.dataset.target);
+    var note = document.createElement('p');
+    note.className = 'figure-error';
+    note.textContent = 'This figure could not be drawn (' + (err && err.message || err) +
+      '); the numbers are in the files of the run folder.';
+    if (div) { div.appendChild(note); }
+    console.error('flexopt report: figure ' + el.id + ' not drawn: ' + (err && err.message || err));
+  }
+  document.querySelectorAll('script.plotly-figure').forEach(function (el) {
+    try {
+      var spec = JSON.parse(el.textContent);
+      var done = Plotly.newPlot(el.dataset.target, spec.data, spec.layout || {}, %s);
+      if (done && done.catch) { done.catch(function (err) { failed(el, err); }); }
+    } catch (err) {
+      failed(el, err);
+    }
+  });
+})();
 </script>
 """
 
@@ -615,6 +701,7 @@ th { background: #f2f4f7; }
 td.num, table.num td { font-variant-numeric: tabular-nums; }
 .met { color: #1a7f37; font-weight: bold; } .notmet { color: #c62828; font-weight: bold; }
 .note { color: #555; font-size: .92em; } .figure { margin: .5em 0 1.5em; }
+.figure-error { color: #c62828; border: 1px solid #c62828; padding: .5em; }
 .scroll { overflow-x: auto; }
 nav a { margin-right: .8em; }
 </style>
@@ -764,7 +851,11 @@ def render_html(data: HtmlData) -> str:
 
     # -- response
     parts.append(
-        _section("response", "Response of the best design", _response_section(data.detail, figures))
+        _section(
+            "response",
+            "Response of the best design",
+            _response_section(data.detail, figures, "best design", verdicts),
+        )
     )
     if robust:
         table = data.detail.table if data.detail else {}
@@ -853,6 +944,8 @@ class EvaluateHtmlData:
     part_note: str | None = None
     #: evaluation.json's robustness record (default: ``record['robustness']``)
     robustness: Mapping[str, Any] | None = None
+    #: the kind's files (``response_<case>.csv`` of each load case: every case is drawn)
+    files: Mapping[str, bytes] = field(default_factory=dict)
 
 
 def render_evaluate_html(data: EvaluateHtmlData) -> str:
@@ -903,10 +996,12 @@ def render_evaluate_html(data: EvaluateHtmlData) -> str:
     parts.append(_section("summary", "Summary", body))
 
     detail = DesignDetail(Evaluation(np.zeros(0), np.zeros(0), np.zeros(0)), dict(data.table),
-                          dict(data.plot))  # fmt: skip
+                          dict(data.plot), files=dict(data.files))  # fmt: skip
     parts.append(
         _section(
-            "response", "Response of the design", _response_section(detail, figures, "this design")
+            "response",
+            "Response of the design",
+            _response_section(detail, figures, "this design", verdicts),
         )
     )
     if robust:
@@ -984,6 +1079,7 @@ def evaluate_html(
                 record,
                 part,
                 why or None,
+                files=dict(getattr(result, "files", None) or {}),
             )
         )
     except Exception as exc:
@@ -1030,27 +1126,201 @@ def _section(sid: str, title: str, body: str) -> str:
     return f'<section id="{sid}"><h2>{_e(title)}</h2>{body}</section>'
 
 
+#: Columns of a response table that are bookkeeping, not responses to draw.
+_BOOKKEEPING = frozenset({"step", "row", "index", "converged", "stable", "case"})
+#: Keys of a plot spec that describe the axes and the stress line, not a target: what a load
+#: case other than the first keeps (the target band of the spec was measured on the first).
+_AXIS_KEYS = ("xlabel", "x_label", "ylabel", "y_label", "left_label", "right_label",
+              "allowable_MPa", "allowable_label")  # fmt: skip
+
+
+def _csv_table(data: bytes) -> dict[str, np.ndarray]:
+    """A response CSV written by :func:`pipeline.runfolder.table_to_csv` as columns: numbers
+    (empty and ``nan`` as NaN), ``true``/``false`` as booleans; a column of text is left out."""
+    import csv
+    import io
+
+    rows = list(csv.reader(io.StringIO(data.decode("utf-8", errors="replace"), newline="")))
+    if len(rows) < 2:
+        return {}
+    header, body = rows[0], [r for r in rows[1:] if len(r) == len(rows[0])]
+    table: dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        cells = [r[j] for r in body]
+        if cells and all(c in ("true", "false") for c in cells):
+            table[name] = np.array([c == "true" for c in cells], dtype=bool)
+            continue
+        try:
+            table[name] = np.array([float(c) if c else math.nan for c in cells], dtype=float)
+        except ValueError:
+            continue
+    return table
+
+
+def case_tables(detail: DesignDetail) -> list[tuple[str | None, dict[str, Any]]]:
+    """The response of every load case of a design: ``[(case, table), ...]``.
+
+    A kind with several load cases gives its first case as ``detail.table`` and each case as a
+    file ``response_<case>.csv`` of ``detail.files`` (the mechanism kind), or stacks them in
+    ``detail.table`` with a ``case`` column; either is split here. One case: ``[(None, table)]``.
+    """
+    table = dict(detail.table)
+    if "case" in table:
+        column = np.asarray(table["case"]).astype(str)
+        cases = list(dict.fromkeys(column.tolist()))
+        if len(cases) > 1:
+            return [
+                (c, {k: np.asarray(v)[column == c] for k, v in table.items() if k != "case"})
+                for c in cases
+            ]
+    found = []
+    for name, data in (detail.files or {}).items():
+        match = re.fullmatch(r"response_(.+)\.csv", name)
+        if match and isinstance(data, bytes | bytearray):
+            parsed = _csv_table(bytes(data))
+            if parsed:
+                found.append((match.group(1), parsed))
+    if len(found) > 1:
+        return found  # type: ignore[return-value]
+    return [(None, table)]
+
+
+def _column_like(table: Mapping[str, Any], given: str, prefix: str, but: str = "") -> str | None:
+    """``given`` when the table has it, else its first column starting with ``prefix`` (and not
+    ``but``): a load case driven otherwise names its drive column by its own unit."""
+    if given in table:
+        return given
+    for name in table:
+        if name.startswith(prefix) and not (but and name.startswith(but)):
+            return name
+    return None
+
+
+def stress_limit(
+    verdicts: Sequence[Verdict], case: str | None = None
+) -> tuple[float, Verdict] | None:
+    """The allowable stress the verdict uses (MPa) and its verdict: the tightest ``<=`` bound of
+    a stress requirement (with ``case``: also those of ``case.``-prefixed quantities), or None."""
+    found: tuple[float, Verdict] | None = None
+    for v in verdicts:
+        q = v.quantity or ""
+        if v.unit != "MPa" or "stress" not in q or not v.bound.lstrip().startswith("<="):
+            continue
+        if "." in q and (case is None or not q.startswith(f"{case}.")):
+            continue  # another load case's (quantities of several cases carry "case.")
+        limit = v.value + v.margin if math.isfinite(v.value + v.margin) else None
+        if limit is None:
+            match = re.match(r"\s*<=\s*([-+0-9.eE]+)", v.bound)
+            limit = _float(match.group(1)) if match else None
+        if limit is not None and (found is None or limit < found[0]):
+            found = (limit, v)
+    return found
+
+
+def _outputs_fig(
+    table: Mapping[str, Any], x: str, columns: Sequence[str], unit: str, title: str,
+    xlabel: str,
+) -> Any:  # fmt: skip
+    """Outputs of one unit against x: one curve each (converged rows; unstable rows open)."""
+    import plotly.graph_objects as go
+
+    xs = np.asarray(table[x], dtype=float)
+    n = len(xs)
+    converged = np.asarray(table.get("converged", np.ones(n, bool)), dtype=bool)
+    stable = np.asarray(table.get("stable", np.ones(n, bool)), dtype=bool)
+    fig = go.Figure()
+    for column in columns:
+        ys = np.asarray(table[column], dtype=float)
+        ys = np.where(converged & np.isfinite(ys), ys, np.nan)
+        fig.add_trace(
+            go.Scatter(
+                x=xs.tolist(),
+                y=_plain(ys),
+                mode="lines+markers",
+                name=labels.words(column),
+                marker={
+                    "size": 5,
+                    "symbol": ["circle" if s else "circle-open" for s in stable.tolist()],
+                },
+            )
+        )
+    ylabel = f"{'value' if len(columns) > 1 else labels.words(columns[0])}" + (
+        f" ({unit})" if unit else " (–)"
+    )
+    fig.update_layout(
+        _layout(title, height=400, xaxis=_axis(xlabel), yaxis=_axis(ylabel),
+                legend={"orientation": "h", "y": -0.25})
+    )  # fmt: skip
+    return fig
+
+
 def _response_section(
-    detail: DesignDetail | None, figures: _Figures, whose: str = "best design"
+    detail: DesignDetail | None,
+    figures: _Figures,
+    whose: str = "best design",
+    verdicts: Sequence[Verdict] = (),
 ) -> str:
+    """The response of every load case (the kind's response and stress, with the target and
+    the allowable the verdict uses) and every other output of the table, by unit."""
     if detail is None or not detail.table:
         return f"<p>No response: the {whose}'s detail failed or the kind gives no table.</p>"
-    spec, table = detail.plot, detail.table
-    x = spec.get("x", "displacement_mm")
-    y = spec.get("y") or spec.get("left") or "force_N"
-    stress = spec.get("stress") or spec.get("right") or "peak_stress_MPa"
-    body = ""
-    if x not in table:
-        return f"<p>No response plot: the table has no column '{_e(x)}'.</p>"
-    for column, kind, name in ((y, "response", "response"), (stress, "stress", "response-stress")):
-        if column not in table:
+    spec = detail.plot
+    cases = case_tables(detail)
+    several = len(cases) > 1
+    body = (
+        f"<p class='note'>{len(cases)} load cases: "
+        + ", ".join(f"<code>{_e(c)}</code>" for c, _ in cases)
+        + ".</p>"
+        if several
+        else ""
+    )
+    for k, (case, table) in enumerate(cases):
+        here = dict(spec) if k == 0 else {key: spec[key] for key in _AXIS_KEYS if key in spec}
+        x = _column_like(table, spec.get("x", "displacement_mm"), "drive_", "drive_reaction_")
+        y = _column_like(table, spec.get("y") or spec.get("left") or "force_N",
+                         "drive_reaction_")  # fmt: skip
+        stress = spec.get("stress") or spec.get("right") or "peak_stress_MPa"
+        suffix = f"-{re.sub(r'[^A-Za-z0-9_-]', '_', case)}" if several and case else ""
+        tag = f"load case {case}: " if several else ""
+        whose_here = f"{whose}, load case {case}" if several else whose
+        if several:
+            body += f"<h3>Load case <code>{_e(case)}</code></h3>"
+        if x is None:
+            body += f"<p>No response plot: the table has no column '{_e(spec.get('x'))}'.</p>"
             continue
-        fig, target = _response_fig(spec, table, column, kind, whose)
-        curves = labels.siblings(table, column)
-        body += (
-            f"<p class='note'>{len(curves)} curve{'s' if len(curves) > 1 else ''}; "
-            f"{_e(target)}.</p>" + figures.embed(fig, name)
-        )
+        here["x"] = x
+        limit = stress_limit(verdicts, case if several else None)
+        drawn = {x}
+        for column, kind, name in ((y, "response", "response"),
+                                   (stress, "stress", "response-stress")):  # fmt: skip
+            if column is None or column not in table:
+                continue
+            fig, target = _response_fig(here, table, column, kind, whose_here, limit)
+            curves = labels.siblings(table, column)
+            drawn.update(curves)
+            body += (
+                f"<p class='note'>{_e(tag)}{len(curves)} curve{'s' if len(curves) > 1 else ''}; "
+                f"{_e(target)}.</p>" + figures.embed(fig, name + suffix)
+            )
+        # every other output of the case (a mechanism's user outputs), one figure per unit
+        by_unit: dict[str, list[str]] = {}
+        for column, values in table.items():
+            if column in drawn or column in _BOOKKEEPING or column.startswith("target_"):
+                continue
+            arr = np.asarray(values)
+            if arr.dtype.kind not in "fiu" or not np.isfinite(arr.astype(float)).any():
+                continue
+            by_unit.setdefault(labels.unit_of(column) or "", []).append(column)
+        xlabel = labels.label(x, spec.get("xlabel") or spec.get("x_label"))
+        for j, (unit, columns) in enumerate(by_unit.items()):
+            what = (
+                f"Outputs in {unit or 'no unit'}" if len(columns) > 1 else labels.words(columns[0])
+            )
+            title = f"{what} against {_no_unit(xlabel)} ({whose_here})"
+            body += figures.embed(
+                _outputs_fig(table, x, columns, unit, title, xlabel),
+                f"outputs{suffix}-{j + 1}",
+            )
     return body or "<p>The response table has none of the plotted columns.</p>"
 
 

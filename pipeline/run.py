@@ -419,6 +419,13 @@ class _Columns:
         )
         return columns
 
+    @classmethod
+    def of_space(cls, space: DesignSpace) -> _Columns:
+        """The variables' columns alone (as :meth:`of` names them: they come first)."""
+        columns = cls()
+        columns.variables = tuple(columns._unique(n, "x") for n in space.names)
+        return columns
+
     def metric(self, key: str) -> str:
         if key not in self.metric_names:
             self.metric_names[key] = self._unique(key, "metric")
@@ -2052,7 +2059,8 @@ def _design_vector(
                 f"got {echo(design)}; give 'best' or a whole number (an evaluation index)",
             ) from None
         path = run_dir / "evaluations.csv"
-        rows = _evaluations_csv(run_dir, columns or _Columns(variables=space.names), "RUN_DIR")
+        columns = columns or _Columns.of_space(space)
+        rows = _evaluations_csv(run_dir, columns, "RUN_DIR")
         if rows is None:
             raise StudyError("RUN_DIR", f"'{run_dir}' has no evaluations.csv; is it a run folder?")
         if not 0 <= index < len(rows):
@@ -2062,7 +2070,10 @@ def _design_vector(
                 f"no evaluation {index}: the run has {len(rows)} ({last}); pick an index from "
                 "the index column of evaluations.csv",
             )
-        values = rows[index]
+        # a variable's column is not always its name (one named `feasible` is written as
+        # `x_feasible`, see _Columns): read each by the column the writer gave it
+        row = rows[index]
+        values = {n: row[c] for n, c in zip(space.names, columns.variables, strict=True)}
         source = f"'{path}' row {index}"
         fix = _csv_fix(run_dir)
     missing = [name for name in space.names if name not in values]

@@ -50,6 +50,7 @@ __all__ = [
     "read_run_json",
     "records_to_csv",
     "table_to_csv",
+    "text_cell",
     "to_json",
     "write_atomic",
 ]
@@ -160,11 +161,28 @@ def table_to_csv(table: Mapping[str, np.ndarray]) -> str:
     return out.getvalue()
 
 
+#: What a spreadsheet takes for the start of a formula (OWASP's list for CSV injection).
+FORMULA_LEAD = ("=", "+", "-", "@", "\t", "\r")
+
+
+def text_cell(text: str) -> str:
+    """A text cell of a CSV file flexopt writes: one that a spreadsheet would take for a formula
+    (``=HYPERLINK(...)``, ``@SUM``, ``+1+1``; a number such as ``-1.5`` excepted) gets a leading
+    ``'``, so it is shown as the text it is. Names obey the name rule (docs/usage.md, "Names")
+    and never start so; this guards the other text a row carries (reasons, a kind's values)."""
+    if text.startswith(FORMULA_LEAD):
+        try:
+            float(text)
+        except ValueError:
+            return "'" + text
+    return text
+
+
 def _record_cell(value: Any) -> str:
     if value is None:
         return ""
     if isinstance(value, str):
-        return value
+        return text_cell(value)
     if isinstance(value, bool | np.bool_ | int | np.integer | float | np.floating):
         return _cell(value)
     return json.dumps(_jsonable(value), allow_nan=False, default=str)  # a list or mapping

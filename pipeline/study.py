@@ -265,7 +265,7 @@ class Study(BaseModel):
     @field_validator("name")
     @classmethod
     def _name_is_a_folder_name(cls, value: str) -> str:
-        if not _NAME_RE.match(value) or len(value) > 100:
+        if not _NAME_RE.fullmatch(value) or len(value) > 100:  # fullmatch: no final newline
             head = value[:200]
             suggestion = re.sub(r"[^A-Za-z0-9_.-]+", "_", head).strip("_.-") or "my_study"
             raise ValueError(

@@ -73,6 +73,7 @@ from flexopt.geometry.mechanism import (
 )
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
+from flexopt.optimise.names import check_name
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import (
     Range,
@@ -125,7 +126,8 @@ _BUILTIN_COLUMNS = ("step", "converged", "stable", "peak_stress_MPa")
 
 
 def _check_name(value: str, what: str) -> str:
-    if not _NAME.match(value) or value == "ground":
+    check_name(value, what)  # the one rule of names (docs/usage.md), then this kind's own
+    if not _NAME.fullmatch(value) or value == "ground":
         raise ValueError(
             f"'{value}' cannot name a {what}: use letters, digits, '_' and '-', starting with a "
             "letter, not 'ground' (joints name parts as name.start / name.end)"

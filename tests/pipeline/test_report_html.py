@@ -672,3 +672,58 @@ def test_rank_correlation_is_scipys_spearman_with_ties():
         assert _spearman(x, y) == pytest.approx(spearmanr(x, y).statistic, abs=1e-12)
     x = rng.random(40)
     assert _spearman(x, 3 * x + 1) == pytest.approx(1.0) and _spearman(x, -x) == pytest.approx(-1)
+
+
+# --------------------------------------------------------------------------------------------
+# Issue 23 class 1 and issue 22 item 8: names in the figures' JSON, every load case, the
+# allowable the verdict uses (the drawing itself: test_report_html_browser.py)
+
+
+def test_no_name_can_change_how_a_figure_element_is_parsed():
+    from flexopt.pipeline.report_html import script_json
+
+    for name in ("<!--<script>x", "</script><b>", "a]]>-->&amp;", "<\u2028>"):
+        text = script_json(json.dumps({"label": name}))
+        assert "<" not in text and ">" not in text and "&" not in text
+        assert json.loads(text) == {"label": name}  # the same value, read back
+
+
+def test_the_stress_line_is_the_allowable_the_verdict_uses():
+    from flexopt.optimise.requirements import AllowableStress, MaxValue
+    from flexopt.pipeline.report_html import stress_limit
+
+    metrics = {"max_peak_stress_MPa": 20.0, "blocked.max_peak_stress_MPa": 30.0}
+    allowable = AllowableStress("max_peak_stress_MPa", "stress", "check", 48.0, 1.5)
+    looser = MaxValue("max_peak_stress_MPa", "loose", "check", 40.0)
+    blocked = MaxValue("blocked.max_peak_stress_MPa", "blocked stress", "check", 31.0)
+    verdicts = [r.check(metrics) for r in (looser, allowable, blocked)]
+    limit, verdict = stress_limit(verdicts)
+    assert limit == pytest.approx(48.0 / 1.5) and verdict.name == "stress"
+    limit, verdict = stress_limit(verdicts, "blocked")  # the case's own, and the unprefixed
+    assert limit == pytest.approx(31.0) and verdict.name == "blocked stress"
+    assert stress_limit([]) is None
+
+
+def test_every_load_case_of_a_mechanism_is_a_response_of_the_page(tmp_path):
+    from flexopt.pipeline.report_html import case_tables
+    from flexopt.pipeline.runfolder import table_to_csv
+
+    d = np.linspace(0.0, 2.0, 5)
+    free = {"drive_mm": d, "drive_reaction_N": 2 * d, "ratio": 3 + d, "converged": d >= 0}
+    blocked = {"drive_deg": d, "drive_reaction_Nmm": 5 * d, "converged": d >= 0}
+    files = {
+        "outputs.png": b"png",
+        "response_free.csv": table_to_csv(free).encode(),
+        "response_blocked.csv": table_to_csv(blocked).encode(),
+    }
+    detail = DesignDetail(Evaluation(np.zeros(1), np.zeros(1), np.zeros(0)), free, {}, files=files)
+    cases = case_tables(detail)
+    assert [c for c, _ in cases] == ["free", "blocked"]
+    np.testing.assert_allclose(cases[1][1]["drive_reaction_Nmm"], 5 * d)
+    assert cases[1][1]["converged"].dtype == bool
+    stacked = {**free, "case": np.array(["a", "a", "b", "b", "b"])}
+    detail = DesignDetail(detail.evaluation, stacked, {})
+    cases = case_tables(detail)
+    assert [c for c, _ in cases] == ["a", "b"] and len(cases[1][1]["ratio"]) == 3
+    one = DesignDetail(detail.evaluation, free, {})
+    assert case_tables(one) == [(None, free)]
