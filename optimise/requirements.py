@@ -25,6 +25,11 @@ API (stable; other modules and kinds build on it)
     maps a response quantity (``force_N``) to ``(x, y)``, two (n,) arrays: ``x`` in the unit of
     the requirement's ``x`` column, ``y`` in the quantity's unit; :func:`curves_from_table`
     builds it from a response table.
+:class:`Figure` and :func:`judge_best`
+    A quantity may have several figures, one per model (the beam's peak stress, the
+    plane-stress check's, the 3D solid's): ``judge_best`` judges a requirement on the
+    highest-ranked figure the design has and names the model in the verdict (``model``,
+    ``figures``, ``detail``), the lower-fidelity figures beside it.
 :func:`verdict_lines`, :func:`overall`, :func:`to_records`, :func:`verdict_record`
     Console / Markdown lines, the overall word (MET only when there is at least one requirement
     and every one is met), JSON records.
@@ -40,7 +45,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -50,17 +55,22 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
     "AllowableStress",
+    "BEAM",
     "Envelope",
+    "Figure",
     "Flag",
     "MaxValue",
     "MinFeature",
     "MinValue",
+    "PLANE_STRESS",
     "Range",
     "Requirement",
     "RequirementSpec",
+    "SOLID_3D",
     "TargetBand",
     "Verdict",
     "curves_from_table",
+    "judge_best",
     "overall",
     "to_records",
     "unit_of",
@@ -150,7 +160,12 @@ class Verdict:
     met : the requirement is met.
     unit : unit of ``value`` and ``margin`` (``MPa``, ``N``, ``""`` for a ratio).
     role : ``constraint`` (also a constraint of the optimisation) or ``check`` (only judged).
-    detail : one line on where the bound is hit or why the value is missing.
+    detail : one line on where the bound is hit or why the value is missing; for a verdict
+        judged on one of several figures, which model gave the judged one and the others.
+    model : the model whose figure was judged (``plane stress``, ``3D solid``), ``""`` when the
+        quantity has one figure only (see :class:`Figure`).
+    figures : every figure of the quantity the design has, highest fidelity first, as
+        ``(model, metric name, value)`` (value in ``unit``); empty when there is one figure.
     """
 
     name: str
@@ -163,6 +178,8 @@ class Verdict:
     unit: str
     role: Role = "check"
     detail: str = ""
+    model: str = ""
+    figures: tuple[tuple[str, str, float], ...] = ()
 
     @property
     def word(self) -> str:
@@ -216,7 +233,7 @@ def verdict_lines(verdicts: Sequence[Verdict]) -> list[str]:
     lines = ["  ".join(c.ljust(w) for c, w in zip(header, widths, strict=True)).rstrip()]
     for v, row in zip(verdicts, rows, strict=True):
         lines.append("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
-        if not v.met and v.detail:
+        if v.detail and (not v.met or v.figures):  # which model gave the judged figure
             lines.append(f"    {v.detail}")
     if not verdicts:
         lines.append("(no requirement stated)")
@@ -240,6 +257,9 @@ def to_records(verdicts: Iterable[Verdict]) -> list[dict[str, Any]]:
         record["value"] = _json_float(v.value)
         record["margin"] = _json_float(v.margin)
         record["margin_rel"] = _json_float(v.margin_rel)
+        record["figures"] = [
+            {"model": m, "quantity": q, "value": _json_float(x)} for m, q, x in v.figures
+        ]
         out.append({"verdict": v.word, **record})
     return out
 
@@ -684,6 +704,85 @@ def curves_from_table(
                 np.asarray(table[req.quantity], dtype=float),
             )
     return curves
+
+
+# --------------------------------------------------------------------------------------------
+# Figures of several fidelities
+
+#: Fidelity ranks of the project's models (higher: judged first).
+BEAM, PLANE_STRESS, SOLID_3D = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One model's figure of a quantity that requirements bound.
+
+    Attributes
+    ----------
+    quantity : the metric holding the figure (``plane_stress_peak_stress_MPa``), in the unit of
+        the quantity it stands for.
+    model : the model that gives it, as the verdict names it (``beam``, ``plane stress``).
+    rank : its fidelity (:data:`BEAM`, :data:`PLANE_STRESS`, :data:`SOLID_3D`); the highest
+        the design has is judged.
+    """
+
+    quantity: str
+    model: str
+    rank: int = BEAM
+
+
+def judge_best(
+    requirement: Requirement,
+    metrics: Mapping[str, Any],
+    curves: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    figures: Sequence[Figure] = (),
+    taken: Iterable[str] = (),
+) -> Verdict:
+    """``requirement`` judged on the highest-fidelity figure of its quantity the design has.
+
+    Parameters
+    ----------
+    requirement : a requirement on a scalar quantity (a curve requirement is judged as is).
+    metrics, curves : as for :meth:`Requirement.check`.
+    figures : the figures of ``requirement.quantity`` (its own one included, e.g. the beam's),
+        in any order; a figure whose metric is missing or not finite is left out.
+    taken : metric names another requirement judges directly (a 3D row of its own): they are
+        not borrowed, so one figure is not judged twice.
+
+    Returns
+    -------
+    Verdict
+        ``requirement.check`` of the best figure; with more than one figure, ``model`` names
+        the judged one, ``figures`` lists them all (best first) and ``detail`` says which model
+        gave which value.
+    """
+    if requirement.needs_curve or not figures:
+        return requirement.check(metrics, curves)
+    skip = set(taken) - {requirement.quantity}
+    have = [
+        (f, metrics[f.quantity])
+        for f in figures
+        if f.quantity not in skip and _value_of(metrics, f.quantity) is not None
+    ]
+    if not have or (len(have) == 1 and have[0][0].quantity == requirement.quantity):
+        return requirement.check(metrics, curves)
+    have.sort(key=lambda item: -item[0].rank)  # stable: the first listed of a rank wins
+    best, raw = have[0]
+    v = requirement.check({**metrics, requirement.quantity: raw}, curves)
+
+    def text(value: Any) -> str:
+        if isinstance(value, bool) or isinstance(requirement, Flag):
+            return "yes" if value else "no"
+        return _num(float(value), v.unit)
+
+    others = ", ".join(f"{f.model} {text(x)}" for f, x in have[1:])
+    note = f"judged on {best.model}: {text(raw)}" + (f" ({others})" if others else "")
+    return replace(
+        v,
+        model=best.model,
+        figures=tuple((f.model, f.quantity, float(x)) for f, x in have),
+        detail=note + (f"; {v.detail}" if v.detail else ""),
+    )
 
 
 # --------------------------------------------------------------------------------------------

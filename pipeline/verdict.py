@@ -6,6 +6,13 @@ A kind states two things in its :class:`~pipeline.studies.StudyKind`:
 ``requirements(study) -> sequence of Requirement``
     What its study already constrains or targets (the allowable stress, the force band, the
     stiffness window, stability ...), judged on every evaluation.
+``figures`` (optional)
+    ``{quantity: (Figure, ...)}`` (or a callable ``(study) -> mapping``): the figures of a
+    quantity by model and fidelity rank (:class:`~optimise.requirements.Figure`: the beam's
+    peak stress, the plane-stress check's, the 3D solid's). Every requirement on the quantity
+    is judged on the highest-ranked figure the design has, the others shown beside it
+    (:func:`~optimise.requirements.judge_best`); a figure another requirement judges directly
+    is not borrowed.
 ``quantities``
     The names a requirement may judge (summary and metrics keys, response-table columns), or a
     callable ``(study) -> iterable of str``. An unknown name in ``requirements:`` is refused at
@@ -28,10 +35,12 @@ from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import (
+    Figure,
     Requirement,
     RequirementSpec,
     Verdict,
     curves_from_table,
+    judge_best,
 )
 from flexopt.pipeline.errors import StudyError
 
@@ -44,6 +53,7 @@ __all__ = [
     "builtin_requirements",
     "check_requirement_names",
     "detail_values",
+    "figures_of",
     "judge",
     "judge_detail",
     "quantities_of",
@@ -94,6 +104,14 @@ def user_requirements(study: Study) -> tuple[Requirement, ...]:
     return tuple(out)
 
 
+def figures_of(study: Study) -> dict[str, tuple[Figure, ...]]:
+    """``{quantity: figures}`` the kind of ``study`` reports (empty when it has one model)."""
+    figures = getattr(_kind(study), "figures", None)
+    if callable(figures):
+        figures = figures(study)
+    return {str(q): tuple(f) for q, f in (figures or {}).items()}
+
+
 def study_requirements(study: Study) -> tuple[Requirement, ...]:
     """Built-in requirements of the kind, then the study's own, in that order."""
     return (*builtin_requirements(study), *user_requirements(study))
@@ -106,6 +124,8 @@ def quantities_of(study: Study) -> tuple[str, ...]:
     if callable(names):
         names = names(study)
     found = set(names or ())
+    for ladder in figures_of(study).values():
+        found.update(f.quantity for f in ladder)
     for req in builtin_requirements(study):
         found.add(req.quantity)
         if hasattr(req, "x"):
@@ -193,7 +213,11 @@ def judge(
                 finite = np.abs(arr[np.isfinite(arr)])
                 scalars[name] = float(np.max(finite)) if finite.size else None
     curves = curves_from_table(table or {}, reqs)
-    return tuple(req.check(scalars, curves) for req in reqs)
+    ladders = figures_of(study)
+    taken = {r.quantity for r in reqs}
+    return tuple(
+        judge_best(req, scalars, curves, ladders.get(req.quantity, ()), taken) for req in reqs
+    )
 
 
 def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[str, Any]:

@@ -1,0 +1,113 @@
+"""Issue 22 item 4: a requirement is judged on the highest-fidelity figure the run computed."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from flexopt.optimise.requirements import (
+    BEAM,
+    PLANE_STRESS,
+    SOLID_3D,
+    AllowableStress,
+    Figure,
+    Flag,
+    MaxValue,
+    judge_best,
+    to_records,
+    verdict_lines,
+)
+from flexopt.pipeline.study import load_study
+from flexopt.pipeline.verdict import judge, quantities_of
+
+LADDER = (
+    Figure("peak_stress_MPa", "beam", BEAM),
+    Figure("plane_stress_peak_stress_MPa", "plane stress", PLANE_STRESS),
+    Figure("peak_stress_3d_MPa", "3D solid", SOLID_3D),
+)
+
+
+def test_the_highest_figure_the_design_has_is_judged_and_the_others_shown():
+    req = AllowableStress("peak_stress_MPa", "peak stress", "constraint", 42.5)
+    metrics = {"peak_stress_MPa": 42.24, "plane_stress_peak_stress_MPa": 43.07}
+    plain = req.check(metrics)
+    assert plain.met and plain.value == 42.24  # the beam alone says MET
+    v = judge_best(req, metrics, None, LADDER)
+    assert not v.met and v.value == 43.07 and v.model == "plane stress"
+    assert v.margin == pytest.approx(42.5 - 43.07)
+    assert v.figures == (
+        ("plane stress", "plane_stress_peak_stress_MPa", 43.07),
+        ("beam", "peak_stress_MPa", 42.24),
+    )
+    assert v.detail.startswith("judged on plane stress: 43.07 MPa (beam 42.24 MPa)")
+    record = to_records([v])[0]
+    assert record["model"] == "plane stress"
+    assert record["figures"][1] == {"model": "beam", "quantity": "peak_stress_MPa", "value": 42.24}
+    # the line under a MET verdict too: which model gave the judged figure
+    met = judge_best(req, {"peak_stress_MPa": 40.0, "plane_stress_peak_stress_MPa": 41.0}, None,
+                     LADDER)  # fmt: skip
+    assert met.met and "judged on plane stress: 41 MPa (beam 40 MPa)" in verdict_lines([met])[2]
+    # the 3D figure outranks both; a NaN figure is no figure
+    three = {**metrics, "peak_stress_3d_MPa": 41.0}
+    assert judge_best(req, three, None, LADDER).model == "3D solid"
+    nan = {**metrics, "peak_stress_3d_MPa": math.nan}
+    assert judge_best(req, nan, None, LADDER).model == "plane stress"
+
+
+def test_one_figure_is_judged_as_before_and_a_taken_figure_is_not_borrowed():
+    req = MaxValue("peak_stress_MPa", "peak stress", "check", 42.5)
+    only = judge_best(req, {"peak_stress_MPa": 42.24}, None, LADDER)
+    assert only == req.check({"peak_stress_MPa": 42.24}) and only.model == ""
+    both = {"peak_stress_MPa": 40.0, "plane_stress_peak_stress_MPa": 41.0, "peak_stress_3d_MPa": 44}
+    v = judge_best(req, both, None, LADDER, taken={"peak_stress_3d_MPa", "peak_stress_MPa"})
+    assert v.model == "plane stress" and v.value == 41.0  # the 3D row judges its own figure
+    flag = Flag("stable", "stable", "check", True)
+    ladder = (Figure("stable", "beam", BEAM), Figure("ps_stable", "plane stress", PLANE_STRESS))
+    v = judge_best(flag, {"stable": True, "ps_stable": False}, None, ladder)
+    assert not v.met and v.detail.startswith("judged on plane stress: no (beam yes)")
+
+
+def _cf_study(**values):
+    study = load_study("constant-force")
+    # the design the example recorded before issue 22: 42.24 MPa in the beam model
+    old = {
+        "a1": 0.4964, "a2": 0.8344, "a3": 0.5213, "a4": 0.8577, "a5": 0.1939, "a6": 0.7056,
+        "a7": 0.5828, "a8": 0.7814, "a9": 0.2122, "a10": 0.8727, "t1": 1.593, "t2": 0.8504,
+        "t3": 0.9289, "t4": 0.8017, "t5": 0.8064, "t6": 0.8151, "t7": 0.8366, "t8": 1.044,
+        "t9": 0.9178, "t10": 1.084, "T1": 1.128, "T6": 1.031, "B": 6.611,
+    }  # fmt: skip
+    return study.with_values({"design": old, **values})
+
+
+def test_constant_force_stress_requirement_is_the_plane_stress_figure():
+    import flexopt.pipeline.studies.constant_force as cf
+
+    study = _cf_study()
+    result = cf.evaluate(study)
+    check = result.diagnostics["fidelity"]
+    assert all(check["converged"])
+    beam_peak = float(np.max(result.table["peak_stress_MPa"]))
+    # the beam's worst row is one of the plane-stress strokes
+    worst = float(result.table["displacement_mm"][int(np.argmax(result.table["peak_stress_MPa"]))])
+    assert worst in check["stroke_mm"]
+    plane = max(check["plane_stress_peak_nodal_von_mises_MPa"])
+    assert result.summary["plane_stress_peak_stress_MPa"] == plane
+    verdicts = {v.name: v for v in judge(study, result.summary, result.table)}
+    v = verdicts["peak stress"]
+    assert v.value == plane and v.model == "plane stress"
+    assert ("beam", "peak_stress_MPa", pytest.approx(beam_peak)) in v.figures
+    # this design meets 42.5 MPa in the beam model only: the part as made does not
+    assert beam_peak <= 42.5 < plane and not v.met
+    assert "plane_stress_peak_stress_MPa" in quantities_of(study)
+
+
+def test_constant_force_without_the_check_is_judged_on_the_beam():
+    import flexopt.pipeline.studies.constant_force as cf
+
+    study = _cf_study(**{"fidelity.enabled": False})
+    result = cf.evaluate(study)
+    assert "fidelity" not in result.diagnostics
+    v = {v.name: v for v in judge(study, result.summary, result.table)}["peak stress"]
+    beam_peak = float(np.max(result.table["peak_stress_MPa"]))
+    assert v.model == "" and v.value == pytest.approx(beam_peak)
