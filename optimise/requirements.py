@@ -512,10 +512,12 @@ class Flag(Requirement):
 
 @dataclass(frozen=True)
 class Envelope(Requirement):
-    """The bounding box of an outline fits ``max_width_mm x max_height_mm`` (no turning).
+    """The bounding box of the part fits ``max_width_mm x max_height_mm`` (x max_depth_mm, the
+    out-of-plane size, when given), in the design frame (no turning).
 
-    Reads ``width_key`` and ``height_key`` from the metrics (mm). The value is the worse of the
-    two sizes relative to its limit; the margin the smaller of the two spares (mm).
+    Reads ``width_key``, ``height_key`` (and ``depth_key``) from the metrics (mm): the part as
+    exported, measured by the pipeline. The value is the size with the least spare; the margin
+    that spare (mm); the detail the measured box.
     """
 
     quantity: str = "envelope_mm"
@@ -523,10 +525,14 @@ class Envelope(Requirement):
     max_height_mm: float = 0.0
     width_key: str = "envelope_width_mm"
     height_key: str = "envelope_height_mm"
+    max_depth_mm: float | None = None
+    depth_key: str = "envelope_depth_mm"
 
     def __post_init__(self) -> None:
-        for key in ("max_width_mm", "max_height_mm"):
+        for key in ("max_width_mm", "max_height_mm", "max_depth_mm"):
             value = getattr(self, key)
+            if key == "max_depth_mm" and value is None:
+                continue
             if not (math.isfinite(value) and value > 0):
                 raise OptimiseError(f"envelope {key} = {value} must be > 0")
 
@@ -534,21 +540,29 @@ class Envelope(Requirement):
     def unit(self) -> str:
         return "mm"
 
+    def _limits(self) -> list[tuple[str, float]]:
+        out = [(self.width_key, self.max_width_mm), (self.height_key, self.max_height_mm)]
+        if self.max_depth_mm is not None:
+            out.append((self.depth_key, self.max_depth_mm))
+        return out
+
     def scale(self) -> float:
-        return min(self.max_width_mm, self.max_height_mm)
+        return min(limit for _, limit in self._limits())
 
     def bound_text(self) -> str:
-        return f"within {self.max_width_mm:.4g} × {self.max_height_mm:.4g} mm"
+        return "within " + " × ".join(f"{limit:.4g}" for _, limit in self._limits()) + " mm"
 
     def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
-        w, h = _value_of(metrics, self.width_key), _value_of(metrics, self.height_key)
-        if w is None or h is None:
-            return self._missing(self.bound_text(), "the design has no outline to measure")
-        spare_w, spare_h = self.max_width_mm - w, self.max_height_mm - h
-        value = w if spare_w <= spare_h else h
-        return self._verdict(
-            value, self.bound_text(), min(spare_w, spare_h), f"{w:.4g} × {h:.4g} mm"
-        )
+        sizes = [(_value_of(metrics, key), limit) for key, limit in self._limits()]
+        if any(size is None for size, _ in sizes):
+            missing = "the design has no outline to measure"
+            if sizes[0][0] is not None and sizes[1][0] is not None:
+                missing = "the design has no out-of-plane depth to measure"
+            return self._missing(self.bound_text(), missing)
+        spares = [limit - size for size, limit in sizes]  # type: ignore[operator]
+        k = int(np.argmin(spares))
+        box = " × ".join(f"{size:.4g}" for size, _ in sizes) + " mm"
+        return self._verdict(sizes[k][0], self.bound_text(), spares[k], box)  # type: ignore[arg-type]
 
 
 def _unit_factor(name: str) -> float:
@@ -828,8 +842,10 @@ class RequirementSpec(BaseModel):
         None, gt=0, description="yield for safety_factor, MPa (default: the material's)"
     )
     equals: bool | None = Field(None, description="a yes/no quantity must be this (stable: true)")
-    envelope_mm: tuple[float, float] | None = Field(
-        None, description="[width, height] the outline's bounding box must fit, mm"
+    envelope_mm: tuple[float, float] | tuple[float, float, float] | None = Field(
+        None,
+        description="[width, height] (or [width, height, depth]) the part's bounding box as "
+        "exported must fit, in the design frame, mm",
     )
     target: TargetSpec | None = Field(
         None, description="target curve of the response (kinds of optimise/targets.py)"
@@ -889,7 +905,9 @@ class RequirementSpec(BaseModel):
             raise ValueError("needs quantity: the metric or response column it judges")
         if kind == "envelope_mm":
             if self.envelope_mm is None or min(self.envelope_mm) <= 0:
-                raise ValueError("envelope_mm must be [width, height], both > 0 mm")
+                raise ValueError(
+                    "envelope_mm must be [width, height] or [width, height, depth], all > 0 mm"
+                )
         if kind == "max/min" and self.min is not None and self.max is not None:
             if self.min > self.max:
                 raise ValueError(f"min = {self.min:g} is above max = {self.max:g}; swap them")
@@ -923,7 +941,8 @@ class RequirementSpec(BaseModel):
     def judged(self) -> tuple[str, ...]:
         """The names this requirement reads (the quantity, and x for a target)."""
         if self.envelope_mm is not None:
-            return ("envelope_width_mm", "envelope_height_mm")
+            depth = ("envelope_depth_mm",) if len(self.envelope_mm) == 3 else ()
+            return ("envelope_width_mm", "envelope_height_mm", *depth)
         return tuple(n for n in (self.quantity, self.x) if n)
 
     def to_requirement(
@@ -947,8 +966,11 @@ class RequirementSpec(BaseModel):
         """
         q, name, role = self.quantity or "", self.name or "", self.role
         if self.envelope_mm is not None:
-            w, h = self.envelope_mm
-            return Envelope(name=name, role=role, max_width_mm=w, max_height_mm=h)
+            w, h, *d = self.envelope_mm
+            return Envelope(
+                name=name, role=role, max_width_mm=w, max_height_mm=h,
+                max_depth_mm=d[0] if d else None,
+            )  # fmt: skip
         if self.safety_factor is not None:
             y = self.yield_MPa if self.yield_MPa is not None else yield_MPa
             if y is None:

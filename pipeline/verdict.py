@@ -53,6 +53,7 @@ __all__ = [
     "builtin_requirements",
     "check_requirement_names",
     "detail_values",
+    "envelope_values",
     "figures_of",
     "judge",
     "judge_detail",
@@ -61,9 +62,37 @@ __all__ = [
     "user_requirements",
 ]
 
-#: Names every kind offers (measured by the pipeline from the printable outline, when there is
-#: one: the bounding box of the part, mm).
-GENERIC_QUANTITIES = ("envelope_width_mm", "envelope_height_mm")
+#: Names every kind offers (measured by the pipeline on the part as exported, when there is
+#: one: its bounding box in the design frame, mm; depth is the extrusion, out of plane).
+GENERIC_QUANTITIES = ("envelope_width_mm", "envelope_height_mm", "envelope_depth_mm")
+
+
+def envelope_values(outline: Any, depth_mm: float | None = None) -> dict[str, float]:
+    """The bounding box of a part as exported, in the design frame, mm.
+
+    Parameters
+    ----------
+    outline : a shapely geometry (the printable outline), or None.
+    depth_mm : its extrusion (out-of-plane size), mm, or None.
+
+    Returns
+    -------
+    dict
+        ``envelope_width_mm`` (x), ``envelope_height_mm`` (y) and, with a depth,
+        ``envelope_depth_mm``; empty when there is no outline to measure.
+    """
+    out: dict[str, float] = {}
+    try:
+        x0, y0, x1, y1 = outline.bounds
+    except (AttributeError, ValueError, TypeError):
+        return out
+    if not all(map(math.isfinite, (x0, y0, x1, y1))):
+        return out
+    out["envelope_width_mm"] = float(x1 - x0)
+    out["envelope_height_mm"] = float(y1 - y0)
+    if depth_mm is not None and math.isfinite(float(depth_mm)) and float(depth_mm) > 0:
+        out["envelope_depth_mm"] = float(depth_mm)
+    return out
 
 
 def _kind(study: Study) -> Any:
@@ -226,13 +255,7 @@ def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[s
     values = _scalars(info, evaluation.metrics)
     outline = getattr(detail, "outline", None)
     if outline is not None:
-        try:
-            x0, y0, x1, y1 = outline.bounds
-            if all(map(math.isfinite, (x0, y0, x1, y1))):
-                values["envelope_width_mm"] = float(x1 - x0)
-                values["envelope_height_mm"] = float(y1 - y0)
-        except (AttributeError, ValueError, TypeError):
-            pass
+        values.update(envelope_values(outline, getattr(detail, "height_mm", None)))
     return values
 
 

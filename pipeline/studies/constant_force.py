@@ -65,6 +65,7 @@ from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 __all__ = [
@@ -1025,6 +1026,9 @@ def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
     summary.update(
         {name: float(v) for name, v in zip(prob.constraint_names, evaluation.g, strict=True)}
     )
+    g = study.geometry  # the part as exported (best.stl's outline and B): its envelope
+    shape = outline(design, TABLE1, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+    summary.update(envelope_values(shape, design.B))
     diagnostics = dict(response.extra)
     if study.fidelity.enabled:  # the figure the verdict judges, as flexopt run's report does
         lo, hi = _compared_over(study, prob._metrics(design, response))
