@@ -87,6 +87,7 @@ from flexopt.geometry.sea_spring import (
 )
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.requirements import PLANE_STRESS, SOLID_3D, Figure, Range, Requirement
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
@@ -1763,6 +1764,29 @@ def stress_map_png(stress_map: dict[str, Any], allowable_MPa: float | None = Non
 # Registry hooks
 
 
+def requirements(study: SeaSpringStudy) -> list[Requirement]:
+    """:func:`_builtin.sea_spring`, and ST (solved or searched) inside its range (issue 22):
+    ``design_space.ST``, judged on the exported ST (the 3D correction's, see :data:`FIGURES`)."""
+    space = design_space(study)
+    i = variables(study).index("ST")
+    lo, hi = float(space.lower[i]), float(space.upper[i])
+    return [
+        *_builtin.sea_spring(study),
+        Range("ST_mm", "plate thickness ST in its range", "constraint", lo, hi),
+    ]
+
+
+#: The figures of a quantity by model (pipeline.verdict): ST as exported is the 3D correction's
+#: where the run made one. The 3D stiffness and peak have rows of their own
+#: (:func:`_builtin.sea_spring`), so the 2D rows keep the plane-stress figures.
+FIGURES = {
+    "ST_mm": (
+        Figure("ST_mm", "plane-stress fit", PLANE_STRESS),
+        Figure("ST_3d_mm", "3D correction", SOLID_3D),
+    ),
+}
+
+
 def problem(study: SeaSpringStudy) -> SeaSpringProblem:
     """The design problem ``flexopt run`` optimises (stage 1 runs here)."""
     return SeaSpringProblem(study)
@@ -1844,7 +1868,8 @@ register(
         check,  # type: ignore[arg-type]
         evaluate,  # type: ignore[arg-type]
         problem,  # type: ignore[arg-type],
-        requirements=_builtin.sea_spring,
+        requirements=requirements,
         quantities=_builtin.SEA_SPRING,
+        figures=FIGURES,
     )
 )

@@ -463,6 +463,8 @@ class ThresholdSpringProblem:
         )
         metrics = {
             "ST_mm": st,
+            # the thinnest printed size: the narrowest arm section or the plate itself
+            "min_feature_mm": min(m["thinnest_mm"] + self.frame.min_feature_mm, st),
             self.error_name: err,
             "peak_stress_MPa": peak,
             "torque_at_range_Nm": float(r.torque_Nmm[-1]) * 1e-3,
@@ -860,7 +862,7 @@ def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
     curve = study.target.to_curve() if study.target.kind != "table" else None
     measure = getattr(study, "measure", None) or getattr(study.target, "measure", "rms")
     name = measure_key(measure, curve) if curve is not None else f"{measure}_error"
-    return {
+    out = {
         q: (
             FigureOf(q, "beam", BEAM),
             FigureOf(f"plane_stress_{q}", "plane stress", PLANE_STRESS),
@@ -868,6 +870,12 @@ def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
         )
         for q in (name, "peak_stress_MPa")
     }
+    # ST as exported: the 3D check's corrected ST where it made one (the STL's thickness)
+    out["ST_mm"] = (
+        FigureOf("ST_mm", "beam fit", BEAM),
+        FigureOf("ST_after_mm", "3D correction", SOLID_3D),
+    )
+    return out
 
 
 def solid_3d_scalars(s3: dict[str, Any], error_name: str) -> dict[str, Any]:
@@ -1048,7 +1056,7 @@ def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
             f["points_mm"], f["triangles"], f["values"], f["label"], f.get("limit"), study.name
         )
     summary = _summary(prob, d)
-    for key in (prob.error_name, "peak_stress_MPa"):  # the names flexopt run judges too
+    for key in (prob.error_name, "peak_stress_MPa", "min_feature_mm"):  # as flexopt run
         summary.setdefault(key, ev.metrics.get(key))
     ps = d.info.get("plane_stress", {})
     return EvaluationResult(

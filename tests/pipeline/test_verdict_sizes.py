@@ -112,3 +112,43 @@ def test_envelope_of_another_kind_from_flexopt_evaluate():
     tight = RequirementSpec(envelope_mm=[w + 1, h - 1]).to_requirement()
     v_fit, v_tight = judge(study, result.summary, result.table, [fits, tight])
     assert v_fit.met and not v_tight.met and v_tight.margin == pytest.approx(-1.0)
+
+
+# ---- solved plate thicknesses of the springs
+
+
+@pytest.mark.parametrize(("torque_Nm", "detail"), [(1e-4, "below the range"), (1e4, "above it")])
+def test_threshold_spring_solved_st_outside_its_range_is_not_met(torque_Nm, detail):
+    from flexopt.pipeline.studies import threshold_spring as ts
+
+    base = load_study("threshold-spring").with_values({"solid_3d.check": False})
+    study = base.with_values({"target.max_torque_Nm": torque_Nm})
+    prob = ts.problem(study)
+    x = prob.space.clip(ts.design_vector(study))
+    ev, nominal = prob.evaluate(x), ts.problem(base).evaluate(x)
+    # torque is linear in ST (plane stress): ST scales with the target torque
+    assert ev.metrics["ST_mm"] == pytest.approx(nominal.metrics["ST_mm"] * torque_Nm / 1.5)
+    verdicts = {v.name: v for v in judge(study, ev.metrics)}
+    st = verdicts["plate thickness ST in thickness_range_mm"]
+    assert not st.met and st.value == ev.metrics["ST_mm"] and st.bound == "in [2, 20] mm"
+    assert st.detail == detail
+    feature = verdicts["printable feature"]
+    assert feature.met == (torque_Nm > 1)  # a 0.9 µm plate is thinner than 0.5 mm
+    assert verdicts["target curve error"].met  # the curve's shape alone would say MET
+    nominal_verdicts = {v.name: v for v in judge(base, nominal.metrics)}
+    assert nominal_verdicts["plate thickness ST in thickness_range_mm"].met
+
+
+def test_sea_spring_st_range_is_judged_on_the_exported_st():
+    from flexopt.pipeline.verdict import study_requirements
+
+    study = load_study("sea-spring")
+    req = [r for r in study_requirements(study) if r.quantity == "ST_mm"]
+    assert [r.label for r in req] == ["plate thickness ST in its range"]
+    lo, hi = req[0].minimum, req[0].maximum
+    (ok,) = judge(study, {"ST_mm": 0.5 * (lo + hi)}, None, req)
+    (thin,) = judge(study, {"ST_mm": 1e-3}, None, req)
+    assert ok.met and not thin.met and thin.value == 1e-3
+    # the 3D correction's ST is the part made: judged on it, the plane-stress fit beside it
+    (made,) = judge(study, {"ST_mm": 0.5 * (lo + hi), "ST_3d_mm": hi + 1.0}, None, req)
+    assert not made.met and made.value == hi + 1.0 and made.model == "3D correction"
