@@ -66,6 +66,7 @@ from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, model_validator
 from scipy.optimize import brentq
 
@@ -790,6 +791,8 @@ def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
     for key in ("stiffness_Nmm_per_rad", "centre_shift_mm", "envelope_length_mm",
                 "envelope_height_mm"):  # fmt: skip
         summary.setdefault(key, ev.metrics.get(key))  # the names flexopt run judges too
+    # the part as exported (its planar outline extruded), as flexopt run measures it
+    summary.update(envelope_values(detail.outline, detail.height_mm))
     ps = detail.info.get("plane_stress")
     if isinstance(ps, dict) and "linear_stiffness_Nmm_per_rad" in ps:
         summary["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]

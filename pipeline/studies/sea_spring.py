@@ -95,6 +95,7 @@ from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, regi
 from flexopt.pipeline.studies._blocks import MeshSpec, Solid3DSpec
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, model_validator
 
 __all__ = [
@@ -1831,6 +1832,9 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
     if study.solid_3d.check:
         diagnostics["solid_3d"] = prob.solid_3d(geom, r)
         summary.update(solid_3d_scalars(diagnostics["solid_3d"]))
+    # the part as exported: the outline extruded by ST (the 3D-corrected one where made)
+    depth = diagnostics.get("solid_3d", {}).get("ST_after_mm", st)
+    summary.update(envelope_values(geom.outline, depth))
     return EvaluationResult(
         table=table,
         summary=summary,

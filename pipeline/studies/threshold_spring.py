@@ -83,6 +83,7 @@ from flexopt.pipeline.studies._blocks import CurveSolid3DSpec, ImpactSpec
 from flexopt.pipeline.studies._blocks import MeshSpec as PlaneStressMesh
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.pipeline.verdict import envelope_values
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from pydantic import BaseModel, Field, field_validator, model_validator
@@ -1056,6 +1057,7 @@ def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
             f["points_mm"], f["triangles"], f["values"], f["label"], f.get("limit"), study.name
         )
     summary = _summary(prob, d)
+    summary.update(envelope_values(d.outline, d.height_mm))  # the part as exported
     for key in (prob.error_name, "peak_stress_MPa", "min_feature_mm"):  # as flexopt run
         summary.setdefault(key, ev.metrics.get(key))
     ps = d.info.get("plane_stress", {})

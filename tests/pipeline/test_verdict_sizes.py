@@ -152,3 +152,20 @@ def test_sea_spring_st_range_is_judged_on_the_exported_st():
     # the 3D correction's ST is the part made: judged on it, the plane-stress fit beside it
     (made,) = judge(study, {"ST_mm": 0.5 * (lo + hi), "ST_3d_mm": hi + 1.0}, None, req)
     assert not made.met and made.value == hi + 1.0 and made.model == "3D correction"
+
+
+def test_envelope_of_a_cam_plate_from_flexopt_evaluate():
+    import flexopt.pipeline.studies.cam as cam
+
+    study = load_study("threshold-cam")
+    result = cam.evaluate(study)
+    *_, profile, _ = cam.build_cam(study)
+    x0, y0, x1, y1 = cam.cam_outline(profile).bounds
+    s = result.summary
+    assert (s["envelope_width_mm"], s["envelope_height_mm"]) == pytest.approx((x1 - x0, y1 - y0))
+    assert s["envelope_depth_mm"] == study.geometry.thickness_mm
+    from flexopt.optimise.requirements import RequirementSpec
+
+    reqs = [RequirementSpec(envelope_mm=[x1 - x0 + 1, y1 - y0 - 1]).to_requirement()]
+    (v,) = judge(study, s, result.table, reqs)
+    assert not v.met and v.margin == pytest.approx(-1.0)
