@@ -707,16 +707,23 @@ class TargetBand(Requirement):
 
 
 def curves_from_table(
-    table: Mapping[str, Any], requirements: Iterable[Requirement]
+    table: Mapping[str, Any],
+    requirements: Iterable[Requirement],
+    figures: Mapping[str, Sequence[Figure]] | None = None,
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """``{quantity: (x, y)}`` for every :class:`TargetBand` whose columns are in ``table``."""
+    """``{quantity: (x, y)}`` for every :class:`TargetBand` whose columns are in ``table``, and
+    for every other figure of its quantity (``figures``, see :func:`judge_best`) in it."""
     curves = {}
     for req in requirements:
-        if isinstance(req, TargetBand) and req.quantity in table and req.x in table:
-            curves[req.quantity] = (
-                np.asarray(table[req.x], dtype=float),
-                np.asarray(table[req.quantity], dtype=float),
-            )
+        if not isinstance(req, TargetBand) or req.x not in table:
+            continue
+        names = [req.quantity, *(f.quantity for f in (figures or {}).get(req.quantity, ()))]
+        for name in names:
+            if name in table:
+                curves[name] = (
+                    np.asarray(table[req.x], dtype=float),
+                    np.asarray(table[name], dtype=float),
+                )
     return curves
 
 
@@ -770,9 +777,11 @@ def judge_best(
         the judged one, ``figures`` lists them all (best first) and ``detail`` says which model
         gave which value.
     """
-    if requirement.needs_curve or not figures:
+    if not figures:
         return requirement.check(metrics, curves)
     skip = set(taken) - {requirement.quantity}
+    if requirement.needs_curve:
+        return _judge_best_curve(requirement, metrics, curves or {}, figures, skip)
     have = [
         (f, metrics[f.quantity])
         for f in figures
@@ -795,6 +804,37 @@ def judge_best(
         v,
         model=best.model,
         figures=tuple((f.model, f.quantity, float(x)) for f, x in have),
+        detail=note + (f"; {v.detail}" if v.detail else ""),
+    )
+
+
+def _judge_best_curve(
+    requirement: Requirement,
+    metrics: Mapping[str, Any],
+    curves: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    figures: Sequence[Figure],
+    skip: set[str],
+) -> Verdict:
+    """:func:`judge_best` of a curve requirement: ``curves`` holds each figure's curve under
+    its own name; the best is judged, each other figure's worst deviation shown beside it."""
+    have = [f for f in figures if f.quantity not in skip and f.quantity in curves]
+    if not have or (len(have) == 1 and have[0].quantity == requirement.quantity):
+        return requirement.check(metrics, curves)
+    have.sort(key=lambda f: -f.rank)
+    judged = [
+        requirement.check(metrics, {**curves, requirement.quantity: curves[f.quantity]})
+        for f in have
+    ]
+    v = judged[0]
+    pairs = list(zip(have, judged, strict=True))
+    others = ", ".join(f"{f.model} {_num(o.value, o.unit)}" for f, o in pairs[1:])
+    note = f"judged on {have[0].model}: {_num(v.value, v.unit)}" + (
+        f" ({others})" if others else ""
+    )
+    return replace(
+        v,
+        model=have[0].model,
+        figures=tuple((f.model, f.quantity, float(o.value)) for f, o in pairs),
         detail=note + (f"; {v.detail}" if v.detail else ""),
     )
 

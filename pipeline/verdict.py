@@ -241,8 +241,8 @@ def judge(
             elif arr.dtype.kind in "fiu" and arr.size:
                 finite = np.abs(arr[np.isfinite(arr)])
                 scalars[name] = float(np.max(finite)) if finite.size else None
-    curves = curves_from_table(table or {}, reqs)
     ladders = figures_of(study)
+    curves = curves_from_table(table or {}, reqs, ladders)
     taken = {r.quantity for r in reqs}
     return tuple(
         judge_best(req, scalars, curves, ladders.get(req.quantity, ()), taken) for req in reqs

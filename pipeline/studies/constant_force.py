@@ -699,6 +699,9 @@ class ConstantForceProblem:
         if study.fidelity.enabled:
             info["fidelity"] = _guarded(fidelity_check, self, design, response, lo, hi)
             info.update(fidelity_figures(info["fidelity"]))
+            column = plane_stress_force_column(table, info["fidelity"])
+            if column is not None:
+                table["plane_stress_force_N"] = column
         else:
             info["fidelity"] = {"skipped": "fidelity.enabled is false"}
         if study.prb is not None:
@@ -886,12 +889,31 @@ def fidelity_figures(check: dict[str, Any]) -> dict[str, Any]:
     return {"plane_stress_peak_stress_MPa": float(max(stress))}
 
 
-#: The figures of a quantity by model (pipeline.verdict): the peak stress a requirement bounds
-#: is judged on the plane-stress check's where the run made one.
+def plane_stress_force_column(
+    table: dict[str, np.ndarray], check: dict[str, Any]
+) -> np.ndarray | None:
+    """(rows,) N: the beam's force curve times the plane-stress / beam force ratio the
+    :func:`fidelity_check` measured at its strokes, interpolated along the stroke and held at
+    its end values beyond them (as the springs' 3D curves scale the plane-stress curve by a
+    measured ratio); None unless every checked stroke converged."""
+    strokes = check.get("stroke_mm")
+    if not strokes or not all(check.get("converged") or [False]):
+        return None
+    ratio = 1.0 + np.asarray(check["relative_difference"], dtype=float)
+    along = np.interp(table["displacement_mm"], np.asarray(strokes, dtype=float), ratio)
+    return np.asarray(table["force_N"], dtype=float) * along
+
+
+#: The figures of a quantity by model (pipeline.verdict): the peak stress and the force band
+#: are judged on the plane-stress check's figures where the run made one.
 FIGURES = {
     "peak_stress_MPa": (
         Figure("peak_stress_MPa", "beam", BEAM),
         Figure("plane_stress_peak_stress_MPa", "plane stress", PLANE_STRESS),
+    ),
+    "force_N": (
+        Figure("force_N", "beam", BEAM),
+        Figure("plane_stress_force_N", "plane stress", PLANE_STRESS),
     ),
 }
 
@@ -1035,6 +1057,9 @@ def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
         check = _guarded(fidelity_check, prob, design, response, lo, hi)
         diagnostics["fidelity"] = check
         summary.update(fidelity_figures(check))
+        column = plane_stress_force_column(table, check)
+        if column is not None:
+            table["plane_stress_force_N"] = column
     profile = beam_profile(design, end_flexures=study.geometry.end_flexures)
     return EvaluationResult(
         table=table,

@@ -55,6 +55,33 @@ def test_the_highest_figure_the_design_has_is_judged_and_the_others_shown():
     assert judge_best(req, nan, None, LADDER).model == "plane stress"
 
 
+def test_a_curve_requirement_is_judged_on_the_best_curve():
+    from flexopt.optimise.requirements import TargetBand, curves_from_table
+    from flexopt.optimise.targets import ConstantTarget
+
+    band = TargetBand(
+        "force_N", "force band", "check", x="displacement_mm",
+        target=ConstantTarget("force", 1.5), over=(1.0, 3.0), tolerance_rel=0.02,
+    )  # fmt: skip
+    table = {
+        "displacement_mm": np.array([0.0, 1.0, 2.0, 3.0]),
+        "force_N": np.array([0.0, 1.50, 1.51, 1.52]),  # within ±0.03 N
+        "plane_stress_force_N": np.array([0.0, 1.49, 1.50, 1.46]),  # 0.04 N below at 3 mm
+    }
+    ladder = {
+        "force_N": (
+            Figure("force_N", "beam", BEAM),
+            Figure("plane_stress_force_N", "plane stress", PLANE_STRESS),
+        )
+    }
+    curves = curves_from_table(table, [band], ladder)
+    assert band.check({}, curves).met  # the beam curve alone
+    v = judge_best(band, {}, curves, ladder["force_N"])
+    assert not v.met and v.model == "plane stress" and v.value == pytest.approx(0.04)
+    assert v.figures[1] == ("beam", "force_N", pytest.approx(0.02))
+    assert "at 3 mm the response is 1.46 N" in v.detail
+
+
 def test_one_figure_is_judged_as_before_and_a_taken_figure_is_not_borrowed():
     req = MaxValue("peak_stress_MPa", "peak stress", "check", 42.5)
     only = judge_best(req, {"peak_stress_MPa": 42.24}, None, LADDER)
@@ -100,6 +127,18 @@ def test_constant_force_stress_requirement_is_the_plane_stress_figure():
     # this design meets 42.5 MPa in the beam model only: the part as made does not
     assert beam_peak <= 42.5 < plane and not v.met
     assert "plane_stress_peak_stress_MPa" in quantities_of(study)
+    # the force band on the plane-stress curve: the beam's scaled by the measured ratio, which
+    # passes through the plane-stress forces at the checked strokes
+    col = result.table["plane_stress_force_N"]
+    x = result.table["displacement_mm"]
+    for stroke, force in zip(check["stroke_mm"], check["plane_stress_force_N"], strict=True):
+        assert col[int(np.argmin(np.abs(x - stroke)))] == pytest.approx(force, rel=1e-12)
+    band = verdicts["force band"]
+    inside = x >= x[1] - 1e-12
+    assert band.model == "plane stress"
+    assert band.value == pytest.approx(float(np.max(np.abs(col[inside] - 1.5))), rel=1e-9)
+    beam_dev = float(np.max(np.abs(result.table["force_N"][inside] - 1.5)))
+    assert ("beam", "force_N", pytest.approx(beam_dev, rel=1e-9)) in band.figures
 
 
 def test_constant_force_without_the_check_is_judged_on_the_beam():
