@@ -87,7 +87,14 @@ from flexopt.geometry.sea_spring import (
 )
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
-from flexopt.optimise.requirements import PLANE_STRESS, SOLID_3D, Figure, Range, Requirement
+from flexopt.optimise.requirements import (
+    PLANE_STRESS,
+    SOLID_3D,
+    Figure,
+    MinFeature,
+    Range,
+    Requirement,
+)
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
@@ -1158,8 +1165,12 @@ class SeaSpringProblem:
             )
         if self.min_gap is not None:
             g = np.append(g, self.min_gap - deformed_gap)
+        # the thinnest printed size: the thinnest member (its margin + the limit) or the plate
+        i_thin = self.geometry_constraints.index("thinnest_mm")
+        thinnest = float(-g_geo[i_thin]) + self.frame.min_feature_mm
         metrics = {
             "ST_mm": st,
+            "min_feature_mm": min(thinnest, st),
             "stiffness_Nm_per_rad": r.mean_stiffness_Nm_per_rad,
             "stiffness_ccw_Nm_per_rad": r.stiffness_Nm_per_rad,
             "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
@@ -1766,15 +1777,18 @@ def stress_map_png(stress_map: dict[str, Any], allowable_MPa: float | None = Non
 
 
 def requirements(study: SeaSpringStudy) -> list[Requirement]:
-    """:func:`_builtin.sea_spring`, and ST (solved or searched) inside its range (issue 22):
-    ``design_space.ST``, judged on the exported ST (the 3D correction's, see :data:`FIGURES`)."""
+    """:func:`_builtin.sea_spring`, ST (solved or searched) inside its range (issue 22):
+    ``design_space.ST``, judged on the exported ST (the 3D correction's, see :data:`FIGURES`),
+    and the thinnest printed size (member or plate) at least ``geometry.min_feature_mm``."""
     space = design_space(study)
     i = variables(study).index("ST")
     lo, hi = float(space.lower[i]), float(space.upper[i])
     return [
         *_builtin.sea_spring(study),
         Range("ST_mm", "plate thickness ST in its range", "constraint", lo, hi),
-    ]
+        MinFeature("min_feature_mm", "printable feature", "constraint",
+                   study.geometry.min_feature_mm),
+    ]  # fmt: skip
 
 
 #: The figures of a quantity by model (pipeline.verdict): ST as exported is the 3D correction's
@@ -1800,16 +1814,16 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
     if prob.solve_st:  # ST follows from the target (the design's ST is ignored)
         x = np.delete(x, prob.names.index("ST"))
     times = []
-    r = geom = None
+    r = geom = p = None
     st = math.nan
     for _ in range(max(1, repeat)):
         t0 = time.perf_counter()
         try:
-            _, geom, r, st = prob.solve(x, study.mesh.curve_steps, keep_model=True)
+            p, geom, r, st = prob.solve(x, study.mesh.curve_steps, keep_model=True)
         except (GeometryError, FeaError) as exc:
             raise StudyError("design", str(exc)) from exc
         times.append(time.perf_counter() - t0)
-    assert r is not None and geom is not None
+    assert r is not None and geom is not None and p is not None
     table = _curve_table(r)
     summary = {
         "ST_mm": st,
@@ -1824,6 +1838,10 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
         "stress_allowable_ratio": r.worst_peak_stress_MPa / study.target.allowable_stress_MPa,
         "mass_g": geom.mass_kg(prob.material.density_kg_m3) * 1e3,
         "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
+        # the thinnest printed size: the thinnest member or the plate (as flexopt run's metric)
+        "min_feature_mm": min(
+            margins(p, prob.frame)["thinnest_mm"] + prob.frame.min_feature_mm, st
+        ),
     }
     if r.slot_gaps_mm:
         summary["slot_mm"] = r.slot_gaps_mm["undeformed"]

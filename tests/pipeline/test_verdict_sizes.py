@@ -152,6 +152,13 @@ def test_sea_spring_st_range_is_judged_on_the_exported_st():
     # the 3D correction's ST is the part made: judged on it, the plane-stress fit beside it
     (made,) = judge(study, {"ST_mm": 0.5 * (lo + hi), "ST_3d_mm": hi + 1.0}, None, req)
     assert not made.met and made.value == hi + 1.0 and made.model == "3D correction"
+    # the thinnest printed size (member or plate) is a built-in requirement too
+    (feature,) = [r for r in study_requirements(study) if r.quantity == "min_feature_mm"]
+    (thin,) = judge(study, {"min_feature_mm": 0.3}, None, [feature])
+    assert (
+        not thin.met
+        and thin.bound == f">= {study.geometry.min_feature_mm:g} mm (printable feature)"
+    )
 
 
 def test_envelope_of_a_cam_plate_from_flexopt_evaluate():
