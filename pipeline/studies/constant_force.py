@@ -871,7 +871,7 @@ def fidelity_check(
         WORK_DIRECTION,
         response,
         rows,
-        hi,
+        max(hi, float(stroke_rows[rows].max())),
         spec.max_edge_mm,
     )
     if "skipped" not in result:
