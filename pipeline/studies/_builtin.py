@@ -15,7 +15,10 @@ import math
 from typing import Any
 
 from flexopt.optimise.requirements import (
+    BEAM,
+    PLANE_STRESS,
     AllowableStress,
+    Figure,
     Flag,
     MaxValue,
     MinFeature,
@@ -84,6 +87,20 @@ def constant_force(study: Any) -> list[Requirement]:
     ]  # fmt: skip
     return reqs
 
+
+#: The figures of a quantity by model (pipeline.verdict): the peak stress and the force band
+#: are judged on the plane-stress check's figures where the run made one (constant_force's
+#: fidelity check; the gripper runs the same study).
+CONSTANT_FORCE_FIGURES = {
+    "peak_stress_MPa": (
+        Figure("peak_stress_MPa", "beam", BEAM),
+        Figure("plane_stress_peak_stress_MPa", "plane stress", PLANE_STRESS),
+    ),
+    "force_N": (
+        Figure("force_N", "beam", BEAM),
+        Figure("plane_stress_force_N", "plane stress", PLANE_STRESS),
+    ),
+}
 
 CONSTANT_FORCE = (
     "mean_force_N", "flatness_percent", "operative_stroke_mm", "operative_start_mm",

@@ -60,7 +60,6 @@ from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.curve_metrics import CurveMetrics, curve_metrics
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail
-from flexopt.optimise.requirements import BEAM, PLANE_STRESS, Figure
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
@@ -906,16 +905,7 @@ def plane_stress_force_column(
 
 #: The figures of a quantity by model (pipeline.verdict): the peak stress and the force band
 #: are judged on the plane-stress check's figures where the run made one.
-FIGURES = {
-    "peak_stress_MPa": (
-        Figure("peak_stress_MPa", "beam", BEAM),
-        Figure("plane_stress_peak_stress_MPa", "plane stress", PLANE_STRESS),
-    ),
-    "force_N": (
-        Figure("force_N", "beam", BEAM),
-        Figure("plane_stress_force_N", "plane stress", PLANE_STRESS),
-    ),
-}
+FIGURES = _builtin.CONSTANT_FORCE_FIGURES
 
 
 def prb_report(
