@@ -11,8 +11,8 @@ A kind states two things in its :class:`~pipeline.studies.StudyKind`:
     quantity by model and fidelity rank (:class:`~optimise.requirements.Figure`: the beam's
     peak stress, the plane-stress check's, the 3D solid's). Every requirement on the quantity
     is judged on the highest-ranked figure the design has, the others shown beside it
-    (:func:`~optimise.requirements.judge_best`); a figure another requirement judges directly
-    is not borrowed.
+    (:func:`~optimise.requirements.judge_best`); a figure a built-in requirement judges on its
+    own row (the springs' 3D rows) is not borrowed by another.
 ``quantities``
     The names a requirement may judge (summary and metrics keys, response-table columns), or a
     callable ``(study) -> iterable of str``. An unknown name in ``requirements:`` is refused at
@@ -243,7 +243,9 @@ def judge(
                 scalars[name] = float(np.max(finite)) if finite.size else None
     ladders = figures_of(study)
     curves = curves_from_table(table or {}, reqs, ladders)
-    taken = {r.quantity for r in reqs}
+    # a figure a built-in row judges on its own (a spring's 3D rows) is not borrowed by another
+    # row; a user's row naming a figure directly takes nothing from the built-in ones
+    taken = {r.quantity for r in builtin_requirements(study)}
     return tuple(
         judge_best(req, scalars, curves, ladders.get(req.quantity, ()), taken) for req in reqs
     )

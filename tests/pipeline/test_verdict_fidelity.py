@@ -19,7 +19,7 @@ from flexopt.optimise.requirements import (
     verdict_lines,
 )
 from flexopt.pipeline.study import load_study
-from flexopt.pipeline.verdict import judge, quantities_of
+from flexopt.pipeline.verdict import builtin_requirements, judge, quantities_of
 
 LADDER = (
     Figure("peak_stress_MPa", "beam", BEAM),
@@ -150,3 +150,15 @@ def test_constant_force_without_the_check_is_judged_on_the_beam():
     v = {v.name: v for v in judge(study, result.summary, result.table)}["peak stress"]
     beam_peak = float(np.max(result.table["peak_stress_MPa"]))
     assert v.model == "" and v.value == pytest.approx(beam_peak)
+
+
+def test_a_user_row_on_a_figure_takes_nothing_from_the_built_in_row():
+    from flexopt.optimise.requirements import RequirementSpec
+
+    study = load_study("constant-force")
+    values = {"peak_stress_MPa": 40.0, "plane_stress_peak_stress_MPa": 43.0}
+    mine = RequirementSpec(quantity="plane_stress_peak_stress_MPa", max=45.0).to_requirement()
+    builtin = [r for r in builtin_requirements(study) if r.quantity == "peak_stress_MPa"]
+    v_builtin, v_mine = judge(study, values, None, [*builtin, mine])
+    assert v_builtin.model == "plane stress" and not v_builtin.met  # 43 > 42.5
+    assert v_mine.met and v_mine.value == 43.0
