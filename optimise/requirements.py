@@ -126,6 +126,10 @@ def _num(value: float, unit: str = "") -> str:
     return f"{text} {unit}" if unit else text
 
 
+def _nan_if_none(value: Any) -> float:
+    return math.nan if value is None else float(value)
+
+
 def _value_of(metrics: Mapping[str, Any], quantity: str) -> float | None:
     value = metrics.get(quantity)
     if value is None or isinstance(value, str):
@@ -180,6 +184,16 @@ class Verdict:
     detail: str = ""
     model: str = ""
     figures: tuple[tuple[str, str, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        # a verdict read back from JSON carries its figures as {model, quantity, value} records
+        figures = tuple(
+            (str(f["model"]), str(f["quantity"]), _nan_if_none(f.get("value")))
+            if isinstance(f, Mapping)
+            else (str(f[0]), str(f[1]), _nan_if_none(f[2]))
+            for f in (self.figures or ())
+        )
+        object.__setattr__(self, "figures", figures)
 
     @property
     def word(self) -> str:

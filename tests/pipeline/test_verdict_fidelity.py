@@ -162,3 +162,14 @@ def test_a_user_row_on_a_figure_takes_nothing_from_the_built_in_row():
     v_builtin, v_mine = judge(study, values, None, [*builtin, mine])
     assert v_builtin.model == "plane stress" and not v_builtin.met  # 43 > 42.5
     assert v_mine.met and v_mine.value == 43.0
+
+
+def test_a_verdict_with_figures_reads_back_from_its_record():
+    from flexopt.optimise.requirements import Verdict
+
+    req = AllowableStress("peak_stress_MPa", "peak stress", "constraint", 42.5)
+    v = judge_best(req, {"peak_stress_MPa": 40.0, "plane_stress_peak_stress_MPa": 41.0}, None,
+                   LADDER)  # fmt: skip
+    record = {k: x for k, x in to_records([v])[0].items() if k != "verdict"}
+    again = Verdict(**record)
+    assert again == v and to_records([again]) == to_records([v])
