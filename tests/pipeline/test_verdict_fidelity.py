@@ -141,6 +141,21 @@ def test_constant_force_stress_requirement_is_the_plane_stress_figure():
     assert ("beam", "force_N", pytest.approx(beam_dev, rel=1e-9)) in band.figures
 
 
+def test_constant_force_run_judges_its_best_design_on_the_plane_stress_figure():
+    # flexopt run's path: the best design's detail (its plane-stress check in info), judged
+    import flexopt.pipeline.studies.constant_force as cf
+    from flexopt.pipeline.verdict import judge_detail
+
+    study = _cf_study()
+    prob = cf.problem(study)
+    detail = prob.detail(cf.design_vector(study))
+    plane = max(detail.info["fidelity"]["plane_stress_peak_nodal_von_mises_MPa"])
+    v = {v.name: v for v in judge_detail(study, detail, detail.evaluation)}["peak stress"]
+    assert v.value == plane == detail.info["plane_stress_peak_stress_MPa"]
+    assert v.model == "plane stress" and not v.met
+    assert detail.evaluation.metrics["peak_stress_MPa"] <= 42.5  # the beam figure alone: MET
+
+
 def test_constant_force_without_the_check_is_judged_on_the_beam():
     import flexopt.pipeline.studies.constant_force as cf
 
