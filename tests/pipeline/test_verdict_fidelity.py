@@ -188,3 +188,35 @@ def test_a_verdict_with_figures_reads_back_from_its_record():
     record = {k: x for k, x in to_records([v])[0].items() if k != "verdict"}
     again = Verdict(**record)
     assert again == v and to_records([again]) == to_records([v])
+
+
+def test_flexure_pivot_is_judged_on_its_plane_stress_check():
+    from flexopt.pipeline.studies import get_kind
+
+    study = load_study("flexure-pivot")
+    result = get_kind("flexure_pivot").evaluate(study, 1)
+    s = result.summary
+    verdicts = {v.name: v for v in judge(study, s, result.table)}
+    k = verdicts["stiffness band"]
+    assert k.model == "plane stress" and k.value == s["plane_stress_stiffness_Nmm_per_rad"]
+    assert ("beam or closed form", "stiffness_Nmm_per_rad", s["stiffness_Nmm_per_rad"]) in k.figures
+    peak = verdicts["peak stress"]
+    assert peak.model == "plane stress" and peak.value == s["plane_stress_peak_stress_MPa"]
+    assert peak.value != s["peak_stress_MPa"]
+
+
+def test_threshold_spring_2d_rows_take_plane_stress_and_leave_3d_to_their_rows():
+    study = load_study("threshold-spring")
+    err = [r.quantity for r in builtin_requirements(study) if r.name == "target curve error"][0]
+    values = {
+        err: 0.01, f"plane_stress_{err}": 0.06, f"{err}_3d": 0.02,
+        "peak_stress_MPa": 38.0, "plane_stress_peak_stress_MPa": 41.0, "peak_stress_3d_MPa": 44.0,
+        "ST_mm": 12.8, "ST_after_mm": 12.5, "min_feature_mm": 0.76, "peak_stress_converged": True,
+    }  # fmt: skip
+    v = {v.name: v for v in judge(study, values)}
+    assert v["target curve error"].model == "plane stress" and not v["target curve error"].met
+    assert v["3D target curve error"].value == 0.02 and v["3D target curve error"].met
+    assert v["peak stress"].value == 41.0 and v["peak stress"].met
+    assert v["3D peak stress ≤ allowable"].value == 44.0 and not v["3D peak stress ≤ allowable"].met
+    st = v["plate thickness ST in thickness_range_mm"]
+    assert st.value == 12.5 and st.model == "3D correction"  # the thickness exported
