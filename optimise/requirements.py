@@ -25,6 +25,11 @@ API (stable; other modules and kinds build on it)
     maps a response quantity (``force_N``) to ``(x, y)``, two (n,) arrays: ``x`` in the unit of
     the requirement's ``x`` column, ``y`` in the quantity's unit; :func:`curves_from_table`
     builds it from a response table.
+:class:`Figure` and :func:`judge_best`
+    A quantity may have several figures, one per model (the beam's peak stress, the
+    plane-stress check's, the 3D solid's): ``judge_best`` judges a requirement on the
+    highest-ranked figure the design has and names the model in the verdict (``model``,
+    ``figures``, ``detail``), the lower-fidelity figures beside it.
 :func:`verdict_lines`, :func:`overall`, :func:`to_records`, :func:`verdict_record`
     Console / Markdown lines, the overall word (MET only when there is at least one requirement
     and every one is met), JSON records.
@@ -40,7 +45,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -51,17 +56,22 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 __all__ = [
     "AllowableStress",
+    "BEAM",
     "Envelope",
+    "Figure",
     "Flag",
     "MaxValue",
     "MinFeature",
     "MinValue",
+    "PLANE_STRESS",
     "Range",
     "Requirement",
     "RequirementSpec",
+    "SOLID_3D",
     "TargetBand",
     "Verdict",
     "curves_from_table",
+    "judge_best",
     "overall",
     "to_records",
     "unit_of",
@@ -117,6 +127,10 @@ def _num(value: float, unit: str = "") -> str:
     return f"{text} {unit}" if unit else text
 
 
+def _nan_if_none(value: Any) -> float:
+    return math.nan if value is None else float(value)
+
+
 def _value_of(metrics: Mapping[str, Any], quantity: str) -> float | None:
     value = metrics.get(quantity)
     if value is None or isinstance(value, str):
@@ -151,7 +165,12 @@ class Verdict:
     met : the requirement is met.
     unit : unit of ``value`` and ``margin`` (``MPa``, ``N``, ``""`` for a ratio).
     role : ``constraint`` (also a constraint of the optimisation) or ``check`` (only judged).
-    detail : one line on where the bound is hit or why the value is missing.
+    detail : one line on where the bound is hit or why the value is missing; for a verdict
+        judged on one of several figures, which model gave the judged one and the others.
+    model : the model whose figure was judged (``plane stress``, ``3D solid``), ``""`` when the
+        quantity has one figure only (see :class:`Figure`).
+    figures : every figure of the quantity the design has, highest fidelity first, as
+        ``(model, metric name, value)`` (value in ``unit``); empty when there is one figure.
     """
 
     name: str
@@ -164,6 +183,18 @@ class Verdict:
     unit: str
     role: Role = "check"
     detail: str = ""
+    model: str = ""
+    figures: tuple[tuple[str, str, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        # a verdict read back from JSON carries its figures as {model, quantity, value} records
+        figures = tuple(
+            (str(f["model"]), str(f["quantity"]), _nan_if_none(f.get("value")))
+            if isinstance(f, Mapping)
+            else (str(f[0]), str(f[1]), _nan_if_none(f[2]))
+            for f in (self.figures or ())
+        )
+        object.__setattr__(self, "figures", figures)
 
     @property
     def word(self) -> str:
@@ -217,7 +248,7 @@ def verdict_lines(verdicts: Sequence[Verdict]) -> list[str]:
     lines = ["  ".join(c.ljust(w) for c, w in zip(header, widths, strict=True)).rstrip()]
     for v, row in zip(verdicts, rows, strict=True):
         lines.append("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
-        if not v.met and v.detail:
+        if v.detail and (not v.met or v.figures):  # which model gave the judged figure
             lines.append(f"    {v.detail}")
     if not verdicts:
         lines.append("(no requirement stated)")
@@ -241,6 +272,9 @@ def to_records(verdicts: Iterable[Verdict]) -> list[dict[str, Any]]:
         record["value"] = _json_float(v.value)
         record["margin"] = _json_float(v.margin)
         record["margin_rel"] = _json_float(v.margin_rel)
+        record["figures"] = [
+            {"model": m, "quantity": q, "value": _json_float(x)} for m, q, x in v.figures
+        ]
         out.append({"verdict": v.word, **record})
     return out
 
@@ -493,10 +527,12 @@ class Flag(Requirement):
 
 @dataclass(frozen=True)
 class Envelope(Requirement):
-    """The bounding box of an outline fits ``max_width_mm x max_height_mm`` (no turning).
+    """The bounding box of the part fits ``max_width_mm x max_height_mm`` (x max_depth_mm, the
+    out-of-plane size, when given), in the design frame (no turning).
 
-    Reads ``width_key`` and ``height_key`` from the metrics (mm). The value is the worse of the
-    two sizes relative to its limit; the margin the smaller of the two spares (mm).
+    Reads ``width_key``, ``height_key`` (and ``depth_key``) from the metrics (mm): the part as
+    exported, measured by the pipeline. The value is the size with the least spare; the margin
+    that spare (mm); the detail the measured box.
     """
 
     quantity: str = "envelope_mm"
@@ -504,10 +540,14 @@ class Envelope(Requirement):
     max_height_mm: float = 0.0
     width_key: str = "envelope_width_mm"
     height_key: str = "envelope_height_mm"
+    max_depth_mm: float | None = None
+    depth_key: str = "envelope_depth_mm"
 
     def __post_init__(self) -> None:
-        for key in ("max_width_mm", "max_height_mm"):
+        for key in ("max_width_mm", "max_height_mm", "max_depth_mm"):
             value = getattr(self, key)
+            if key == "max_depth_mm" and value is None:
+                continue
             if not (math.isfinite(value) and value > 0):
                 raise OptimiseError(f"envelope {key} = {value} must be > 0")
 
@@ -515,21 +555,29 @@ class Envelope(Requirement):
     def unit(self) -> str:
         return "mm"
 
+    def _limits(self) -> list[tuple[str, float]]:
+        out = [(self.width_key, self.max_width_mm), (self.height_key, self.max_height_mm)]
+        if self.max_depth_mm is not None:
+            out.append((self.depth_key, self.max_depth_mm))
+        return out
+
     def scale(self) -> float:
-        return min(self.max_width_mm, self.max_height_mm)
+        return min(limit for _, limit in self._limits())
 
     def bound_text(self) -> str:
-        return f"within {self.max_width_mm:.4g} × {self.max_height_mm:.4g} mm"
+        return "within " + " × ".join(f"{limit:.4g}" for _, limit in self._limits()) + " mm"
 
     def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
-        w, h = _value_of(metrics, self.width_key), _value_of(metrics, self.height_key)
-        if w is None or h is None:
-            return self._missing(self.bound_text(), "the design has no outline to measure")
-        spare_w, spare_h = self.max_width_mm - w, self.max_height_mm - h
-        value = w if spare_w <= spare_h else h
-        return self._verdict(
-            value, self.bound_text(), min(spare_w, spare_h), f"{w:.4g} × {h:.4g} mm"
-        )
+        sizes = [(_value_of(metrics, key), limit) for key, limit in self._limits()]
+        if any(size is None for size, _ in sizes):
+            missing = "the design has no outline to measure"
+            if sizes[0][0] is not None and sizes[1][0] is not None:
+                missing = "the design has no out-of-plane depth to measure"
+            return self._missing(self.bound_text(), missing)
+        spares = [limit - size for size, limit in sizes]  # type: ignore[operator]
+        k = int(np.argmin(spares))
+        box = " × ".join(f"{size:.4g}" for size, _ in sizes) + " mm"
+        return self._verdict(sizes[k][0], self.bound_text(), spares[k], box)  # type: ignore[arg-type]
 
 
 def _unit_factor(name: str) -> float:
@@ -674,17 +722,136 @@ class TargetBand(Requirement):
 
 
 def curves_from_table(
-    table: Mapping[str, Any], requirements: Iterable[Requirement]
+    table: Mapping[str, Any],
+    requirements: Iterable[Requirement],
+    figures: Mapping[str, Sequence[Figure]] | None = None,
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """``{quantity: (x, y)}`` for every :class:`TargetBand` whose columns are in ``table``."""
+    """``{quantity: (x, y)}`` for every :class:`TargetBand` whose columns are in ``table``, and
+    for every other figure of its quantity (``figures``, see :func:`judge_best`) in it."""
     curves = {}
     for req in requirements:
-        if isinstance(req, TargetBand) and req.quantity in table and req.x in table:
-            curves[req.quantity] = (
-                np.asarray(table[req.x], dtype=float),
-                np.asarray(table[req.quantity], dtype=float),
-            )
+        if not isinstance(req, TargetBand) or req.x not in table:
+            continue
+        names = [req.quantity, *(f.quantity for f in (figures or {}).get(req.quantity, ()))]
+        for name in names:
+            if name in table:
+                curves[name] = (
+                    np.asarray(table[req.x], dtype=float),
+                    np.asarray(table[name], dtype=float),
+                )
     return curves
+
+
+# --------------------------------------------------------------------------------------------
+# Figures of several fidelities
+
+#: Fidelity ranks of the project's models (higher: judged first).
+BEAM, PLANE_STRESS, SOLID_3D = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One model's figure of a quantity that requirements bound.
+
+    Attributes
+    ----------
+    quantity : the metric holding the figure (``plane_stress_peak_stress_MPa``), in the unit of
+        the quantity it stands for.
+    model : the model that gives it, as the verdict names it (``beam``, ``plane stress``).
+    rank : its fidelity (:data:`BEAM`, :data:`PLANE_STRESS`, :data:`SOLID_3D`); the highest
+        the design has is judged.
+    """
+
+    quantity: str
+    model: str
+    rank: int = BEAM
+
+
+def judge_best(
+    requirement: Requirement,
+    metrics: Mapping[str, Any],
+    curves: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    figures: Sequence[Figure] = (),
+    taken: Iterable[str] = (),
+) -> Verdict:
+    """``requirement`` judged on the highest-fidelity figure of its quantity the design has.
+
+    Parameters
+    ----------
+    requirement : a requirement on a scalar quantity (a curve requirement is judged as is).
+    metrics, curves : as for :meth:`Requirement.check`.
+    figures : the figures of ``requirement.quantity`` (its own one included, e.g. the beam's),
+        in any order; a figure whose metric is missing or not finite is left out.
+    taken : metric names another requirement judges directly (a 3D row of its own): they are
+        not borrowed, so one figure is not judged twice.
+
+    Returns
+    -------
+    Verdict
+        ``requirement.check`` of the best figure; with more than one figure, ``model`` names
+        the judged one, ``figures`` lists them all (best first) and ``detail`` says which model
+        gave which value.
+    """
+    if not figures:
+        return requirement.check(metrics, curves)
+    skip = set(taken) - {requirement.quantity}
+    if requirement.needs_curve:
+        return _judge_best_curve(requirement, metrics, curves or {}, figures, skip)
+    have = [
+        (f, metrics[f.quantity])
+        for f in figures
+        if f.quantity not in skip and _value_of(metrics, f.quantity) is not None
+    ]
+    if not have or (len(have) == 1 and have[0][0].quantity == requirement.quantity):
+        return requirement.check(metrics, curves)
+    have.sort(key=lambda item: -item[0].rank)  # stable: the first listed of a rank wins
+    best, raw = have[0]
+    v = requirement.check({**metrics, requirement.quantity: raw}, curves)
+
+    def text(value: Any) -> str:
+        if isinstance(value, bool) or isinstance(requirement, Flag):
+            return "yes" if value else "no"
+        return _num(float(value), v.unit)
+
+    others = ", ".join(f"{f.model} {text(x)}" for f, x in have[1:])
+    note = f"judged on {best.model}: {text(raw)}" + (f" ({others})" if others else "")
+    return replace(
+        v,
+        model=best.model,
+        figures=tuple((f.model, f.quantity, float(x)) for f, x in have),
+        detail=note + (f"; {v.detail}" if v.detail else ""),
+    )
+
+
+def _judge_best_curve(
+    requirement: Requirement,
+    metrics: Mapping[str, Any],
+    curves: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    figures: Sequence[Figure],
+    skip: set[str],
+) -> Verdict:
+    """:func:`judge_best` of a curve requirement: ``curves`` holds each figure's curve under
+    its own name; the best is judged, each other figure's worst deviation shown beside it."""
+    have = [f for f in figures if f.quantity not in skip and f.quantity in curves]
+    if not have or (len(have) == 1 and have[0].quantity == requirement.quantity):
+        return requirement.check(metrics, curves)
+    have.sort(key=lambda f: -f.rank)
+    judged = [
+        requirement.check(metrics, {**curves, requirement.quantity: curves[f.quantity]})
+        for f in have
+    ]
+    v = judged[0]
+    pairs = list(zip(have, judged, strict=True))
+    others = ", ".join(f"{f.model} {_num(o.value, o.unit)}" for f, o in pairs[1:])
+    note = f"judged on {have[0].model}: {_num(v.value, v.unit)}" + (
+        f" ({others})" if others else ""
+    )
+    return replace(
+        v,
+        model=have[0].model,
+        figures=tuple((f.model, f.quantity, float(o.value)) for f, o in pairs),
+        detail=note + (f"; {v.detail}" if v.detail else ""),
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -732,8 +899,10 @@ class RequirementSpec(BaseModel):
         None, gt=0, description="yield for safety_factor, MPa (default: the material's)"
     )
     equals: bool | None = Field(None, description="a yes/no quantity must be this (stable: true)")
-    envelope_mm: tuple[float, float] | None = Field(
-        None, description="[width, height] the outline's bounding box must fit, mm"
+    envelope_mm: tuple[float, float] | tuple[float, float, float] | None = Field(
+        None,
+        description="[width, height] (or [width, height, depth]) the part's bounding box as "
+        "exported must fit, in the design frame, mm",
     )
     target: TargetSpec | None = Field(
         None, description="target curve of the response (kinds of optimise/targets.py)"
@@ -798,7 +967,9 @@ class RequirementSpec(BaseModel):
             raise ValueError("needs quantity: the metric or response column it judges")
         if kind == "envelope_mm":
             if self.envelope_mm is None or min(self.envelope_mm) <= 0:
-                raise ValueError("envelope_mm must be [width, height], both > 0 mm")
+                raise ValueError(
+                    "envelope_mm must be [width, height] or [width, height, depth], all > 0 mm"
+                )
         if kind == "max/min" and self.min is not None and self.max is not None:
             if self.min > self.max:
                 raise ValueError(f"min = {self.min:g} is above max = {self.max:g}; swap them")
@@ -832,7 +1003,8 @@ class RequirementSpec(BaseModel):
     def judged(self) -> tuple[str, ...]:
         """The names this requirement reads (the quantity, and x for a target)."""
         if self.envelope_mm is not None:
-            return ("envelope_width_mm", "envelope_height_mm")
+            depth = ("envelope_depth_mm",) if len(self.envelope_mm) == 3 else ()
+            return ("envelope_width_mm", "envelope_height_mm", *depth)
         return tuple(n for n in (self.quantity, self.x) if n)
 
     def to_requirement(
@@ -856,8 +1028,11 @@ class RequirementSpec(BaseModel):
         """
         q, name, role = self.quantity or "", self.name or "", self.role
         if self.envelope_mm is not None:
-            w, h = self.envelope_mm
-            return Envelope(name=name, role=role, max_width_mm=w, max_height_mm=h)
+            w, h, *d = self.envelope_mm
+            return Envelope(
+                name=name, role=role, max_width_mm=w, max_height_mm=h,
+                max_depth_mm=d[0] if d else None,
+            )  # fmt: skip
         if self.safety_factor is not None:
             y = self.yield_MPa if self.yield_MPa is not None else yield_MPa
             if y is None:

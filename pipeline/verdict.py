@@ -6,6 +6,13 @@ A kind states two things in its :class:`~pipeline.studies.StudyKind`:
 ``requirements(study) -> sequence of Requirement``
     What its study already constrains or targets (the allowable stress, the force band, the
     stiffness window, stability ...), judged on every evaluation.
+``figures`` (optional)
+    ``{quantity: (Figure, ...)}`` (or a callable ``(study) -> mapping``): the figures of a
+    quantity by model and fidelity rank (:class:`~optimise.requirements.Figure`: the beam's
+    peak stress, the plane-stress check's, the 3D solid's). Every requirement on the quantity
+    is judged on the highest-ranked figure the design has, the others shown beside it
+    (:func:`~optimise.requirements.judge_best`); a figure a built-in requirement judges on its
+    own row (the springs' 3D rows) is not borrowed by another.
 ``quantities``
     The names a requirement may judge (summary and metrics keys, response-table columns), or a
     callable ``(study) -> iterable of str``. An unknown name in ``requirements:`` is refused at
@@ -28,10 +35,12 @@ from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import (
+    Figure,
     Requirement,
     RequirementSpec,
     Verdict,
     curves_from_table,
+    judge_best,
 )
 from flexopt.pipeline.errors import StudyError
 
@@ -44,6 +53,8 @@ __all__ = [
     "builtin_requirements",
     "check_requirement_names",
     "detail_values",
+    "envelope_values",
+    "figures_of",
     "judge",
     "judge_detail",
     "quantities_of",
@@ -51,9 +62,37 @@ __all__ = [
     "user_requirements",
 ]
 
-#: Names every kind offers (measured by the pipeline from the printable outline, when there is
-#: one: the bounding box of the part, mm).
-GENERIC_QUANTITIES = ("envelope_width_mm", "envelope_height_mm")
+#: Names every kind offers (measured by the pipeline on the part as exported, when there is
+#: one: its bounding box in the design frame, mm; depth is the extrusion, out of plane).
+GENERIC_QUANTITIES = ("envelope_width_mm", "envelope_height_mm", "envelope_depth_mm")
+
+
+def envelope_values(outline: Any, depth_mm: float | None = None) -> dict[str, float]:
+    """The bounding box of a part as exported, in the design frame, mm.
+
+    Parameters
+    ----------
+    outline : a shapely geometry (the printable outline), or None.
+    depth_mm : its extrusion (out-of-plane size), mm, or None.
+
+    Returns
+    -------
+    dict
+        ``envelope_width_mm`` (x), ``envelope_height_mm`` (y) and, with a depth,
+        ``envelope_depth_mm``; empty when there is no outline to measure.
+    """
+    out: dict[str, float] = {}
+    try:
+        x0, y0, x1, y1 = outline.bounds
+    except (AttributeError, ValueError, TypeError):
+        return out
+    if not all(map(math.isfinite, (x0, y0, x1, y1))):
+        return out
+    out["envelope_width_mm"] = float(x1 - x0)
+    out["envelope_height_mm"] = float(y1 - y0)
+    if depth_mm is not None and math.isfinite(float(depth_mm)) and float(depth_mm) > 0:
+        out["envelope_depth_mm"] = float(depth_mm)
+    return out
 
 
 def _kind(study: Study) -> Any:
@@ -94,6 +133,14 @@ def user_requirements(study: Study) -> tuple[Requirement, ...]:
     return tuple(out)
 
 
+def figures_of(study: Study) -> dict[str, tuple[Figure, ...]]:
+    """``{quantity: figures}`` the kind of ``study`` reports (empty when it has one model)."""
+    figures = getattr(_kind(study), "figures", None)
+    if callable(figures):
+        figures = figures(study)
+    return {str(q): tuple(f) for q, f in (figures or {}).items()}
+
+
 def study_requirements(study: Study) -> tuple[Requirement, ...]:
     """Built-in requirements of the kind, then the study's own, in that order."""
     return (*builtin_requirements(study), *user_requirements(study))
@@ -106,6 +153,8 @@ def quantities_of(study: Study) -> tuple[str, ...]:
     if callable(names):
         names = names(study)
     found = set(names or ())
+    for ladder in figures_of(study).values():
+        found.update(f.quantity for f in ladder)
     for req in builtin_requirements(study):
         found.add(req.quantity)
         if hasattr(req, "x"):
@@ -192,8 +241,14 @@ def judge(
             elif arr.dtype.kind in "fiu" and arr.size:
                 finite = np.abs(arr[np.isfinite(arr)])
                 scalars[name] = float(np.max(finite)) if finite.size else None
-    curves = curves_from_table(table or {}, reqs)
-    return tuple(req.check(scalars, curves) for req in reqs)
+    ladders = figures_of(study)
+    curves = curves_from_table(table or {}, reqs, ladders)
+    # a figure a built-in row judges on its own (a spring's 3D rows) is not borrowed by another
+    # row; a user's row naming a figure directly takes nothing from the built-in ones
+    taken = {r.quantity for r in builtin_requirements(study)}
+    return tuple(
+        judge_best(req, scalars, curves, ladders.get(req.quantity, ()), taken) for req in reqs
+    )
 
 
 def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[str, Any]:
@@ -202,13 +257,7 @@ def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[s
     values = _scalars(info, evaluation.metrics)
     outline = getattr(detail, "outline", None)
     if outline is not None:
-        try:
-            x0, y0, x1, y1 = outline.bounds
-            if all(map(math.isfinite, (x0, y0, x1, y1))):
-                values["envelope_width_mm"] = float(x1 - x0)
-                values["envelope_height_mm"] = float(y1 - y0)
-        except (AttributeError, ValueError, TypeError):
-            pass
+        values.update(envelope_values(outline, getattr(detail, "height_mm", None)))
     return values
 
 

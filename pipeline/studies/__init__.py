@@ -23,13 +23,13 @@ import importlib.metadata
 import importlib.util
 import pkgutil
 import sys
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from flexopt.optimise.problem import DesignProblem
-from flexopt.optimise.requirements import Requirement, Verdict
+from flexopt.optimise.requirements import Figure, Requirement, Verdict
 from flexopt.pipeline.errors import StudyError
 
 if TYPE_CHECKING:  # annotations only: study.validate_study looks kinds up here at run time
@@ -127,6 +127,10 @@ class StudyKind:
     quantities : tuple of str or callable(study) -> iterable of str, optional
         The names a ``requirements:`` item may judge: summary / metrics keys and response
         columns (units in the names). The built-in requirements' names are always included.
+    figures : mapping or callable(study) -> mapping, optional
+        ``{quantity: (optimise.requirements.Figure, ...)}``: the figures of a quantity by model
+        and fidelity rank; a requirement on it is judged on the best the design has
+        (:mod:`pipeline.verdict`).
     summary : str, optional
         One line: what the kind designs (``flexopt list``). Default: the first line of the
         docstring of the module that defines ``model``, without its ``Study kind ``x``:`` lead.
@@ -140,6 +144,7 @@ class StudyKind:
     requirements: Callable[[Study], Sequence[Requirement]] | None = None
     quantities: tuple[str, ...] | Callable[[Study], Iterable[str]] | None = None
     summary: str = ""
+    figures: Mapping[str, Sequence[Figure]] | Callable[[Study], Mapping] | None = None
 
 
 _KINDS: dict[str, StudyKind] = {}

@@ -15,7 +15,10 @@ import math
 from typing import Any
 
 from flexopt.optimise.requirements import (
+    BEAM,
+    PLANE_STRESS,
     AllowableStress,
+    Figure,
     Flag,
     MaxValue,
     MinFeature,
@@ -84,6 +87,20 @@ def constant_force(study: Any) -> list[Requirement]:
     ]  # fmt: skip
     return reqs
 
+
+#: The figures of a quantity by model (pipeline.verdict): the peak stress and the force band
+#: are judged on the plane-stress check's figures where the run made one (constant_force's
+#: fidelity check; the gripper runs the same study).
+CONSTANT_FORCE_FIGURES = {
+    "peak_stress_MPa": (
+        Figure("peak_stress_MPa", "beam", BEAM),
+        Figure("plane_stress_peak_stress_MPa", "plane stress", PLANE_STRESS),
+    ),
+    "force_N": (
+        Figure("force_N", "beam", BEAM),
+        Figure("plane_stress_force_N", "plane stress", PLANE_STRESS),
+    ),
+}
 
 CONSTANT_FORCE = (
     "mean_force_N", "flatness_percent", "operative_stroke_mm", "operative_start_mm",
@@ -229,10 +246,15 @@ def threshold_spring(study: Any) -> list[Requirement]:
     measure = getattr(study, "measure", None) or getattr(study.target, "measure", "rms")
     name = measure_key(measure, curve) if curve is not None else f"{measure}_error"
     allowable = study.allowable_stress_MPa or 0.9 * study.material.yield_MPa
+    lo, hi = study.geometry.thickness_range_mm
     reqs: list[Requirement] = [
         MaxValue(name, "target curve error", "constraint", study.tolerance),
         AllowableStress("peak_stress_MPa", "peak stress", "constraint", allowable),
-    ]
+        # the sizes the study solves, inside their stated range and printable (issue 22)
+        Range("ST_mm", "plate thickness ST in thickness_range_mm", "constraint", lo, hi),
+        MinFeature("min_feature_mm", "printable feature", "constraint",
+                   study.geometry.min_feature_mm),
+    ]  # fmt: skip
     s3 = getattr(study, "solid_3d", None)
     if s3 is not None and s3.check and getattr(study.fidelity, "enabled", True):
         # the part as made (issue 15): the plane-stress curve times the 3D/2D stiffness ratio,
@@ -252,7 +274,8 @@ THRESHOLD_SPRING = (
     "initial_stiffness_Nm_per_rad", "rotation_deg", "torque_Nm", "target_torque_Nm",
     "stiffness_ratio_3d_2d", "linear_stiffness_3d_Nm_per_rad", "max_normalised_error_3d",
     "rms_normalised_error_3d", "max_relative_error_3d", "rms_relative_error_3d",
-    "peak_stress_3d_MPa", "peak_stress_ratio_3d_2d", "peak_stress_converged",
+    "peak_stress_3d_MPa", "peak_stress_ratio_3d_2d", "peak_stress_converged", "min_feature_mm",
+    "ST_after_mm",
 )  # fmt: skip
 
 

@@ -63,6 +63,7 @@ from flexopt.pipeline.studies._cam import (
     build_cam,
 )
 from flexopt.pipeline.study import material_record
+from flexopt.pipeline.verdict import envelope_values
 
 __all__ = [
     "CamGeometry",
@@ -272,6 +273,8 @@ def evaluate(study: CamStudy, repeat: int = 1) -> EvaluationResult:
         table = _table(study, target, curve, profile)
         times.append(time.perf_counter() - t0)
     summary = _summary(study, target, curve, table, profile)
+    # the plate as exported (its outline extruded by the thickness), as flexopt run measures it
+    summary.update(envelope_values(cam_outline(profile), study.geometry.thickness_mm))
     inputs: dict[str, Any] = {
         "material": material_record(study.material.to_material()),
         "target_curve": repr(target),

@@ -61,10 +61,12 @@ from flexopt.geometry.flexures import (
 )
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.requirements import BEAM, PLANE_STRESS, Figure
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, model_validator
 from scipy.optimize import brentq
 
@@ -584,6 +586,7 @@ class FlexurePivotProblem:
                 notes.append(f"min feature check failed: {exc}")
             if study.fidelity.plane_stress:
                 info["plane_stress"] = _plane_stress_check(self, flex, cf, res)
+                info.update(plane_stress_figures(info["plane_stress"]))
         else:
             notes.append(
                 "cross_axis: the leaves of a cross-axis pivot pass each other in separate layers, "
@@ -692,6 +695,32 @@ def _plane_stress_check(
     return out
 
 
+def plane_stress_figures(ps: dict[str, Any]) -> dict[str, Any]:
+    """The plane-stress figures the verdict judges (:data:`FIGURES`) from a
+    :func:`_plane_stress_check` record: the linear stiffness, and the peak von Mises stress at
+    the range of motion when the nonlinear solve reached it."""
+    out: dict[str, Any] = {}
+    if "linear_stiffness_Nmm_per_rad" in ps:
+        out["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]
+    if ps.get("ok") and "peak_von_mises_at_range_MPa" in ps:
+        out["plane_stress_peak_stress_MPa"] = ps["peak_von_mises_at_range_MPa"]
+    return out
+
+
+#: The figures of a quantity by model (pipeline.verdict): the stiffness band and the allowable
+#: stress are judged on the plane-stress check's figures where the run made one.
+FIGURES = {
+    "stiffness_Nmm_per_rad": (
+        Figure("stiffness_Nmm_per_rad", "beam or closed form", BEAM),
+        Figure("plane_stress_stiffness_Nmm_per_rad", "plane stress", PLANE_STRESS),
+    ),
+    "peak_stress_MPa": (
+        Figure("peak_stress_MPa", "beam or closed form", BEAM),
+        Figure("plane_stress_peak_stress_MPa", "plane stress", PLANE_STRESS),
+    ),
+}
+
+
 # --------------------------------------------------------------------------------------------
 # Registry hooks
 
@@ -762,10 +791,13 @@ def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
     for key in ("stiffness_Nmm_per_rad", "centre_shift_mm", "envelope_length_mm",
                 "envelope_height_mm"):  # fmt: skip
         summary.setdefault(key, ev.metrics.get(key))  # the names flexopt run judges too
+    # the part as exported (its planar outline extruded), as flexopt run measures it
+    summary.update(envelope_values(detail.outline, detail.height_mm))
     ps = detail.info.get("plane_stress")
     if isinstance(ps, dict) and "linear_stiffness_Nmm_per_rad" in ps:
         summary["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]
         summary["plane_stress_safety_factor"] = ps.get("safety_factor")
+        summary.update(plane_stress_figures(ps))
     converged = bool(np.all(table["converged"]))
     return EvaluationResult(
         table=table,
@@ -814,5 +846,6 @@ register(
         problem,  # type: ignore[arg-type],
         requirements=_builtin.flexure_pivot,
         quantities=_builtin.FLEXURE_PIVOT,
+        figures=FIGURES,
     )
 )

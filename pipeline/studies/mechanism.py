@@ -76,6 +76,7 @@ from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.names import check_name
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import (
+    MinFeature,
     Range,
     Requirement,
     RequirementSpec,
@@ -96,6 +97,7 @@ from flexopt.pipeline.plot_targets import band_spec
 from flexopt.pipeline.runfolder import table_to_csv
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
 __all__ = [
@@ -372,6 +374,19 @@ class WidthSolveSpec(BaseModel):
     model_config = STUDY_CONFIG
 
     requirement: str = Field(description="name of a range or target requirement on a force")
+    range_mm: tuple[float, float] | None = Field(
+        None,
+        description="[lower, upper] the solved width must lie in, mm (a built-in requirement; "
+        "default: at least geometry.min_feature_mm)",
+    )
+
+    @model_validator(mode="after")
+    def _range(self) -> WidthSolveSpec:
+        if self.range_mm is not None and not 0 < self.range_mm[0] < self.range_mm[1]:
+            raise ValueError(
+                f"range_mm = {list(self.range_mm)} must be [lower, upper], 0 < lower < upper"
+            )
+        return self
 
 
 class MechanismGeometry(BaseModel):
@@ -511,6 +526,7 @@ def metric_names(study: MechanismStudy) -> tuple[str, ...]:
     """Every scalar metric a design of ``study`` reports (what requirements may name)."""
     names = {"mass_g", "max_peak_stress_MPa", "stress_yield_ratio", "width_mm"}
     names |= {"min_clearance_mm", "interference_mm2"}
+    names |= {"envelope_width_mm", "envelope_height_mm", "envelope_depth_mm"}  # as exported
     names |= {"min_thickness_mm", "stable", "unstable_rows"}
     for case, spec in study.load_cases.items():
         p = _prefix(study, case)
@@ -545,6 +561,17 @@ def _requirements(study: MechanismStudy) -> list[Requirement]:
         except OptimiseError as exc:
             raise StudyError(f"requirements[{i}]", str(exc)) from None
     return out
+
+
+def _solved_size_requirements(study: MechanismStudy) -> list[Requirement]:
+    """Built in (issue 22): a solved width inside its range, else at least printable."""
+    spec = study.solve_width_from
+    if spec is None:
+        return []
+    if spec.range_mm is not None:
+        return [Range("width_mm", "solved width in its range", "check", *spec.range_mm)]
+    lo = study.geometry.min_feature_mm
+    return [MinFeature("width_mm", "solved width printable", "check", lo)]
 
 
 def _root(study: MechanismStudy) -> dict[str, Any]:
@@ -1138,7 +1165,7 @@ class MechanismProblem:
             )
         self.space: DesignSpace = self.variables.space
         self.material = study.material.to_material()
-        self.requirements = _requirements(study)
+        self.requirements = _requirements(study) + _solved_size_requirements(study)
         self.labels = {r.label: r for r in self.requirements}
         objectives = list(study.objectives) or self._default_objectives()
         self.objectives = tuple(o.key for o in objectives)
@@ -1218,6 +1245,7 @@ class MechanismProblem:
         clearance = _interference(study, geometry, outline, responses)
         metrics["min_clearance_mm"] = clearance["min_clearance_mm"]
         metrics["interference_mm2"] = clearance["interference_mm2"]
+        metrics.update(envelope_values(outline.polygon, width))  # the part as exported
         return _Solved(
             geometry, shapes, outline, width, responses, tables, metrics,
             _curves_table(study, tables), reason, clearance,
@@ -1772,7 +1800,7 @@ class _Evaluator(MechanismProblem):
         self.study = study
         self.variables = _variables(study)
         self.material = study.material.to_material()
-        self.requirements = _requirements(study)
+        self.requirements = _requirements(study) + _solved_size_requirements(study)
         self.labels = {r.label: r for r in self.requirements}
         objectives = list(study.objectives) or self._default_objectives()
         self.objectives = tuple(o.key for o in objectives)

@@ -87,6 +87,14 @@ from flexopt.geometry.sea_spring import (
 )
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.requirements import (
+    PLANE_STRESS,
+    SOLID_3D,
+    Figure,
+    MinFeature,
+    Range,
+    Requirement,
+)
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
@@ -94,6 +102,7 @@ from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, regi
 from flexopt.pipeline.studies._blocks import MeshSpec, Solid3DSpec
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, model_validator
 
 __all__ = [
@@ -1156,8 +1165,12 @@ class SeaSpringProblem:
             )
         if self.min_gap is not None:
             g = np.append(g, self.min_gap - deformed_gap)
+        # the thinnest printed size: the thinnest member (its margin + the limit) or the plate
+        i_thin = self.geometry_constraints.index("thinnest_mm")
+        thinnest = float(-g_geo[i_thin]) + self.frame.min_feature_mm
         metrics = {
             "ST_mm": st,
+            "min_feature_mm": min(thinnest, st),
             "stiffness_Nm_per_rad": r.mean_stiffness_Nm_per_rad,
             "stiffness_ccw_Nm_per_rad": r.stiffness_Nm_per_rad,
             "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
@@ -1763,6 +1776,32 @@ def stress_map_png(stress_map: dict[str, Any], allowable_MPa: float | None = Non
 # Registry hooks
 
 
+def requirements(study: SeaSpringStudy) -> list[Requirement]:
+    """:func:`_builtin.sea_spring`, ST (solved or searched) inside its range (issue 22):
+    ``design_space.ST``, judged on the exported ST (the 3D correction's, see :data:`FIGURES`),
+    and the thinnest printed size (member or plate) at least ``geometry.min_feature_mm``."""
+    space = design_space(study)
+    i = variables(study).index("ST")
+    lo, hi = float(space.lower[i]), float(space.upper[i])
+    return [
+        *_builtin.sea_spring(study),
+        Range("ST_mm", "plate thickness ST in its range", "constraint", lo, hi),
+        MinFeature("min_feature_mm", "printable feature", "constraint",
+                   study.geometry.min_feature_mm),
+    ]  # fmt: skip
+
+
+#: The figures of a quantity by model (pipeline.verdict): ST as exported is the 3D correction's
+#: where the run made one. The 3D stiffness and peak have rows of their own
+#: (:func:`_builtin.sea_spring`), so the 2D rows keep the plane-stress figures.
+FIGURES = {
+    "ST_mm": (
+        Figure("ST_mm", "plane-stress fit", PLANE_STRESS),
+        Figure("ST_3d_mm", "3D correction", SOLID_3D),
+    ),
+}
+
+
 def problem(study: SeaSpringStudy) -> SeaSpringProblem:
     """The design problem ``flexopt run`` optimises (stage 1 runs here)."""
     return SeaSpringProblem(study)
@@ -1775,16 +1814,16 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
     if prob.solve_st:  # ST follows from the target (the design's ST is ignored)
         x = np.delete(x, prob.names.index("ST"))
     times = []
-    r = geom = None
+    r = geom = p = None
     st = math.nan
     for _ in range(max(1, repeat)):
         t0 = time.perf_counter()
         try:
-            _, geom, r, st = prob.solve(x, study.mesh.curve_steps, keep_model=True)
+            p, geom, r, st = prob.solve(x, study.mesh.curve_steps, keep_model=True)
         except (GeometryError, FeaError) as exc:
             raise StudyError("design", str(exc)) from exc
         times.append(time.perf_counter() - t0)
-    assert r is not None and geom is not None
+    assert r is not None and geom is not None and p is not None
     table = _curve_table(r)
     summary = {
         "ST_mm": st,
@@ -1799,6 +1838,10 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
         "stress_allowable_ratio": r.worst_peak_stress_MPa / study.target.allowable_stress_MPa,
         "mass_g": geom.mass_kg(prob.material.density_kg_m3) * 1e3,
         "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
+        # the thinnest printed size: the thinnest member or the plate (as flexopt run's metric)
+        "min_feature_mm": min(
+            margins(p, prob.frame)["thinnest_mm"] + prob.frame.min_feature_mm, st
+        ),
     }
     if r.slot_gaps_mm:
         summary["slot_mm"] = r.slot_gaps_mm["undeformed"]
@@ -1807,6 +1850,9 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
     if study.solid_3d.check:
         diagnostics["solid_3d"] = prob.solid_3d(geom, r)
         summary.update(solid_3d_scalars(diagnostics["solid_3d"]))
+    # the part as exported: the outline extruded by ST (the 3D-corrected one where made)
+    depth = diagnostics.get("solid_3d", {}).get("ST_after_mm", st)
+    summary.update(envelope_values(geom.outline, depth))
     return EvaluationResult(
         table=table,
         summary=summary,
@@ -1844,7 +1890,8 @@ register(
         check,  # type: ignore[arg-type]
         evaluate,  # type: ignore[arg-type]
         problem,  # type: ignore[arg-type],
-        requirements=_builtin.sea_spring,
+        requirements=requirements,
         quantities=_builtin.SEA_SPRING,
+        figures=FIGURES,
     )
 )

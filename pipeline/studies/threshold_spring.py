@@ -70,6 +70,8 @@ from flexopt.geometry.threshold_spring import (
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.requirements import BEAM, PLANE_STRESS, SOLID_3D
+from flexopt.optimise.requirements import Figure as FigureOf
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_key
 from flexopt.optimise.thickness_fit import fit_thickness
@@ -81,6 +83,7 @@ from flexopt.pipeline.studies._blocks import CurveSolid3DSpec, ImpactSpec
 from flexopt.pipeline.studies._blocks import MeshSpec as PlaneStressMesh
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
+from flexopt.pipeline.verdict import envelope_values
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from pydantic import BaseModel, Field, field_validator, model_validator
@@ -461,6 +464,8 @@ class ThresholdSpringProblem:
         )
         metrics = {
             "ST_mm": st,
+            # the thinnest printed size: the narrowest arm section or the plate itself
+            "min_feature_mm": min(m["thinnest_mm"] + self.frame.min_feature_mm, st),
             self.error_name: err,
             "peak_stress_MPa": peak,
             "torque_at_range_Nm": float(r.torque_Nmm[-1]) * 1e-3,
@@ -513,6 +518,7 @@ class ThresholdSpringProblem:
         field_map = None
         if geom is not None and study.fidelity.enabled:
             info["plane_stress"], ps_rows, smap = self._fidelity(geom, r.rotation_rad)
+            info.update(plane_stress_figures(info["plane_stress"], self.error_name))
             if smap:
                 field_map = {
                     "points_mm": smap["points_mm"],
@@ -838,6 +844,41 @@ class ThresholdSpringProblem:
         return rec
 
 
+def plane_stress_figures(ps: dict[str, Any], error_name: str) -> dict[str, Any]:
+    """The plane-stress figures the verdict judges (:func:`figures`) from a
+    :meth:`ThresholdSpringProblem._fidelity` record, when its solve converged: the error
+    measure of its torque curve and its largest peak stress."""
+    if not ps.get("converged") or "peak_stress_max_MPa" not in ps:
+        return {}
+    return {
+        f"plane_stress_{error_name}": ps[error_name],
+        "plane_stress_peak_stress_MPa": ps["peak_stress_max_MPa"],
+    }
+
+
+def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
+    """The figures of a quantity by model (pipeline.verdict): the error measure and the peak
+    stress are judged on the plane-stress check's where the run made one (the 3D figures have
+    rows of their own, :func:`_builtin.threshold_spring`, so they are not borrowed)."""
+    curve = study.target.to_curve() if study.target.kind != "table" else None
+    measure = getattr(study, "measure", None) or getattr(study.target, "measure", "rms")
+    name = measure_key(measure, curve) if curve is not None else f"{measure}_error"
+    out = {
+        q: (
+            FigureOf(q, "beam", BEAM),
+            FigureOf(f"plane_stress_{q}", "plane stress", PLANE_STRESS),
+            FigureOf(f"{q}_3d" if q == name else "peak_stress_3d_MPa", "3D solid", SOLID_3D),
+        )
+        for q in (name, "peak_stress_MPa")
+    }
+    # ST as exported: the 3D check's corrected ST where it made one (the STL's thickness)
+    out["ST_mm"] = (
+        FigureOf("ST_mm", "beam fit", BEAM),
+        FigureOf("ST_after_mm", "3D correction", SOLID_3D),
+    )
+    return out
+
+
 def solid_3d_scalars(s3: dict[str, Any], error_name: str) -> dict[str, Any]:
     """The scalars of :meth:`ThresholdSpringProblem.solid_3d` the verdict judges (info /
     summary)."""
@@ -942,8 +983,9 @@ def _summary(prob: ThresholdSpringProblem, d: DesignDetail) -> dict[str, Any]:
         "outer_diameter_mm": 2 * info["checks"]["outer_radius_mm"] if "checks" in info else None,
     }
     ps = info.get("plane_stress", {})
-    s[f"plane_stress_{prob.error_name}"] = ps.get(prob.error_name)
-    s["plane_stress_peak_stress_MPa"] = ps.get("peak_stress_max_MPa")
+    s[f"plane_stress_{prob.error_name}"] = None
+    s["plane_stress_peak_stress_MPa"] = None
+    s.update(plane_stress_figures(ps, prob.error_name))
     peaks = [v for v in (m.get("peak_stress_MPa"), ps.get("peak_stress_max_MPa")) if v is not None]
     s["stress_yield_ratio"] = max(peaks) / prob.material.yield_MPa if peaks else None
     s.update(solid_3d_scalars(info.get("solid_3d", {}), prob.error_name))
@@ -1015,7 +1057,8 @@ def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
             f["points_mm"], f["triangles"], f["values"], f["label"], f.get("limit"), study.name
         )
     summary = _summary(prob, d)
-    for key in (prob.error_name, "peak_stress_MPa"):  # the names flexopt run judges too
+    summary.update(envelope_values(d.outline, d.height_mm))  # the part as exported
+    for key in (prob.error_name, "peak_stress_MPa", "min_feature_mm"):  # as flexopt run
         summary.setdefault(key, ev.metrics.get(key))
     ps = d.info.get("plane_stress", {})
     return EvaluationResult(
@@ -1045,5 +1088,6 @@ register(
         problem,
         requirements=_builtin.threshold_spring,
         quantities=_builtin.THRESHOLD_SPRING,
+        figures=figures,
     )  # type: ignore[arg-type]
 )
