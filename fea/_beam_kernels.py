@@ -13,20 +13,20 @@ Linear algebra
 The tangent is symmetric (the Hessian of the strain energy: dead loads, prescribed displacements)
 but indefinite past a bifurcation or limit point, and under displacement control the solve runs on
 a matrix with identity rows for the held DOFs. Each solve therefore tries a banded Cholesky
-factorisation first (a port of LAPACK's unblocked ``dpbtf2``, what ``dpbtrf`` runs for kd = 8,
-and ``dpbtrs``): it succeeds exactly when the held tangent is positive definite, which it is in
-most Newton iterations of a stable path (~94 % of the solves of a constant-force design), and it
-is about a third of the LU's work. When a pivot is not positive it stops, the right-hand side
+factorisation first (a port of LAPACK's unblocked ``dpbtf2``, what ``dpbtrf`` runs for kd = 8, and
+``dpbtrs``): it succeeds exactly when the held tangent is positive definite, which it is in most
+Newton iterations of a stable path (~94 % of the solves of a constant-force design), and it is
+about a third of the LU's work. When a pivot is not positive it stops, the right-hand side
 untouched, and the solve is a line-by-line port of LAPACK's unblocked banded LU with partial
-pivoting (``dgbtf2``, which is what ``dgbtrf`` runs for a half-bandwidth of 8 < its block size
-32) and ``dgbtrs`` / ``dtbsv``. A banded LU *without* pivoting or an LDL^T without a pivoting
-strategy could break down (a zero or tiny pivot) on the indefinite matrices, which is why the
-fallback pivots. The numpy path makes the same choice by the same test with scipy's LAPACK, and
-the ports run the same operations in the same order, so both paths agree to round-off. The
-stability check is the same Cholesky port; it only answers "positive definite or not". Calling
-scipy's LAPACK from numba (through ``scipy.linalg.cython_lapack`` addresses) would embed raw
-function addresses in the compiled code, which numba refuses to cache, so every worker would
-compile again; the ports cache.
+pivoting (``dgbtf2``, which is what ``dgbtrf`` runs for a half-bandwidth of 8 < its block size 32)
+and ``dgbtrs`` / ``dtbsv``, in fea/_banded.py (fea/_constrained_kernels.py uses it too). A banded
+LU *without* pivoting or an LDL^T without a pivoting strategy could break down (a zero or tiny
+pivot) on the indefinite matrices, which is why the fallback pivots. The numpy path makes the same
+choice by the same test with scipy's LAPACK, and the ports run the same operations in the same
+order, so both paths agree to round-off. The stability check is the same Cholesky port; it only
+answers "positive definite or not". Calling scipy's LAPACK from numba (through
+``scipy.linalg.cython_lapack`` addresses) would embed raw function addresses in the compiled code,
+which numba refuses to cache, so every worker would compile again; the ports cache.
 
 Storage
 -------
@@ -48,14 +48,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from flexopt.fea._banded import BAND, KL, KU, KV, LDAB, gbsv
 from numba import njit
 
-#: half-bandwidth of the node-by-node DOF numbering (3 nodes x 3 fields per element)
-BAND = 8
-KL = BAND
-KU = BAND
-KV = KL + KU  # row of the diagonal in the gbsv layout
-LDAB = 2 * KL + KU + 1
+# the band storage and its LU are fea/_banded.py's (shared with fea/_constrained_kernels.py)
 KD = BAND  # superdiagonals of the symmetric (Cholesky) band
 
 #: reason codes of a failed sub-step (the texts are in fea.beam._REASONS)
@@ -232,111 +228,7 @@ def peak_stress(u: np.ndarray, geo: tuple, sgeo: tuple, e_mpa: float) -> tuple[f
     return best, where
 
 
-# -- banded linear algebra (ports of LAPACK dgbtf2 / dgbtrs / dtbsv / dpbtf2) ----------------------
-
-
-@_jit
-def gbsv(abc: np.ndarray, b: np.ndarray, ipiv: np.ndarray) -> int:
-    """Solve A x = b in place (``b`` becomes x) by banded LU with partial pivoting.
-
-    ``abc`` (n, LDAB) is overwritten by the factors; ``ipiv`` (n,) int scratch. Returns LAPACK's
-    ``info``: 0, or j + 1 when the pivot of column j is exactly zero (singular; ``b`` is then
-    not a solution). Port of ``dgbtf2`` + ``dgbtrs`` (unblocked, what ``dgbsv`` runs for
-    kl = ku = 8), operation for operation.
-    """
-    n = abc.shape[0]
-    # fill-in entries of the first columns (dgbtf2 zeroes them before the elimination)
-    for j in range(KU + 1, min(KV, n)):
-        for i in range(KV - j, KL):
-            abc[j, i] = 0.0
-    ju = 0
-    for j in range(n):
-        if j + KV < n:
-            for i in range(KL):
-                abc[j + KV, i] = 0.0
-        km = min(KL, n - 1 - j)
-        jp = 0
-        amax = abs(abc[j, KV])
-        for i in range(1, km + 1):
-            v = abs(abc[j, KV + i])
-            if v > amax:
-                jp = i
-                amax = v
-        ipiv[j] = j + jp
-        if abc[j, KV + jp] == 0.0:
-            return j + 1
-        ju = max(ju, min(j + KU + jp, n - 1))
-        if jp != 0:
-            for c in range(j, ju + 1):
-                t = abc[c, KV + j + jp - c]
-                abc[c, KV + j + jp - c] = abc[c, KV + j - c]
-                abc[c, KV + j - c] = t
-        if km == KL:
-            # the full-band case (all but the last KL columns) with the multipliers in
-            # registers: the same operations as below, which the compiler cannot keep out of
-            # memory there (it cannot tell that column j and column c do not overlap)
-            rp = 1.0 / abc[j, KV]
-            l1 = abc[j, KV + 1] * rp
-            l2 = abc[j, KV + 2] * rp
-            l3 = abc[j, KV + 3] * rp
-            l4 = abc[j, KV + 4] * rp
-            l5 = abc[j, KV + 5] * rp
-            l6 = abc[j, KV + 6] * rp
-            l7 = abc[j, KV + 7] * rp
-            l8 = abc[j, KV + 8] * rp
-            abc[j, KV + 1] = l1
-            abc[j, KV + 2] = l2
-            abc[j, KV + 3] = l3
-            abc[j, KV + 4] = l4
-            abc[j, KV + 5] = l5
-            abc[j, KV + 6] = l6
-            abc[j, KV + 7] = l7
-            abc[j, KV + 8] = l8
-            for c in range(j + 1, ju + 1):
-                o = KV + j - c
-                y = abc[c, o]
-                if y != 0.0:
-                    t = -y
-                    abc[c, o + 1] += l1 * t
-                    abc[c, o + 2] += l2 * t
-                    abc[c, o + 3] += l3 * t
-                    abc[c, o + 4] += l4 * t
-                    abc[c, o + 5] += l5 * t
-                    abc[c, o + 6] += l6 * t
-                    abc[c, o + 7] += l7 * t
-                    abc[c, o + 8] += l8 * t
-        elif km > 0:
-            rp = 1.0 / abc[j, KV]
-            for i in range(1, km + 1):
-                abc[j, KV + i] *= rp
-            for c in range(j + 1, ju + 1):
-                y = abc[c, KV + j - c]
-                if y != 0.0:
-                    t = -y
-                    for i in range(1, km + 1):
-                        abc[c, KV + j + i - c] += abc[j, KV + i] * t
-    # forward: L (with the row interchanges)
-    for j in range(n - 1):
-        lm = min(KL, n - 1 - j)
-        p = ipiv[j]
-        if p != j:
-            t = b[p]
-            b[p] = b[j]
-            b[j] = t
-        bj = b[j]
-        if bj != 0.0:
-            t = -bj
-            for i in range(1, lm + 1):
-                b[j + i] += abc[j, KV + i] * t
-    # backward: U, kl + ku superdiagonals (dtbsv, upper, no transpose)
-    for j in range(n - 1, -1, -1):
-        if b[j] != 0.0:
-            b[j] = b[j] / abc[j, KV]
-            t = b[j]
-            # each b[i] gets one update per j: the order over i is free (forward vectorises)
-            for i in range(max(0, j - KV), j):
-                b[i] -= t * abc[j, KV + i - j]
-    return 0
+# -- banded linear algebra (the LU is fea/_banded.py's; here LAPACK dpbtf2 / dpbtrs) -------------
 
 
 @_jit

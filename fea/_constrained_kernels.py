@@ -27,8 +27,8 @@ beam is held by local rows (each beam's rigid motions are otherwise its null spa
     [ A   B1 ] [x_b]   [r_b]       S = D - B2 A^-1 B1   (n_extra + m square, dense)
     [ B2  D  ] [ y ] = [r_y]       S y = r_y - B2 A^-1 r_b,   x_b = A^-1 (r_b - B1 y)
 
-with A factorised by a banded LU with partial pivoting (the operations of LAPACK ``dgbtf2``, as in
-fea/_beam_kernels.py, split into factor and a many-right-hand-side solve) and S by a dense LU with
+with A factorised by the banded LU with partial pivoting of fea/_banded.py (the operations of LAPACK
+``dgbtf2``; the beam kernel's own, here with a many-right-hand-side solve) and S by a dense LU with
 partial pivoting. When A is (numerically) singular, or a Newton correction fails an a-posteriori
 check of the full KKT residual, the sub-step is handed back (``FALLBACK``) and the caller runs the
 reference for it: the bordering is a faster route to the same solution, never a different answer.
@@ -51,7 +51,7 @@ import math
 
 import numpy as np
 from flexopt.fea import _beam_kernels as bk
-from flexopt.fea._beam_kernels import BAND, KL, KU, KV
+from flexopt.fea._banded import BAND, KL, KU, KV, gbtrf, gbtrs
 from numba import njit
 
 #: status codes of a Newton sub-step (texts in fea.constrained_beams._REASONS)
@@ -146,79 +146,6 @@ def constraint_rows(C, nb):
 
 
 # -- linear algebra -------------------------------------------------------------------------------
-
-
-@_jit
-def gbtrf(abc, ipiv) -> int:
-    """Banded LU with partial pivoting of ``abc`` (n, LDAB) in place: the factor part of
-    :func:`fea._beam_kernels.gbsv` (LAPACK ``dgbtf2``), operation for operation. Returns info."""
-    n = abc.shape[0]
-    for j in range(KU + 1, min(KV, n)):
-        for i in range(KV - j, KL):
-            abc[j, i] = 0.0
-    ju = 0
-    for j in range(n):
-        if j + KV < n:
-            for i in range(KL):
-                abc[j + KV, i] = 0.0
-        km = min(KL, n - 1 - j)
-        jp = 0
-        amax = abs(abc[j, KV])
-        for i in range(1, km + 1):
-            v = abs(abc[j, KV + i])
-            if v > amax:
-                jp = i
-                amax = v
-        ipiv[j] = j + jp
-        if abc[j, KV + jp] == 0.0:
-            return j + 1
-        ju = max(ju, min(j + KU + jp, n - 1))
-        if jp != 0:
-            for c in range(j, ju + 1):
-                t = abc[c, KV + j + jp - c]
-                abc[c, KV + j + jp - c] = abc[c, KV + j - c]
-                abc[c, KV + j - c] = t
-        if km > 0:
-            rp = 1.0 / abc[j, KV]
-            for i in range(1, km + 1):
-                abc[j, KV + i] *= rp
-            for c in range(j + 1, ju + 1):
-                y = abc[c, KV + j - c]
-                if y != 0.0:
-                    t = -y
-                    for i in range(1, km + 1):
-                        abc[c, KV + j + i - c] += abc[j, KV + i] * t
-    return 0
-
-
-@_jit
-def gbtrs(abc, ipiv, X) -> None:
-    """Solve A X = X in place for every column of ``X`` (n, k) with the factors of :func:`gbtrf`
-    (``dgbtrs``; the columns innermost, so the loops run over contiguous memory)."""
-    n = abc.shape[0]
-    k = X.shape[1]
-    for j in range(n - 1):
-        lm = min(KL, n - 1 - j)
-        p = ipiv[j]
-        if p != j:
-            for c in range(k):
-                t = X[p, c]
-                X[p, c] = X[j, c]
-                X[j, c] = t
-        for i in range(1, lm + 1):
-            lij = abc[j, KV + i]
-            if lij != 0.0:
-                for c in range(k):
-                    X[j + i, c] -= lij * X[j, c]
-    for j in range(n - 1, -1, -1):
-        piv = abc[j, KV]
-        for c in range(k):
-            X[j, c] = X[j, c] / piv
-        for i in range(j - 1, max(0, j - KV) - 1, -1):
-            uij = abc[j, KV + i - j]
-            if uij != 0.0:
-                for c in range(k):
-                    X[i, c] -= uij * X[j, c]
 
 
 @_jit

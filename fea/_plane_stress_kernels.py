@@ -20,6 +20,7 @@ run in a fixed order and the answers agree with the numpy path to round-off.
 from __future__ import annotations
 
 import numpy as np
+from flexopt.fea._sparse import node_pattern
 from numba import njit
 
 
@@ -39,41 +40,9 @@ def csr_pattern(dofs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.nd
         (C order), i.e. of ``K[dofs[e, i], dofs[e, j]]``.
     """
     E, m = dofs.shape
-    # Elements of each DOF (CSR-like lists), to visit a row's neighbours without a global sort.
-    count = np.zeros(n + 1, np.int64)
-    for e in range(E):
-        for i in range(m):
-            count[dofs[e, i] + 1] += 1
-    start = np.cumsum(count)
-    fill = start[:-1].copy()
-    elems = np.empty(start[-1], np.int64)
-    for e in range(E):
-        for i in range(m):
-            r = dofs[e, i]
-            elems[fill[r]] = e
-            fill[r] += 1
-    # Row r's columns: the DOFs of its elements, deduplicated with a marker and sorted by
-    # insertion (a row has tens of entries).
-    mark = np.full(n, -1, np.int64)
-    indptr = np.zeros(n + 1, np.int64)
-    indices = np.empty(m * start[-1], np.int64)  # upper bound: no column shared
-    nz = 0
-    for r in range(n):
-        row0 = nz
-        for t in range(start[r], start[r + 1]):
-            e = elems[t]
-            for j in range(m):
-                c = dofs[e, j]
-                if mark[c] != r:
-                    mark[c] = r
-                    k = nz
-                    while k > row0 and indices[k - 1] > c:
-                        indices[k] = indices[k - 1]
-                        k -= 1
-                    indices[k] = c
-                    nz += 1
-        indptr[r + 1] = nz
-    indices = indices[:nz].copy()
+    # Each DOF a "node": its row's columns are the DOFs of its elements (fea/_sparse.py).
+    indptr, indices, _, _, _ = node_pattern(dofs, n)
+    indices = indices.copy()
     where = np.empty(E * m * m, np.int64)
     p = 0
     for e in range(E):
@@ -121,43 +90,9 @@ def csr_pattern_paired(
     """
     E, ns = nodes.shape
     m = 2 * ns
-    count = np.zeros(n_nodes + 1, np.int64)
-    for e in range(E):
-        for a in range(ns):
-            count[nodes[e, a] + 1] += 1
-    start = np.cumsum(count)
-    fill = start[:-1].copy()
-    elems = np.empty(start[-1], np.int64)
-    local = np.empty(start[-1], np.int64)
-    for e in range(E):
-        for a in range(ns):
-            s = nodes[e, a]
-            elems[fill[s]] = e
-            local[fill[s]] = a
-            fill[s] += 1
-    # Node rows: the nodes of the node's elements, deduplicated with a marker, then sorted.
-    mark = np.full(n_nodes, -1, np.int64)
-    sptr = np.zeros(n_nodes + 1, np.int64)
-    scols = np.empty(ns * start[-1], np.int64)  # upper bound: no node shared
-    nz = 0
-    for s in range(n_nodes):
-        row0 = nz
-        for t in range(start[s], start[s + 1]):
-            e = elems[t]
-            for b in range(ns):
-                c = nodes[e, b]
-                if mark[c] != s:
-                    mark[c] = s
-                    scols[nz] = c
-                    nz += 1
-        for i in range(row0 + 1, nz):  # insertion sort: ~20 nodes (np.sort: 10x slower here)
-            c = scols[i]
-            j = i
-            while j > row0 and scols[j - 1] > c:
-                scols[j] = scols[j - 1]
-                j -= 1
-            scols[j] = c
-        sptr[s + 1] = nz
+    # Node rows (sptr, scols) and each node's elements (fea/_sparse.py).
+    sptr, scols, start, elems, local = node_pattern(nodes, n_nodes)
+    nz = scols.size
     # Expand: row 2 s + c holds 2 k entries (2 col, 2 col + 1 per neighbour col), in order.
     indptr = np.empty(2 * n_nodes + 1, np.int64)
     indices = np.empty(4 * nz, np.int64)

@@ -7,9 +7,10 @@ every element; on the SEA spring's 405k-DOF model that is ~6 s. Here:
 * :func:`p2_tables`: the quadratic tetrahedron's gradients from the vertex coordinates (the
   mesh is affine: each element's barycentric gradients are constant), with the quadrature
   weights and points, in one pass over the elements;
-* :func:`block_pattern_parts`: the node-block sparsity pattern (per node row: its elements'
-  nodes, deduplicated with a marker, sorted) and the twelve stiffness "parts" of each node block
-  (:func:`fea.solid3d._stiffness_parts`), summed row by row into the pattern;
+* :func:`block_pattern_parts`: the node-block sparsity pattern (fea/_sparse.py's
+  :func:`~fea._sparse.node_pattern`: per node row its elements' nodes, deduplicated, sorted)
+  and the twelve stiffness "parts" of each node block (:func:`fea.solid3d._stiffness_parts`),
+  summed row by row into the pattern;
 * :func:`reduced_lower_count`, :func:`reduced_lower_fill`: where the reduced matrix's lower
   triangle sits in the node blocks, in compressed columns (rows ascending): CHOLMOD's
   matrix is made from them without cvxopt's triplet constructor;
@@ -27,6 +28,7 @@ sums run in a fixed order and agree with the numpy path to round-off.
 from __future__ import annotations
 
 import numpy as np
+from flexopt.fea._sparse import node_pattern
 from numba import njit
 
 # local P2 edge functions: (first vertex, second vertex), in scikit-fem's order
@@ -122,46 +124,8 @@ def block_pattern_parts(dofs: np.ndarray, n: int, G: np.ndarray, dx: np.ndarray,
     indptr : (n + 1,) int64, indices : (nnzb,) int64 — node rows, sorted columns;
     parts : (nnzb, 12) float, N/mm.
     """
-    nel, m = dofs.shape
-    # Elements of each node (and the node's local index there), in element order.
-    count = np.zeros(n + 1, np.int64)
-    for e in range(nel):
-        for a in range(m):
-            count[dofs[e, a] + 1] += 1
-    start = np.cumsum(count)
-    fill = start[:-1].copy()
-    elems = np.empty(start[-1], np.int64)
-    local = np.empty(start[-1], np.int64)
-    for e in range(nel):
-        for a in range(m):
-            s = dofs[e, a]
-            elems[fill[s]] = e
-            local[fill[s]] = a
-            fill[s] += 1
-    # Node rows: the nodes of the node's elements, deduplicated with a marker, then sorted.
-    mark = np.full(n, -1, np.int64)
-    indptr = np.zeros(n + 1, np.int64)
-    cols = np.empty(m * start[-1], np.int64)  # upper bound: no node shared
-    nz = 0
-    for s in range(n):
-        row0 = nz
-        for k in range(start[s], start[s + 1]):
-            e = elems[k]
-            for b in range(m):
-                c = dofs[e, b]
-                if mark[c] != s:
-                    mark[c] = s
-                    cols[nz] = c
-                    nz += 1
-        for i in range(row0 + 1, nz):  # insertion sort: a row has tens of nodes
-            c = cols[i]
-            j = i
-            while j > row0 and cols[j - 1] > c:
-                cols[j] = cols[j - 1]
-                j -= 1
-            cols[j] = c
-        indptr[s + 1] = nz
-    indices = cols[:nz].copy()
+    indptr, indices, start, elems, local = node_pattern(dofs, n)
+    indices = indices.copy()  # the pattern's buffer has room for every element pair
     parts = _block_parts(dofs, n, G, dx, lam, mu, indptr, indices, start, elems, local)
     return indptr, indices, parts
 

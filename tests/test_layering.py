@@ -8,7 +8,9 @@ itself) is parsed with ``ast``; every import counts, also inside functions and u
 - no study kind in ``pipeline/studies/`` imports another kind (modules starting with ``_`` are
   shared blocks and may be imported by any kind);
 - no import cycle among flexopt modules (imports under ``TYPE_CHECKING`` never run and do not
-  count here).
+  count here);
+- fea/'s pivoting banded LU and its sparsity-pattern builder are written once (fea/_banded.py,
+  fea/_sparse.py).
 """
 
 from __future__ import annotations
@@ -292,3 +294,44 @@ def test_no_import_cycle():
     assert not cycles, "import cycles among flexopt modules:\n" + "\n".join(
         " -> ".join(cycle) for cycle in cycles
     )
+
+
+# -- shared compiled kernels (issue 24): one banded LU, one sparsity-pattern builder -------------
+
+#: name written by a subscript -> the one module whose functions may write it: the pivot rows of
+#: a pivoting LU (``ipiv[j] = ...``) and the row marker of a pattern builder (``mark[c] = ...``)
+SHARED_KERNELS = {"ipiv": "flexopt.fea._banded", "mark": "flexopt.fea._sparse"}
+
+
+def _subscript_writers(module: str) -> dict[str, set[str]]:
+    """Names written through a subscript (``x[i] = ...``, ``x[i] += ...``) -> functions doing it."""
+    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+    found: dict[str, set[str]] = {}
+    for fn in ast.walk(tree):
+        if not isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+            continue
+        for node in ast.walk(fn):
+            targets = node.targets if isinstance(node, ast.Assign) else []
+            if isinstance(node, ast.AugAssign):
+                targets = [node.target]
+            for t in targets:
+                if isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name):
+                    found.setdefault(t.value.id, set()).add(fn.name)
+    return found
+
+
+def test_the_banded_lu_and_the_pattern_builder_are_written_once():
+    """A second pivoting banded LU or marker-deduplicating pattern builder in fea/ is a copy of
+    fea/_banded.py's or fea/_sparse.py's: call those instead (they are numba functions, callable
+    from any njit code, and cache with their callers)."""
+    writers = {name: set() for name in SHARED_KERNELS}
+    for module in MODULES:
+        if _layer(module) != "fea":
+            continue
+        for name, fns in _subscript_writers(module).items():
+            if name in writers:
+                writers[name] |= {f"{module}.{f}" for f in fns}
+    for name, home in SHARED_KERNELS.items():
+        assert writers[name], f"the scan finds no {name}[...] write at all: is it still {home}'s?"
+        strays = sorted(w for w in writers[name] if not w.startswith(home + "."))
+        assert not strays, f"{name}[...] written outside {home}: {strays}"
