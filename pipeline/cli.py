@@ -233,13 +233,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     export = commands.add_parser(
         "export",
-        help="write one design of a run or evaluate folder as STL, DXF or STEP",
+        help="write one design of a run or evaluate folder as STL, DXF, STEP or a study (YAML)",
         description=(
             "Rebuild a design of a run (from its study.yaml), or the design of a flexopt "
             "evaluate folder, and write its part in mm, laid flat and aligned to the bed axes: "
             "binary STL (to print), DXF (the outline with its holes, to cut) or STEP (needs "
             "pip install 'flexopt[step]'). A sheet part (the leaf-spring joint's leaf) is "
-            "written as its flat profile."
+            "written as its flat profile. --format yaml writes the design as a study instead "
+            "(the run's study with the design's values set), which flexopt evaluate solves to "
+            "the numbers of best.json."
         ),
     )
     export.add_argument(
@@ -256,7 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     export.add_argument(
         "--format",
-        choices=("stl", "dxf", "step"),
+        choices=("stl", "dxf", "step", "yaml"),
         default=None,
         help="file format (default: what --out ends in, else stl)",
     )
@@ -266,7 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help=(
             "file to write (default RUN_DIR/best.FORMAT, RUN_DIR/design-INDEX.FORMAT, or "
-            "RUN_DIR/design.FORMAT in an evaluate folder)"
+            "RUN_DIR/design.FORMAT in an evaluate folder; FORMAT yaml: a study file)"
         ),
     )
     export.set_defaults(handler=_export)
@@ -637,10 +639,37 @@ def _report(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _export(args: argparse.Namespace) -> int:
-    from flexopt.pipeline.run import ExportError, export_design
+def _export_study(args: argparse.Namespace) -> int:
+    """``flexopt export --format yaml``: the design as a study file."""
+    from flexopt.pipeline.run import ExportError, export_study
 
     prog = "flexopt export"
+    try:
+        outcome = export_study(args.run_dir, args.design, args.out)
+    except StudyError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except ExportError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    except OSError as exc:
+        print(f"{prog}: error: cannot write {args.out or 'the file'}: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    print(
+        f"wrote {outcome.path} (design {outcome.design} as a {outcome.study.kind} study; "
+        f"solve it with: flexopt evaluate {outcome.path})"
+    )
+    return EXIT_OK
+
+
+def _export(args: argparse.Namespace) -> int:
+    from flexopt.pipeline.run import STUDY_SUFFIXES, ExportError, export_design
+
+    prog = "flexopt export"
+    if args.format == "yaml" or (
+        args.format is None and args.out is not None and args.out.suffix.lower() in STUDY_SUFFIXES
+    ):
+        return _export_study(args)
     try:
         outcome = export_design(args.run_dir, args.design, args.out, args.format)
     except StudyError as exc:

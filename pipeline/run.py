@@ -2269,3 +2269,102 @@ def export_design(
         part.rotation_deg,
         part.sheet,
     )
+
+
+# --------------------------------------------------------------------------------------------
+# A design as a study (flexopt export --format yaml)
+
+#: File name endings taken as ``--format yaml``.
+STUDY_SUFFIXES = (".yaml", ".yml")
+
+
+@dataclass(frozen=True)
+class StudyExportOutcome:
+    """What ``flexopt export --format yaml`` wrote.
+
+    Attributes
+    ----------
+    path : the study file written.
+    design : ``"best"``, the evaluation index, or ``"evaluated"`` (an evaluate folder's design).
+    study : the study written (``flexopt evaluate`` of it solves the design).
+    x : (n_var,) float, the design vector (None for an evaluate folder: its study as it is).
+    """
+
+    path: Path
+    design: str
+    study: Study
+    x: np.ndarray | None
+
+
+def design_study_of(run_dir: Path, design: str = "best") -> tuple[Study, str, np.ndarray | None]:
+    """The study that describes one design of a run folder (``best`` or an evaluation index),
+    or an evaluate folder's own study: ``flexopt evaluate`` of it gives the design's numbers.
+
+    Raises
+    ------
+    StudyError
+        For a folder or design that is not there or is damaged (as :func:`export_design`).
+    ExportError
+        When the kind cannot keep the design in its study (:mod:`pipeline.design_study`).
+    """
+    from flexopt.pipeline.design_study import design_study
+
+    if run_dir.is_dir() and is_evaluate_folder(run_dir):
+        if design != "best":
+            raise StudyError(
+                "--design",
+                f"'{run_dir}' is a folder of flexopt evaluate, which holds one design; drop "
+                "--design",
+            )
+        return _evaluate_folder_study(run_dir), "evaluated", None
+    read_run_record(run_dir)
+    study = _run_folder_study(run_dir, "RUN_DIR")
+    problem = build_problem(study)
+    x, _ = _design_vector(run_dir, design, problem.space, _Columns.of(problem))
+    return design_study(study, problem, x), design, x
+
+
+def export_study(
+    run_dir: Path, design: str = "best", out: Path | None = None
+) -> StudyExportOutcome:
+    """Write one design of a run (or an evaluate folder's design) as a study YAML file.
+
+    The file is the run's study with the design's values where the kind keeps its design (the
+    variables' ``initial``, the ``design:`` block, ...; :mod:`pipeline.design_study`), so
+    ``flexopt evaluate FILE`` solves that design and gives the numbers of best.json.
+
+    Parameters
+    ----------
+    out : Path, optional
+        Default ``run_dir/best.yaml``, ``run_dir/design-<INDEX>.yaml`` or, in an evaluate
+        folder, ``run_dir/design.yaml``; it must end in .yaml or .yml.
+
+    Raises
+    ------
+    StudyError
+        As :func:`design_study_of`, and for an ``out`` that is a folder, in a missing folder, or
+        not a .yaml file.
+    ExportError
+        When the kind cannot keep the design in its study.
+    OSError
+        When the file cannot be written.
+    """
+    if out is not None and out.suffix.lower() not in STUDY_SUFFIXES:
+        raise StudyError(
+            "--out", f"'{out}' does not end in .yaml; name the study file .yaml (--format yaml)"
+        )
+    study, design, x = design_study_of(run_dir, design)
+    names = {"best": "best.yaml", "evaluated": "design.yaml"}
+    target = out or run_dir / (names.get(design) or f"design-{int(design)}.yaml")
+    if target.is_dir():
+        raise StudyError("--out", f"'{target}' is a folder; give a file name ending in .yaml")
+    if not target.parent.is_dir():
+        raise StudyError("--out", f"folder '{target.parent}' does not exist; create it first")
+    header = (
+        f"Design {design} of {run_dir}, written by flexopt export as a study\n"
+        f"(the design's values where the {study.kind} kind keeps its design);\n"
+        f"solve it with: flexopt evaluate {target}"
+    )
+    write_atomic(target, study_to_yaml(study, header))
+    log.info("wrote %s (yaml)", target)
+    return StudyExportOutcome(target, design, study, x)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from flexopt.pipeline.errors import StudyError
 
 if TYPE_CHECKING:
     import pandas
@@ -247,6 +248,29 @@ class RunResult:
         from flexopt.pipeline.study import load_study
 
         return load_study(self.run_dir / "study.yaml")
+
+    def best_study(self, design: int | str = "best") -> Study:
+        """The run's best design (or evaluation ``design``, an index of evaluations.csv) as a
+        study: the run's study with the design's values where its kind keeps its design (the
+        variables' ``initial``, the ``design:`` block, ...), so :func:`flexopt.evaluate` of it
+        gives the numbers of best.json; ``flexopt export RUN --format yaml`` writes the same
+        study as a file.
+
+        Raises
+        ------
+        StudyError
+            At ``design`` for a design that is not in the run, or when the run's kind cannot
+            keep the design in its study (the message says why).
+        """
+        from flexopt.pipeline.problems import ExportError
+        from flexopt.pipeline.run import design_study_of
+
+        if isinstance(design, bool) or not isinstance(design, int | str):
+            raise StudyError("design", f"got {design!r}; give 'best' or an evaluation index")
+        try:
+            return design_study_of(self.run_dir, str(design))[0]
+        except ExportError as exc:
+            raise StudyError("design", str(exc)) from None
 
     def __repr__(self) -> str:
         n = len(next(iter(self.evaluation_table.values()))) if self.evaluation_table else 0

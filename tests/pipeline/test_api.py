@@ -313,6 +313,18 @@ def test_run_evaluations_are_the_csv(quick_run: flexopt.RunResult) -> None:
     np.testing.assert_array_equal(row[names].to_numpy()[0], best.x)  # written with every digit
 
 
+def test_best_study_evaluates_to_the_runs_best(quick_run: flexopt.RunResult) -> None:
+    """The best design as a study (a constant_force design: block) gives best.json's numbers."""
+    best = json.loads((quick_run.run_dir / "best.json").read_text(encoding="utf-8"))
+    study = quick_run.best_study()
+    assert study.kind == "constant_force" and isinstance(study.design, dict)
+    result = flexopt.evaluate(study)
+    for name, value in best["metrics"].items():
+        if isinstance(value, float):
+            assert result.summary[name] == pytest.approx(value, rel=1e-9, nan_ok=True), name
+    assert to_records(result.verdict) == best["verdict"]["requirements"]
+
+
 def test_open_run_reads_the_same_result(quick_run: flexopt.RunResult) -> None:
     again = flexopt.open_run(quick_run.run_dir)
     np.testing.assert_array_equal(again.best.x, quick_run.best.x)
