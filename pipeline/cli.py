@@ -354,6 +354,24 @@ def _print_robustness(record: dict[str, Any], console: Console) -> None:
         console.print(line, soft_wrap=True, markup=False)
 
 
+def _print_cases(cases: Any, console: Console) -> None:
+    """Every load case of a response (a mechanism's free and blocked jaw): the drive, its
+    reaction, the peak stress and each output, from start to end with its range."""
+    from flexopt.pipeline.responses import case_rows
+
+    if not cases:
+        return
+    table = Table(title="load cases (converged rows)", title_justify="left")
+    for name, justify in (("case", "left"), ("column", "left"), ("unit", "left"),
+                          ("start", "right"), ("end", "right"), ("range", "right")):  # fmt: skip
+        table.add_column(name, justify=justify)  # type: ignore[arg-type]
+    for case, response in cases.items():
+        for column, _, unit, start, end, low, high in case_rows(response):
+            table.add_row(case, column, unit, _format_value(start), _format_value(end),
+                          f"{_format_value(low)} … {_format_value(high)}")  # fmt: skip
+    console.print(table)
+
+
 def _print_summary(outcome: EvaluateOutcome, console: Console) -> None:
     result, record = outcome.result, outcome.record
     _print_verdict(result.verdicts, f"{record['study']} ({record['kind']})", console)
@@ -375,6 +393,7 @@ def _print_summary(outcome: EvaluateOutcome, console: Console) -> None:
         + (f" (median of {record['repeat']})" if record["repeat"] > 1 else ""),
     )
     console.print(table)
+    _print_cases(result.cases, console)
     console.print(f"wrote {outcome.run_dir}", soft_wrap=True)
 
 
@@ -485,8 +504,15 @@ def _where(run_dir: Path) -> str:
 
 def format_generation(report: GenerationReport) -> str:
     """``gen 3/30  best 0.0123  feasible 85%  12.3 eval/s``."""
+    from flexopt.pipeline.labels import objective_view
+
     best = report.best
-    value = ", ".join(f"{v:.4g}" for v in best.f) if best.feasible else "none feasible"
+    names = getattr(report, "objective_names", None) or [""] * len(best.f)
+    shown = []
+    for name, v in zip(names, best.f, strict=False):
+        sense, _, value = objective_view(name, float(v), best.metrics)
+        shown.append(f"{value:.4g}" + (" (max)" if sense == "maximise" else ""))
+    value = ", ".join(shown) if best.feasible else "none feasible"
     return (
         f"gen {report.generation}/{report.n_gen}  best {value}  "
         f"feasible {100 * report.feasible_fraction:.0f}%  {report.evaluations_per_s:.3g} eval/s"
@@ -498,21 +524,18 @@ def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
     verdicts = getattr(outcome, "verdicts", ())
     _print_verdict(verdicts, f"{record['study']} ({record['kind']}): best design", console)
     _print_robustness(record, console)
-    problem_names = (record["variables"], record["objectives"], record["constraints"])
     table = Table(title=f"{record['study']} ({record['kind']}): best design", title_justify="left")
     table.add_column("")
     table.add_column("name")
     table.add_column("value", justify="right")
-    for label, names, values in zip(
-        ("variable", "objective", "constraint"),
-        problem_names,
-        (best.x, best.f, best.g),
-        strict=True,
-    ):
-        for name, value in zip(names, values, strict=True):
-            table.add_row(label, name, _format_value(float(value)))
+    from flexopt.pipeline.labels import best_design_rows
+
+    names = (record["variables"], record["objectives"], record["constraints"])
+    for label, name, value in best_design_rows(*names, best, verdicts):
+        table.add_row(label, name, value)
     table.add_row("", "optimiser constraints met (feasible)", _format_value(best.feasible))
     console.print(table)
+    _print_cases(outcome.detail.cases if outcome.detail is not None else {}, console)
     rate = record.get("evaluations_per_s")
     console.print(
         f"{record['n_evaluations']} designs solved ({record['n_cache_hits']} repeats from the "

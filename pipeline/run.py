@@ -67,6 +67,7 @@ from flexopt.pipeline.problems import (
 from flexopt.pipeline.problems import nominal_design as _nominal_design
 from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.report_html import HtmlData, render_html
+from flexopt.pipeline.responses import case_responses, stacked_table, stress_allowable
 from flexopt.pipeline.runfolder import (
     RunDirLock,
     cell_float,
@@ -366,6 +367,7 @@ class GenerationReport:
     feasible_fraction : share of this generation's designs that are feasible.
     evaluations_per_s : designs solved per second of this generation.
     wall_s : s since the optimisation started.
+    objective_names : the objectives of ``best.f`` (``negative_X``: X maximised).
     """
 
     generation: int
@@ -376,6 +378,7 @@ class GenerationReport:
     feasible_fraction: float
     evaluations_per_s: float
     wall_s: float
+    objective_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -548,6 +551,7 @@ class _Run:
             feasible_fraction=gen.feasible_fraction,
             evaluations_per_s=n_new / gen_wall if gen_wall > 0 else 0.0,
             wall_s=now - self.t0,
+            objective_names=tuple(self.problem.objective_names),
         )
         entry: dict[str, Any] = {
             "generation": number,
@@ -822,30 +826,43 @@ class _Run:
         x = spec.get("x", "displacement_mm")
         y = spec.get("y", "force_N")
         stress = spec.get("stress", "peak_stress_MPa")
-        if table:
+        if detail is not None and detail.cases:  # every case, a load_case column first
+            every = stacked_table(detail.cases)
+            self.artefact("best_response.csv", lambda: table_to_csv(every))
+        elif table:
             self.artefact("best_response.csv", lambda: table_to_csv(table))
         elif detail is not None:
             self.notes.append("the kind gives no response table: no best_response.csv")
-        if x in table and y in table:
+        cases = dict(detail.cases) if detail is not None else {}
+        # the stress line at the allowable the verdict uses (yield / SF, a plane-stress limit)
+        allowables = {
+            case: stress_allowable(self.verdicts, case, _float_or_none(c.plot.get("allowable_MPa")))
+            for case, c in case_responses(table, spec, cases).items()
+        }
+        if cases:  # several load cases: one panel each, every output on the axis of its unit
+            self._case_plots(cases, allowables, title)
+        elif x in table and y in table:
             self.artefact(
                 "force_displacement.png", lambda: _curve_png(table, spec, title), group="png"
             )
         elif table:
             self.notes.append(f"force_displacement.png skipped: no columns '{x}' and '{y}'")
-        if x in table and stress in table:
+        if not cases and x in table and stress in table:
+            line = allowables.get("")
             self.artefact(
                 "stress.png",
                 lambda: plots.plot_stress(
                     table,
                     x,
                     stress,
-                    allowable_MPa=_float_or_none(spec.get("allowable_MPa")),
+                    allowable_MPa=line[0] if line else None,
                     x_label=_spec_label(spec, "x"),
                     title=title,
+                    allowable_label=line[1] if line else None,
                 ),
                 group="png",
             )
-        elif table:
+        elif table and not cases:
             self.notes.append(f"stress.png skipped: the response has no '{stress}' column")
         self.artefact(
             "convergence.png", lambda: _convergence_png(self.history, self.columns), group="png"
@@ -875,6 +892,8 @@ class _Run:
                 group="png",
             )
         for name, data in (getattr(detail, "files", None) or {}).items():
+            if cases and name == "outputs.png":
+                continue  # the pipeline draws every case's outputs (_case_plots)
             if name in RUN_FILES or "/" in name or name.startswith("."):
                 self.notes.append(f"{name} from the kind not written: a reserved or unsafe name")
                 continue
@@ -909,6 +928,24 @@ class _Run:
             best_json.get("robustness"))))  # fmt: skip
         self.collect_groups()
         return detail
+
+    def _case_plots(
+        self,
+        cases: Mapping[str, Any],
+        allowables: Mapping[str, tuple[float, str] | None],
+        title: str,
+    ) -> None:
+        """force_displacement.png, stress.png and outputs.png of a kind with load cases: one
+        column per case (the kind's own outputs.png is replaced by the pipeline's)."""
+        files = [("force_displacement.png", ("curve",)), ("stress.png", ("stress",))]
+        if any(c.outputs for c in cases.values()):
+            files.append(("outputs.png", ("outputs",)))
+        for name, rows in files:
+            self.artefact(
+                name,
+                lambda rows=rows: plots.plot_cases(cases, rows, allowables, title),
+                group="png",
+            )
 
     def robustness(self, best: Evaluation, detail: DesignDetail | None) -> Any:
         """The chosen design at every sample of the study's ``robustness:`` block, on the run's
