@@ -1037,12 +1037,18 @@ def _curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: 
 
 
 def _convergence_png(history: list[dict[str, Any]], columns: _Columns) -> bytes:
+    from flexopt.pipeline.labels import MAXIMISED
+
+    best = np.array([[h[f"best_{name}"] for name in columns.objectives] for h in history])
+    # a maximised objective drawn as the study states it: X rising, not its negative falling
+    sign = np.array([-1.0 if n.startswith(MAXIMISED) else 1.0 for n in columns.objectives])
+    names = tuple(n.removeprefix(MAXIMISED) for n in columns.objectives)  # "best": the largest
     return plots.plot_convergence(
         np.array([h["generation"] for h in history]),
-        np.array([[h[f"best_{name}"] for name in columns.objectives] for h in history]),
+        best.reshape(len(history), len(names)) * sign,
         np.array([h["best_feasible"] for h in history]),
         np.array([h["feasible_fraction"] for h in history]),
-        columns.objectives,
+        names,
     )
 
 
