@@ -32,6 +32,7 @@ from flexopt.pipeline.study import list_examples, load_study, resolve_study_path
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
+from rich.text import Text
 
 if TYPE_CHECKING:  # pipeline.run imports pymoo (~1 s): only `run` and `export` pay for it
     from flexopt.optimise.ga import GAConfig
@@ -367,8 +368,11 @@ def _print_cases(cases: Any, console: Console) -> None:
         table.add_column(name, justify=justify)  # type: ignore[arg-type]
     for case, response in cases.items():
         for column, _, unit, start, end, low, high in case_rows(response):
-            table.add_row(case, column, unit, _format_value(start), _format_value(end),
-                          f"{_format_value(low)} … {_format_value(high)}")  # fmt: skip
+            # (Text: a case or output name is the user's, never rich markup)
+            span = f"{_format_value(low)} … {_format_value(high)}"
+            table.add_row(
+                Text(case), Text(column), unit, _format_value(start), _format_value(end), span
+            )
     console.print(table)
 
 
@@ -532,7 +536,7 @@ def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
 
     names = (record["variables"], record["objectives"], record["constraints"])
     for label, name, value in best_design_rows(*names, best, verdicts):
-        table.add_row(label, name, value)
+        table.add_row(label, Text(name), Text(value))
     table.add_row("", "optimiser constraints met (feasible)", _format_value(best.feasible))
     console.print(table)
     _print_cases(outcome.detail.cases if outcome.detail is not None else {}, console)

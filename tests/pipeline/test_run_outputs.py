@@ -305,3 +305,29 @@ def test_a_kind_that_keeps_no_design_is_refused() -> None:
     problem = build_base_problem(study)
     with pytest.raises(ExportError, match="keeps no single key for a, b, c"):
         design_study(study, problem, np.array([0.1, 0.2, 0.3]))
+
+
+def test_progress_line_and_top_designs_show_physical_values() -> None:
+    """The generation line and report.html's top-10 columns: a maximised objective as X (its
+    metric), a requirement's constraint as the quantity it bounds, in its unit."""
+    from flexopt.optimise.evaluation import Evaluation
+    from flexopt.optimise.requirements import Verdict
+    from flexopt.pipeline import labels
+    from flexopt.pipeline.cli import format_generation
+    from flexopt.pipeline.run import GenerationReport
+
+    metrics = {"free.min_advantage": 4.25, "free.end_input_force_N": 7.5}
+    ev = Evaluation(np.zeros(1), np.array([-4.25]), np.array([-0.25, -0.1]), metrics)
+    report = GenerationReport(2, 6, 8, 0, ev, 0.5, 1.0, 1.0, ("negative_free.min_advantage",))
+    assert "best 4.25 (max)" in format_generation(report)
+    force = Verdict("actuator_force", "free.end_input_force_N", 7.5, "<= 10 N", 2.5, 0.25, True,
+                    "N")  # fmt: skip
+    headers, row = labels.design_columns(
+        ("negative_free.min_advantage",), ("req_actuator_force", "stress_ratio_minus_1"), [force]
+    )
+    assert headers == [
+        "maximise free.min_advantage",
+        "actuator_force: free.end_input_force_N (N)",
+        "stress_ratio_minus_1 (g ≤ 0 is met)",
+    ]
+    assert row(ev) == [4.25, 7.5, -0.1]
