@@ -8,8 +8,8 @@ Where a kind keeps the design it evaluates (the inverse of
 :func:`pipeline.problems.nominal_design`):
 
 - design variables on key paths (``variables:``, the ``mechanism`` kind): each variable's
-  ``initial`` is set to the design's value (``flexopt evaluate`` solves the initial design; the
-  geometry keeps its written values, which the variables override);
+  ``initial`` is set to the design's value (``flexopt evaluate`` solves the initial design), and
+  the keys it sets (its path and ties) to their values, so the geometry reads as the design;
 - a ``design:`` block (``constant_force``, ``sea_spring``, ``threshold_spring``,
   ``flexure_pivot``): the design's values by variable name (``flexure_pivot``'s ``type_index``
   as the ``type`` it picks from ``geometry.candidates``);
@@ -34,10 +34,15 @@ from typing import Any
 
 import numpy as np
 from flexopt.optimise.problem import DesignProblem
-from flexopt.optimise.variables import VariableSpec, format_path
+from flexopt.optimise.variables import (
+    VariableError,
+    VariableSpec,
+    format_path,
+    resolve_variables,
+)
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.problems import ExportError, nominal_design
-from flexopt.pipeline.study import Study
+from flexopt.pipeline.study import Study, validate_study
 from flexopt.pipeline.study_edit import study_data
 
 __all__ = ["design_study", "design_values"]
@@ -125,14 +130,19 @@ def design_study(
         When the kind keeps no place for a variable, or the study written back does not give
         the design (naming the variable and both values).
     """
-    from flexopt.pipeline.problems import build_base_problem
-
     x = np.asarray(x, dtype=float).ravel()
     inner = getattr(problem, "study", None)
     if isinstance(inner, Study) and inner.kind != study.kind:
         # a kind that optimises another kind's study (gripper: its resolved constant_force
         # study): the design lives in that study, which is what the run optimised
         study = inner
+    specs = getattr(study, "variables", None)
+    if (
+        specs
+        and all(isinstance(s, VariableSpec) for s in specs)
+        and not callable(getattr(problem, "study_values", None))
+    ):
+        return _checked(study, problem, x, _with_variables(study, x), name)
     changes = design_values(study, problem, x)
     design = changes.get("design")
     if isinstance(design, dict) and len(changes) == 1:
@@ -147,9 +157,43 @@ def design_study(
                     changes = {"design": bare}
     try:
         new = study.with_values(changes)
+    except StudyError as exc:
+        raise ExportError(f"the design does not make a valid {study.kind} study: {exc}") from exc
+    return _checked(study, problem, x, new, name)
+
+
+def _with_variables(study: Study, x: np.ndarray) -> Study:
+    """``study`` with every variable's ``initial`` at ``x`` and the keys the variables set
+    (paths and ties) at their values too, so the geometry reads as the design it is.
+
+    Raises
+    ------
+    ExportError
+        When the result is not a valid study.
+    """
+    data = study_data(study)
+    try:
+        resolved = resolve_variables(study.variables, data)  # type: ignore[attr-defined]
+        data = resolved.apply(data, x)
+    except (VariableError, ValueError) as exc:
+        raise ExportError(f"the design does not fit the study's variables: {exc}") from exc
+    for item, value in zip(data["variables"], x, strict=True):
+        item["initial"] = float(value)
+    try:
+        return validate_study(data)
+    except StudyError as exc:
+        raise ExportError(f"the design does not make a valid {study.kind} study: {exc}") from exc
+
+
+def _checked(
+    study: Study, problem: DesignProblem, x: np.ndarray, new: Study, name: str | None
+) -> Study:
+    """``new`` once its design (the kind's own reading of it) is ``x``; renamed to ``name``."""
+    from flexopt.pipeline.problems import build_base_problem
+
+    try:
         if name is not None and name != new.name:
             new = new.replace(name=name)
-        # the design as the new study gives it: the kind's own reading of its study
         again = nominal_design(build_base_problem(new), new)
     except StudyError as exc:
         raise ExportError(f"the design does not make a valid {study.kind} study: {exc}") from exc
