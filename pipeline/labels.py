@@ -479,9 +479,11 @@ def physical_text(quantity: str, value: Any, unit: str | None = None) -> str:
 
 
 def objective_text(name: str, value: float, metrics: Mapping[str, Any] | None = None) -> str:
-    """``maximise free.min_advantage = 4.436``, ``minimise max_peak_stress_MPa = 21.66 MPa``."""
+    """``maximise free.min_advantage = 4.436``; a minimised one plainly,
+    ``max_peak_stress_MPa = 21.66 MPa`` (minimising is what an objective does unless said)."""
     sense, quantity, shown = objective_view(name, value, metrics)
-    return f"{sense} {quantity} = {physical_text(quantity, shown)}"
+    said = "maximise " if sense == "maximise" else ""
+    return f"{said}{quantity} = {physical_text(quantity, shown)}"
 
 
 def constraint_quantities(

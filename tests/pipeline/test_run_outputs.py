@@ -226,6 +226,9 @@ def test_export_yaml_is_a_study_that_evaluates_to_best_json(
     assert len(best["metrics"]) > 40
     assert not _differences(best["metrics"], evaluation["summary"], 1e-12)
     assert evaluation["verdict"] == best["verdict"]
+    # an evaluate folder's design as a study: its own study
+    assert main(["export", str(tmp_path / "ev"), "--format", "yaml"]) == 0
+    assert flexopt.load_study(tmp_path / "ev" / "design.yaml") == study
 
 
 def _csv_rows(path: Path) -> list[dict[str, str]]:
