@@ -511,6 +511,13 @@ def _short(value: float) -> str:
     return f"{value:.4g}" if math.isfinite(value) else str(value)
 
 
+def _named(verdict: Any) -> str:
+    """``jaw_force: blocked.end_jaw_force_N``; the quantity alone when it is the name."""
+    if verdict.name == verdict.quantity:
+        return str(verdict.quantity)
+    return f"{verdict.name}: {verdict.quantity}"
+
+
 def best_design_rows(
     variables: Sequence[str],
     objectives: Sequence[str],
@@ -539,7 +546,7 @@ def best_design_rows(
         v = judged.get(name.removeprefix("req_")) if name.startswith("req_") else None
         if v is not None:
             shown = f"{physical_text(v.quantity, v.value, v.unit)} ({v.bound})"
-            rows.append(("constraint", f"{v.name}: {v.quantity}", shown))
+            rows.append(("constraint", _named(v), shown))
         else:
             rows.append(("constraint", name, _short(float(value))))
     return rows
@@ -573,7 +580,7 @@ def design_columns(
             headers.append(f"{name} (g ≤ 0 is met)")
         else:
             quantities.append(v.quantity)
-            headers.append(f"{v.name}: {v.quantity}" + (f" ({v.unit})" if v.unit else ""))
+            headers.append(_named(v) + (f" ({v.unit})" if v.unit else ""))
 
     def number(value: Any) -> float | None:
         return float(value) if _finite_number(value) else None
