@@ -15,7 +15,27 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.requirements import Verdict
 from flexopt.optimise.space import DesignSpace
 
-__all__ = ["DesignProblem", "DesignDetail"]
+__all__ = ["CaseResponse", "DesignProblem", "DesignDetail"]
+
+
+@dataclass(frozen=True)
+class CaseResponse:
+    """One load case of a design's response, for a kind with several (a mechanism's free and
+    blocked jaw); the pipeline shows every case wherever it shows a response
+    (:func:`pipeline.responses.case_responses`).
+
+    Attributes
+    ----------
+    table : dict of str to (n_rows,) array — the case's response columns, units in the names.
+    plot : dict — how to plot it, as :attr:`DesignDetail.plot` (``x``, ``y``, ``stress``,
+        ``allowable_MPa``, a target band, ``x_label``).
+    outputs : tuple of str — the columns the user defined for this case (``advantage``,
+        ``jaw_force_N``), each drawn on the axis of its unit.
+    """
+
+    table: dict[str, np.ndarray]
+    plot: dict[str, Any] = field(default_factory=dict)
+    outputs: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -44,6 +64,8 @@ class DesignDetail:
     verdicts : tuple of Verdict — the kind's own verdicts on this design; empty (the default)
         lets ``flexopt run`` judge ``evaluation.metrics``, ``info`` and ``table`` against the
         study's requirements (:func:`pipeline.verdict.judge_detail`).
+    cases : dict of str to CaseResponse — every load case by name, for a kind with several
+        (``table`` and ``plot`` are then the first one's); empty for a kind with one.
     """
 
     evaluation: Evaluation
@@ -56,6 +78,7 @@ class DesignDetail:
     field_map: dict[str, Any] | None = None
     files: dict[str, bytes] = field(default_factory=dict)
     verdicts: tuple[Verdict, ...] = ()
+    cases: dict[str, CaseResponse] = field(default_factory=dict)
 
 
 @runtime_checkable

@@ -33,6 +33,7 @@ from flexopt.pipeline.study import list_examples, load_study, resolve_study_path
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
+from rich.text import Text
 
 if TYPE_CHECKING:  # pipeline.run imports pymoo (~1 s): only `run` and `export` pay for it
     from flexopt.optimise.ga import GAConfig
@@ -234,13 +235,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     export = commands.add_parser(
         "export",
-        help="write one design of a run or evaluate folder as STL, DXF or STEP",
+        help="write one design of a run or evaluate folder as STL, DXF, STEP or a study (YAML)",
         description=(
             "Rebuild a design of a run (from its study.yaml), or the design of a flexopt "
             "evaluate folder, and write its part in mm, laid flat and aligned to the bed axes: "
             "binary STL (to print), DXF (the outline with its holes, to cut) or STEP (needs "
             "pip install 'flexopt[step]'). A sheet part (the leaf-spring joint's leaf) is "
-            "written as its flat profile."
+            "written as its flat profile. --format yaml writes the design as a study instead "
+            "(the run's study with the design's values set), which flexopt evaluate solves to "
+            "the numbers of best.json."
         ),
     )
     export.add_argument(
@@ -257,7 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     export.add_argument(
         "--format",
-        choices=("stl", "dxf", "step"),
+        choices=("stl", "dxf", "step", "yaml"),
         default=None,
         help="file format (default: what --out ends in, else stl)",
     )
@@ -267,7 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help=(
             "file to write (default RUN_DIR/best.FORMAT, RUN_DIR/design-INDEX.FORMAT, or "
-            "RUN_DIR/design.FORMAT in an evaluate folder)"
+            "RUN_DIR/design.FORMAT in an evaluate folder; FORMAT yaml: a study file)"
         ),
     )
     export.set_defaults(handler=_export)
@@ -370,6 +373,27 @@ def _print_robustness(record: dict[str, Any], console: Console) -> None:
         console.print(line, soft_wrap=True, markup=False)
 
 
+def _print_cases(cases: Any, console: Console) -> None:
+    """Every load case of a response (a mechanism's free and blocked jaw): the drive, its
+    reaction, the peak stress and each output, from start to end with its range."""
+    from flexopt.pipeline.responses import case_rows
+
+    if not cases:
+        return
+    table = Table(title="load cases (converged rows)", title_justify="left")
+    for name, justify in (("case", "left"), ("column", "left"), ("unit", "left"),
+                          ("start", "right"), ("end", "right"), ("range", "right")):  # fmt: skip
+        table.add_column(name, justify=justify)  # type: ignore[arg-type]
+    for case, response in cases.items():
+        for column, _, unit, start, end, low, high in case_rows(response):
+            # (Text: a case or output name is the user's, never rich markup)
+            span = f"{_format_value(low)} … {_format_value(high)}"
+            table.add_row(
+                Text(case), Text(column), unit, _format_value(start), _format_value(end), span
+            )
+    console.print(table)
+
+
 def _print_summary(outcome: EvaluateOutcome, console: Console) -> None:
     result, record = outcome.result, outcome.record
     _print_verdict(result.verdicts, f"{record['study']} ({record['kind']})", console)
@@ -391,6 +415,7 @@ def _print_summary(outcome: EvaluateOutcome, console: Console) -> None:
         + (f" (median of {record['repeat']})" if record["repeat"] > 1 else ""),
     )
     console.print(table)
+    _print_cases(result.cases, console)
     console.print(f"wrote {outcome.run_dir}", soft_wrap=True)
 
 
@@ -501,8 +526,15 @@ def _where(run_dir: Path) -> str:
 
 def format_generation(report: GenerationReport) -> str:
     """``gen 3/30  best 0.0123  feasible 85%  12.3 eval/s``."""
+    from flexopt.pipeline.labels import objective_view
+
     best = report.best
-    value = ", ".join(f"{v:.4g}" for v in best.f) if best.feasible else "none feasible"
+    names = getattr(report, "objective_names", None) or [""] * len(best.f)
+    shown = []
+    for name, v in zip(names, best.f, strict=False):
+        sense, _, value = objective_view(name, float(v), best.metrics)
+        shown.append(f"{value:.4g}" + (" (max)" if sense == "maximise" else ""))
+    value = ", ".join(shown) if best.feasible else "none feasible"
     return (
         f"gen {report.generation}/{report.n_gen}  best {value}  "
         f"feasible {100 * report.feasible_fraction:.0f}%  {report.evaluations_per_s:.3g} eval/s"
@@ -514,21 +546,18 @@ def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
     verdicts = getattr(outcome, "verdicts", ())
     _print_verdict(verdicts, f"{record['study']} ({record['kind']}): best design", console)
     _print_robustness(record, console)
-    problem_names = (record["variables"], record["objectives"], record["constraints"])
     table = Table(title=f"{record['study']} ({record['kind']}): best design", title_justify="left")
     table.add_column("")
     table.add_column("name")
     table.add_column("value", justify="right")
-    for label, names, values in zip(
-        ("variable", "objective", "constraint"),
-        problem_names,
-        (best.x, best.f, best.g),
-        strict=True,
-    ):
-        for name, value in zip(names, values, strict=True):
-            table.add_row(label, name, _format_value(float(value)))
+    from flexopt.pipeline.labels import best_design_rows
+
+    names = (record["variables"], record["objectives"], record["constraints"])
+    for label, name, value in best_design_rows(*names, best, verdicts):
+        table.add_row(label, Text(name), Text(value))
     table.add_row("", "optimiser constraints met (feasible)", _format_value(best.feasible))
     console.print(table)
+    _print_cases(outcome.detail.cases if outcome.detail is not None else {}, console)
     rate = record.get("evaluations_per_s")
     console.print(
         f"{record['n_evaluations']} designs solved ({record['n_cache_hits']} repeats from the "
@@ -655,10 +684,37 @@ def _report(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _export(args: argparse.Namespace) -> int:
-    from flexopt.pipeline.run import ExportError, export_design
+def _export_study(args: argparse.Namespace) -> int:
+    """``flexopt export --format yaml``: the design as a study file."""
+    from flexopt.pipeline.run import ExportError, export_study
 
     prog = "flexopt export"
+    try:
+        outcome = export_study(args.run_dir, args.design, args.out)
+    except StudyError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except ExportError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    except OSError as exc:
+        print(f"{prog}: error: cannot write {args.out or 'the file'}: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    print(
+        f"wrote {outcome.path} (design {outcome.design} as a {outcome.study.kind} study; "
+        f"solve it with: flexopt evaluate {outcome.path})"
+    )
+    return EXIT_OK
+
+
+def _export(args: argparse.Namespace) -> int:
+    from flexopt.pipeline.run import STUDY_SUFFIXES, ExportError, export_design
+
+    prog = "flexopt export"
+    if args.format == "yaml" or (
+        args.format is None and args.out is not None and args.out.suffix.lower() in STUDY_SUFFIXES
+    ):
+        return _export_study(args)
     try:
         outcome = export_design(args.run_dir, args.design, args.out, args.format)
     except StudyError as exc:

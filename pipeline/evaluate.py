@@ -15,8 +15,9 @@ from typing import Any
 
 from flexopt.optimise.requirements import verdict_record
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.plots import plot_response
+from flexopt.pipeline.plots import plot_cases, plot_response
 from flexopt.pipeline.report_html import evaluate_html
+from flexopt.pipeline.responses import stacked_table, stress_allowable
 from flexopt.pipeline.robustness import run_robustness
 from flexopt.pipeline.runfolder import (
     check_out_dir,
@@ -33,8 +34,10 @@ from flexopt.pipeline.verdict import judge
 __all__ = [
     "EVALUATE_FILES",
     "EvaluateOutcome",
+    "case_plot_args",
     "evaluate_study",
     "response_plot_args",
+    "response_table",
     "solve_study",
     "versions",
 ]
@@ -118,15 +121,39 @@ def solve_study(study: Study, repeat: int = 1, source: str = "") -> EvaluationRe
 
 def response_plot_args(study: Study, result: EvaluationResult) -> dict[str, Any]:
     """The arguments of :func:`pipeline.plots.plot_response` (or ``response_figure``) beyond
-    the table, for the response of ``result``: what force_displacement.png shows."""
+    the table, for the response of ``result``: what force_displacement.png shows. The stress
+    line is the allowable the verdict uses (:func:`pipeline.responses.stress_allowable`)."""
+    line = stress_allowable(result.verdicts, "", result.plot.get("allowable_MPa"))
+    labels = dict(result.plot)
+    if line is not None and line[1].startswith("allowable"):  # the verdict's own bound
+        labels["allowable_text"] = line[1]
     return {
         "x": result.plot.get("x", "displacement_mm"),
         "left": result.plot.get("left", "force_N"),
         "right": result.plot.get("right", "peak_stress_MPa"),
-        "allowable_MPa": result.plot.get("allowable_MPa"),
+        "allowable_MPa": line[0] if line is not None else None,
         "title": f"{study.name} ({study.kind})",
-        "labels": result.plot,
+        "labels": labels,
     }
+
+
+def case_plot_args(study: Study, result: EvaluationResult) -> dict[str, Any]:
+    """The arguments of :func:`pipeline.plots.cases_figure` beyond the rows, for a result with
+    load cases (``result.cases``): every case with the allowable the verdict uses for it."""
+    return {
+        "cases": dict(result.cases),
+        "allowables": {
+            case: stress_allowable(result.verdicts, case, c.plot.get("allowable_MPa"))
+            for case, c in result.cases.items()
+        },
+        "title": f"{study.name} ({study.kind})",
+    }
+
+
+def response_table(result: EvaluationResult) -> dict[str, Any]:
+    """The response as one table: every load case's rows with a ``load_case`` column for a
+    result with cases (:func:`pipeline.responses.stacked_table`), else ``result.table``."""
+    return stacked_table(result.cases) if result.cases else dict(result.table)
 
 
 def evaluate_study(
@@ -195,11 +222,17 @@ def evaluate_study(
         f"Resolved study written by flexopt evaluate on {record['started']}\n"
         f"from {source or 'memory'}; re-run with: flexopt evaluate {run_dir / 'study.yaml'}"
     )
-    write_atomic(run_dir / "response.csv", table_to_csv(result.table))
+    write_atomic(run_dir / "response.csv", table_to_csv(response_table(result)))
     write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
-    png = plot_response(result.table, **response_plot_args(study, result))
-    write_atomic(run_dir / "force_displacement.png", png)
     extra = _extra_files(result)
+    if result.cases:  # every load case, one column each; every output on its unit's axis
+        args = case_plot_args(study, result)
+        png = plot_cases(rows=("curve", "stress"), **args)
+        if any(c.outputs for c in result.cases.values()):
+            extra["outputs.png"] = plot_cases(rows=("outputs",), **args)
+    else:
+        png = plot_response(result.table, **response_plot_args(study, result))
+    write_atomic(run_dir / "force_displacement.png", png)
     if robust is not None:  # before report.html, which draws its band
         record["robustness"] = robust.record()
     # report.html: the verdict, the response with its target, the part in 3D (one offline file)

@@ -18,11 +18,18 @@ name reads the same everywhere.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 __all__ = [
+    "MAXIMISED",
+    "best_design_rows",
+    "design_columns",
+    "constraint_quantities",
     "curves_label",
+    "objective_text",
+    "objective_view",
+    "physical_text",
     "NAMES",
     "UNITS",
     "VARIABLES",
@@ -429,3 +436,162 @@ def strip_unit(text: str) -> str:
     """A label without its trailing ``(unit)``: ``torque on the hub (N m)`` → ``torque on the
     hub``."""
     return re.sub(r"\s*\([^()]*\)$", "", str(text))
+
+
+# --------------------------------------------------------------------------------------------
+# Objectives and constraints as the user asked for them
+
+#: The prefix of an objective that maximises a quantity: the optimiser minimises its negative.
+MAXIMISED = "negative_"
+
+
+def _finite_number(value: Any) -> bool:
+    import math
+
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def objective_view(
+    name: str, value: float, metrics: Mapping[str, Any] | None = None
+) -> tuple[str, str, float]:
+    """An objective as the study states it: ``(sense, quantity, value)``.
+
+    ``negative_X`` is X maximised (the optimiser minimises its negative): ``("maximise", X,
+    the value of X)``, read from ``metrics`` when the design reports X (exact, without a
+    tie-breaker the objective may carry), else the objective negated. Any other name is
+    ``("minimise", name, value)``.
+    """
+    if name.startswith(MAXIMISED):
+        quantity = name[len(MAXIMISED) :]
+        measured = (metrics or {}).get(quantity)
+        if _finite_number(measured):
+            return "maximise", quantity, float(measured)
+        return "maximise", quantity, -float(value)
+    return "minimise", name, float(value)
+
+
+def physical_text(quantity: str, value: Any, unit: str | None = None) -> str:
+    """``4.436``, ``30.28 MPa``: a value with the unit of its name (or ``unit``), 4 digits."""
+    if not _finite_number(value):
+        return "–" if value is None else str(value)
+    unit = unit if unit is not None else (unit_of(quantity.rpartition(".")[2]) or "")
+    return f"{float(value):.4g}" + (f" {unit}" if unit else "")
+
+
+def objective_text(name: str, value: float, metrics: Mapping[str, Any] | None = None) -> str:
+    """``maximise free.min_advantage = 4.436``; a minimised one plainly,
+    ``max_peak_stress_MPa = 21.66 MPa`` (minimising is what an objective does unless said)."""
+    sense, quantity, shown = objective_view(name, value, metrics)
+    said = "maximise " if sense == "maximise" else ""
+    return f"{said}{quantity} = {physical_text(quantity, shown)}"
+
+
+def constraint_quantities(
+    constraint_names: Iterable[str], requirements: Iterable[Any]
+) -> dict[str, tuple[str, str]]:
+    """The physical quantity behind each requirement constraint: ``req_<label>`` → (quantity,
+    unit) of the requirement labelled so (a curve requirement's value is its worst deviation,
+    in its unit). Constraints of the kind itself (``stress_ratio_minus_1``) are left out: their
+    name says what they are."""
+    by_label = {getattr(r, "label", None): r for r in requirements}
+    out: dict[str, tuple[str, str]] = {}
+    for name in constraint_names:
+        if not name.startswith("req_"):
+            continue
+        req = by_label.get(name[len("req_") :])
+        if req is None:
+            continue
+        out[name] = (str(req.quantity), str(getattr(req, "unit", "") or ""))
+    return out
+
+
+def _short(value: float) -> str:
+    import math
+
+    return f"{value:.4g}" if math.isfinite(value) else str(value)
+
+
+def _named(verdict: Any) -> str:
+    """``jaw_force: blocked.end_jaw_force_N``; the quantity alone when it is the name."""
+    if verdict.name == verdict.quantity:
+        return str(verdict.quantity)
+    return f"{verdict.name}: {verdict.quantity}"
+
+
+def best_design_rows(
+    variables: Sequence[str],
+    objectives: Sequence[str],
+    constraints: Sequence[str],
+    best: Any,
+    verdicts: Sequence[Any] = (),
+) -> list[tuple[str, str, str]]:
+    """The rows (what, name, value) of a best design's table, as the console and report.md
+    show it: its variables; its objectives as the study states them (``maximise
+    free.min_advantage`` = ``4.436``, not the negative the optimiser minimises, with the unit);
+    its constraints as the physical value the requirement bounds, with the bound (``4.264 N
+    (<= 10 N)``), and the normalised g only where no requirement stands behind it.
+
+    Parameters
+    ----------
+    best : an optimise Evaluation (``x``, ``f``, ``g``, ``metrics``)
+    verdicts : the design's verdicts (a ``req_<name>`` constraint is the requirement ``name``)
+    """
+    metrics = getattr(best, "metrics", None) or {}
+    rows = [("variable", n, _short(float(v))) for n, v in zip(variables, best.x, strict=True)]
+    for name, value in zip(objectives, best.f, strict=True):
+        sense, quantity, shown = objective_view(name, float(value), metrics)
+        rows.append(("objective", f"{sense} {quantity}", physical_text(quantity, shown)))
+    judged = {v.name: v for v in verdicts}
+    for name, value in zip(constraints, best.g, strict=True):
+        v = judged.get(name.removeprefix("req_")) if name.startswith("req_") else None
+        if v is not None:
+            shown = f"{physical_text(v.quantity, v.value, v.unit)} ({v.bound})"
+            rows.append(("constraint", _named(v), shown))
+        else:
+            rows.append(("constraint", name, _short(float(value))))
+    return rows
+
+
+def design_columns(
+    objectives: Sequence[str], constraints: Sequence[str], verdicts: Sequence[Any] = ()
+) -> tuple[list[str], Any]:
+    """Headers and a row function for a table of designs (report.html's top 10) in physical
+    values: each objective as the study states it (``maximise free.min_advantage``), each
+    requirement constraint as the quantity it bounds with its unit (``actuator_force:
+    free.end_input_force_N (N)``, read from the design's metrics), the normalised g only where
+    no metric stands behind it.
+
+    Returns
+    -------
+    headers : list of str
+    row : callable (Evaluation) -> list of float or None
+    """
+    judged = {v.name: v for v in verdicts}
+    headers: list[str] = []
+    for name in objectives:
+        sense, quantity, _ = objective_view(name, 0.0)
+        unit = unit_of(quantity.rpartition(".")[2])
+        headers.append(f"{sense} {quantity}" + (f" ({unit})" if unit else ""))
+    quantities: list[str | None] = []
+    for name in constraints:
+        v = judged.get(name.removeprefix("req_")) if name.startswith("req_") else None
+        if v is None:
+            quantities.append(None)
+            headers.append(f"{name} (g ≤ 0 is met)")
+        else:
+            quantities.append(v.quantity)
+            headers.append(_named(v) + (f" ({v.unit})" if v.unit else ""))
+
+    def number(value: Any) -> float | None:
+        return float(value) if _finite_number(value) else None
+
+    def row(ev: Any) -> list[float | None]:
+        metrics = getattr(ev, "metrics", None) or {}
+        out = [number(objective_view(n, float(f), metrics)[2])
+               for n, f in zip(objectives, ev.f, strict=True)]  # fmt: skip
+        for quantity, g in zip(quantities, ev.g, strict=True):
+            value = metrics.get(quantity) if quantity is not None else None
+            out.append(number(value) if _finite_number(value) else number(float(g)))
+        return out
+
+    return headers, row

@@ -13,6 +13,8 @@ if TYPE_CHECKING:  # matplotlib is imported when the first figure is made (~0.3 
     from matplotlib.figure import Figure
 
 __all__ = [
+    "cases_figure",
+    "plot_cases",
     "quantity_name",
     "plot_convergence",
     "curve_figure",
@@ -146,7 +148,7 @@ def response_figure(
         ``right_title`` (panel titles, default "<left quantity> – <x quantity>", e.g. "torque –
         rotation"), ``x_label``, ``left_label``, ``right_label`` (axes) and ``allowable_label``
         (legend of the line, default "yield <value> MPa" for a stress column, "allowable <value>
-        MPa" otherwise).
+        MPa" otherwise) or ``allowable_text`` (the whole legend: the verdict's bound).
 
     Returns
     -------
@@ -180,9 +182,8 @@ def response_figure(
         if allowable_MPa is not None:
             default = "yield" if "stress" in right else "allowable"
             word = labels.get("allowable_label") or default
-            ax_s.axhline(
-                allowable_MPa, ls="--", color="k", lw=1, label=f"{word} {allowable_MPa:g} MPa"
-            )
+            text = labels.get("allowable_text") or f"{word} {allowable_MPa:g} MPa"
+            ax_s.axhline(allowable_MPa, ls="--", color="k", lw=1, label=text)
         if allowable_MPa is not None or len(stress_curves) > 1:
             ax_s.legend(loc="best", fontsize="small")
         ax_s.set_xlabel(x_label)
@@ -281,6 +282,7 @@ def plot_stress(
     allowable_MPa: float | None = None,
     x_label: str | None = None,
     title: str = "",
+    allowable_label: str | None = None,
 ) -> bytes:
     """Peak stress along the stroke, with the allowable stress as a dashed line.
 
@@ -289,6 +291,9 @@ def plot_stress(
     table : mapping of str to (n,) array
         Response columns including ``x`` and ``stress`` (MPa).
     allowable_MPa : float, MPa, optional
+        The line: the allowable the verdict uses (:func:`pipeline.responses.stress_allowable`).
+    allowable_label : str, optional
+        Its legend (default ``allowable <value> MPa``).
 
     Returns
     -------
@@ -301,7 +306,11 @@ def plot_stress(
     curves = _draw_curves(ax, table, x, stress, ok, "tab:red")
     if allowable_MPa is not None:
         ax.axhline(
-            allowable_MPa, ls="--", color="k", lw=1, label=f"allowable {allowable_MPa:g} MPa"
+            allowable_MPa,
+            ls="--",
+            color="k",
+            lw=1,
+            label=allowable_label or f"allowable {allowable_MPa:g} MPa",
         )
     if allowable_MPa is not None or len(curves) > 1:
         ax.legend(loc="best", fontsize="small")
@@ -311,6 +320,140 @@ def plot_stress(
     if title:
         ax.set_title(title)
     return _png(fig)
+
+
+#: What a row of :func:`cases_figure` shows: the kind's curve (with its target), the peak stress
+#: (with the allowable the verdict uses) or the user's outputs, one row per unit.
+CASE_ROWS = ("curve", "stress", "outputs")
+
+
+def plot_cases(
+    cases: Mapping[str, Any],
+    rows: tuple[str, ...] = CASE_ROWS,
+    allowables: Mapping[str, tuple[float, str] | None] | None = None,
+    title: str = "",
+) -> bytes:
+    """:func:`cases_figure` as a PNG file (bytes)."""
+    return _png(cases_figure(cases, rows, allowables, title))
+
+
+def _unit_axis_label(unit: str, names: list[str]) -> str:
+    shown = ", ".join(_labels.words(n, plain=True) for n in names)
+    return f"{shown} ({unit or '–'})"
+
+
+def cases_figure(
+    cases: Mapping[str, Any],
+    rows: tuple[str, ...] = CASE_ROWS,
+    allowables: Mapping[str, tuple[float, str] | None] | None = None,
+    title: str = "",
+) -> Figure:
+    """Every load case of a response side by side: one column per case, one row per quantity.
+
+    Parameters
+    ----------
+    cases : mapping of case name to optimise.problem.CaseResponse
+        :func:`pipeline.responses.case_responses` (a kind with one response: one case ``""``).
+    rows : tuple of str
+        ``curve`` (the kind's ``y`` against ``x`` with its target band), ``stress`` (the
+        ``stress`` column with the allowable line) and ``outputs`` (the user's outputs, one row
+        per unit: a ratio is not drawn on a force's axis). A row no case has is left out.
+    allowables : mapping of case name to (MPa, label) or None
+        The line on the stress row (:func:`pipeline.responses.stress_allowable`: the value the
+        verdict uses).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Only converged rows are drawn; a stable row is a filled marker, an unstable one open.
+    """
+    from flexopt.pipeline.plot_targets import target_overlay
+    from flexopt.pipeline.responses import output_units
+
+    allowables = dict(allowables or {})
+    units = output_units(cases) if "outputs" in rows else {}
+    plan: list[tuple[str, str]] = []  # (row kind, unit of an outputs row)
+    for row in rows:
+        if row == "outputs":
+            plan += [("outputs", unit) for unit in units]
+        elif row == "curve" and any(
+            c.plot.get("x") in c.table and c.plot.get("y") in c.table for c in cases.values()
+        ):
+            plan.append(("curve", ""))
+        elif row == "stress" and any(
+            c.plot.get("stress", "peak_stress_MPa") in c.table for c in cases.values()
+        ):
+            plan.append(("stress", ""))
+    n_rows, n_cols = max(1, len(plan)), max(1, len(cases))
+    fig = _new_figure(figsize=(5.2 * n_cols, 3.4 * n_rows + 0.6), layout="constrained")
+    axes = fig.subplots(n_rows, n_cols, squeeze=False)
+    for j, (name, case) in enumerate(cases.items()):
+        table, spec = case.table, case.plot
+        x = spec.get("x", "displacement_mm")
+        if x not in table:
+            continue
+        ok = _converged(table, x)
+        xs = np.asarray(table[x], dtype=float)
+        stable = np.asarray(table.get("stable", np.ones(xs.size, bool)), dtype=bool)
+        for i, (kind, unit) in enumerate(plan):
+            ax = axes[i, j]
+            ax.grid(True, alpha=0.3)
+            ax.set_xlabel(_label(x, spec.get("x_label") or spec.get("xlabel")), fontsize="small")
+            if i == 0 and name:
+                ax.set_title(f"load case {name}")
+            if kind == "curve":
+                y = spec.get("y", "force_N")
+                if y not in table:
+                    ax.set_axis_off()
+                    continue
+                curves = _draw_curves(ax, table, x, y, ok, "tab:blue")
+                overlay = target_overlay({**spec, "x": x, "y": y}, table, y, _labels.unit_of(y))
+                if overlay is not None:
+                    _draw_target(ax, overlay)
+                if overlay is not None or len(curves) > 1:
+                    ax.legend(loc="best", fontsize="small")
+                ax.set_ylabel(spec.get("ylabel") or _curves_label(y, curves))
+            elif kind == "stress":
+                column = spec.get("stress", "peak_stress_MPa")
+                if column not in table:
+                    ax.set_axis_off()
+                    continue
+                _draw_curves(ax, table, x, column, ok, "tab:red")
+                line = allowables.get(name)
+                if line is not None:
+                    ax.axhline(line[0], ls="--", color="k", lw=1, label=line[1])
+                    ax.legend(loc="best", fontsize="small")
+                ax.set_ylabel(_label(column, None))
+            else:
+                mine = [n for n in units[unit] if n in case.outputs and n in table]
+                if not mine:
+                    ax.set_axis_off()
+                    none = f"no output in {unit or 'ratio'} in this case"
+                    ax.text(0.5, 0.5, none, ha="center", va="center", transform=ax.transAxes,
+                            color="0.5")  # fmt: skip
+                    continue
+                for k, column in enumerate(mine):
+                    ys = np.asarray(table[column], dtype=float)
+                    good = ok & np.isfinite(ys)
+                    colour = f"C{k}"
+                    ax.plot(xs[good], ys[good], "-", color=colour, lw=1.3,
+                            label=_labels.words(column, plain=True))  # fmt: skip
+                    ax.plot(xs[good & stable], ys[good & stable], "o", ms=3, color=colour)
+                    ax.plot(xs[good & ~stable], ys[good & ~stable], "o", ms=3, mfc="none",
+                            color=colour)  # fmt: skip
+                    if spec.get("y") == column:  # the target band of a requirement on it
+                        overlay = target_overlay({**spec, "x": x}, table, column, unit or None)
+                        if overlay is not None:
+                            _draw_target(ax, overlay)
+                ax.legend(loc="best", fontsize="small")
+                ax.set_ylabel(_unit_axis_label(unit, mine))
+    unstable = any(
+        not np.asarray(c.table.get("stable", [True]), dtype=bool).all() for c in cases.values()
+    )
+    note = "  (open markers: unstable rows)" if unstable and units else ""
+    if title or note:
+        fig.suptitle(title + note)
+    return fig
 
 
 def plot_convergence(

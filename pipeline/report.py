@@ -30,7 +30,9 @@ MAX_DEPTH = 3
 
 _PLOTS = (
     ("force_displacement.png", "Force–displacement of the best design"),
-    ("stress.png", "Peak stress along the stroke"),
+    ("stress.png", "Peak stress along the stroke (the line: the allowable the verdict uses)"),
+    ("outputs.png", "The study's outputs in every load case (one axis per unit)"),
+    ("deformed_shapes.png", "Deformed shapes in every load case"),
     ("shapes.png", "Deformed shapes"),
     ("stress_map.png", "Stress map of the best design"),
     ("front.png", "Pareto front"),
@@ -273,6 +275,23 @@ def render_verdict(verdicts: Sequence[Verdict]) -> list[str]:
     return lines
 
 
+def _load_cases(detail: DesignDetail | None) -> list[str]:
+    """A table per load case: the drive, its reaction, the peak stress and every output of the
+    case (unit, start, end, smallest, largest over the converged rows)."""
+    from flexopt.pipeline.responses import case_rows
+
+    cases = detail.cases if detail is not None else {}
+    if not cases:
+        return []
+    lines = ["### Load cases", "", "Every load case of the best design (converged rows); "
+             "the curves are in the plots below and in best_response.csv.", ""]  # fmt: skip
+    header = ["column", "", "unit", "start", "end", "smallest", "largest"]
+    for name, case in cases.items():
+        lines += [f"#### {name}", ""]
+        lines += _table(header, [list(row) for row in case_rows(case)])
+    return lines
+
+
 def render_report(data: ReportData) -> str:
     """The Markdown text of report.md (plots linked relative to the run folder)."""
     record, problem, best = data.record, data.problem, data.best
@@ -312,9 +331,16 @@ def render_report(data: ReportData) -> str:
             ]
         ],
     )
+    from flexopt.pipeline.labels import MAXIMISED, best_design_rows, objective_view
+
+    def stated(name: str) -> str:  # a maximised objective as the study states it
+        sense, quantity, _ = objective_view(name, 0.0)
+        minimised = f" (the optimiser minimises `{name}`)" if name.startswith(MAXIMISED) else ""
+        return f"{sense} `{quantity}`{minimised}"
+
     lines += [
-        f"Design variables: {len(problem.space.names)}; objectives (minimised): "
-        + ", ".join(f"`{n}`" for n in problem.objective_names)
+        f"Design variables: {len(problem.space.names)}; objectives: "
+        + ", ".join(stated(n) for n in problem.objective_names)
         + "; constraints (feasible when ≤ 0): "
         + (", ".join(f"`{n}`" for n in problem.constraint_names) or "none")
         + ".",
@@ -351,15 +377,12 @@ def render_report(data: ReportData) -> str:
             "Widen the design space, relax the constraints or run longer.",
         ]
     lines += [""]
-    rows: list[list[Any]] = []
-    rows += [["variable", n, float(v)] for n, v in zip(problem.space.names, best.x, strict=True)]
-    rows += [
-        ["objective", n, float(v)] for n, v in zip(problem.objective_names, best.f, strict=True)
-    ]
-    rows += [
-        ["constraint", n, float(v)] for n, v in zip(problem.constraint_names, best.g, strict=True)
-    ]
-    lines += _table(["", "name", "value"], rows)
+    # objectives as the study states them (maximised ones too), constraints as the physical
+    # value their requirement bounds, with the bound
+    rows = best_design_rows(
+        problem.space.names, problem.objective_names, problem.constraint_names, best, verdicts
+    )
+    lines += _table(["", "name", "value"], [list(row) for row in rows])
     bounds_hit = [
         n
         for n, v, lo, hi in zip(
@@ -381,9 +404,16 @@ def render_report(data: ReportData) -> str:
     if len(data.front) > 1:
         lines += [f"### Pareto front ({len(data.front)} designs, see best.json)", ""]
         lines += _table(
-            list(problem.objective_names),
-            [list(map(float, ev.f)) for ev in data.front[:MAX_TABLE_ROWS]],
+            [" ".join(objective_view(n, 0.0)[:2]) for n in problem.objective_names],
+            [
+                [
+                    objective_view(n, float(v), ev.metrics)[2]
+                    for n, v in zip(problem.objective_names, ev.f, strict=True)
+                ]  # fmt: skip
+                for ev in data.front[:MAX_TABLE_ROWS]
+            ],
         )
+    lines += _load_cases(data.detail)
 
     plots = [(name, caption) for name, caption in _PLOTS if name in data.files]
     if plots:

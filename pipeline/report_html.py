@@ -768,23 +768,12 @@ def render_html(data: HtmlData) -> str:
 
     # -- top designs
     top = top_designs(evaluations)
-    header = [
-        "rank",
-        "feasible",
-        *map(labels.label, p.objective_names),
-        *map(labels.label, p.constraint_names),
-        *map(labels.label, p.space.names),
-        "reason",
-    ]
+    # physical values: objectives as stated (maximised ones too), constraints as the quantity
+    # their requirement bounds (labels.design_columns)
+    physical, values = labels.design_columns(p.objective_names, p.constraint_names, verdicts)
+    header = ["rank", "feasible", *physical, *map(labels.label, p.space.names), "reason"]
     rows = [
-        [
-            k + 1,
-            ev.feasible,
-            *map(_finite, map(float, ev.f)),
-            *map(_finite, map(float, ev.g)),
-            *map(float, ev.x),
-            ev.reason or "–",
-        ]
+        [k + 1, ev.feasible, *values(ev), *map(float, ev.x), ev.reason or "–"]
         for k, ev in enumerate(top)
     ]
     body = (

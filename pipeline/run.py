@@ -67,6 +67,7 @@ from flexopt.pipeline.problems import (
 from flexopt.pipeline.problems import nominal_design as _nominal_design
 from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.report_html import HtmlData, render_html
+from flexopt.pipeline.responses import case_responses, stacked_table, stress_allowable
 from flexopt.pipeline.runfolder import (
     RunDirLock,
     cell_float,
@@ -366,6 +367,7 @@ class GenerationReport:
     feasible_fraction : share of this generation's designs that are feasible.
     evaluations_per_s : designs solved per second of this generation.
     wall_s : s since the optimisation started.
+    objective_names : the objectives of ``best.f`` (``negative_X``: X maximised).
     """
 
     generation: int
@@ -376,6 +378,7 @@ class GenerationReport:
     feasible_fraction: float
     evaluations_per_s: float
     wall_s: float
+    objective_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -555,6 +558,7 @@ class _Run:
             feasible_fraction=gen.feasible_fraction,
             evaluations_per_s=n_new / gen_wall if gen_wall > 0 else 0.0,
             wall_s=now - self.t0,
+            objective_names=tuple(self.problem.objective_names),
         )
         entry: dict[str, Any] = {
             "generation": number,
@@ -829,30 +833,43 @@ class _Run:
         x = spec.get("x", "displacement_mm")
         y = spec.get("y", "force_N")
         stress = spec.get("stress", "peak_stress_MPa")
-        if table:
+        if detail is not None and detail.cases:  # every case, a load_case column first
+            every = stacked_table(detail.cases)
+            self.artefact("best_response.csv", lambda: table_to_csv(every))
+        elif table:
             self.artefact("best_response.csv", lambda: table_to_csv(table))
         elif detail is not None:
             self.notes.append("the kind gives no response table: no best_response.csv")
-        if x in table and y in table:
+        cases = dict(detail.cases) if detail is not None else {}
+        # the stress line at the allowable the verdict uses (yield / SF, a plane-stress limit)
+        allowables = {
+            case: stress_allowable(self.verdicts, case, _float_or_none(c.plot.get("allowable_MPa")))
+            for case, c in case_responses(table, spec, cases).items()
+        }
+        if cases:  # several load cases: one panel each, every output on the axis of its unit
+            self._case_plots(cases, allowables, title)
+        elif x in table and y in table:
             self.artefact(
                 "force_displacement.png", lambda: _curve_png(table, spec, title), group="png"
             )
         elif table:
             self.notes.append(f"force_displacement.png skipped: no columns '{x}' and '{y}'")
-        if x in table and stress in table:
+        if not cases and x in table and stress in table:
+            line = allowables.get("")
             self.artefact(
                 "stress.png",
                 lambda: plots.plot_stress(
                     table,
                     x,
                     stress,
-                    allowable_MPa=_float_or_none(spec.get("allowable_MPa")),
+                    allowable_MPa=line[0] if line else None,
                     x_label=_spec_label(spec, "x"),
                     title=title,
+                    allowable_label=line[1] if line else None,
                 ),
                 group="png",
             )
-        elif table:
+        elif table and not cases:
             self.notes.append(f"stress.png skipped: the response has no '{stress}' column")
         self.artefact(
             "convergence.png", lambda: _convergence_png(self.history, self.columns), group="png"
@@ -882,6 +899,8 @@ class _Run:
                 group="png",
             )
         for name, data in (getattr(detail, "files", None) or {}).items():
+            if cases and name == "outputs.png":
+                continue  # the pipeline draws every case's outputs (_case_plots)
             if name in RUN_FILES or "/" in name or name.startswith("."):
                 self.notes.append(f"{name} from the kind not written: a reserved or unsafe name")
                 continue
@@ -916,6 +935,24 @@ class _Run:
             best_json.get("robustness"))))  # fmt: skip
         self.collect_groups()
         return detail
+
+    def _case_plots(
+        self,
+        cases: Mapping[str, Any],
+        allowables: Mapping[str, tuple[float, str] | None],
+        title: str,
+    ) -> None:
+        """force_displacement.png, stress.png and outputs.png of a kind with load cases: one
+        column per case (the kind's own outputs.png is replaced by the pipeline's)."""
+        files = [("force_displacement.png", ("curve",)), ("stress.png", ("stress",))]
+        if any(c.outputs for c in cases.values()):
+            files.append(("outputs.png", ("outputs",)))
+        for name, rows in files:
+            self.artefact(
+                name,
+                lambda rows=rows: plots.plot_cases(cases, rows, allowables, title),
+                group="png",
+            )
 
     def robustness(self, best: Evaluation, detail: DesignDetail | None) -> Any:
         """The chosen design at every sample of the study's ``robustness:`` block, on the run's
@@ -1007,12 +1044,18 @@ def _curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: 
 
 
 def _convergence_png(history: list[dict[str, Any]], columns: _Columns) -> bytes:
+    from flexopt.pipeline.labels import MAXIMISED
+
+    best = np.array([[h[f"best_{name}"] for name in columns.objectives] for h in history])
+    # a maximised objective drawn as the study states it: X rising, not its negative falling
+    sign = np.array([-1.0 if n.startswith(MAXIMISED) else 1.0 for n in columns.objectives])
+    names = tuple(n.removeprefix(MAXIMISED) for n in columns.objectives)  # "best": the largest
     return plots.plot_convergence(
         np.array([h["generation"] for h in history]),
-        np.array([[h[f"best_{name}"] for name in columns.objectives] for h in history]),
+        best.reshape(len(history), len(names)) * sign,
         np.array([h["best_feasible"] for h in history]),
         np.array([h["feasible_fraction"] for h in history]),
-        columns.objectives,
+        names,
     )
 
 
@@ -2280,3 +2323,102 @@ def export_design(
         part.rotation_deg,
         part.sheet,
     )
+
+
+# --------------------------------------------------------------------------------------------
+# A design as a study (flexopt export --format yaml)
+
+#: File name endings taken as ``--format yaml``.
+STUDY_SUFFIXES = (".yaml", ".yml")
+
+
+@dataclass(frozen=True)
+class StudyExportOutcome:
+    """What ``flexopt export --format yaml`` wrote.
+
+    Attributes
+    ----------
+    path : the study file written.
+    design : ``"best"``, the evaluation index, or ``"evaluated"`` (an evaluate folder's design).
+    study : the study written (``flexopt evaluate`` of it solves the design).
+    x : (n_var,) float, the design vector (None for an evaluate folder: its study as it is).
+    """
+
+    path: Path
+    design: str
+    study: Study
+    x: np.ndarray | None
+
+
+def design_study_of(run_dir: Path, design: str = "best") -> tuple[Study, str, np.ndarray | None]:
+    """The study that describes one design of a run folder (``best`` or an evaluation index),
+    or an evaluate folder's own study: ``flexopt evaluate`` of it gives the design's numbers.
+
+    Raises
+    ------
+    StudyError
+        For a folder or design that is not there or is damaged (as :func:`export_design`).
+    ExportError
+        When the kind cannot keep the design in its study (:mod:`pipeline.design_study`).
+    """
+    from flexopt.pipeline.design_study import design_study
+
+    if run_dir.is_dir() and is_evaluate_folder(run_dir):
+        if design != "best":
+            raise StudyError(
+                "--design",
+                f"'{run_dir}' is a folder of flexopt evaluate, which holds one design; drop "
+                "--design",
+            )
+        return _evaluate_folder_study(run_dir), "evaluated", None
+    read_run_record(run_dir)
+    study = _run_folder_study(run_dir, "RUN_DIR")
+    problem = build_problem(study)
+    x, _ = _design_vector(run_dir, design, problem.space, _Columns.of(problem))
+    return design_study(study, problem, x), design, x
+
+
+def export_study(
+    run_dir: Path, design: str = "best", out: Path | None = None
+) -> StudyExportOutcome:
+    """Write one design of a run (or an evaluate folder's design) as a study YAML file.
+
+    The file is the run's study with the design's values where the kind keeps its design (the
+    variables' ``initial``, the ``design:`` block, ...; :mod:`pipeline.design_study`), so
+    ``flexopt evaluate FILE`` solves that design and gives the numbers of best.json.
+
+    Parameters
+    ----------
+    out : Path, optional
+        Default ``run_dir/best.yaml``, ``run_dir/design-<INDEX>.yaml`` or, in an evaluate
+        folder, ``run_dir/design.yaml``; it must end in .yaml or .yml.
+
+    Raises
+    ------
+    StudyError
+        As :func:`design_study_of`, and for an ``out`` that is a folder, in a missing folder, or
+        not a .yaml file.
+    ExportError
+        When the kind cannot keep the design in its study.
+    OSError
+        When the file cannot be written.
+    """
+    if out is not None and out.suffix.lower() not in STUDY_SUFFIXES:
+        raise StudyError(
+            "--out", f"'{out}' does not end in .yaml; name the study file .yaml (--format yaml)"
+        )
+    study, design, x = design_study_of(run_dir, design)
+    names = {"best": "best.yaml", "evaluated": "design.yaml"}
+    target = out or run_dir / (names.get(design) or f"design-{int(design)}.yaml")
+    if target.is_dir():
+        raise StudyError("--out", f"'{target}' is a folder; give a file name ending in .yaml")
+    if not target.parent.is_dir():
+        raise StudyError("--out", f"folder '{target.parent}' does not exist; create it first")
+    header = (
+        f"Design {design} of {run_dir}, written by flexopt export as a study\n"
+        f"(the design's values where the {study.kind} kind keeps its design);\n"
+        f"solve it with: flexopt evaluate {target}"
+    )
+    write_atomic(target, study_to_yaml(study, header))
+    log.info("wrote %s (yaml)", target)
+    return StudyExportOutcome(target, design, study, x)

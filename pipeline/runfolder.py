@@ -142,6 +142,8 @@ def make_run_dir(path: Path) -> Path:
 
 
 def _cell(value: Any) -> str:
+    if value is None or isinstance(value, str):  # a load_case column, a gap in a bool column
+        return "" if value is None else value
     if isinstance(value, bool | np.bool_):
         return "true" if value else "false"
     if isinstance(value, int | np.integer):

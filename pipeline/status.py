@@ -18,6 +18,7 @@ from typing import Any
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.pipeline.checkpoint import STORE_FILE, EvaluationStore
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.labels import objective_text
 from flexopt.pipeline.runfolder import read_run_json
 
 __all__ = ["RunStatus", "format_status", "run_status"]
@@ -62,6 +63,7 @@ class RunStatus:
     eta_s: float | None
     error: str = ""
     notes: tuple[str, ...] = ()
+    best_metrics: dict[str, Any] | None = None  # the best design's metrics (a maximised X)
 
     @property
     def feasible_share(self) -> float:
@@ -122,6 +124,7 @@ def run_status(run_dir: Path) -> RunStatus:
     feasible = [ev for ev in rows if ev.feasible]
     best = None
     best_feasible = False
+    top = None
     if feasible:
         top = min(feasible, key=lambda ev: float(ev.f[0]))
         best, best_feasible = dict(zip(objectives, map(float, top.f), strict=False)), True
@@ -168,6 +171,7 @@ def run_status(run_dir: Path) -> RunStatus:
         eta_s=eta,
         error=str(record.get("error") or ""),
         notes=tuple(store.notes),
+        best_metrics=dict(top.metrics) if top is not None and top.metrics else None,
     )
 
 
@@ -185,7 +189,10 @@ def format_status(status: RunStatus) -> str:
     if status.best is None:
         best = "–"
     else:
-        values = ", ".join(f"{name} = {value:.6g}" for name, value in status.best.items())
+        # a maximised objective as the study states it (not the negative the GA minimises)
+        values = ", ".join(
+            objective_text(name, value, status.best_metrics) for name, value in status.best.items()
+        )
         late = " yet" if status.status == "running" else ""
         best = values + ("" if status.best_feasible else f" (none feasible{late})")
     rate = f"{status.evaluations_per_s:.3g} eval/s" if status.evaluations_per_s else "–"

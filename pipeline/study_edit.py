@@ -8,11 +8,20 @@ result is validated: a bad value is refused with its key path, as in a file.
 Paths use the grammar of design variables (:func:`optimise.variables.parse_path`):
 ``geometry.width_mm``, ``geometry.points_mm[1][0]``, ``geometry.thickness_mm[*]`` (every item
 of the list).
+
+A key that a design variable sets (its ``path`` or a ``tie``) is not a value the study keeps:
+the variable's ``initial`` is what ``flexopt evaluate`` solves. Setting such a key therefore
+moves the variable: its ``initial`` becomes the value (through the key's ``factor`` and
+``offset``), so every key the variable sets follows, and a value outside the variable's bounds,
+or two tied keys set to different values, is refused at the key with the variable named
+(:func:`_move_variables`). Nothing is silently overridden.
 """
 
 from __future__ import annotations
 
+import copy
 import difflib
+import math
 import types
 import typing
 from collections import abc
@@ -20,7 +29,14 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from flexopt.optimise.variables import PathPart, format_path, parse_path
+from flexopt.optimise.variables import (
+    PathPart,
+    VariableError,
+    VariableSpec,
+    format_path,
+    parse_path,
+    resolve_variables,
+)
 from flexopt.pipeline.errors import StudyError
 from pydantic import BaseModel
 
@@ -65,7 +81,8 @@ def replace_blocks(study: Study, changes: Mapping[str, Any], validate: Validator
         the key path of the first value the kind's model or checks refuse.
     """
     fields = list(type(study).model_fields)
-    data = study_data(study)
+    old = study_data(study)
+    data = copy.deepcopy(old)
     for key, value in changes.items():
         if key not in fields:
             close = difflib.get_close_matches(key, fields, n=1)
@@ -79,6 +96,7 @@ def replace_blocks(study: Study, changes: Mapping[str, Any], validate: Validator
             data.pop(key, None)  # back to the kind's default (a required block is then missing)
         else:
             data[key] = _plain(value)
+    _move_variables(study, old, data, [(key, (key,)) for key in changes])
     return validate(data)
 
 
@@ -232,9 +250,120 @@ def set_values(study: Study, values: Mapping[str, Any], validate: Validator) -> 
         raise StudyError(
             "", f"with_values takes a mapping of key paths to values, not {type(values).__name__}"
         )
-    data = study_data(study)
+    old = study_data(study)
+    data = copy.deepcopy(old)
+    given: list[tuple[str, tuple[PathPart, ...]]] = []
     for text, value in values.items():
         if not isinstance(text, str):
             raise StudyError(str(text), "a key path is text, e.g. 'geometry.width_mm'")
         _set_path(data, type(study), text, value, study.kind)
+        given.append((text, parse_path(text)))
+    _move_variables(study, old, data, given)
     return validate(data)
+
+
+def _covers(given: tuple[PathPart, ...], path: tuple[PathPart, ...]) -> bool:
+    """Whether the key path ``given`` (``[*]`` for every item) is ``path`` or a block holding it."""
+    if len(given) > len(path):
+        return False
+    return all(
+        g == p or (isinstance(g, tuple) and isinstance(p, int))
+        for g, p in zip(given, path, strict=False)
+    )
+
+
+def _leaf(data: Any, path: tuple[PathPart, ...]) -> float | None:
+    """The number at ``path`` in plain data (None where there is none, e.g. a changed shape)."""
+    for part in path:
+        try:
+            data = data[part]  # type: ignore[index]
+        except (KeyError, IndexError, TypeError):
+            return None
+    if isinstance(data, bool) or not isinstance(data, int | float):
+        return None
+    return float(data)
+
+
+def _move_variables(
+    study: Study,
+    old: dict[str, Any],
+    data: dict[str, Any],
+    given: Sequence[tuple[str, tuple[PathPart, ...]]],
+) -> None:
+    """Move the design variables whose keys the change sets (in ``data``, in place).
+
+    A key a variable sets (``path`` or ``tie``) named by a given path is the value the user
+    wants, so the variable's ``initial`` becomes ``(value - offset) / factor``; a key inside a
+    whole block or list that was given moves it only where its value changed (a block copied
+    back unchanged keeps the variable where it was). The change is refused at the given path
+    when the value lies outside the variable's bounds (as they are after the change) or two of
+    the variable's keys ask for different values. A change of ``variables`` itself is left as
+    given (the user writes the variables then).
+
+    Raises
+    ------
+    StudyError
+        At the given key path, naming the variable that holds the key and the fix.
+    """
+    specs = getattr(study, "variables", None)
+    if not specs or not all(isinstance(s, VariableSpec) for s in specs):
+        return  # a kind without path variables: every key is the study's own
+    own = [parts for _, parts in given if parts[:1] == ("variables",)]
+    if any(len(p) < 3 or p[2] not in ("bounds", "initial", "name") for p in own):
+        return  # the variables themselves are rewritten: they are what the user gives
+    initial_given = {p[1] for p in own if p[2] == "initial"}
+    try:
+        resolved = resolve_variables(specs, old)
+    except VariableError:
+        return  # (the study was validated: its variables resolve; be safe all the same)
+    items = data.get("variables")
+    if not isinstance(items, list) or len(items) != len(specs):
+        return
+    for i, targets in enumerate(resolved.targets):
+        name, here = resolved.names[i], f"variables[{i}]"
+        wanted: list[tuple[float, str, str, float]] = []  # (x, given path, key, value)
+        for target in targets:
+            exact = [t for t, parts in given if parts == target.path]
+            inside = [t for t, parts in given if _covers(parts, target.path)]
+            if not inside:
+                continue
+            value = _leaf(data, target.path)
+            if value is None or not math.isfinite(value):
+                continue  # not a number: the kind's model refuses it at its key
+            if not exact and value == _leaf(old, target.path):
+                continue  # a whole block given with this key as it was
+            text = (exact or inside)[-1]
+            x = (value - target.offset) / target.factor
+            wanted.append((x, text, format_path(target.path), value))
+        if not wanted:
+            continue
+        x, text, key, value = wanted[0]
+        if i in initial_given or any(isinstance(p[1], tuple) for p in own):
+            raise StudyError(
+                text,
+                f"'{key}' is set by design variable '{name}' ({here}), whose initial is also "
+                "given in this change; give one of them (setting the key moves the initial)",
+            )
+        for x2, text2, key2, value2 in wanted[1:]:
+            if not math.isclose(x2, x, rel_tol=1e-9, abs_tol=1e-12):
+                raise StudyError(
+                    text2,
+                    f"'{key2}' and '{key}' are both set by design variable '{name}' ({here}), "
+                    f"which cannot be {x:g} and {x2:g} at once (given {value:g} and "
+                    f"{value2:g}); set one of them, or change {here} (its tie) itself",
+                )
+        bounds = items[i].get("bounds") if isinstance(items[i], dict) else None
+        try:
+            lo, hi = (float(b) for b in bounds)  # type: ignore[union-attr]
+        except (TypeError, ValueError):
+            lo, hi = float(resolved.lower[i]), float(resolved.upper[i])
+        if not lo <= x <= hi:
+            what = "this key" if key == format_path(parse_path(text)) else f"'{key}'"
+            moved = f"{value:g}" if x == value else f"{value:g} puts it at {x:g}, which"
+            raise StudyError(
+                text,
+                f"{what} is set by design variable '{name}' ({here}), and {moved} lies outside "
+                f"its bounds [{lo:g}, {hi:g}]; give a value inside them, or widen them in the "
+                f"same change ({{'{here}.bounds': [{min(lo, x):g}, {max(hi, x):g}]}})",
+            )
+        items[i]["initial"] = float(x)

@@ -164,7 +164,13 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         inputs the solver refuses. A solve that does not converge is a result
         (``converged=False``), not an error.
     """
-    from flexopt.pipeline.evaluate import evaluate_study, response_plot_args, solve_study
+    from flexopt.pipeline.evaluate import (
+        case_plot_args,
+        evaluate_study,
+        response_plot_args,
+        response_table,
+        solve_study,
+    )
 
     study, source = _study_and_source(study)
     repeat = _whole(repeat, "repeat", 1)
@@ -174,16 +180,21 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
     else:
         outcome = evaluate_study(study, out=folder, repeat=repeat, source=source)
         result, run_dir = outcome.result, outcome.run_dir
+    if result.cases:  # every load case: a load_case column, one panel per case
+        plot_args = case_plot_args(study, result)
+    else:
+        plot_args = response_plot_args(study, result)
     return Result(
         study=study,
-        table=_readonly(result.table),
+        table=_readonly(response_table(result)),
         summary=dict(result.summary),
         verdict=tuple(result.verdicts),
         converged=bool(result.converged),
         message=result.message,
         solve_time_s=float(statistics.median(result.solve_times_s)),
         run_dir=run_dir,
-        plot_args=response_plot_args(study, result),
+        plot_args=plot_args,
+        cases={name: _readonly(c.table) for name, c in result.cases.items()},
     )
 
 

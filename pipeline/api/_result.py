@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from flexopt.pipeline.errors import StudyError
 
 if TYPE_CHECKING:
     import pandas
@@ -68,7 +69,9 @@ class Result:
         The study solved.
     table : dict of str to (n_rows,) ndarray
         The response, one row per step; names carry units (``displacement_mm``, ``force_N``,
-        ``peak_stress_MPa``), ``converged`` is boolean. Read-only arrays.
+        ``peak_stress_MPa``), ``converged`` is boolean. Read-only arrays. A study with load
+        cases (a mechanism) has every case's rows, case after case, and a ``load_case`` column
+        first; a column a case does not have (its own output) is NaN in its rows.
     summary : dict
         Scalar results (names carry units); None where a value is undefined.
     verdict : tuple of Verdict
@@ -82,6 +85,8 @@ class Result:
         Median wall time of building the model and solving, over ``repeat`` solves.
     run_dir : Path or None
         The evaluate folder, when ``out`` was given.
+    cases : dict of str to dict of str to (n_rows,) ndarray
+        Each load case's own table by case name (empty for a kind without load cases).
     """
 
     study: Study
@@ -93,6 +98,7 @@ class Result:
     solve_time_s: float
     run_dir: Path | None = None
     plot_args: dict[str, Any] = field(default_factory=dict)
+    cases: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
     @property
     def met(self) -> bool:
@@ -100,14 +106,19 @@ class Result:
         return _all_met(self.verdict)
 
     def to_dataframe(self) -> pandas.DataFrame:
-        """The response table as a pandas DataFrame (needs the ``dataframe`` extra)."""
+        """The response table as a pandas DataFrame (needs the ``dataframe`` extra); with load
+        cases, a ``load_case`` column says each row's case."""
         return _pandas().DataFrame({name: np.array(col) for name, col in self.table.items()})
 
     def plot(self) -> Figure:
         """The response as a matplotlib Figure: what ``force_displacement.png`` of
-        ``flexopt evaluate`` shows (only converged rows are drawn)."""
-        from flexopt.pipeline.plots import response_figure
+        ``flexopt evaluate`` shows (only converged rows are drawn). With load cases: one column
+        per case; rows of the drive's reaction, the peak stress (with the allowable the verdict
+        uses) and the user's outputs, one row per unit."""
+        from flexopt.pipeline.plots import cases_figure, response_figure
 
+        if "cases" in self.plot_args:
+            return cases_figure(**self.plot_args)
         return response_figure(self.table, **self.plot_args)
 
     def verdict_text(self) -> str:
@@ -119,11 +130,12 @@ class Result:
 
     def __repr__(self) -> str:
         n_rows = len(next(iter(self.table.values()))) if self.table else 0
+        cases = f" in {len(self.cases)} load cases" if len(self.cases) > 1 else ""
         state = "converged" if self.converged else f"NOT converged: {self.message[:60]}"
         where = f", {self.run_dir}" if self.run_dir is not None else ""
         return (
             f"<Result {self.study.name} ({self.study.kind}): {_verdict_word(self.verdict)}, "
-            f"{state}, {n_rows} rows x {len(self.table)} columns, "
+            f"{state}, {n_rows} rows{cases} x {len(self.table)} columns, "
             f"solve {self.solve_time_s:.3g} s{where}>"
         )
 
@@ -139,7 +151,8 @@ class BestDesign:
     variables : dict of str to float
         Variable name → value (the same numbers as ``x``).
     objectives, constraints : dict of str to float
-        The optimiser's objectives (minimised) and constraints (g <= 0 is met).
+        The optimiser's objectives (minimised: ``negative_X`` is X maximised, negated; the repr
+        shows X) and constraints (g <= 0 is met).
     metrics : dict
         The kind's scalar results of this design (names carry units).
     feasible : bool
@@ -173,7 +186,7 @@ class BestDesign:
         return _all_met(self.verdict)
 
     def __repr__(self) -> str:
-        objectives = ", ".join(f"{k}={v:.4g}" for k, v in self.objectives.items())
+        objectives = _objectives_text(self.objectives, self.metrics)
         where = f", generation {self.generation} #{self.index}" if self.generation else ""
         judged = f", {_verdict_word(self.verdict)}" if self.verdict else ""
         return (
@@ -248,9 +261,32 @@ class RunResult:
 
         return load_study(self.run_dir / "study.yaml")
 
+    def best_study(self, design: int | str = "best") -> Study:
+        """The run's best design (or evaluation ``design``, an index of evaluations.csv) as a
+        study: the run's study with the design's values where its kind keeps its design (the
+        variables' ``initial``, the ``design:`` block, ...), so :func:`flexopt.evaluate` of it
+        gives the numbers of best.json; ``flexopt export RUN --format yaml`` writes the same
+        study as a file.
+
+        Raises
+        ------
+        StudyError
+            At ``design`` for a design that is not in the run, or when the run's kind cannot
+            keep the design in its study (the message says why).
+        """
+        from flexopt.pipeline.problems import ExportError
+        from flexopt.pipeline.run import design_study_of
+
+        if isinstance(design, bool) or not isinstance(design, int | str):
+            raise StudyError("design", f"got {design!r}; give 'best' or an evaluation index")
+        try:
+            return design_study_of(self.run_dir, str(design))[0]
+        except ExportError as exc:
+            raise StudyError("design", str(exc)) from None
+
     def __repr__(self) -> str:
         n = len(next(iter(self.evaluation_table.values()))) if self.evaluation_table else 0
-        objectives = ", ".join(f"{k}={v:.4g}" for k, v in self.best.objectives.items())
+        objectives = _objectives_text(self.best.objectives, self.best.metrics)
         front = f", front of {len(self.front)}" if self.front else ""
         judged = _verdict_word(self.verdict) if self.verdict else "no verdict"
         return (
@@ -258,6 +294,13 @@ class RunResult:
             f"{self.status}: best {objectives}, {judged}, {n} evaluations{front}, "
             f"{self.run_dir}>"
         )
+
+
+def _objectives_text(objectives: Mapping[str, float], metrics: Mapping[str, Any]) -> str:
+    """``maximise free.min_advantage = 4.436``: as the study states them, not as minimised."""
+    from flexopt.pipeline.labels import objective_text
+
+    return ", ".join(objective_text(k, v, metrics) for k, v in objectives.items())
 
 
 def finite_or_nan(value: Any) -> float:

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from flexopt.optimise.problem import DesignProblem
+from flexopt.optimise.problem import CaseResponse, DesignProblem
 from flexopt.optimise.requirements import Figure, Requirement, Verdict
 from flexopt.pipeline.errors import StudyError
 
@@ -87,6 +87,9 @@ class EvaluationResult:
         The kind's own verdicts when it judges itself; empty (the default) lets
         ``flexopt evaluate`` judge ``summary`` and ``table`` against the study's requirements
         (:func:`pipeline.verdict.judge`), which is what every shipped kind does.
+    cases : dict of str to optimise.problem.CaseResponse
+        Every load case by name, for a kind with several (``table`` and ``plot`` are then the
+        first one's); empty for a kind with one.
     """
 
     table: dict[str, np.ndarray]
@@ -100,6 +103,7 @@ class EvaluationResult:
     headline: tuple[str, ...] = ()
     files: dict[str, bytes] = field(default_factory=dict)
     verdicts: tuple[Verdict, ...] = ()
+    cases: dict[str, CaseResponse] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -74,7 +74,7 @@ from flexopt.geometry.mechanism import (
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.names import check_name
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import CaseResponse, DesignDetail
 from flexopt.optimise.requirements import (
     MinFeature,
     Range,
@@ -1357,6 +1357,7 @@ class MechanismProblem:
                 "verdicts": [_verdict_json(v) for v in verdicts],
             },
             files=_files(self.study, solved, self.requirements),
+            cases=_cases(self.study, solved, self.material, self.requirements),
             **kwargs,
         )
 
@@ -1433,6 +1434,24 @@ def _plot_spec(study: MechanismStudy, case: str, material: Material) -> dict[str
         "stress": "peak_stress_MPa",
         "allowable_MPa": material.yield_MPa,
     }
+
+
+def _cases(
+    study: MechanismStudy,
+    solved: _Solved,
+    material: Material,
+    requirements: Sequence[Requirement],
+) -> dict[str, CaseResponse]:
+    """Every load case's table, plot spec (with its target band) and the user's outputs in it:
+    what the pipeline draws and tabulates for each case (pipeline/responses.py)."""
+    out = {}
+    for case, table in solved.tables.items():
+        plot = _plot_spec(study, case, material)
+        plot.update(band_spec(requirements, table, plot["x"], "y", _prefix(study, case)))
+        d = study.load_cases[case].drive
+        plot["x_label"] = f"drive of {d.part} ({d.control}, {d.unit})"
+        out[case] = CaseResponse(table, plot, tuple(_outputs_in(study, case)))
+    return out
 
 
 def _info(study: MechanismStudy, solved: _Solved) -> dict[str, Any]:
@@ -1774,10 +1793,8 @@ def shapes_png(study: MechanismStudy, solved: _Solved, title: str, n_shapes: int
 def _files(
     study: MechanismStudy, solved: _Solved, requirements: Sequence[Requirement]
 ) -> dict[str, bytes]:
-    files = {
-        "outputs.png": response_png(study, solved.tables, requirements, f"{study.name}: response"),
-        "deformed_shapes.png": shapes_png(study, solved, f"{study.name}: deformed shapes"),
-    }
+    # (outputs.png, every case's outputs on the axis of their unit, is the pipeline's: cases=)
+    files = {"deformed_shapes.png": shapes_png(study, solved, f"{study.name}: deformed shapes")}
     if len(solved.tables) > 1:
         for case, table in solved.tables.items():
             files[f"response_{case}.csv"] = table_to_csv(table).encode("utf-8")
@@ -1871,6 +1888,7 @@ def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:
             if k in summary
         ),
         files=_files(study, solved, ev.requirements),
+        cases=_cases(study, solved, ev.material, ev.requirements),
         **kwargs,
     )
 

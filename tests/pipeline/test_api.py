@@ -313,6 +313,18 @@ def test_run_evaluations_are_the_csv(quick_run: flexopt.RunResult) -> None:
     np.testing.assert_array_equal(row[names].to_numpy()[0], best.x)  # written with every digit
 
 
+def test_best_study_evaluates_to_the_runs_best(quick_run: flexopt.RunResult) -> None:
+    """The best design as a study (a constant_force design: block) gives best.json's numbers."""
+    best = json.loads((quick_run.run_dir / "best.json").read_text(encoding="utf-8"))
+    study = quick_run.best_study()
+    assert study.kind == "constant_force" and isinstance(study.design, dict)
+    result = flexopt.evaluate(study)
+    for name, value in best["metrics"].items():
+        if isinstance(value, float):
+            assert result.summary[name] == pytest.approx(value, rel=1e-9, nan_ok=True), name
+    assert to_records(result.verdict) == best["verdict"]["requirements"]
+
+
 def test_open_run_reads_the_same_result(quick_run: flexopt.RunResult) -> None:
     again = flexopt.open_run(quick_run.run_dir)
     np.testing.assert_array_equal(again.best.x, quick_run.best.x)
@@ -476,3 +488,74 @@ def test_public_names_and_a_quick_import() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, env=os.environ, check=True
     )
     assert out.stdout.strip() == "[]"
+
+
+# --------------------------------------------------------------------------------------------
+# A key a design variable sets (issue 22, item 7)
+
+
+def test_with_values_on_a_variables_key_moves_the_variable() -> None:
+    """A thickness sweep of parallel-guide sees its answer change: the leaf thickness is a
+    variable with ``initial:``, so setting the key moves the variable (nothing is ignored)."""
+    study = flexopt.load_study("parallel-guide").with_values({"load_cases.stroke.drive.steps": 4})
+    stress = {}
+    for t in (1.6, 2.0):
+        changed = study.with_values({"geometry.beams.upper.thickness_mm": t})
+        assert changed.variables[0].initial == t
+        result = flexopt.evaluate(changed)
+        assert result.converged
+        stress[t] = result.summary["max_peak_stress_MPa"]
+    # guided leaves at one stroke: sigma = 3 E t delta / L^2, so the peak stress scales with t
+    assert stress[2.0] / stress[1.6] == pytest.approx(2.0 / 1.6, rel=0.01)
+    # a tied key moves the variable too, and every key it sets follows
+    tied = study.with_values({"geometry.beams.lower.thickness_mm": 1.7})
+    assert tied.variables[0].initial == 1.7
+    # an offset tie: the shuttle's reference sits 4 mm beyond the leaf ends
+    assert study.with_values({"geometry.bodies.shuttle.ref_mm[0]": 60}).variables[1].initial == 56
+    # a whole block given back unchanged keeps the variable; changed, it moves it
+    geometry = study.model_dump(mode="json", exclude_none=True)["geometry"]
+    assert study.replace(geometry=geometry).variables[0].initial == study.variables[0].initial
+    geometry["beams"]["upper"]["thickness_mm"] = 1.1
+    assert study.replace(geometry=geometry).variables[0].initial == 1.1
+
+
+@pytest.mark.parametrize(
+    ("values", "path", "words"),
+    [
+        (
+            {"geometry.beams.upper.thickness_mm": 3.0},
+            "geometry.beams.upper.thickness_mm",
+            "design variable 'leaf_thickness_mm' (variables[0]), and 3 lies outside its "
+            "bounds [0.8, 2.5]",
+        ),
+        (
+            {"geometry.bodies.shuttle.ref_mm[0]": 200},
+            "geometry.bodies.shuttle.ref_mm[0]",
+            "200 puts it at 196, which lies outside its bounds [30, 70]",
+        ),
+        (
+            {"geometry.beams.upper.thickness_mm": 2.0, "geometry.beams.lower.thickness_mm": 2.1},
+            "geometry.beams.lower.thickness_mm",
+            "cannot be 2 and 2.1 at once",
+        ),
+        (
+            {"geometry.beams.upper.thickness_mm": 2.0, "variables[0].initial": 2.1},
+            "geometry.beams.upper.thickness_mm",
+            "whose initial is also given",
+        ),
+    ],
+)
+def test_with_values_on_a_variables_key_refuses_what_it_cannot_do(
+    values: dict, path: str, words: str
+) -> None:
+    with pytest.raises(flexopt.StudyError) as info:
+        flexopt.load_study("parallel-guide").with_values(values)
+    assert info.value.path == path
+    assert words in info.value.problem
+
+
+def test_with_values_widens_the_bounds_and_moves_the_variable_at_once() -> None:
+    study = flexopt.load_study("parallel-guide").with_values(
+        {"geometry.beams.upper.thickness_mm": 3.0, "variables[0].bounds": [0.8, 3.2]}
+    )
+    assert study.variables[0].initial == 3.0 and study.variables[0].bounds == (0.8, 3.2)
