@@ -505,8 +505,11 @@ def test_with_values_on_a_variables_key_moves_the_variable() -> None:
         result = flexopt.evaluate(changed)
         assert result.converged
         stress[t] = result.summary["max_peak_stress_MPa"]
-    # guided leaves at one stroke: sigma = 3 E t delta / L^2, so the peak stress scales with t
-    assert stress[2.0] / stress[1.6] == pytest.approx(2.0 / 1.6, rel=0.01)
+    # guided leaves at one stroke: sigma = 3 E t delta / L^2, so the nominal stress scales with
+    # t; the verdict's stress is Kt times it at the filleted roots, and Kt (Roark Table 17.1)
+    # grows with t at a fixed fillet radius, so the ratio is t's ratio or a few % above it
+    ratio = stress[2.0] / stress[1.6]
+    assert 2.0 / 1.6 <= ratio <= 1.08 * 2.0 / 1.6
     # a tied key moves the variable too, and every key it sets follows
     tied = study.with_values({"geometry.beams.lower.thickness_mm": 1.7})
     assert tied.variables[0].initial == 1.7
