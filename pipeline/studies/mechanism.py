@@ -53,6 +53,7 @@ import dataclasses
 import io
 import math
 import re
+import sys
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal
@@ -93,6 +94,11 @@ from flexopt.pipeline.labels import label as column_label
 from flexopt.pipeline.plot_targets import band_spec
 from flexopt.pipeline.runfolder import table_to_csv
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
+from flexopt.pipeline.studies._mechanism_fidelity import (
+    MechanismFidelitySpec,
+    annotate,
+    with_fidelity,
+)
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
@@ -424,6 +430,10 @@ class MechanismStudy(Study):
     )
     solve_width_from: WidthSolveSpec | None = Field(
         None, description="solve the shared width from a force requirement"
+    )
+    fidelity: MechanismFidelitySpec = Field(
+        default_factory=MechanismFidelitySpec,
+        description="the reported design's check of its exported outline in plane stress / 3D",
     )
     imperfection_mm: float = Field(
         0.02,
@@ -868,6 +878,7 @@ class _Solved:
     metrics: dict[str, Any]
     curves_table: dict[str, np.ndarray]  # every case's columns, prefixed: what requirements read
     reason: str = ""
+    fidelity: dict[str, Any] | None = None  # the check of the exported outline (detail, evaluate)
 
 
 def _case_table(
@@ -1208,6 +1219,9 @@ class MechanismProblem:
         )  # fmt: skip
 
     def verdicts(self, solved: _Solved) -> tuple[Verdict, ...]:
+        return annotate(self._verdicts(solved), solved)
+
+    def _verdicts(self, solved: _Solved) -> tuple[Verdict, ...]:
         curves = {}
         for r in self.requirements:
             if isinstance(r, TargetBand):
@@ -1275,6 +1289,8 @@ class MechanismProblem:
     def detail(self, x: np.ndarray) -> DesignDetail:
         t0 = time.perf_counter()
         solved = self.solve(x)
+        if not isinstance(solved, tuple):
+            solved = with_fidelity(self, solved, sys.modules[__name__])
         if isinstance(solved, tuple):
             ev = Evaluation.failed(
                 x, len(self.objective_names), len(self.constraint_names), solved[1],
@@ -1400,6 +1416,7 @@ def _info(study: MechanismStudy, solved: _Solved) -> dict[str, Any]:
         },
         "bodies": {n: {"ref_mm": list(b.ref_mm)} for n, b in g.bodies.items()},
         "cases": {c: {"ok": bool(r.ok), "message": r.message} for c, r in solved.responses.items()},
+        **({"fidelity": solved.fidelity} if solved.fidelity is not None else {}),
     }
 
 
@@ -1585,6 +1602,7 @@ def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:
         times.append(time.perf_counter() - t0)
     if isinstance(solved, tuple):
         raise StudyError("geometry", f"the initial design cannot be solved: {solved[1]}")
+    solved = with_fidelity(ev, solved, sys.modules[__name__])
     verdicts = ev.verdicts(solved)
     first = next(iter(solved.tables))
     summary = dict(solved.metrics)

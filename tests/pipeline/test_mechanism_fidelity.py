@@ -17,7 +17,7 @@ import yaml
 from flexopt.fea import mechanism as fm
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies import mechanism as mk
-from flexopt.pipeline.study import load_study, validate_study
+from flexopt.pipeline.study import validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
 
@@ -51,7 +51,11 @@ def _perfect_and_imperfect(study, amplitude_mm: float):
 
 
 def test_bistable_switch_verdict_is_the_imperfect_parts_snap():
-    study = load_study("bistable-switch")
+    # the beam model's verdict (the check of the outline, tested below on the parallel guide,
+    # scales the forces by its ratio: off here, so the figures are the beam's own)
+    raw = _raw("bistable-switch")
+    raw["fidelity"] = {"enabled": False}
+    study = validate_study(raw)
     geometry, perfect, imperfect = _perfect_and_imperfect(study, study.imperfection_mm)
     # the part as drawn loses stability on its way to the second stable position (after its
     # force peak: the optimiser moved away from designs that bifurcate before it, whose snap
@@ -81,6 +85,7 @@ def _earlier_switch() -> dict:
     """The bistable switch the example shipped before issue 22 (0.9861 mm beams clamped at
     x = -8.084 mm): its guided path bifurcates before its force peak."""
     raw = _raw("bistable-switch")
+    raw["fidelity"] = {"enabled": False}
     raw["variables"][0]["initial"] = 0.9861
     raw["variables"][1]["initial"] = -8.084
     return raw
@@ -114,3 +119,73 @@ def test_met_on_the_unstable_path_is_not_met_on_the_followed_branch():
     assert np.isnan(stopped.table["drive_reaction_N"][row:]).all()
     assert np.isfinite(stopped.table["drive_reaction_N"][:row]).all()
     assert f"the curve stops at row {row}" in stopped.message
+
+
+# ------------------------------------------------------------------ the check of the outline
+
+
+def _guide_check(study, width_mm: float) -> dict:
+    """The parallel guide's exported outline at ``width_mm``, solved here by the project's
+    plane-stress and 3D models (fea.mechanism_fidelity) in its load case."""
+    from flexopt.fea.mechanism_fidelity import FidelitySettings, mechanism_fidelity_check
+
+    x0 = mk._variables(study).initial
+    geometry = mk._geometry_of(study, x0)
+    _, outline = mk._outline(geometry)
+    return mechanism_fidelity_check(
+        mk._mechanism(study, geometry, width_mm), mk._load_case(study, "stroke"),
+        outline.polygon, list(outline.pads.values()), outline.bodies,
+        list(outline.bands.values()), width_mm,
+        FidelitySettings(elements_through=study.fidelity.elements_through),
+    )  # fmt: skip
+
+
+def _quick_guide(**changes) -> dict:
+    raw = _raw("parallel-guide")
+    raw["fidelity"] = {"elements_through": 1.0}  # stiffness within 0.2 % of 2 and 3
+    raw.update(changes)
+    return raw
+
+
+def test_parallel_guide_as_made_was_outside_its_band():
+    """The design the beam model alone passed (width solved to 3.0 N/mm on the beam): its
+    exported outline is ~6 % stiffer in plane stress and ~13 % as a solid, and its verdict now
+    says so."""
+    raw = _quick_guide()
+    beam_only = get_kind("mechanism").evaluate(
+        validate_study({**raw, "fidelity": {"enabled": False}})
+    )
+    width = beam_only.summary["width_mm"]
+    assert _verdict(beam_only, "stiffness").met
+    raw.pop("solve_width_from")
+    raw["geometry"]["width_mm"] = width
+    study = validate_study(raw)
+    check = _guide_check(study, width)
+    assert 1.04 < check["plane_stress_ratio"] < 1.09
+    solid = check["solid"][0]
+    assert solid["depth_mm"] == width and 1.10 < solid["ratio"] < 1.16
+    result = get_kind("mechanism").evaluate(study)
+    v = _verdict(result, "stiffness")
+    beam_mean = _verdict(beam_only, "stiffness").value
+    assert v.value == pytest.approx(beam_mean * solid["ratio"], rel=1e-6)
+    assert not v.met and "3D solid" in v.detail and "beam model" in v.detail
+    assert not _verdict(result, "max_stiffness_N_per_mm").met
+
+
+def test_parallel_guide_verdict_is_judged_on_its_3d_figure():
+    study = validate_study(_quick_guide())
+    result = get_kind("mechanism").evaluate(study)
+    width = result.summary["width_mm"]
+    fid = result.inputs["fidelity"]
+    assert fid["width_mm"]["solved"] == width < fid["width_mm"]["beam_model"]
+    check = _guide_check(study, width)  # the part as exported, at its exported width
+    solid = check["solid"][0]
+    # the beam's mean stiffness scales with the width; the verdict's is the 3D figure
+    beam_mean = fid["beam_model"]["mean_stiffness_N_per_mm"]
+    expected = beam_mean * width / fid["width_mm"]["beam_model"] * solid["ratio"]
+    v = _verdict(result, "stiffness")
+    assert v.value == pytest.approx(expected, rel=1e-6) and v.met
+    assert 2.85 <= v.value <= 3.15
+    assert _verdict(result, "min_stiffness_N_per_mm").met
+    assert _verdict(result, "max_stiffness_N_per_mm").met
+    assert "judged on the beam model" in _verdict(result, "max_peak_stress_MPa").detail
