@@ -1192,8 +1192,18 @@ def _critical_mode(
     H = md.hessian(K, state.lam, ro).toarray()
     Zb = null_space(np.asarray(G.todense()))
     A = Zb.T @ H @ Zb
-    _, vecs = eigh(0.5 * (A + A.T), subset_by_index=[0, 0])
-    v = Zb @ vecs[:, 0]
+    vals, vecs = eigh(0.5 * (A + A.T))
+    # A repeated lowest eigenvalue (parts that buckle independently at the same load, e.g. the
+    # two halves of a guided switch) has no one eigenvector: round-off would pick the mix. The
+    # imperfection is then the projection of a fixed pseudo-random pattern on that eigenspace
+    # (the same whatever basis eigh returns): every part in it imperfect, deterministically.
+    cluster = vals <= vals[0] + 1e-8 * float(np.max(np.abs(vals)))
+    V = vecs[:, cluster]
+    if V.shape[1] == 1:
+        v = Zb @ V[:, 0]
+    else:
+        pattern = np.random.default_rng(0).standard_normal(md.n)
+        v = Zb @ (V @ (V.T @ (Zb.T @ pattern)))
     trans = v[: md.n_beam_dofs].reshape(-1, 3)[:, :2]
     size = float(np.max(np.hypot(trans[:, 0], trans[:, 1]), initial=0.0))
     if size > 0:

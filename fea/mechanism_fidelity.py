@@ -106,7 +106,9 @@ def _clean(outline: Polygon, tol_mm: float) -> Polygon:
     simple = shapely.simplify(snapped, tol_mm, preserve_topology=True).buffer(0)
     for candidate in (simple, snapped):
         if isinstance(candidate, Polygon) and candidate.is_valid and not candidate.is_empty:
-            return candidate
+            # a plain copy: a geometry keeps its precision grid, and the mesher's segmentize
+            # would then snap the points it adds on a slanted edge off that edge
+            return Polygon(candidate.exterior.coords, [r.coords for r in candidate.interiors])
     parts = sorted(shapely.get_parts(shapely.make_valid(snapped)), key=lambda g: -g.area)
     if not parts or not isinstance(parts[0], Polygon):
         raise FeaError("the outline does not survive a 1 um grid (slivers)")
