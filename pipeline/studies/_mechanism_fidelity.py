@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from flexopt.pipeline.study import STUDY_CONFIG
@@ -50,10 +50,8 @@ class MechanismFidelitySpec(BaseModel):
     elements_through: float = Field(
         2.0, ge=1.0, le=8.0, description="P2 triangles across the thinnest beam"
     )
-    solid: str = Field(
-        "auto",
-        pattern="^(auto|always|never)$",
-        description="3D solid check: auto (width >= 3 x the thinnest beam), always or never",
+    solid: Literal["auto", "always", "never"] = Field(
+        "auto", description="3D solid check: auto (width >= 3 x the thinnest beam), always or never"
     )
     layers: int = Field(2, ge=1, le=8, description="prism layers through half the width (3D)")
 
@@ -208,9 +206,15 @@ def annotate(verdicts: tuple, solved: Any) -> tuple:
                                                                        rel_tol=1e-12):  # fmt: skip
             out.append(v)
             continue
-        note = (
-            f"judged on the {'/'.join(models)} check of the exported outline; beam model: "
-            f"{before:.6g} {v.unit}".rstrip()
-        )
+        if v.quantity == "width_mm":
+            note = (
+                f"solved from the {'/'.join(models)} check of the exported outline; the beam "
+                f"model's: {before:.6g} mm"
+            )
+        else:
+            note = (
+                f"judged on the {'/'.join(models)} check of the exported outline; beam model: "
+                f"{before:.6g} {v.unit}".rstrip()
+            )
         out.append(dataclasses.replace(v, detail=f"{v.detail}; {note}" if v.detail else note))
     return tuple(out)
