@@ -141,6 +141,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     metrics = mk._metrics(study, solved.geometry, tables, width, problem.material)
     beam_values = {**solved.metrics, **_worst(mk, solved.curves_table)}
     fidelity = {
+        "summary": _summary(checks, applied),
         "checks": checks,
         "applied": applied,
         "width_mm": {"beam_model": solved.width_mm, "solved": width, "iterations": history},
@@ -150,6 +151,30 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
         solved, width_mm=width, tables=tables, metrics=metrics,
         curves_table=mk._curves_table(study, tables), fidelity=fidelity,
     )  # fmt: skip
+
+
+def _summary(checks: dict[str, Any], applied: dict[str, Any]) -> dict[str, Any]:
+    """One flat line per figure (the report shows flat mappings as tables)."""
+    out: dict[str, Any] = {}
+    for case, check in checks.items():
+        if "skipped" in check:
+            out[f"{case}: judged on"] = f"the beam model (check skipped: {check['skipped']})"
+            continue
+        out[f"{case}: judged on"] = applied[case]["model"]
+        out[f"{case}: stiffness {check['stiffness_unit']}, beam model"] = check["beam_stiffness"]
+        out[f"{case}: stiffness, plane stress / beam"] = check["plane_stress_ratio"]
+        if check.get("solid"):
+            solid = check["solid"][0]
+            out[f"{case}: stiffness, 3D solid / beam"] = solid["ratio"]
+            out[f"{case}: 3D depth mm"] = solid["depth_mm"]
+            out[f"{case}: peak stress, 3D / beam (not judged)"] = solid["stress_ratio"]
+        else:
+            out[f"{case}: 3D solid"] = f"not run ({check['solid_rule']})"
+            out[f"{case}: peak stress, plane stress / beam (not judged)"] = check[
+                "plane_stress_stress_ratio"
+            ]
+        out[f"{case}: check time s"] = check["time_s"]
+    return out
 
 
 def _worst(mk: Any, curves: dict[str, np.ndarray]) -> dict[str, float]:
