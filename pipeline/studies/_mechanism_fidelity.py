@@ -140,8 +140,10 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
         tables[case] = _corrected(mk, study, case, table, ratio, 1.0)
     metrics = mk._metrics(study, solved.geometry, tables, width, problem.material)
     beam_values = {**solved.metrics, **_worst(mk, solved.curves_table)}
+    beam_verdicts = {v.name: v.value for v in problem._verdicts(solved)}
     fidelity = {
         "summary": _summary(checks, applied),
+        "beam_model_verdicts": {k: v for k, v in beam_verdicts.items() if math.isfinite(v)},
         "checks": checks,
         "applied": applied,
         "width_mm": {"beam_model": solved.width_mm, "solved": width, "iterations": history},
@@ -214,7 +216,7 @@ def annotate(verdicts: tuple, solved: Any) -> tuple:
     models = sorted({a["model"] for a in fid["applied"].values() if a["model"] != "beam"})
     if not models:
         return verdicts
-    beam = fid["beam_model"]
+    beam = fid.get("beam_model_verdicts", {})
     out = []
     for v in verdicts:
         if "peak_stress" in v.quantity or "stress_yield" in v.quantity:
@@ -226,7 +228,7 @@ def annotate(verdicts: tuple, solved: Any) -> tuple:
             note = f"{STRESS_NOTE} (peak {', '.join(ratios)})"
             out.append(dataclasses.replace(v, detail=f"{v.detail}; {note}" if v.detail else note))
             continue
-        before = beam.get(v.quantity)
+        before = beam.get(v.name)
         if before is None or not math.isfinite(v.value) or math.isclose(v.value, before,
                                                                        rel_tol=1e-12):  # fmt: skip
             out.append(v)
