@@ -64,6 +64,8 @@ __all__ = [
     "mass_g",
     "stable_positions",
     "warm_up",
+    "imperfect_mechanism",
+    "first_unstable_row",
 ]
 
 
@@ -309,6 +311,15 @@ class MechanismResponse:
         ``min_critical_substep`` of a row step); NaN when it never did.
     root_stress_MPa : (rows, n_beams, 2) float — per beam, the largest |N|/A + |M| c/I within
         ``MechBeam.root_mm`` of its start and of its end (NaN where not converged).
+    critical_mode : tuple per beam of (nodes, 2) float, or None — the buckling mode at the
+        first unstable state (the eigenvector of the constrained Hessian Z^T H Z with the
+        lowest eigenvalue), as the (u, v) translation of each beam's FE nodes, scaled so that
+        the largest is 1 (no unit: multiply by an amplitude in mm); None when the path never
+        became unstable.
+    reference_nodes_mm : tuple per beam of (nodes, 2) float, mm — the FE nodes' undeformed
+        positions (where ``shapes_mm`` and ``critical_mode`` are given).
+    critical_body_mode : (n_bodies, 3) float, or None — the same mode's body motion (U, V per
+        unit amplitude, theta in rad per mm of amplitude).
     """
 
     case: str
@@ -325,6 +336,9 @@ class MechanismResponse:
     stable_released: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     critical_drive: float = float("nan")
     root_stress_MPa: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
+    critical_mode: tuple[np.ndarray, ...] | None = None
+    critical_body_mode: np.ndarray | None = None
+    reference_nodes_mm: tuple[np.ndarray, ...] = ()
 
 
 # ==================================================================================== model
@@ -1086,6 +1100,7 @@ def solve_mechanism(
     ok, state, _, _, reason = solver.newton(z, lam, 0.0, None)
     message = ""
     critical = float("nan")
+    lost_state = None
     if not ok:
         message = f"no equilibrium in the undeformed state: {reason}"
     else:
@@ -1124,6 +1139,7 @@ def solve_mechanism(
                 if ok:
                     if is_stab and not new_stable and lost is None:
                         lost = (k, value, p_try)
+                        lost_state = (new, p_try)
                     state, value, is_stab = new, p_try, new_stable
                     row_stable = row_stable and new_stable
                     history = [*history[-1:], (value, state.z, state.lam)]
@@ -1161,6 +1177,9 @@ def solve_mechanism(
             )
             message = f"{message}; {note}" if message else note
 
+    mode = body_mode = None
+    if lost_state is not None:
+        mode, body_mode = _critical_mode(md, *lost_state)
     outs = {name: fn(Z, LAM, R, peak, targets) for name, fn in readers.items()}
     for v in outs.values():
         v[~converged] = np.nan
@@ -1190,7 +1209,115 @@ def solve_mechanism(
         stable_released=released & converged,
         critical_drive=critical,
         root_stress_MPa=roots,
+        critical_mode=mode,
+        critical_body_mode=body_mode,
+        reference_nodes_mm=tuple(m.reference_nodes_mm.copy() for m in md.models),
     )
+
+
+def _critical_mode(
+    md: _Model, state: _State, p: float
+) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
+    """The buckling mode at the first unstable state: the eigenvector of Z^T H Z (Z a basis of
+    the null space of G) with the lowest eigenvalue, mapped back to z = Z v. Dense: a few hundred
+    unknowns, computed once per solve that loses stability. Returns the beams' nodal
+    translations (nodes, 2) and the bodies' (U, V, theta) (n_bodies, 3), scaled so that the
+    largest beam-node translation is 1 and its largest component is positive (a deterministic
+    sign)."""
+    from scipy.linalg import eigh, null_space
+
+    _, K = md.assemble(state.z)
+    _, G, ro = md.constraints(state.z, p)
+    H = md.hessian(K, state.lam, ro).toarray()
+    Zb = null_space(np.asarray(G.todense()))
+    A = Zb.T @ H @ Zb
+    vals, vecs = eigh(0.5 * (A + A.T))
+    # A repeated lowest eigenvalue (parts that buckle independently at the same load, e.g. the
+    # two halves of a guided switch) has no one eigenvector: round-off would pick the mix. The
+    # imperfection is then the projection of a fixed pseudo-random pattern on that eigenspace
+    # (the same whatever basis eigh returns): every part in it imperfect, deterministically.
+    cluster = vals <= vals[0] + 1e-8 * float(np.max(np.abs(vals)))
+    V = vecs[:, cluster]
+    if V.shape[1] == 1:
+        v = Zb @ V[:, 0]
+    else:
+        pattern = np.random.default_rng(0).standard_normal(md.n)
+        v = Zb @ (V @ (V.T @ (Zb.T @ pattern)))
+    trans = v[: md.n_beam_dofs].reshape(-1, 3)[:, :2]
+    size = float(np.max(np.hypot(trans[:, 0], trans[:, 1]), initial=0.0))
+    if size > 0:
+        v = v / size
+    trans = v[: md.n_beam_dofs].reshape(-1, 3)[:, :2]
+    big = np.unravel_index(int(np.argmax(np.abs(trans))), trans.shape)
+    if trans[big] < 0:
+        v = -v
+    modes = tuple(
+        v[md.offsets[i] : md.offsets[i + 1]].reshape(-1, 3)[:, :2].copy()
+        for i in range(len(md.models))
+    )
+    return modes, v[md.n_beam_dofs :].reshape(-1, 3).copy()
+
+
+def first_unstable_row(response: MechanismResponse) -> int | None:
+    """Index of the first converged row flagged unstable (None when every converged row is
+    stable): where the path the solver traced stops being the one a part can follow."""
+    bad = np.flatnonzero(np.asarray(response.converged, bool) & ~np.asarray(response.stable, bool))
+    return int(bad[0]) if bad.size else None
+
+
+def imperfect_mechanism(
+    mech: Mechanism, response: MechanismResponse, amplitude_mm: float
+) -> Mechanism:
+    """``mech`` with its stress-free shape moved by ``amplitude_mm`` times the response's
+    buckling mode (``critical_mode``): the geometric imperfection that a made part always has,
+    in the shape that matters most (the classical Koiter / Riks imperfection). The perfect,
+    symmetric mechanism follows its fundamental path through the bifurcation (the solver flags
+    the rows beyond it unstable); the imperfect one follows the branch a real part takes.
+
+    Parameters
+    ----------
+    mech : Mechanism — the perfect mechanism that gave ``response``.
+    response : MechanismResponse — with ``critical_mode`` (the path lost stability).
+    amplitude_mm : float, mm — largest displacement of a beam point in the imperfection.
+
+    Returns
+    -------
+    Mechanism — beams' points moved by the mode, bodies' reference points and outlines moved
+    and turned with it; same joints, material, thicknesses and widths.
+
+    Raises
+    ------
+    FeaError
+        When the response has no buckling mode (its path never became unstable).
+    """
+    if response.critical_mode is None or response.critical_body_mode is None:
+        raise FeaError("the response has no buckling mode: its path never became unstable")
+    a = float(amplitude_mm)
+    beams = []
+    for b, mode, nodes in zip(
+        mech.beams, response.critical_mode, response.reference_nodes_mm, strict=True
+    ):
+        # the beam drawn through its FE nodes (a polyline of 2 n_el + 1 points on the original
+        # centreline: a mode needs more points than a straight beam's two), each moved by the
+        # mode; the thickness at each node from the original's (linear in arc length)
+        pts = np.asarray(b.points_mm, dtype=float)
+        s_pts = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+        s_nodes = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(nodes, axis=0).T))])
+        s_nodes *= s_pts[-1] / s_nodes[-1]
+        t = np.interp(s_nodes, s_pts, np.asarray(b.thickness_mm, dtype=float))
+        n_el = (len(nodes) - 1) // 2
+        beams.append(MechBeam(b.name, nodes + a * mode, t, b.width_mm, n_el))
+    bodies = []
+    for b, (du, dv, dth) in zip(mech.bodies, response.critical_body_mode, strict=True):
+        ref = np.asarray(b.ref_mm, dtype=float)
+        new_ref = ref + a * np.array([du, dv])
+        outline = None
+        if b.outline_mm is not None:
+            c, s = np.cos(a * dth), np.sin(a * dth)
+            rel = np.asarray(b.outline_mm, dtype=float) - ref
+            outline = rel @ np.array([[c, s], [-s, c]]) + new_ref
+        bodies.append(MechBody(b.name, new_ref, outline))
+    return Mechanism(tuple(beams), tuple(bodies), mech.joints, mech.material)
 
 
 def _output_readers(md: _Model, outputs: Sequence[MechOutput]) -> dict:

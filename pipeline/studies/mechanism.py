@@ -53,6 +53,7 @@ import dataclasses
 import io
 import math
 import re
+import sys
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal
@@ -96,6 +97,11 @@ from flexopt.pipeline.labels import label as column_label
 from flexopt.pipeline.plot_targets import band_spec
 from flexopt.pipeline.runfolder import table_to_csv
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
+from flexopt.pipeline.studies._mechanism_fidelity import (
+    MechanismFidelitySpec,
+    annotate,
+    with_fidelity,
+)
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
@@ -452,6 +458,18 @@ class MechanismStudy(Study):
     )
     solve_width_from: WidthSolveSpec | None = Field(
         None, description="solve the shared width from a force requirement"
+    )
+    fidelity: MechanismFidelitySpec = Field(
+        default_factory=MechanismFidelitySpec,
+        description="the reported design's check of its exported outline in plane stress / 3D",
+    )
+    imperfection_mm: float = Field(
+        0.02,
+        ge=0.0,
+        le=1.0,
+        description="where a load case's path loses stability, the part is solved again with "
+        "its shape moved this far (mm) along the buckling mode: the branch a printed part "
+        "follows (0: stop the curve at the first unstable row)",
     )
     optimiser: OptimiserSpec = Field(
         default_factory=lambda: OptimiserSpec(pop_size=24, n_gen=15, quick_pop_size=4,
@@ -954,6 +972,7 @@ class _Solved:
     curves_table: dict[str, np.ndarray]  # every case's columns, prefixed: what requirements read
     reason: str = ""
     clearance: dict[str, Any] = dataclasses.field(default_factory=dict)  # _interference()
+    fidelity: dict[str, Any] | None = None  # the check of the exported outline (detail, evaluate)
 
 
 def _case_table(
@@ -1011,7 +1030,68 @@ def _case_table(
     table["peak_stress_MPa"] = np.nanmax(per_beam, axis=1)
     table["converged"] = np.asarray(response.converged, dtype=bool)
     table["stable"] = np.asarray(response.stable, dtype=bool)
-    return table
+    return _stable_part(table, response)
+
+
+def _solve_printed_path(study: MechanismStudy, mech: Any, case: str) -> Any:
+    """The case solved along the path the printed part follows (issue 22, item 3).
+
+    The mechanism as drawn is solved first. Where its path loses stability (a bifurcation: a
+    symmetric switch's asymmetric mode), the made part, never perfectly symmetric, leaves the
+    traced path there: it is solved again with its stress-free shape moved
+    ``study.imperfection_mm`` along the buckling mode (:func:`fea.mechanism.imperfect_mechanism`)
+    and that response is the case's. The part as exported keeps the drawn shape. Rows that are
+    still unstable are cut by :func:`_stable_part`. The case's message says which path it is.
+    """
+    fm = _fea()
+    load_case = _load_case(study, case)
+    outputs = _fea_outputs(study, case)
+    response = fm.solve_mechanism(mech, load_case, outputs)
+    row = fm.first_unstable_row(response)
+    amplitude = float(study.imperfection_mm)
+    unit = study.load_cases[case].drive.unit
+
+    def shown(value: float) -> str:
+        return f"{math.degrees(value) if unit == 'deg' else value:.4g} {unit}"
+
+    notes = []
+    if row is not None and amplitude > 0.0 and response.critical_mode is not None:
+        notes.append(
+            f"the part as drawn bifurcates at drive {shown(response.critical_drive)}: the "
+            f"responses are those of the part with a {amplitude:g} mm imperfection along its "
+            "buckling mode (imperfection_mm), the branch a printed part follows"
+        )
+        response = fm.solve_mechanism(
+            fm.imperfect_mechanism(mech, response, amplitude), load_case, outputs
+        )
+        row = fm.first_unstable_row(response)
+    if row is not None:
+        notes.append(
+            f"the curve stops at row {row} (drive {shown(float(response.drive[row]))}): from "
+            "there the path is unstable, and no output or requirement reads it"
+        )
+    if not notes:
+        return response
+    message = "; ".join([response.message, *notes] if response.message else notes)
+    return dataclasses.replace(response, message=message)
+
+
+def _stable_part(table: dict[str, np.ndarray], response: Any) -> dict[str, np.ndarray]:
+    """The table with every value from the first unstable row on set to NaN: no requirement,
+    metric or plot reads a value beyond a point the part cannot pass on that path (the rows,
+    their drive and their flags are kept; the case's message says where the curve stops)."""
+    row = _fea().first_unstable_row(response)
+    if row is None:
+        return table
+    keep = {"step", "converged", "stable"} | {k for k in table if k.startswith("drive_")}
+    keep.discard(next((k for k in table if k.startswith("drive_reaction_")), ""))
+    out = dict(table)
+    for key, col in table.items():
+        if key not in keep:
+            arr = np.asarray(col, dtype=float).copy()
+            arr[row:] = np.nan
+            out[key] = arr
+    return out
 
 
 def _stat(values: np.ndarray, how: str) -> float | None:
@@ -1214,14 +1294,11 @@ class MechanismProblem:
             shapes, outline = _outline(geometry)
         except GeometryError as exc:
             return None, f"invalid geometry: {exc}"
-        fm = _fea()
         mech = _mechanism(study, geometry, made=outline.beams)
         responses = {}
         for case in study.load_cases:
             try:
-                response = fm.solve_mechanism(
-                    mech, _load_case(study, case), _fea_outputs(study, case)
-                )
+                response = _solve_printed_path(study, mech, case)
             except FeaError as exc:
                 return None, f"cannot solve load case {case}: {exc}"
             responses[case] = response
@@ -1252,6 +1329,9 @@ class MechanismProblem:
         )  # fmt: skip
 
     def verdicts(self, solved: _Solved) -> tuple[Verdict, ...]:
+        return annotate(self._verdicts(solved), solved)
+
+    def _verdicts(self, solved: _Solved) -> tuple[Verdict, ...]:
         curves = {}
         for r in self.requirements:
             if isinstance(r, TargetBand):
@@ -1325,6 +1405,8 @@ class MechanismProblem:
     def detail(self, x: np.ndarray) -> DesignDetail:
         t0 = time.perf_counter()
         solved = self.solve(x)
+        if not isinstance(solved, tuple):
+            solved = with_fidelity(self, solved, sys.modules[__name__])
         if isinstance(solved, tuple):
             ev = Evaluation.failed(
                 x, len(self.objective_names), len(self.constraint_names), solved[1],
@@ -1471,6 +1553,7 @@ def _info(study: MechanismStudy, solved: _Solved) -> dict[str, Any]:
         "clearance": dict(solved.clearance),
         "bodies": {n: {"ref_mm": list(b.ref_mm)} for n, b in g.bodies.items()},
         "cases": {c: {"ok": bool(r.ok), "message": r.message} for c, r in solved.responses.items()},
+        **({"fidelity": solved.fidelity} if solved.fidelity is not None else {}),
     }
 
 
@@ -1845,6 +1928,7 @@ def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:
         times.append(time.perf_counter() - t0)
     if isinstance(solved, tuple):
         raise StudyError("geometry", f"the initial design cannot be solved: {solved[1]}")
+    solved = with_fidelity(ev, solved, sys.modules[__name__])
     verdicts = ev.verdicts(solved)
     first = next(iter(solved.tables))
     summary = dict(solved.metrics)
