@@ -783,6 +783,8 @@ def mechanism_outline(
         *(("joint", g) for g in joints_in),
     ]
     union = shapely.union_all([g for _, g in labelled])
+    if isinstance(union, MultiPolygon) and len(union.geoms) == 1:
+        union = union.geoms[0]  # GEOS can return one polygon wrapped as a MultiPolygon
     if isinstance(union, MultiPolygon):
         pieces = sorted(union.geoms, key=lambda g: -g.area)
         groups = [
