@@ -5,7 +5,6 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Literal
 
@@ -86,18 +85,25 @@ def _run(tmp_path: Path, **geometry: object) -> Path:
     return outcome.run_dir
 
 
-def test_run_writes_best_dxf_beside_an_aligned_stl(tmp_path, capsys):
+def _toy_plate(a: float, b: float) -> object:
+    """The toy kind's outline in its own (design) frame: the plate turned 31 deg about (0, 0)."""
+    return affinity.rotate(box(0.0, 0.0, a, b).difference(box(2.0, 1.0, 4.0, 3.0)), 31.0, (0, 0))
+
+
+def test_run_writes_a_bed_stl_and_a_design_frame_dxf(tmp_path, capsys):
     run_dir = _run(tmp_path)
     best = json.loads((run_dir / "best.json").read_text())
     a, b = best["parameters"]["a_mm"], best["parameters"]["b_mm"]
     part = best["info"]["part"]
     assert part["footprint_mm"] == pytest.approx([a, b], abs=1e-3)
     assert part["rotated_deg"] == pytest.approx(-31.0) and part["flat_sheet_profile"] is False
+    assert part["frames"] == {"best.stl": "bed", "best.dxf": "design", "best.step": "design"}
     mesh = trimesh.load(run_dir / "best.stl")
     assert mesh.bounds[0] == pytest.approx([0, 0, 0], abs=1e-4)
     assert mesh.bounds[1] == pytest.approx([a, b, 3.0], abs=1e-4)  # lying flat, aligned
+    # the DXF is the kind's outline where the kind draws it (31 deg, corner at the origin)
     outline = dxf_polygon((run_dir / "best.dxf").read_bytes())
-    assert outline.bounds == pytest.approx((0, 0, a, b), abs=1e-6)
+    assert outline.symmetric_difference(_toy_plate(a, b)).area < 1e-9
     assert len(outline.interiors) == 1 and outline.area == pytest.approx(a * b - 4.0)
     assert "best.dxf" in json.loads((run_dir / "run.json").read_text())["files"]
     assert "footprint_mm" in (run_dir / "report.md").read_text()
@@ -105,15 +111,37 @@ def test_run_writes_best_dxf_beside_an_aligned_stl(tmp_path, capsys):
     # export in each format; the STL and DXF are those of the run
     assert main(["export", str(run_dir), "--format", "dxf", "--out", str(tmp_path / "p.dxf")]) == 0
     out = capsys.readouterr().out
-    assert "footprint" in out and f"{a:.4g} x {b:.4g} mm" in out and "-31 deg" in out
+    assert "in the design frame" in out
     again = dxf_polygon((tmp_path / "p.dxf").read_bytes())  # (the DXF's time stamps differ)
     assert again.equals_exact(outline, 0.0)
+    # --frame bed: laid flat, turned -31 deg, in the first quadrant
+    assert main(["export", str(run_dir), "--frame", "bed", "--out", str(tmp_path / "b.dxf")]) == 0
+    out = capsys.readouterr().out
+    assert "footprint" in out and f"{a:.4g} x {b:.4g} mm" in out and "-31 deg" in out
+    flat = dxf_polygon((tmp_path / "b.dxf").read_bytes())
+    assert flat.bounds == pytest.approx((0, 0, a, b), abs=1e-6)
     assert main(["export", str(run_dir), "--out", str(tmp_path / "p.stl")]) == 0
     assert (tmp_path / "p.stl").read_bytes() == (run_dir / "best.stl").read_bytes()
+    # --frame design for the STL: the plate where the kind draws it, z from 0 to 3 mm
+    assert (
+        main(["export", str(run_dir), "--frame", "design", "--out", str(tmp_path / "d.stl")]) == 0
+    )
+    design = trimesh.load(tmp_path / "d.stl")
+    x0, y0, x1, y1 = _toy_plate(a, b).bounds
+    np.testing.assert_allclose(design.bounds, [[x0, y0, 0.0], [x1, y1, 3.0]], atol=1e-4)
     assert main(["export", str(run_dir), "--design", "2", "--format", "dxf"]) == 0
     assert dxf_polygon((run_dir / "design-2.dxf").read_bytes()).area > 0
-    if "build123d" in sys.modules or _has_build123d():
+    assert main(["export", str(run_dir), "--frame", "tilted"]) == 2
+    assert "invalid choice: 'tilted'" in capsys.readouterr().err
+    if _has_build123d():
+        import build123d as bd
+
         assert (run_dir / "best.step").read_bytes().startswith(b"ISO-10303-21;")
+        solid = bd.import_step(str(run_dir / "best.step"))
+        box3 = solid.bounding_box()
+        assert (box3.min.X, box3.min.Y, box3.max.X, box3.max.Y) == pytest.approx(
+            (x0, y0, x1, y1), abs=1e-5
+        )
         assert main(["export", str(run_dir), "--format", "step"]) == 0
 
 
@@ -145,7 +173,7 @@ def test_export_of_an_evaluate_folder(tmp_path, capsys):
         assert main(["export", str(folder), "--format", fmt]) == 0
         assert f"design.{fmt}" in capsys.readouterr().out
     outline = dxf_polygon((folder / "design.dxf").read_bytes())
-    assert outline.bounds == pytest.approx((0, 0, 25.0, 7.0), abs=1e-6)  # the study's design
+    assert outline.symmetric_difference(_toy_plate(25.0, 7.0)).area < 1e-9  # the study's design
     assert trimesh.load(folder / "design.stl").is_watertight
     assert main(["export", str(folder), "--design", "3"]) == 2
     err = capsys.readouterr().err.strip()
