@@ -382,7 +382,35 @@ def test_every_built_in_example_makes_its_step_solid(name):
     d = _part_as_exported(name)
     if d.outline is None or not d.height_mm:
         pytest.skip(f"{name}: its kind gives no part outline")
-    for frame in ("design", "bed"):
-        part = part_of(d, frame)
-        data = part_bytes(part, "step")  # refused unless one solid of area x thickness
-        assert data.startswith(b"ISO-10303-21;") and b"MANIFOLD_SOLID_BREP" in data
+    # best.step's frame (the bed's is the same outline turned; the toy kind's tests cover it)
+    data = part_bytes(part_of(d, "design"), "step")  # refused unless one solid of area x height
+    assert data.startswith(b"ISO-10303-21;") and b"MANIFOLD_SOLID_BREP" in data
+
+
+@pytest.mark.parametrize(
+    "name, mesher",
+    [("constant-force", "flexopt.fea.fidelity.mesh_polygon"),
+     ("flexure-pivot", "flexopt.fea.mesh.mesh_polygon")],
+)  # fmt: skip
+def test_plane_stress_checks_mesh_the_outline_that_is_exported(name, mesher, monkeypatch):
+    # these kinds resample nothing: their plane-stress check meshes the detail's own outline
+    from flexopt.fea.errors import FeaError
+    from flexopt.geometry.solid import COLLINEAR_TOL_MM
+    from flexopt.pipeline.problems import nominal_design
+    from flexopt.pipeline.run import build_problem, part_bytes, part_of
+    from flexopt.pipeline.study import load_study
+
+    meshed = []
+
+    def capture(polygon, *args, **kwargs):
+        meshed.append(polygon)
+        raise FeaError("captured")  # the check is then skipped: no solve needed
+
+    monkeypatch.setattr(mesher, capture)
+    study = load_study(name)
+    prob = build_problem(study)
+    d = prob.detail(nominal_design(prob, study))
+    assert len(meshed) >= 1
+    exported = dxf_polygon(part_bytes(part_of(d, "design"), "dxf"))
+    assert exported.boundary.hausdorff_distance(meshed[0].boundary) <= COLLINEAR_TOL_MM
+    assert exported.symmetric_difference(meshed[0]).area <= COLLINEAR_TOL_MM * exported.length
