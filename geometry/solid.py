@@ -12,6 +12,12 @@ vanishes) or as a tab that the opening (erode then dilate by ``w / 2``) cuts off
 rounded by the opening too, but the piece cut off a corner stays within about ``w`` of the
 opened outline, while a thin tab sticks out by its length; the check tells them apart by that
 distance. :func:`check_printable` applies it at the printer's minimum wall.
+
+:func:`flat_part` gives the part a file is written of, in one of two frames (:data:`FRAMES`):
+``design`` (where the kind draws it, for CAD and assemblies) or ``bed`` (laid flat, for a
+printer or a sheet), its outline cleaned of repeated and collinear vertices first
+(:func:`clean_outline`, :data:`COLLINEAR_TOL_MM`), which OpenCascade would otherwise merge into
+fewer STEP faces than the outline has edges. :func:`step_bytes` writes it as a STEP solid.
 """
 
 from __future__ import annotations
