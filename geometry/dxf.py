@@ -5,8 +5,8 @@ wire EDM): closed polylines in mm, written and read with ezdxf.
 :data:`OUTLINE_LAYER` and every hole as one on :data:`HOLES_LAYER`, with the drawing units set to
 mm (``$INSUNITS = 4``, ``$MEASUREMENT = 1``), so a CAM program neither guesses inches nor mixes
 the cut path with the holes. :func:`dxf_polygon` reads such a file back (round-trip tests, and a
-check of a file someone else made). Laying the part flat is the caller's job
-(:func:`geometry.solid.flat_part`).
+check of a file someone else made). Choosing the frame (the design's coordinates or laid flat)
+and cleaning the outline is the caller's job (:func:`geometry.solid.flat_part`).
 """
 
 from __future__ import annotations

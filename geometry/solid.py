@@ -12,6 +12,12 @@ vanishes) or as a tab that the opening (erode then dilate by ``w / 2``) cuts off
 rounded by the opening too, but the piece cut off a corner stays within about ``w`` of the
 opened outline, while a thin tab sticks out by its length; the check tells them apart by that
 distance. :func:`check_printable` applies it at the printer's minimum wall.
+
+:func:`flat_part` gives the part a file is written of, in one of two frames (:data:`FRAMES`):
+``design`` (where the kind draws it, for CAD and assemblies) or ``bed`` (laid flat, for a
+printer or a sheet), its outline cleaned of repeated and collinear vertices first
+(:func:`clean_outline`, :data:`COLLINEAR_TOL_MM`), which OpenCascade would otherwise merge into
+fewer STEP faces than the outline has edges. :func:`step_bytes` writes it as a STEP solid.
 """
 
 from __future__ import annotations
@@ -35,6 +41,9 @@ __all__ = [
     "min_feature_mm",
     "thin_feature_at",
     "check_printable",
+    "COLLINEAR_TOL_MM",
+    "clean_outline",
+    "FRAMES",
     "FlatPart",
     "SHEET_HINT",
     "lay_flat",
@@ -340,30 +349,80 @@ def check_printable(
     return reason
 
 
-# ---- laying a part flat on the bed (shared by STL, DXF and STEP) ------------------------------
+# ---- the outline as it is written: cleaned, in the design frame or laid flat on the bed -------
+
+#: Vertices within this distance (mm) of the chord between their neighbours are dropped before
+#: a solid or a drawing is made (:func:`clean_outline`). Why 1e-6 mm: OpenCascade merges the side
+#: faces of two edges that lie in one plane within its linear tolerance (1e-7 mm,
+#: ``Precision::Confusion``, build123d's ``clean()``), so a STEP solid of an outline with a
+#: collinear vertex has one face fewer than it has edges (the mechanism kind's pads joined to
+#: their beams: 22 faces for 24 edges); every vertex this keeps bends the outline by more than
+#: 1e-6 mm, which no OpenCascade tolerance merges. 1 nm is far below any printed or cut feature
+#: and far above the round-off of the coordinates (~1e-14 mm at 100 mm).
+COLLINEAR_TOL_MM = 1e-6
+
+#: The frames a part is written in: ``design`` (the kind's own coordinates: the outline where
+#: the kind draws it, e.g. a spring's hub axis at the origin, extruded from z = 0 to its
+#: thickness: what an assembly needs) and ``bed`` (laid flat: turned to its smallest enclosing
+#: rectangle and moved into the first quadrant, a sheet part as its flat profile: what a
+#: printer's bed or a sheet of stock needs).
+FRAMES = ("design", "bed")
+
+
+def clean_outline(polygon: BaseGeometry, tol_mm: float = COLLINEAR_TOL_MM) -> Polygon:
+    """The outline without repeated and collinear vertices, counter-clockwise outside.
+
+    Douglas-Peucker simplification (:func:`shapely.simplify`, topology preserved) at
+    ``tol_mm``: a vertex goes when the ring stays within ``tol_mm`` of it, so the cleaned
+    outline is within ``tol_mm`` of the given one everywhere (its area within
+    ``tol_mm`` x perimeter).
+
+    Parameters
+    ----------
+    polygon : shapely Polygon, mm
+    tol_mm : float, mm
+        :data:`COLLINEAR_TOL_MM` by default (see there why).
+
+    Returns
+    -------
+    shapely Polygon, mm
+
+    Raises
+    ------
+    GeometryError
+        When the outline is not one valid polygon, before or after.
+    """
+    poly = _check_outline(polygon, "clean_outline")
+    cleaned = shapely.simplify(poly, float(tol_mm), preserve_topology=True)
+    return _check_outline(cleaned, "clean_outline (after removing collinear vertices)")
 
 
 @dataclass(frozen=True)
 class FlatPart:
-    """A planar part as it is made: its outline laid flat on the bed and its thickness.
+    """A planar part as it is written: its outline in the x-y plane and its extrusion along z.
 
     Attributes
     ----------
     outline : shapely Polygon, mm
-        In the x-y plane of the bed, its minimum-area bounding rectangle aligned with x and y
-        and its lower-left corner at the origin (first quadrant).
+        Without collinear vertices (:func:`clean_outline`). In the ``bed`` frame: its
+        minimum-area bounding rectangle aligned with x and y and its lower-left corner at the
+        origin (first quadrant); in the ``design`` frame: where the kind draws it.
     thickness_mm : float, mm
-        Extrusion along z (the out-of-plane thickness; the sheet thickness of a sheet part).
+        Extrusion along z, from z = 0 (the out-of-plane thickness; the sheet thickness of a
+        sheet part laid flat, the strip's width of one in the design frame).
     footprint_mm : (float, float), mm
-        Size of the outline along x and y on the bed.
+        Size of the outline along x and y.
     rotation_deg : float, deg
         Rotation about the origin applied to the kind's outline (counter-clockwise positive),
-        before the shift; 0 for a sheet part (its flat profile is drawn anew).
+        before the shift; 0 in the design frame and for a sheet part (its flat profile is drawn
+        anew).
     offset_mm : (float, float), mm
-        Shift applied after the rotation.
+        Shift applied after the rotation (0 in the design frame).
     sheet : bool
         The kind's outline was the sheet standing on its edge (length x thickness, extruded by
-        the width); ``outline`` is its flat profile (length x width).
+        the width) and ``outline`` is its flat profile (length x width), laid flat.
+    frame : str
+        ``bed`` or ``design`` (:data:`FRAMES`).
     """
 
     outline: Polygon
@@ -372,6 +431,7 @@ class FlatPart:
     rotation_deg: float = 0.0
     offset_mm: tuple[float, float] = (0.0, 0.0)
     sheet: bool = False
+    frame: str = "bed"
 
     def record(self) -> dict[str, object]:
         """What a report says about the part: footprint, thickness and how it was laid."""
@@ -409,7 +469,7 @@ def lay_flat(polygon: Polygon) -> tuple[Polygon, float, tuple[float, float]]:
     """
     from shapely import affinity
 
-    poly = _check_outline(polygon, "lay_flat")
+    poly = clean_outline(polygon)
     x0, y0, x1, y1 = poly.bounds
     box_area = (x1 - x0) * (y1 - y0)
     rect = shapely.minimum_rotated_rectangle(poly)
@@ -469,8 +529,10 @@ def sheet_profile(edge: Polygon, width_mm: float) -> tuple[Polygon, float]:
 SHEET_HINT = "made_from_sheet"
 
 
-def flat_part(outline: Polygon, height_mm: float, sheet: bool = False) -> FlatPart:
-    """The part of a kind's outline and height, laid flat on the bed.
+def flat_part(
+    outline: Polygon, height_mm: float, sheet: bool = False, frame: str = "bed"
+) -> FlatPart:
+    """The part of a kind's outline and height, laid flat on the bed or in the design frame.
 
     Parameters
     ----------
@@ -479,7 +541,12 @@ def flat_part(outline: Polygon, height_mm: float, sheet: bool = False) -> FlatPa
     height_mm : float, mm
         Its extrusion height (DesignDetail.height_mm).
     sheet : bool
-        The outline is a sheet standing on its edge (:func:`sheet_profile`).
+        The outline is a sheet standing on its edge (:func:`sheet_profile`); laid flat, the
+        part is its flat profile, in the design frame it stays the edge view extruded by the
+        strip's width (the leaf where it sits in the mechanism).
+    frame : str
+        ``bed`` (laid flat, :func:`lay_flat`) or ``design`` (the outline where the kind draws
+        it, only cleaned of collinear vertices).
 
     Returns
     -------
@@ -487,6 +554,11 @@ def flat_part(outline: Polygon, height_mm: float, sheet: bool = False) -> FlatPa
     """
     if not (np.isfinite(height_mm) and height_mm > 0):
         raise GeometryError(f"extrusion height_mm = {height_mm} must be > 0 mm")
+    if frame not in FRAMES:
+        raise GeometryError(f"frame {frame!r} is not one of {', '.join(FRAMES)}")
+    if frame == "design":
+        poly = clean_outline(outline)
+        return FlatPart(poly, float(height_mm), _size(poly), frame="design")
     if sheet:
         profile, thickness = sheet_profile(outline, float(height_mm))
         flat, angle, offset = lay_flat(profile)
@@ -540,7 +612,7 @@ def step_bytes(part: FlatPart) -> bytes:
     import os
     import tempfile
 
-    poly = orient(part.outline, sign=1.0)
+    poly = part.outline
 
     def wire(ring) -> object:
         pts = [(float(x), float(y), 0.0) for x, y in np.asarray(ring.coords)[:-1]]
@@ -558,6 +630,8 @@ def step_bytes(part: FlatPart) -> bytes:
             f"the outline is not a valid polygon ({shapely.is_valid_reason(poly)}); "
             "no STEP solid made of it"
         )
+    # OpenCascade merges the faces of collinear edges (COLLINEAR_TOL_MM): none are left
+    poly = clean_outline(poly)
     face = bd.Face(wire(poly.exterior), [wire(r) for r in poly.interiors])
     solid = bd.extrude(face, amount=float(part.thickness_mm))
     expected = poly.area * float(part.thickness_mm)

@@ -238,12 +238,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="write one design of a run or evaluate folder as STL, DXF, STEP or a study (YAML)",
         description=(
             "Rebuild a design of a run (from its study.yaml), or the design of a flexopt "
-            "evaluate folder, and write its part in mm, laid flat and aligned to the bed axes: "
-            "binary STL (to print), DXF (the outline with its holes, to cut) or STEP (needs "
-            "pip install 'flexopt[step]'). A sheet part (the leaf-spring joint's leaf) is "
-            "written as its flat profile. --format yaml writes the design as a study instead "
-            "(the run's study with the design's values set), which flexopt evaluate solves to "
-            "the numbers of best.json."
+            "evaluate folder, and write its part in mm: binary STL (to print; laid flat and "
+            "aligned to the bed axes), DXF (the outline with its holes, to cut or sketch on) or "
+            "STEP (needs pip install 'flexopt[step]'), these two in the design frame (where the "
+            "kind draws the part: a spring's axis at the origin); --frame chooses. A sheet part "
+            "(the leaf-spring joint's leaf) is laid flat as its flat profile, and its DXF is "
+            "that profile. --format yaml writes the design as a study instead (the run's study "
+            "with the design's values set), which flexopt evaluate solves to the numbers of "
+            "best.json."
         ),
     )
     export.add_argument(
@@ -272,6 +274,13 @@ def build_parser() -> argparse.ArgumentParser:
             "file to write (default RUN_DIR/best.FORMAT, RUN_DIR/design-INDEX.FORMAT, or "
             "RUN_DIR/design.FORMAT in an evaluate folder; FORMAT yaml: a study file)"
         ),
+    )
+    export.add_argument(
+        "--frame",
+        choices=("design", "bed"),
+        default=None,
+        help="design (the kind's coordinates) or bed (laid flat, first quadrant); default: "
+        "bed for stl, design for dxf and step",
     )
     export.set_defaults(handler=_export)
     _add_study_tools(commands)
@@ -716,7 +725,7 @@ def _export(args: argparse.Namespace) -> int:
     ):
         return _export_study(args)
     try:
-        outcome = export_design(args.run_dir, args.design, args.out, args.format)
+        outcome = export_design(args.run_dir, args.design, args.out, args.format, args.frame)
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -728,7 +737,9 @@ def _export(args: argparse.Namespace) -> int:
         return EXIT_WRITE
     w, h = outcome.footprint_mm
     laid = "flat profile of the sheet" if outcome.sheet else "laid flat"
-    if outcome.rotation_deg:
+    if outcome.frame == "design":
+        laid = "in the design frame"
+    elif outcome.rotation_deg:
         laid += f", turned {outcome.rotation_deg:+.3g} deg to the bed axes"
     triangles = f"{outcome.triangles} triangles, " if outcome.triangles else ""
     print(

@@ -813,7 +813,9 @@ class _Run:
             detail = replace(detail, verdicts=self.verdicts)
         part = self._flat_part(detail)
         if detail is not None and part is not None:  # the footprint in best.json and the report
-            detail = replace(detail, info={**detail.info, "part": part.record()})
+            frames = {f: export_frame(f, sheet=part.sheet) for f in EXPORT_FORMATS}
+            record = {**part.record(), "frames": {f"best.{f}": v for f, v in frames.items()}}
+            detail = replace(detail, info={**detail.info, "part": record})
         best_json = {"verdict": verdict_record(self.verdicts), **best_json}  # the verdict first
         robust = self.robustness(best, detail)
         if robust is not None:  # the chosen design under the study's scatter (docs/robustness.md)
@@ -911,13 +913,15 @@ class _Run:
             self.artefact(
                 "robustness.png", lambda: robust.png(f"{study.name}: robustness"), group="png"
             )
-        if part is not None:
+        design = self._flat_part(detail, "design") if part is not None else None
+        if part is not None and design is not None:  # STL on the bed, DXF and STEP as designed
             self.artefact("best.stl", lambda: self._stl(part))
-            self.artefact("best.dxf", lambda: part_bytes(part, "dxf", f"{study.name}: best"))
-            if early is not None and early.send(part):
+            dxf = part if export_frame("dxf", sheet=part.sheet) == "bed" else design
+            self.artefact("best.dxf", lambda: part_bytes(dxf, "dxf", f"{study.name}: best"))
+            if early is not None and early.send(design):
                 self._early = early
             elif step_available():  # the optional extra; without it no STEP and no note
-                self.artefact("best.step", lambda: part_bytes(part, "step"), group="step")
+                self.artefact("best.step", lambda: part_bytes(design, "step"), group="step")
         elif detail is not None and (detail.outline is None or not detail.height_mm):
             self.notes.append(
                 "best.stl and best.dxf skipped: the kind gives no outline and height_mm"
@@ -988,12 +992,13 @@ class _Run:
             title=f"{title}: Pareto front",
         )
 
-    def _flat_part(self, detail: DesignDetail | None) -> FlatPart | None:
-        """The best design's part laid flat (None, with a note, when it cannot be made)."""
+    def _flat_part(self, detail: DesignDetail | None, frame: str = "bed") -> FlatPart | None:
+        """The best design's part laid flat or in the design ``frame`` (None, with a note, when
+        it cannot be made)."""
         if detail is None or detail.outline is None or not detail.height_mm:
             return None
         try:
-            return part_of(detail)
+            return part_of(detail, frame)
         except Exception as exc:
             note = f"best.stl and best.dxf not written: {_one_line(f'{type(exc).__name__}: {exc}')}"
             log.warning(note)
@@ -2029,6 +2034,18 @@ EXPORT_FORMATS = ("stl", "dxf", "step")
 _SUFFIX_FORMATS = {".stl": "stl", ".dxf": "dxf", ".step": "step", ".stp": "step"}
 
 STEP_EXTRA_FIX = "--format step needs the optional extra: pip install 'flexopt[step]'"
+#: The frame each format is written in unless ``--frame`` says otherwise (docs/usage.md): STL is
+#: the file to print, laid flat on the bed; DXF and STEP are for CAD and assemblies, in the
+#: kind's own coordinates. A sheet part's DXF is always its flat profile (what is cut).
+DEFAULT_FRAMES = {"stl": "bed", "dxf": "design", "step": "design"}
+
+
+def export_frame(fmt: str, frame: str | None = None, sheet: bool = False) -> str:
+    """The frame a part in ``fmt`` is written in: ``frame`` if given, else the format's
+    (:data:`DEFAULT_FRAMES`); ``bed`` for the DXF of a sheet part (its flat profile)."""
+    if fmt == "dxf" and sheet:
+        return "bed"
+    return frame or DEFAULT_FRAMES[fmt]
 
 
 @dataclass(frozen=True)
@@ -2042,11 +2059,12 @@ class ExportOutcome:
     x : (n_var,) float, the design vector.
     evaluation : the design re-evaluated by ``problem.detail``.
     volume_mm3 : mm^3 (area x thickness), triangles : count (STL only, else 0),
-    size_mm : size (x, y, z) of the part as laid on the bed, mm.
+    size_mm : size (x, y, z) of the part as written (in its frame), mm.
     format : ``stl``, ``dxf`` or ``step``.
-    footprint_mm : (x, y) mm on the bed; thickness_mm : mm along z.
+    footprint_mm : (x, y) mm, the size in its frame; thickness_mm : mm along z.
     rotation_deg : deg the kind's outline was turned to align it; sheet : laid flat from a sheet
         standing on its edge (its flat profile).
+    frame : ``design`` (the kind's coordinates) or ``bed`` (laid flat).
     """
 
     path: Path
@@ -2061,6 +2079,7 @@ class ExportOutcome:
     thickness_mm: float = 0.0
     rotation_deg: float = 0.0
     sheet: bool = False
+    frame: str = "bed"
 
 
 def _design_vector(
@@ -2147,9 +2166,9 @@ def step_available() -> bool:
     return importlib.util.find_spec("build123d") is not None
 
 
-def part_of(detail: DesignDetail) -> FlatPart:
-    """A design's part laid flat (:func:`geometry.solid.flat_part`), the kind's sheet hint
-    (``info[SHEET_HINT]``) honoured.
+def part_of(detail: DesignDetail, frame: str = "bed") -> FlatPart:
+    """A design's part laid flat or in the design ``frame`` (:func:`geometry.solid.flat_part`),
+    the kind's sheet hint (``info[SHEET_HINT]``) honoured.
 
     Raises
     ------
@@ -2159,11 +2178,12 @@ def part_of(detail: DesignDetail) -> FlatPart:
     from flexopt.geometry.solid import SHEET_HINT, flat_part
 
     sheet = bool((detail.info or {}).get(SHEET_HINT))
-    return flat_part(detail.outline, float(detail.height_mm or 0.0), sheet=sheet)
+    return flat_part(detail.outline, float(detail.height_mm or 0.0), sheet=sheet, frame=frame)
 
 
 def part_bytes(part: FlatPart, fmt: str, comment: str = "") -> bytes:
-    """The file of a laid-flat part in ``fmt`` (one of :data:`EXPORT_FORMATS`).
+    """The file of a part (laid flat or in the design frame) in ``fmt`` (one of
+    :data:`EXPORT_FORMATS`).
 
     Raises
     ------
@@ -2222,12 +2242,15 @@ def export_design(
     design: str = "best",
     out: Path | None = None,
     fmt: str | None = None,
+    frame: str | None = None,
 ) -> ExportOutcome:
     """Rebuild one design of a run or evaluate folder and write its part: STL, DXF or STEP.
 
-    The part is the kind's outline laid flat on the bed (turned so its minimum-area rectangle
-    is aligned with x and y, moved into the first quadrant); a kind that marks its outline as a
-    sheet standing on its edge (``info[geometry.solid.SHEET_HINT]``) gets its flat profile.
+    The part is the kind's outline extruded by its height, in the ``design`` frame (where the
+    kind draws it) or laid flat on the ``bed`` (turned so its minimum-area rectangle is aligned
+    with x and y, moved into the first quadrant); a kind that marks its outline as a sheet
+    standing on its edge (``info[geometry.solid.SHEET_HINT]``) gets its flat profile on the bed
+    (and as DXF in either frame).
 
     Parameters
     ----------
@@ -2242,6 +2265,9 @@ def export_design(
         evaluate folder, ``run_dir/design.<fmt>``.
     fmt : str, optional
         ``stl``, ``dxf`` or ``step``; default the one ``out`` ends in, else ``stl``.
+    frame : str, optional
+        ``design`` or ``bed``; default the format's (:data:`DEFAULT_FRAMES`: STL on the bed,
+        DXF and STEP in the design frame).
 
     Raises
     ------
@@ -2256,6 +2282,8 @@ def export_design(
         When the file cannot be written.
     """
     fmt = _export_format(fmt, out)
+    if frame is not None and frame not in DEFAULT_FRAMES.values():
+        raise StudyError("--frame", f"got {echo(frame)}; use design or bed")
     if fmt == "step" and not step_available():
         raise StudyError("", STEP_EXTRA_FIX)
     evaluate = run_dir.is_dir() and is_evaluate_folder(run_dir)
@@ -2295,7 +2323,9 @@ def export_design(
     from flexopt.geometry.solid import StepUnavailable
 
     try:
-        part = part_of(detail)
+        bed = part_of(detail)
+        used = export_frame(fmt, frame, bed.sheet)
+        part = bed if used == "bed" else part_of(detail, used)
         data = part_bytes(part, fmt, f"{study.name}: design {design}")
     except StepUnavailable:
         raise StudyError("", STEP_EXTRA_FIX) from None
@@ -2322,6 +2352,7 @@ def export_design(
         part.thickness_mm,
         part.rotation_deg,
         part.sheet,
+        part.frame,
     )
 
 

@@ -1288,12 +1288,16 @@ class SeaSpringProblem:
                 "published_springs": _published_comparison(),
             }
         )
-        height_mm = p.thickness_mm
+        height_mm, part_outline = p.thickness_mm, geom.outline
         if solid is not None:
             info["solid_3d"] = solid
             info.update(solid_3d_scalars(info["solid_3d"]))
             # the part to make is the corrected one (its STL, DXF, footprint)
             height_mm = info["solid_3d"].get("ST_after_mm", height_mm)
+            if "problem" not in solid.get("peak_convergence", {"problem": ""}):
+                # ... and the outline whose peak stress converged (issue 22): its arms sampled
+                # every curve_step_mm, not the optimiser's facets (on those the peak is higher)
+                part_outline = _fine_geometry(self, geom.params).outline
         smap = _stress_map_data(r)
         tol = study.target.tolerance_percent / 100.0 * study.target.torque_Nm
         plot = {
@@ -1321,7 +1325,7 @@ class SeaSpringProblem:
             evaluation=evaluation,
             table=table,
             plot=plot,
-            outline=geom.outline,
+            outline=part_outline,
             height_mm=height_mm,
             info=info,
             field_map=field_map,
@@ -1352,7 +1356,9 @@ class SeaSpringProblem:
            refined at the peak of the worse direction (nonlinear) until it moves < 1 %; the 3D
            peak is that value times the last check's 3D/2D peak ratio. The optimiser's outline
            is left as it is (its 1.4 deg facets cost nothing in the GA and the stress
-           objective only ranks designs; finer sampling would triple its triangles).
+           objective only ranks designs; finer sampling would triple its triangles), but the
+           part exported (:meth:`detail`'s outline: STL, DXF, STEP) is the finely sampled one
+           whose peak converged (issue 22).
 
         Cost (docs/solid3d.md): the checks share one 3D model (:class:`fea.solid3d.Solid3DModel`:
         the mesh extruded and assembled once, ST only scales its parts; the first check
@@ -1548,12 +1554,8 @@ def _peak_convergence(
     :class:`_SideProcess` runs it in a second process). Raises FeaError, GeometryError."""
     from flexopt.fea.solid3d import converge_peak_stress
 
-    spec, s3 = prob.study.mesh, prob.study.solid_3d
-    if isinstance(params, ArmSpringParams):
-        smooth = build_arm_spring(params, prob.frame, curve_step_mm=s3.curve_step_mm)
-    else:  # serpentine: its arcs sampled at 0.25 deg
-        frame = replace(prob.frame, arc_step_deg=0.25, arc_step_mm=s3.curve_step_mm)
-        smooth = build_spring(params, frame)
+    spec = prob.study.mesh
+    smooth = _fine_geometry(prob, params)
     return converge_peak_stress(
         smooth.fe_outline, smooth.thickness_mm, prob.material, Clamp(smooth.pad_region),
         Rotate(smooth.hub_region, (0.0, 0.0), sign * prob.theta, 1), spec.max_edge_mm,
@@ -1561,6 +1563,19 @@ def _peak_convergence(
         stress_ignore=smooth.hub_region.union(smooth.pad_region).buffer(0.05),
         kinematics="nonlinear",
     )  # fmt: skip
+
+
+def _fine_geometry(
+    prob: SeaSpringProblem, params: SpringParams | ArmSpringParams
+) -> SpringGeometry:
+    """The design as the peak-stress convergence meshes it and as its part is exported: the
+    arms sampled every ``solid_3d.curve_step_mm`` (the serpentine's arcs also at 0.25 deg).
+    Raises GeometryError."""
+    s3 = prob.study.solid_3d
+    if isinstance(params, ArmSpringParams):
+        return build_arm_spring(params, prob.frame, curve_step_mm=s3.curve_step_mm)
+    frame = replace(prob.frame, arc_step_deg=0.25, arc_step_mm=s3.curve_step_mm)
+    return build_spring(params, frame)
 
 
 def _peak_job_main(prob: SeaSpringProblem, params: Any, sign: float) -> dict[str, Any]:

@@ -535,6 +535,9 @@ class ThresholdSpringProblem:
                 info.update(solid_3d_scalars(info["solid_3d"], self.error_name))
                 # the part to make is the corrected one (its STL, DXF), as in sea_spring
                 height = info["solid_3d"].get("ST_after_mm", height)
+                if "problem" not in info["solid_3d"].get("peak_convergence", {"problem": ""}):
+                    # ... and the outline whose peak stress converged (issue 22)
+                    outline = self._fine_geometry(geom, float(height)).outline
         info["impact"] = self._impact(r.rotation_rad, r.torque_Nmm * 1e-3, table)
         plot = {
             "x": "rotation_deg",
@@ -698,7 +701,6 @@ class ThresholdSpringProblem:
         field is the same at every ST). Nonlinear, in ``fidelity.steps`` steps, as sea_spring:
         the arms are compressed struts whose bending at the end of the range is a large-rotation
         effect. Returns MPa, mm, s; ``problem`` alone when it cannot be made."""
-        from dataclasses import replace
 
         from flexopt.fea.plane_stress import Clamp, Rotate
         from flexopt.fea.solid3d import converge_peak_stress
@@ -706,10 +708,7 @@ class ThresholdSpringProblem:
         fs, s3 = self.study.fidelity, self.study.solid_3d
         t0 = time.perf_counter()
         try:
-            smooth = build_arm_spring(
-                replace(geom.params, thickness_mm=float(st_mm)), self.frame,
-                curve_step_mm=s3.curve_step_mm,
-            )  # fmt: skip
+            smooth = self._fine_geometry(geom, st_mm)
             c = converge_peak_stress(
                 smooth.fe_outline, smooth.thickness_mm, self.material, Clamp(smooth.pad_region),
                 Rotate(smooth.hub_region, (0.0, 0.0), self.range_rad, fs.steps), fs.max_edge_mm,
@@ -737,6 +736,17 @@ class ThresholdSpringProblem:
             "peak_stress_3d_MPa": c["last_two_MPa"][-1] * ratio_3d_2d,
             "time_s": time.perf_counter() - t0,
         }
+
+    def _fine_geometry(self, geom: Any, st_mm: float) -> Any:
+        """The design as the peak-stress convergence meshes it and as its part is exported:
+        the arms sampled every ``solid_3d.curve_step_mm``, at thickness ``st_mm`` (mm).
+        Raises GeometryError."""
+        from dataclasses import replace
+
+        return build_arm_spring(
+            replace(geom.params, thickness_mm=float(st_mm)), self.frame,
+            curve_step_mm=self.study.solid_3d.curve_step_mm,
+        )  # fmt: skip
 
     def _check_3d(
         self, geom: Any, mesh: Any, ps: dict[str, Any], st_ps_mm: float, st_mm: float

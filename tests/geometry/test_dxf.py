@@ -141,3 +141,39 @@ def test_step_face_count_check_ignores_repeated_vertices():
     ring = [(0, 0), (10, 0), (10, 0), (10, 5), (0, 5)]
     data = step_bytes(FlatPart(Polygon(ring), 2.0, (10.0, 5.0)))
     assert data.startswith(b"ISO-10303-21;")
+
+
+def test_step_of_an_outline_with_collinear_vertices_has_a_face_per_edge():
+    # issue 23: OpenCascade merged the side faces of collinear edges and the face count refused
+    # the solid ("22 faces, expected 28"); the outline is cleaned first
+    pytest.importorskip("build123d")
+    import tempfile
+    from pathlib import Path
+
+    import build123d as bd
+
+    ring = [(0, 0), (5, 0), (10, 0), (10, 2), (10, 5), (4, 5), (0, 5)]
+    hole = [(2, 1), (3, 1), (4, 1), (4, 3), (2, 3)]
+    part = FlatPart(Polygon(ring, [hole]), 2.0, (10.0, 5.0))
+    data = step_bytes(part)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "part.step"
+        path.write_bytes(data)
+        solid = bd.import_step(str(path))
+    assert len(solid.faces()) == 4 + 4 + 2  # four sides outside, four in the hole, top, bottom
+    assert solid.volume == pytest.approx((50.0 - 4.0) * 2.0, rel=1e-9)
+
+
+def test_the_design_frame_keeps_the_kinds_coordinates():
+    tilted = affinity.rotate(plate_with_holes(), 31.0, origin=(7.0, -3.0))
+    part = flat_part(tilted, 3.0, frame="design")
+    assert part.frame == "design" and part.rotation_deg == 0.0 and part.offset_mm == (0.0, 0.0)
+    assert part.outline.symmetric_difference(tilted).area < 1e-9
+    assert dxf_polygon(dxf_bytes(part.outline)).symmetric_difference(tilted).area < 1e-9
+    # a sheet in the design frame stays its edge view, extruded by the strip's width
+    edge = affinity.rotate(box(-10, -0.25, 58, 0.25), 12.0)
+    sheet = flat_part(edge, 11.0, sheet=True, frame="design")
+    assert not sheet.sheet and sheet.thickness_mm == 11.0
+    assert sheet.outline.symmetric_difference(edge).area < 1e-9
+    with pytest.raises(GeometryError, match="frame"):
+        flat_part(tilted, 3.0, frame="tilted")

@@ -7,8 +7,10 @@ import pytest
 import trimesh
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.solid import (
+    COLLINEAR_TOL_MM,
     check_printable,
     check_solid,
+    clean_outline,
     extrude,
     min_feature_mm,
     stl_bytes,
@@ -133,3 +135,27 @@ def test_thin_feature_location_and_corners():
     # Square corners and a 30-degree corner are rounded by the opening but are not walls.
     assert thin_feature_at(box(0, 0, 10, 10), 2.0) is None
     assert thin_feature_at(Polygon([(0, 0), (10, 0), (10, 10 * np.tan(np.pi / 6))]), 2.0) is None
+
+
+# ---- cleaning an outline before it is written -----------------------------------------------
+
+
+def test_clean_outline_drops_repeated_and_collinear_vertices_only():
+    # a pad joined to a beam leaves vertices on straight edges (the mechanism kind's outlines)
+    ring = [(0, 0), (5, 0), (5, 0), (10, 0), (10, 2), (10, 5), (4, 5), (0, 5), (0, 2.5)]
+    hole = [(2, 1), (3, 1), (4, 1), (4, 3), (2, 3)]
+    poly = Polygon(ring, [hole])
+    cleaned = clean_outline(poly)
+    assert len(cleaned.exterior.coords) - 1 == 4 and len(cleaned.interiors[0].coords) - 1 == 4
+    assert cleaned.symmetric_difference(poly).area == 0.0
+    assert cleaned.exterior.is_ccw
+    # a vertex off the chord by 10x the tolerance stays: a real (if tiny) corner
+    bent = Polygon([(0, 0), (5, -10 * COLLINEAR_TOL_MM), (10, 0), (10, 5), (0, 5)])
+    assert len(clean_outline(bent).exterior.coords) - 1 == 5
+    # ... and within the tolerance it goes, moving the outline by less than the tolerance
+    nearly = Polygon([(0, 0), (5, -0.1 * COLLINEAR_TOL_MM), (10, 0), (10, 5), (0, 5)])
+    out = clean_outline(nearly)
+    assert len(out.exterior.coords) - 1 == 4
+    assert out.hausdorff_distance(nearly) <= COLLINEAR_TOL_MM
+    with pytest.raises(GeometryError, match="invalid outline"):
+        clean_outline(Polygon([(0, 0), (1, 1), (1, 0), (0, 1)]))
