@@ -120,6 +120,42 @@ def test_cantilever_constant_amplitude_life_polymer(correction):
     )
 
 
+def test_cantilever_life_from_the_beam_solver_at_small_load():
+    # The project's beam solver (fea/beam.py) at small load (P L^2 / EI ~ 0.09): the root stress
+    # of a tip load cycling between -4 N and +20 N, its peak tracked at the root (s = 0), gives
+    # the hand Goodman life of the closed-form stresses 6 F L / (b h^2).
+    from flexopt.fea.beam import BeamSettings, EndDrive, solve_beam
+    from flexopt.fea.materials import get_material
+    from flexopt.geometry.profile import BeamProfile
+
+    length, width, thick = 20.0, 5.0, 1.0
+    profile = BeamProfile([[0.0, 0.0], [length, 0.0]], [thick, thick], width)
+    peaks = {}
+    for force in (20.0, -4.0):
+        res = solve_beam(
+            profile,
+            get_material("65Mn"),
+            EndDrive("force", (0.0, 1.0), force, steps=4, rotation="free", transverse="free"),
+            settings=BeamSettings(n_elements=20),
+        )
+        assert res.ok, res.message
+        assert res.peak_stress_s_mm[-1] == pytest.approx(0.0, abs=1e-9)  # at the root
+        peaks[force] = float(res.peak_stress_MPa[-1])
+    s_max, s_min = peaks[20.0], -peaks[-4.0]  # the root's top fibre: tension, then compression
+    n_beam = cycles_to_failure(
+        material_sn_curve("65Mn"), 0.5 * (s_max - s_min), 0.5 * (s_max + s_min), "goodman"
+    )
+    hand_max = _cantilever_root_stress(20.0, length, width, thick)  # 480 MPa
+    hand_min = -_cantilever_root_stress(4.0, length, width, thick)  # -96 MPa
+    assert s_max == pytest.approx(hand_max, rel=2e-3)
+    assert s_min == pytest.approx(hand_min, rel=2e-3)
+    a, b, _se = _shigley_by_hand(980.0, 4.51, -0.265)
+    s_a, s_m = 0.5 * (hand_max - hand_min), 0.5 * (hand_max + hand_min)
+    n_hand = ((s_a / (1.0 - s_m / 980.0)) / a) ** (1.0 / b)
+    assert 1.0e3 < n_hand < 1.0e6
+    assert n_beam == pytest.approx(n_hand, rel=0.03)  # N ~ S^(1/b), 1/b ~ -8.7
+
+
 # -- endurance limit ----------------------------------------------------------------------------
 
 
