@@ -481,8 +481,12 @@ def _history(history_MPa: Sequence[float] | np.ndarray) -> np.ndarray:
         raise FeaError(
             f"fatigue: the load history must be a 1-D sequence of >= 2 values; got shape {h.shape}"
         )
-    if not np.all(np.isfinite(h)):
-        raise FeaError("fatigue: the load history holds NaN or inf; give finite values")
+    bad = np.flatnonzero(~np.isfinite(h))
+    if bad.size:
+        raise FeaError(
+            f"fatigue: the load history holds {h[bad[0]]} at index {int(bad[0])} (NaN or inf); "
+            "give finite values"
+        )
     return h
 
 
