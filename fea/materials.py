@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from flexopt.fea.errors import FeaError
 
-__all__ = ["Material", "MATERIALS", "get_material"]
+__all__ = [
+    "Material",
+    "MATERIALS",
+    "get_material",
+    "FatigueData",
+    "FATIGUE_DATA",
+    "get_fatigue_data",
+]
 
 
 @dataclass(frozen=True)
@@ -150,3 +158,154 @@ def get_material(name: str) -> Material:
         if _key(key) == _key(name):
             return mat
     raise FeaError(f"unknown material '{name}'; choose one of {', '.join(MATERIALS)}")
+
+
+@dataclass(frozen=True)
+class FatigueData:
+    """Stress-life (S–N) data of one built-in material; :mod:`flexopt.fea.fatigue` builds the curve.
+
+    Two kinds of entry:
+
+    - ``method="shigley"`` (steels, titanium): only the ultimate strength is stored; the curve
+      follows Budynas & Nisbett, *Shigley's Mechanical Engineering Design*, ch. 6 (endurance
+      limit Se' = 0.5 Sut up to 1400 MPa, else 700 MPa; Marin surface and size factors; the
+      fraction f at 10^3 cycles; Basquin S = a N^b between 10^3 and 10^6 cycles; an endurance
+      limit below which the life is infinite).
+    - ``method="basquin"`` (printed polymers): the fully reversed fatigue strength at 10^6
+      cycles and the Basquin exponent; no endurance limit (polymers have none).
+
+    Attributes
+    ----------
+    ultimate_MPa : float, MPa
+        Tensile (ultimate) strength Sut: the Goodman intercept and the Shigley method's input.
+    method : str
+        ``"shigley"`` or ``"basquin"``.
+    surface : str
+        Shigley surface finish of the default curve (``"ground"``, ``"machined"``,
+        ``"hot-rolled"``, ``"as-forged"``); ``""`` for polymers (the as-printed surface is in the
+        specimen data).
+    strength_1e6_MPa : float, MPa
+        Polymers: fully reversed fatigue strength at 10^6 cycles (NaN for ``"shigley"``).
+    basquin_b : float
+        Polymers: exponent b of S = a N^b (NaN for ``"shigley"``).
+    estimate : bool
+        True where the number is a documented rule, not a measured fit for this material.
+    source : str
+        Where the numbers come from.
+    """
+
+    ultimate_MPa: float
+    method: str
+    surface: str = ""
+    strength_1e6_MPa: float = float("nan")
+    basquin_b: float = float("nan")
+    estimate: bool = True
+    source: str = ""
+
+
+# Polymers without a fit we could check: the straight line in log-log from the static strength at
+# one cycle to POLYMER_FATIGUE_RATIO x the static strength at 10^6 cycles (an "estimate" knock-down;
+# the one measured printed-polymer value we have, SLS PA12 at ~15 MPa of 48 MPa, is 0.31).
+POLYMER_FATIGUE_RATIO = 0.25
+_POLY_B = float(math.log10(POLYMER_FATIGUE_RATIO) / 6.0)
+
+
+def _polymer_estimate(name: str) -> FatigueData:
+    static = MATERIALS[name].yield_MPa
+    return FatigueData(
+        ultimate_MPa=static,
+        method="basquin",
+        strength_1e6_MPa=POLYMER_FATIGUE_RATIO * static,
+        basquin_b=_POLY_B,
+        estimate=True,
+        source=(
+            f"estimate: S(10^6) = {POLYMER_FATIGUE_RATIO} x static strength "
+            f"({MATERIALS[name].source}), Basquin line through the static strength at N = 1 "
+            f"(b = log10({POLYMER_FATIGUE_RATIO})/6); no fit for printed {name} was checked"
+        ),
+    )
+
+
+_SHIGLEY = (
+    "Budynas & Nisbett, Shigley's Mechanical Engineering Design, ch. 6 (Se', ka, f, Eqs. 6-14/15)"
+)
+
+# One table, one source per entry. Printed polymers' S-N data depend strongly on raster, infill,
+# frequency (self-heating) and humidity: treat them as a first screen, not a qualification.
+FATIGUE_DATA: dict[str, FatigueData] = {
+    "ABS": _polymer_estimate("ABS"),
+    "PLA": _polymer_estimate("PLA"),
+    "PETG": _polymer_estimate("PETG"),
+    "PA12": FatigueData(
+        ultimate_MPa=MATERIALS["PA12"].yield_MPa,
+        method="basquin",
+        strength_1e6_MPa=15.0,
+        basquin_b=float(math.log10(15.0 / MATERIALS["PA12"].yield_MPa) / 6.0),
+        estimate=True,
+        source=(
+            "S(10^6) = 15 MPa: Munguia & Dalgarno, 'Fatigue behaviour of laser-sintered PA12 "
+            "specimens under four-point rotating bending', Rapid Prototyping Journal (abstract: "
+            "~15 MPa limit for all build orientations, lives > 10^6 below 20 MPa); the slope is an "
+            "estimate (line through the static strength, 48 MPa, at N = 1)"
+        ),
+    ),
+    "65Mn": FatigueData(
+        ultimate_MPa=980.0,
+        method="shigley",
+        surface="machined",
+        estimate=True,
+        source=(
+            "Sut 980 MPa: GB/T 1222 65Mn quenched and tempered (minimum tensile strength); "
+            f"curve: {_SHIGLEY} (textbook estimate, machined surface)"
+        ),
+    ),
+    "17-4PH-H900": FatigueData(
+        ultimate_MPa=1310.0,
+        method="shigley",
+        surface="machined",
+        estimate=True,
+        source=(
+            "Sut 1310 MPa: ASTM A564 condition H900 (minimum tensile strength); "
+            f"curve: {_SHIGLEY} (textbook estimate, machined surface)"
+        ),
+    ),
+    "maraging-300": FatigueData(
+        ultimate_MPa=2050.0,
+        method="shigley",
+        surface="machined",
+        estimate=True,
+        source=(
+            "Sut 2050 MPa: 18Ni(300) aged 480 C / 3 h, MatWeb / ASM Handbook Vol. 1 (typical); "
+            f"curve: {_SHIGLEY}, Se' capped at 700 MPa (Sut > 1400 MPa); f extrapolated beyond "
+            "Fig. 6-18's range (textbook estimate, machined surface)"
+        ),
+    ),
+    "Ti-6Al-4V": FatigueData(
+        ultimate_MPa=950.0,
+        method="shigley",
+        surface="machined",
+        estimate=True,
+        source=(
+            "Sut 950 MPa: Ti-6Al-4V (Grade 5) annealed, ASM Aerospace Specification Metals "
+            f"datasheet via MatWeb; curve: the steel rule of {_SHIGLEY} applied to titanium "
+            "(estimate: Ti alloys also show a knee; not a measured Ti fit)"
+        ),
+    ),
+}
+
+
+def get_fatigue_data(name: str) -> FatigueData:
+    """Fatigue data of a built-in material, looked up like :func:`get_material`.
+
+    Raises
+    ------
+    FeaError
+        When the material has no fatigue data (a user material): the message says how to give it.
+    """
+    for key, data in FATIGUE_DATA.items():
+        if _key(key) == _key(name):
+            return data
+    raise FeaError(
+        f"no fatigue data for material '{name}'; use one of {', '.join(FATIGUE_DATA)} or build "
+        "an SNCurve (flexopt.fea.fatigue) from your own S-N data"
+    )
