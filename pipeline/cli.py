@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import contextlib
 import json
 import logging
 import math
@@ -642,6 +643,10 @@ def _export(args: argparse.Namespace) -> int:
 
     prog = "flexopt export"
     try:
+        if args.out is not None:
+            from flexopt.pipeline.runfolder import regular_target
+
+            regular_target(args.out)  # before any work: never a device node, FIFO or folder
         outcome = export_design(args.run_dir, args.design, args.out, args.format)
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
@@ -693,16 +698,17 @@ def _init(args: argparse.Namespace) -> int:
 
     prog = "flexopt init"
     out = args.out or Path(f"{args.name}.yaml")
-    if out.is_dir():  # --out studies/ means "in that folder", as cp does
-        out = out / f"{args.name}.yaml"
+    if args.out is not None and out.is_dir():  # --out studies/ means "in that folder", as cp
+        out = out / f"{args.name}.yaml"  # does; a folder named NAME.yaml is refused below
     try:
         text = starter_study(args.name, kind=args.kind, example=args.example, file=str(out))
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     if out.exists() or out.is_symlink():
+        what = "is a folder" if out.is_dir() else "exists"
         print(
-            f"{prog}: error: {out} exists; flexopt init never overwrites a file: give another "
+            f"{prog}: error: {out} {what}; flexopt init never overwrites a file: give another "
             "NAME or --out FILE",
             file=sys.stderr,
         )
@@ -726,6 +732,10 @@ def _schema(args: argparse.Namespace) -> int:
 
     prog = "flexopt schema"
     try:
+        if args.out is not None:
+            from flexopt.pipeline.runfolder import regular_target
+
+            regular_target(args.out)  # before any work: never a device node, FIFO or folder
         text = json.dumps(study_schema(args.kind), indent=2, ensure_ascii=False) + "\n"
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
@@ -762,8 +772,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         # of flexopt and of the libraries it uses.
         logging.getLogger().addHandler(logging.NullHandler())
     previous = _stop_on_sigterm()
+    stdout, sys.stdout = sys.stdout, _GuardedStdout(sys.stdout)
     try:
-        return int(args.handler(args))
+        code = int(args.handler(args))
+        sys.stdout.flush()  # a full disk behind stdout shows here, not at the interpreter's exit
+        return code
+    except _StdoutFailed as exc:
+        _silence_stdout(stdout)
+        print(f"flexopt {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_WRITE
     except Terminated:
         print("flexopt: stopped by SIGTERM", file=sys.stderr)
         return EXIT_TERMINATED
@@ -771,8 +788,80 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("flexopt: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:
+        sys.stdout = stdout
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+class _StdoutFailed(Exception):
+    """Standard output is closed, full or a closed pipe: the command's output cannot be given.
+
+    Not an :class:`OSError`, so no handler takes it for a run folder it could not write.
+    """
+
+
+class _GuardedStdout:
+    """``sys.stdout`` while a command runs: a write or flush that fails (``> /dev/full``,
+    ``>&-``, a closed pipe) raises :class:`_StdoutFailed`, which :func:`main` reports as one line
+    (exit 1) instead of a traceback."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def _fail(self, exc: BaseException | None) -> NoReturn:
+        why = f" ({exc.strerror or exc})" if isinstance(exc, OSError) else ""
+        closed = "is closed" if exc is None or not isinstance(exc, OSError) else "failed"
+        raise _StdoutFailed(
+            f"standard output {closed}{why}; what was written to files is kept (the result "
+            "goes to standard output: redirect it to a file with room)"
+        )
+
+    def write(self, text: str) -> int:
+        if self._stream is None:
+            self._fail(None)
+        try:
+            return self._stream.write(text)
+        except (OSError, ValueError) as exc:  # ValueError: the stream was closed
+            self._fail(exc)
+
+    def flush(self) -> None:
+        if self._stream is None:
+            return
+        try:
+            self._stream.flush()
+        except (OSError, ValueError) as exc:
+            self._fail(exc)
+
+    def isatty(self) -> bool:
+        try:
+            return self._stream is not None and self._stream.isatty()
+        except (OSError, ValueError):
+            return False
+
+    def fileno(self) -> int:
+        if self._stream is None:
+            raise OSError(9, "standard output is closed")
+        return self._stream.fileno()
+
+    @property
+    def encoding(self) -> str:
+        return getattr(self._stream, "encoding", None) or "utf-8"
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+def _silence_stdout(stream: Any) -> None:
+    """Point file descriptor 1 at the null device, so the buffered text that could not be
+    written is dropped quietly at exit instead of failing again with a traceback."""
+    if stream is None:
+        return
+    with contextlib.suppress(OSError, ValueError):
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, stream.fileno())
+        os.close(null)
+    with contextlib.suppress(OSError, ValueError):
+        stream.flush()
 
 
 def _raise_terminated(signum: int, frame: Any) -> None:
@@ -813,7 +902,7 @@ def entry() -> None:
     try:
         sys.stdout.flush()
         sys.stderr.flush()
-    except (BrokenPipeError, ValueError):  # `flexopt ... | head`, or a closed stream
+    except (OSError, ValueError, AttributeError):  # `| head`, `> /dev/full`, `>&-`: said once
         pass
     os._exit(code)
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
 import io
 import json
 import math
@@ -38,6 +39,7 @@ __all__ = [
     "RunDirLock",
     "check_out_dir",
     "echo",
+    "file_mode",
     "lock_run_dir",
     "make_run_dir",
     "new_run_dir_path",
@@ -49,18 +51,86 @@ __all__ = [
     "read_records_csv",
     "read_run_json",
     "records_to_csv",
+    "regular_target",
     "table_to_csv",
     "to_json",
     "write_atomic",
 ]
 
 
+def _read_umask() -> int:
+    """The process's umask, read without changing it where Linux allows (``/proc``): setting it
+    to read it would race with a thread creating a file in between."""
+    with contextlib.suppress(OSError, ValueError):
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def file_mode() -> int:
+    """The mode of a new file flexopt writes: ``0o666`` less the umask, as ``open`` gives."""
+    return 0o666 & ~_read_umask()
+
+
+def regular_target(path: Path, key: str = "--out") -> Path:
+    """The file a write to ``path`` replaces: ``path``, or the file its symbolic link names.
+
+    flexopt writes only regular files: a device node (``/dev/null``, a disk), a FIFO, a socket or
+    a folder at ``path`` (or at the end of its link) is refused, never replaced or written into
+    (as root, replacing ``/dev/null`` would break the system). A symbolic link to a regular file
+    (or to nothing yet) is written through, so the link stays.
+
+    Raises
+    ------
+    StudyError
+        When ``path`` exists and is not a regular file, naming ``key``.
+    """
+    try:
+        info = os.stat(path)  # follows a link: what a write would reach
+    except FileNotFoundError:
+        return Path(os.path.realpath(path)) if os.path.islink(path) else path
+    except OSError as exc:
+        raise StudyError(key, f"'{path}' cannot be examined ({exc.strerror})") from None
+    if stat.S_ISREG(info.st_mode):
+        return Path(os.path.realpath(path)) if os.path.islink(path) else path
+    what = (
+        "a folder"
+        if stat.S_ISDIR(info.st_mode)
+        else "a device node"
+        if stat.S_ISCHR(info.st_mode) or stat.S_ISBLK(info.st_mode)
+        else "a FIFO"
+        if stat.S_ISFIFO(info.st_mode)
+        else "a socket"
+        if stat.S_ISSOCK(info.st_mode)
+        else "not a regular file"
+    )
+    raise StudyError(
+        key,
+        f"'{path}' is {what}; flexopt writes only regular files: give the path of a new or "
+        "regular file",
+    )
+
+
 def write_atomic(path: Path, data: str | bytes) -> None:
     """Write ``data`` to ``path`` so that readers see the old file or the whole new one.
 
     The data goes to a temporary file in the same folder, is flushed to disk and then renamed over
-    ``path`` with :func:`os.replace` (atomic on POSIX and Windows).
+    ``path`` with :func:`os.replace` (atomic on POSIX and Windows). Only a regular file is ever
+    replaced (:func:`regular_target`; a link to one is written through); the new file's mode is
+    ``0o666`` less the umask, as any program's.
+
+    Raises
+    ------
+    OSError
+        When the file cannot be written, or ``path`` is not a regular file (``EINVAL``).
     """
+    try:
+        path = regular_target(path)
+    except StudyError as exc:
+        raise OSError(errno.EINVAL, exc.problem, str(path)) from None
     payload = data.encode("utf-8") if isinstance(data, str) else data
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -68,7 +138,7 @@ def write_atomic(path: Path, data: str | bytes) -> None:
             handle.write(payload)
             handle.flush()
             os.fsync(handle.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp makes 0600; results are meant to be shared
+        os.chmod(tmp, file_mode())  # mkstemp makes 0600; the umask says what the user shares
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
