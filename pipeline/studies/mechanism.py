@@ -526,8 +526,15 @@ def quantities(study: MechanismStudy) -> tuple[str, ...]:
 def _requirements(study: MechanismStudy) -> list[Requirement]:
     out = []
     for i, spec in enumerate(study.requirements):
+        table = columns = None
+        if spec.target is not None and spec.target.kind == "table" and spec.target.file:
+            from flexopt.pipeline.studies._targets import read_table_csv  # a target table's file
+
+            table, columns = read_table_csv(
+                spec.target.file, spec.target.columns, f"requirements[{i}].target.file"
+            )
         try:
-            out.append(spec.to_requirement(study.material.yield_MPa))
+            out.append(spec.to_requirement(study.material.yield_MPa, table, columns))
         except OptimiseError as exc:
             raise StudyError(f"requirements[{i}]", str(exc)) from None
     return out
