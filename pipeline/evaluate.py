@@ -20,6 +20,7 @@ from flexopt.pipeline.report_html import evaluate_html
 from flexopt.pipeline.robustness import run_robustness
 from flexopt.pipeline.runfolder import (
     check_out_dir,
+    copy_inputs,
     make_run_dir,
     new_run_dir_path,
     table_to_csv,
@@ -196,7 +197,10 @@ def evaluate_study(
         f"from {source or 'memory'}; re-run with: flexopt evaluate {run_dir / 'study.yaml'}"
     )
     write_atomic(run_dir / "response.csv", table_to_csv(result.table))
-    write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
+    folder_study, input_files = copy_inputs(study, run_dir)  # the folder stands alone
+    if input_files:
+        record["input_files"] = input_files
+    write_atomic(run_dir / "study.yaml", study_to_yaml(folder_study, header))
     png = plot_response(result.table, **response_plot_args(study, result))
     write_atomic(run_dir / "force_displacement.png", png)
     extra = _extra_files(result)

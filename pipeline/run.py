@@ -71,7 +71,11 @@ from flexopt.pipeline.runfolder import (
     RunDirLock,
     cell_float,
     check_out_dir,
+    copy_inputs,
     echo,
+    input_files,
+    input_hashes,
+    load_folder_study,
     lock_run_dir,
     make_run_dir,
     new_run_dir_path,
@@ -80,6 +84,7 @@ from flexopt.pipeline.runfolder import (
     read_folder_json,
     read_run_json,
     records_to_csv,
+    study_sha256_with_inputs,
     table_to_csv,
     to_json,
     write_atomic,
@@ -1192,7 +1197,7 @@ def _run_in(
             **session,
             "quick": setup.quick,
             "seed": config.seed,
-            "study_sha256": study_sha256(study),
+            "study_sha256": study_sha256_with_inputs(study, study_sha256(study)),
             "optimiser": {
                 "algorithm": config.algorithm,
                 "pop_size": config.pop_size,
@@ -1217,7 +1222,12 @@ def _run_in(
             f"Resolved study written by flexopt run on {record['started']}\n"
             f"from {source or 'memory'}; re-run with: {rerun}"
         )
-        write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
+        # the target tables the study reads, copied: the folder stands alone (report, export,
+        # resume from anywhere), and a resume checks their bytes against the run's
+        folder_study, inputs = copy_inputs(study, run_dir)
+        if inputs:
+            record["input_files"] = inputs
+        write_atomic(run_dir / "study.yaml", study_to_yaml(folder_study, header))
     write_atomic(run_dir / "run.json", to_json(record))
     log.info("run folder %s; %s; %s", run_dir, config, settings.describe())
     # best.step's child now, while this process runs no other thread (forked later, a thread
@@ -1660,7 +1670,26 @@ def _run_folder_study(run_dir: Path, option: str) -> Study:
             f"'{path}' is not a file; restore the run's study.yaml (the resolved study the run "
             "started with) from a copy",
         )
-    return load_study(path)
+    return load_folder_study(run_dir, path)
+
+
+def _refuse_changed_inputs(run_dir: Path, record: dict[str, Any], study: Study) -> None:
+    """Name a target table whose bytes changed since the run started, when that is what makes
+    the study differ (the message says which file and how to go on)."""
+    recorded = record.get("input_files")
+    if not isinstance(recorded, dict):
+        return
+    now = input_hashes(study)
+    for key, file in input_files(study):
+        entry = recorded.get(key)
+        if isinstance(entry, dict) and entry.get("sha256") not in (None, now.get(key)):
+            raise StudyError(
+                "--resume",
+                f"{key}: the file {echo(file)} differs from the one this run started with "
+                f"(sha256 {now[key][:12]} is not {str(entry['sha256'])[:12]}): a resumed run "
+                f"would mix designs made for two targets; resume with the run's own copy "
+                f"(flexopt run --resume {run_dir}, no STUDY) or start a new run",
+            )
 
 
 def resume_run(
@@ -1730,8 +1759,9 @@ def resume_run(
         spec = getattr(study, "optimiser", None) or OptimiserSpec()
         seed = record.get("seed")
         setup = prepare_run(study, quick=quick, seed=None if seed == spec.seed else seed)
-        found = study_sha256(setup.study)
+        found = study_sha256_with_inputs(setup.study, study_sha256(setup.study))
         if found != expected:
+            _refuse_changed_inputs(run_dir, record, setup.study)
             raise StudyError(
                 "--resume",
                 f"the study differs from the one this run started with (sha256 {found[:12]} is "
@@ -2160,7 +2190,7 @@ def _evaluate_folder_study(run_dir: Path) -> Study:
             f"'{run_dir}' has evaluation.json but no study.yaml file; restore it from a copy, or "
             "evaluate the study again with flexopt evaluate",
         )
-    return load_study(path)
+    return load_folder_study(run_dir, path)
 
 
 def export_design(

@@ -58,15 +58,16 @@ def _shown(file: str) -> str:
 
 
 def resolve_table_path(file: str) -> Path:
-    """Where a table ``file:`` is: relative to :func:`table_root` (else the working folder), else
-    in the built-in examples folder."""
+    """Where a table ``file:`` is: relative to :func:`table_root` when it is set (a run folder's
+    own copies), else to the working folder, else in the built-in examples folder."""
     root = _ROOT.get()
     path = Path(file)
-    if root is not None and not path.is_absolute():
-        path = root / path
-    if not path.exists() and not Path(file).is_absolute() and (_EXAMPLES / file).is_file():
-        path = _EXAMPLES / file
-    return path
+    if path.is_absolute():
+        return path
+    for candidate in ((root / path,) if root is not None else ()) + (path, _EXAMPLES / path):
+        if candidate.exists() or candidate.is_symlink():
+            return candidate
+    return root / path if root is not None else path
 
 
 def read_table_bytes(file: str, key: str = "target.file") -> bytes:
