@@ -23,12 +23,13 @@ import shlex
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from flexopt.pipeline.errors import StudyError, Terminated
-from flexopt.pipeline.evaluate import EvaluateOutcome, evaluate_study, versions
+from flexopt.pipeline.evaluate import MAX_REPEAT, EvaluateOutcome, evaluate_study, versions
 from flexopt.pipeline.study import list_examples, load_study, resolve_study_path, workers_problem
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -65,6 +66,15 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{_echo(text)} is not a whole number") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} must be >= 1")
+    return value
+
+
+def _repeat(text: str) -> int:
+    value = _positive_int(text)
+    if value > MAX_REPEAT:
+        raise argparse.ArgumentTypeError(
+            f"{value} is more than {MAX_REPEAT}; repeats only time the solve"
+        )
     return value
 
 
@@ -136,10 +146,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument(
         "--repeat",
-        type=_positive_int,
+        type=_repeat,
         default=1,
         metavar="N",
-        help="solve N times and record the median solve time (default 1)",
+        help=f"solve N times and record the median solve time (default 1, at most {MAX_REPEAT})",
     )
     evaluate.set_defaults(handler=_evaluate)
 
@@ -771,6 +781,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # line, and logging's last-resort handler would print warnings (and their tracebacks)
         # of flexopt and of the libraries it uses.
         logging.getLogger().addHandler(logging.NullHandler())
+        # numpy's RuntimeWarnings (a 0/0 in a design that does not converge, a NaN in a
+        # column) are the solver's business: the result says what went wrong; -v shows them
+        warnings.filterwarnings("ignore", category=RuntimeWarning)
     previous = _stop_on_sigterm()
     stdout, sys.stdout = sys.stdout, _GuardedStdout(sys.stdout)
     try:

@@ -33,12 +33,17 @@ from flexopt.pipeline.verdict import judge
 
 __all__ = [
     "EVALUATE_FILES",
+    "MAX_REPEAT",
     "EvaluateOutcome",
     "evaluate_study",
     "response_plot_args",
     "solve_study",
     "versions",
 ]
+
+#: Most solves ``--repeat`` / ``evaluate(repeat=)`` may ask for: repeats only time the solve
+#: (the median is recorded), and a typo of 10**9 must not start a day of solving.
+MAX_REPEAT = 100
 
 log = logging.getLogger(__name__)
 
