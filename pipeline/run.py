@@ -1407,7 +1407,10 @@ class _ForkedMakes:
         try:
             receive, send = ctx.Pipe(duplex=False)
             self.process = ctx.Process(
-                target=_make_in_child, args=(send, items), name="flexopt-report", daemon=True
+                target=_make_in_child,
+                args=(send, items, receive),
+                name="flexopt-report",
+                daemon=True,
             )
             self.process.start()
             send.close()
@@ -1461,7 +1464,10 @@ class _EarlyStep:
         try:
             ours, theirs = ctx.Pipe(duplex=True)
             process = ctx.Process(
-                target=_early_step_main, args=(theirs, nice), name="flexopt-step", daemon=True
+                target=_early_step_main,
+                args=(theirs, nice, ours),
+                name="flexopt-step",
+                daemon=True,
             )
             process.start()
             theirs.close()
@@ -1520,14 +1526,15 @@ def _can_restore_priority(nice: int = EARLY_STEP_NICE) -> bool:
     return limit == resource.RLIM_INFINITY or 20 - limit <= here
 
 
-def _early_step_main(conn: Any, nice: int = 0) -> None:
+def _early_step_main(conn: Any, nice: int = 0, ours: Any = None) -> None:
     """:class:`_EarlyStep`'s child: import the STEP writer when a core is idle (at once when
     ``nice`` > 0: at that priority it only gets idle CPU time), then make the part it is sent
     (None: nothing to make)."""
     # Ctrl-C reaches the whole process group and a forked child inherits the CLI's SIGTERM
     # handler: the run decides what stops, and closes this child (as a pool worker).
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _quiet_child()
+    if ours is not None:  # the parent's end, inherited: closed, so a parent that dies is an
+        ours.close()  # end of file here instead of a child waiting for a part forever
     try:
         priority = None
         if nice > 0:
@@ -1539,9 +1546,13 @@ def _early_step_main(conn: Any, nice: int = 0) -> None:
                 os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
         else:
             _wait_for_idle_core(conn.poll)
+        # the parent may already be gone (or have no part): read that before a long import
+        early = conn.recv() if conn.poll(0) else ...
+        if early is None:
+            return
         with contextlib.suppress(Exception):  # step_bytes says what fails, as a note
             import build123d  # noqa: F401
-        part = conn.recv()
+        part = conn.recv() if early is ... else early
         if priority is not None:  # the report waits for the part now: back to the run's
             # priority where the system allows it (root, RLIMIT_NICE); else it stays low
             with contextlib.suppress(OSError, AttributeError):
@@ -1549,10 +1560,11 @@ def _early_step_main(conn: Any, nice: int = 0) -> None:
                 os.setpriority(os.PRIO_PROCESS, 0, priority)
         if part is not None:
             conn.send(_make_here([("best.step", lambda: part_bytes(part, "step"))]))
-    except (EOFError, OSError):  # the parent is gone or closed the pipe
-        pass
+    except BaseException:  # noqa: BLE001 - the parent is gone or closed the pipe, or stopped:
+        pass  # it says why in one line; this child ends quietly
     finally:
-        conn.close()
+        with contextlib.suppress(Exception):
+            conn.close()
 
 
 def _wait_for_idle_core(ready: Callable[[float], bool], period_s: float = 0.2,
@@ -1607,11 +1619,31 @@ def _make_here(
     return out
 
 
-def _make_in_child(conn: Any, items: list[tuple[str, Callable[[], str | bytes | None]]]) -> None:
+def _quiet_child() -> None:
+    """Signals in a forked report child: Ctrl-C reaches the whole process group, and a child
+    inherits the CLI's SIGTERM handler (which raises :class:`Terminated`); the run decides what
+    stops and says it in one line, so the child ignores Ctrl-C and dies of SIGTERM at once,
+    without a traceback of its own."""
+    with contextlib.suppress(ValueError, OSError):  # not the main thread: nothing to change
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _make_in_child(
+    conn: Any, items: list[tuple[str, Callable[[], str | bytes | None]]], theirs: Any = None
+) -> None:
+    _quiet_child()
+    if theirs is not None:  # the parent's end, inherited: closed, so that a parent that gives
+        theirs.close()  # up makes the answer fail at once instead of blocking on a full pipe
     try:
         conn.send(_make_here(items))
+    except BaseException:  # noqa: BLE001 - the parent stopped (SIGTERM, a full disk) or closed
+        # the pipe: it reports what happened in its own line; a child's traceback after that
+        # line would bury it (the parent notes a child that died without an answer)
+        pass
     finally:
-        conn.close()
+        with contextlib.suppress(Exception):
+            conn.close()
 
 
 def _write_files(run_dir: Path, files: Iterable[Any]) -> None:
