@@ -595,7 +595,7 @@ def lock_run_dir(run_dir: Path, option: str, hint: str) -> RunDirLock:
     for _ in range(20):
         created = False
         try:
-            fd = os.open(path, flags | os.O_CREAT | os.O_EXCL, 0o644)
+            fd = os.open(path, flags | os.O_CREAT | os.O_EXCL, 0o666)
             created = True
         except FileExistsError:
             try:

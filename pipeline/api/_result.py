@@ -243,10 +243,11 @@ class RunResult:
 
     @cached_property
     def study(self) -> Study:
-        """The resolved study the run started with (its study.yaml)."""
-        from flexopt.pipeline.study import load_study
+        """The resolved study the run started with (its study.yaml; its target tables are the
+        run folder's copies, found from any working folder)."""
+        from flexopt.pipeline.runfolder import load_folder_study
 
-        return load_study(self.run_dir / "study.yaml")
+        return load_folder_study(self.run_dir, self.run_dir / "study.yaml")
 
     def __repr__(self) -> str:
         n = len(next(iter(self.evaluation_table.values()))) if self.evaluation_table else 0

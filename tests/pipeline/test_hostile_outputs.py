@@ -172,3 +172,28 @@ def test_init_out_onto_a_fifo_or_device_is_refused(tmp_path, capsys, what):
     assert main(["init", "mine", "--out", str(target)]) == 2
     one_line(capsys.readouterr().err, "exists")
     assert _state(target) == before
+
+
+def test_a_run_folder_under_umask_077_shares_nothing(tmp_path):
+    # every file a run writes (atomic files, the store, the lock, report files) and its folders
+    here = Path(__file__).resolve().parent
+    out = tmp_path / "run"
+    code = (
+        "import os, sys, json; os.umask(0o077); sys.path.insert(0, sys.argv[1]); "
+        "import flexopt_toys; from flexopt.pipeline.cli import main; "
+        "raw = {**flexopt_toys.study(), 'optimiser': {'pop_size': 4, 'n_gen': 1, 'seed': 1}}; "
+        "open(sys.argv[2] + '.yaml', 'w').write(json.dumps(raw)); "
+        "sys.exit(main(['run', sys.argv[2] + '.yaml', '--out', sys.argv[2], '-q', "
+        "'--workers', '1']))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(here), str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    paths = [out, *out.rglob("*")]
+    assert len(paths) > 5
+    for path in paths:
+        assert stat.S_IMODE(path.lstat().st_mode) & 0o077 == 0, path

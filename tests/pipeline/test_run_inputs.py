@@ -97,6 +97,9 @@ def test_report_works_from_another_folder_and_after_the_original_is_gone(
     moved = tmp_path / "moved"
     shutil.move(finished, moved)
     assert main(["report", str(moved)]) == 0, capsys.readouterr().err
+    import flexopt
+
+    assert flexopt.open_run(moved).study.target.file == str(moved / "inputs" / "curve.csv")
     assert list(elsewhere.iterdir()) == []
 
 
