@@ -186,7 +186,7 @@ def register(kind: StudyKind) -> StudyKind:
             f"the kind name '{kind.name}' is taken by a built-in kind; give the plugin's kind "
             "(entry point name and geometry.kind) another name"
         )
-    if kind.name in _KINDS and kind not in (_KINDS[kind.name], _ORIGINAL.get(kind.name)):
+    if kind.name in _KINDS and not _holds(kind):
         raise ValueError(f"study kind '{kind.name}' registered twice")
     if _loading is not None and kind.name not in _KINDS:
         _ORIGINAL[kind.name] = kind
@@ -194,6 +194,11 @@ def register(kind: StudyKind) -> StudyKind:
         return kind
     _KINDS.setdefault(kind.name, kind)
     return kind
+
+
+def _holds(kind: StudyKind) -> bool:
+    """Whether the registry holds this very kind (itself, or its guarded copy)."""
+    return kind is _KINDS.get(kind.name) or kind is _ORIGINAL.get(kind.name)
 
 
 def _check_plugin_kind(kind: StudyKind) -> None:
@@ -415,7 +420,7 @@ def _load_plugin(ep: importlib.metadata.EntryPoint, before: set[str]) -> str | N
                 f"{_origin(ep)} gave the kind '{kind.name}'; the entry point name must be the "
                 "kind's name (its geometry.kind)"
             )
-        if kind not in (_KINDS.get(kind.name), _ORIGINAL.get(kind.name)):
+        if not _holds(kind):
             register(kind)
     elif ep.name not in _KINDS:  # a module: importing it must have registered the kind
         registered = sorted(set(_KINDS) - before)
