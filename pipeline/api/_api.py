@@ -107,7 +107,7 @@ def _study_and_source(study: StudyLike, source: str | None = None) -> tuple[Stud
     if isinstance(study, Mapping):
         from flexopt.pipeline.study_edit import _plain
 
-        check_data_limits(study, source or "")  # what a YAML file may hold, before any copy
+        studies.check_data_limits(study, source or "")  # a YAML file's limits, before a copy
         return studies.validate_study(_plain(study), source=source), source or ""
     if isinstance(study, str | os.PathLike):
         path = studies.resolve_study_path(os.fspath(study))
@@ -120,56 +120,6 @@ def _study_and_source(study: StudyLike, source: str | None = None) -> tuple[Stud
         "; e.g. flexopt.load_study('cantilever')",
         source=source,
     )
-
-
-def check_data_limits(data: Any, source: str = "") -> None:
-    """Apply a study file's limits to a study given as Python data (docs/usage.md, "Limits of
-    a study file"): nesting up to ``MAX_STUDY_DEPTH`` levels, up to ``MAX_STUDY_NODES`` values
-    (a numpy array counts its elements), and no container inside itself.
-
-    Walked iteratively, and stopped at the first limit passed, so a list nested 100 000 deep, a
-    dict that contains itself or a million points is refused in milliseconds (a recursive copy
-    of them raised ``RecursionError`` or took minutes).
-
-    Raises
-    ------
-    StudyError
-        Naming the limit, as for a YAML file.
-    """
-    from flexopt.pipeline import study as studies
-
-    count = 0
-    on_path: set[int] = set()
-    stack: list[tuple[Any, int, bool]] = [(data, 0, False)]
-    while stack:
-        value, level, leaving = stack.pop()
-        if leaving:
-            on_path.discard(id(value))
-            continue
-        if level > studies.MAX_STUDY_DEPTH:
-            raise studies._nesting_error(source)  # noqa: SLF001 - the YAML file's own words
-        if isinstance(value, np.ndarray):
-            count += max(int(value.size), 1)
-        else:
-            count += 1
-        if count > studies.MAX_STUDY_NODES:
-            raise studies._too_many_values(source)  # noqa: SLF001
-        if isinstance(value, Mapping):
-            width = 2 * len(value)
-        elif isinstance(value, list | tuple | set | frozenset):
-            width = len(value)
-        else:
-            continue
-        if count + width > studies.MAX_STUDY_NODES:  # before a million children are listed
-            raise studies._too_many_values(source)  # noqa: SLF001
-        children = [*value.keys(), *value.values()] if isinstance(value, Mapping) else list(value)
-        if id(value) in on_path:
-            raise StudyError(
-                "", "holds a list or mapping that contains itself; give plain data", source=source
-            )
-        on_path.add(id(value))
-        stack.append((value, level, True))
-        stack.extend((child, level + 1, False) for child in children)
 
 
 def _flag(value: Any, name: str) -> bool:

@@ -142,3 +142,16 @@ def test_numpy_runtime_warnings_stay_off_stderr_without_v():
         [sys.executable, "-c", code, "-v", "list"], capture_output=True, text=True, timeout=120
     )
     assert verbose.returncode == 0 and "RuntimeWarning" in verbose.stderr
+
+
+@pytest.mark.parametrize("case", ["contains_itself", "a_million_points"])
+def test_study_changes_from_python_have_the_limits_too(case):
+    study = flexopt.load_study("cantilever")
+    raw = CASES[case][0]()
+    value = raw if case == "contains_itself" else raw["geometry"]["points_mm"]
+    start = time.perf_counter()
+    with pytest.raises(StudyError, match=CASES[case][1]):
+        study.with_values({"geometry.points_mm": value})
+    with pytest.raises(StudyError, match=CASES[case][1]):
+        study.replace(geometry={"kind": "polyline_beam", "points_mm": value})
+    assert time.perf_counter() - start < QUICK_S
