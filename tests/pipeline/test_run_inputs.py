@@ -109,9 +109,12 @@ def _interrupted(run_dir: Path) -> None:
     (run_dir / "run.json").write_text(json.dumps(record, indent=2))
 
 
-def _snapshot(folder: Path) -> dict[str, bytes | None]:
+def _snapshot(folder: Path) -> dict[str, bytes | str]:
+    """Every regular file's bytes; a folder or FIFO by its kind (reading a FIFO would block)."""
     return {
-        str(p.relative_to(folder)): (None if p.is_dir() else p.read_bytes())
+        str(p.relative_to(folder)): (
+            p.read_bytes() if p.is_file() else "folder" if p.is_dir() else "other"
+        )
         for p in sorted(folder.rglob("*"))
     }
 
@@ -162,3 +165,32 @@ def test_evaluate_folders_copy_their_tables_too(tmp_path, monkeypatch):
     assert copied.target.file == "inputs/curve.csv"
     assert (out / "inputs" / "curve.csv").read_text() == TABLE
     assert set(record) == {"target.file"}
+
+
+@pytest.mark.parametrize("damage", ["removed", "fifo", "folder"])
+def test_a_damaged_copy_is_one_line_for_report_and_resume(finished, capsys, damage):
+    import os
+    import time
+
+    copy = finished / "inputs" / "curve.csv"
+    copy.unlink()
+    if damage == "fifo":
+        if not hasattr(os, "mkfifo"):
+            pytest.skip("no FIFOs here")
+        os.mkfifo(copy)
+    elif damage == "folder":
+        copy.mkdir()
+    (finished.parent / "curve.csv").unlink()  # nothing to fall back on in the working folder
+    before = _snapshot(finished)
+    capsys.readouterr()
+    for argv in (["report", str(finished)], ["run", "--resume", str(finished), "-q"]):
+        if argv[0] == "run":
+            _interrupted(finished)
+            before = _snapshot(finished)
+        start = time.perf_counter()
+        assert main(argv) == 2
+        assert time.perf_counter() - start < 5.0
+        err = capsys.readouterr().err
+        assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+        assert "target.file" in err and "inputs/curve.csv" in err, err
+        assert _snapshot(finished) == before
