@@ -2,7 +2,8 @@
 ``report``, ``export``; ``list``, ``init`` and ``schema`` help write a study).
 
 Exit codes: 0 done (also when a solve did not converge or no feasible design was found: those are
-results, reported by a warning line and in the run folder), 1 the run folder could not be written,
+results, reported by a warning line and in the run folder), 1 the run folder (or standard output:
+full, closed) could not be written,
 the run failed, or the design could not be exported, 2 bad command line or bad study file (one line
 on stderr naming the key path; nothing is written), 130 interrupted (Ctrl-C), 143 stopped by
 SIGTERM (like Ctrl-C: the run folder keeps what was done, status `stopped`, resumable).
