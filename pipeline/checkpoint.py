@@ -289,7 +289,7 @@ class EvaluationStore:
         sync is ``sync_interval_s`` old.
         """
         if self._fd is None:
-            self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_APPEND, 0o644)
+            self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_APPEND, 0o666)
             self._repair(self._fd)
         line = json.dumps(evaluation_record(evaluation), allow_nan=True) + "\n"
         os.write(self._fd, line.encode("utf-8"))  # one write: O_APPEND keeps lines whole

@@ -2,7 +2,8 @@
 ``report``, ``export``; ``list``, ``init`` and ``schema`` help write a study).
 
 Exit codes: 0 done (also when a solve did not converge or no feasible design was found: those are
-results, reported by a warning line and in the run folder), 1 the run folder could not be written,
+results, reported by a warning line and in the run folder), 1 the run folder (or standard output:
+full, closed) could not be written,
 the run failed, or the design could not be exported, 2 bad command line or bad study file (one line
 on stderr naming the key path; nothing is written), 130 interrupted (Ctrl-C), 143 stopped by
 SIGTERM (like Ctrl-C: the run folder keeps what was done, status `stopped`, resumable).
@@ -15,6 +16,7 @@ from __future__ import annotations
 import argparse
 import atexit
 import builtins
+import contextlib
 import json
 import logging
 import math
@@ -23,12 +25,13 @@ import shlex
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from flexopt.pipeline.errors import StudyError, Terminated, printable
-from flexopt.pipeline.evaluate import EvaluateOutcome, evaluate_study, versions
+from flexopt.pipeline.evaluate import MAX_REPEAT, EvaluateOutcome, evaluate_study, versions
 from flexopt.pipeline.study import list_examples, load_study, resolve_study_path, workers_problem
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -66,6 +69,15 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{_echo(text)} is not a whole number") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} must be >= 1")
+    return value
+
+
+def _repeat(text: str) -> int:
+    value = _positive_int(text)
+    if value > MAX_REPEAT:
+        raise argparse.ArgumentTypeError(
+            f"{value} is more than {MAX_REPEAT}; repeats only time the solve"
+        )
     return value
 
 
@@ -137,10 +149,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument(
         "--repeat",
-        type=_positive_int,
+        type=_repeat,
         default=1,
         metavar="N",
-        help="solve N times and record the median solve time (default 1)",
+        help=f"solve N times and record the median solve time (default 1, at most {MAX_REPEAT})",
     )
     evaluate.set_defaults(handler=_evaluate)
 
@@ -725,6 +737,10 @@ def _export(args: argparse.Namespace) -> int:
     ):
         return _export_study(args)
     try:
+        if args.out is not None:
+            from flexopt.pipeline.runfolder import regular_target
+
+            regular_target(args.out)  # before any work: never a device node, FIFO or folder
         outcome = export_design(args.run_dir, args.design, args.out, args.format, args.frame)
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
@@ -778,16 +794,17 @@ def _init(args: argparse.Namespace) -> int:
 
     prog = "flexopt init"
     out = args.out or Path(f"{args.name}.yaml")
-    if out.is_dir():  # --out studies/ means "in that folder", as cp does
-        out = out / f"{args.name}.yaml"
+    if args.out is not None and out.is_dir():  # --out studies/ means "in that folder", as cp
+        out = out / f"{args.name}.yaml"  # does; a folder named NAME.yaml is refused below
     try:
         text = starter_study(args.name, kind=args.kind, example=args.example, file=str(out))
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     if out.exists() or out.is_symlink():
+        what = "is a folder" if out.is_dir() else "exists"
         print(
-            f"{prog}: error: {out} exists; flexopt init never overwrites a file: give another "
+            f"{prog}: error: {out} {what}; flexopt init never overwrites a file: give another "
             "NAME or --out FILE",
             file=sys.stderr,
         )
@@ -811,6 +828,10 @@ def _schema(args: argparse.Namespace) -> int:
 
     prog = "flexopt schema"
     try:
+        if args.out is not None:
+            from flexopt.pipeline.runfolder import regular_target
+
+            regular_target(args.out)  # before any work: never a device node, FIFO or folder
         text = json.dumps(study_schema(args.kind), indent=2, ensure_ascii=False) + "\n"
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
@@ -848,9 +869,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         # line, and logging's last-resort handler would print warnings (and their tracebacks)
         # of flexopt and of the libraries it uses.
         logging.getLogger().addHandler(logging.NullHandler())
+        # numpy's RuntimeWarnings (a 0/0 in a design that does not converge, a NaN in a
+        # column) are the solver's business: the result says what went wrong; -v shows them
+        warnings.filterwarnings("ignore", category=RuntimeWarning)
     previous = _stop_on_sigterm()
+    stdout, sys.stdout = sys.stdout, _GuardedStdout(sys.stdout)
     try:
-        return int(args.handler(args))
+        code = int(args.handler(args))
+        sys.stdout.flush()  # a full disk behind stdout shows here, not at the interpreter's exit
+        return code
+    except _StdoutFailed as exc:
+        _silence_stdout(stdout)
+        print(f"flexopt {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_WRITE
     except Terminated:
         print("flexopt: stopped by SIGTERM", file=sys.stderr)
         return EXIT_TERMINATED
@@ -858,8 +889,80 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("flexopt: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:
+        sys.stdout = stdout
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+class _StdoutFailed(Exception):
+    """Standard output is closed, full or a closed pipe: the command's output cannot be given.
+
+    Not an :class:`OSError`, so no handler takes it for a run folder it could not write.
+    """
+
+
+class _GuardedStdout:
+    """``sys.stdout`` while a command runs: a write or flush that fails (``> /dev/full``,
+    ``>&-``, a closed pipe) raises :class:`_StdoutFailed`, which :func:`main` reports as one line
+    (exit 1) instead of a traceback."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def _fail(self, exc: BaseException | None) -> NoReturn:
+        why = f" ({exc.strerror or exc})" if isinstance(exc, OSError) else ""
+        closed = "is closed" if exc is None or not isinstance(exc, OSError) else "failed"
+        raise _StdoutFailed(
+            f"standard output {closed}{why}; what was written to files is kept (the result "
+            "goes to standard output: redirect it to a file with room)"
+        )
+
+    def write(self, text: str) -> int:
+        if self._stream is None:
+            self._fail(None)
+        try:
+            return self._stream.write(text)
+        except (OSError, ValueError) as exc:  # ValueError: the stream was closed
+            self._fail(exc)
+
+    def flush(self) -> None:
+        if self._stream is None:
+            return
+        try:
+            self._stream.flush()
+        except (OSError, ValueError) as exc:
+            self._fail(exc)
+
+    def isatty(self) -> bool:
+        try:
+            return self._stream is not None and self._stream.isatty()
+        except (OSError, ValueError):
+            return False
+
+    def fileno(self) -> int:
+        if self._stream is None:
+            raise OSError(9, "standard output is closed")
+        return self._stream.fileno()
+
+    @property
+    def encoding(self) -> str:
+        return getattr(self._stream, "encoding", None) or "utf-8"
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+def _silence_stdout(stream: Any) -> None:
+    """Point file descriptor 1 at the null device, so the buffered text that could not be
+    written is dropped quietly at exit instead of failing again with a traceback."""
+    if stream is None:
+        return
+    with contextlib.suppress(OSError, ValueError):
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, stream.fileno())
+        os.close(null)
+    with contextlib.suppress(OSError, ValueError):
+        stream.flush()
 
 
 def _raise_terminated(signum: int, frame: Any) -> None:
@@ -900,7 +1003,7 @@ def entry() -> None:
     try:
         sys.stdout.flush()
         sys.stderr.flush()
-    except (BrokenPipeError, ValueError):  # `flexopt ... | head`, or a closed stream
+    except (OSError, ValueError, AttributeError):  # `| head`, `> /dev/full`, `>&-`: said once
         pass
     os._exit(code)
 

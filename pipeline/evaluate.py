@@ -21,6 +21,7 @@ from flexopt.pipeline.responses import stacked_table, stress_allowable
 from flexopt.pipeline.robustness import run_robustness
 from flexopt.pipeline.runfolder import (
     check_out_dir,
+    copy_inputs,
     make_run_dir,
     new_run_dir_path,
     table_to_csv,
@@ -33,6 +34,7 @@ from flexopt.pipeline.verdict import judge
 
 __all__ = [
     "EVALUATE_FILES",
+    "MAX_REPEAT",
     "EvaluateOutcome",
     "case_plot_args",
     "evaluate_study",
@@ -41,6 +43,10 @@ __all__ = [
     "solve_study",
     "versions",
 ]
+
+#: Most solves ``--repeat`` / ``evaluate(repeat=)`` may ask for: repeats only time the solve
+#: (the median is recorded), and a typo of 10**9 must not start a day of solving.
+MAX_REPEAT = 100
 
 log = logging.getLogger(__name__)
 
@@ -223,7 +229,10 @@ def evaluate_study(
         f"from {source or 'memory'}; re-run with: flexopt evaluate {run_dir / 'study.yaml'}"
     )
     write_atomic(run_dir / "response.csv", table_to_csv(response_table(result)))
-    write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
+    folder_study, input_files = copy_inputs(study, run_dir)  # the folder stands alone
+    if input_files:
+        record["input_files"] = input_files
+    write_atomic(run_dir / "study.yaml", study_to_yaml(folder_study, header))
     extra = _extra_files(result)
     if result.cases:  # every load case, one column each; every output on its unit's axis
         args = case_plot_args(study, result)

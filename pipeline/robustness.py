@@ -115,8 +115,18 @@ def perturb_study(
     Raises
     ------
     StudyError
-        When the perturbed study is invalid (a thickness shifted to zero or below, say).
+        When the perturbed study is invalid (a thickness shifted to zero or below, a value moved
+        outside a variable's bounds): :class:`SampleProblem` makes that sample a failed one,
+        which meets nothing and is named in the record, never a refusal of the study.
     """
+    data, changed = _perturbed_data(study, E_factor, thickness_delta_mm, width_delta_mm)
+    return validate_study(data), changed
+
+
+def _perturbed_data(
+    study: Study, E_factor: float, thickness_delta_mm: float, width_delta_mm: float
+) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """:func:`perturb_study`'s plain data, not validated (what a sample changes, in words)."""
     data = study.model_dump(mode="json", exclude_none=True)
     changed: list[str] = []
     material = data.get("material")
@@ -159,7 +169,7 @@ def perturb_study(
             node[keys[-1]] = value
     for key in SAMPLE_DROPPED:
         data.pop(key, None)
-    return validate_study(data), tuple(changed)
+    return data, tuple(changed)
 
 
 def scatter_design(
@@ -268,7 +278,13 @@ class SampleProblem:
         from flexopt.pipeline.verdict import detail_values
 
         E_factor, dt, dw = (float(v) for v in np.asarray(s, dtype=float).ravel())
-        study, _ = perturb_study(self.study, E_factor, dt, dw)
+        try:
+            study, _ = perturb_study(self.study, E_factor, dt, dw)
+        except StudyError as exc:  # the sample's study is one the study file could not be
+            # (a value outside a variable's bounds): it meets nothing, named in the record
+            return Evaluation.failed(
+                s, 1, 0, f"the sample cannot be built: {exc.path}: {exc.problem}"
+            )
         reason = ""
         if self.mode == "design":
             problem = build_base_problem(study)
@@ -706,7 +722,9 @@ def _target_of(plot: Mapping[str, Any]) -> dict[str, float | None]:
 def _describe(study: Study, spec: RobustnessSpec, problem: Any, x: np.ndarray | None) -> tuple:
     """What a sample changes: ``E (material.E_MPa)``, the study keys and design variables."""
     e = 1.0 + spec.E_percent / 100.0
-    _, changed = perturb_study(study, e, spec.thickness_mm, spec.width_mm)
+    # what a sample changes, in words: read off the data (not validated: a sample moved past a
+    # variable's bounds is a failed sample, not a refused study)
+    _, changed = _perturbed_data(study, e, spec.thickness_mm, spec.width_mm)
     words = []
     if spec.E_percent:
         where = "material.E_MPa" if "material.E_MPa" in changed else "nothing: no material E"

@@ -72,7 +72,11 @@ from flexopt.pipeline.runfolder import (
     RunDirLock,
     cell_float,
     check_out_dir,
+    copy_inputs,
     echo,
+    input_files,
+    input_hashes,
+    load_folder_study,
     lock_run_dir,
     make_run_dir,
     new_run_dir_path,
@@ -81,6 +85,7 @@ from flexopt.pipeline.runfolder import (
     read_folder_json,
     read_run_json,
     records_to_csv,
+    study_sha256_with_inputs,
     table_to_csv,
     to_json,
     write_atomic,
@@ -1247,7 +1252,7 @@ def _run_in(
             **session,
             "quick": setup.quick,
             "seed": config.seed,
-            "study_sha256": study_sha256(study),
+            "study_sha256": study_sha256_with_inputs(study, study_sha256(study)),
             "optimiser": {
                 "algorithm": config.algorithm,
                 "pop_size": config.pop_size,
@@ -1272,7 +1277,12 @@ def _run_in(
             f"Resolved study written by flexopt run on {record['started']}\n"
             f"from {source or 'memory'}; re-run with: {rerun}"
         )
-        write_atomic(run_dir / "study.yaml", study_to_yaml(study, header))
+        # the target tables the study reads, copied: the folder stands alone (report, export,
+        # resume from anywhere), and a resume checks their bytes against the run's
+        folder_study, inputs = copy_inputs(study, run_dir)
+        if inputs:
+            record["input_files"] = inputs
+        write_atomic(run_dir / "study.yaml", study_to_yaml(folder_study, header))
     write_atomic(run_dir / "run.json", to_json(record))
     log.info("run folder %s; %s; %s", run_dir, config, settings.describe())
     # best.step's child now, while this process runs no other thread (forked later, a thread
@@ -1452,7 +1462,10 @@ class _ForkedMakes:
         try:
             receive, send = ctx.Pipe(duplex=False)
             self.process = ctx.Process(
-                target=_make_in_child, args=(send, items), name="flexopt-report", daemon=True
+                target=_make_in_child,
+                args=(send, items, receive),
+                name="flexopt-report",
+                daemon=True,
             )
             self.process.start()
             send.close()
@@ -1506,7 +1519,10 @@ class _EarlyStep:
         try:
             ours, theirs = ctx.Pipe(duplex=True)
             process = ctx.Process(
-                target=_early_step_main, args=(theirs, nice), name="flexopt-step", daemon=True
+                target=_early_step_main,
+                args=(theirs, nice, ours),
+                name="flexopt-step",
+                daemon=True,
             )
             process.start()
             theirs.close()
@@ -1565,14 +1581,15 @@ def _can_restore_priority(nice: int = EARLY_STEP_NICE) -> bool:
     return limit == resource.RLIM_INFINITY or 20 - limit <= here
 
 
-def _early_step_main(conn: Any, nice: int = 0) -> None:
+def _early_step_main(conn: Any, nice: int = 0, ours: Any = None) -> None:
     """:class:`_EarlyStep`'s child: import the STEP writer when a core is idle (at once when
     ``nice`` > 0: at that priority it only gets idle CPU time), then make the part it is sent
     (None: nothing to make)."""
     # Ctrl-C reaches the whole process group and a forked child inherits the CLI's SIGTERM
     # handler: the run decides what stops, and closes this child (as a pool worker).
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _quiet_child()
+    if ours is not None:  # the parent's end, inherited: closed, so a parent that dies is an
+        ours.close()  # end of file here instead of a child waiting for a part forever
     try:
         priority = None
         if nice > 0:
@@ -1584,9 +1601,13 @@ def _early_step_main(conn: Any, nice: int = 0) -> None:
                 os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
         else:
             _wait_for_idle_core(conn.poll)
+        # the parent may already be gone (or have no part): read that before a long import
+        early = conn.recv() if conn.poll(0) else ...
+        if early is None:
+            return
         with contextlib.suppress(Exception):  # step_bytes says what fails, as a note
             import build123d  # noqa: F401
-        part = conn.recv()
+        part = conn.recv() if early is ... else early
         if priority is not None:  # the report waits for the part now: back to the run's
             # priority where the system allows it (root, RLIMIT_NICE); else it stays low
             with contextlib.suppress(OSError, AttributeError):
@@ -1594,10 +1615,11 @@ def _early_step_main(conn: Any, nice: int = 0) -> None:
                 os.setpriority(os.PRIO_PROCESS, 0, priority)
         if part is not None:
             conn.send(_make_here([("best.step", lambda: part_bytes(part, "step"))]))
-    except (EOFError, OSError):  # the parent is gone or closed the pipe
-        pass
+    except BaseException:  # noqa: BLE001 - the parent is gone or closed the pipe, or stopped:
+        pass  # it says why in one line; this child ends quietly
     finally:
-        conn.close()
+        with contextlib.suppress(Exception):
+            conn.close()
 
 
 def _wait_for_idle_core(ready: Callable[[float], bool], period_s: float = 0.2,
@@ -1652,11 +1674,31 @@ def _make_here(
     return out
 
 
-def _make_in_child(conn: Any, items: list[tuple[str, Callable[[], str | bytes | None]]]) -> None:
+def _quiet_child() -> None:
+    """Signals in a forked report child: Ctrl-C reaches the whole process group, and a child
+    inherits the CLI's SIGTERM handler (which raises :class:`Terminated`); the run decides what
+    stops and says it in one line, so the child ignores Ctrl-C and dies of SIGTERM at once,
+    without a traceback of its own."""
+    with contextlib.suppress(ValueError, OSError):  # not the main thread: nothing to change
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _make_in_child(
+    conn: Any, items: list[tuple[str, Callable[[], str | bytes | None]]], theirs: Any = None
+) -> None:
+    _quiet_child()
+    if theirs is not None:  # the parent's end, inherited: closed, so that a parent that gives
+        theirs.close()  # up makes the answer fail at once instead of blocking on a full pipe
     try:
         conn.send(_make_here(items))
+    except BaseException:  # noqa: BLE001 - the parent stopped (SIGTERM, a full disk) or closed
+        # the pipe: it reports what happened in its own line; a child's traceback after that
+        # line would bury it (the parent notes a child that died without an answer)
+        pass
     finally:
-        conn.close()
+        with contextlib.suppress(Exception):
+            conn.close()
 
 
 def _write_files(run_dir: Path, files: Iterable[Any]) -> None:
@@ -1715,7 +1757,26 @@ def _run_folder_study(run_dir: Path, option: str) -> Study:
             f"'{path}' is not a file; restore the run's study.yaml (the resolved study the run "
             "started with) from a copy",
         )
-    return load_study(path)
+    return load_folder_study(run_dir, path)
+
+
+def _refuse_changed_inputs(run_dir: Path, record: dict[str, Any], study: Study) -> None:
+    """Name a target table whose bytes changed since the run started, when that is what makes
+    the study differ (the message says which file and how to go on)."""
+    recorded = record.get("input_files")
+    if not isinstance(recorded, dict):
+        return
+    now = input_hashes(study)
+    for key, file in input_files(study):
+        entry = recorded.get(key)
+        if isinstance(entry, dict) and entry.get("sha256") not in (None, now.get(key)):
+            raise StudyError(
+                "--resume",
+                f"{key}: the file {echo(file)} differs from the one this run started with "
+                f"(sha256 {now[key][:12]} is not {str(entry['sha256'])[:12]}): a resumed run "
+                f"would mix designs made for two targets; resume with the run's own copy "
+                f"(flexopt run --resume {run_dir}, no STUDY) or start a new run",
+            )
 
 
 def resume_run(
@@ -1785,8 +1846,9 @@ def resume_run(
         spec = getattr(study, "optimiser", None) or OptimiserSpec()
         seed = record.get("seed")
         setup = prepare_run(study, quick=quick, seed=None if seed == spec.seed else seed)
-        found = study_sha256(setup.study)
+        found = study_sha256_with_inputs(setup.study, study_sha256(setup.study))
         if found != expected:
+            _refuse_changed_inputs(run_dir, record, setup.study)
             raise StudyError(
                 "--resume",
                 f"the study differs from the one this run started with (sha256 {found[:12]} is "
@@ -2234,7 +2296,7 @@ def _evaluate_folder_study(run_dir: Path) -> Study:
             f"'{run_dir}' has evaluation.json but no study.yaml file; restore it from a copy, or "
             "evaluate the study again with flexopt evaluate",
         )
-    return load_study(path)
+    return load_folder_study(run_dir, path)
 
 
 def export_design(

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
 import io
 import json
 import math
@@ -36,8 +37,14 @@ from flexopt.pipeline.errors import StudyError
 __all__ = [
     "LOCK_FILE",
     "RunDirLock",
+    "INPUTS_DIR",
     "check_out_dir",
+    "copy_inputs",
     "echo",
+    "file_mode",
+    "input_files",
+    "input_hashes",
+    "load_folder_study",
     "lock_run_dir",
     "make_run_dir",
     "new_run_dir_path",
@@ -49,6 +56,8 @@ __all__ = [
     "read_records_csv",
     "read_run_json",
     "records_to_csv",
+    "study_sha256_with_inputs",
+    "regular_target",
     "table_to_csv",
     "text_cell",
     "to_json",
@@ -56,12 +65,79 @@ __all__ = [
 ]
 
 
+def _read_umask() -> int:
+    """The process's umask, read without changing it where Linux allows (``/proc``): setting it
+    to read it would race with a thread creating a file in between."""
+    with contextlib.suppress(OSError, ValueError):
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def file_mode() -> int:
+    """The mode of a new file flexopt writes: ``0o666`` less the umask, as ``open`` gives."""
+    return 0o666 & ~_read_umask()
+
+
+def regular_target(path: Path, key: str = "--out") -> Path:
+    """The file a write to ``path`` replaces: ``path``, or the file its symbolic link names.
+
+    flexopt writes only regular files: a device node (``/dev/null``, a disk), a FIFO, a socket or
+    a folder at ``path`` (or at the end of its link) is refused, never replaced or written into
+    (as root, replacing ``/dev/null`` would break the system). A symbolic link to a regular file
+    (or to nothing yet) is written through, so the link stays.
+
+    Raises
+    ------
+    StudyError
+        When ``path`` exists and is not a regular file, naming ``key``.
+    """
+    try:
+        info = os.stat(path)  # follows a link: what a write would reach
+    except FileNotFoundError:
+        return Path(os.path.realpath(path)) if os.path.islink(path) else path
+    except OSError as exc:
+        raise StudyError(key, f"'{path}' cannot be examined ({exc.strerror})") from None
+    if stat.S_ISREG(info.st_mode):
+        return Path(os.path.realpath(path)) if os.path.islink(path) else path
+    what = (
+        "a folder"
+        if stat.S_ISDIR(info.st_mode)
+        else "a device node"
+        if stat.S_ISCHR(info.st_mode) or stat.S_ISBLK(info.st_mode)
+        else "a FIFO"
+        if stat.S_ISFIFO(info.st_mode)
+        else "a socket"
+        if stat.S_ISSOCK(info.st_mode)
+        else "not a regular file"
+    )
+    raise StudyError(
+        key,
+        f"'{path}' is {what}; flexopt writes only regular files: give the path of a new or "
+        "regular file",
+    )
+
+
 def write_atomic(path: Path, data: str | bytes) -> None:
     """Write ``data`` to ``path`` so that readers see the old file or the whole new one.
 
     The data goes to a temporary file in the same folder, is flushed to disk and then renamed over
-    ``path`` with :func:`os.replace` (atomic on POSIX and Windows).
+    ``path`` with :func:`os.replace` (atomic on POSIX and Windows). Only a regular file is ever
+    replaced (:func:`regular_target`; a link to one is written through); the new file's mode is
+    ``0o666`` less the umask, as any program's.
+
+    Raises
+    ------
+    OSError
+        When the file cannot be written, or ``path`` is not a regular file (``EINVAL``).
     """
+    try:
+        path = regular_target(path)
+    except StudyError as exc:
+        raise OSError(errno.EINVAL, exc.problem, str(path)) from None
     payload = data.encode("utf-8") if isinstance(data, str) else data
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -69,11 +145,141 @@ def write_atomic(path: Path, data: str | bytes) -> None:
             handle.write(payload)
             handle.flush()
             os.fsync(handle.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp makes 0600; results are meant to be shared
+        os.chmod(tmp, file_mode())  # mkstemp makes 0600; the umask says what the user shares
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+# --------------------------------------------------------------------------------------------
+# Files a study reads (target tables): copied into the run folder, hashed by their bytes
+
+#: The run folder's copy of every file its study reads (``inputs/<name>``).
+INPUTS_DIR = "inputs"
+
+
+def _table_files(data: Any, path: str, found: list[tuple[str, dict[str, Any]]]) -> None:
+    if isinstance(data, dict):
+        if data.get("kind") == "table" and isinstance(data.get("file"), str):
+            found.append((f"{path}.file" if path else "file", data))
+        for key, value in data.items():
+            _table_files(value, f"{path}.{key}" if path else str(key), found)
+    elif isinstance(data, list):
+        for i, value in enumerate(data):
+            _table_files(value, f"{path}[{i}]", found)
+
+
+def input_files(study: Any) -> list[tuple[str, str]]:
+    """``(key path, file)`` of every file ``study`` reads: each target table's ``file:``
+    (``requirements[0].target.file``, ``target.file``, ``spring.file``...), in key order."""
+    found: list[tuple[str, dict[str, Any]]] = []
+    _table_files(study.model_dump(mode="json", exclude_none=True), "", found)
+    return [(key, spec["file"]) for key, spec in found]
+
+
+def input_hashes(study: Any) -> dict[str, str]:
+    """sha256 of the bytes of every file ``study`` reads, by key path (read as the study reads
+    them: bounded, regular files only; a bad file is the study's :class:`StudyError`)."""
+    import hashlib
+
+    from flexopt.pipeline.studies._targets import read_table_bytes
+
+    return {
+        key: hashlib.sha256(read_table_bytes(file, key)).hexdigest()
+        for key, file in input_files(study)
+    }
+
+
+def study_sha256_with_inputs(study: Any, base: str) -> str:
+    """The hash a run records for ``study``: ``base`` (:func:`checkpoint.study_sha256`, of the
+    study's text) when it reads no file, else the hash of the study with each file's NAME
+    replaced by the sha256 of its BYTES.
+
+    So a resume is refused when a target table changed though its name did not, and accepted
+    when the run folder's study names its own copy (``inputs/curve.csv``) of the same bytes.
+    """
+    import hashlib
+
+    hashes = input_hashes(study)
+    if not hashes:
+        return base
+    data = study.model_dump(mode="json", exclude_none=True)
+    data.pop("parallel", None)  # as study_sha256: where designs are solved changes nothing
+    found: list[tuple[str, dict[str, Any]]] = []
+    _table_files(data, "", found)
+    for key, spec in found:
+        spec["file"] = f"sha256:{hashes[key]}"
+    text = json.dumps(data, sort_keys=True, ensure_ascii=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _input_name(file: str, used: set[str]) -> str:
+    """A safe, unique file name in ``inputs/`` for ``file`` (its own name where it can)."""
+    stem = "".join(c if c.isalnum() or c in "._-" else "_" for c in Path(file).name)
+    stem = stem.lstrip(".")[-80:] or "table.csv"
+    name, k = stem, 1
+    while name in used:
+        k += 1
+        name = f"{k}-{stem}"
+    used.add(name)
+    return name
+
+
+def copy_inputs(study: Any, run_dir: Path) -> tuple[Any, dict[str, dict[str, str]]]:
+    """Copy every file ``study`` reads into ``run_dir/inputs/``, so the folder stands alone.
+
+    Returns
+    -------
+    study : the same study with each ``file:`` naming its copy (``inputs/curve.csv``, relative
+        to the run folder: write it as the folder's study.yaml).
+    record : ``{key path: {"file": "inputs/...", "source": as given, "sha256": of the bytes}}``
+        for run.json / evaluation.json (empty when the study reads no file).
+
+    Raises
+    ------
+    StudyError
+        When a file cannot be read (as the study's load would say).
+    OSError
+        When the copy cannot be written.
+    """
+    import hashlib
+
+    from flexopt.pipeline.studies._targets import read_table_bytes, table_root
+
+    files = input_files(study)
+    if not files:
+        return study, {}
+    folder = run_dir / INPUTS_DIR
+    folder.mkdir(exist_ok=True)
+    used: set[str] = set()
+    record: dict[str, dict[str, str]] = {}
+    for key, file in files:
+        data = read_table_bytes(file, key)
+        name = f"{INPUTS_DIR}/{_input_name(file, used)}"
+        write_atomic(run_dir / name, data)
+        record[key] = {"file": name, "source": file, "sha256": hashlib.sha256(data).hexdigest()}
+    with table_root(run_dir):  # the copies are read (validated) from the run folder
+        copied = study.with_values({key: entry["file"] for key, entry in record.items()})
+    return copied, record
+
+
+def load_folder_study(run_dir: Path, path: Path) -> Any:
+    """The study.yaml of a run or evaluate folder, its table files read from the folder's own
+    copies (``inputs/``) wherever the command runs; the returned study names them by absolute
+    path, so it works in any folder and process. A folder written before the copies were made
+    names files relative to the working folder, which is tried next."""
+    from flexopt.pipeline.studies._targets import table_root
+    from flexopt.pipeline.study import load_study
+
+    with table_root(run_dir):
+        study = load_study(path)
+        inside = {
+            key: str((run_dir / file).resolve())
+            for key, file in input_files(study)
+            if not Path(file).is_absolute() and (run_dir / file).is_file()
+        }
+        return study.with_values(inside) if inside else study
 
 
 def new_run_dir_path(root: Path, name: str, command: str, now: datetime) -> Path:
@@ -409,7 +615,7 @@ def lock_run_dir(run_dir: Path, option: str, hint: str) -> RunDirLock:
     for _ in range(20):
         created = False
         try:
-            fd = os.open(path, flags | os.O_CREAT | os.O_EXCL, 0o644)
+            fd = os.open(path, flags | os.O_CREAT | os.O_EXCL, 0o666)
             created = True
         except FileExistsError:
             try:

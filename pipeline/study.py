@@ -48,6 +48,7 @@ __all__ = [
     "OptimiserSpec",
     "ParallelSpec",
     "Study",
+    "check_data_limits",
     "list_examples",
     "load_study",
     "parse_study_text",
@@ -307,6 +308,7 @@ class Study(BaseModel):
         StudyError
             Naming the key path of an unknown block or of the first value refused.
         """
+        check_data_limits(changes)
         return replace_blocks(self, changes, validate_study)
 
     def with_values(self, values: collections.abc.Mapping[str, Any]) -> Study:
@@ -319,6 +321,7 @@ class Study(BaseModel):
         StudyError
             At a path that does not exist (naming the closest one) or the first value refused.
         """
+        check_data_limits(values)  # a value given in Python has a study file's limits
         return set_values(self, values, validate_study)
 
 
@@ -473,6 +476,59 @@ def _too_many_values(source: str) -> StudyError:
         "long tables in a CSV file",
         source=source,
     )
+
+
+def check_data_limits(data: Any, source: str = "") -> None:
+    """Apply a study file's limits to a study (or values) given as Python data (docs/usage.md,
+    "Limits of a study file"): nesting up to ``MAX_STUDY_DEPTH`` levels, up to
+    ``MAX_STUDY_NODES`` values (a numpy array counts its elements), and no container inside
+    itself.
+
+    Walked iteratively, and stopped at the first limit passed, so a list nested 100 000 deep, a
+    dict that contains itself or a million points is refused in milliseconds (a recursive copy
+    of them raised ``RecursionError`` or took minutes).
+
+    Raises
+    ------
+    StudyError
+        Naming the limit, as for a YAML file.
+    """
+    count = 0
+    on_path: set[int] = set()
+    stack: list[tuple[Any, int, bool]] = [(data, 0, False)]
+    while stack:
+        value, level, leaving = stack.pop()
+        if leaving:
+            on_path.discard(id(value))
+            continue
+        if level > MAX_STUDY_DEPTH:
+            raise _nesting_error(source)  # the YAML file's own words
+        if type(value).__name__ == "ndarray":  # numpy, not imported here: its elements count
+            count += max(int(getattr(value, "size", 1)), 1)
+        else:
+            count += 1
+        if count > MAX_STUDY_NODES:
+            raise _too_many_values(source)
+        if isinstance(value, collections.abc.Mapping):
+            width = 2 * len(value)
+        elif isinstance(value, list | tuple | set | frozenset):
+            width = len(value)
+        else:
+            continue
+        if count + width > MAX_STUDY_NODES:  # before a million children are listed
+            raise _too_many_values(source)
+        children = (
+            [*value.keys(), *value.values()]
+            if isinstance(value, collections.abc.Mapping)
+            else list(value)
+        )
+        if id(value) in on_path:
+            raise StudyError(
+                "", "holds a list or mapping that contains itself; give plain data", source=source
+            )
+        on_path.add(id(value))
+        stack.append((value, level, True))
+        stack.extend((child, level + 1, False) for child in children)
 
 
 def _check_nesting(text: str, source: str) -> None:

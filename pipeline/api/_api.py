@@ -107,6 +107,7 @@ def _study_and_source(study: StudyLike, source: str | None = None) -> tuple[Stud
     if isinstance(study, Mapping):
         from flexopt.pipeline.study_edit import _plain
 
+        studies.check_data_limits(study, source or "")  # a YAML file's limits, before a copy
         return studies.validate_study(_plain(study), source=source), source or ""
     if isinstance(study, str | os.PathLike):
         path = studies.resolve_study_path(os.fspath(study))
@@ -119,6 +120,14 @@ def _study_and_source(study: StudyLike, source: str | None = None) -> tuple[Stud
         "; e.g. flexopt.load_study('cantilever')",
         source=source,
     )
+
+
+def _flag(value: Any, name: str) -> bool:
+    """A yes/no argument: ``True`` or ``False`` (numpy's too), never a string or a number
+    (``quick='no'`` would be true)."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    raise StudyError(name, f"got {value!r}; give True or False")
 
 
 # --------------------------------------------------------------------------------------------
@@ -165,6 +174,7 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         (``converged=False``), not an error.
     """
     from flexopt.pipeline.evaluate import (
+        MAX_REPEAT,
         case_plot_args,
         evaluate_study,
         response_plot_args,
@@ -172,9 +182,13 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         solve_study,
     )
 
-    study, source = _study_and_source(study)
     repeat = _whole(repeat, "repeat", 1)
+    if repeat > MAX_REPEAT:
+        raise StudyError(
+            "repeat", f"got {repeat}; give at most {MAX_REPEAT} (repeats only time the solve)"
+        )
     folder = _out_path(out)
+    study, source = _study_and_source(study)
     if folder is None:
         result, run_dir = solve_study(study, repeat, source), None
     else:
@@ -248,6 +262,8 @@ def run(
     from flexopt.pipeline.run import parallel_settings, prepare_run, run_study
     from flexopt.pipeline.study import workers_problem
 
+    quick = _flag(quick, "quick")
+    progress = _flag(progress, "progress")
     study, source = _study_and_source(study)
     if workers is not None:
         workers = _whole(workers, "workers", 1)

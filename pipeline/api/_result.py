@@ -256,10 +256,11 @@ class RunResult:
 
     @cached_property
     def study(self) -> Study:
-        """The resolved study the run started with (its study.yaml)."""
-        from flexopt.pipeline.study import load_study
+        """The resolved study the run started with (its study.yaml; its target tables are the
+        run folder's copies, found from any working folder)."""
+        from flexopt.pipeline.runfolder import load_folder_study
 
-        return load_study(self.run_dir / "study.yaml")
+        return load_folder_study(self.run_dir, self.run_dir / "study.yaml")
 
     def best_study(self, design: int | str = "best") -> Study:
         """The run's best design (or evaluation ``design``, an index of evaluations.csv) as a

@@ -18,11 +18,14 @@ that fails to load does not break flexopt: its kind is recorded as unavailable w
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import importlib.metadata
 import importlib.util
+import os
 import pkgutil
 import sys
+import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -50,6 +53,11 @@ __all__ = [
 
 #: The entry-point group a package names its study kinds in (``[project.entry-points]``).
 ENTRY_POINT_GROUP = "flexopt.kinds"
+
+#: Longest a plugin's import (and its factory call) may take, s, before it is given up as
+#: unavailable (``FLEXOPT_PLUGIN_TIMEOUT_S`` overrides it): a plugin that blocks at import must not
+#: hang ``flexopt list`` or any other command (docs/plugins.md).
+PLUGIN_IMPORT_TIMEOUT_S = 15.0
 
 
 @dataclass(frozen=True)
@@ -161,6 +169,10 @@ _BUILTIN: set[str] = set()
 _discovered = False
 #: The entry point being loaded while a plugin runs (names it in a clash message), else None.
 _loading: importlib.metadata.EntryPoint | None = None
+#: A plugin's own StudyKind by name, where the registry holds it guarded (:func:`_guarded`).
+_ORIGINAL: dict[str, StudyKind] = {}
+#: Loader threads given up on (a plugin that blocked at import): what they register is ignored.
+_ABANDONED: set[threading.Thread] = set()
 
 
 def register(kind: StudyKind) -> StudyKind:
@@ -173,16 +185,108 @@ def register(kind: StudyKind) -> StudyKind:
     """
     if not isinstance(kind, StudyKind):
         raise TypeError(f"register() takes a StudyKind, not {type(kind).__name__}")
+    if threading.current_thread() in _ABANDONED:
+        raise RuntimeError("this plugin took too long to import; its kinds are not registered")
+    if _loading is not None:
+        _check_plugin_kind(kind)
     if _loading is not None and kind.name in _BUILTIN:
         # a plugin module may register more than its entry point names: none may be built-in
         raise ValueError(
             f"the kind name '{kind.name}' is taken by a built-in kind; give the plugin's kind "
             "(entry point name and geometry.kind) another name"
         )
-    if kind.name in _KINDS and _KINDS[kind.name] is not kind:
+    if kind.name in _KINDS and not _holds(kind):
         raise ValueError(f"study kind '{kind.name}' registered twice")
-    _KINDS[kind.name] = kind
+    if _loading is not None and kind.name not in _KINDS:
+        _ORIGINAL[kind.name] = kind
+        _KINDS[kind.name] = _guarded(kind)
+        return kind
+    _KINDS.setdefault(kind.name, kind)
     return kind
+
+
+def _holds(kind: StudyKind) -> bool:
+    """Whether the registry holds this very kind (itself, or its guarded copy)."""
+    return kind is _KINDS.get(kind.name) or kind is _ORIGINAL.get(kind.name)
+
+
+def _check_plugin_kind(kind: StudyKind) -> None:
+    """Refuse a plugin's kind whose parts are not what the contract says (``schema``, ``init``
+    and ``evaluate`` would crash on them later)."""
+    model = kind.model
+    # Study by its place in the class tree: this module does not import pipeline.study at run
+    # time (pipeline.study imports it; tests/test_layering.py)
+    is_study = isinstance(model, type) and any(
+        c.__name__ == "Study" and c.__module__ == "flexopt.pipeline.study" for c in model.__mro__
+    )
+    if not is_study:
+        what = model.__name__ if isinstance(model, type) else type(model).__name__
+        raise TypeError(
+            f"the kind '{kind.name}' has model {what}, not a pydantic subclass of "
+            "pipeline.study.Study"
+        )
+    for part in ("check", "evaluate", "problem", "requirements"):
+        value = getattr(kind, part)
+        if value is not None and not callable(value) or part == "check" and value is None:
+            raise TypeError(f"the kind '{kind.name}' has a {part} that is not callable")
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    text = text if len(text) <= 200 else text[:197] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _guarded(kind: StudyKind) -> StudyKind:
+    """A plugin's kind whose parts cannot crash flexopt: an exception from its ``check``,
+    ``evaluate``, ``problem``, ``requirements`` or ``quantities`` (other than the
+    :class:`StudyError` the contract asks for), or an ``evaluate`` that returns no
+    :class:`EvaluationResult`, is one line at ``geometry.kind`` saying the plugin failed."""
+    who = f"the plugin kind '{kind.name}'"
+
+    def failed(part: str, exc: BaseException) -> StudyError:
+        return StudyError(
+            "geometry.kind",
+            f"{who} failed in its {part}: {_one_line(exc)} (a fault of the plugin, not of the "
+            "study: report it to the plugin's authors)",
+        )
+
+    def guard(part: str, call: Callable[..., Any] | None) -> Callable[..., Any] | None:
+        if call is None:
+            return None
+
+        def guarded(*args: Any) -> Any:
+            try:
+                result = call(*args)
+            except StudyError:
+                raise
+            except (Exception, SystemExit) as exc:  # whatever third-party code raises
+                raise failed(part, exc) from None
+            if part == "evaluate" and not isinstance(result, EvaluationResult):
+                raise StudyError(
+                    "geometry.kind",
+                    f"{who}'s evaluate returned {type(result).__name__}, not an "
+                    "EvaluationResult (a fault of the plugin: report it to its authors)",
+                )
+            if part == "problem" and result is None:
+                raise StudyError(
+                    "geometry.kind",
+                    f"{who}'s problem returned None, not a design problem (a fault of the "
+                    "plugin: report it to its authors)",
+                )
+            return result
+
+        return guarded
+
+    quantities = kind.quantities
+    return dataclasses.replace(
+        kind,
+        check=guard("check", kind.check),  # type: ignore[arg-type]
+        evaluate=guard("evaluate", kind.evaluate),
+        problem=guard("problem", kind.problem),
+        requirements=guard("requirements", kind.requirements),
+        quantities=guard("quantities", quantities) if callable(quantities) else quantities,
+    )
 
 
 def _is_builtin_module(kind: StudyKind) -> bool:
@@ -241,16 +345,62 @@ def _load_plugins() -> None:
         before = set(_KINDS)
         try:
             problem = _load_plugin(ep, before)
-        except (Exception, SystemExit) as exc:  # whatever a third-party import raises
-            text = " ".join(str(exc).split())
-            text = text if len(text) <= 200 else text[:197] + "..."
-            problem = f"{_origin(ep)} failed to load: {type(exc).__name__}: {text}"
+        except Exception as exc:  # whatever a third-party import raises
+            problem = f"{_origin(ep)} failed to load: {_one_line(exc)}"
         finally:
             _loading = None
         if problem:  # a plugin that failed contributes nothing, not half its kinds
             for name in set(_KINDS) - before:
                 del _KINDS[name]
+                _ORIGINAL.pop(name, None)
             _UNAVAILABLE[ep.name] = problem
+
+
+def _import_timeout_s() -> float:
+    try:
+        value = float(os.environ.get("FLEXOPT_PLUGIN_TIMEOUT_S", PLUGIN_IMPORT_TIMEOUT_S))
+    except ValueError:
+        return PLUGIN_IMPORT_TIMEOUT_S
+    return value if value > 0 else PLUGIN_IMPORT_TIMEOUT_S
+
+
+class _PluginFailed(Exception):
+    """A plugin's import raised something, or blocked: the reason, in one line."""
+
+
+def _import_entry_point(ep: importlib.metadata.EntryPoint) -> Any:
+    """``ep.load()`` (and, for a factory, its call) in a thread of its own, waited for at most
+    :data:`PLUGIN_IMPORT_TIMEOUT_S`.
+
+    In its own thread, whatever the plugin raises (a ``KeyboardInterrupt``, ``SystemExit`` or
+    another ``BaseException`` included) is caught there and never mistaken for the user's Ctrl-C,
+    which reaches the main thread as before; and a plugin that blocks is given up on (the
+    thread is a daemon: it does not keep the process alive).
+    """
+    outcome: dict[str, Any] = {}
+
+    def load() -> None:
+        try:
+            loaded = ep.load()
+            if ep.attr and callable(loaded) and not isinstance(loaded, StudyKind):
+                loaded = loaded()
+            outcome["value"] = loaded
+        except BaseException as exc:  # noqa: BLE001 - a plugin's fault, reported in one line
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=load, name=f"flexopt-plugin-{ep.name}", daemon=True)
+    thread.start()
+    timeout = _import_timeout_s()
+    thread.join(timeout)
+    if thread.is_alive():
+        _ABANDONED.add(thread)
+        raise _PluginFailed(
+            f"did not finish importing within {timeout:g} s (it blocks at import); fix the "
+            "plugin, or set FLEXOPT_PLUGIN_TIMEOUT_S for one that is only slow"
+        )
+    if "error" in outcome:
+        raise _PluginFailed(f"failed to load: {_one_line(outcome['error'])}")
+    return outcome["value"]
 
 
 def _load_plugin(ep: importlib.metadata.EntryPoint, before: set[str]) -> str | None:
@@ -258,9 +408,12 @@ def _load_plugin(ep: importlib.metadata.EntryPoint, before: set[str]) -> str | N
 
     ``before``: the names registered before it was imported (to name what it registered).
     """
-    loaded = ep.load()
-    if ep.attr:  # `module:object`: a StudyKind, or a callable that returns one
-        kind = loaded() if callable(loaded) and not isinstance(loaded, StudyKind) else loaded
+    try:
+        loaded = _import_entry_point(ep)
+    except _PluginFailed as exc:
+        return f"{_origin(ep)} {exc}"
+    if ep.attr:  # `module:object`: a StudyKind, or a callable that returns one (called above)
+        kind = loaded
         if not isinstance(kind, StudyKind):
             return (
                 f"{_origin(ep)} gave {type(kind).__name__}, not a StudyKind; point the entry "
@@ -276,7 +429,7 @@ def _load_plugin(ep: importlib.metadata.EntryPoint, before: set[str]) -> str | N
                 f"{_origin(ep)} gave the kind '{kind.name}'; the entry point name must be the "
                 "kind's name (its geometry.kind)"
             )
-        if _KINDS.get(kind.name) is not kind:
+        if not _holds(kind):
             register(kind)
     elif ep.name not in _KINDS:  # a module: importing it must have registered the kind
         registered = sorted(set(_KINDS) - before)

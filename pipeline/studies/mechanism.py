@@ -571,11 +571,54 @@ def quantities(study: MechanismStudy) -> tuple[str, ...]:
     return tuple(sorted(set(metric_names(study)) | set(column_names(study))))
 
 
+def _refuse_derived_cycles(study: MechanismStudy) -> None:
+    """Refuse slopes and ratios that refer to each other in a loop (``a`` the slope of ``b``,
+    ``b`` the slope of ``a``): nothing can be computed first, so every such column would be NaN."""
+
+    def refs(name: str) -> list[str]:
+        o = study.outputs[name]
+        if o.quantity not in ("slope", "ratio"):
+            return []
+        return [o.of] if isinstance(o.of, str) else list(o.of or ())
+
+    done: set[str] = set()
+    for start in study.outputs:
+        path: list[str] = []
+        stack: list[tuple[str, int]] = [(start, 0)]
+        while stack:  # depth-first, iterative: a long chain of outputs cannot overflow
+            name, i = stack.pop()
+            if i == 0:
+                if name in done:
+                    continue
+                if name in path:
+                    loop = " -> ".join([*path[path.index(name) :], name])
+                    raise StudyError(
+                        f"outputs.{name}.of",
+                        f"outputs refer to each other in a loop ({loop}), so none of them can "
+                        "be computed; make one of them a measured quantity (reaction, "
+                        "displacement, rotation) or refer to one",
+                    )
+                path.append(name)
+            children = [r for r in refs(name) if r in study.outputs]
+            if i < len(children):
+                stack.append((name, i + 1))
+                stack.append((children[i], 0))
+            else:
+                done.add(path.pop())
+
+
 def _requirements(study: MechanismStudy) -> list[Requirement]:
     out = []
     for i, spec in enumerate(study.requirements):
+        table = columns = None
+        if spec.target is not None and spec.target.kind == "table" and spec.target.file:
+            from flexopt.pipeline.studies._targets import read_table_csv  # a target table's file
+
+            table, columns = read_table_csv(
+                spec.target.file, spec.target.columns, f"requirements[{i}].target.file"
+            )
         try:
-            out.append(spec.to_requirement(study.material.yield_MPa))
+            out.append(spec.to_requirement(study.material.yield_MPa, table, columns))
         except OptimiseError as exc:
             raise StudyError(f"requirements[{i}]", str(exc)) from None
     return out
@@ -681,6 +724,7 @@ def check(study: MechanismStudy) -> None:
             problem = _output_unit_problem(name, o, study.load_cases[case].drive.control)
             if problem:
                 raise StudyError(here, problem)
+    _refuse_derived_cycles(study)
     reqs = _requirements(study)
     valid = set(quantities(study))
     labels = {r.label: r for r in reqs}

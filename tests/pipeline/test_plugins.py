@@ -25,6 +25,7 @@ import re
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import flexopt.pipeline.studies as studies
@@ -244,6 +245,39 @@ from flexopt.pipeline.studies import StudyKind, register
 register(StudyKind("mechanism", FakeStudy, lambda study: None))
 """,
     "fake_exits": "raise SystemExit(3)\n",
+    # issue 23, class 5: what a hostile or careless plugin does at import and later
+    "fake_ctrl_c": "raise KeyboardInterrupt\n",
+    "fake_base_exception": "class Boom(BaseException):\n    pass\n\n\nraise Boom('at import')\n",
+    "fake_blocks": "import time\n\ntime.sleep(30)\n",
+    "fake_not_pydantic": """\
+from flexopt.pipeline.studies import StudyKind, register
+
+register(StudyKind("fake_not_pydantic", dict, lambda study: None))
+""",
+    "fake_faulty": """\
+from typing import Literal
+from pydantic import BaseModel
+from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.study import STUDY_CONFIG, Study
+
+
+class G(BaseModel):
+    model_config = STUDY_CONFIG
+    kind: Literal["fake_faulty"]
+    raise_in_check: bool = False
+
+
+class FaultyStudy(Study):
+    geometry: G
+
+
+def check(study):
+    if study.geometry.raise_in_check:
+        raise ZeroDivisionError("division by zero in the plugin")
+
+
+register(StudyKind("fake_faulty", FaultyStudy, check, evaluate=lambda study, repeat: None))
+""",
 }
 
 
@@ -257,6 +291,7 @@ def fake_registry(tmp_path, monkeypatch):
     monkeypatch.setattr(studies, "_KINDS", dict(builtin))
     monkeypatch.setattr(studies, "_UNAVAILABLE", {})
     monkeypatch.setattr(studies, "_REFUSED", [])
+    monkeypatch.setattr(studies, "_ORIGINAL", {})
 
     def load(pairs: list[tuple[str, str]]) -> None:
         eps = [importlib.metadata.EntryPoint(n, v, studies.ENTRY_POINT_GROUP) for n, v in pairs]
@@ -360,3 +395,68 @@ def test_a_builtin_kind_is_found_without_importing_the_other_kinds():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+# --------------------------------------------------------------------------------------------
+# Hostile plugins (issue 23, class 5): each disables itself in one line; built-ins always work
+
+
+def test_a_plugin_raising_any_base_exception_or_blocking_at_import_is_unavailable(
+    fake_registry, monkeypatch, capsys
+):
+    monkeypatch.setattr(studies, "PLUGIN_IMPORT_TIMEOUT_S", 0.5)
+    monkeypatch.delenv("FLEXOPT_PLUGIN_TIMEOUT_S", raising=False)
+    start = time.perf_counter()
+    fake_registry(
+        [
+            ("fake_ctrl_c", "fake_ctrl_c"),
+            ("fake_base_exception", "fake_base_exception"),
+            ("fake_blocks", "fake_blocks"),
+            ("fake_not_pydantic", "fake_not_pydantic"),
+            ("fake_module", "fake_module_kind"),  # a good plugin beside them still loads
+        ]
+    )
+    assert time.perf_counter() - start < 5.0, "a blocking plugin must not hang flexopt"
+    bad = studies.unavailable_kinds()
+    assert "KeyboardInterrupt" in bad["fake_ctrl_c"]
+    assert "Boom: at import" in bad["fake_base_exception"]
+    assert "did not finish importing within 0.5 s" in bad["fake_blocks"]
+    assert "not a pydantic subclass of pipeline.study.Study" in bad["fake_not_pydantic"]
+    assert all("\n" not in reason for reason in bad.values())
+    assert "fake_module" in studies.kinds() and "fake_not_pydantic" not in studies.kinds()
+
+    # list, schema and init work, the broken ones named in list only
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "fake_blocks" in out and "fake_module" in out
+    assert main(["schema"]) == 0 and main(["schema", "--kind", "fake_module"]) == 0
+    assert main(["schema", "--kind", "fake_not_pydantic"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unavailable" in err and "Traceback" not in err
+    # built-in kinds are untouched
+    assert load_study("cantilever").kind == "polyline_beam"
+
+
+def test_a_plugin_kind_failing_in_check_or_evaluate_is_one_line(
+    fake_registry, tmp_path, monkeypatch, capsys
+):
+    fake_registry([("fake_faulty", "fake_faulty")])
+    assert "fake_faulty" in studies.kinds()
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    raising = work / "raising.yaml"
+    raising.write_text(
+        "name: r\ngeometry: {kind: fake_faulty, raise_in_check: true}\nmaterial: PLA\n"
+    )
+    none = work / "none.yaml"
+    none.write_text("name: n\ngeometry: {kind: fake_faulty}\nmaterial: PLA\n")
+    for path, fragment in (
+        (raising, "failed in its check: ZeroDivisionError: division by zero in the plugin"),
+        (none, "evaluate returned NoneType, not an EvaluationResult"),
+    ):
+        assert main(["evaluate", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err, err
+        assert "geometry.kind" in err and fragment in err, err
+    assert sorted(p.name for p in work.iterdir()) == ["none.yaml", "raising.yaml"]
