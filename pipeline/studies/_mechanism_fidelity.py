@@ -126,7 +126,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     scale = width / solved.geometry.width_mm
     tables, applied = {}, {}
     for case, response in solved.responses.items():
-        table = mk._case_table(study, case, response, scale)
+        table = mk._case_table(study, case, response, scale, solved.outline.beams)
         check = checks[case]
         if "skipped" in check:
             applied[case] = {"model": "beam", "why": check["skipped"]}
@@ -138,7 +138,9 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
             "stress": STRESS_NOTE,
         }  # fmt: skip
         tables[case] = _corrected(mk, study, case, table, ratio, 1.0)
-    metrics = mk._metrics(study, solved.geometry, tables, width, problem.material)
+    metrics = mk._part_metrics(
+        study, solved.geometry, solved.outline, tables, width, problem.material, solved.clearance
+    )
     beam_values = {**solved.metrics, **_worst(mk, solved.curves_table)}
     beam_verdicts = {v.name: v.value for v in problem._verdicts(solved)}
     fidelity = {

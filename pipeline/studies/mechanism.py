@@ -1159,6 +1159,25 @@ def _stat(values: np.ndarray, how: str) -> float | None:
     )
 
 
+def _part_metrics(
+    study: MechanismStudy,
+    geometry: MechanismGeometry,
+    outline: MechanismOutline,
+    tables: Mapping[str, Mapping[str, np.ndarray]],
+    width_mm: float,
+    material: Material,
+    clearance: Mapping[str, Any],
+) -> dict[str, Any]:
+    """Every metric of the part as made at ``width_mm``: :func:`_metrics` of its tables, the
+    interference over the stroke (:func:`_interference`) and the envelope as exported. One place
+    for the solve and for the check of the exported outline, which solves the width again."""
+    metrics = _metrics(study, geometry, tables, width_mm, material, outline.beams)
+    metrics["min_clearance_mm"] = clearance["min_clearance_mm"]
+    metrics["interference_mm2"] = clearance["interference_mm2"]
+    metrics.update(envelope_values(outline.polygon, width_mm))  # the part as exported
+    return metrics
+
+
 def _metrics(
     study: MechanismStudy,
     geometry: MechanismGeometry,
@@ -1362,11 +1381,8 @@ class MechanismProblem:
             width = geometry.width_mm
         scale = width / geometry.width_mm
         tables = {c: _case_table(study, c, r, scale, outline.beams) for c, r in responses.items()}
-        metrics = _metrics(study, geometry, tables, width, self.material, outline.beams)
         clearance = _interference(study, geometry, outline, responses)
-        metrics["min_clearance_mm"] = clearance["min_clearance_mm"]
-        metrics["interference_mm2"] = clearance["interference_mm2"]
-        metrics.update(envelope_values(outline.polygon, width))  # the part as exported
+        metrics = _part_metrics(study, geometry, outline, tables, width, self.material, clearance)
         return _Solved(
             geometry, shapes, outline, width, responses, tables, metrics,
             _curves_table(study, tables), reason, clearance,

@@ -196,3 +196,14 @@ def test_parallel_guide_verdict_is_judged_on_its_3d_figure():
     assert _verdict(result, "min_stiffness_N_per_mm").met
     assert _verdict(result, "max_stiffness_N_per_mm").met
     assert "judged on the beam model" in _verdict(result, "max_peak_stress_MPa").detail
+    # the check solves the width again; everything else of the part as made stays: the roots'
+    # Kt in the stress (a guided leaf's stress does not depend on the width), the interference
+    # over the stroke and the envelope at the exported width
+    beam_only = get_kind("mechanism").evaluate(
+        validate_study({**_quick_guide(), "fidelity": {"enabled": False}})
+    )
+    stress = _verdict(result, "max_peak_stress_MPa").value
+    assert stress == pytest.approx(_verdict(beam_only, "max_peak_stress_MPa").value, rel=1e-9)
+    assert _verdict(result, "no_interference").met
+    assert result.summary["interference_mm2"] == 0.0
+    assert result.summary["envelope_depth_mm"] == pytest.approx(width, rel=1e-12)
