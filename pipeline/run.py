@@ -822,6 +822,14 @@ class _Run:
             record = {**part.record(), "frames": {f"best.{f}": v for f, v in frames.items()}}
             detail = replace(detail, info={**detail.info, "part": record})
         best_json = {"verdict": verdict_record(self.verdicts), **best_json}  # the verdict first
+        made = detail.evaluation.metrics if detail is not None and detail.evaluation else None
+        if made and to_json(made) != to_json(best.metrics):
+            # the detail solved the part as exported again (a check of its outline that corrects
+            # forces and re-solves the width): best.json's metrics are that part's, the ones
+            # flexopt evaluate of the design gives; the optimiser's record of the same x stays
+            # beside them (and in evaluations.csv)
+            best_json["metrics"] = made
+            best_json["optimiser_metrics"] = best.metrics
         robust = self.robustness(best, detail)
         if robust is not None:  # the chosen design under the study's scatter (docs/robustness.md)
             best_json["robustness"] = robust.record()

@@ -79,8 +79,14 @@ def test_a_constant_force_design_far_below_its_target_is_not_met(tmp_path, capsy
     inside = (s >= lo - 1e-9) & (s <= study.boundary.stroke_mm + 1e-9)
     worst = float(np.max(np.abs(f[inside] - target)))
     assert band["verdict"] == "NOT MET" and not band["met"]
-    assert band["value"] == pytest.approx(worst, rel=1e-6)
-    assert band["margin"] == pytest.approx(0.05 * target - worst, rel=1e-6)
+    # response.csv is the beam model's curve: its worst deviation is the beam figure; the band
+    # is judged on the plane-stress figure the run also computed (issue 22), shown beside it
+    beam = next(f for f in band["figures"] if f["model"] == "beam")
+    assert beam["value"] == pytest.approx(worst, rel=1e-6)
+    assert band["model"] == "plane stress"
+    judged = band["value"]
+    assert band["margin"] == pytest.approx(0.05 * target - judged, rel=1e-6)
+    assert judged == pytest.approx(worst, rel=0.02)  # the two models agree to ~2 % here
     assert worst > 0.2 * target  # about 25 % low, like 3.76 N of 5 N
     stress = next(r for r in record["verdict"]["requirements"] if r["name"] == "peak stress")
     assert stress["met"]  # 'feasible' alone would have said yes
