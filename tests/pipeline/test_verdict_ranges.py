@@ -162,3 +162,23 @@ def test_a_sample_judged_on_given_requirements_has_no_range_row():
     # the print's scatter, judged by the other rows, not a design outside its range
     assert all(v.name != ROW for v in judge(study, {}, None, reqs))
     assert not _row(judge(study, {}, None)).met  # the nominal design's verdict has it
+
+
+# ---- the other kinds with a design space
+
+
+@pytest.mark.parametrize(
+    ("example", "changes", "bound", "value"),
+    [
+        ("threshold-cam", {"springs.stiffness_N_per_mm": 12.0},
+         "stiffness_N_per_mm in [1, 10] N/mm", 12.0),
+        ("flexure-pivot", {"design.length_mm": 40.0}, "length_mm in [2, 30] mm", 40.0),
+    ],
+)  # fmt: skip
+def test_other_kinds_judge_their_design_in_its_space(example, changes, bound, value):
+    base = load_study(example)
+    (nominal,) = design_range_verdicts(base)
+    assert nominal.met
+    (row,) = design_range_verdicts(base.with_values(changes))
+    assert not row.met and row.bound == bound and row.value == value
+    assert "its range" in row.detail and "widen" in row.detail
