@@ -182,3 +182,20 @@ def test_other_kinds_judge_their_design_in_its_space(example, changes, bound, va
     (row,) = design_range_verdicts(base.with_values(changes))
     assert not row.met and row.bound == bound and row.value == value
     assert "its range" in row.detail and "widen" in row.detail
+
+
+def test_a_robustness_sample_under_a_bound_is_judged_without_the_range_row():
+    from flexopt.pipeline.problems import build_base_problem, nominal_design
+    from flexopt.pipeline.robustness import SampleProblem
+
+    study = load_study("constant-force-robust")
+    x = nominal_design(build_base_problem(study), study)
+    i = build_base_problem(study).space.names.index("t4_mm")
+    assert x[i] == pytest.approx(0.8001)  # on its lower bound, 0.8 mm
+    # the sample printed 0.1 mm thin: t4 = 0.7001 mm, under the bound, as made
+    ev = SampleProblem(study, "design", x).evaluate(np.array([1.0, -0.1, 0.0]))
+    verdicts = ev.metrics["robustness"].verdicts
+    assert verdicts and all(v.quantity != DesignRange.quantity for v in verdicts)
+    assert ev.f[0] == sum(not v.met for v in verdicts)
+    (nominal,) = design_range_verdicts(study, x)  # the nominal design's own row: MET
+    assert nominal.met and nominal.bound == "t4_mm in [0.8, 1.6] mm"
