@@ -16,7 +16,8 @@ API (stable; other modules and kinds build on it)
     :class:`MaxValue`, :class:`MinValue`, :class:`Range`, :class:`AllowableStress` (yield over a
     safety factor), :class:`TargetBand` (a curve ``y(x)`` within a tolerance band of a target
     curve of :mod:`optimise.targets` over an x-range), :class:`Envelope` (bounding box within
-    ``w x h``), :class:`MinFeature`, :class:`Flag` (a yes/no metric such as ``stable``). Each
+    ``w x h``), :class:`MinFeature`, :class:`Flag` (a yes/no metric such as ``stable``),
+    :class:`DesignRange` (every design variable inside its stated range). Each
     has ``check(metrics, curves) -> Verdict`` and ``constraint(metrics, curves) -> float`` (a
     ``g <= 0`` row, dimensionless: ``-margin / scale``).
 
@@ -57,6 +58,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 __all__ = [
     "AllowableStress",
     "BEAM",
+    "DesignRange",
     "Envelope",
     "Figure",
     "Flag",
@@ -578,6 +580,103 @@ class Envelope(Requirement):
         k = int(np.argmin(spares))
         box = " × ".join(f"{size:.4g}" for size, _ in sizes) + " mm"
         return self._verdict(sizes[k][0], self.bound_text(), spares[k], box)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class DesignRange(Requirement):
+    """Every design variable inside its stated range (``design_space:``, a variable's
+    ``bounds``): the design a study gives or the optimiser moves is a design choice, and one
+    outside the range the study states is NOT MET, never clipped into it or MET.
+
+    Reads ``metrics[key(name)]`` (``design.<name>``, the variable's own unit) for every variable
+    (:meth:`values` makes them from a design vector). The verdict names the variable furthest
+    outside its range (relative to the range's width), or, when every one is inside, the one
+    with the least spare: its value, ``<name> in [lower, upper]`` and the margin in its unit.
+
+    Attributes
+    ----------
+    names : the variables, in the order of the design vector.
+    lower, upper : their ranges, each (n_var,), in the variables' own units.
+    where : the key of the study that states the ranges (for the detail: ``design_space``).
+    """
+
+    quantity: str = "design_variables"
+    names: tuple[str, ...] = ()
+    lower: tuple[float, ...] = ()
+    upper: tuple[float, ...] = ()
+    where: str = "design_space"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "names", tuple(str(n) for n in self.names))
+        object.__setattr__(self, "lower", tuple(float(v) for v in self.lower))
+        object.__setattr__(self, "upper", tuple(float(v) for v in self.upper))
+        if not (len(self.names) == len(self.lower) == len(self.upper)):
+            raise OptimiseError(
+                f"{len(self.names)} design variables but {len(self.lower)} lower and "
+                f"{len(self.upper)} upper bounds"
+            )
+
+    @staticmethod
+    def key(name: str) -> str:
+        """The metric holding variable ``name``'s value (``design.B``)."""
+        return f"design.{name}"
+
+    def values(self, x: Any) -> dict[str, float]:
+        """``{key(name): value}`` of a design vector ``x`` (n_var,), in the variables' units.
+
+        Raises
+        ------
+        OptimiseError
+            When ``x`` does not have one value per variable.
+        """
+        arr = np.asarray(x, dtype=float).ravel()
+        if arr.shape != (len(self.names),):
+            raise OptimiseError(
+                f"the design has {arr.size} values, its design space {len(self.names)} variables"
+            )
+        return {self.key(n): float(v) for n, v in zip(self.names, arr, strict=True)}
+
+    def _bound(self, i: int) -> str:
+        unit = unit_of(self.names[i])
+        return f"{self.names[i]} in [{self.lower[i]:.6g}, {self.upper[i]:.6g}]" + (
+            f" {unit}" if unit else ""
+        )
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        if not self.names:
+            return self._missing("in their ranges", "the design has no variable")
+        values = [_value_of(metrics, self.key(n)) for n in self.names]
+        missing = [n for n, v in zip(self.names, values, strict=True) if v is None]
+        if missing:
+            return self._missing(
+                f"every variable in its range ({self.where})",
+                f"the design's {', '.join(missing[:3])} {'is' if len(missing) == 1 else 'are'} "
+                "not known",
+            )
+        spare = [
+            min(v - lo, hi - v)  # type: ignore[operator]
+            for v, lo, hi in zip(values, self.lower, self.upper, strict=True)
+        ]
+        width = [max(hi - lo, 1e-300) for lo, hi in zip(self.lower, self.upper, strict=True)]
+        rel = [s / w for s, w in zip(spare, width, strict=True)]
+        k = int(np.argmin(rel))
+        value, unit = float(values[k]), unit_of(self.names[k])  # type: ignore[arg-type]
+        outside = [n for n, s in zip(self.names, spare, strict=True) if s < 0]
+        detail = ""
+        if outside:
+            side = "below" if value < self.lower[k] else "above"
+            detail = (
+                f"{self.names[k]} = {_num(value, unit)} is {side} its range "
+                f"[{self.lower[k]:.6g}, {self.upper[k]:.6g}]{' ' + unit if unit else ''} "
+                f"({self.where}); {len(outside)} of {len(self.names)} variables outside: "
+                + ", ".join(outside[:6])
+                + (" …" if len(outside) > 6 else "")
+                + f"; bring the design inside or widen {self.where}"
+            )
+        return Verdict(
+            self.label, self.quantity, value, self._bound(k), float(spare[k]), float(rel[k]),
+            not outside, unit, self.role, detail,
+        )  # fmt: skip
 
 
 def _unit_factor(name: str) -> float:

@@ -13,6 +13,15 @@ A kind states two things in its :class:`~pipeline.studies.StudyKind`:
     is judged on the highest-ranked figure the design has, the others shown beside it
     (:func:`~optimise.requirements.judge_best`); a figure a built-in requirement judges on its
     own row (the springs' 3D rows) is not borrowed by another.
+``design_space`` (optional)
+    ``(study) -> (DesignSpace, x or None)``: the space the kind's problem moves in and the
+    design ``flexopt evaluate`` solves. Every verdict of a design then has the row "design
+    variables in their ranges" (:class:`~optimise.requirements.DesignRange`): a design
+    outside the range the study states is NOT MET with the variable, its value and its range
+    (:func:`design_range_verdicts`). It judges the design as chosen (the study's, or the one
+    ``flexopt run`` found), so :func:`judge` adds it only when it judges the study's own
+    requirements (``requirements=None``): a robustness sample, judged on the requirements it
+    is given, is a part as made (a thickness 0.1 mm under a bound), not a design choice.
 ``quantities``
     The names a requirement may judge (summary and metrics keys, response-table columns), or a
     callable ``(study) -> iterable of str``. An unknown name in ``requirements:`` is refused at
@@ -35,6 +44,7 @@ from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import (
+    DesignRange,
     Figure,
     Requirement,
     RequirementSpec,
@@ -52,6 +62,8 @@ __all__ = [
     "RequirementConstraints",
     "builtin_requirements",
     "check_requirement_names",
+    "design_range",
+    "design_range_verdicts",
     "detail_values",
     "envelope_values",
     "figures_of",
@@ -60,6 +72,7 @@ __all__ = [
     "quantities_of",
     "study_requirements",
     "user_requirements",
+    "with_design_range",
 ]
 
 #: Names every kind offers (measured by the pipeline on the part as exported, when there is
@@ -216,11 +229,63 @@ def _scalars(*sources: Mapping[str, Any] | None) -> dict[str, Any]:
     return out
 
 
+def design_range(study: Study) -> tuple[DesignRange, np.ndarray | None] | None:
+    """The requirement "every design variable in its range" of ``study`` and the study's own
+    design vector (None when it gives none), or None when the kind has no design space.
+
+    Raises
+    ------
+    StudyError
+        When the kind refuses the study's design space or design (naming the key).
+    """
+    hook = getattr(_kind(study), "design_space", None)
+    got = hook(study) if callable(hook) else None
+    if got is None:
+        return None
+    space, x = got[0], got[1]
+    where = got[2] if len(got) > 2 else "design_space"
+    req = DesignRange(
+        name="design variables in their ranges", role="check", names=tuple(space.names),
+        lower=tuple(space.lower), upper=tuple(space.upper), where=where,
+    )  # fmt: skip
+    return req, (None if x is None else np.asarray(x, dtype=float).ravel())
+
+
+def design_range_verdicts(study: Study, x: Any = None) -> tuple[Verdict, ...]:
+    """The verdict of "every design variable in its range" for the design ``x`` (n_var,) in
+    the kind's design space (default: the study's own design); empty when the kind has no
+    design space or the study no design to judge."""
+    found = design_range(study)
+    if found is None:
+        return ()
+    req, nominal = found
+    design = nominal if x is None else x
+    if design is None:
+        return ()
+    try:
+        values = req.values(design)
+    except OptimiseError as exc:  # a design of another space: NOT MET, said, never skipped
+        return (req._missing(f"every variable in its range ({req.where})", str(exc)),)  # noqa: SLF001
+    return (req.check(values),)
+
+
+def with_design_range(
+    study: Study, verdicts: Sequence[Verdict], design: Any = None
+) -> tuple[Verdict, ...]:
+    """``verdicts`` with the design-range row after the kind's built-in ones."""
+    rows = design_range_verdicts(study, design)
+    if not rows:
+        return tuple(verdicts)
+    n = len(builtin_requirements(study))
+    return (*verdicts[:n], *rows, *verdicts[n:])
+
+
 def judge(
     study: Study,
     values: Mapping[str, Any],
     table: Mapping[str, Any] | None = None,
     requirements: Sequence[Requirement] | None = None,
+    design: Any = None,
 ) -> tuple[Verdict, ...]:
     """Verdicts of one design against the requirements of ``study`` (built-in, then its own).
 
@@ -228,9 +293,16 @@ def judge(
     ----------
     values : scalar results by name (units in the names); non-scalars are ignored.
     table : response columns by name, each (n_rows,); feeds target bands.
-    requirements : judge these instead of :func:`study_requirements`.
+    requirements : judge these instead of :func:`study_requirements` (and without the
+        design-range row: a robustness sample is judged so, see the module docstring).
+    design : (n_var,) the design vector judged, in the kind's design space (default: the
+        study's own design, what ``flexopt evaluate`` solves): the design-range row's values.
     """
-    reqs = study_requirements(study) if requirements is None else tuple(requirements)
+    if requirements is None:
+        return with_design_range(
+            study, judge(study, values, table, study_requirements(study)), design
+        )
+    reqs = tuple(requirements)
     scalars = _scalars(values)
     # a table column may also be judged by its worst value: max |column|
     for name, column in (table or {}).items():
@@ -265,12 +337,15 @@ def judge_detail(
     study: Study, detail: DesignDetail | None, evaluation: Evaluation
 ) -> tuple[Verdict, ...]:
     """Verdicts of a run's design: the kind's own (``detail.verdicts``) when it gives them,
-    else the study's requirements judged on :func:`detail_values` and ``detail.table``."""
+    else the study's requirements judged on :func:`detail_values` and ``detail.table``; with
+    the design-range row of ``evaluation.x`` either way."""
     given = tuple(getattr(detail, "verdicts", ()) or ())
     if given:
-        return given
+        if any(v.quantity == DesignRange.quantity for v in given):
+            return given
+        return with_design_range(study, given, evaluation.x)
     table = detail.table if detail is not None else {}
-    return judge(study, detail_values(detail, evaluation), table)
+    return judge(study, detail_values(detail, evaluation), table, design=evaluation.x)
 
 
 class RequirementConstraints:

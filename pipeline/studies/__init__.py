@@ -143,6 +143,11 @@ class StudyKind:
         ``{quantity: (optimise.requirements.Figure, ...)}``: the figures of a quantity by model
         and fidelity rank; a requirement on it is judged on the best the design has
         (:mod:`pipeline.verdict`).
+    design_space : callable(study) -> (optimise.DesignSpace, (n_var,) array or None), optional
+        For a kind with design variables: the space its problem moves in (the same names, order
+        and bounds as ``problem(study).space``) and the design ``flexopt evaluate`` solves in it
+        (None when the study gives none). "Every design variable inside its stated range" is
+        then a requirement of every verdict of a design (:func:`pipeline.verdict.judge`).
     summary : str, optional
         One line: what the kind designs (``flexopt list``). Default: the first line of the
         docstring of the module that defines ``model``, without its ``Study kind ``x``:`` lead.
@@ -157,6 +162,7 @@ class StudyKind:
     quantities: tuple[str, ...] | Callable[[Study], Iterable[str]] | None = None
     summary: str = ""
     figures: Mapping[str, Sequence[Figure]] | Callable[[Study], Mapping] | None = None
+    design_space: Callable[[Study], tuple[Any, np.ndarray | None]] | None = None
 
 
 _KINDS: dict[str, StudyKind] = {}

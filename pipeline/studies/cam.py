@@ -440,6 +440,20 @@ def problem(study: CamStudy) -> CamProblem:
     return CamProblem(study)
 
 
+def design_of(study: CamStudy) -> tuple[DesignSpace, np.ndarray]:
+    """The design space and the study's own values in it (what ``flexopt evaluate`` solves),
+    for the design-range row of the verdict (pipeline.verdict)."""
+    prob = CamProblem(study)
+    g, s = study.geometry, study.springs
+    values = {
+        "rest_radius_mm": g.rest_radius_mm,
+        "stiffness_N_per_mm": s.stiffness_N_per_mm,
+        "free_length_mm": s.free_length_mm,
+        "offset_mm": s.offset_mm,
+    }
+    return prob.space, np.array([values[n] for n in prob.space.names], dtype=float)
+
+
 register(
     StudyKind(
         "cam",
@@ -449,5 +463,6 @@ register(
         problem,
         requirements=_builtin.cam,
         quantities=_builtin.CAM,
+        design_space=design_of,
     )
 )  # type: ignore[arg-type]

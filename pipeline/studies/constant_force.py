@@ -1095,5 +1095,6 @@ register(
         requirements=_builtin.constant_force,
         quantities=_builtin.CONSTANT_FORCE,
         figures=FIGURES,
+        design_space=lambda study: (design_space(study), design_vector(study)),
     )
 )

@@ -759,6 +759,16 @@ def design_vector(study: FlexurePivotStudy, prob: FlexurePivotProblem) -> np.nda
     return seeds[int(np.argmin(ratios))]
 
 
+def design_of(study: FlexurePivotStudy) -> tuple[DesignSpace, np.ndarray | None]:
+    """The design space and the study's ``design:`` in it (None without one: evaluate then
+    takes a closed-form seed, inside the space), for the verdict's design-range row."""
+    space = design_space(study)
+    d, cands = study.design, study.geometry.candidates
+    if d is None or d.type not in cands:
+        return space, None
+    return space, np.array([cands.index(d.type) + 0.5, d.length_mm, d.thickness_mm, d.shape])
+
+
 def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
     """``flexopt evaluate``: the study's design (or the best closed-form seed) turned to its range
     of motion by the beam model, with the closed forms beside it."""
@@ -847,5 +857,6 @@ register(
         requirements=_builtin.flexure_pivot,
         quantities=_builtin.FLEXURE_PIVOT,
         figures=FIGURES,
+        design_space=design_of,
     )
 )

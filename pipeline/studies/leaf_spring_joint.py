@@ -565,5 +565,8 @@ register(
         problem,  # type: ignore[arg-type],
         requirements=_builtin.leaf_spring_joint,
         quantities=_builtin.LEAF_SPRING_JOINT,
+        # flexopt evaluate analyses lengths and structures, not one design: only a run's
+        # design has the design-range row (pipeline.verdict)
+        design_space=lambda study: (design_space(study), None),
     )
 )

@@ -103,7 +103,7 @@ from flexopt.pipeline.studies._mechanism_fidelity import (
     with_fidelity,
 )
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
-from flexopt.pipeline.verdict import envelope_values
+from flexopt.pipeline.verdict import envelope_values, with_design_range
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
 __all__ = [
@@ -1989,7 +1989,9 @@ def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:
     if isinstance(solved, tuple):
         raise StudyError("geometry", f"the initial design cannot be solved: {solved[1]}")
     solved = with_fidelity(ev, solved, sys.modules[__name__])
-    verdicts = ev.verdicts(solved)
+    # the kind's own verdicts, with "every variable in its range" of the initial design
+    # (a run's best design gets it from pipeline.verdict.judge_detail)
+    verdicts = with_design_range(study, ev.verdicts(solved))
     first = next(iter(solved.tables))
     summary = dict(solved.metrics)
     if x0 is not None:
@@ -2037,11 +2039,22 @@ def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:
     )
 
 
+def design_of(study: MechanismStudy) -> tuple[DesignSpace, np.ndarray, str] | None:
+    """The variables' space and the initial design (what ``flexopt evaluate`` solves), or
+    None without variables (pipeline.verdict's design-range row)."""
+    variables = _variables(study)
+    if variables is None:
+        return None
+    return variables.space, np.asarray(variables.initial, dtype=float), "variables[i].bounds"
+
+
 def _kind() -> StudyKind:
     names = {f.name for f in dataclasses.fields(StudyKind)}
     extra: dict[str, Any] = {}
     if "quantities" in names:
         extra["quantities"] = quantities
+    if "design_space" in names:
+        extra["design_space"] = design_of
     return StudyKind("mechanism", MechanismStudy, check, evaluate, problem, **extra)  # type: ignore[arg-type]
 
 

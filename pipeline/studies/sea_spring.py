@@ -1060,7 +1060,7 @@ class SeaSpringProblem:
         """(n_var,) the study's ``design:`` in this problem's space (ST left out when it is
         solved): what ``flexopt evaluate`` solves, so ``flexopt export`` of an evaluate folder
         rebuilds it."""
-        x = self.full_space.clip(design_vector(self.study))
+        x = design_vector(self.study)  # as given: outside its range it is judged NOT MET
         return np.delete(x, self.names.index("ST")) if self.solve_st else x
 
     def initial_designs(self) -> np.ndarray | None:
@@ -1817,6 +1817,18 @@ FIGURES = {
 }
 
 
+def design_of(study: SeaSpringStudy) -> tuple[DesignSpace, np.ndarray]:
+    """The space the problem moves in (ST left out when it is solved) and the study's
+    ``design:`` in it, as given (what ``flexopt evaluate`` solves)."""
+    space, names = design_space(study), variables(study)
+    x = design_vector(study)
+    if study.thickness != "solve":
+        return space, x
+    keep = [i for i in range(len(names)) if names[i] != "ST"]
+    reduced = DesignSpace(tuple(space.names[i] for i in keep), space.lower[keep], space.upper[keep])
+    return reduced, x[keep]
+
+
 def problem(study: SeaSpringStudy) -> SeaSpringProblem:
     """The design problem ``flexopt run`` optimises (stage 1 runs here)."""
     return SeaSpringProblem(study)
@@ -1908,5 +1920,6 @@ register(
         requirements=requirements,
         quantities=_builtin.SEA_SPRING,
         figures=FIGURES,
+        design_space=design_of,
     )
 )
