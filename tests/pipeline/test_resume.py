@@ -134,8 +134,11 @@ def test_sigkill_mid_run_then_resume_ends_as_an_uninterrupted_run(tmp_path, caps
     assert resumed["n_solved"] == total - len(stored)
     # every solve of the resumed session is one the store did not have (+1: best's detail)
     assert len(lines(log_run)) - n_solved_before == total - len(stored) + 1
-    # designs in flight at the kill may have been solved twice, nothing else: at most 2 workers
-    assert 0 <= len(lines(log_run)) - (total + 1) <= 2
+    # designs in flight at the kill may have been solved twice, nothing else: those the workers
+    # were solving or had queued, or whose results the writer thread had not stored yet, all of
+    # one generation at most (on a loaded machine the writer lags: 4 were seen, the old bound of
+    # 2 workers failed there)
+    assert 0 <= len(lines(log_run)) - (total + 1) <= OPTIMISER["pop_size"]
     store = EvaluationStore(out / "evaluations.jsonl").load()
     assert len(store) == total == len({design_key(ev.x) for ev in store})
 
