@@ -36,8 +36,10 @@ __all__ = ["MechanismFidelitySpec", "with_fidelity", "annotate"]
 #: why a stress requirement stays on the beam model (docs/mechanism.md, "The check of the part
 #: as exported")
 STRESS_NOTE = (
-    "judged on the beam model: the check's peak sits at the sharp corners where beams meet "
-    "pads and bodies, singular without fillets, and rises under mesh refinement"
+    "judged on the larger of the beam model (with the filleted roots' Kt) and the check's peak "
+    "(its ratio to the beam's peak applied at every row); the check's peak at the roots' "
+    "chorded fillets rises slowly under mesh refinement, so it is a lower bound of the "
+    "exported part's"
 )
 
 
@@ -54,6 +56,15 @@ class MechanismFidelitySpec(BaseModel):
         "auto", description="3D solid check: auto (width >= 3 x the thinnest beam), always or never"
     )
     layers: int = Field(2, ge=1, le=8, description="prism layers through half the width (3D)")
+    beam_stress_factor: float = Field(
+        1.0,
+        ge=1.0,
+        le=2.0,
+        description="the optimiser judges each design's beam-model peak stress (the roots' Kt "
+        "included) times this: the check's peak / beam ratio measured on this study's designs, "
+        "so that the reported design also meets its stress requirements on the check, which "
+        "the verdict reads",
+    )
 
 
 def _check(mk: Any, study: Any, solved: Any, width_mm: float, case: str) -> dict[str, Any]:
@@ -138,6 +149,14 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
             "stress": STRESS_NOTE,
         }  # fmt: skip
         tables[case] = _corrected(mk, study, case, table, ratio, 1.0)
+        # the stress the verdict reads: never below the check's own figure (issue 22: the best
+        # figure the run computed), the beam model's peak times the check's peak ratio
+        beam_peak = np.nanmax(np.asarray(response.peak_stress_MPa, float), axis=1)
+        stress_col = np.asarray(tables[case]["peak_stress_MPa"], float)
+        with np.errstate(invalid="ignore"):
+            tables[case]["peak_stress_MPa"] = np.where(
+                np.isfinite(stress_col), np.fmax(stress_col, beam_peak * stress), stress_col
+            )
     metrics = mk._part_metrics(
         study, solved.geometry, solved.outline, tables, width, problem.material, solved.clearance
     )
@@ -171,10 +190,10 @@ def _summary(checks: dict[str, Any], applied: dict[str, Any]) -> dict[str, Any]:
             solid = check["solid"][0]
             out[f"{case}: stiffness, 3D solid / beam"] = solid["ratio"]
             out[f"{case}: 3D depth mm"] = solid["depth_mm"]
-            out[f"{case}: peak stress, 3D / beam (not judged)"] = solid["stress_ratio"]
+            out[f"{case}: peak stress, 3D / beam"] = solid["stress_ratio"]
         else:
             out[f"{case}: 3D solid"] = f"not run ({check['solid_rule']})"
-            out[f"{case}: peak stress, plane stress / beam (not judged)"] = check[
+            out[f"{case}: peak stress, plane stress / beam"] = check[
                 "plane_stress_stress_ratio"
             ]
         out[f"{case}: check time s"] = check["time_s"]
