@@ -193,9 +193,7 @@ def _summary(checks: dict[str, Any], applied: dict[str, Any]) -> dict[str, Any]:
             out[f"{case}: peak stress, 3D / beam"] = solid["stress_ratio"]
         else:
             out[f"{case}: 3D solid"] = f"not run ({check['solid_rule']})"
-            out[f"{case}: peak stress, plane stress / beam"] = check[
-                "plane_stress_stress_ratio"
-            ]
+            out[f"{case}: peak stress, plane stress / beam"] = check["plane_stress_stress_ratio"]
         out[f"{case}: check time s"] = check["time_s"]
     return out
 
