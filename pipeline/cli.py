@@ -855,10 +855,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``flexopt`` with ``argv`` (default ``sys.argv[1:]``) and return the exit code."""
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help, --version and usage errors
-        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    stdout, sys.stdout = sys.stdout, _GuardedStdout(sys.stdout)
+    try:  # --help and --version print here: a full or closed stdout is one line too
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version and usage errors
+            sys.stdout.flush()
+            return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    except _StdoutFailed as exc:
+        _silence_stdout(stdout)
+        print(f"flexopt: error: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    finally:
+        sys.stdout = stdout
     args.argv = argv
     if args.verbose:
         handler = logging.StreamHandler()

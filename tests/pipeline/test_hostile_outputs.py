@@ -140,6 +140,16 @@ def test_a_full_standard_output_is_one_line_and_exit_1(tmp_path):
     one_line(done.stderr, "flexopt schema: error: standard output")
 
 
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["run", "--help"]])
+def test_help_onto_a_full_standard_output_is_one_line_and_exit_1(argv):
+    # argparse prints these before any command runs
+    with open("/dev/full", "w") as full:
+        done = _cli(argv, stdout=full, stderr=subprocess.PIPE)
+    assert done.returncode == 1, done.stderr
+    one_line(done.stderr, "flexopt: error: standard output")
+
+
 @pytest.mark.parametrize("argv", [["list"], ["schema"]])
 def test_a_closed_standard_output_is_one_line_and_exit_1(argv):
     # the shell's `flexopt list >&-`: file descriptor 1 closed before Python starts
