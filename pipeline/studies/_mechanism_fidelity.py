@@ -232,6 +232,7 @@ def annotate(verdicts: tuple, solved: Any) -> tuple:
     fid = getattr(solved, "fidelity", None) or {}
     if "applied" not in fid:
         return verdicts
+    verdicts = _say_skipped(verdicts, fid["applied"])
     models = sorted({a["model"] for a in fid["applied"].values() if a["model"] != "beam"})
     if not models:
         return verdicts
@@ -262,5 +263,31 @@ def annotate(verdicts: tuple, solved: Any) -> tuple:
                 f"judged on the {'/'.join(models)} check of the exported outline; beam model: "
                 f"{before:.6g} {v.unit}".rstrip()
             )
+        out.append(dataclasses.replace(v, detail=f"{v.detail}; {note}" if v.detail else note))
+    return tuple(out)
+
+
+#: quantities of the part's geometry, not of its response: the check changes none of them
+_GEOMETRIC = ("width_mm", "mass_g", "envelope_", "interference_mm2", "min_clearance_mm",
+              "min_thickness_mm")  # fmt: skip
+
+
+def _say_skipped(verdicts: tuple, applied: dict[str, Any]) -> tuple:
+    """A response verdict of a case the check skipped says so: it is judged on the beam model
+    alone, with the reason (never silently on the lower-fidelity figure)."""
+    skipped = {c: a.get("why", "") for c, a in applied.items() if a["model"] == "beam"}
+    if not skipped:
+        return verdicts
+    out = []
+    for v in verdicts:
+        quantity = str(v.quantity)
+        case, _, name = quantity.partition(".")
+        cases = [case] if name and case in applied else list(skipped)
+        whys = [f"{c}: {skipped[c]}" for c in cases if c in skipped]
+        geometric = any(g in quantity for g in _GEOMETRIC) or v.name.startswith("design ")
+        if not whys or geometric or quantity.startswith("variables"):
+            out.append(v)
+            continue
+        note = "beam model only: the check of the exported outline skipped " + "; ".join(whys)
         out.append(dataclasses.replace(v, detail=f"{v.detail}; {note}" if v.detail else note))
     return tuple(out)

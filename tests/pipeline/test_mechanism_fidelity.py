@@ -232,6 +232,10 @@ def test_stress_is_judged_on_the_larger_of_the_beam_and_the_check():
     assert v.value == pytest.approx(expected, rel=1e-9)
     assert v.value > max(made.values())  # the check governs this part
     assert "larger of the beam model" in v.detail
+    # the blocked case (a held jaw) is one the check skips: its verdicts say so, never silently
+    jaw = _verdict(result, "jaw_force")
+    assert "beam model only" in jaw.detail and "blocked" in jaw.detail
+    assert "beam model only" not in _verdict(result, "no_interference").detail
     # the optimiser's figure: the beam model's, as made, times the study's factor
     factor = study.fidelity.beam_stress_factor
     assert factor > 1.0
