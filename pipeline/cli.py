@@ -732,15 +732,19 @@ def _export(args: argparse.Namespace) -> int:
     from flexopt.pipeline.run import STUDY_SUFFIXES, ExportError, export_design
 
     prog = "flexopt export"
+    if args.out is not None:
+        from flexopt.pipeline.runfolder import regular_target
+
+        try:  # before any work, for every format: never a device node, FIFO or folder
+            regular_target(args.out)
+        except StudyError as exc:
+            print(f"{prog}: error: {exc}", file=sys.stderr)
+            return EXIT_USAGE
     if args.format == "yaml" or (
         args.format is None and args.out is not None and args.out.suffix.lower() in STUDY_SUFFIXES
     ):
         return _export_study(args)
     try:
-        if args.out is not None:
-            from flexopt.pipeline.runfolder import regular_target
-
-            regular_target(args.out)  # before any work: never a device node, FIFO or folder
         outcome = export_design(args.run_dir, args.design, args.out, args.format, args.frame)
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)

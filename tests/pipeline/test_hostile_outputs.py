@@ -70,8 +70,9 @@ def _state(path: Path) -> tuple[int, int, int]:
         ["schema", "--out"],
         # the --out check comes before the run folder is read: no run is needed to test it
         ["export", "no-such-run", "--out"],
+        ["export", "no-such-run", "--format", "yaml", "--out"],  # the design as a study
     ],
-    ids=["schema", "export"],
+    ids=["schema", "export", "export-yaml"],
 )
 def test_out_onto_what_is_not_a_regular_file_is_refused_before_any_write(
     tmp_path, capsys, what, argv
