@@ -581,6 +581,7 @@ class ProcessPool:
             while len(self.workers) < self.n_workers:
                 self._start()
             now = time.perf_counter()
+            broken = []
             for worker in self.workers:
                 while worker.ready and queue and len(worker.task or ()) <= POOL_QUEUED_DESIGNS:
                     chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
@@ -588,7 +589,16 @@ class ProcessPool:
                         worker.task = deque()
                         worker.started = now
                     worker.task.extend(chunk)
-                    worker.conn.send(chunk)
+                    try:
+                        worker.conn.send(chunk)
+                    except OSError:  # it died since the last wait (BrokenPipeError)
+                        broken.append(worker)
+                        break
+            for worker in broken:  # its designs, this chunk too, go to the others
+                worker.process.join(1)
+                lost(worker, _exit_text(worker.process.exitcode))
+            if broken:
+                continue
             timeout = None
             if self.timeout_s is not None:
                 busy = [w.started for w in self.workers if w.task]

@@ -118,6 +118,34 @@ def test_pool_resubmits_the_designs_of_a_worker_that_died(tmp_path):
     assert not any(e.reason for e in out)
 
 
+def test_a_worker_whose_pipe_breaks_as_designs_are_sent_is_replaced(monkeypatch):
+    """A worker can die between the pool's wait and its next send: the send raises
+    BrokenPipeError (seen in CI), and that worker's designs, the chunk being sent too, go to
+    a new worker instead of crashing the run."""
+    from multiprocessing.connection import Connection
+
+    problem = toy_setup().problem
+    X = np.random.default_rng(2).random((12, 3))
+    expected = SerialBackend()(problem, X)
+    send = Connection.send
+    failed = []
+
+    def send_once_broken(self, obj):
+        if isinstance(obj, list) and obj and not failed:  # the first chunk of designs
+            failed.append(True)
+            raise BrokenPipeError(32, "Broken pipe")
+        return send(self, obj)
+
+    with open_backend(ParallelSettings("processes", 2, chunk_size=3), problem) as pool:
+        monkeypatch.setattr(Connection, "send", send_once_broken)
+        out = pool(problem, X)
+        monkeypatch.setattr(Connection, "send", send)
+        n_replaced = pool.n_replaced
+    assert failed and n_replaced == 1
+    assert [e.f[0] for e in out] == [e.f[0] for e in expected]
+    assert not any(e.reason for e in out)
+
+
 def test_a_design_that_always_kills_its_worker_is_a_failed_row(tmp_path, capsys):
     """os._exit in evaluate: tried MAX_ATTEMPTS times, then WorkerDied, and the run finishes."""
     outcome = run_toy(
