@@ -26,7 +26,7 @@ import signal
 import sys
 import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -705,22 +705,32 @@ def _report(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _export_study(args: argparse.Namespace) -> int:
-    """``flexopt export --format yaml``: the design as a study file."""
-    from flexopt.pipeline.run import ExportError, export_study
+def _exported(args: argparse.Namespace, make: Callable[[], Any]) -> tuple[Any, int]:
+    """``make()``'s outcome, or ``(None, exit code)`` with its one line on stderr: a bad
+    argument or run folder exits 2, a design that cannot be exported or written 1."""
+    from flexopt.pipeline.run import ExportError
 
     prog = "flexopt export"
     try:
-        outcome = export_study(args.run_dir, args.design, args.out)
+        return make(), EXIT_OK
     except StudyError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
+        return None, EXIT_USAGE
     except ExportError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
-        return EXIT_WRITE
+        return None, EXIT_WRITE
     except OSError as exc:
         print(f"{prog}: error: cannot write {args.out or 'the file'}: {exc}", file=sys.stderr)
-        return EXIT_WRITE
+        return None, EXIT_WRITE
+
+
+def _export_study(args: argparse.Namespace) -> int:
+    """``flexopt export --format yaml``: the design as a study file."""
+    from flexopt.pipeline.run import export_study
+
+    outcome, code = _exported(args, lambda: export_study(args.run_dir, args.design, args.out))
+    if outcome is None:
+        return code
     print(
         f"wrote {outcome.path} (design {outcome.design} as a {outcome.study.kind} study; "
         f"solve it with: flexopt evaluate {outcome.path})"
@@ -729,7 +739,7 @@ def _export_study(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from flexopt.pipeline.run import STUDY_SUFFIXES, ExportError, export_design
+    from flexopt.pipeline.run import STUDY_SUFFIXES, export_design
 
     prog = "flexopt export"
     if args.out is not None:
@@ -744,17 +754,12 @@ def _export(args: argparse.Namespace) -> int:
         args.format is None and args.out is not None and args.out.suffix.lower() in STUDY_SUFFIXES
     ):
         return _export_study(args)
-    try:
-        outcome = export_design(args.run_dir, args.design, args.out, args.format, args.frame)
-    except StudyError as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except ExportError as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
-        return EXIT_WRITE
-    except OSError as exc:
-        print(f"{prog}: error: cannot write {args.out or 'the file'}: {exc}", file=sys.stderr)
-        return EXIT_WRITE
+    outcome, code = _exported(
+        args,
+        lambda: export_design(args.run_dir, args.design, args.out, args.format, args.frame),
+    )
+    if outcome is None:
+        return code
     w, h = outcome.footprint_mm
     laid = "flat profile of the sheet" if outcome.sheet else "laid flat"
     if outcome.frame == "design":

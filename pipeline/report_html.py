@@ -708,10 +708,6 @@ nav a { margin-right: .8em; }
 """
 
 
-def _finite(value: float) -> float | None:
-    return value if math.isfinite(value) else None
-
-
 def render_html(data: HtmlData) -> str:
     """The text of report.html (one file, plotly.js inline, no link to the network)."""
 

@@ -93,7 +93,6 @@ from flexopt.optimise.variables import (
     resolve_variables,
 )
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.labels import label as column_label
 from flexopt.pipeline.plot_targets import band_spec
 from flexopt.pipeline.runfolder import table_to_csv
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
@@ -1854,57 +1853,6 @@ def _figure(n_panels: int, width: float = 5.2, height: float = 4.2):
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, n_panels, squeeze=False)[0]
     return fig, axes
-
-
-def response_png(
-    study: MechanismStudy,
-    tables: Mapping[str, Mapping[str, np.ndarray]],
-    requirements: Sequence[Requirement],
-    title: str,
-) -> bytes:
-    """One panel per load case: every output against the drive (converged rows), the target
-    band of each target requirement on its column, stable rows filled and unstable ones open."""
-    fig, axes = _figure(len(tables))
-    for ax, (case, table) in zip(axes, tables.items(), strict=True):
-        p = _prefix(study, case)
-        d = study.load_cases[case].drive
-        xname = f"drive_{d.unit}"
-        x = np.asarray(table[xname], dtype=float)
-        ok = np.asarray(table["converged"], bool)
-        stable = np.asarray(table["stable"], bool)
-        names = [f"drive_reaction_{_REACTION_UNIT[d.control]}", *_outputs_in(study, case)]
-        for k, name in enumerate(names):
-            y = np.asarray(table[name], dtype=float)
-            colour = f"C{k}"
-            ax.plot(x[ok], y[ok], "-", color=colour, lw=1.3, label=column_label(name, plain=True))
-            ax.plot(x[ok & stable], y[ok & stable], "o", ms=3, color=colour)
-            ax.plot(x[ok & ~stable], y[ok & ~stable], "o", ms=3, mfc="none", color=colour)
-            for r in requirements:
-                if (
-                    isinstance(r, TargetBand)
-                    and r.quantity == f"{p}{name}"
-                    and r.x == f"{p}{xname}"
-                ):
-                    lo, hi = r.over if r.over is not None else (x[ok].min(), x[ok].max())
-                    xs = np.linspace(lo, hi, 100)
-                    t = r._target_in_y_units(xs)  # noqa: SLF001
-                    band = (
-                        np.full_like(t, float(r.tolerance))
-                        if r.tolerance is not None
-                        else float(r.tolerance_rel) * np.abs(t)  # type: ignore[arg-type]
-                    )
-                    ax.fill_between(xs, t - band, t + band, color=colour, alpha=0.2,
-                                    label=f"{r.label} band")  # fmt: skip
-            for r in requirements:
-                if isinstance(r, Range) and r.quantity.endswith(name) and r.quantity.startswith(p):
-                    ax.axhspan(r.minimum, r.maximum, color=colour, alpha=0.12,
-                               label=f"{r.label}: [{r.minimum:.4g}, {r.maximum:.4g}]")  # fmt: skip
-        ax.set_xlabel(f"drive of {d.part} ({d.control}, {d.unit})")
-        ax.set_title(f"load case {case} (open markers: unstable rows)")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=7)
-    fig.suptitle(title)
-    return _png(fig)
 
 
 def shapes_png(study: MechanismStudy, solved: _Solved, title: str, n_shapes: int = 4) -> bytes:
