@@ -41,10 +41,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 from flexopt.fea.errors import FeaError
+
+if TYPE_CHECKING:
+    from flexopt.geometry.cam import CamProfile
 
 __all__ = [
     "G_M_PER_S2",
@@ -58,6 +61,7 @@ __all__ = [
     "TabulatedSpring",
     "ThresholdSpring",
     "TorqueSpring",
+    "cam_impact_check",
     "equivalent_linear_spring",
     "hic",
     "initial_deflection_rad",
@@ -67,6 +71,7 @@ __all__ = [
     "simulate_cases",
     "simulate_collisions",
     "sweep",
+    "sweep_record",
     "sweep_result",
 ]
 
@@ -704,6 +709,99 @@ def sweep(
         for label, sp in zip(labels, (spring, reference), strict=True)
     }
     return sweep_result(parameter, vals, responses)
+
+
+def sweep_record(
+    result: SweepResult,
+    runs: dict[str, list[CollisionResponse | None]],
+    early_s: float,
+) -> dict[str, Any]:
+    """A sweep as plain lists (``evaluation.json``'s ``inputs.sweeps``): the full-length measures
+    of ``result`` and the same measures over the first ``early_s`` seconds (the first impact,
+    :func:`metrics_until`), per spring label of ``runs`` (first: the spring, second: the
+    reference; None entries become NaN).
+
+    Returns
+    -------
+    dict
+        ``early_window_ms``, ``early_hic15`` / ``early_peak_force_N`` (label -> list),
+        ``early_hic_reduction`` / ``early_force_reduction`` (``1 - spring / reference``),
+        ``parameter``, ``values``, ``hic15``, ``peak_force_N``, ``max_deflection_deg`` (label ->
+        list, deg), ``hic_reduction``, ``force_reduction``.
+    """
+    early: dict[str, dict[str, list[float]]] = {"hic15": {}, "peak_force_N": {}}
+    for label, responses in runs.items():
+        values = [
+            (math.nan, math.nan) if r is None else metrics_until(r, early_s) for r in responses
+        ]
+        early["hic15"][label] = [v[0] for v in values]
+        early["peak_force_N"][label] = [v[1] for v in values]
+    a, b = list(runs)[:2]
+    return {
+        "early_window_ms": early_s * 1000.0,
+        "early_hic15": early["hic15"],
+        "early_peak_force_N": early["peak_force_N"],
+        "early_hic_reduction": [
+            1.0 - x / y for x, y in zip(early["hic15"][a], early["hic15"][b], strict=True)
+        ],
+        "early_force_reduction": [
+            1.0 - x / y
+            for x, y in zip(early["peak_force_N"][a], early["peak_force_N"][b], strict=True)
+        ],
+        "parameter": result.parameter,
+        "values": result.values.tolist(),
+        "hic15": {k: v.tolist() for k, v in result.hic15.items()},
+        "peak_force_N": {k: v.tolist() for k, v in result.peak_force_N.items()},
+        "max_deflection_deg": {
+            k: np.degrees(v).tolist() for k, v in result.max_deflection_rad.items()
+        },
+        "hic_reduction": result.hic_reduction.tolist(),
+        "force_reduction": result.force_reduction.tolist(),
+    }
+
+
+def cam_impact_check(
+    profile: CamProfile,
+    ratio: float,
+    max_deflection_rad: float,
+    pressure_MPa: np.ndarray,
+    onset_MPa: float,
+) -> dict[str, Any]:
+    """The spring realised as a cam behind an ideal reducer of ``ratio`` (joint torque / cam
+    torque), checked against an impact: whether the impact's largest joint deflection drives
+    the cam past its range, and the largest contact pressure over the rotation it reaches.
+
+    Parameters
+    ----------
+    profile : CamProfile — the synthesised cam (torque in N·mm, rotation in rad).
+    ratio : float — the reducer's ratio N (cam rotation = N x joint rotation).
+    max_deflection_rad : float, rad — the joint's largest deflection in the impact.
+    pressure_MPa : (n,) float, MPa — contact pressure at ``profile.rotation_rad``.
+    onset_MPa : float, MPa — the pressure at which the plate starts to yield.
+
+    Returns
+    -------
+    dict
+        ``ratio``, ``cam_max_torque_Nm``, ``cam_range_deg``, ``joint_range_deg``,
+        ``impact_cam_rotation_deg``, ``range_exceeded``, ``mechanism_diameter_mm``,
+        ``max_contact_pressure_MPa``, ``onset_pressure_MPa``, ``stress_yield_ratio``.
+    """
+    reach = ratio * max_deflection_rad
+    gmax = profile.layout.max_rotation_rad
+    within = profile.rotation_rad <= min(reach, gmax) + 1e-12
+    peak = float(np.max(pressure_MPa[within]))
+    return {
+        "ratio": ratio,
+        "cam_max_torque_Nm": float(np.max(profile.torque_Nmm)) / 1000.0,
+        "cam_range_deg": math.degrees(gmax),
+        "joint_range_deg": math.degrees(gmax / ratio),
+        "impact_cam_rotation_deg": math.degrees(reach),
+        "range_exceeded": bool(reach > gmax),
+        "mechanism_diameter_mm": 2 * (profile.max_radius_mm + profile.layout.roller_radius_mm),
+        "max_contact_pressure_MPa": peak,
+        "onset_pressure_MPa": onset_MPa,
+        "stress_yield_ratio": peak / onset_MPa,
+    }
 
 
 @dataclass(frozen=True)

@@ -4,9 +4,10 @@
 spring and once with the constant-stiffness (CS) reference spring, then sweeps the rotor inertia
 and the rotor torque (the paper's Figs. 16–17) for both. The response table is the nominal impact
 over time for both springs; the sweeps go to ``evaluation.json`` (``inputs.sweeps``) and, through
-:func:`extra_files`, to ``sweeps.png``. An optional ``cam:`` block realises the threshold spring
-as the V2SOM cam behind an ideal reducer and checks it against the impact: whether the impact
-drives the cam past its range, and the contact pressure at the largest cam torque.
+:func:`extra_files` (figures of :mod:`pipeline.plots`), to ``sweeps.png``. An optional ``cam:``
+block realises the threshold spring as the V2SOM cam behind an ideal reducer and checks it
+against the impact (:func:`fea.collision.cam_impact_check`): whether the impact drives the cam
+past its range, and the contact pressure at the largest cam torque.
 
 YAML (SI in the impact block, as the paper; see docs/threshold_torque.md)::
 
@@ -21,7 +22,6 @@ YAML (SI in the impact block, as the paper; see docs/threshold_torque.md)::
 from __future__ import annotations
 
 import dataclasses
-import io
 import math
 import time
 from typing import Any, Literal
@@ -32,9 +32,11 @@ from flexopt.fea.collision import (
     LinearSpring,
     TabulatedSpring,
     ThresholdSpring,
+    cam_impact_check,
     equivalent_linear_spring,
     metrics_until,
     simulate_cases,
+    sweep_record,
     sweep_result,
 )
 from flexopt.fea.errors import FeaError
@@ -48,7 +50,6 @@ from flexopt.optimise.targets import (
     ThresholdTarget,
 )
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.labels import label as column_label
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.studies._blocks import ImpactSpec
 from flexopt.pipeline.studies._cam import (
@@ -59,8 +60,6 @@ from flexopt.pipeline.studies._cam import (
 )
 from flexopt.pipeline.studies._targets import resolve_target
 from flexopt.pipeline.study import STUDY_CONFIG, MaterialSpec, Study, material_record
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from pydantic import BaseModel, Field
 
 __all__ = [
@@ -248,58 +247,9 @@ def _cam_check(
     cam = study.cam
     assert cam is not None
     _, _, profile, _ = build_cam(_cam_study(study, curve))
-    reach = cam.ratio * response.max_deflection_rad
-    gmax = profile.layout.max_rotation_rad
     pressure = contact_pressure_MPa(profile, study.material.E_MPa, study.material.nu)
-    within = profile.rotation_rad <= min(reach, gmax) + 1e-12
-    peak = float(np.max(pressure[within]))
     onset = onset_pressure_MPa(study.material.yield_MPa)
-    return {
-        "ratio": cam.ratio,
-        "cam_max_torque_Nm": float(np.max(profile.torque_Nmm)) / 1000.0,
-        "cam_range_deg": math.degrees(gmax),
-        "joint_range_deg": math.degrees(gmax / cam.ratio),
-        "impact_cam_rotation_deg": math.degrees(reach),
-        "range_exceeded": bool(reach > gmax),
-        "mechanism_diameter_mm": 2 * (profile.max_radius_mm + profile.layout.roller_radius_mm),
-        "max_contact_pressure_MPa": peak,
-        "onset_pressure_MPa": onset,
-        "stress_yield_ratio": peak / onset,
-    }
-
-
-def _sweep_record(
-    result: Any, runs: dict[str, list[CollisionResponse | None]], early_s: float
-) -> dict[str, Any]:
-    early: dict[str, dict[str, list[float]]] = {"hic15": {}, "peak_force_N": {}}
-    for label, responses in runs.items():
-        values = [
-            (math.nan, math.nan) if r is None else metrics_until(r, early_s) for r in responses
-        ]
-        early["hic15"][label] = [v[0] for v in values]
-        early["peak_force_N"][label] = [v[1] for v in values]
-    a, b = list(runs)[:2]
-    return {
-        "early_window_ms": early_s * 1000.0,
-        "early_hic15": early["hic15"],
-        "early_peak_force_N": early["peak_force_N"],
-        "early_hic_reduction": [
-            1.0 - x / y for x, y in zip(early["hic15"][a], early["hic15"][b], strict=True)
-        ],
-        "early_force_reduction": [
-            1.0 - x / y
-            for x, y in zip(early["peak_force_N"][a], early["peak_force_N"][b], strict=True)
-        ],
-        "parameter": result.parameter,
-        "values": result.values.tolist(),
-        "hic15": {k: v.tolist() for k, v in result.hic15.items()},
-        "peak_force_N": {k: v.tolist() for k, v in result.peak_force_N.items()},
-        "max_deflection_deg": {
-            k: np.degrees(v).tolist() for k, v in result.max_deflection_rad.items()
-        },
-        "hic_reduction": result.hic_reduction.tolist(),
-        "force_reduction": result.force_reduction.tolist(),
-    }
+    return cam_impact_check(profile, cam.ratio, response.max_deflection_rad, pressure, onset)
 
 
 def _range(values: list[float]) -> list[float | None]:
@@ -352,7 +302,7 @@ def evaluate(study: CollisionStudy, repeat: int = 1) -> EvaluationResult:
         start += values.size
         if values.size:
             part_runs = {k: v[part] for k, v in runs.items()}
-            sweeps[parameter] = _sweep_record(
+            sweeps[parameter] = sweep_record(
                 sweep_result(parameter, values, part_runs), part_runs, early_s
             )
     table = {"time_ms": mine.time_s * 1000.0}
@@ -443,45 +393,14 @@ def evaluate(study: CollisionStudy, repeat: int = 1) -> EvaluationResult:
 def extra_files(study: CollisionStudy, result: EvaluationResult) -> dict[str, bytes]:
     """Files beyond the standard run folder: ``sweeps.png`` (Figs. 16–17) and ``impact.png``
     (both springs over time). For a pipeline hook that writes kind-specific files."""
+    from flexopt.pipeline.plots import collision_impact_png, collision_sweeps_png
+
     files = {}
     sweeps = result.inputs.get("sweeps", {})
     if sweeps:
-        fig = Figure(figsize=(10, 7), layout="constrained")
-        FigureCanvasAgg(fig)
-        axes = fig.subplots(2, len(sweeps), squeeze=False)
-        for col, (parameter, rec) in enumerate(sweeps.items()):
-            x = np.asarray(rec["values"], dtype=float)
-            for row, (key, label) in enumerate((("hic15", "HIC15"), ("peak_force_N", "ImpF (N)"))):
-                ax = axes[row, col]
-                for name, style in (("spring", "o-"), ("reference", "s--")):
-                    ax.plot(x, np.asarray(rec[key][name], dtype=float), style, ms=4, label=name)
-                ax.set_xlabel(column_label(parameter))  # words and unit, not the key
-                ax.set_ylabel(label)
-                ax.grid(True, alpha=0.3)
-                ax.legend(loc="best")
-        fig.suptitle(f"{study.name}: spring vs constant stiffness ({study.impact.initial_spring})")
-        buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", dpi=110)
-        files["sweeps.png"] = buffer.getvalue()
-    table = result.table
-    fig = Figure(figsize=(10, 4), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 3)
-    for ax, key, label in zip(
-        axes,
-        ("contact_force_N", "head_acceleration_g", "deflection_deg"),
-        ("contact force (N)", "head acceleration (g)", "spring deflection (deg)"),
-        strict=True,
-    ):
-        ax.plot(table["time_ms"], table[key], label="spring")
-        ax.plot(table["time_ms"], table[f"reference_{key}"], "--", label="reference")
-        ax.set_xlabel("time (ms)")
-        ax.set_ylabel(label)
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best")
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
-    files["impact.png"] = buffer.getvalue()
+        title = f"{study.name}: spring vs constant stiffness ({study.impact.initial_spring})"
+        files["sweeps.png"] = collision_sweeps_png(title, sweeps)
+    files["impact.png"] = collision_impact_png(result.table)
     return files
 
 
