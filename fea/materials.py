@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from flexopt.fea.errors import FeaError
 
@@ -11,6 +12,7 @@ __all__ = [
     "Material",
     "MATERIALS",
     "get_material",
+    "material_yield_MPa",
     "FatigueData",
     "FATIGUE_DATA",
     "get_fatigue_data",
@@ -158,6 +160,20 @@ def get_material(name: str) -> Material:
         if _key(key) == _key(name):
             return mat
     raise FeaError(f"unknown material '{name}'; choose one of {', '.join(MATERIALS)}")
+
+
+def material_yield_MPa(entry: Any) -> float | None:
+    """The yield stress, MPa, of a study file's ``material:`` entry as written: a library name,
+    or a mapping with a numeric ``yield_MPa``; None for anything else (an unknown name too), so
+    that the study's own validation reports it."""
+    try:
+        if isinstance(entry, str):
+            return float(get_material(entry).yield_MPa)
+        if isinstance(entry, dict) and isinstance(entry.get("yield_MPa"), int | float):
+            return float(entry["yield_MPa"])
+    except FeaError:
+        return None
+    return None
 
 
 @dataclass(frozen=True)

@@ -14,19 +14,9 @@ YAML (units in the key names)::
     design: {type: leaf, length_mm: 12, thickness_mm: 1.2}      # what `flexopt evaluate` traces
 
 The pivot type is a categorical design variable (``type_index``, floored into ``candidates``), so
-one GA compares the types; the other three variables mean, per type:
-
-==================  ============================  ==================  =============================
-type                length_mm                     thickness_mm        shape in [0, 1]
-==================  ============================  ==================  =============================
-leaf                leaf length L                 t                   unused
-variable_leaf       leaf length L                 t in the middle     end thickness t (1 + 2 shape)
-circular_notch      notch length 2R               web t               unused
-elliptical_notch    notch length 2a               web t               depth c = a / 4 x 8^shape
-corner_filleted     notch length L + 2r           web t               r = (length / 2)(0.1 + 0.8
-                                                                      shape)
-cross_axis          leaf length L (leaves at 90)  t                   unused
-==================  ============================  ==================  =============================
+one GA compares the types; the other three are the compliant length (``length_mm``), the thinnest
+section (``thickness_mm``) and a type-specific ``shape`` in [0, 1], whose meaning per type is the
+table of :func:`fea.flexure_design.flexure_of_type` (and of docs/flexures.md).
 
 Each design is loaded the way rotational stiffness is defined: a pure moment on the moving block
 (the stiffness target is the small-angle stiffness M / theta). The objective is the stress ratio
@@ -45,21 +35,26 @@ import time
 from typing import Any, Literal
 
 import numpy as np
-from flexopt.fea.closed_forms import PivotClosedForm, pivot_closed_form
-from flexopt.fea.errors import FeaError
-from flexopt.fea.materials import Material, get_material
-from flexopt.fea.pivot import PivotResponse, beam_pivot, plane_stress_pivot, pure_moment_centre
-from flexopt.geometry.errors import GeometryError
-from flexopt.geometry.flexures import (
-    CircularNotch,
-    CornerFilleted,
-    CrossAxis,
-    EllipticalNotch,
-    Flexure,
-    Leaf,
-    VariableLeaf,
+from flexopt.fea.closed_forms import pivot_closed_form
+from flexopt.fea.flexure_design import (
+    BEAM_TYPES,
+    PIVOT_TYPES,
+    closed_form_seed,
+    flexure_of_type,
+    pivot_at_range,
+    pivot_table,
+    plane_stress_check,
 )
+from flexopt.fea.materials import Material, material_yield_MPa
+from flexopt.fea.pivot import PivotResponse, beam_pivot
+from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.flexures import Flexure
 from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.joint_objectives import (
+    PivotLimits,
+    pivot_objective,
+    pivot_plane_stress_figures,
+)
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, Figure
 from flexopt.optimise.space import DesignSpace
@@ -68,7 +63,6 @@ from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, regi
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, model_validator
-from scipy.optimize import brentq
 
 __all__ = [
     "PIVOT_TYPES",
@@ -91,16 +85,6 @@ __all__ = [
 PivotType = Literal[
     "leaf", "variable_leaf", "circular_notch", "elliptical_notch", "corner_filleted", "cross_axis"
 ]
-PIVOT_TYPES: tuple[str, ...] = (
-    "leaf",
-    "variable_leaf",
-    "circular_notch",
-    "elliptical_notch",
-    "corner_filleted",
-    "cross_axis",
-)
-#: Types solved with the beam model inside the GA (the rest by closed forms).
-BEAM_TYPES = ("leaf", "variable_leaf", "cross_axis")
 VARIABLES = ("type_index", "length_mm", "thickness_mm", "shape")
 
 
@@ -242,7 +226,7 @@ class FlexurePivotStudy(Study):
         target = data.get("target")
         if not isinstance(target, dict) or target.get("allowable_stress_MPa") is not None:
             return data
-        yield_MPa = _yield_of(data.get("material"))
+        yield_MPa = material_yield_MPa(data.get("material"))
         if yield_MPa is None:
             return data
         return {**data, "target": {**target, "allowable_stress_MPa": yield_MPa}}
@@ -253,17 +237,6 @@ class FlexurePivotStudy(Study):
         return float(value if value is not None else self.material.yield_MPa)
 
 
-def _yield_of(material: Any) -> float | None:
-    try:
-        if isinstance(material, str):
-            return float(get_material(material).yield_MPa)
-        if isinstance(material, dict) and isinstance(material.get("yield_MPa"), int | float):
-            return float(material["yield_MPa"])
-    except FeaError:
-        return None
-    return None
-
-
 # --------------------------------------------------------------------------------------------
 # From a design vector to a flexure
 
@@ -271,50 +244,18 @@ def _yield_of(material: Any) -> float | None:
 def build_flexure(
     kind: str, length: float, thickness: float, shape: float, geometry: FlexurePivotGeometry
 ) -> Flexure:
-    """The flexure of type ``kind`` for the shared variables (see the module docstring).
+    """The flexure of type ``kind`` for the shared variables (see the module docstring and
+    :func:`fea.flexure_design.flexure_of_type`).
 
     Raises
     ------
     GeometryError
         When the generator refuses the dimensions.
     """
-    common = {"width_mm": geometry.width_mm, "block_length_mm": geometry.block_length_mm}
-    shape = min(max(float(shape), 0.0), 1.0)
-    if kind == "leaf":
-        return Leaf(
-            length_mm=length,
-            thickness_mm=thickness,
-            block_height_mm=geometry.block_height_mm,
-            **common,
-        )
-    if kind == "variable_leaf":
-        return VariableLeaf(
-            length_mm=length,
-            thickness_mm=thickness,
-            end_thickness_mm=thickness * (1.0 + 2.0 * shape),
-            block_height_mm=geometry.block_height_mm,
-            **common,
-        )
-    if kind == "circular_notch":
-        return CircularNotch(radius_mm=0.5 * length, thickness_mm=thickness, **common)
-    if kind == "elliptical_notch":
-        a = 0.5 * length
-        return EllipticalNotch(
-            half_length_mm=a, depth_mm=0.25 * a * 8.0**shape, thickness_mm=thickness, **common
-        )
-    if kind == "corner_filleted":
-        r = 0.5 * length * (0.1 + 0.8 * shape)
-        return CornerFilleted(
-            length_mm=length - 2.0 * r, fillet_radius_mm=r, thickness_mm=thickness, **common
-        )
-    if kind == "cross_axis":
-        return CrossAxis(
-            length_mm=length,
-            thickness_mm=thickness,
-            block_height_mm=geometry.block_height_mm,
-            **common,
-        )
-    raise GeometryError(f"unknown pivot type '{kind}'; use one of {', '.join(PIVOT_TYPES)}")
+    g = geometry
+    return flexure_of_type(
+        kind, length, thickness, shape, g.width_mm, g.block_length_mm, g.block_height_mm
+    )
 
 
 def design_space(study: FlexurePivotStudy) -> DesignSpace:
@@ -413,10 +354,16 @@ class FlexurePivotProblem:
         self.target_Nmm = study.target.stiffness_Nmm
         self.tolerance = study.target.tolerance_percent / 100.0
         self.rom_rad = math.radians(study.target.range_of_motion_deg)
-        names = ["stiffness_band", "stress", "envelope_length", "envelope_height"]
-        if study.target.max_centre_shift_mm is not None:
-            names.append("centre_shift")
-        self.constraint_names = tuple(names)
+        g = study.geometry
+        self.limits = PivotLimits(
+            self.target_Nmm,
+            self.tolerance,
+            self.allowable_MPa,
+            g.max_length_mm,
+            g.max_height_mm,
+            study.target.max_centre_shift_mm,
+        )
+        self.constraint_names = self.limits.constraint_names
 
     # -- helpers -------------------------------------------------------------------------------
 
@@ -444,53 +391,32 @@ class FlexurePivotProblem:
             length, height = flex.envelope_mm()
         except GeometryError as exc:
             return self._fail(x, f"cannot build: {exc}", t0)
-        cf = pivot_closed_form(flex, self.material.E_MPa)
-        shift = float("nan")
-        if kind in BEAM_TYPES:
-            res = self._beam(flex, self.study.fidelity.ga_steps)
-            if not res.ok:
-                return self._fail(x, f"beam model: {res.message}", t0)
-            if res.stable is not None and not res.stable[res.converged].all():
-                # a pivot whose members buckle within its range is never a safe design
-                k = int(np.flatnonzero(res.converged & ~res.stable)[0])
-                return self._fail(
-                    x,
-                    f"unstable: the members pass a bifurcation (buckle) by "
-                    f"{np.degrees(res.rotation_rad[k]):.3g} deg of the range of motion",
-                    t0,
-                )
-            K = res.small_angle_stiffness_Nmm_per_rad
-            sigma = float(np.nanmax(res.peak_stress_MPa)) * cf.stress_concentration
-            shift = float(res.centre_shift_mm[-1])
-            model = "beam"
-        else:
-            K = cf.stiffness_Nmm_per_rad
-            sigma = float(cf.stress_MPa(self.rom_rad))
-            model = "closed form"
-            if self.study.target.max_centre_shift_mm is not None:
-                res = self._beam(flex, self.study.fidelity.ga_steps)
-                shift = float(res.centre_shift_mm[-1]) if res.ok else float("inf")
-        ratio = sigma / self.allowable_MPa
-        g = [
-            abs(K / self.target_Nmm - 1.0) - self.tolerance,
-            ratio - 1.0,
-            length / self.study.geometry.max_length_mm - 1.0,
-            height / self.study.geometry.max_height_mm - 1.0,
-        ]
-        if self.study.target.max_centre_shift_mm is not None:
-            g.append(shift / self.study.target.max_centre_shift_mm - 1.0)
+        study = self.study
+        at = pivot_at_range(
+            flex,
+            self.material,
+            self.rom_rad,
+            study.fidelity.ga_steps,
+            study.geometry.elements,
+            kind in BEAM_TYPES,
+            study.target.max_centre_shift_mm is not None,
+        )
+        if at.failure:
+            return self._fail(x, at.failure, t0)
+        K, sigma, shift = at.stiffness_Nmm_per_rad, at.stress_MPa, at.centre_shift_mm
+        ratio, g = pivot_objective(self.limits, K, sigma, (length, height), shift)
         metrics = {
             "type": kind,
-            "model": model,
+            "model": at.model,
             "stiffness_Nmm_per_rad": K,
-            "closed_form_stiffness_Nmm_per_rad": cf.stiffness_Nmm_per_rad,
+            "closed_form_stiffness_Nmm_per_rad": at.closed_form.stiffness_Nmm_per_rad,
             "peak_stress_MPa": sigma,
             "safety_factor": 1.0 / ratio if ratio > 0 else float("inf"),
             "centre_shift_mm": shift,
             "envelope_length_mm": length,
             "envelope_height_mm": height,
         }
-        return Evaluation(x, np.array([ratio]), np.array(g), metrics, "", time.perf_counter() - t0)
+        return Evaluation(x, np.array([ratio]), g, metrics, "", time.perf_counter() - t0)
 
     def nominal_design(self) -> np.ndarray:
         """(4,) the study's ``design:`` (or its closed-form seed): what ``flexopt evaluate``
@@ -510,33 +436,18 @@ class FlexurePivotProblem:
         return np.array(seeds) if seeds else None
 
     def _closed_form_seed(self, kind: str) -> list[float] | None:
-        lo, hi = self.space.lower, self.space.upper
         g = self.study.geometry
-        best: tuple[float, list[float]] | None = None
-        for t in np.linspace(lo[2], hi[2], 9):
-            for s in np.linspace(lo[3], hi[3], 3):
-
-                def gap(length: float, t: float = t, s: float = s) -> float:
-                    f = build_flexure(kind, length, t, s, g)
-                    K = pivot_closed_form(f, self.material.E_MPa).stiffness_Nmm_per_rad
-                    return math.log(K / self.target_Nmm)
-
-                try:
-                    g_lo, g_hi = gap(lo[1]), gap(hi[1])
-                    if not g_lo >= 0.0 >= g_hi:
-                        continue
-                    length = brentq(gap, lo[1], hi[1], xtol=1e-6)
-                    f = build_flexure(kind, length, t, s, g)
-                    envelope = f.envelope_mm()
-                except (GeometryError, ValueError):
-                    continue
-                if envelope[0] > g.max_length_mm or envelope[1] > g.max_height_mm:
-                    continue
-                cf = pivot_closed_form(f, self.material.E_MPa)
-                sf = self.allowable_MPa / float(cf.stress_MPa(self.rom_rad))
-                if best is None or sf > best[0]:
-                    best = (sf, [float(length), float(t), float(s)])
-        return None if best is None else best[1]
+        return closed_form_seed(
+            lambda length, t, s: build_flexure(kind, length, t, s, g),
+            self.material.E_MPa,
+            self.target_Nmm,
+            self.allowable_MPa,
+            self.rom_rad,
+            self.space.lower,
+            self.space.upper,
+            g.max_length_mm,
+            g.max_height_mm,
+        )
 
     def detail(self, x: np.ndarray) -> DesignDetail:
         evaluation = self.evaluate(x)
@@ -545,7 +456,7 @@ class FlexurePivotProblem:
         cf = pivot_closed_form(flex, self.material.E_MPa)
         steps = study.fidelity.steps
         res = self._beam(flex, steps)
-        table = _pivot_table(res, cf)
+        table = pivot_table(res, cf)
         info: dict[str, Any] = {
             "type": kind,
             "parameters": {k: v for k, v in flex.params().items() if v is not None},
@@ -585,8 +496,12 @@ class FlexurePivotProblem:
             except (GeometryError, ValueError) as exc:  # pragma: no cover - defensive
                 notes.append(f"min feature check failed: {exc}")
             if study.fidelity.plane_stress:
-                info["plane_stress"] = _plane_stress_check(self, flex, cf, res)
-                info.update(plane_stress_figures(info["plane_stress"]))
+                f = study.fidelity
+                info["plane_stress"] = plane_stress_check(
+                    flex, self.material, self.rom_rad, f.plane_stress_steps, f.web_elements,
+                    cf, res, self.allowable_MPa
+                )  # fmt: skip
+                info.update(pivot_plane_stress_figures(info["plane_stress"]))
         else:
             notes.append(
                 "cross_axis: the leaves of a cross-axis pivot pass each other in separate layers, "
@@ -622,91 +537,6 @@ class FlexurePivotProblem:
         )
 
 
-def _pivot_table(res: PivotResponse, cf: PivotClosedForm) -> dict[str, np.ndarray]:
-    """One row per beam row: beam response, design stress (x K_t) and the closed forms."""
-    angle = res.rotation_rad
-    with np.errstate(invalid="ignore", divide="ignore"):
-        secant = np.where(angle != 0, res.torque_Nmm / angle, res.small_angle_stiffness_Nmm_per_rad)
-    return {
-        "rotation_deg": np.degrees(angle),
-        "torque_Nmm": res.torque_Nmm,
-        "stiffness_Nmm_per_rad": res.stiffness_Nmm_per_rad,
-        "secant_stiffness_Nmm_per_rad": secant,
-        "peak_stress_MPa": res.peak_stress_MPa * cf.stress_concentration,
-        "beam_stress_MPa": res.peak_stress_MPa,
-        "centre_shift_mm": res.centre_shift_mm,
-        "closed_form_torque_Nmm": cf.torque_Nmm(angle),
-        "closed_form_stress_MPa": cf.stress_MPa(angle),
-        "converged": res.converged,
-        # False on a row past a bifurcation (members buckling): never a plain, safe result
-        "stable": (
-            np.ones(angle.shape, dtype=bool)
-            if res.stable is None
-            else np.asarray(res.stable, dtype=bool)
-        ),
-    }
-
-
-def _plane_stress_check(
-    problem: FlexurePivotProblem, flex: Flexure, cf: PivotClosedForm, beam: PivotResponse
-) -> dict[str, Any]:
-    """Plane-stress stiffness (linear, about the nominal centre) and the state at the range of
-    motion (nonlinear), the moving block turned about the point that puts it where the beam
-    model's pure moment does (so that a wandering rotation centre does not stretch the part)."""
-    spec = problem.study.fidelity
-    web = flex.min_thickness_mm / spec.web_elements
-    rom = problem.rom_rad
-    t0 = time.perf_counter()
-    try:
-        lin = plane_stress_pivot(flex, problem.material, rom / 10.0, 1, "linear", web_edge_mm=web)
-        centre = flex.centre_mm
-        if beam.ok:
-            centre = pure_moment_centre(flex.centre_mm, rom, beam.centre_displacement_mm[-1])
-        non = plane_stress_pivot(
-            flex,
-            problem.material,
-            rom,
-            spec.plane_stress_steps,
-            "nonlinear",
-            web_edge_mm=web,
-            centre_mm=centre,
-        )
-    except (FeaError, GeometryError) as exc:
-        return {"skipped": f"could not build the plane-stress model: {exc}"}
-    K = lin.small_angle_stiffness_Nmm_per_rad
-    out: dict[str, Any] = {
-        "model": "plane stress, P2 triangles; ground block clamped, moving block turned as a "
-        "rigid body (linear: about the nominal centre; nonlinear: about the point that reproduces "
-        "the beam model's pure-moment motion at the range of motion)",
-        "linear_stiffness_Nmm_per_rad": K,
-        "over_closed_form": K / cf.stiffness_Nmm_per_rad,
-        "turned_about_mm": [float(v) for v in centre],
-        "torque_at_range_Nmm": float(non.torque_Nmm[-1]),
-        "beam_torque_at_range_Nmm": float(beam.torque_Nmm[-1]),
-        "peak_von_mises_at_range_MPa": float(non.peak_stress_MPa[-1]),
-        "centre_force_at_range_N": float(non.centre_force_N[-1]),
-        "ok": non.ok,
-        "message": non.message,
-        "dofs": non.extra.get("dofs"),
-        "time_s": time.perf_counter() - t0,
-    }
-    if non.ok:
-        out["safety_factor"] = problem.allowable_MPa / float(non.peak_stress_MPa[-1])
-    return out
-
-
-def plane_stress_figures(ps: dict[str, Any]) -> dict[str, Any]:
-    """The plane-stress figures the verdict judges (:data:`FIGURES`) from a
-    :func:`_plane_stress_check` record: the linear stiffness, and the peak von Mises stress at
-    the range of motion when the nonlinear solve reached it."""
-    out: dict[str, Any] = {}
-    if "linear_stiffness_Nmm_per_rad" in ps:
-        out["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]
-    if ps.get("ok") and "peak_von_mises_at_range_MPa" in ps:
-        out["plane_stress_peak_stress_MPa"] = ps["peak_von_mises_at_range_MPa"]
-    return out
-
-
 #: The figures of a quantity by model (pipeline.verdict): the stiffness band and the allowable
 #: stress are judged on the plane-stress check's figures where the run made one.
 FIGURES = {
@@ -738,16 +568,15 @@ def design_vector(study: FlexurePivotStudy, prob: FlexurePivotProblem) -> np.nda
     StudyError
         At ``design`` when there is no design and no candidate meets the target in the bounds.
     """
-    cands = study.geometry.candidates
     if study.design is not None:
-        d = study.design
-        index = cands.index(d.type) + 0.5 if d.type in cands else None
-        if index is None:
+        _, x = design_of(study)
+        if x is None:
             raise StudyError(
                 "design.type",
-                f"'{d.type}' is not among geometry.candidates ({', '.join(cands)}); add it",
+                f"'{study.design.type}' is not among geometry.candidates "
+                f"({', '.join(study.geometry.candidates)}); add it",
             )
-        return np.array([index, d.length_mm, d.thickness_mm, d.shape])
+        return x
     seeds = prob.initial_designs()
     if seeds is None:
         raise StudyError(
@@ -807,7 +636,7 @@ def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
     if isinstance(ps, dict) and "linear_stiffness_Nmm_per_rad" in ps:
         summary["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]
         summary["plane_stress_safety_factor"] = ps.get("safety_factor")
-        summary.update(plane_stress_figures(ps))
+        summary.update(pivot_plane_stress_figures(ps))
     converged = bool(np.all(table["converged"]))
     return EvaluationResult(
         table=table,

@@ -1,7 +1,7 @@
 """Study kind ``gripper``: the finger force of paper 001 as the target of a constant-force beam.
 
 The chain: a workpiece (mass, grip normal force) and the finger geometry (paper 001, Fig. 3) give
-the drive force ``F1`` each finger must hold (:func:`optimise.gripper.finger_force`, the vector
+the drive force ``F1`` each finger must hold (:func:`fea.statics.finger_force`, the vector
 form of Eqs. 5–14, with the paper's scalar Eq. 14 beside it); over the finger's rotation range
 the largest ``F1`` (times a safety factor) becomes ``target.force_N`` of a ``constant_force``
 study (paper 003), and the drive travel between the smallest and largest workpiece its operative
@@ -33,8 +33,8 @@ import time
 from typing import Any, Literal
 
 import numpy as np
-from flexopt.optimise.errors import OptimiseError
-from flexopt.optimise.gripper import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.statics import (
     FingerGeometry,
     FingerRequirement,
     JawLoad,
@@ -42,6 +42,7 @@ from flexopt.optimise.gripper import (
     normal_force_for_friction_N,
     overtravel_mm,
 )
+from flexopt.optimise.joint_objectives import plateau_mean_N
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import (
     EvaluationResult,
@@ -225,7 +226,7 @@ def requirement(study: GripperStudy) -> dict[str, Any]:
     try:
         rows = _requirements(study)
         travel = overtravel_mm(study.geometry.lever_mm, np.radians(study.geometry.alpha_deg))
-    except OptimiseError as exc:
+    except FeaError as exc:
         raise StudyError("geometry", str(exc)) from exc
     best = max(rows, key=lambda r: r["result"].finger_force_N)
     paper = max(rows, key=lambda r: r["result"].paper_finger_force_N)
@@ -271,7 +272,7 @@ def _base_raw(study: GripperStudy) -> dict[str, Any]:
         raise StudyError(
             "constant_force.study",
             "the constant_force study kind is not installed; the requirement is in "
-            "optimise.gripper.finger_force",
+            "fea.statics.finger_force",
         )
     path = resolve_study_path(study.constant_force.study)
     raw = parse_study_text(read_study_file(path), str(path))
@@ -282,14 +283,6 @@ def _base_raw(study: GripperStudy) -> dict[str, Any]:
             f"'{study.constant_force.study}' is a {kind!r} study; name a constant_force study",
         )
     return raw
-
-
-def _plateau_mean_N(table: dict[str, np.ndarray], lo: float, hi: float) -> float:
-    s = np.asarray(table["displacement_mm"], dtype=float)
-    f = np.asarray(table["force_N"], dtype=float)
-    inner = (s > lo) & (s < hi)
-    ss = np.concatenate([[lo], s[inner], [hi]])
-    return float(np.trapezoid(np.interp(ss, s, f), ss) / (hi - lo))
 
 
 def resolved_constant_force_study(
@@ -342,7 +335,7 @@ def resolved_constant_force_study(
         if link.rescale_width:
             kind = get_kind("constant_force")
             base = kind.evaluate(resolved, 1)  # type: ignore[misc]
-            plateau = _plateau_mean_N(base.table, *window)
+            plateau = plateau_mean_N(base.table["displacement_mm"], base.table["force_N"], *window)
             if not plateau > 0:
                 raise StudyError(
                     "constant_force.study",
@@ -399,7 +392,7 @@ def evaluate(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
     table = dict(beam.table)
     force = req["target_force_N"]
     window = (min(study.constant_force.pre_stroke_mm, req["stroke_mm"]), req["stroke_mm"])
-    plateau = _plateau_mean_N(table, *window)
+    plateau = plateau_mean_N(table["displacement_mm"], table["force_N"], *window)
     s = np.asarray(table["displacement_mm"], dtype=float)
     inside = (s >= window[0]) & (s <= window[1])
     f = np.asarray(table["force_N"], dtype=float)

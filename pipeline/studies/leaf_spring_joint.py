@@ -39,10 +39,15 @@ from flexopt.fea.leaf_joint import (
     length_range_mm,
     linear_joint_stiffness_Nmm,
 )
-from flexopt.fea.materials import Material, get_material
+from flexopt.fea.materials import Material, material_yield_MPa
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.leaf_joint import LeafJoint
 from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.joint_objectives import (
+    leaf_joint_layout_constraints,
+    leaf_joint_objective,
+    leaf_joint_unreachable,
+)
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
@@ -193,17 +198,10 @@ class LeafSpringJointStudy(Study):
         target = data.get("target") or {}
         if not isinstance(target, dict) or target.get("allowable_stress_MPa") is not None:
             return data
-        material = data.get("material")
-        try:
-            if isinstance(material, str):
-                y = get_material(material).yield_MPa
-            elif isinstance(material, dict) and isinstance(material.get("yield_MPa"), int | float):
-                y = float(material["yield_MPa"])
-            else:
-                return data
-        except FeaError:
+        y = material_yield_MPa(data.get("material"))
+        if y is None:
             return data
-        return {**data, "target": {**target, "allowable_stress_MPa": float(y)}}
+        return {**data, "target": {**target, "allowable_stress_MPa": y}}
 
     @property
     def allowable_MPa(self) -> float:
@@ -428,9 +426,8 @@ class LeafJointProblem:
     def _constraints(self, x: np.ndarray) -> tuple[float, float]:
         l_min, l_max = self.lengths(x)
         g = self.study.geometry
-        return (
-            g.min_effective_length_mm / l_min - 1.0,
-            (l_max + g.min_support_offset_mm) / float(x[0]) - 1.0,
+        return leaf_joint_layout_constraints(
+            l_min, l_max, float(x[0]), g.min_effective_length_mm, g.min_support_offset_mm
         )
 
     def evaluate(self, x: np.ndarray) -> Evaluation:
@@ -441,10 +438,11 @@ class LeafJointProblem:
         metrics: dict[str, Any] = {"l_min_mm": l_min, "l_max_mm": l_max}
         if g_hub > 0 or l_min >= x[0]:
             # the support cannot reach the soft end: no solve (its stress would mean nothing)
+            f, g = leaf_joint_unreachable(g_len, g_hub)
             return Evaluation(
                 x,
-                np.array([10.0 + g_hub]),
-                np.array([g_len, g_hub, 10.0 + g_hub]),
+                f,
+                g,
                 metrics | {"skipped": "l_max does not fit between the hub and the load point"},
                 "",
                 time.perf_counter() - t0,
@@ -460,20 +458,13 @@ class LeafJointProblem:
                 x, 1, 3, f"beam model: {resp.message}", time.perf_counter() - t0, metrics
             )
         sigma = float(np.max(resp.peak_stress_MPa))
-        ratio = sigma / self.allowable_MPa
+        ratio, g = leaf_joint_objective(sigma, self.allowable_MPa, g_len, g_hub)
         metrics |= {
             "peak_stress_MPa": sigma,
             "safety_factor": 1.0 / ratio,
             "stiffness_at_max_deflection_Nm_per_rad": float(resp.stiffness_Nmm_per_rad[-1]) / 1e3,
         }
-        return Evaluation(
-            x,
-            np.array([ratio]),
-            np.array([g_len, g_hub, ratio - 1.0]),
-            metrics,
-            "",
-            time.perf_counter() - t0,
-        )
+        return Evaluation(x, np.array([ratio]), g, metrics, "", time.perf_counter() - t0)
 
     def detail(self, x: np.ndarray) -> DesignDetail:
         evaluation = self.evaluate(x)

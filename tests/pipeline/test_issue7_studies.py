@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 import yaml
+from flexopt.fea.statics import STANDARD_GRAVITY_M_PER_S2
 from flexopt.geometry.solid import extrude
-from flexopt.optimise.gripper import STANDARD_GRAVITY_M_PER_S2
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies.cam import CamProblem

@@ -1,4 +1,5 @@
-r"""Finger force a gripper must hold (paper 001, Vela, Vela, Miclosina 2023, Eqs. 1–14).
+r"""Statics of a gripper finger: the force its drive must hold (paper 001, Vela, Vela, Miclosina
+2023, Eqs. 1–14).
 
 The paper's finger (its Fig. 3) turns about the pivot E. The actuator side pushes along a fixed
 line at the perpendicular distance ``l1`` from E (Eqs. 3, 10–11: ``F1 cos α · l1/cos α = F1 l1``,
@@ -30,7 +31,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from flexopt.optimise.errors import OptimiseError
+from flexopt.fea.errors import FeaError
 
 __all__ = [
     "STANDARD_GRAVITY_M_PER_S2",
@@ -74,7 +75,7 @@ class FingerGeometry:
 
     def __post_init__(self) -> None:
         if not (self.lever_mm > 0 and self.jaw_mm > 0):
-            raise OptimiseError(
+            raise FeaError(
                 f"finger lever_mm = {self.lever_mm} and jaw_mm = {self.jaw_mm} must be > 0"
             )
 
@@ -110,11 +111,11 @@ class JawLoad:
 
     def __post_init__(self) -> None:
         if not self.mass_kg >= 0:
-            raise OptimiseError(f"mass_kg = {self.mass_kg} must be >= 0")
+            raise FeaError(f"mass_kg = {self.mass_kg} must be >= 0")
         if not self.normal_force_N >= 0:
-            raise OptimiseError(f"normal_force_N = {self.normal_force_N} must be >= 0")
+            raise FeaError(f"normal_force_N = {self.normal_force_N} must be >= 0")
         if not 0 <= self.weight_share <= 1:
-            raise OptimiseError(f"weight_share = {self.weight_share} must lie in [0, 1]")
+            raise FeaError(f"weight_share = {self.weight_share} must lie in [0, 1]")
 
     @property
     def weight_N(self) -> float:
@@ -210,9 +211,9 @@ def normal_force_for_friction_N(
     acceleration_m_per_s2 : float, m/s² — of the gripper along gravity.
     """
     if not friction > 0:
-        raise OptimiseError(f"friction = {friction} must be > 0 to hold a workpiece by friction")
+        raise FeaError(f"friction = {friction} must be > 0 to hold a workpiece by friction")
     if contacts < 1 or safety < 1:
-        raise OptimiseError(f"contacts = {contacts} must be >= 1 and safety = {safety} >= 1")
+        raise FeaError(f"contacts = {contacts} must be >= 1 and safety = {safety} >= 1")
     return (
         safety
         * mass_kg
@@ -231,5 +232,5 @@ def overtravel_mm(lever_mm: float, alpha_range_rad: Any) -> float:
     """
     a = np.asarray(alpha_range_rad, dtype=float)
     if a.shape != (2,) or not np.all(np.abs(a) < 0.5 * math.pi):
-        raise OptimiseError(f"alpha range {a} must be two angles inside (-90°, 90°)")
+        raise FeaError(f"alpha range {a} must be two angles inside (-90°, 90°)")
     return float(lever_mm * abs(math.tan(a[1]) - math.tan(a[0])))

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from flexopt.optimise.errors import OptimiseError
-from flexopt.optimise.gripper import (
+from flexopt.fea.errors import FeaError
+from flexopt.fea.statics import (
     STANDARD_GRAVITY_M_PER_S2,
     FingerGeometry,
     JawLoad,
@@ -68,7 +68,7 @@ def test_friction_normal_force_actuator_force_and_overtravel():
     assert overtravel_mm(20.0, np.radians([5.0, 15.0])) == pytest.approx(
         20.0 * (math.tan(math.radians(15)) - math.tan(math.radians(5)))
     )
-    with pytest.raises(OptimiseError, match="friction"):
+    with pytest.raises(FeaError, match="friction"):
         normal_force_for_friction_N(0.1, friction=0.0)
-    with pytest.raises(OptimiseError, match="lever_mm"):
+    with pytest.raises(FeaError, match="lever_mm"):
         FingerGeometry(0.0, 30.0, 0.0, 0.0)
