@@ -4,6 +4,7 @@ exact linear solution, and the paper's comparison (regression numbers, see docs)
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,14 +15,18 @@ from flexopt.fea.collision import (
     LinearSpring,
     TabulatedSpring,
     ThresholdSpring,
+    cam_impact_check,
     equivalent_linear_spring,
     hic,
     initial_deflection_rad,
     metrics_until,
     score_spring_curve,
+    simulate_cases,
     simulate_collision,
     simulate_collisions,
     sweep,
+    sweep_record,
+    sweep_result,
 )
 from flexopt.fea.errors import FeaError
 from scipy.linalg import expm
@@ -168,3 +173,49 @@ def test_score_spring_curve_hook_on_a_tabulated_threshold():
         TabulatedSpring(np.array([0.0, 0.1, 0.2]), np.array([0.0, 2.0, 1.0]))
     assert LinearSpring(10.0).deflection_at(5.0) == 0.5
     assert G_M_PER_S2 == 9.80665
+
+
+def test_sweep_record_lists_full_and_early_measures_per_spring():
+    quick = CollisionSettings(duration_s=0.1)
+    model = CollisionModel()
+    inertia = np.array([0.1, 0.3])
+    runs = {
+        label: simulate_cases(sp, model, inertia, model.rotor_torque_Nm, quick)
+        for label, sp in (("spring", V2SOM), ("reference", CS))
+    }
+    result = sweep_result("rotor_inertia_kg_m2", inertia, runs)
+    rec = sweep_record(result, runs, 0.05)
+    assert rec["parameter"] == "rotor_inertia_kg_m2" and rec["values"] == [0.1, 0.3]
+    assert rec["early_window_ms"] == pytest.approx(50.0)
+    for label in ("spring", "reference"):
+        r = runs[label][1]
+        assert rec["hic15"][label][1] == r.hic15
+        assert rec["max_deflection_deg"][label][1] == pytest.approx(
+            math.degrees(r.max_deflection_rad)
+        )
+        assert (rec["early_hic15"][label][1], rec["early_peak_force_N"][label][1]) == (
+            metrics_until(r, 0.05)
+        )
+    hic_s, hic_r = rec["early_hic15"]["spring"][0], rec["early_hic15"]["reference"][0]
+    assert rec["early_hic_reduction"][0] == pytest.approx(1.0 - hic_s / hic_r)
+    assert rec["hic_reduction"] == result.hic_reduction.tolist()
+
+
+def test_cam_impact_check_range_and_pressure_within_the_reached_rotation():
+    rotation = np.linspace(0.0, 1.0, 11)
+    profile = SimpleNamespace(
+        rotation_rad=rotation,
+        torque_Nmm=2000.0 * rotation,
+        max_radius_mm=20.0,
+        layout=SimpleNamespace(max_rotation_rad=1.0, roller_radius_mm=3.0),
+    )
+    pressure = 100.0 + 10.0 * np.arange(11)
+    # joint deflection 0.05 rad behind a ratio of 10: the cam turns 0.5 rad, within its range
+    check = cam_impact_check(profile, 10.0, 0.05, pressure, 200.0)
+    assert not check["range_exceeded"]
+    assert check["max_contact_pressure_MPa"] == 150.0  # rows up to 0.5 rad
+    assert check["stress_yield_ratio"] == 0.75
+    assert check["cam_max_torque_Nm"] == 2.0 and check["mechanism_diameter_mm"] == 46.0
+    assert check["joint_range_deg"] == pytest.approx(math.degrees(0.1))
+    past = cam_impact_check(profile, 10.0, 0.2, pressure, 200.0)
+    assert past["range_exceeded"] and past["max_contact_pressure_MPa"] == 200.0
