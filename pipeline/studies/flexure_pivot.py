@@ -496,11 +496,16 @@ class FlexurePivotProblem:
             except (GeometryError, ValueError) as exc:  # pragma: no cover - defensive
                 notes.append(f"min feature check failed: {exc}")
             if study.fidelity.plane_stress:
-                f = study.fidelity
                 info["plane_stress"] = plane_stress_check(
-                    flex, self.material, self.rom_rad, f.plane_stress_steps, f.web_elements,
-                    cf, res, self.allowable_MPa
-                )  # fmt: skip
+                    flex,
+                    self.material,
+                    self.rom_rad,
+                    study.fidelity.plane_stress_steps,
+                    study.fidelity.web_elements,
+                    cf,
+                    res,
+                    self.allowable_MPa,
+                )
                 info.update(pivot_plane_stress_figures(info["plane_stress"]))
         else:
             notes.append(
