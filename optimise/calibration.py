@@ -62,6 +62,9 @@ __all__ = [
     "MAX_RELATIVE_RMS",
     "E_RANGE",
     "write_materials_file",
+    "CurveComparison",
+    "compare_curves",
+    "width_scale",
 ]
 
 #: a strip needs this many measured points (beyond the origin) for its curve to count
@@ -408,3 +411,98 @@ def write_materials_file(path: Path, name: str, result: CalibrationResult) -> No
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     tmp.replace(path)
+
+
+# -- compare a printed part with its prediction, and re-trim it ----------------------------------
+
+
+@dataclass(frozen=True)
+class CurveComparison:
+    """A measured curve of a printed part against the prediction of its design.
+
+    Attributes
+    ----------
+    x : (m,) float — the measured abscissae inside the predicted range (mm or rad).
+    measured, predicted : (m,) float — the measured values and the prediction interpolated at
+        ``x`` (N or N·mm).
+    rms_error : float — RMS of measured minus predicted, same unit.
+    max_error : float — largest |measured - predicted|, same unit.
+    force_error_percent : float — the mean of measured / predicted - 1 over the points, in %
+        (how much stronger or weaker the part is; the figure the literature quotes as "force
+        error" for a constant-force part).
+    stiffness_error_percent : float — (k_measured / k_predicted - 1) in %, with each k the least-
+        squares slope through the origin over the compared range (the figure quoted for springs).
+    dropped : int — measured points outside the predicted range (not compared).
+    """
+
+    x: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+    rms_error: float
+    max_error: float
+    force_error_percent: float
+    stiffness_error_percent: float
+    dropped: int
+
+
+def compare_curves(
+    pred_x: np.ndarray, pred_y: np.ndarray, meas_x: np.ndarray, meas_y: np.ndarray
+) -> CurveComparison:
+    """Compare a measured curve with a predicted one (:class:`CurveComparison`).
+
+    Parameters
+    ----------
+    pred_x, pred_y : (n,) float — the prediction (e.g. ``displacement_mm``, ``force_N`` of
+        best_response.csv), ``pred_x`` increasing.
+    meas_x, meas_y : (m,) float — the measured points, same units.
+
+    Raises
+    ------
+    CalibrationError
+        When fewer than ``MIN_POINTS_PER_STRIP`` measured points fall inside the predicted range, or
+        the prediction's abscissa is not increasing.
+    """
+    px, py = np.asarray(pred_x, float), np.asarray(pred_y, float)
+    mx, my = np.asarray(meas_x, float), np.asarray(meas_y, float)
+    if px.ndim != 1 or px.shape != py.shape or np.any(np.diff(px) <= 0):
+        raise CalibrationError("the predicted curve's abscissa must increase from row to row")
+    if mx.shape != my.shape:
+        raise CalibrationError("measured x and y must have the same length")
+    inside = (mx >= px[0]) & (mx <= px[-1]) & np.isfinite(mx) & np.isfinite(my)
+    if np.count_nonzero(inside & (mx > 0)) < MIN_POINTS_PER_STRIP:
+        raise CalibrationError(
+            f"only {int(np.count_nonzero(inside & (mx > 0)))} measured point(s) lie in the "
+            f"predicted range {px[0]:g}..{px[-1]:g}; record at least {MIN_POINTS_PER_STRIP} over "
+            "the stroke (same units as the prediction: mm and N)"
+        )
+    x, y = mx[inside], my[inside]
+    p = CubicSpline(px, py)(x)
+    err = y - p
+    nz = np.abs(p) > 1e-9 * max(float(np.max(np.abs(py))), 1e-300)
+    k_meas = float(x @ y / (x @ x))
+    k_pred = float(x @ p / (x @ x))
+    return CurveComparison(
+        x=x,
+        measured=y,
+        predicted=p,
+        rms_error=float(np.sqrt(np.mean(err**2))),
+        max_error=float(np.max(np.abs(err))),
+        force_error_percent=float(100.0 * np.mean(y[nz] / p[nz] - 1.0)),
+        stiffness_error_percent=float(100.0 * (k_meas / k_pred - 1.0)),
+        dropped=int(np.count_nonzero(~inside)),
+    )
+
+
+def width_scale(comparison: CurveComparison) -> float:
+    """The factor on the out-of-plane width that brings the measured curve onto the prediction.
+
+    Every force of a planar part (beam or plane stress) is proportional to its out-of-plane width
+    at a given in-plane motion (the section's A, I and the plane-stress thickness all scale with
+    it, and the in-plane deformation does not change), so a part printed ``s`` times wider gives
+    ``s`` times the measured force. ``s`` minimises ``sum (s y_i - p_i)^2``:
+    ``s = <y, p> / <y, y>``. Exact when the print's error is a common factor on the forces (E, a
+    uniform width error); a thickness error also changes the curve's shape, which a width cannot
+    undo (the re-trimmed print is then measured again).
+    """
+    y, p = comparison.measured, comparison.predicted
+    return float(y @ p / (y @ y))

@@ -175,3 +175,49 @@ def test_materials_file_keeps_other_entries(tmp_path):
     assert entry["thickness_offset_mm"] == pytest.approx(r.offset_mm)
     assert entry["calibration"]["E_ci95_MPa"] == pytest.approx(r.E_ci95_MPa)
     assert "calibrated" in entry["source"]
+
+
+# -- compare and re-trim (a simulated print of a strip) -------------------------------------------
+
+
+def _strip(E, width, t=1.2, stroke=8.0):
+    from flexopt.fea.coupon import strip_curve
+
+    spec = dataclasses.replace(SPEC, width_mm=width)
+    return strip_curve(spec, dataclasses.replace(BASE, E_MPa=E), t, stroke)
+
+
+def test_compare_reports_the_force_and_stiffness_error_of_a_stiffer_print():
+    from flexopt.optimise.calibration import compare_curves
+
+    pred = _strip(BASE.E_MPa, 10.0)
+    meas = _strip(1.1 * BASE.E_MPa, 10.0)  # the spool is 10 % stiffer than the model's
+    rows = slice(1, None, 2)
+    c = compare_curves(
+        pred.displacement_mm, pred.force_N, meas.displacement_mm[rows], meas.force_N[rows]
+    )
+    # forces are exactly proportional to E at a given displacement: +10 % everywhere
+    assert c.force_error_percent == pytest.approx(10.0, rel=1e-6)
+    assert c.stiffness_error_percent == pytest.approx(10.0, rel=1e-6)
+    assert c.dropped == 0
+
+
+def test_retrim_by_width_brings_the_second_print_onto_the_prediction():
+    from flexopt.optimise.calibration import compare_curves, width_scale
+
+    width = 10.0
+    pred = _strip(BASE.E_MPa, width)
+    first = _strip(1.23 * BASE.E_MPa, width)  # hidden: the printer's E is 23 % higher
+    c = compare_curves(pred.displacement_mm, pred.force_N, first.displacement_mm, first.force_N)
+    new_width = width * width_scale(c)
+    assert new_width == pytest.approx(width / 1.23, rel=1e-9)
+    second = _strip(1.23 * BASE.E_MPa, new_width)
+    np.testing.assert_allclose(second.force_N, pred.force_N, rtol=1e-9, atol=1e-12)
+
+
+def test_compare_refuses_a_curve_outside_the_prediction():
+    from flexopt.optimise.calibration import compare_curves
+
+    pred = _strip(BASE.E_MPa, 10.0)
+    with pytest.raises(CalibrationError, match="predicted range"):
+        compare_curves(pred.displacement_mm, pred.force_N, pred.displacement_mm + 100, pred.force_N)
