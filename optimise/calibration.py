@@ -61,6 +61,7 @@ __all__ = [
     "MIN_POINTS_PER_STRIP",
     "MAX_RELATIVE_RMS",
     "E_RANGE",
+    "CSV_COLUMNS",
     "write_materials_file",
     "CurveComparison",
     "compare_curves",
