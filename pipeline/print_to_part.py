@@ -256,3 +256,184 @@ def _plot(measured: Any, result: CalibrationResult) -> bytes:
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
     return buf.getvalue()
+
+
+# -- compare a printed part with its run, and re-trim it -----------------------------------------
+
+#: the response table of a run folder's best design, or of an evaluate folder
+RESPONSE_FILES = ("best_response.csv", "response.csv")
+
+
+def _read_csv(path: Path, what: str) -> tuple[list[str], np.ndarray]:
+    try:
+        if not path.is_file():
+            raise CalibrationError(f"{path}: not a file ({what})")
+        raw = path.read_bytes()
+    except OSError as err:
+        raise CalibrationError(f"{path}: cannot be read ({err.strerror or err})") from None
+    if len(raw) > MAX_CSV_BYTES:
+        raise CalibrationError(f"{path}: larger than {MAX_CSV_BYTES >> 20} MiB")
+    try:
+        rows = list(csv.reader(io.StringIO(raw.decode("utf-8-sig"))))
+    except (UnicodeDecodeError, csv.Error):
+        raise CalibrationError(f"{path}: not a UTF-8 CSV file") from None
+    if len(rows) < 2:
+        raise CalibrationError(f"{path}: no data rows")
+    header = [h.strip() for h in rows[0]]
+
+    def number(text: str) -> float:
+        t = text.strip().lower()
+        if t in ("true", "false"):
+            return float(t == "true")
+        try:
+            return float(t) if t else math.nan
+        except ValueError:
+            return math.nan
+
+    data = np.array(
+        [[number(v) for v in r] + [math.nan] * (len(header) - len(r)) for r in rows[1:]]
+    )
+    return header, data
+
+
+@dataclass(frozen=True)
+class CompareOutcome:
+    """A measured curve against a run's prediction (:func:`compare_run`).
+
+    Attributes
+    ----------
+    comparison : the numbers (:class:`optimise.calibration.CurveComparison`).
+    x_column, y_column : the compared columns (names with units).
+    files : ``compare.json`` and ``compare.png``, for the run folder.
+    """
+
+    comparison: Any
+    x_column: str
+    y_column: str
+    files: dict[str, bytes]
+
+
+def compare_run(run_dir: Path, measured_csv: Path) -> CompareOutcome:
+    """Overlay a measured curve of the printed part on its run's prediction.
+
+    The measured CSV has two columns named like the prediction's (``displacement_mm, force_N``;
+    ``angle_deg, torque_Nm`` ...): the first is the abscissa.
+
+    Raises
+    ------
+    CalibrationError
+        For a folder without a response table, a measured CSV whose columns the prediction does
+        not have, or too few points in the predicted range.
+    """
+    from flexopt.optimise.calibration import compare_curves
+
+    table = next((run_dir / n for n in RESPONSE_FILES if (run_dir / n).is_file()), None)
+    if table is None:
+        raise CalibrationError(
+            f"{run_dir}: no {' or '.join(RESPONSE_FILES)}; give a folder of flexopt run or evaluate"
+        )
+    p_head, p_data = _read_csv(table, "the prediction")
+    m_head, m_data = _read_csv(measured_csv, "the measured curve")
+    if len(m_head) < 2 or any(h not in p_head for h in m_head[:2]):
+        raise CalibrationError(
+            f"{measured_csv}: the first two columns must be named like the prediction's, e.g. "
+            f"{p_head[0]},{p_head[1]} (found {','.join(m_head[:2]) or 'none'})"
+        )
+    xc, yc = m_head[0], m_head[1]
+    px, py = p_data[:, p_head.index(xc)], p_data[:, p_head.index(yc)]
+    ok = np.isfinite(px) & np.isfinite(py)
+    px, py = px[ok], py[ok]
+    order = np.argsort(px, kind="stable")
+    px, py = px[order], py[order]
+    keep = np.concatenate([[True], np.diff(px) > 0])
+    c = compare_curves(px[keep], py[keep], m_data[:, 0], m_data[:, 1])
+    record = {
+        "run": str(run_dir),
+        "measured": str(measured_csv),
+        "x_column": xc,
+        "y_column": yc,
+        "points_compared": int(c.x.size),
+        "points_outside_prediction": c.dropped,
+        "rms_error": c.rms_error,
+        "max_error": c.max_error,
+        "force_error_percent": c.force_error_percent,
+        "stiffness_error_percent": c.stiffness_error_percent,
+    }
+    files = {
+        "compare.json": (json.dumps(record, indent=2) + "\n").encode(),
+        "compare.png": _compare_png(px[keep], py[keep], c, xc, yc),
+    }
+    return CompareOutcome(c, xc, yc, files)
+
+
+def _label(column: str) -> str:
+    name, _, unit = column.rpartition("_")
+    units = {"mm": "mm", "N": "N", "Nm": "N·m", "Nmm": "N·mm", "deg": "°", "rad": "rad"}
+    if name and unit in units:
+        return f"{name.replace('_', ' ').capitalize()} ({units[unit]})"
+    return column.replace("_", " ")
+
+
+def _compare_png(px: np.ndarray, py: np.ndarray, c: Any, xc: str, yc: str) -> bytes:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    ax.plot(px, py, "-", label="predicted")
+    ax.plot(c.x, c.measured, "o", ms=3, label="measured")
+    ax.set_xlabel(_label(xc))
+    ax.set_ylabel(_label(yc))
+    ax.set_title(
+        f"force error {c.force_error_percent:+.2f} %, stiffness error "
+        f"{c.stiffness_error_percent:+.2f} %, RMS {c.rms_error:.3g}",
+        fontsize=9,
+    )
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+@dataclass(frozen=True)
+class RetrimOutcome:
+    """What :func:`retrim_run` computed: the width key, its old and new value and the study."""
+
+    key: str
+    old_mm: float
+    new_mm: float
+    scale: float
+    study: Any
+    comparison: Any
+
+
+def retrim_run(run_dir: Path, measured_csv: Path, key: str) -> RetrimOutcome:
+    """The run's design with its out-of-plane width (at study key ``key``, mm) scaled so the
+    measured curve lands on the prediction (:func:`optimise.calibration.width_scale`).
+
+    Raises
+    ------
+    CalibrationError
+        As :func:`compare_run`, or when ``key`` is not a number in the design's study.
+    StudyError
+        When the corrected value is refused by the study (outside its design range).
+    """
+    from flexopt.optimise.calibration import width_scale
+    from flexopt.pipeline.run import design_study_of
+    from flexopt.pipeline.study_edit import study_data
+
+    cmp = compare_run(run_dir, measured_csv)
+    study, _, _ = design_study_of(run_dir, "best")
+    node: Any = study_data(study)
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            raise CalibrationError(f"--key {key}: the design's study has no such key")
+        node = node[part]
+    if isinstance(node, bool) or not isinstance(node, int | float):
+        raise CalibrationError(f"--key {key}: not a number in the design's study ({node!r})")
+    scale = width_scale(cmp.comparison)
+    new = float(node) * scale
+    return RetrimOutcome(key, float(node), new, scale, study.with_values({key: new}), cmp)

@@ -708,6 +708,31 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
     return study
 
 
+def resolve_material(name: str, source: str | None = None) -> dict[str, Any]:
+    """The record of material ``name``: a library material, else one of a materials file
+    (:mod:`pipeline.materials_file`; ``source`` is the study file whose folder is searched).
+
+    Raises
+    ------
+    StudyError
+        At ``material`` when no library or materials file has it, or a materials file is damaged.
+    """
+    try:
+        return material_record(get_material(name))
+    except FeaError:
+        pass
+    from flexopt.pipeline.materials_file import user_material
+
+    record = user_material(name, source)
+    if record is None:
+        raise StudyError(
+            "material",
+            f"unknown material '{name}'; use one of {', '.join(MATERIALS)} or a material of a "
+            "materials.yaml (flexopt calibrate writes one)",
+        )
+    return record
+
+
 def _with_user_material(raw: dict[str, Any], source: str | None) -> dict[str, Any]:
     """``raw`` with ``material: <name>`` replaced by the record of a user material of that name
     (a ``materials.yaml`` beside the study or the user's own file, :mod:`pipeline.materials_file`)
