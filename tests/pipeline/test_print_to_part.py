@@ -130,3 +130,36 @@ def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
         trim.study.with_values({"material.E_MPa": hidden_E}), out=tmp_path / "second"
     )
     assert all(v.met for v in second.verdict), [str(v) for v in second.verdict]
+
+
+def test_cli_coupon_and_calibrate(tmp_path, monkeypatch, capsys):
+    from flexopt.pipeline.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["coupon", "PLA", "--out", "c"]) == 0
+    assert (tmp_path / "c" / "coupon.stl").is_file()
+    spec, base = read_coupon_record(tmp_path / "c")
+    hidden = dataclasses.replace(base, E_MPa=1.05 * base.E_MPa)
+    lines = ["thickness_mm,displacement_mm,force_N"]
+    for t in spec.thicknesses_mm:
+        c = strip_curve(spec, hidden, t + 0.03, spec.stroke_mm)
+        lines += [
+            f"{t:g},{d:.6f},{f:.7f}"
+            for d, f in zip(c.displacement_mm[2::3], c.force_N[2::3], strict=True)
+        ]
+    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    assert main(["calibrate", "m.csv", "--coupon", "c", "--name", "my-pla"]) == 0
+    out = capsys.readouterr().out
+    assert "E = " in out and "my-pla" in out
+    entry = yaml.safe_load((tmp_path / "materials.yaml").read_text())["my-pla"]
+    assert entry["E_MPa"] == pytest.approx(1.05 * base.E_MPa, rel=1e-4)
+    assert entry["thickness_offset_mm"] == pytest.approx(0.03, abs=1e-5)
+    # bad data: one line, exit 2, nothing written
+    (tmp_path / "bad.csv").write_text("thickness_mm,displacement_mm,force_N\n0.8,1,1\n")
+    assert main(["calibrate", "bad.csv", "--coupon", "c", "--name", "x"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "at least 5" in err[0]
+    assert "x" not in yaml.safe_load((tmp_path / "materials.yaml").read_text())
+    assert main(["coupon", "unobtainium"]) == 2
+    assert main(["compare", str(tmp_path / "nowhere"), "m.csv"]) == 2
