@@ -296,6 +296,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     export.set_defaults(handler=_export)
     _add_study_tools(commands)
+    from flexopt.pipeline.cli_print import add_print_commands
+
+    add_print_commands(commands)  # coupon, calibrate, compare, retrim (docs/print_to_part.md)
     return parser
 
 

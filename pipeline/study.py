@@ -283,7 +283,8 @@ class Study(BaseModel):
                 return material_record(get_material(value))
             except FeaError:
                 raise ValueError(
-                    f"unknown material '{value}'; use one of {', '.join(MATERIALS)} or give "
+                    f"unknown material '{value}'; use one of {', '.join(MATERIALS)}, a material "
+                    "of a materials.yaml beside the study (flexopt calibrate writes one) or give "
                     "{E_MPa, nu, yield_MPa} for your own"
                 ) from None
         if not isinstance(value, dict | MaterialSpec):
@@ -687,6 +688,7 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
             else f"must be a mapping with a kind, not {type(geometry).__name__}"
         )
         raise StudyError("geometry", problem, source=source)
+    raw = _with_user_material(raw, source)
     try:
         kind = get_kind(geometry.get("kind"))
         check_no_bool_numbers(raw, kind.model)  # before pydantic reads `true` as 1
@@ -704,6 +706,49 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         exc.source = exc.source or source
         raise
     return study
+
+
+def resolve_material(name: str, source: str | None = None) -> dict[str, Any]:
+    """The record of material ``name``: a library material, else one of a materials file
+    (:mod:`pipeline.materials_file`; ``source`` is the study file whose folder is searched).
+
+    Raises
+    ------
+    StudyError
+        At ``material`` when no library or materials file has it, or a materials file is damaged.
+    """
+    try:
+        return material_record(get_material(name))
+    except FeaError:
+        pass
+    from flexopt.pipeline.materials_file import user_material
+
+    record = user_material(name, source)
+    if record is None:
+        raise StudyError(
+            "material",
+            f"unknown material '{name}'; use one of {', '.join(MATERIALS)} or a material of a "
+            "materials.yaml (flexopt calibrate writes one)",
+        )
+    return record
+
+
+def _with_user_material(raw: dict[str, Any], source: str | None) -> dict[str, Any]:
+    """``raw`` with ``material: <name>`` replaced by the record of a user material of that name
+    (a ``materials.yaml`` beside the study or the user's own file, :mod:`pipeline.materials_file`)
+    when the library has no such material; ``raw`` itself otherwise."""
+    name = raw.get("material")
+    if not isinstance(name, str):
+        return raw
+    try:
+        get_material(name)
+        return raw  # a library name: resolved by MaterialSpec as before
+    except FeaError:
+        pass
+    from flexopt.pipeline.materials_file import user_material
+
+    record = user_material(name, source)
+    return raw if record is None else {**raw, "material": record}
 
 
 def _bools(data: Any, path: tuple[int | str, ...]) -> Any:
