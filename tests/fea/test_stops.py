@@ -153,7 +153,7 @@ def test_no_stop_and_untouched_stop_give_the_plain_solve():
             got, want = getattr(far, name), getattr(plain, name)
             if kernel == "numpy":  # the same code adding exact zeros
                 assert np.array_equal(got, want), name
-            else:  # the Python loop against the compiled one: round-off (tests/fea/test_beam_kernels)
+            else:  # the Python loop against the compiled one: round-off (test_beam_kernels.py)
                 np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-13)
         assert np.array_equal(far.iterations, plain.iterations)
 
