@@ -148,17 +148,24 @@ class ContactSettings:
     penalty_factor : k = penalty_factor x EI / h^3 (N/mm) per element of length h (mm), EI at its
         middle (N mm^2).
     penetration_tol : largest accepted penetration as a fraction of the thinnest section's
-        thickness; a converged row beyond it is flagged, not rejected.
+        thickness.
+    max_raises : when a traced path penetrates deeper than the tolerance,
+        :func:`solve_with_stops` traces it again with the penalty 10x stiffer, at most this many
+        times; a path still beyond it is flagged (``ContactResponse.penetration_ok``), not
+        rejected.
     """
 
     penalty_factor: float = 1e3
     penetration_tol: float = 1e-3
+    max_raises: int = 2
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.penalty_factor) and self.penalty_factor > 0.0):
             raise FeaError(f"penalty_factor = {self.penalty_factor} must be > 0")
         if not (np.isfinite(self.penetration_tol) and self.penetration_tol > 0.0):
             raise FeaError(f"penetration_tol = {self.penetration_tol} must be > 0")
+        if int(self.max_raises) < 0:
+            raise FeaError(f"max_raises = {self.max_raises} must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -188,6 +195,8 @@ class ContactResponse:
     penetration_ok : every converged row's penetration is below the tolerance.
     penalty_N_per_mm : (n_elements,) float, N/mm — the penalty stiffness of each element.
     message : why not ``penetration_ok``; empty otherwise.
+    extra : tolerance_mm (the penetration tolerance, mm); from :func:`solve_with_stops` also
+        penalty_factor (the one used) and raises (how many times it was raised).
     """
 
     names: tuple[str, ...]
@@ -494,6 +503,10 @@ def solve_with_stops(
 ) -> BeamResponse:
     """Trace ``model`` under ``drive`` with frictionless contact against the rigid ``stops``.
 
+    A path that penetrates a stop deeper than ``settings.penetration_tol`` is traced again with
+    a 10x stiffer penalty (at most ``settings.max_raises`` times; ``contact.extra`` says the
+    factor used and how many raises it took).
+
     Returns the :class:`fea.beam.BeamResponse` with ``contact`` set to a
     :class:`ContactResponse`. The reactions (``force_N`` ...) include the stops' forces where
     the driven end itself touches a stop. Without stops this is ``model.solve(drive)`` exactly
@@ -502,9 +515,16 @@ def solve_with_stops(
     """
     if not stops:
         return model.solve(drive)
-    contact = BeamContact(model, stops, settings)
-    beam = model.solve(drive, contact=contact)
-    return replace(beam, contact=contact.response(beam, drive))
+    for raises in range(int(settings.max_raises) + 1):
+        contact = BeamContact(model, stops, settings)
+        beam = model.solve(drive, contact=contact)
+        result = contact.response(beam, drive)
+        if result.penetration_ok or raises == settings.max_raises:
+            break
+        # deeper than the tolerance: the same path with a 10x stiffer penalty
+        settings = replace(settings, penalty_factor=10.0 * settings.penalty_factor)
+    result.extra.update(penalty_factor=settings.penalty_factor, raises=raises)
+    return replace(beam, contact=result)
 
 
 # -- the vertex - curve pair: closest point on a P2 element and the derivatives of the gap -------

@@ -14,6 +14,8 @@ Exact references:
   that on the exact solution (every point of the elastica but the tip is above the flat).
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from flexopt.fea.beam import BeamModel, BeamSettings, EndDrive
@@ -115,7 +117,7 @@ def test_penalty_converges_to_the_lagrange_value():
     pen, err = [], []
     for factor in (1e-2, 1e-1, 1e0, 1e1, 1e2, 1e3):
         res = solve_with_stops(
-            model(), DRIVE, [stop_at(a, "point")], ContactSettings(penalty_factor=factor)
+            model(), DRIVE, [stop_at(a, "point")], ContactSettings(factor, max_raises=0)
         )
         assert res.ok, res.message
         c = res.contact
@@ -132,9 +134,14 @@ def test_penalty_converges_to_the_lagrange_value():
     np.testing.assert_allclose(pen[2:-1] / pen[3:], 10.0, rtol=0.02)
     np.testing.assert_allclose(err[2:4] / err[3:5], 10.0, rtol=0.15)
     assert err[-1] < 5e-6
-    assert not solve_with_stops(
-        model(), DRIVE, [stop_at(a, "point")], ContactSettings(1e-2, penetration_tol=1e-3)
-    ).contact.penetration_ok
+    # the tolerance (1e-3 t = 5e-4 mm) is exceeded by the softest penalty (2.5e-2 mm) ...
+    soft = ContactSettings(1e-2, penetration_tol=1e-3, max_raises=0)
+    c = solve_with_stops(model(), DRIVE, [stop_at(a, "point")], soft).contact
+    assert not c.penetration_ok and "penalty_factor" in c.message
+    # ... and met after raising it 10x three times (5.1e-3, 5.7e-4, then 5.8e-5 mm)
+    raised = replace(soft, max_raises=3)
+    c = solve_with_stops(model(), DRIVE, [stop_at(a, "point")], raised).contact
+    assert c.penetration_ok and c.extra["raises"] == 3 and c.extra["penalty_factor"] == 10.0
 
 
 def test_no_stop_and_untouched_stop_give_the_plain_solve():
