@@ -252,7 +252,12 @@ class ContactTerms(Protocol):
     ``ab`` (2 kl + ku + 1, n_dofs), ``A[i, j] = ab[kl + ku + i - j, j]`` (kl = ku = 8), both in
     generalised DOFs. The added tangent must be the derivative of the added force (symmetric: the
     Hessian of a potential) and couple no DOFs farther apart than the band.
+
+    ``active``: a value that changes when the set of pairs acting in the last ``add`` changes
+    (Newton backtracks a correction that changed it and raised the residual).
     """
+
+    active: object
 
     def add(self, u: np.ndarray, frame: np.ndarray, r: np.ndarray, ab: np.ndarray) -> None: ...
 
@@ -965,9 +970,12 @@ class BeamModel:
             big = np.abs(delta[2::3]).max() / st.max_rotation_step
             if big > 1.0:
                 delta = delta / big
+            active = None if contact is None else contact.active
             q = q + delta
             iters += 1
             r, ab = self._assemble(q, frame, contact)
+            if contact is not None and contact.active != active:
+                q, r, ab, delta = self._backtrack(q, r, ab, delta, norm, f_ext, bc, frame, contact)
             # A correction at round-off level means equilibrium to machine precision even when the
             # load is so small that the residual test sits below the round-off of EA * strain.
             if converged or np.abs(delta).max() <= st.dtol * self._length_scale:
@@ -975,6 +983,22 @@ class BeamModel:
         return fail._replace(
             iterations=iters, reason=f"Newton did not converge in {st.max_iterations} iterations"
         )
+
+    def _backtrack(self, q, r, ab, delta, norm, f_ext, bc, frame, contact):
+        """Halve a Newton correction while it raises the free residual norm above ``norm`` (N),
+        at most 8 times (then the last one is kept). Only where a correction changed the set of
+        active contact pairs: a pair that switches off between two iterates (the linearised gap
+        said touching, the new state is just clear) drops the stop's force, and the next full
+        correction falls deep into the stop; plain Newton can then cycle on and off. Returns
+        ``(q, r, ab, delta)``."""
+        for _ in range(8):
+            res = (r - f_ext)[bc.free]
+            if np.sqrt(res @ res) <= norm:
+                break
+            delta = 0.5 * delta
+            q = q - delta
+            r, ab = self._assemble(q, frame, contact)
+        return q, r, ab, delta
 
 
 #: the reasons of a failed sub-step, by the compiled kernel's codes (fea/_beam_kernels.py)

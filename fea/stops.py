@@ -272,6 +272,8 @@ class BeamContact:
         self._k_nodes = kn / cnt
         self._h_max = float(h.max())
         self.tolerance_mm = settings.penetration_tol * float(t_nodes.min())
+        #: the pairs acting in the last :meth:`add`, as (stop, beam nodes) (fea.beam.ContactTerms)
+        self.active: frozenset = frozenset()
         self._faces = [st.faces() for st in self.stops]
         self._vertices = [st.contact_vertices() for st in self.stops]
         # The side of a thin wall (open polyline) each node is on, and the side of the beam each
@@ -401,7 +403,9 @@ class BeamContact:
         x = m.reference_nodes_mm + u.reshape(-1, 3)[:, :2]
         n_last = m.n_nodes - 1
         kv = 2 * ((ab.shape[0] - 1) // 3)  # kl + ku: ab has 2 kl + ku + 1 rows, kl = ku
-        for p in self.pairs(x):
+        pairs = self.pairs(x)
+        self.active = frozenset((p.stop, tuple(p.nodes)) for p in pairs)
+        for p in pairs:
             dofs = (3 * p.nodes[:, None] + np.arange(2)[None, :]).ravel()  # (2 m,)
             f = p.k * p.gap * p.grad  # d(1/2 k g^2)/dx, N
             kt = p.k * np.outer(p.grad, p.grad)
