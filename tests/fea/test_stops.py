@@ -9,9 +9,10 @@ Exact references:
 * a cantilever under a large dead tip load pressed onto an inclined flat stop, against
   ``scipy.integrate.solve_bvp`` of the inextensible elastica with the contact force as an unknown
   parameter. The exact answer is a single contact point at the tip: the tip is moment free
-  (curvature 0 there), the flat is straight, and the beam meets it at an angle (the tip tangent
-  points ~50 degrees from the flat), so the rest of the beam stays clear of it; the test checks
-  that on the exact solution (every point of the elastica but the tip is above the flat).
+  (curvature 0 there), the flat is straight, and the beam meets it at an angle (the tip's
+  tangent at -49 degrees, the flat at -37: the beam behind the tip rises away from the flat), so
+  the rest of the beam stays clear of it, not a wrapping region; the test checks that on the
+  exact solution (every point of the elastica but the tip is above the flat).
 """
 
 from dataclasses import replace
