@@ -507,6 +507,7 @@ def solve_with_stops(
 ) -> BeamResponse:
     """Trace ``model`` under ``drive`` with frictionless contact against the rigid ``stops``.
 
+    Raises FeaError when a stop overlaps the undeformed beam (deeper than the tolerance).
     A path that penetrates a stop deeper than ``settings.penetration_tol`` is traced again with
     a 10x stiffer penalty (at most ``settings.max_raises`` times; ``contact.extra`` says the
     factor used and how many raises it took).
@@ -519,8 +520,18 @@ def solve_with_stops(
     """
     if not stops:
         return model.solve(drive)
+    # the undeformed beam must be clear of the stops (touching is fine): the first row is not
+    # solved, and a stop across the beam has no side to push it to
+    first = BeamContact(model, stops, settings)
+    _, gap0, _, _ = first.state(model.reference_nodes_mm)
+    for name, g in zip(first.names, gap0, strict=True):
+        if g < -first.tolerance_mm:
+            raise FeaError(
+                f"stop {name!r} overlaps the undeformed beam by {-g:.4g} mm; move it clear "
+                f"(the gap is measured from the beam's surface, t/2 from the centreline)"
+            )
     for raises in range(int(settings.max_raises) + 1):
-        contact = BeamContact(model, stops, settings)
+        contact = first if raises == 0 else BeamContact(model, stops, settings)
         beam = model.solve(drive, contact=contact)
         result = contact.response(beam, drive)
         if result.penetration_ok or raises == settings.max_raises:
@@ -577,21 +588,23 @@ def _closest_on_element(v, xe, r0, r1) -> tuple[float, float, bool]:
     k = int(np.argmin(vals))
     xi, phi = cand[k], vals[k]
     if r1 != r0:
+        # Newton on phi_xi = 0 from the centreline's closest point (the taper moves the minimum
+        # only a little), a step halved until |phi_xi| falls: phi itself is flat at its minimum,
+        # so a test on phi would stop ~sqrt(eps) short of it, and the force's derivative with it
         for _ in range(50):
             _, g, h, *_ = _phi(v, xe, xi, r0, r1)
+            if g == 0.0:
+                break
             step = -g / h if h > 0.0 else -np.sign(g) * 0.1
-            for _ in range(40):  # damped: accept only a step that lowers phi
+            for _ in range(40):
                 new = min(1.0, max(0.0, xi + step))
-                val = _phi(v, xe, new, r0, r1)[0]
-                if val <= phi:
+                if new == xi or abs(_phi(v, xe, new, r0, r1)[1]) < abs(g):
                     break
                 step *= 0.5
-            else:
+            if new == xi:  # converged, or at an end with phi still falling beyond it
                 break
-            done = abs(new - xi) <= 1e-15
-            xi, phi = new, val
-            if done:
-                break
+            xi = new
+        phi = _phi(v, xe, xi, r0, r1)[0]
     return float(phi), xi, 0.0 < xi < 1.0
 
 

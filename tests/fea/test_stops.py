@@ -20,6 +20,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from flexopt.fea.beam import BeamModel, BeamSettings, EndDrive
+from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.fea.stops import BeamContact, ContactSettings, RigidStop, solve_with_stops
 from flexopt.geometry.profile import BeamProfile
@@ -31,8 +32,8 @@ EI = MAT.E_MPa * B * T**3 / 12.0  # N mm^2
 KGA = 5.0 / 6.0 * MAT.G_MPa * B * T  # N
 
 
-def model(kernel="auto", n=20):
-    prof = BeamProfile([[0.0, 0.0], [L, 0.0]], [T, T], B)
+def model(kernel="auto", n=20, t_end=T):
+    prof = BeamProfile([[0.0, 0.0], [L, 0.0]], [T if t_end == T else 0.8, t_end], B)
     return BeamModel(prof, MAT, settings=BeamSettings(n_elements=n, kernel=kernel))
 
 
@@ -222,12 +223,15 @@ def test_large_deflection_on_an_inclined_flat_against_the_elastica():
     assert c.in_contact[-1, 0] and c.penetration_ok
 
 
+@pytest.mark.parametrize("t_end", [T, 0.4])
 @pytest.mark.parametrize("kind", ["point", "polygon", "segment"])
-def test_contact_tangent_is_the_derivative_of_the_contact_force(kind):
+def test_contact_tangent_is_the_derivative_of_the_contact_force(kind, t_end):
     """Central differences of the forces :meth:`BeamContact.add` adds against its tangent, in
     the generalised DOFs of a rotated drive frame (the end node's translations), on a state in
-    which the beam penetrates the stop somewhere inside an element and at the driven end."""
-    m = model("numpy", n=4)
+    which the beam penetrates the stop somewhere inside an element and at the driven end; a
+    uniform beam and a tapered one (0.8 -> 0.4 mm: the closest point moves off the centreline's
+    foot, the taper term of the vertex pair)."""
+    m = model("numpy", n=4, t_end=t_end)
     frame = np.array([[0.6, -0.8], [0.8, 0.6]])
     # a bent state: the beam dips below y = -1 around x = 60 and at its end
     x_nodes = m.reference_nodes_mm[:, 0]
@@ -241,8 +245,8 @@ def test_contact_tangent_is_the_derivative_of_the_contact_force(kind):
         "point": [RigidStop.point((69.0, -1.3)), RigidStop.point((101.1, -0.45))],
         # a node on the top face, both top corners on the beam
         "polygon": [RigidStop.polygon([[55, -6], [70, -6], [70, -1.3], [55, -1.3]])],
-        # three nodes and the driven end on it, one node across it (pushed back)
-        "segment": [RigidStop.segment((40.0, -1.4), (110.0, -0.4))],
+        # nodes on it, nodes across it (pushed back), the driven end on it
+        "segment": [RigidStop.segment((40.0, -1.4), (110.0, -0.35))],
     }[kind]
     contact = BeamContact(m, stops, ContactSettings(penalty_factor=1.0))
 
@@ -321,3 +325,18 @@ def test_newton_with_contact_converges_quadratically():
     assert e.size >= 4
     assert np.log(e[-1]) / np.log(e[-2]) > 1.8
     assert np.all(e[2:] < 100.0 * e[1:-1] ** 2)
+
+
+def test_bad_stops_are_refused_with_the_fix():
+    with pytest.raises(FeaError, match="overlaps the undeformed beam by 0.1 mm"):
+        solve_with_stops(model(), DRIVE, [RigidStop.point((50.0, -(T / 2 - 0.1)), "pin")])
+    with pytest.raises(FeaError, match="closed outline needs at least 3"):
+        RigidStop([[0, 0], [1, 1]], closed=True)
+    with pytest.raises(FeaError, match="repeated"):
+        RigidStop.segment((0, 0), (0, 0))
+    with pytest.raises(FeaError, match="penalty_factor"):
+        ContactSettings(penalty_factor=0.0)
+    # touching is fine: the stop carries force from the first step on
+    res = solve_with_stops(model(), DRIVE, [RigidStop.point((50.0, -T / 2))])
+    assert res.ok and res.contact.initial_gap_mm[0] == pytest.approx(0.0, abs=1e-12)
+    assert res.contact.in_contact[1:, 0].all() and not res.contact.in_contact[0, 0]
