@@ -340,3 +340,74 @@ def test_bad_stops_are_refused_with_the_fix():
     res = solve_with_stops(model(), DRIVE, [RigidStop.point((50.0, -T / 2))])
     assert res.ok and res.contact.initial_gap_mm[0] == pytest.approx(0.0, abs=1e-12)
     assert res.contact.in_contact[1:, 0].all() and not res.contact.in_contact[0, 0]
+
+
+def elastica_over_corner(P, V):
+    """Inextensible cantilever (clamped at the origin along x) under a dead tip force P (N)
+    down, bent over a rigid corner V (2,) mm that touches its lower surface at an unknown arc
+    length s_c, where the frictionless contact force R acts along the beam's normal
+    nu = (-sin th_c, cos th_c) (th_c the section angle there): two spans in sigma in [0, 1]
+    (s = sigma s_c, s = s_c + sigma (L - s_c)), states (x, y, theta, kappa) of each, parameters
+    (s_c, R, th_c); EI kappa' = F_x sin theta - F_y cos theta with F the load beyond s:
+    (0, -P) + R nu on the first span, (0, -P) on the second. Conditions: clamped, x, y, theta,
+    kappa continuous at s_c, moment-free tip, theta(s_c) = th_c and the lower surface on the
+    corner, x(s_c) = V + t/2 nu. Started from a straight beam pointing at the corner."""
+
+    def f(sig, y, p):
+        sc, R, thc = p
+        nu = np.array([-np.sin(thc), np.cos(thc)])
+        out = []
+        for j, F, ds in ((0, (R * nu[0], R * nu[1] - P), sc), (4, (0.0, -P), L - sc)):
+            th, k = y[j + 2], y[j + 3]
+            out += [ds * np.cos(th), ds * np.sin(th), ds * k]
+            out.append(ds * (F[0] * np.sin(th) - F[1] * np.cos(th)) / EI)
+        return np.vstack(out)
+
+    def bc(a, b, p):
+        sc, R, thc = p
+        xc = V + (T / 2) * np.array([-np.sin(thc), np.cos(thc)])
+        return np.array(
+            [a[0], a[1], a[2], b[0] - a[4], b[1] - a[5], b[2] - a[6], b[3] - a[7], b[7]]
+            + [b[2] - thc, b[0] - xc[0], b[1] - xc[1]]
+        )
+
+    ang, sc = np.arctan2(V[1], V[0]), np.hypot(*V)
+    sig = np.linspace(0.0, 1.0, 201)
+    s1, s2, z = sig * sc, sc + sig * (L - sc), np.zeros_like(sig)
+    y = np.vstack([s1 * np.cos(ang), s1 * np.sin(ang), z + ang, z])
+    y = np.vstack([y, s2 * np.cos(ang), s2 * np.sin(ang), z + ang, z])
+    sol = solve_bvp(f, bc, sig, y, p=[sc, P, ang], tol=1e-10, max_nodes=200000)
+    assert sol.status == 0, sol.message
+    return sol
+
+
+def test_large_deflection_over_a_ledge_corner_against_the_elastica():
+    """A cantilever bent down over the corner of a rigid block (a ledge under its middle) by a
+    large tip load (8 EI/L^2, tip rotation 58 degrees): the corner presses on the beam between
+    nodes and the contact point slides along the beam as the load grows. Exact answer: one
+    contact point at the corner (the elastica stays above the ledge's top face, checked)."""
+    V = np.array([60.0, -20.0])
+    ledge = RigidStop.polygon([[20, -40], [60, -40], V, [20, -20]], "ledge")
+    P = 8.0 * EI / L**2
+    drive = EndDrive("force", (0.0, -1.0), P, steps=12, rotation="free", transverse="free")
+    res = solve_with_stops(model(n=30), drive, [ledge])
+    assert res.ok, res.message
+    c = res.contact
+    sol = elastica_over_corner(P, V)
+    sc, R, thc = sol.p
+    # t / L = 1/200: axial and shear compliance (absent in the elastica) ~1e-5 of the answers
+    assert c.force_N[-1, 0] == pytest.approx(R, rel=1e-4)
+    np.testing.assert_allclose(
+        c.force_vector_N[-1, 0], R * np.array([-np.sin(thc), np.cos(thc)]), rtol=1e-3, atol=1e-4 * R
+    )
+    np.testing.assert_allclose(res.shapes_mm[-1, -1], sol.y[4:6, -1], atol=2e-3)
+    assert res.end_rotation_rad[-1] == pytest.approx(sol.y[6, -1], abs=1e-4)
+    np.testing.assert_allclose(c.point_mm[-1, 0], V, atol=1e-12)
+    # the exact answer touches the ledge at its corner only: the first span stays above the top
+    # face (y > -20 + t/2 where x in [20, 60)) and the second span is past the block (x > 60)
+    x1, y1 = sol.sol(np.linspace(0.0, 0.999, 400))[:2]
+    top = (x1 >= 20.0) & (x1 < 60.0)
+    assert np.all(y1[top] > V[1] + T / 2)
+    assert np.all(sol.y[4] >= V[0] - 1e-9)
+    # clear at the start, in contact at the end, within the penetration tolerance
+    assert c.rows_in_contact[-1] and not c.rows_in_contact[0] and c.penetration_ok
