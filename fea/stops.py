@@ -25,15 +25,18 @@ quadratic convergence once the set of active pairs stops changing. For the verte
 ``phi_XX`` alone when the closest point is an element end).
 
 Penalty stiffness (:class:`ContactSettings`): ``k = penalty_factor x EI / h^3`` per element
-(``EI`` at the element's middle, ``h`` its length; a node takes the mean of its elements): the
-stiffness of one element of the beam against a transverse motion of a node is of order
-``EI / h^3``, so the factor says how much stiffer than the beam itself the stop is, whatever the
-units, the section and the mesh. The default 1e3 keeps the penetration ``F / k`` far below the
-mesh's own error (a cantilever pressed on a stop at mid-span with 20 elements: penetration ~1e-6
-of the deflection) while the tangent stays well conditioned (k ~ 1e3 EI / h^3 is of the order of
-the axial stiffness EA / h of a slender element). Every converged row is checked: its largest
-penetration must stay below ``penetration_tol x t`` (t the thinnest section); a row beyond it is
-flagged (``ContactResponse.penetration_ok``, ``message``): raise ``penalty_factor``.
+(``EI`` at the element's middle, ``h`` its length; a node takes the mean of its elements, a stop
+vertex keeps the element it faces in the undeformed state, so that its force does not jump where
+the contact slides over an element end). The stiffness of one element of the beam against a
+transverse motion of a node is of order ``EI / h^3``, so the factor says how much stiffer than
+the beam itself the stop is, whatever the units, the section and the mesh. The default 1e3 keeps
+the penetration ``F / k`` far below the mesh's own error (a cantilever pressed on a stop at
+mid-span with 20 elements: penetration ~1e-6 of the deflection) while the tangent stays well
+conditioned (k ~ 1e3 EI / h^3 is of the order of the axial stiffness EA / h of a slender
+element). Every converged row is checked: its largest penetration must stay below
+``penetration_tol x t`` (t the thinnest section); :func:`solve_with_stops` traces a path beyond
+it again with a 10x stiffer penalty (``max_raises`` times at most) and flags one still beyond it
+(``ContactResponse.penetration_ok``, ``message``).
 
 Limits: frictionless; rigid stops that do not move; node-to-segment pairs (a face is resolved at
 the beam's nodes, a vertex anywhere along the beam); a thin wall (open polyline) must not be
@@ -288,9 +291,13 @@ class BeamContact:
             nrm = np.stack([-d[:, 1], d[:, 0]], axis=1)
             dn = np.einsum("nfk,fk->nf", x0[:, None, :] - a[None], nrm)
             self._face_side.append(np.where(dn >= 0.0, 1.0, -1.0))
-        self._vertex_side = [
-            np.array([self._closest(v, x0)[3] for v in verts]) for verts in self._vertices
-        ]
+        # A vertex keeps the penalty of the element it faces in the undeformed state: with the
+        # k of whichever element it touches, the force would jump where the contact point slides
+        # over an element end of a tapered beam (a jump Newton cannot follow quadratically).
+        closest0 = [[self._closest(v, x0) for v in verts] for verts in self._vertices]
+        self._vertex_side = [np.array([c[3] for c in cs]) for cs in closest0]
+        self._vertex_k = [np.array([self.k_elements[c[2]] for c in cs]) for cs in closest0]
+        self._r_max = float(self._r_nodes.max())
 
     # ------------------------------------------------------------------ gaps
 
@@ -355,7 +362,14 @@ class BeamContact:
         P2 centreline (over the elements near it)."""
         out = []
         r = self._r_nodes
-        for v, side0 in zip(self._vertices[i], self._vertex_side[i], strict=True):
+        verts = zip(self._vertices[i], self._vertex_side[i], self._vertex_k[i], strict=True)
+        for v, side0, k in verts:
+            # far from every node: the curve (within h_max of a node, with some stretch to
+            # spare) is farther than its radius, no contact (only the gap output needs it)
+            if active_only:
+                dmin = np.sqrt(((x - v) ** 2).sum(axis=1).min())
+                if dmin > 2.0 * self._h_max + self._r_max:
+                    continue
             phi, xi, e, side = self._closest(v, x)
             # on the undeformed side: +1; crossed: -1 (then the gap is -(distance) - t/2)
             m = 1.0 if side0 == 0.0 else side0 * side
@@ -365,7 +379,7 @@ class BeamContact:
             if active_only and gap >= 0.0:
                 continue
             grad, hess = _vertex_derivatives(v, x[nodes], xi, r0, r1)
-            out.append(_Pair(i, gap, nodes, m * grad, m * hess, self.k_elements[e], v.copy()))
+            out.append(_Pair(i, gap, nodes, m * grad, m * hess, k, v.copy()))
         return out
 
     def _closest(self, v: np.ndarray, x: np.ndarray) -> tuple[float, float, int, float]:
