@@ -69,7 +69,7 @@ import os
 from dataclasses import dataclass, field
 from functools import cache, lru_cache
 from types import ModuleType
-from typing import Literal, NamedTuple
+from typing import Literal, NamedTuple, Protocol
 
 import numpy as np
 from flexopt.fea.errors import FeaError
@@ -80,7 +80,14 @@ from skfem import CellBasis, ElementLineP2, MeshLine
 from skfem.quadrature import get_quadrature
 from skfem.refdom import RefLine
 
-__all__ = ["EndDrive", "BeamSettings", "BeamResponse", "BeamModel", "solve_beam"]
+__all__ = [
+    "EndDrive",
+    "BeamSettings",
+    "BeamResponse",
+    "BeamModel",
+    "ContactTerms",
+    "solve_beam",
+]
 
 log = logging.getLogger(__name__)
 
@@ -210,6 +217,9 @@ class BeamResponse:
         how many rows are unstable; empty when ``unstable`` is False.
     critical_value : driven value (mm or N) at which stability was first lost, bracketed to
         ``min_critical_substep`` of a step; NaN when it never was.
+    contact : the contact outputs (a :class:`fea.stops.ContactResponse`: force per stop, closing
+        gap, rows in contact, contact points) of a solve with rigid stops
+        (:func:`fea.stops.solve_with_stops`); None without stops.
     """
 
     displacement_mm: np.ndarray
@@ -230,6 +240,26 @@ class BeamResponse:
     unstable: bool = False
     unstable_message: str = ""
     critical_value: float = float("nan")
+    contact: object | None = None
+
+
+class ContactTerms(Protocol):
+    """Extra forces and tangent added to every assembly of a solve (rigid stops, fea/stops.py).
+
+    ``add(u, frame, r, ab)``: ``u`` (n_dofs,) physical DOFs [mm, rad] (the end node's
+    translations in x, y); ``frame`` (2, 2) the drive's (direction, normal) axes, the generalised
+    numbering of the end node's translations; adds in place to ``r`` (n_dofs,) [N, N mm] and to
+    ``ab`` (2 kl + ku + 1, n_dofs), ``A[i, j] = ab[kl + ku + i - j, j]`` (kl = ku = 8), both in
+    generalised DOFs. The added tangent must be the derivative of the added force (symmetric: the
+    Hessian of a potential) and couple no DOFs farther apart than the band.
+
+    ``active``: a value that changes when the set of pairs acting in the last ``add`` changes
+    (Newton backtracks a correction that changed it and raised the residual).
+    """
+
+    active: object
+
+    def add(self, u: np.ndarray, frame: np.ndarray, r: np.ndarray, ab: np.ndarray) -> None: ...
 
 
 # -- kernel selection -----------------------------------------------------------------------------
@@ -576,12 +606,15 @@ class BeamModel:
         u[i : i + 2] = frame.T @ q[i : i + 2]
         return u
 
-    def _assemble(self, q: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _assemble(
+        self, q: np.ndarray, frame: np.ndarray, contact: ContactTerms | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Internal force (n_dofs,) and tangent in LAPACK band storage, generalised DOFs.
 
         ``q`` (n_dofs,) generalised DOFs [mm, rad]; ``frame`` (2, 2) the end node's axes. Returns
         ``r`` (n_dofs,) [N, N mm] and ``ab`` (2 kl + ku + 1, n_dofs), Fortran-ordered,
-        ``A[i, j] = ab[kl + ku + i - j, j]`` (kl = ku = 8), rows 0..kl-1 zero.
+        ``A[i, j] = ab[kl + ku + i - j, j]`` (kl = ku = 8), rows 0..kl-1 zero. ``contact``
+        (rigid stops, fea/stops.py) adds its penalty forces and tangent in place.
         """
         if self.kernel == "numba":
             kern = _compiled()
@@ -590,6 +623,8 @@ class BeamModel:
             abc = np.empty((self.n_dofs, self._ldab))
             u = np.empty(self.n_dofs)
             kern.assemble(q, np.ascontiguousarray(frame, dtype=np.float64), self._geo, u, r, abc)
+            if contact is not None:
+                contact.add(self._physical(q, frame), frame, r, abc.T)
             return r, abc.T
         re, ke = self._element_arrays(self._physical(q, frame))
         # Rotate the end node's translations of the last element into (direction, normal).
@@ -598,7 +633,10 @@ class BeamModel:
         ke[-1] = T.T @ ke[-1] @ T
         r = np.bincount(self._edofs.ravel(), re.ravel(), minlength=self.n_dofs)
         ab = np.bincount(self._band_index, ke.ravel(), minlength=self._ldab * self.n_dofs)
-        return r, ab.reshape(self.n_dofs, self._ldab).T
+        ab = ab.reshape(self.n_dofs, self._ldab).T
+        if contact is not None:
+            contact.add(self._physical(q, frame), frame, r, ab)
+        return r, ab
 
     def _stress(self, q: np.ndarray) -> tuple[float, float]:
         """Peak |N|/A + |M| c/I (MPa) over the sampling points and its arc length (mm).
@@ -673,9 +711,14 @@ class BeamModel:
             loaded=-1 if is_disp else ia,
         )
 
-    def solve(self, drive: EndDrive) -> BeamResponse:
-        """Trace the response under ``drive``; see :class:`BeamResponse` for the rows."""
-        if self.kernel == "numba":
+    def solve(self, drive: EndDrive, contact: ContactTerms | None = None) -> BeamResponse:
+        """Trace the response under ``drive``; see :class:`BeamResponse` for the rows.
+
+        ``contact`` (rigid stops: :func:`fea.stops.solve_with_stops` builds it) adds penalty
+        contact forces to every assembly; such a solve runs the Python tracing loop below (with
+        the compiled element kernel when that is the kernel). Without it, nothing changes.
+        """
+        if self.kernel == "numba" and contact is None:
             return self._solve_compiled(drive)
         st = self.settings
         n = self.n_dofs
@@ -688,7 +731,7 @@ class BeamModel:
         targets = drive.max_value * np.arange(steps + 1) / steps
         rows = _Rows(steps + 1, self.n_nodes)
         q = np.zeros(n)
-        r, ab = self._assemble(q, frame)
+        r, ab = self._assemble(q, frame, contact)
         rows.store(0, self, q, r, frame, 0, ia, it, ir)
         stable = _is_positive_definite(ab, bc)
         rows.stable[0] = stable
@@ -711,7 +754,7 @@ class BeamModel:
             direction_sign = np.sign(target - value) or 1.0
             while abs(target - value) > 1e-12 * max(1.0, abs(drive.max_value)):
                 inc = direction_sign * min(h, abs(target - value))
-                sub = self._newton(q, r, ab, value, value + inc, history, bc, frame)
+                sub = self._newton(q, r, ab, value, value + inc, history, bc, frame, contact)
                 iters_row += sub.iterations
                 substeps += 1
                 is_stable = False
@@ -756,7 +799,7 @@ class BeamModel:
             "n_elements": self.n_elements,
             "n_dofs": self.n_dofs,
             "substeps": substeps,
-            "kernel": "numpy",
+            "kernel": self.kernel,
         }
         return rows.response(ok, message, extra, _stability(rows, lost, is_disp))
 
@@ -867,6 +910,7 @@ class BeamModel:
         history: list[tuple[float, np.ndarray]],
         bc: _Constraints,
         frame: np.ndarray,
+        contact: ContactTerms | None = None,
     ) -> _SubStep:
         """One sub-step from the converged state ``q0`` at ``value0`` to ``value``."""
         st = self.settings
@@ -896,7 +940,7 @@ class BeamModel:
             q = q0 + delta
             iters = 1
         q_pred = q
-        r, ab = self._assemble(q, frame)
+        r, ab = self._assemble(q, frame, contact)
 
         ref = None
         for _ in range(st.max_iterations):
@@ -926,9 +970,12 @@ class BeamModel:
             big = np.abs(delta[2::3]).max() / st.max_rotation_step
             if big > 1.0:
                 delta = delta / big
+            active = None if contact is None else contact.active
             q = q + delta
             iters += 1
-            r, ab = self._assemble(q, frame)
+            r, ab = self._assemble(q, frame, contact)
+            if contact is not None and contact.active != active:
+                q, r, ab, delta = self._backtrack(q, r, ab, delta, norm, f_ext, bc, frame, contact)
             # A correction at round-off level means equilibrium to machine precision even when the
             # load is so small that the residual test sits below the round-off of EA * strain.
             if converged or np.abs(delta).max() <= st.dtol * self._length_scale:
@@ -936,6 +983,22 @@ class BeamModel:
         return fail._replace(
             iterations=iters, reason=f"Newton did not converge in {st.max_iterations} iterations"
         )
+
+    def _backtrack(self, q, r, ab, delta, norm, f_ext, bc, frame, contact):
+        """Halve a Newton correction while it raises the free residual norm above ``norm`` (N),
+        at most 8 times (then the last one is kept). Only where a correction changed the set of
+        active contact pairs: a pair that switches off between two iterates (the linearised gap
+        said touching, the new state is just clear) drops the stop's force, and the next full
+        correction falls deep into the stop; plain Newton can then cycle on and off. Returns
+        ``(q, r, ab, delta)``."""
+        for _ in range(8):
+            res = (r - f_ext)[bc.free]
+            if np.sqrt(res @ res) <= norm:
+                break
+            delta = 0.5 * delta
+            q = q - delta
+            r, ab = self._assemble(q, frame, contact)
+        return q, r, ab, delta
 
 
 #: the reasons of a failed sub-step, by the compiled kernel's codes (fea/_beam_kernels.py)
