@@ -30,6 +30,10 @@ _EXPORTS = {
     "Rotate": "plane_stress",
     "Translate": "plane_stress",
     "solve_plane_stress": "plane_stress",
+    "RigidStop": "stops",
+    "ContactSettings": "stops",
+    "ContactResponse": "stops",
+    "solve_with_stops": "stops",
 }
 
 __all__ = sorted(_EXPORTS)
