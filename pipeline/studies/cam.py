@@ -30,9 +30,7 @@ import time
 from typing import Any
 
 import numpy as np
-from flexopt.geometry.cam import (
-    CamProfile,
-    cam_outline,
+from flexopt.fea.contact import (
     contact_pressure_MPa,
     onset_pressure_MPa,
     sab_limits,
@@ -42,6 +40,7 @@ from flexopt.geometry.cam import (
     sab_rotation,
     torque_from_outline,
 )
+from flexopt.geometry.cam import CamProfile, cam_outline
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation

@@ -39,6 +39,7 @@ from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
 from flexopt.fea.errors import FeaError
 from flexopt.fea.fidelity import plane_stress_check
 from flexopt.fea.materials import Material, get_material
+from flexopt.fea.prb import prb_force_N, prb_report
 from flexopt.geometry.constant_force import (
     DESIGN_VARIABLE_NAMES,
     TABLE1,
@@ -49,11 +50,7 @@ from flexopt.geometry.constant_force import (
     beam_profile,
     design_from_vector,
     design_to_vector,
-    flexure_width_mm,
-    optimise_prb,
     outline,
-    prb_force_N,
-    stress_limited_stroke_mm,
 )
 from flexopt.geometry.constant_force import min_feature_mm as design_min_feature_mm
 from flexopt.geometry.errors import GeometryError
@@ -906,74 +903,6 @@ def plane_stress_force_column(
 #: The figures of a quantity by model (pipeline.verdict): the peak stress and the force band
 #: are judged on the plane-stress check's figures where the run made one.
 FIGURES = _builtin.CONSTANT_FORCE_FIGURES
-
-
-def prb_report(
-    target_force_N: float,
-    stroke_mm: float,
-    E_MPa: float = 1800.0,
-    allowable_MPa: float = 42.5,
-    flexure_thickness_mm: float = 0.8,
-    x_in_mm: float = 100.0,
-    e_mm: float = 60.0,
-) -> dict[str, Any]:
-    """The paper's first stage for any target: Table-1-like PRB parameters and lumped flexures.
-
-    :func:`geometry.constant_force.optimise_prb` finds ``r1, theta10, K1..K3`` whose force stays
-    at ``target_force_N`` over ``stroke_mm`` (Eq. 8, ~1 s). The flexures that realise the K are
-    sized at ``flexure_thickness_mm`` (the printable minimum gives the narrowest pivots and so the
-    longest stroke before a pivot reaches ``allowable_MPa``, as ``sigma = E h |Psi| / (2 L)``)
-    and the paper's 10.8 mm length: ``b = 12 K L / (E h^3)`` (Eq. 12).
-
-    Parameters
-    ----------
-    target_force_N : float, N
-    stroke_mm : float, mm
-    E_MPa : float, MPa — Young's modulus of the flexures (ABS: 1800).
-    allowable_MPa : float, MPa
-    flexure_thickness_mm : float, mm
-    x_in_mm, e_mm : float, mm — the fixed slider position (Eq. 10; paper: 100 and 60).
-
-    Returns
-    -------
-    dict
-        ``r1_mm``, ``theta10_rad``, ``K_Nmm_per_rad``, ``r2_mm``, ``rms_error_N``,
-        ``relative_rms_error``, ``force_range_N``, ``lumped_flexures`` (thickness, length, widths,
-        ``stress_limited_stroke_mm``), the paper's ``table1`` for comparison; or ``skipped``.
-    """
-    t0 = time.perf_counter()
-    try:
-        fit = optimise_prb(target_force_N, stroke_mm, x_in_mm, e_mm)
-    except GeometryError as exc:
-        return {"skipped": str(exc)}
-    p = fit.params
-    h, length = flexure_thickness_mm, 10.8
-    K = p.stiffness_Nmm
-    widths = [float(flexure_width_mm(k, E_MPa, h, length)) if k > 0 else 0.0 for k in K]
-    limit = stress_limited_stroke_mm(p, E_MPa, allowable_MPa, h, length, max_stroke_mm=60.0)
-    return {
-        "target_force_N": float(target_force_N),
-        "stroke_mm": float(stroke_mm),
-        "r1_mm": p.r1_mm,
-        "theta10_rad": p.theta10_rad,
-        "K_Nmm_per_rad": K.tolist(),
-        "r2_mm": p.r2_mm,
-        "rms_error_N": fit.rms_error_N,
-        "relative_rms_error": fit.relative_rms_error,
-        "force_range_N": [float(fit.force_N.min()), float(fit.force_N.max())],
-        "lumped_flexures": {
-            "thickness_mm": h,
-            "length_mm": length,
-            "width_mm": widths,
-            "stress_limited_stroke_mm": None if math.isinf(limit) else limit,
-        },
-        "table1": {
-            "r1_mm": TABLE1.r1_mm,
-            "theta10_rad": TABLE1.theta10_rad,
-            "K_Nmm_per_rad": TABLE1.stiffness_Nmm.tolist(),
-        },
-        "time_s": time.perf_counter() - t0,
-    }
 
 
 def prb_synthesis(study: ConstantForceStudy) -> dict[str, Any]:
