@@ -71,6 +71,7 @@ __all__ = [
     "prb_pivot_stresses_MPa",
     "stress_limited_stroke_mm",
     "prb_report",
+    "prb_frame_comparison",
 ]
 
 # ----------------------------------------------------------------------------------------------
@@ -733,4 +734,26 @@ def prb_report(
             "K_Nmm_per_rad": TABLE1.stiffness_Nmm.tolist(),
         },
         "time_s": time.perf_counter() - t0,
+    }
+
+
+def prb_frame_comparison(
+    stroke_mm: np.ndarray, force_N: np.ndarray, lo: float, hi: float
+) -> dict[str, Any]:
+    """A beam's force curve against the PRB model whose joints it is laid out on (Table 1): the
+    beam is the paper's 'smoothed' PRB mechanism, so this shows how far the smoothing moved the
+    force. Compared at four strokes spread over ``(lo, hi]`` (mm; ``hi`` alone when the range is
+    empty), the beam's force (N) interpolated on its rows ``stroke_mm`` (m,), ``force_N`` (m,).
+
+    Moved from ``pipeline/studies/constant_force.py``.
+    """
+    strokes = np.linspace(lo, hi, 5)[1:] if hi > lo else np.array([hi])
+    prb = prb_force_N(TABLE1, strokes)
+    beam = np.interp(strokes, stroke_mm, force_N)
+    return {
+        "model": "PRB slider-crank of paper Table 1 (r1 = 54 mm, theta10 = 0.542 rad)",
+        "stroke_mm": strokes.tolist(),
+        "prb_force_N": prb.tolist(),
+        "beam_force_N": beam.tolist(),
+        "beam_over_prb": (beam / prb).tolist(),
     }

@@ -39,7 +39,7 @@ from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
 from flexopt.fea.errors import FeaError
 from flexopt.fea.fidelity import plane_stress_check
 from flexopt.fea.materials import Material, get_material
-from flexopt.fea.prb import prb_force_N, prb_report
+from flexopt.fea.prb import prb_frame_comparison, prb_report
 from flexopt.geometry.constant_force import (
     DESIGN_VARIABLE_NAMES,
     TABLE1,
@@ -55,6 +55,14 @@ from flexopt.geometry.constant_force import (
 from flexopt.geometry.constant_force import min_feature_mm as design_min_feature_mm
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.curve_metrics import CurveMetrics, curve_metrics
+from flexopt.optimise.curve_objectives import (
+    compared_over,
+    force_band_constraints,
+    force_band_metrics,
+    force_band_objective,
+    plane_stress_force_column,
+    plane_stress_peak_figures,
+)
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
@@ -580,32 +588,18 @@ class ConstantForceProblem:
         positive definite, so the beam would snap or buckle away from the traced rows) keeps its
         numbers but is infeasible, with the solver's ``unstable: ...`` message as the reason."""
         study = self.study
-        if study.objective == "rms_error":
-            f = [m.rms_error_N]
-            stress = m.peak_stress_MPa
-        else:
-            f = [
-                -m.operative_stroke_mm
-                + study.boundary.stroke_mm * m.rms_error_N / study.target.force_N
-            ]
-            stress = m.window_peak_stress_MPa
-        # The plane-stress peak (the verdict's figure) runs a few % above the beam's: the GA
-        # holds the beam's times the ratio measured on this study's designs (fidelity block).
-        g = [stress * self.study.fidelity.beam_stress_factor / self.allowable_MPa - 1.0]
-        if study.target.min_operative_stroke_mm > 0:
-            g.append(study.target.min_operative_stroke_mm - m.operative_stroke_mm)
+        f = [
+            force_band_objective(study.objective, m, study.boundary.stroke_mm, study.target.force_N)
+        ]
+        g = force_band_constraints(
+            study.objective,
+            m,
+            self.allowable_MPa,
+            study.fidelity.beam_stress_factor,
+            study.target.min_operative_stroke_mm,
+        )
         metrics: dict[str, Any] = {
-            "mean_force_N": m.mean_force_N,
-            "flatness_percent": m.flatness_percent,
-            "operative_stroke_mm": m.operative_stroke_mm,
-            "operative_start_mm": None if math.isnan(m.window_mm[0]) else m.window_mm[0],
-            "operative_end_mm": None if math.isnan(m.window_mm[1]) else m.window_mm[1],
-            "peak_stress_MPa": m.peak_stress_MPa,
-            "window_peak_stress_MPa": m.window_peak_stress_MPa,
-            "stress_limit_stroke_mm": m.stress_limit_stroke_mm,
-            "rms_error_N": m.rms_error_N,
-            "plateau_mean_force_N": m.plateau_mean_force_N,
-            "plateau_flatness_percent": m.plateau_flatness_percent,
+            **force_band_metrics(m),
             "min_feature_mm": design_min_feature_mm(design),
             "stable": not response.unstable,
             "unstable_rows": _unstable_rows(response),
@@ -688,13 +682,13 @@ class ConstantForceProblem:
             if m.operative_stroke_mm > 0
             else np.zeros(len(table["displacement_mm"]), dtype=bool)
         )
-        lo, hi = _compared_over(study, m)
+        lo, hi = compared_over(m, study.boundary.stroke_mm)
         info["compared_over_mm"] = [lo, hi]
-        info["prb_frame"] = _prb_frame_comparison(table, lo, hi)
+        info["prb_frame"] = prb_frame_comparison(table["displacement_mm"], table["force_N"], lo, hi)
         # The checks are reported, never fatal: a report without them beats no report.
         if study.fidelity.enabled:
             info["fidelity"] = _guarded(fidelity_check, self, design, response, lo, hi)
-            info.update(fidelity_figures(info["fidelity"]))
+            info.update(plane_stress_peak_figures(info["fidelity"]))
             column = plane_stress_force_column(table, info["fidelity"])
             if column is not None:
                 table["plane_stress_force_N"] = column
@@ -722,14 +716,6 @@ class ConstantForceProblem:
             height_mm=design.B,
             info=info,
         )
-
-
-def _compared_over(study: ConstantForceStudy, m: CurveMetrics) -> tuple[float, float]:
-    """The strokes the checks compare over, mm: the operative window; a window shorter than a
-    quarter of the drive (or none) says little, so then the whole drive instead."""
-    if m.operative_stroke_mm >= 0.25 * study.boundary.stroke_mm:
-        return float(m.window_mm[0]), float(m.window_mm[1])
-    return 0.0, float(study.boundary.stroke_mm)
 
 
 def _guarded(check: Any, *args: Any) -> dict[str, Any]:
@@ -769,21 +755,6 @@ def _response_table(response: BeamResponse, target_N: float) -> dict[str, np.nda
         "peak_stress_MPa": np.asarray(response.peak_stress_MPa, dtype=float),
         "peak_stress_s_mm": np.asarray(response.peak_stress_s_mm, dtype=float),
         "stable": _stable_column(response),
-    }
-
-
-def _prb_frame_comparison(table: dict[str, np.ndarray], lo: float, hi: float) -> dict[str, Any]:
-    """The beam against the PRB model whose joints it is laid out on (Table 1): the beam is the
-    paper's 'smoothed' PRB mechanism, so this shows how far the smoothing moved the force."""
-    strokes = np.linspace(lo, hi, 5)[1:] if hi > lo else np.array([hi])
-    prb = prb_force_N(TABLE1, strokes)
-    beam = np.interp(strokes, table["displacement_mm"], table["force_N"])
-    return {
-        "model": "PRB slider-crank of paper Table 1 (r1 = 54 mm, theta10 = 0.542 rad)",
-        "stroke_mm": strokes.tolist(),
-        "prb_force_N": prb.tolist(),
-        "beam_force_N": beam.tolist(),
-        "beam_over_prb": (beam / prb).tolist(),
     }
 
 
@@ -875,31 +846,6 @@ def fidelity_check(
     return result
 
 
-def fidelity_figures(check: dict[str, Any]) -> dict[str, Any]:
-    """The plane-stress figures the verdict judges (:data:`FIGURES`), from a
-    :func:`fidelity_check` record: the largest nodal von Mises stress over the checked strokes
-    (the beam's peak-stress row among them), only when every checked stroke converged."""
-    stress = check.get("plane_stress_peak_nodal_von_mises_MPa")
-    if not stress or not all(check.get("converged") or [False]):
-        return {}
-    return {"plane_stress_peak_stress_MPa": float(max(stress))}
-
-
-def plane_stress_force_column(
-    table: dict[str, np.ndarray], check: dict[str, Any]
-) -> np.ndarray | None:
-    """(rows,) N: the beam's force curve times the plane-stress / beam force ratio the
-    :func:`fidelity_check` measured at its strokes, interpolated along the stroke and held at
-    its end values beyond them (as the springs' 3D curves scale the plane-stress curve by a
-    measured ratio); None unless every checked stroke converged."""
-    strokes = check.get("stroke_mm")
-    if not strokes or not all(check.get("converged") or [False]):
-        return None
-    ratio = 1.0 + np.asarray(check["relative_difference"], dtype=float)
-    along = np.interp(table["displacement_mm"], np.asarray(strokes, dtype=float), ratio)
-    return np.asarray(table["force_N"], dtype=float) * along
-
-
 #: The figures of a quantity by model (pipeline.verdict): the peak stress and the force band
 #: are judged on the plane-stress check's figures where the run made one.
 FIGURES = _builtin.CONSTANT_FORCE_FIGURES
@@ -972,10 +918,10 @@ def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
     summary.update(envelope_values(shape, design.B))
     diagnostics = dict(response.extra)
     if study.fidelity.enabled:  # the figure the verdict judges, as flexopt run's report does
-        lo, hi = _compared_over(study, prob._metrics(design, response))
+        lo, hi = compared_over(prob._metrics(design, response), study.boundary.stroke_mm)
         check = _guarded(fidelity_check, prob, design, response, lo, hi)
         diagnostics["fidelity"] = check
-        summary.update(fidelity_figures(check))
+        summary.update(plane_stress_peak_figures(check))
         column = plane_stress_force_column(table, check)
         if column is not None:
             table["plane_stress_force_N"] = column

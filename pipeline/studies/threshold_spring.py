@@ -46,15 +46,14 @@ section 4.
 from __future__ import annotations
 
 import difflib
-import io
 import math
 import time
 from typing import Any, Literal
 
 import numpy as np
 from flexopt.fea.arm_beam import ArmBeamResponse, arm_beam_torque
-from flexopt.fea.collision import ThresholdSpring, score_spring_curve, simulate_collision
 from flexopt.fea.errors import FeaError
+from flexopt.fea.scaling import at_thickness
 from flexopt.fea.spring_analysis import analyse_spring
 from flexopt.fea.spring_analysis import stress_map_data as _stress_map_data
 from flexopt.geometry.arm_spring import ArmSpringParams, arm_clearances, build_arm_spring
@@ -67,25 +66,29 @@ from flexopt.geometry.threshold_spring import (
     fold_margin_mm,
     threshold_params,
 )
+from flexopt.optimise.curve_objectives import (
+    impact_record,
+    threshold_constraints,
+    threshold_plane_stress_figures,
+    threshold_solid_3d_scalars,
+)
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, SOLID_3D
 from flexopt.optimise.requirements import Figure as FigureOf
 from flexopt.optimise.space import DesignSpace
-from flexopt.optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_key
+from flexopt.optimise.targets import TargetSpec, curve_error, measure_key
 from flexopt.optimise.thickness_fit import fit_thickness
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plot_targets import measure_band
-from flexopt.pipeline.plots import plot_field
+from flexopt.pipeline.plots import plot_field, spring_shape_png, threshold_curve_png
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.studies._blocks import CurveSolid3DSpec, ImpactSpec
 from flexopt.pipeline.studies._blocks import MeshSpec as PlaneStressMesh
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from flexopt.pipeline.verdict import envelope_values
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 __all__ = [
@@ -407,12 +410,11 @@ class ThresholdSpringProblem:
             )
         else:  # a robustness sample: the nominal design's ST, moved by the scatter
             st = self.held_st_mm
-            torque = r.torque_Nmm * (st / p.thickness_mm)
+            torque = at_thickness(r.torque_Nmm, p.thickness_mm, st)
             err = float(curve_error(self.curve, r.rotation_rad, torque, self.measure, self.window))
-        scale = st / p.thickness_mm
         r = ArmBeamResponse(
             rotation_rad=r.rotation_rad,
-            torque_Nmm=r.torque_Nmm * scale,
+            torque_Nmm=at_thickness(r.torque_Nmm, p.thickness_mm, st),
             peak_stress_MPa=r.peak_stress_MPa,
             shapes_mm=r.shapes_mm,
             converged=r.converged,
@@ -458,9 +460,8 @@ class ThresholdSpringProblem:
             reason = "the torque is not positive anywhere in the range"
             return Evaluation.failed(x, n_obj, n_con, reason, time.perf_counter() - t0), None
         peak = float(np.nanmax(r.peak_stress_MPa))
-        lo, hi = self.st_range
-        g = np.concatenate(
-            [[err - self.study.tolerance, peak / self.allowable_MPa - 1.0, st - hi, lo - st], g_geo]
+        g = threshold_constraints(
+            err, self.study.tolerance, peak, self.allowable_MPa, st, self.st_range, g_geo
         )
         metrics = {
             "ST_mm": st,
@@ -518,7 +519,7 @@ class ThresholdSpringProblem:
         field_map = None
         if geom is not None and study.fidelity.enabled:
             info["plane_stress"], ps_rows, smap = self._fidelity(geom, r.rotation_rad)
-            info.update(plane_stress_figures(info["plane_stress"], self.error_name))
+            info.update(threshold_plane_stress_figures(info["plane_stress"], self.error_name))
             if smap:
                 field_map = {
                     "points_mm": smap["points_mm"],
@@ -532,13 +533,16 @@ class ThresholdSpringProblem:
                 table["plane_stress_peak_stress_MPa"] = ps_rows[1]
             if study.solid_3d.check:
                 info["solid_3d"] = self.solid_3d(geom, info["plane_stress"])
-                info.update(solid_3d_scalars(info["solid_3d"], self.error_name))
+                info.update(threshold_solid_3d_scalars(info["solid_3d"], self.error_name))
                 # the part to make is the corrected one (its STL, DXF), as in sea_spring
                 height = info["solid_3d"].get("ST_after_mm", height)
                 if "problem" not in info["solid_3d"].get("peak_convergence", {"problem": ""}):
                     # ... and the outline whose peak stress converged (issue 22)
                     outline = self._fine_geometry(geom, float(height)).outline
-        info["impact"] = self._impact(r.rotation_rad, r.torque_Nmm * 1e-3, table)
+        info["impact"] = impact_record(
+            r.rotation_rad, r.torque_Nmm * 1e-3, study.impact.model(), study.impact.settings(),
+            study.stack_plates, self.curve,
+        )  # fmt: skip
         plot = {
             "x": "rotation_deg",
             "y": "torque_Nm",
@@ -767,7 +771,7 @@ class ThresholdSpringProblem:
         rot_rad = np.radians(np.asarray(ps["rotation_deg"], dtype=float))
         # plane-stress torque is exactly proportional to the thickness (the same in-plane
         # field times ST), so the nonlinear curve at st_mm is the checked one scaled
-        torque_2d_Nm = np.asarray(ps["torque_Nm"], dtype=float) * (st_mm / st_ps_mm)
+        torque_2d_Nm = at_thickness(np.asarray(ps["torque_Nm"], dtype=float), st_ps_mm, st_mm)
         torque_3d_Nm = ratio * torque_2d_Nm
         ok = np.isfinite(torque_3d_Nm)
         err_3d = float(
@@ -801,70 +805,6 @@ class ThresholdSpringProblem:
             "time_s": time.perf_counter() - t0,
         }
 
-    def _impact(
-        self, rot_rad: np.ndarray, torque_Nm: np.ndarray, table: dict[str, np.ndarray]
-    ) -> dict[str, Any]:
-        """HIC15 and impact force of the designed curve, of the ideal target (when it is a
-        threshold) and of the constant-stiffness spring (fea.collision's reference)."""
-        model = self.study.impact.model()
-        settings = self.study.impact.settings()
-        plates = self.study.stack_plates
-        ok = np.isfinite(torque_Nm)
-        # The table must not decrease (fea.collision.TabulatedSpring); a design inside the
-        # tolerance is monotonic to within it.
-        t = plates * np.maximum.accumulate(np.maximum(torque_Nm[ok], 0.0))
-        try:
-            score = score_spring_curve(rot_rad[ok], t, model=model, settings=settings)
-        except FeaError as exc:
-            return {"skipped": str(exc)}
-        rec: dict[str, Any] = {
-            "case": {
-                "stack_plates": plates,
-                "rotor_torque_Nm": model.rotor_torque_Nm,
-                "rotor_inertia_kg_m2": model.rotor_inertia_kg_m2,
-                "speed_rad_per_s": model.speed_rad_per_s,
-                "initial_spring": model.initial_spring,
-                "duration_s": settings.duration_s,
-            },
-            "spring": {
-                "hic15": score.hic15,
-                "peak_force_N": score.peak_force_N,
-                "max_deflection_deg": math.degrees(score.max_deflection_rad),
-                "beyond_table": bool(score.beyond_table),
-            },
-            "constant_stiffness": {
-                "stiffness_Nm_per_rad": score.reference_stiffness_Nm_per_rad,
-                "hic15": score.reference_hic15,
-                "peak_force_N": score.reference_peak_force_N,
-            },
-            "hic_reduction": score.hic_reduction,
-            "force_reduction": score.force_reduction,
-        }
-        if isinstance(self.curve, ThresholdTarget):
-            ideal = simulate_collision(
-                ThresholdSpring(plates * self.curve.max_value * 1e-3, self.curve.rate),
-                model,
-                settings,
-            )
-            rec["ideal_threshold"] = {
-                "hic15": ideal.hic15,
-                "peak_force_N": ideal.peak_force_N,
-                "max_deflection_deg": math.degrees(ideal.max_deflection_rad),
-            }
-        return rec
-
-
-def plane_stress_figures(ps: dict[str, Any], error_name: str) -> dict[str, Any]:
-    """The plane-stress figures the verdict judges (:func:`figures`) from a
-    :meth:`ThresholdSpringProblem._fidelity` record, when its solve converged: the error
-    measure of its torque curve and its largest peak stress."""
-    if not ps.get("converged") or "peak_stress_max_MPa" not in ps:
-        return {}
-    return {
-        f"plane_stress_{error_name}": ps[error_name],
-        "plane_stress_peak_stress_MPa": ps["peak_stress_max_MPa"],
-    }
-
 
 def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
     """The figures of a quantity by model (pipeline.verdict): the error measure and the peak
@@ -889,21 +829,6 @@ def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
     return out
 
 
-def solid_3d_scalars(s3: dict[str, Any], error_name: str) -> dict[str, Any]:
-    """The scalars of :meth:`ThresholdSpringProblem.solid_3d` the verdict judges (info /
-    summary)."""
-    keys = (
-        "stiffness_ratio_3d_2d", "linear_stiffness_3d_Nm_per_rad", f"{error_name}_3d",
-        "peak_stress_3d_MPa", "peak_stress_ratio_3d_2d", "ST_before_mm", "ST_after_mm",
-        f"{error_name}_3d_before",
-    )  # fmt: skip
-    out = {k: s3[k] for k in keys if k in s3}
-    conv = s3.get("peak_convergence") or {}
-    if "converged" in conv:
-        out["peak_stress_converged"] = conv["converged"]
-    return out
-
-
 def problem(study: ThresholdSpringStudy) -> ThresholdSpringProblem:
     """The GA problem of a validated study."""
     return ThresholdSpringProblem(study)
@@ -911,69 +836,6 @@ def problem(study: ThresholdSpringStudy) -> ThresholdSpringProblem:
 
 # --------------------------------------------------------------------------------------------
 # flexopt evaluate
-
-
-def curve_png(detail: DesignDetail, tolerance: float, title: str = "") -> bytes:
-    """Torque (beam, plane stress, target with its band) and stress against rotation."""
-    t = detail.table
-    fig = Figure(figsize=(10, 4), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax_t, ax_s = fig.subplots(1, 2)
-    x = t["rotation_deg"]
-    level = float(np.nanmax(np.abs(t["target_torque_Nm"])))
-    ax_t.fill_between(
-        x,
-        t["target_torque_Nm"] - tolerance * level,
-        t["target_torque_Nm"] + tolerance * level,
-        color="0.85",
-        label=f"target ± {tolerance * 100:g} % of max",
-    )
-    ax_t.plot(x, t["target_torque_Nm"], "k--", lw=1, label="target")
-    ax_t.plot(x, t["torque_Nm"], "o-", ms=3, label="beam model")
-    ax_s.plot(x, t["peak_stress_MPa"], "o-", ms=3, label="beam model")
-    if "plane_stress_torque_Nm" in t:
-        ok = np.isfinite(t["plane_stress_torque_Nm"])
-        ax_t.plot(x[ok], t["plane_stress_torque_Nm"][ok], "s", label="plane stress")
-        ax_s.plot(x[ok], t["plane_stress_peak_stress_MPa"][ok], "s", label="plane stress (vM)")
-    allow = detail.plot.get("allowable_MPa")
-    if allow:
-        ax_s.axhline(allow, ls="--", color="k", lw=1, label=f"allowable {allow:g} MPa")
-    ax_t.set_xlabel("hub rotation (deg)")
-    ax_t.set_ylabel("torque (N m)")
-    ax_s.set_xlabel("hub rotation (deg)")
-    ax_s.set_ylabel("peak stress (MPa)")
-    for ax in (ax_t, ax_s):
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best")
-    if title:
-        fig.suptitle(title)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
-    return buffer.getvalue()
-
-
-def shape_png(detail: DesignDetail) -> bytes:
-    """The outline with arm 0's undeformed and last deformed centreline."""
-    fig = Figure(figsize=(5.5, 5.5), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots(1, 1)
-    if detail.outline is not None:
-        ring = np.asarray(detail.outline.exterior.coords)
-        ax.fill(ring[:, 0], ring[:, 1], color="0.8")
-        for hole in detail.outline.interiors:
-            h = np.asarray(hole.coords)
-            ax.fill(h[:, 0], h[:, 1], color="white")
-    if detail.shapes_mm is not None:
-        ax.plot(*detail.shapes_mm[0].T, "b-", lw=1, label="arm 0")
-        ax.plot(*detail.shapes_mm[-1].T, "r-", lw=1, label="arm 0 at the end of the range")
-        ax.legend(loc="lower left")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.grid(True, alpha=0.3)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
-    return buffer.getvalue()
 
 
 def _summary(prob: ThresholdSpringProblem, d: DesignDetail) -> dict[str, Any]:
@@ -995,10 +857,10 @@ def _summary(prob: ThresholdSpringProblem, d: DesignDetail) -> dict[str, Any]:
     ps = info.get("plane_stress", {})
     s[f"plane_stress_{prob.error_name}"] = None
     s["plane_stress_peak_stress_MPa"] = None
-    s.update(plane_stress_figures(ps, prob.error_name))
+    s.update(threshold_plane_stress_figures(ps, prob.error_name))
     peaks = [v for v in (m.get("peak_stress_MPa"), ps.get("peak_stress_max_MPa")) if v is not None]
     s["stress_yield_ratio"] = max(peaks) / prob.material.yield_MPa if peaks else None
-    s.update(solid_3d_scalars(info.get("solid_3d", {}), prob.error_name))
+    s.update(threshold_solid_3d_scalars(info.get("solid_3d", {}), prob.error_name))
     imp = info.get("impact", {})
     if "spring" in imp:
         s.update(
@@ -1058,8 +920,10 @@ def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
             plot=plot,
         )
     files: dict[str, bytes] = {
-        "curve.png": curve_png(d, study.tolerance, study.name),
-        "shape.png": shape_png(d),
+        "curve.png": threshold_curve_png(
+            d.table, study.tolerance, d.plot.get("allowable_MPa"), study.name
+        ),
+        "shape.png": spring_shape_png(d.outline, d.shapes_mm),
     }
     if d.outline is not None and d.height_mm:
         files["spring.stl"] = stl_bytes(extrude(d.outline, d.height_mm))
