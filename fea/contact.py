@@ -76,6 +76,7 @@ __all__ = [
     "sab_ratio_ideal",
     "sab_ratio_series",
     "sab_rotation",
+    "sab_table",
     "synthesise_cam",
     "torque_from_outline",
 ]
@@ -472,6 +473,24 @@ def sab_rotation(theta_rad: Any, a_mm: float, R_mm: float, R1_over_R2: float) ->
     ratio = sab_ratio(grid, a_mm, R_mm, R1_over_R2)
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (ratio[1:] + ratio[:-1]) * np.diff(grid))])
     return np.sign(th) * np.interp(np.abs(th), grid, cum)
+
+
+def sab_table(a_mm: float, R_mm: float, R1_over_R2: float) -> dict[str, Any]:
+    """The SAB's torque ratio at a glance (moved from ``pipeline/studies/cam.py``): Eq. 15 at
+    θ = 0, the ideal ratio with ``R1/R2`` and Eq. 16 as printed (without it), Eq. 15b's largest
+    output (deg), and Eq. 15 beside its second-order series at nine outputs ``theta_deg`` from 0
+    to that limit."""
+    theta_max = sab_limits(a_mm, R_mm, R1_over_R2)
+    theta = np.linspace(0.0, theta_max, 9)
+    return {
+        "ratio_at_zero_eq15": float(sab_ratio(0.0, a_mm, R_mm, R1_over_R2)),
+        "ratio_ideal_with_R1_over_R2": sab_ratio_ideal(a_mm, R_mm, R1_over_R2),
+        "ratio_eq16_as_printed": a_mm / (R_mm - a_mm),
+        "max_output_deg_eq15b": math.degrees(theta_max),
+        "theta_deg": np.degrees(theta).tolist(),
+        "ratio_eq15": sab_ratio(theta, a_mm, R_mm, R1_over_R2).tolist(),
+        "ratio_series_2nd_order": sab_ratio_series(theta, a_mm, R_mm, R1_over_R2).tolist(),
+    }
 
 
 def fit_correction(

@@ -38,6 +38,7 @@ from flexopt.fea.errors import FeaError
 from flexopt.geometry.cam import CamProfile
 from flexopt.optimise.curve_metrics import CurveMetrics
 from flexopt.optimise.targets import TargetCurve, ThresholdTarget, curve_error, measure_key
+from flexopt.optimise.thickness_fit import fit_thickness
 
 __all__ = [
     "force_band_objective",
@@ -47,6 +48,8 @@ __all__ = [
     "plane_stress_peak_figures",
     "plane_stress_force_column",
     "threshold_constraints",
+    "threshold_curve_scores",
+    "threshold_3d_scores",
     "threshold_plane_stress_figures",
     "threshold_solid_3d_scalars",
     "impact_record",
@@ -170,6 +173,53 @@ def threshold_constraints(
             geometric,
         ]
     )
+
+
+def threshold_curve_scores(
+    curve: TargetCurve,
+    measure: str,
+    window: tuple[float, float] | None,
+    tolerance: float,
+    allowable_MPa: float,
+    error_name: str,
+    rot_rad: np.ndarray,
+    torque_Nmm: np.ndarray,
+    peak_stress_MPa: np.ndarray,
+) -> dict[str, Any]:
+    """A checked torque curve (plane stress) against the target: its error measure (key
+    ``error_name``), largest peak stress (MPa) and whether each is within its limit; ``{}`` with
+    fewer than two finite rows. ``rot_rad``, ``torque_Nmm``, ``peak_stress_MPa``: (m,)."""
+    ok = np.isfinite(torque_Nmm)
+    if ok.sum() < 2:
+        return {}
+    err = float(curve_error(curve, rot_rad[ok], torque_Nmm[ok], measure, window))
+    peak = float(np.nanmax(peak_stress_MPa))
+    return {
+        error_name: err,
+        "peak_stress_max_MPa": peak,
+        "within_tolerance": bool(err <= tolerance),
+        "stress_ok": bool(peak <= allowable_MPa),
+    }
+
+
+def threshold_3d_scores(
+    curve: TargetCurve,
+    measure: str,
+    window: tuple[float, float] | None,
+    rot_rad: np.ndarray,
+    torque_3d_Nm: np.ndarray,
+    st_mm: float,
+) -> tuple[float, float, float]:
+    """A 3D torque curve (N·m at rotations rad, (m,); NaN rows left out) of a plate ``st_mm``
+    thick against the target: (its error measure, the ST (mm) whose curve fits the target best,
+    the error there). The torque is taken as proportional to ST, the 3D/2D ratio as constant over
+    the step (:func:`optimise.thickness_fit.fit_thickness`, as the search solves ST)."""
+    ok = np.isfinite(torque_3d_Nm)
+    err_3d = float(curve_error(curve, rot_rad[ok], torque_3d_Nm[ok] * 1e3, measure, window))
+    st_fit, err_fit = fit_thickness(
+        rot_rad[ok], torque_3d_Nm[ok] * 1e3 / st_mm, curve, measure, window
+    )
+    return err_3d, float(st_fit), float(err_fit)
 
 
 def threshold_plane_stress_figures(ps: Mapping[str, Any], error_name: str) -> dict[str, Any]:

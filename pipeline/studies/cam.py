@@ -33,9 +33,7 @@ import numpy as np
 from flexopt.fea.contact import (
     contact_pressure_MPa,
     sab_limits,
-    sab_ratio,
-    sab_ratio_ideal,
-    sab_ratio_series,
+    sab_table,
     torque_from_outline,
 )
 from flexopt.geometry.cam import CamProfile, cam_outline
@@ -208,21 +206,7 @@ def _joint_errors(study: CamStudy, target: TargetCurve, curve: Any) -> dict[str,
 
 def _sab_info(study: CamStudy) -> dict[str, Any]:
     sab = study.sab
-    if sab is None:
-        return {}
-    theta_max = sab_limits(sab.a_mm, sab.R_mm, sab.R1_over_R2)
-    theta = np.linspace(0.0, theta_max, 9)
-    return {
-        "ratio_at_zero_eq15": float(sab_ratio(0.0, sab.a_mm, sab.R_mm, sab.R1_over_R2)),
-        "ratio_ideal_with_R1_over_R2": sab_ratio_ideal(sab.a_mm, sab.R_mm, sab.R1_over_R2),
-        "ratio_eq16_as_printed": sab.a_mm / (sab.R_mm - sab.a_mm),
-        "max_output_deg_eq15b": math.degrees(theta_max),
-        "theta_deg": np.degrees(theta).tolist(),
-        "ratio_eq15": sab_ratio(theta, sab.a_mm, sab.R_mm, sab.R1_over_R2).tolist(),
-        "ratio_series_2nd_order": sab_ratio_series(
-            theta, sab.a_mm, sab.R_mm, sab.R1_over_R2
-        ).tolist(),
-    }
+    return {} if sab is None else sab_table(sab.a_mm, sab.R_mm, sab.R1_over_R2)
 
 
 def evaluate(study: CamStudy, repeat: int = 1) -> EvaluationResult:

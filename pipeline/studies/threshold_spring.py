@@ -68,7 +68,9 @@ from flexopt.geometry.threshold_spring import (
 )
 from flexopt.optimise.curve_objectives import (
     impact_record,
+    threshold_3d_scores,
     threshold_constraints,
+    threshold_curve_scores,
     threshold_plane_stress_figures,
     threshold_solid_3d_scalars,
 )
@@ -596,14 +598,12 @@ class ThresholdSpringProblem:
             "n_dofs": ps.n_dofs,
             "solve_time_s": ps.solve_time_s,
         }
-        ok = np.isfinite(torque_Nmm)
-        if ok.sum() >= 2:
-            rec[self.error_name] = float(
-                curve_error(self.curve, ps_rad[ok], torque_Nmm[ok], self.measure, self.window)
+        rec.update(
+            threshold_curve_scores(
+                self.curve, self.measure, self.window, self.study.tolerance, self.allowable_MPa,
+                self.error_name, ps_rad, torque_Nmm, ps.peak_stress_MPa,
             )
-            rec["peak_stress_max_MPa"] = float(np.nanmax(ps.peak_stress_MPa))
-            rec["within_tolerance"] = bool(rec[self.error_name] <= self.study.tolerance)
-            rec["stress_ok"] = bool(rec["peak_stress_max_MPa"] <= self.allowable_MPa)
+        )  # fmt: skip
         cols = np.full((2, rot_rad.size), np.nan)
         for k, a in enumerate(ps_rad):
             j = int(np.argmin(np.abs(rot_rad - a)))
@@ -773,18 +773,12 @@ class ThresholdSpringProblem:
         # field times ST), so the nonlinear curve at st_mm is the checked one scaled
         torque_2d_Nm = at_thickness(np.asarray(ps["torque_Nm"], dtype=float), st_ps_mm, st_mm)
         torque_3d_Nm = ratio * torque_2d_Nm
-        ok = np.isfinite(torque_3d_Nm)
-        err_3d = float(
-            curve_error(self.curve, rot_rad[ok], torque_3d_Nm[ok] * 1e3, self.measure, self.window)
+        err_3d, st_fit, err_fit = threshold_3d_scores(
+            self.curve, self.measure, self.window, rot_rad, torque_3d_Nm, st_mm
         )
         # the plane-stress stress under an imposed rotation does not depend on ST
         peak_2d = float(ps["peak_stress_max_MPa"])
         peak_3d = peak_2d * c["peak_stress_ratio"]
-        # the ST whose 3D curve fits the target best (torque proportional to ST, the ratio
-        # taken as constant over the step)
-        st_fit, err_fit = fit_thickness(
-            rot_rad[ok], torque_3d_Nm[ok] * 1e3 / st_mm, self.curve, self.measure, self.window
-        )
         return {
             "ST_mm": float(st_mm),
             "stiffness_ratio_3d_2d": ratio,
