@@ -45,6 +45,7 @@ __all__ = [
     "force_band_constraints",
     "force_band_metrics",
     "compared_over",
+    "check_rows",
     "plane_stress_peak_figures",
     "plane_stress_force_column",
     "threshold_constraints",
@@ -123,6 +124,42 @@ def compared_over(m: CurveMetrics, stroke_mm: float) -> tuple[float, float]:
     if m.operative_stroke_mm >= 0.25 * stroke_mm:
         return float(m.window_mm[0]), float(m.window_mm[1])
     return 0.0, float(stroke_mm)
+
+
+def check_rows(
+    stroke_mm: np.ndarray,
+    converged: np.ndarray,
+    peak_stress_MPa: np.ndarray,
+    lo: float,
+    hi: float,
+    points: int,
+) -> np.ndarray:
+    """The rows of a traced curve an independent check compares at: the rows nearest to
+    ``points`` strokes spread over ``(lo, hi]`` (mm; the unloaded row 0 never, the whole drive
+    when no row lies in the range), and always the converged row of the largest peak stress over
+    the whole drive, because the verdict judges the peak stress on the check's figure, which must
+    not miss the worst row.
+
+    Parameters
+    ----------
+    stroke_mm, converged, peak_stress_MPa : (m,) — the rows' strokes (mm), whether each converged
+        and its peak stress (MPa).
+
+    Returns
+    -------
+    (k,) int — sorted, unique row indices.
+    """
+    stroke_rows = np.asarray(stroke_mm, dtype=float)
+    ideal = lo + (hi - lo) * np.arange(1, points + 1) / points
+    inside = np.flatnonzero((stroke_rows >= lo - 1e-9) & (stroke_rows <= hi + 1e-9))
+    inside = inside[inside > 0]
+    if inside.size == 0:
+        inside = np.arange(1, len(stroke_rows))
+    rows = [int(inside[np.argmin(np.abs(stroke_rows[inside] - v))]) for v in ideal]
+    peaks = np.where(np.asarray(converged, dtype=bool), np.asarray(peak_stress_MPa), -np.inf)
+    if len(peaks) > 1 and np.isfinite(np.max(peaks[1:])):
+        rows.append(1 + int(np.argmax(peaks[1:])))
+    return np.unique(rows)
 
 
 def plane_stress_peak_figures(check: Mapping[str, Any]) -> dict[str, Any]:

@@ -56,6 +56,7 @@ from flexopt.geometry.constant_force import min_feature_mm as design_min_feature
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.curve_metrics import CurveMetrics, curve_metrics
 from flexopt.optimise.curve_objectives import (
+    check_rows,
     compared_over,
     force_band_constraints,
     force_band_metrics,
@@ -809,20 +810,9 @@ def fidelity_check(
         }
     t0 = time.perf_counter()
     stroke_rows = np.asarray(response.displacement_mm, dtype=float)
-    ideal = lo + (hi - lo) * np.arange(1, spec.points + 1) / spec.points
-    inside = np.flatnonzero((stroke_rows >= lo - 1e-9) & (stroke_rows <= hi + 1e-9))
-    inside = inside[inside > 0]
-    if inside.size == 0:
-        inside = np.arange(1, len(stroke_rows))
-    rows = [int(inside[np.argmin(np.abs(stroke_rows[inside] - v))]) for v in ideal]
-    # The row of the beam's peak stress over the whole drive is always checked: the verdict
-    # judges the peak stress on the plane-stress figure, which must not miss the worst row.
-    peaks = np.where(
-        np.asarray(response.converged, dtype=bool), np.asarray(response.peak_stress_MPa), -np.inf
+    rows = check_rows(
+        stroke_rows, response.converged, response.peak_stress_MPa, lo, hi, spec.points
     )
-    if len(peaks) > 1 and np.isfinite(np.max(peaks[1:])):
-        rows.append(1 + int(np.argmax(peaks[1:])))
-    rows = np.unique(rows)
     try:
         shape = outline(design, TABLE1, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
         beam = problem._beam(design)
