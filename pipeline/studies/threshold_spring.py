@@ -67,11 +67,12 @@ from flexopt.geometry.threshold_spring import (
     threshold_params,
 )
 from flexopt.optimise.curve_objectives import (
+    SpringCheckSpec,
     impact_record,
-    threshold_3d_scores,
     threshold_constraints,
     threshold_curve_scores,
     threshold_plane_stress_figures,
+    threshold_solid_3d,
     threshold_solid_3d_scalars,
 )
 from flexopt.optimise.errors import OptimiseError
@@ -613,133 +614,20 @@ class ThresholdSpringProblem:
         smap = _stress_map_data(ps) if ps.ok else None
         return rec, cols, smap
 
+    def _check_spec(self) -> SpringCheckSpec:
+        """The target, limits, material, drive and mesh of the chosen design's checks."""
+        fs, s3 = self.study.fidelity, self.study.solid_3d
+        return SpringCheckSpec(
+            self.material, self.range_rad, self.curve, self.measure, self.window,
+            self.study.tolerance, self.allowable_MPa, self.error_name, fs.max_edge_mm,
+            fs.elements_through, fs.steps, s3.layers, s3.correct, s3.converge_peak,
+            s3.curve_step_mm,
+        )  # fmt: skip
+
     def solid_3d(self, geom: Any, ps: dict[str, Any]) -> dict[str, Any]:
-        """The chosen design as a 3D solid beside plane stress, ST corrected for it (issue 15;
-        docs/solid3d.md).
-
-        :func:`fea.solid3d.compare_with_plane_stress` on the fidelity check's plane mesh
-        extruded to ST (P2 tetrahedra, half the thickness, hub turned rigidly to the end of the
-        design range, pads held through the thickness), linear, beside linear plane stress on
-        the same mesh. The stiffness ratio scales the plane-stress torque curve ``ps`` (the
-        :meth:`_fidelity` record) into the 3D curve, whose error measure against the target is
-        reported; the vertex-averaged peak-stress ratio scales the plane-stress peak. Each check
-        also reports the ST that fits its 3D curve best
-        (:func:`optimise.thickness_fit.fit_thickness`, as the search solves ST).
-
-        Correction (``solid_3d.correct``): when the first check's 3D error exceeds the
-        tolerance, ST becomes that check's ``ST_fit_3d_mm`` and the design is checked in 3D
-        again there (the ratio depends on ST/width, so the refit is re-measured, not assumed).
-        The trigger is the requirement itself, not a share of it: the error measure is on a
-        curve (a shape error that ST cannot remove stays), so a design already inside the
-        tolerance in 3D is left as the optimiser chose it. The answer (top-level keys, the
-        verdict's rows, the exported part) is the last *checked* ST; ``checks`` holds both.
-
-        Returns
-        -------
-        dict — N m/rad, MPa, mm, s; ``problem`` alone when the check cannot be made.
-        """
-        from flexopt.fea.mesh import mesh_polygon
-
-        if "torque_Nm" not in ps or "peak_stress_max_MPa" not in ps:
-            return {"problem": "3D check not made: the plane-stress check has no curve"}
-        fs, s3 = self.study.fidelity, self.study.solid_3d
-        t0 = time.perf_counter()
-        try:
-            m = mesh_polygon(geom.fe_outline, fs.max_edge_mm, refine=geom.mesh_regions(
-                fs.elements_through, fs.max_edge_mm))  # fmt: skip
-            st0 = float(geom.thickness_mm)
-            checks = [self._check_3d(geom, m, ps, st0, st0)]
-            first = checks[0]
-            err_key = f"{self.error_name}_3d"
-            corrected = bool(
-                s3.correct
-                and first[err_key] > self.study.tolerance
-                and math.isfinite(first["ST_fit_3d_mm"])
-            )
-            if corrected:
-                checks.append(self._check_3d(geom, m, ps, st0, first["ST_fit_3d_mm"]))
-        except FeaError as exc:
-            return {"problem": f"3D check not made: {exc}"}
-        last = checks[-1]
-        conv: dict[str, Any] = {}
-        if s3.converge_peak:
-            conv = self._converged_peak(geom, last["ST_mm"], last["peak_stress_ratio_3d_2d"])
-            if "problem" not in conv:  # the 3D peak from the converged 2D peak
-                last = {
-                    **last,
-                    "peak_stress_3d_MPa": conv["peak_stress_3d_MPa"],
-                    "stress_ok_3d": bool(conv["peak_stress_3d_MPa"] <= self.allowable_MPa),
-                }
-        if not s3.correct:
-            stopped = "solid_3d.correct is false: ST not corrected (reported only)"
-        elif not corrected:
-            stopped = "the 3D error is within the tolerance: no correction"
-        else:
-            stopped = "ST refitted to the 3D curve and re-checked in 3D"
-        return {
-            "method": "linear 3D / linear plane stress on the fidelity mesh at the end of the "
-            "design range; the ratio applied to the nonlinear plane-stress curve (scaled to "
-            "the checked ST); ST refitted to the 3D curve when its error exceeds the tolerance, "
-            "then re-checked in 3D",
-            "corrected": corrected,
-            "stopped": stopped,
-            "ST_before_mm": st0,
-            "ST_after_mm": last["ST_mm"],
-            f"{err_key}_before": first[err_key],
-            f"{self.error_name}_2d": ps.get(self.error_name),
-            **last,
-            "allowable_stress_MPa": self.allowable_MPa,
-            "layers": s3.layers,
-            "checks": checks,
-            **({"peak_convergence": conv} if s3.converge_peak else {}),
-            "time_s": time.perf_counter() - t0,
-        }
-
-    def _converged_peak(self, geom: Any, st_mm: float, ratio_3d_2d: float) -> dict[str, Any]:
-        """The plane-stress peak at the end of the design range on the outline rebuilt with its
-        arms sampled every ``solid_3d.curve_step_mm``, the mesh refined at the peak until it
-        moves < 1 % (:func:`fea.solid3d.converge_peak_stress`), and the 3D peak from it
-        (``ratio_3d_2d``, the last 3D check's vertex-averaged peak ratio). The part's final ST
-        ``st_mm`` (mm) is the one solved, though a plane-stress stress under an imposed hub
-        rotation with held pads does not depend on it (no load is prescribed, so the in-plane
-        field is the same at every ST). Nonlinear, in ``fidelity.steps`` steps, as sea_spring:
-        the arms are compressed struts whose bending at the end of the range is a large-rotation
-        effect. Returns MPa, mm, s; ``problem`` alone when it cannot be made."""
-
-        from flexopt.fea.plane_stress import Clamp, Rotate
-        from flexopt.fea.solid3d import converge_peak_stress
-
-        fs, s3 = self.study.fidelity, self.study.solid_3d
-        t0 = time.perf_counter()
-        try:
-            smooth = self._fine_geometry(geom, st_mm)
-            c = converge_peak_stress(
-                smooth.fe_outline, smooth.thickness_mm, self.material, Clamp(smooth.pad_region),
-                Rotate(smooth.hub_region, (0.0, 0.0), self.range_rad, fs.steps), fs.max_edge_mm,
-                refine=smooth.mesh_regions(fs.elements_through, fs.max_edge_mm),
-                stress_ignore=smooth.hub_region.union(smooth.pad_region).buffer(0.05),
-                kinematics="nonlinear",
-            )  # fmt: skip
-        except (FeaError, GeometryError) as exc:
-            return {"problem": f"peak-stress convergence not made: {exc}"}
-        return {
-            "method": "nonlinear plane stress at the end of the design range, the mesh halved "
-            "around the peak until it moves < 1 %; 3D peak = last value x the 3D/2D peak ratio",
-            "ST_mm": float(st_mm),
-            "curve_step_mm": s3.curve_step_mm,
-            "converged": c["converged"],
-            "status": c["status"],
-            "last_two_MPa": c["last_two_MPa"],
-            "peaks_MPa": c["peaks_MPa"],
-            "local_edge_mm": c["local_edge_mm"],
-            "peak_xy_mm": c["peak_xy_mm"],
-            "corner": c["corner"],
-            "fix": (c["corner"] or {}).get("fix"),
-            "peak_stress_2d_MPa": c["last_two_MPa"][-1],
-            "peak_stress_ratio_3d_2d": ratio_3d_2d,
-            "peak_stress_3d_MPa": c["last_two_MPa"][-1] * ratio_3d_2d,
-            "time_s": time.perf_counter() - t0,
-        }
+        """The chosen design as a 3D solid beside plane stress (the :meth:`_fidelity` record
+        ``ps``), ST corrected for it: :func:`optimise.curve_objectives.threshold_solid_3d`."""
+        return threshold_solid_3d(self._check_spec(), self._fine_geometry, geom, ps)
 
     def _fine_geometry(self, geom: Any, st_mm: float) -> Any:
         """The design as the peak-stress convergence meshes it and as its part is exported:
@@ -751,53 +639,6 @@ class ThresholdSpringProblem:
             replace(geom.params, thickness_mm=float(st_mm)), self.frame,
             curve_step_mm=self.study.solid_3d.curve_step_mm,
         )  # fmt: skip
-
-    def _check_3d(
-        self, geom: Any, mesh: Any, ps: dict[str, Any], st_ps_mm: float, st_mm: float
-    ) -> dict[str, Any]:
-        """One 3D check of the drawn spring extruded to ``st_mm`` (mm) on the plane ``mesh``;
-        ``ps`` is the plane-stress record at ``st_ps_mm``. Raises FeaError."""
-        from flexopt.fea.plane_stress import Clamp, Rotate
-        from flexopt.fea.solid3d import Solid3DSettings, compare_with_plane_stress
-
-        t0 = time.perf_counter()
-        c = compare_with_plane_stress(
-            mesh, self.material, st_mm, Clamp(geom.pad_region),
-            Rotate(geom.hub_region, (0.0, 0.0), self.range_rad, 1),
-            Solid3DSettings(layers=self.study.solid_3d.layers),
-            stress_ignore=geom.hub_region.union(geom.pad_region).buffer(0.05),
-        )  # fmt: skip
-        ratio = c["stiffness_ratio"]
-        rot_rad = np.radians(np.asarray(ps["rotation_deg"], dtype=float))
-        # plane-stress torque is exactly proportional to the thickness (the same in-plane
-        # field times ST), so the nonlinear curve at st_mm is the checked one scaled
-        torque_2d_Nm = at_thickness(np.asarray(ps["torque_Nm"], dtype=float), st_ps_mm, st_mm)
-        torque_3d_Nm = ratio * torque_2d_Nm
-        err_3d, st_fit, err_fit = threshold_3d_scores(
-            self.curve, self.measure, self.window, rot_rad, torque_3d_Nm, st_mm
-        )
-        # the plane-stress stress under an imposed rotation does not depend on ST
-        peak_2d = float(ps["peak_stress_max_MPa"])
-        peak_3d = peak_2d * c["peak_stress_ratio"]
-        return {
-            "ST_mm": float(st_mm),
-            "stiffness_ratio_3d_2d": ratio,
-            "linear_stiffness_2d_Nm_per_rad": c["stiffness_2d"] * 1e-3,
-            "linear_stiffness_3d_Nm_per_rad": c["stiffness_3d"] * 1e-3,
-            "torque_2d_Nm": torque_2d_Nm.tolist(),
-            "torque_3d_Nm": torque_3d_Nm.tolist(),
-            f"{self.error_name}_3d": err_3d,
-            "within_tolerance_3d": bool(err_3d <= self.study.tolerance),
-            "ST_fit_3d_mm": float(st_fit),
-            f"{self.error_name}_3d_at_ST_fit": float(err_fit),
-            "peak_stress_ratio_3d_2d": c["peak_stress_ratio"],
-            "peak_stress_2d_MPa": peak_2d,
-            "peak_stress_3d_MPa": peak_3d,
-            "stress_ok_3d": bool(peak_3d <= self.allowable_MPa),
-            "dofs": c["solid3d"]["n_dofs"],
-            "solver": c["solid3d"]["solver"],
-            "time_s": time.perf_counter() - t0,
-        }
 
 
 def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
