@@ -9,8 +9,9 @@ Moved from the study kinds (``pipeline/studies/constant_force.py``, ``threshold_
   shortfall), the metrics a design reports, the window the checks compare over and the
   plane-stress figures of the fidelity check (:func:`force_band_objective` ...).
 * **threshold spring** (paper 000, issue 7): its constraint rows, the plane-stress and 3D figures
-  the verdict judges and the impact score (HIC15, impact force) of its torque curve
-  (:func:`threshold_constraints`, :func:`impact_record`, ...).
+  the verdict judges, the impact score (HIC15, impact force) of its torque curve, and the check
+  of the chosen design as a 3D solid with its thickness ST refitted to the target there
+  (:func:`threshold_constraints`, :func:`impact_record`, :func:`threshold_solid_3d`, ...).
 * **cam** (paper 000): the metrics of a synthesised profile (size, angles, forces, Hertz
   pressure), its constraint rows, the plate's torque error against the target and the joint's
   error through the stiffness-adjusting block (:func:`cam_metrics`, ...).
