@@ -815,3 +815,88 @@ def _png_at(fig: Figure, dpi: int) -> bytes:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi)
     return buffer.getvalue()
+
+
+# constant-force / threshold figures
+# (the kinds' own figures, moved from pipeline/studies/threshold_spring.py: issue #24, item 3)
+
+__all__ += ["threshold_curve_png", "spring_shape_png"]
+
+
+def _png_at(fig: Figure, dpi: int) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    return buffer.getvalue()
+
+
+def threshold_curve_png(
+    table: Mapping[str, np.ndarray],
+    tolerance: float,
+    allowable_MPa: float | None = None,
+    title: str = "",
+) -> bytes:
+    """Torque (beam, plane stress, target with its band) and stress against rotation, PNG.
+
+    Parameters
+    ----------
+    table : columns ``rotation_deg`` (m,), ``target_torque_Nm``, ``torque_Nm`` (N·m) and
+        ``peak_stress_MPa`` (MPa); optionally ``plane_stress_torque_Nm`` and
+        ``plane_stress_peak_stress_MPa`` (NaN between the plane-stress rows).
+    tolerance : float — the band's half-width as a fraction of the target's largest |torque|.
+    allowable_MPa : float, MPa, optional — drawn as a line on the stress axes.
+    """
+    t = table
+    fig = _new_figure(figsize=(10, 4), layout="constrained")
+    ax_t, ax_s = fig.subplots(1, 2)
+    x = t["rotation_deg"]
+    level = float(np.nanmax(np.abs(t["target_torque_Nm"])))
+    ax_t.fill_between(
+        x,
+        t["target_torque_Nm"] - tolerance * level,
+        t["target_torque_Nm"] + tolerance * level,
+        color="0.85",
+        label=f"target ± {tolerance * 100:g} % of max",
+    )
+    ax_t.plot(x, t["target_torque_Nm"], "k--", lw=1, label="target")
+    ax_t.plot(x, t["torque_Nm"], "o-", ms=3, label="beam model")
+    ax_s.plot(x, t["peak_stress_MPa"], "o-", ms=3, label="beam model")
+    if "plane_stress_torque_Nm" in t:
+        ok = np.isfinite(t["plane_stress_torque_Nm"])
+        ax_t.plot(x[ok], t["plane_stress_torque_Nm"][ok], "s", label="plane stress")
+        ax_s.plot(x[ok], t["plane_stress_peak_stress_MPa"][ok], "s", label="plane stress (vM)")
+    if allowable_MPa:
+        ax_s.axhline(
+            allowable_MPa, ls="--", color="k", lw=1, label=f"allowable {allowable_MPa:g} MPa"
+        )
+    ax_t.set_xlabel("hub rotation (deg)")
+    ax_t.set_ylabel("torque (N m)")
+    ax_s.set_xlabel("hub rotation (deg)")
+    ax_s.set_ylabel("peak stress (MPa)")
+    for ax in (ax_t, ax_s):
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best")
+    if title:
+        fig.suptitle(title)
+    return _png_at(fig, 110)
+
+
+def spring_shape_png(outline: Any, shapes_mm: np.ndarray | None) -> bytes:
+    """A planar spring's outline (shapely Polygon, mm; holes white) with arm 0's undeformed and
+    last deformed centreline (``shapes_mm`` (rows, n, 2), mm), PNG."""
+    fig = _new_figure(figsize=(5.5, 5.5), layout="constrained")
+    ax = fig.subplots(1, 1)
+    if outline is not None:
+        ring = np.asarray(outline.exterior.coords)
+        ax.fill(ring[:, 0], ring[:, 1], color="0.8")
+        for hole in outline.interiors:
+            h = np.asarray(hole.coords)
+            ax.fill(h[:, 0], h[:, 1], color="white")
+    if shapes_mm is not None:
+        ax.plot(*shapes_mm[0].T, "b-", lw=1, label="arm 0")
+        ax.plot(*shapes_mm[-1].T, "r-", lw=1, label="arm 0 at the end of the range")
+        ax.legend(loc="lower left")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.grid(True, alpha=0.3)
+    return _png_at(fig, 110)

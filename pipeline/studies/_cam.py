@@ -10,15 +10,8 @@ from __future__ import annotations
 import math
 from typing import Any, Literal
 
-from flexopt.geometry.cam import (
-    PAPER_CORRECTION,
-    CamLayout,
-    CamProfile,
-    CamSprings,
-    CorrectedCurve,
-    fit_correction,
-    synthesise_cam,
-)
+from flexopt.fea.contact import PAPER_CORRECTION, CorrectedCurve, fit_correction, synthesise_cam
+from flexopt.geometry.cam import CamLayout, CamProfile, CamSprings
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.targets import TargetCurve, TargetSpec

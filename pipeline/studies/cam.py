@@ -2,7 +2,7 @@
 
 The study names a torque target (``target:``, any :class:`optimise.targets.TargetSpec` of torque;
 the paper's threshold ``T = Tmax (1 - exp(-s γ))`` by default), the followers' springs and the
-layout. ``flexopt evaluate`` synthesises the cam (:func:`geometry.cam.synthesise_cam`), builds the
+layout. ``flexopt evaluate`` synthesises the cam (:func:`fea.contact.synthesise_cam`), builds the
 plate, and checks it by virtual work: the torque of the *plate* (follower motion read off its
 outline) against the target, with the contact pressure along the way. ``flexopt run`` sizes the
 springs and the rest radius for the smallest mechanism within the pressure-angle and
@@ -30,19 +30,20 @@ import time
 from typing import Any
 
 import numpy as np
-from flexopt.geometry.cam import (
-    CamProfile,
-    cam_outline,
+from flexopt.fea.contact import (
     contact_pressure_MPa,
-    onset_pressure_MPa,
     sab_limits,
-    sab_ratio,
-    sab_ratio_ideal,
-    sab_ratio_series,
-    sab_rotation,
+    sab_table,
     torque_from_outline,
 )
+from flexopt.geometry.cam import CamProfile, cam_outline
 from flexopt.geometry.errors import GeometryError
+from flexopt.optimise.curve_objectives import (
+    cam_constraints,
+    cam_metrics,
+    cam_target_errors,
+    sab_joint_errors,
+)
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail
@@ -50,8 +51,6 @@ from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.targets import (
     TargetCurve,
     ThresholdTarget,
-    curve_error,
-    measure_key,
 )
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
@@ -146,28 +145,8 @@ def _roller(study: CamStudy) -> dict[str, float]:
 
 
 def _metrics(study: CamStudy, profile: CamProfile) -> dict[str, Any]:
-    lay = profile.layout
-    pressure = contact_pressure_MPa(
-        profile, study.material.E_MPa, study.material.nu, **_roller(study)
-    )
-    onset = onset_pressure_MPa(study.material.yield_MPa)
-    peak = float(np.max(pressure))
-    radius = profile.profile_radius_mm
-    convex = radius[(radius > 0) & np.isfinite(radius)]
-    return {
-        "max_follower_radius_mm": profile.max_radius_mm,
-        "follower_stroke_mm": profile.max_radius_mm - lay.rest_radius_mm,
-        "mechanism_diameter_mm": 2.0 * (profile.max_radius_mm + lay.roller_radius_mm),
-        "max_pressure_angle_deg": math.degrees(float(np.max(profile.pressure_angle_rad))),
-        "max_contact_force_N": float(np.max(profile.contact_force_N)),
-        "max_spring_force_N": float(np.max(profile.spring_force_N)),
-        "preload_N": float(profile.spring_force_N[0]),
-        "min_convex_profile_radius_mm": float(np.min(convex)) if convex.size else None,
-        "undercut": profile.undercut,
-        "max_contact_pressure_MPa": peak,
-        "onset_pressure_MPa": onset,
-        "stress_yield_ratio": peak / onset,
-    }
+    m = study.material
+    return cam_metrics(profile, m.E_MPa, m.nu, m.yield_MPa, study.roller.E_MPa, study.roller.nu)
 
 
 def _summary(
@@ -181,27 +160,20 @@ def _summary(
     measure (``target_<measure>``; with a correction the cam is cut for ``T_cor``, so this one
     shows the correction, and ``virtual_work_*`` compares the plate with what it was cut for),
     the cam's size, angles, forces and contact pressure, and the SAB check."""
-    gamma = np.radians(table["rotation_deg"])
     window = study.target.window
     if window is None:  # the plate's torque drops where the follower rolls over the lobe
         window = (0.0, math.radians(study.geometry.max_rotation_deg) * 0.95)
-    cam_t = table["cam_torque_Nm"] * 1000.0
-    vw = table["virtual_work_torque_Nm"] * 1000.0
-    measure = study.target.measure
     try:
-        err = curve_error(target, gamma, vw, measure, window)
-        err_design = float(np.max(np.abs(vw - cam_t)[(gamma >= window[0]) & (gamma <= window[1])]))
+        summary = cam_target_errors(
+            target,
+            table["rotation_deg"],
+            table["cam_torque_Nm"],
+            table["virtual_work_torque_Nm"],
+            study.target.measure,
+            window,
+        )
     except OptimiseError as exc:
         raise StudyError("target.window_deg", str(exc)) from exc
-    summary: dict[str, Any] = {
-        f"target_{measure_key(measure, target)}": err,
-        "virtual_work_max_abs_error_Nm": err_design / 1000.0,
-        "virtual_work_max_relative_error": err_design / float(np.max(np.abs(cam_t))),
-        "window_deg": [math.degrees(window[0]), math.degrees(window[1])],
-    }
-    if measure_key(measure, target).endswith("_Nmm"):
-        key = f"target_{measure_key(measure, target)}"
-        summary[key.replace("_Nmm", "_Nm")] = summary.pop(key) / 1000.0
     summary.update(_metrics(study, profile))
     if study.sab is not None:
         summary.update(_joint_errors(study, target, curve))
@@ -224,44 +196,17 @@ def _summary(
 
 
 def _joint_errors(study: CamStudy, target: TargetCurve, curve: Any) -> dict[str, Any]:
-    """The joint torque through the SAB, ``N(θ) T_cam(γ(θ))``, against the ideal reducer's
-    ``N0 T(N0 θ)`` (what Eq. 17 is for), up to Eq. 15b's limit or 95 % of the cam's range.
-    ``T_cam`` is the curve the cam is cut for (the plate reproduces it: see the virtual-work
-    error)."""
     sab = study.sab
     assert sab is not None
-    a, R, q = sab.a_mm, sab.R_mm, sab.R1_over_R2
-    top = sab_limits(a, R, q) if sab.max_output_deg is None else math.radians(sab.max_output_deg)
-    gmax = 0.95 * math.radians(study.geometry.max_rotation_deg)
-    theta = np.linspace(top / 200, top, 200)
-    gamma = sab_rotation(theta, a, R, q)
-    theta, gamma = theta[gamma <= gmax], gamma[gamma <= gmax]
-    joint = sab_ratio(theta, a, R, q) * np.asarray(curve(gamma), dtype=float)
-    n0 = sab_ratio_ideal(a, R, q)
-    ideal = n0 * target(n0 * theta)
-    return {
-        "sab_joint_max_relative_error": float(np.max(np.abs(joint / ideal - 1.0))),
-        "sab_checked_output_deg": math.degrees(float(theta[-1])) if theta.size else None,
-    }
+    top = None if sab.max_output_deg is None else math.radians(sab.max_output_deg)
+    return sab_joint_errors(
+        target, curve, sab.a_mm, sab.R_mm, sab.R1_over_R2, top, study.geometry.max_rotation_deg
+    )
 
 
 def _sab_info(study: CamStudy) -> dict[str, Any]:
     sab = study.sab
-    if sab is None:
-        return {}
-    theta_max = sab_limits(sab.a_mm, sab.R_mm, sab.R1_over_R2)
-    theta = np.linspace(0.0, theta_max, 9)
-    return {
-        "ratio_at_zero_eq15": float(sab_ratio(0.0, sab.a_mm, sab.R_mm, sab.R1_over_R2)),
-        "ratio_ideal_with_R1_over_R2": sab_ratio_ideal(sab.a_mm, sab.R_mm, sab.R1_over_R2),
-        "ratio_eq16_as_printed": sab.a_mm / (sab.R_mm - sab.a_mm),
-        "max_output_deg_eq15b": math.degrees(theta_max),
-        "theta_deg": np.degrees(theta).tolist(),
-        "ratio_eq15": sab_ratio(theta, sab.a_mm, sab.R_mm, sab.R1_over_R2).tolist(),
-        "ratio_series_2nd_order": sab_ratio_series(
-            theta, sab.a_mm, sab.R_mm, sab.R1_over_R2
-        ).tolist(),
-    }
+    return {} if sab is None else sab_table(sab.a_mm, sab.R_mm, sab.R1_over_R2)
 
 
 def evaluate(study: CamStudy, repeat: int = 1) -> EvaluationResult:
@@ -384,13 +329,7 @@ class CamProblem:
             return Evaluation.failed(x, n_obj, n_con, str(exc), time.perf_counter() - t0)
         lim = study.limits
         f = [metrics[self.objective_names[0]]]
-        g = [
-            metrics["max_pressure_angle_deg"] / lim.max_pressure_angle_deg - 1.0,
-            min(metrics["stress_yield_ratio"], 1e6) - 1.0,
-            float(np.max(profile.pitch_curvature_per_mm)) * study.geometry.roller_radius_mm - 0.9,
-        ]
-        if lim.max_diameter_mm:
-            g.append(metrics["mechanism_diameter_mm"] / lim.max_diameter_mm - 1.0)
+        g = cam_constraints(metrics, profile, lim.max_pressure_angle_deg, lim.max_diameter_mm)
         return Evaluation(
             np.asarray(x, float), np.array(f), np.array(g), metrics, "", time.perf_counter() - t0
         )

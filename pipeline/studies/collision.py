@@ -39,9 +39,9 @@ from flexopt.fea.collision import (
     sweep_record,
     sweep_result,
 )
+from flexopt.fea.contact import contact_pressure_MPa, onset_pressure_MPa
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import get_material
-from flexopt.geometry.cam import contact_pressure_MPa, onset_pressure_MPa
 from flexopt.optimise.targets import (
     LinearTarget,
     TableTarget,

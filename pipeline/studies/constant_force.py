@@ -39,6 +39,7 @@ from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
 from flexopt.fea.errors import FeaError
 from flexopt.fea.fidelity import plane_stress_check
 from flexopt.fea.materials import Material, get_material
+from flexopt.fea.prb import prb_frame_comparison, prb_report
 from flexopt.geometry.constant_force import (
     DESIGN_VARIABLE_NAMES,
     TABLE1,
@@ -49,15 +50,20 @@ from flexopt.geometry.constant_force import (
     beam_profile,
     design_from_vector,
     design_to_vector,
-    flexure_width_mm,
-    optimise_prb,
     outline,
-    prb_force_N,
-    stress_limited_stroke_mm,
 )
 from flexopt.geometry.constant_force import min_feature_mm as design_min_feature_mm
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.curve_metrics import CurveMetrics, curve_metrics
+from flexopt.optimise.curve_objectives import (
+    check_rows,
+    compared_over,
+    force_band_constraints,
+    force_band_metrics,
+    force_band_objective,
+    plane_stress_force_column,
+    plane_stress_peak_figures,
+)
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
@@ -583,32 +589,18 @@ class ConstantForceProblem:
         positive definite, so the beam would snap or buckle away from the traced rows) keeps its
         numbers but is infeasible, with the solver's ``unstable: ...`` message as the reason."""
         study = self.study
-        if study.objective == "rms_error":
-            f = [m.rms_error_N]
-            stress = m.peak_stress_MPa
-        else:
-            f = [
-                -m.operative_stroke_mm
-                + study.boundary.stroke_mm * m.rms_error_N / study.target.force_N
-            ]
-            stress = m.window_peak_stress_MPa
-        # The plane-stress peak (the verdict's figure) runs a few % above the beam's: the GA
-        # holds the beam's times the ratio measured on this study's designs (fidelity block).
-        g = [stress * self.study.fidelity.beam_stress_factor / self.allowable_MPa - 1.0]
-        if study.target.min_operative_stroke_mm > 0:
-            g.append(study.target.min_operative_stroke_mm - m.operative_stroke_mm)
+        f = [
+            force_band_objective(study.objective, m, study.boundary.stroke_mm, study.target.force_N)
+        ]
+        g = force_band_constraints(
+            study.objective,
+            m,
+            self.allowable_MPa,
+            study.fidelity.beam_stress_factor,
+            study.target.min_operative_stroke_mm,
+        )
         metrics: dict[str, Any] = {
-            "mean_force_N": m.mean_force_N,
-            "flatness_percent": m.flatness_percent,
-            "operative_stroke_mm": m.operative_stroke_mm,
-            "operative_start_mm": None if math.isnan(m.window_mm[0]) else m.window_mm[0],
-            "operative_end_mm": None if math.isnan(m.window_mm[1]) else m.window_mm[1],
-            "peak_stress_MPa": m.peak_stress_MPa,
-            "window_peak_stress_MPa": m.window_peak_stress_MPa,
-            "stress_limit_stroke_mm": m.stress_limit_stroke_mm,
-            "rms_error_N": m.rms_error_N,
-            "plateau_mean_force_N": m.plateau_mean_force_N,
-            "plateau_flatness_percent": m.plateau_flatness_percent,
+            **force_band_metrics(m),
             "min_feature_mm": design_min_feature_mm(design),
             "stable": not response.unstable,
             "unstable_rows": _unstable_rows(response),
@@ -691,13 +683,13 @@ class ConstantForceProblem:
             if m.operative_stroke_mm > 0
             else np.zeros(len(table["displacement_mm"]), dtype=bool)
         )
-        lo, hi = _compared_over(study, m)
+        lo, hi = compared_over(m, study.boundary.stroke_mm)
         info["compared_over_mm"] = [lo, hi]
-        info["prb_frame"] = _prb_frame_comparison(table, lo, hi)
+        info["prb_frame"] = prb_frame_comparison(table["displacement_mm"], table["force_N"], lo, hi)
         # The checks are reported, never fatal: a report without them beats no report.
         if study.fidelity.enabled:
             info["fidelity"] = _guarded(fidelity_check, self, design, response, lo, hi)
-            info.update(fidelity_figures(info["fidelity"]))
+            info.update(plane_stress_peak_figures(info["fidelity"]))
             column = plane_stress_force_column(table, info["fidelity"])
             if column is not None:
                 table["plane_stress_force_N"] = column
@@ -725,14 +717,6 @@ class ConstantForceProblem:
             height_mm=design.B,
             info=info,
         )
-
-
-def _compared_over(study: ConstantForceStudy, m: CurveMetrics) -> tuple[float, float]:
-    """The strokes the checks compare over, mm: the operative window; a window shorter than a
-    quarter of the drive (or none) says little, so then the whole drive instead."""
-    if m.operative_stroke_mm >= 0.25 * study.boundary.stroke_mm:
-        return float(m.window_mm[0]), float(m.window_mm[1])
-    return 0.0, float(study.boundary.stroke_mm)
 
 
 def _guarded(check: Any, *args: Any) -> dict[str, Any]:
@@ -772,21 +756,6 @@ def _response_table(response: BeamResponse, target_N: float) -> dict[str, np.nda
         "peak_stress_MPa": np.asarray(response.peak_stress_MPa, dtype=float),
         "peak_stress_s_mm": np.asarray(response.peak_stress_s_mm, dtype=float),
         "stable": _stable_column(response),
-    }
-
-
-def _prb_frame_comparison(table: dict[str, np.ndarray], lo: float, hi: float) -> dict[str, Any]:
-    """The beam against the PRB model whose joints it is laid out on (Table 1): the beam is the
-    paper's 'smoothed' PRB mechanism, so this shows how far the smoothing moved the force."""
-    strokes = np.linspace(lo, hi, 5)[1:] if hi > lo else np.array([hi])
-    prb = prb_force_N(TABLE1, strokes)
-    beam = np.interp(strokes, table["displacement_mm"], table["force_N"])
-    return {
-        "model": "PRB slider-crank of paper Table 1 (r1 = 54 mm, theta10 = 0.542 rad)",
-        "stroke_mm": strokes.tolist(),
-        "prb_force_N": prb.tolist(),
-        "beam_force_N": beam.tolist(),
-        "beam_over_prb": (beam / prb).tolist(),
     }
 
 
@@ -841,20 +810,9 @@ def fidelity_check(
         }
     t0 = time.perf_counter()
     stroke_rows = np.asarray(response.displacement_mm, dtype=float)
-    ideal = lo + (hi - lo) * np.arange(1, spec.points + 1) / spec.points
-    inside = np.flatnonzero((stroke_rows >= lo - 1e-9) & (stroke_rows <= hi + 1e-9))
-    inside = inside[inside > 0]
-    if inside.size == 0:
-        inside = np.arange(1, len(stroke_rows))
-    rows = [int(inside[np.argmin(np.abs(stroke_rows[inside] - v))]) for v in ideal]
-    # The row of the beam's peak stress over the whole drive is always checked: the verdict
-    # judges the peak stress on the plane-stress figure, which must not miss the worst row.
-    peaks = np.where(
-        np.asarray(response.converged, dtype=bool), np.asarray(response.peak_stress_MPa), -np.inf
+    rows = check_rows(
+        stroke_rows, response.converged, response.peak_stress_MPa, lo, hi, spec.points
     )
-    if len(peaks) > 1 and np.isfinite(np.max(peaks[1:])):
-        rows.append(1 + int(np.argmax(peaks[1:])))
-    rows = np.unique(rows)
     try:
         shape = outline(design, TABLE1, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
         beam = problem._beam(design)
@@ -878,102 +836,9 @@ def fidelity_check(
     return result
 
 
-def fidelity_figures(check: dict[str, Any]) -> dict[str, Any]:
-    """The plane-stress figures the verdict judges (:data:`FIGURES`), from a
-    :func:`fidelity_check` record: the largest nodal von Mises stress over the checked strokes
-    (the beam's peak-stress row among them), only when every checked stroke converged."""
-    stress = check.get("plane_stress_peak_nodal_von_mises_MPa")
-    if not stress or not all(check.get("converged") or [False]):
-        return {}
-    return {"plane_stress_peak_stress_MPa": float(max(stress))}
-
-
-def plane_stress_force_column(
-    table: dict[str, np.ndarray], check: dict[str, Any]
-) -> np.ndarray | None:
-    """(rows,) N: the beam's force curve times the plane-stress / beam force ratio the
-    :func:`fidelity_check` measured at its strokes, interpolated along the stroke and held at
-    its end values beyond them (as the springs' 3D curves scale the plane-stress curve by a
-    measured ratio); None unless every checked stroke converged."""
-    strokes = check.get("stroke_mm")
-    if not strokes or not all(check.get("converged") or [False]):
-        return None
-    ratio = 1.0 + np.asarray(check["relative_difference"], dtype=float)
-    along = np.interp(table["displacement_mm"], np.asarray(strokes, dtype=float), ratio)
-    return np.asarray(table["force_N"], dtype=float) * along
-
-
 #: The figures of a quantity by model (pipeline.verdict): the peak stress and the force band
 #: are judged on the plane-stress check's figures where the run made one.
 FIGURES = _builtin.CONSTANT_FORCE_FIGURES
-
-
-def prb_report(
-    target_force_N: float,
-    stroke_mm: float,
-    E_MPa: float = 1800.0,
-    allowable_MPa: float = 42.5,
-    flexure_thickness_mm: float = 0.8,
-    x_in_mm: float = 100.0,
-    e_mm: float = 60.0,
-) -> dict[str, Any]:
-    """The paper's first stage for any target: Table-1-like PRB parameters and lumped flexures.
-
-    :func:`geometry.constant_force.optimise_prb` finds ``r1, theta10, K1..K3`` whose force stays
-    at ``target_force_N`` over ``stroke_mm`` (Eq. 8, ~1 s). The flexures that realise the K are
-    sized at ``flexure_thickness_mm`` (the printable minimum gives the narrowest pivots and so the
-    longest stroke before a pivot reaches ``allowable_MPa``, as ``sigma = E h |Psi| / (2 L)``)
-    and the paper's 10.8 mm length: ``b = 12 K L / (E h^3)`` (Eq. 12).
-
-    Parameters
-    ----------
-    target_force_N : float, N
-    stroke_mm : float, mm
-    E_MPa : float, MPa — Young's modulus of the flexures (ABS: 1800).
-    allowable_MPa : float, MPa
-    flexure_thickness_mm : float, mm
-    x_in_mm, e_mm : float, mm — the fixed slider position (Eq. 10; paper: 100 and 60).
-
-    Returns
-    -------
-    dict
-        ``r1_mm``, ``theta10_rad``, ``K_Nmm_per_rad``, ``r2_mm``, ``rms_error_N``,
-        ``relative_rms_error``, ``force_range_N``, ``lumped_flexures`` (thickness, length, widths,
-        ``stress_limited_stroke_mm``), the paper's ``table1`` for comparison; or ``skipped``.
-    """
-    t0 = time.perf_counter()
-    try:
-        fit = optimise_prb(target_force_N, stroke_mm, x_in_mm, e_mm)
-    except GeometryError as exc:
-        return {"skipped": str(exc)}
-    p = fit.params
-    h, length = flexure_thickness_mm, 10.8
-    K = p.stiffness_Nmm
-    widths = [float(flexure_width_mm(k, E_MPa, h, length)) if k > 0 else 0.0 for k in K]
-    limit = stress_limited_stroke_mm(p, E_MPa, allowable_MPa, h, length, max_stroke_mm=60.0)
-    return {
-        "target_force_N": float(target_force_N),
-        "stroke_mm": float(stroke_mm),
-        "r1_mm": p.r1_mm,
-        "theta10_rad": p.theta10_rad,
-        "K_Nmm_per_rad": K.tolist(),
-        "r2_mm": p.r2_mm,
-        "rms_error_N": fit.rms_error_N,
-        "relative_rms_error": fit.relative_rms_error,
-        "force_range_N": [float(fit.force_N.min()), float(fit.force_N.max())],
-        "lumped_flexures": {
-            "thickness_mm": h,
-            "length_mm": length,
-            "width_mm": widths,
-            "stress_limited_stroke_mm": None if math.isinf(limit) else limit,
-        },
-        "table1": {
-            "r1_mm": TABLE1.r1_mm,
-            "theta10_rad": TABLE1.theta10_rad,
-            "K_Nmm_per_rad": TABLE1.stiffness_Nmm.tolist(),
-        },
-        "time_s": time.perf_counter() - t0,
-    }
 
 
 def prb_synthesis(study: ConstantForceStudy) -> dict[str, Any]:
@@ -1043,10 +908,10 @@ def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
     summary.update(envelope_values(shape, design.B))
     diagnostics = dict(response.extra)
     if study.fidelity.enabled:  # the figure the verdict judges, as flexopt run's report does
-        lo, hi = _compared_over(study, prob._metrics(design, response))
+        lo, hi = compared_over(prob._metrics(design, response), study.boundary.stroke_mm)
         check = _guarded(fidelity_check, prob, design, response, lo, hi)
         diagnostics["fidelity"] = check
-        summary.update(fidelity_figures(check))
+        summary.update(plane_stress_peak_figures(check))
         column = plane_stress_force_column(table, check)
         if column is not None:
             table["plane_stress_force_N"] = column

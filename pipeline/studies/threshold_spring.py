@@ -46,15 +46,14 @@ section 4.
 from __future__ import annotations
 
 import difflib
-import io
 import math
 import time
 from typing import Any, Literal
 
 import numpy as np
 from flexopt.fea.arm_beam import ArmBeamResponse, arm_beam_torque
-from flexopt.fea.collision import ThresholdSpring, score_spring_curve, simulate_collision
 from flexopt.fea.errors import FeaError
+from flexopt.fea.scaling import at_thickness
 from flexopt.fea.spring_analysis import analyse_spring
 from flexopt.fea.spring_analysis import stress_map_data as _stress_map_data
 from flexopt.geometry.arm_spring import ArmSpringParams, arm_clearances, build_arm_spring
@@ -67,25 +66,32 @@ from flexopt.geometry.threshold_spring import (
     fold_margin_mm,
     threshold_params,
 )
+from flexopt.optimise.curve_objectives import (
+    SpringCheckSpec,
+    impact_record,
+    threshold_constraints,
+    threshold_curve_scores,
+    threshold_plane_stress_figures,
+    threshold_solid_3d,
+    threshold_solid_3d_scalars,
+)
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, SOLID_3D
 from flexopt.optimise.requirements import Figure as FigureOf
 from flexopt.optimise.space import DesignSpace
-from flexopt.optimise.targets import TargetSpec, ThresholdTarget, curve_error, measure_key
+from flexopt.optimise.targets import TargetSpec, curve_error, measure_key
 from flexopt.optimise.thickness_fit import fit_thickness
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plot_targets import measure_band
-from flexopt.pipeline.plots import plot_field
+from flexopt.pipeline.plots import plot_field, spring_shape_png, threshold_curve_png
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.studies._blocks import CurveSolid3DSpec, ImpactSpec
 from flexopt.pipeline.studies._blocks import MeshSpec as PlaneStressMesh
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from flexopt.pipeline.verdict import envelope_values
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 __all__ = [
@@ -407,12 +413,11 @@ class ThresholdSpringProblem:
             )
         else:  # a robustness sample: the nominal design's ST, moved by the scatter
             st = self.held_st_mm
-            torque = r.torque_Nmm * (st / p.thickness_mm)
+            torque = at_thickness(r.torque_Nmm, p.thickness_mm, st)
             err = float(curve_error(self.curve, r.rotation_rad, torque, self.measure, self.window))
-        scale = st / p.thickness_mm
         r = ArmBeamResponse(
             rotation_rad=r.rotation_rad,
-            torque_Nmm=r.torque_Nmm * scale,
+            torque_Nmm=at_thickness(r.torque_Nmm, p.thickness_mm, st),
             peak_stress_MPa=r.peak_stress_MPa,
             shapes_mm=r.shapes_mm,
             converged=r.converged,
@@ -458,9 +463,8 @@ class ThresholdSpringProblem:
             reason = "the torque is not positive anywhere in the range"
             return Evaluation.failed(x, n_obj, n_con, reason, time.perf_counter() - t0), None
         peak = float(np.nanmax(r.peak_stress_MPa))
-        lo, hi = self.st_range
-        g = np.concatenate(
-            [[err - self.study.tolerance, peak / self.allowable_MPa - 1.0, st - hi, lo - st], g_geo]
+        g = threshold_constraints(
+            err, self.study.tolerance, peak, self.allowable_MPa, st, self.st_range, g_geo
         )
         metrics = {
             "ST_mm": st,
@@ -518,7 +522,7 @@ class ThresholdSpringProblem:
         field_map = None
         if geom is not None and study.fidelity.enabled:
             info["plane_stress"], ps_rows, smap = self._fidelity(geom, r.rotation_rad)
-            info.update(plane_stress_figures(info["plane_stress"], self.error_name))
+            info.update(threshold_plane_stress_figures(info["plane_stress"], self.error_name))
             if smap:
                 field_map = {
                     "points_mm": smap["points_mm"],
@@ -532,13 +536,16 @@ class ThresholdSpringProblem:
                 table["plane_stress_peak_stress_MPa"] = ps_rows[1]
             if study.solid_3d.check:
                 info["solid_3d"] = self.solid_3d(geom, info["plane_stress"])
-                info.update(solid_3d_scalars(info["solid_3d"], self.error_name))
+                info.update(threshold_solid_3d_scalars(info["solid_3d"], self.error_name))
                 # the part to make is the corrected one (its STL, DXF), as in sea_spring
                 height = info["solid_3d"].get("ST_after_mm", height)
                 if "problem" not in info["solid_3d"].get("peak_convergence", {"problem": ""}):
                     # ... and the outline whose peak stress converged (issue 22)
                     outline = self._fine_geometry(geom, float(height)).outline
-        info["impact"] = self._impact(r.rotation_rad, r.torque_Nmm * 1e-3, table)
+        info["impact"] = impact_record(
+            r.rotation_rad, r.torque_Nmm * 1e-3, study.impact.model(), study.impact.settings(),
+            study.stack_plates, self.curve,
+        )  # fmt: skip
         plot = {
             "x": "rotation_deg",
             "y": "torque_Nm",
@@ -592,14 +599,12 @@ class ThresholdSpringProblem:
             "n_dofs": ps.n_dofs,
             "solve_time_s": ps.solve_time_s,
         }
-        ok = np.isfinite(torque_Nmm)
-        if ok.sum() >= 2:
-            rec[self.error_name] = float(
-                curve_error(self.curve, ps_rad[ok], torque_Nmm[ok], self.measure, self.window)
+        rec.update(
+            threshold_curve_scores(
+                self.curve, self.measure, self.window, self.study.tolerance, self.allowable_MPa,
+                self.error_name, ps_rad, torque_Nmm, ps.peak_stress_MPa,
             )
-            rec["peak_stress_max_MPa"] = float(np.nanmax(ps.peak_stress_MPa))
-            rec["within_tolerance"] = bool(rec[self.error_name] <= self.study.tolerance)
-            rec["stress_ok"] = bool(rec["peak_stress_max_MPa"] <= self.allowable_MPa)
+        )  # fmt: skip
         cols = np.full((2, rot_rad.size), np.nan)
         for k, a in enumerate(ps_rad):
             j = int(np.argmin(np.abs(rot_rad - a)))
@@ -609,133 +614,20 @@ class ThresholdSpringProblem:
         smap = _stress_map_data(ps) if ps.ok else None
         return rec, cols, smap
 
+    def _check_spec(self) -> SpringCheckSpec:
+        """The target, limits, material, drive and mesh of the chosen design's checks."""
+        fs, s3 = self.study.fidelity, self.study.solid_3d
+        return SpringCheckSpec(
+            self.material, self.range_rad, self.curve, self.measure, self.window,
+            self.study.tolerance, self.allowable_MPa, self.error_name, fs.max_edge_mm,
+            fs.elements_through, fs.steps, s3.layers, s3.correct, s3.converge_peak,
+            s3.curve_step_mm,
+        )  # fmt: skip
+
     def solid_3d(self, geom: Any, ps: dict[str, Any]) -> dict[str, Any]:
-        """The chosen design as a 3D solid beside plane stress, ST corrected for it (issue 15;
-        docs/solid3d.md).
-
-        :func:`fea.solid3d.compare_with_plane_stress` on the fidelity check's plane mesh
-        extruded to ST (P2 tetrahedra, half the thickness, hub turned rigidly to the end of the
-        design range, pads held through the thickness), linear, beside linear plane stress on
-        the same mesh. The stiffness ratio scales the plane-stress torque curve ``ps`` (the
-        :meth:`_fidelity` record) into the 3D curve, whose error measure against the target is
-        reported; the vertex-averaged peak-stress ratio scales the plane-stress peak. Each check
-        also reports the ST that fits its 3D curve best
-        (:func:`optimise.thickness_fit.fit_thickness`, as the search solves ST).
-
-        Correction (``solid_3d.correct``): when the first check's 3D error exceeds the
-        tolerance, ST becomes that check's ``ST_fit_3d_mm`` and the design is checked in 3D
-        again there (the ratio depends on ST/width, so the refit is re-measured, not assumed).
-        The trigger is the requirement itself, not a share of it: the error measure is on a
-        curve (a shape error that ST cannot remove stays), so a design already inside the
-        tolerance in 3D is left as the optimiser chose it. The answer (top-level keys, the
-        verdict's rows, the exported part) is the last *checked* ST; ``checks`` holds both.
-
-        Returns
-        -------
-        dict — N m/rad, MPa, mm, s; ``problem`` alone when the check cannot be made.
-        """
-        from flexopt.fea.mesh import mesh_polygon
-
-        if "torque_Nm" not in ps or "peak_stress_max_MPa" not in ps:
-            return {"problem": "3D check not made: the plane-stress check has no curve"}
-        fs, s3 = self.study.fidelity, self.study.solid_3d
-        t0 = time.perf_counter()
-        try:
-            m = mesh_polygon(geom.fe_outline, fs.max_edge_mm, refine=geom.mesh_regions(
-                fs.elements_through, fs.max_edge_mm))  # fmt: skip
-            st0 = float(geom.thickness_mm)
-            checks = [self._check_3d(geom, m, ps, st0, st0)]
-            first = checks[0]
-            err_key = f"{self.error_name}_3d"
-            corrected = bool(
-                s3.correct
-                and first[err_key] > self.study.tolerance
-                and math.isfinite(first["ST_fit_3d_mm"])
-            )
-            if corrected:
-                checks.append(self._check_3d(geom, m, ps, st0, first["ST_fit_3d_mm"]))
-        except FeaError as exc:
-            return {"problem": f"3D check not made: {exc}"}
-        last = checks[-1]
-        conv: dict[str, Any] = {}
-        if s3.converge_peak:
-            conv = self._converged_peak(geom, last["ST_mm"], last["peak_stress_ratio_3d_2d"])
-            if "problem" not in conv:  # the 3D peak from the converged 2D peak
-                last = {
-                    **last,
-                    "peak_stress_3d_MPa": conv["peak_stress_3d_MPa"],
-                    "stress_ok_3d": bool(conv["peak_stress_3d_MPa"] <= self.allowable_MPa),
-                }
-        if not s3.correct:
-            stopped = "solid_3d.correct is false: ST not corrected (reported only)"
-        elif not corrected:
-            stopped = "the 3D error is within the tolerance: no correction"
-        else:
-            stopped = "ST refitted to the 3D curve and re-checked in 3D"
-        return {
-            "method": "linear 3D / linear plane stress on the fidelity mesh at the end of the "
-            "design range; the ratio applied to the nonlinear plane-stress curve (scaled to "
-            "the checked ST); ST refitted to the 3D curve when its error exceeds the tolerance, "
-            "then re-checked in 3D",
-            "corrected": corrected,
-            "stopped": stopped,
-            "ST_before_mm": st0,
-            "ST_after_mm": last["ST_mm"],
-            f"{err_key}_before": first[err_key],
-            f"{self.error_name}_2d": ps.get(self.error_name),
-            **last,
-            "allowable_stress_MPa": self.allowable_MPa,
-            "layers": s3.layers,
-            "checks": checks,
-            **({"peak_convergence": conv} if s3.converge_peak else {}),
-            "time_s": time.perf_counter() - t0,
-        }
-
-    def _converged_peak(self, geom: Any, st_mm: float, ratio_3d_2d: float) -> dict[str, Any]:
-        """The plane-stress peak at the end of the design range on the outline rebuilt with its
-        arms sampled every ``solid_3d.curve_step_mm``, the mesh refined at the peak until it
-        moves < 1 % (:func:`fea.solid3d.converge_peak_stress`), and the 3D peak from it
-        (``ratio_3d_2d``, the last 3D check's vertex-averaged peak ratio). The part's final ST
-        ``st_mm`` (mm) is the one solved, though a plane-stress stress under an imposed hub
-        rotation with held pads does not depend on it (no load is prescribed, so the in-plane
-        field is the same at every ST). Nonlinear, in ``fidelity.steps`` steps, as sea_spring:
-        the arms are compressed struts whose bending at the end of the range is a large-rotation
-        effect. Returns MPa, mm, s; ``problem`` alone when it cannot be made."""
-
-        from flexopt.fea.plane_stress import Clamp, Rotate
-        from flexopt.fea.solid3d import converge_peak_stress
-
-        fs, s3 = self.study.fidelity, self.study.solid_3d
-        t0 = time.perf_counter()
-        try:
-            smooth = self._fine_geometry(geom, st_mm)
-            c = converge_peak_stress(
-                smooth.fe_outline, smooth.thickness_mm, self.material, Clamp(smooth.pad_region),
-                Rotate(smooth.hub_region, (0.0, 0.0), self.range_rad, fs.steps), fs.max_edge_mm,
-                refine=smooth.mesh_regions(fs.elements_through, fs.max_edge_mm),
-                stress_ignore=smooth.hub_region.union(smooth.pad_region).buffer(0.05),
-                kinematics="nonlinear",
-            )  # fmt: skip
-        except (FeaError, GeometryError) as exc:
-            return {"problem": f"peak-stress convergence not made: {exc}"}
-        return {
-            "method": "nonlinear plane stress at the end of the design range, the mesh halved "
-            "around the peak until it moves < 1 %; 3D peak = last value x the 3D/2D peak ratio",
-            "ST_mm": float(st_mm),
-            "curve_step_mm": s3.curve_step_mm,
-            "converged": c["converged"],
-            "status": c["status"],
-            "last_two_MPa": c["last_two_MPa"],
-            "peaks_MPa": c["peaks_MPa"],
-            "local_edge_mm": c["local_edge_mm"],
-            "peak_xy_mm": c["peak_xy_mm"],
-            "corner": c["corner"],
-            "fix": (c["corner"] or {}).get("fix"),
-            "peak_stress_2d_MPa": c["last_two_MPa"][-1],
-            "peak_stress_ratio_3d_2d": ratio_3d_2d,
-            "peak_stress_3d_MPa": c["last_two_MPa"][-1] * ratio_3d_2d,
-            "time_s": time.perf_counter() - t0,
-        }
+        """The chosen design as a 3D solid beside plane stress (the :meth:`_fidelity` record
+        ``ps``), ST corrected for it: :func:`optimise.curve_objectives.threshold_solid_3d`."""
+        return threshold_solid_3d(self._check_spec(), self._fine_geometry, geom, ps)
 
     def _fine_geometry(self, geom: Any, st_mm: float) -> Any:
         """The design as the peak-stress convergence meshes it and as its part is exported:
@@ -747,123 +639,6 @@ class ThresholdSpringProblem:
             replace(geom.params, thickness_mm=float(st_mm)), self.frame,
             curve_step_mm=self.study.solid_3d.curve_step_mm,
         )  # fmt: skip
-
-    def _check_3d(
-        self, geom: Any, mesh: Any, ps: dict[str, Any], st_ps_mm: float, st_mm: float
-    ) -> dict[str, Any]:
-        """One 3D check of the drawn spring extruded to ``st_mm`` (mm) on the plane ``mesh``;
-        ``ps`` is the plane-stress record at ``st_ps_mm``. Raises FeaError."""
-        from flexopt.fea.plane_stress import Clamp, Rotate
-        from flexopt.fea.solid3d import Solid3DSettings, compare_with_plane_stress
-
-        t0 = time.perf_counter()
-        c = compare_with_plane_stress(
-            mesh, self.material, st_mm, Clamp(geom.pad_region),
-            Rotate(geom.hub_region, (0.0, 0.0), self.range_rad, 1),
-            Solid3DSettings(layers=self.study.solid_3d.layers),
-            stress_ignore=geom.hub_region.union(geom.pad_region).buffer(0.05),
-        )  # fmt: skip
-        ratio = c["stiffness_ratio"]
-        rot_rad = np.radians(np.asarray(ps["rotation_deg"], dtype=float))
-        # plane-stress torque is exactly proportional to the thickness (the same in-plane
-        # field times ST), so the nonlinear curve at st_mm is the checked one scaled
-        torque_2d_Nm = np.asarray(ps["torque_Nm"], dtype=float) * (st_mm / st_ps_mm)
-        torque_3d_Nm = ratio * torque_2d_Nm
-        ok = np.isfinite(torque_3d_Nm)
-        err_3d = float(
-            curve_error(self.curve, rot_rad[ok], torque_3d_Nm[ok] * 1e3, self.measure, self.window)
-        )
-        # the plane-stress stress under an imposed rotation does not depend on ST
-        peak_2d = float(ps["peak_stress_max_MPa"])
-        peak_3d = peak_2d * c["peak_stress_ratio"]
-        # the ST whose 3D curve fits the target best (torque proportional to ST, the ratio
-        # taken as constant over the step)
-        st_fit, err_fit = fit_thickness(
-            rot_rad[ok], torque_3d_Nm[ok] * 1e3 / st_mm, self.curve, self.measure, self.window
-        )
-        return {
-            "ST_mm": float(st_mm),
-            "stiffness_ratio_3d_2d": ratio,
-            "linear_stiffness_2d_Nm_per_rad": c["stiffness_2d"] * 1e-3,
-            "linear_stiffness_3d_Nm_per_rad": c["stiffness_3d"] * 1e-3,
-            "torque_2d_Nm": torque_2d_Nm.tolist(),
-            "torque_3d_Nm": torque_3d_Nm.tolist(),
-            f"{self.error_name}_3d": err_3d,
-            "within_tolerance_3d": bool(err_3d <= self.study.tolerance),
-            "ST_fit_3d_mm": float(st_fit),
-            f"{self.error_name}_3d_at_ST_fit": float(err_fit),
-            "peak_stress_ratio_3d_2d": c["peak_stress_ratio"],
-            "peak_stress_2d_MPa": peak_2d,
-            "peak_stress_3d_MPa": peak_3d,
-            "stress_ok_3d": bool(peak_3d <= self.allowable_MPa),
-            "dofs": c["solid3d"]["n_dofs"],
-            "solver": c["solid3d"]["solver"],
-            "time_s": time.perf_counter() - t0,
-        }
-
-    def _impact(
-        self, rot_rad: np.ndarray, torque_Nm: np.ndarray, table: dict[str, np.ndarray]
-    ) -> dict[str, Any]:
-        """HIC15 and impact force of the designed curve, of the ideal target (when it is a
-        threshold) and of the constant-stiffness spring (fea.collision's reference)."""
-        model = self.study.impact.model()
-        settings = self.study.impact.settings()
-        plates = self.study.stack_plates
-        ok = np.isfinite(torque_Nm)
-        # The table must not decrease (fea.collision.TabulatedSpring); a design inside the
-        # tolerance is monotonic to within it.
-        t = plates * np.maximum.accumulate(np.maximum(torque_Nm[ok], 0.0))
-        try:
-            score = score_spring_curve(rot_rad[ok], t, model=model, settings=settings)
-        except FeaError as exc:
-            return {"skipped": str(exc)}
-        rec: dict[str, Any] = {
-            "case": {
-                "stack_plates": plates,
-                "rotor_torque_Nm": model.rotor_torque_Nm,
-                "rotor_inertia_kg_m2": model.rotor_inertia_kg_m2,
-                "speed_rad_per_s": model.speed_rad_per_s,
-                "initial_spring": model.initial_spring,
-                "duration_s": settings.duration_s,
-            },
-            "spring": {
-                "hic15": score.hic15,
-                "peak_force_N": score.peak_force_N,
-                "max_deflection_deg": math.degrees(score.max_deflection_rad),
-                "beyond_table": bool(score.beyond_table),
-            },
-            "constant_stiffness": {
-                "stiffness_Nm_per_rad": score.reference_stiffness_Nm_per_rad,
-                "hic15": score.reference_hic15,
-                "peak_force_N": score.reference_peak_force_N,
-            },
-            "hic_reduction": score.hic_reduction,
-            "force_reduction": score.force_reduction,
-        }
-        if isinstance(self.curve, ThresholdTarget):
-            ideal = simulate_collision(
-                ThresholdSpring(plates * self.curve.max_value * 1e-3, self.curve.rate),
-                model,
-                settings,
-            )
-            rec["ideal_threshold"] = {
-                "hic15": ideal.hic15,
-                "peak_force_N": ideal.peak_force_N,
-                "max_deflection_deg": math.degrees(ideal.max_deflection_rad),
-            }
-        return rec
-
-
-def plane_stress_figures(ps: dict[str, Any], error_name: str) -> dict[str, Any]:
-    """The plane-stress figures the verdict judges (:func:`figures`) from a
-    :meth:`ThresholdSpringProblem._fidelity` record, when its solve converged: the error
-    measure of its torque curve and its largest peak stress."""
-    if not ps.get("converged") or "peak_stress_max_MPa" not in ps:
-        return {}
-    return {
-        f"plane_stress_{error_name}": ps[error_name],
-        "plane_stress_peak_stress_MPa": ps["peak_stress_max_MPa"],
-    }
 
 
 def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
@@ -889,21 +664,6 @@ def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
     return out
 
 
-def solid_3d_scalars(s3: dict[str, Any], error_name: str) -> dict[str, Any]:
-    """The scalars of :meth:`ThresholdSpringProblem.solid_3d` the verdict judges (info /
-    summary)."""
-    keys = (
-        "stiffness_ratio_3d_2d", "linear_stiffness_3d_Nm_per_rad", f"{error_name}_3d",
-        "peak_stress_3d_MPa", "peak_stress_ratio_3d_2d", "ST_before_mm", "ST_after_mm",
-        f"{error_name}_3d_before",
-    )  # fmt: skip
-    out = {k: s3[k] for k in keys if k in s3}
-    conv = s3.get("peak_convergence") or {}
-    if "converged" in conv:
-        out["peak_stress_converged"] = conv["converged"]
-    return out
-
-
 def problem(study: ThresholdSpringStudy) -> ThresholdSpringProblem:
     """The GA problem of a validated study."""
     return ThresholdSpringProblem(study)
@@ -911,69 +671,6 @@ def problem(study: ThresholdSpringStudy) -> ThresholdSpringProblem:
 
 # --------------------------------------------------------------------------------------------
 # flexopt evaluate
-
-
-def curve_png(detail: DesignDetail, tolerance: float, title: str = "") -> bytes:
-    """Torque (beam, plane stress, target with its band) and stress against rotation."""
-    t = detail.table
-    fig = Figure(figsize=(10, 4), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax_t, ax_s = fig.subplots(1, 2)
-    x = t["rotation_deg"]
-    level = float(np.nanmax(np.abs(t["target_torque_Nm"])))
-    ax_t.fill_between(
-        x,
-        t["target_torque_Nm"] - tolerance * level,
-        t["target_torque_Nm"] + tolerance * level,
-        color="0.85",
-        label=f"target ± {tolerance * 100:g} % of max",
-    )
-    ax_t.plot(x, t["target_torque_Nm"], "k--", lw=1, label="target")
-    ax_t.plot(x, t["torque_Nm"], "o-", ms=3, label="beam model")
-    ax_s.plot(x, t["peak_stress_MPa"], "o-", ms=3, label="beam model")
-    if "plane_stress_torque_Nm" in t:
-        ok = np.isfinite(t["plane_stress_torque_Nm"])
-        ax_t.plot(x[ok], t["plane_stress_torque_Nm"][ok], "s", label="plane stress")
-        ax_s.plot(x[ok], t["plane_stress_peak_stress_MPa"][ok], "s", label="plane stress (vM)")
-    allow = detail.plot.get("allowable_MPa")
-    if allow:
-        ax_s.axhline(allow, ls="--", color="k", lw=1, label=f"allowable {allow:g} MPa")
-    ax_t.set_xlabel("hub rotation (deg)")
-    ax_t.set_ylabel("torque (N m)")
-    ax_s.set_xlabel("hub rotation (deg)")
-    ax_s.set_ylabel("peak stress (MPa)")
-    for ax in (ax_t, ax_s):
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best")
-    if title:
-        fig.suptitle(title)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
-    return buffer.getvalue()
-
-
-def shape_png(detail: DesignDetail) -> bytes:
-    """The outline with arm 0's undeformed and last deformed centreline."""
-    fig = Figure(figsize=(5.5, 5.5), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots(1, 1)
-    if detail.outline is not None:
-        ring = np.asarray(detail.outline.exterior.coords)
-        ax.fill(ring[:, 0], ring[:, 1], color="0.8")
-        for hole in detail.outline.interiors:
-            h = np.asarray(hole.coords)
-            ax.fill(h[:, 0], h[:, 1], color="white")
-    if detail.shapes_mm is not None:
-        ax.plot(*detail.shapes_mm[0].T, "b-", lw=1, label="arm 0")
-        ax.plot(*detail.shapes_mm[-1].T, "r-", lw=1, label="arm 0 at the end of the range")
-        ax.legend(loc="lower left")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.grid(True, alpha=0.3)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
-    return buffer.getvalue()
 
 
 def _summary(prob: ThresholdSpringProblem, d: DesignDetail) -> dict[str, Any]:
@@ -995,10 +692,10 @@ def _summary(prob: ThresholdSpringProblem, d: DesignDetail) -> dict[str, Any]:
     ps = info.get("plane_stress", {})
     s[f"plane_stress_{prob.error_name}"] = None
     s["plane_stress_peak_stress_MPa"] = None
-    s.update(plane_stress_figures(ps, prob.error_name))
+    s.update(threshold_plane_stress_figures(ps, prob.error_name))
     peaks = [v for v in (m.get("peak_stress_MPa"), ps.get("peak_stress_max_MPa")) if v is not None]
     s["stress_yield_ratio"] = max(peaks) / prob.material.yield_MPa if peaks else None
-    s.update(solid_3d_scalars(info.get("solid_3d", {}), prob.error_name))
+    s.update(threshold_solid_3d_scalars(info.get("solid_3d", {}), prob.error_name))
     imp = info.get("impact", {})
     if "spring" in imp:
         s.update(
@@ -1058,8 +755,10 @@ def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
             plot=plot,
         )
     files: dict[str, bytes] = {
-        "curve.png": curve_png(d, study.tolerance, study.name),
-        "shape.png": shape_png(d),
+        "curve.png": threshold_curve_png(
+            d.table, study.tolerance, d.plot.get("allowable_MPa"), study.name
+        ),
+        "shape.png": spring_shape_png(d.outline, d.shapes_mm),
     }
     if d.outline is not None and d.height_mm:
         files["spring.stl"] = stl_bytes(extrude(d.outline, d.height_mm))

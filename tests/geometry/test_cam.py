@@ -9,21 +9,23 @@ import numpy as np
 import pytest
 import shapely
 import trimesh
-from flexopt.geometry.cam import (
-    CamLayout,
-    CamSprings,
+from flexopt.fea.contact import (
     CorrectedCurve,
-    cam_outline,
-    cam_stl,
     contact_pressure_MPa,
     fit_correction,
-    follower_radius_from_outline,
     sab_limits,
     sab_ratio,
     sab_ratio_ideal,
     sab_ratio_series,
     synthesise_cam,
     torque_from_outline,
+)
+from flexopt.geometry.cam import (
+    CamLayout,
+    CamSprings,
+    cam_outline,
+    cam_stl,
+    follower_radius_from_outline,
 )
 from flexopt.geometry.errors import GeometryError
 from scipy.integrate import quad

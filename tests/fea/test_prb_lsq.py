@@ -1,4 +1,4 @@
-"""The exact bounded least-squares solver behind optimise_prb (geometry.constant_force._box_lsq).
+"""The exact bounded least-squares solver behind optimise_prb (fea.prb._box_lsq).
 
 Every reference is computed here: scipy's lsq_linear (its exact active-set method "bvls" at a
 tight tolerance), the KKT conditions of the box-constrained problem, and optimise_prb run with
@@ -7,7 +7,7 @@ lsq_linear in place of _box_lsq (the implementation it replaced).
 
 import numpy as np
 import pytest
-from flexopt.geometry import constant_force as cf
+from flexopt.fea import prb as cf
 from scipy.optimize import lsq_linear
 
 LOWER, UPPER = np.zeros(3), np.full(3, 1000.0)
