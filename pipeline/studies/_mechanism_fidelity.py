@@ -28,6 +28,7 @@ import math
 from typing import Any, Literal
 
 import numpy as np
+from flexopt.optimise.mechanism_objectives import statistic
 from flexopt.pipeline.study import STUDY_CONFIG
 from pydantic import BaseModel, Field
 
@@ -83,18 +84,6 @@ def _check(mk: Any, study: Any, solved: Any, width_mm: float, case: str) -> dict
     )  # fmt: skip
 
 
-def _ratios(check: dict[str, Any]) -> tuple[str, float, float]:
-    """(model, force ratio, stress ratio) of the highest-fidelity figure of a check."""
-    if check.get("solid"):
-        s = check["solid"][0]
-        return "3D solid", float(s["ratio"]), float(s["stress_ratio"])
-    return (
-        "plane stress",
-        float(check["plane_stress_ratio"]),
-        float(check["plane_stress_stress_ratio"]),
-    )
-
-
 def _width_case(mk: Any, study: Any) -> str | None:
     """The load case the solved width's requirement reads (None: the width is not solved)."""
 
@@ -113,6 +102,8 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     the kind's module (pipeline/studies/mechanism.py, passed in: a module of the kind's
     helpers imports no kind)."""
 
+    from flexopt.fea.mechanism_fidelity import check_summary, corrected_columns, highest_fidelity
+
     study = problem.study
     if solved.reason:
         return solved
@@ -128,7 +119,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
         # check run again there: every figure is computed at the width exported (in 3D r moves
         # a little with w, so the figure sits r(w1) / r(w0) - 1 off the centre: 0.7 % on the
         # parallel guide; plane stress's ratio does not depend on the width)
-        _, ratio, _ = _ratios(checks[width_case])
+        _, ratio, _ = highest_fidelity(checks[width_case])
         new = solved.width_mm / ratio
         if abs(new - width) > 2e-3 * width:
             width = new
@@ -143,12 +134,13 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
             applied[case] = {"model": "beam", "why": check["skipped"]}
             tables[case] = table
             continue
-        model, ratio, stress = _ratios(check)
+        model, ratio, stress = highest_fidelity(check)
         applied[case] = {
             "model": model, "force_ratio": ratio, "stress_ratio_reported": stress,
             "stress": STRESS_NOTE,
         }  # fmt: skip
-        tables[case] = _corrected(mk, study, case, table, ratio, 1.0)
+        control = study.load_cases[case].drive.control
+        tables[case] = corrected_columns(table, control, mk._columns(study, case), ratio, 1.0)
         # the stress the verdict reads: never below the check's own figure (issue 22: the best
         # figure the run computed), the beam model's peak times the check's peak ratio
         beam_peak = np.nanmax(np.asarray(response.peak_stress_MPa, float), axis=1)
@@ -160,10 +152,10 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     metrics = mk._part_metrics(
         study, solved.geometry, solved.outline, tables, width, problem.material, solved.clearance
     )
-    beam_values = {**solved.metrics, **_worst(mk, solved.curves_table)}
+    beam_values = {**solved.metrics, **_worst(solved.curves_table)}
     beam_verdicts = {v.name: v.value for v in problem._verdicts(solved)}
     fidelity = {
-        "summary": _summary(checks, applied),
+        "summary": check_summary(checks, applied),
         "beam_model_verdicts": {k: v for k, v in beam_verdicts.items() if math.isfinite(v)},
         "checks": checks,
         "applied": applied,
@@ -176,54 +168,8 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     )  # fmt: skip
 
 
-def _summary(checks: dict[str, Any], applied: dict[str, Any]) -> dict[str, Any]:
-    """One flat line per figure (the report shows flat mappings as tables)."""
-    out: dict[str, Any] = {}
-    for case, check in checks.items():
-        if "skipped" in check:
-            out[f"{case}: judged on"] = f"the beam model (check skipped: {check['skipped']})"
-            continue
-        out[f"{case}: judged on"] = applied[case]["model"]
-        out[f"{case}: stiffness {check['stiffness_unit']}, beam model"] = check["beam_stiffness"]
-        out[f"{case}: stiffness, plane stress / beam"] = check["plane_stress_ratio"]
-        if check.get("solid"):
-            solid = check["solid"][0]
-            out[f"{case}: stiffness, 3D solid / beam"] = solid["ratio"]
-            out[f"{case}: 3D depth mm"] = solid["depth_mm"]
-            out[f"{case}: peak stress, 3D / beam"] = solid["stress_ratio"]
-        else:
-            out[f"{case}: 3D solid"] = f"not run ({check['solid_rule']})"
-            out[f"{case}: peak stress, plane stress / beam"] = check["plane_stress_stress_ratio"]
-        out[f"{case}: check time s"] = check["time_s"]
-    return out
-
-
-def _worst(mk: Any, curves: dict[str, np.ndarray]) -> dict[str, float]:
-
-    return {k: v for k, col in curves.items() if (v := mk._stat(col, "max_abs")) is not None}
-
-
-def _corrected(
-    mk: Any, study: Any, case: str, table: dict[str, np.ndarray], ratio: float, stress: float
-) -> dict[str, np.ndarray]:
-    """Force-like columns times ``ratio`` (to the power they scale with the width), stresses
-    times ``stress``."""
-
-    d = study.load_cases[case].drive
-    out = dict(table)
-    force_like = d.control in ("displacement", "rotation")
-    for key in table:
-        if key.startswith("drive_reaction_") and force_like:
-            out[key] = np.asarray(table[key], float) * ratio
-        elif key == "peak_stress_MPa":
-            out[key] = np.asarray(table[key], float) * stress
-        elif key in study.outputs:
-            o = study.outputs[key]
-            if o.quantity == "peak_stress":
-                out[key] = np.asarray(table[key], float) * stress
-            elif force_like:
-                out[key] = np.asarray(table[key], float) * ratio ** mk._exponent(study, key)
-    return out
+def _worst(curves: dict[str, np.ndarray]) -> dict[str, float]:
+    return {k: v for k, col in curves.items() if (v := statistic(col, "max_abs")) is not None}
 
 
 def annotate(verdicts: tuple, solved: Any) -> tuple:

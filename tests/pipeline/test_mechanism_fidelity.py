@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import yaml
 from flexopt.fea import mechanism as fm
+from flexopt.fea.mechanism_design import as_made_stress
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies import mechanism as mk
 from flexopt.pipeline.study import validate_study
@@ -76,7 +77,7 @@ def test_bistable_switch_verdict_is_the_imperfect_parts_snap():
         assert 7.6 <= _first_peak(other.outputs["F"]) * scale <= 8.4
     # peak stress along the followed branch (with the filleted roots' Kt, as the kind takes
     # it), and the stable positions on it
-    stress = np.nanmax(mk._as_made_stress(imperfect, outline.beams))
+    stress = np.nanmax(as_made_stress(imperfect, outline.beams))
     assert result.summary["max_peak_stress_MPa"] == pytest.approx(stress, rel=1e-9)
     count, _ = fm.stable_positions(imperfect.drive, imperfect.outputs["F"])
     assert count == 2 and _verdict(result, "second_stable_position").met
@@ -225,7 +226,7 @@ def test_stress_is_judged_on_the_larger_of_the_beam_and_the_check():
     for case in ("free", "blocked"):
         r = mk._solve_printed_path(study, mech, case)
         raw[case] = float(np.nanmax(r.peak_stress_MPa))
-        made[case] = float(np.nanmax(mk._as_made_stress(r, outline.beams)))
+        made[case] = float(np.nanmax(as_made_stress(r, outline.beams)))
     # the blocked case has supports: the check skips it (beam model)
     expected = max(made["free"], raw["free"] * ratio, made["blocked"])
     v = _verdict(result, "max_peak_stress_MPa")
