@@ -24,7 +24,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from flexopt.fea.mechanism_design import INTERFERENCE_MM2
+from flexopt.fea.mechanism_design import INTERFERENCE_MM2, REACTION_UNIT
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE
 from flexopt.optimise.requirements import Requirement, TargetBand, Verdict, unit_of
 
@@ -38,6 +38,7 @@ __all__ = [
     "objective_name",
     "objective_values",
     "output_statistics",
+    "response_metrics",
     "statistic",
     "target_objective",
     "verdict_json",
@@ -78,6 +79,51 @@ def output_statistics(
     """``{prefix}{stat}_{output}`` for every output column of ``table`` and every stat."""
     return {f"{prefix}{how}_{name}": statistic(table[name], how) for name in outputs
             for how in STATS}  # fmt: skip
+
+
+def response_metrics(
+    tables: Mapping[str, Mapping[str, np.ndarray]],
+    cases: Mapping[str, tuple[str, str, str, Sequence[str]]],
+    yield_MPa: float,
+    part: Mapping[str, Any],
+) -> dict[str, Any]:
+    """The metrics of a design's responses.
+
+    ``tables`` are the cases' columns (:func:`fea.mechanism_design.case_table`); ``cases`` maps
+    each case to ``(prefix, control, unit, outputs)``: its metrics' prefix, its drive's control
+    and unit, its outputs. Per case ``stable_positions`` and ``second_stable_position_<unit>``
+    (:func:`fea.mechanism.stable_positions`, under displacement or rotation control; None
+    otherwise), ``max_peak_stress_MPa`` (MPa) and :func:`output_statistics`; overall
+    ``max_peak_stress_MPa``, ``stress_yield_ratio`` (to ``yield_MPa``), then ``part`` (the
+    part's own metrics, e.g. its mass), then ``stable`` (no converged row unstable) and
+    ``unstable_rows``."""
+    from flexopt.fea.mechanism import stable_positions  # the solver's module: loaded late
+
+    m: dict[str, Any] = {}
+    peaks = []
+    unstable = 0
+    for case, table in tables.items():
+        p, control, unit, outputs = cases[case]
+        drive = table[f"drive_{unit}"]
+        reaction = table[f"drive_reaction_{REACTION_UNIT[control]}"]
+        if control in ("displacement", "rotation"):
+            count, second = stable_positions(drive, reaction)
+        else:
+            count, second = None, None
+        m[f"{p}stable_positions"] = count
+        m[f"{p}second_stable_position_{unit}"] = second
+        peak = statistic(table["peak_stress_MPa"], "max")
+        m[f"{p}max_peak_stress_MPa"] = peak
+        peaks.append(peak if peak is not None else math.nan)
+        unstable += int(np.sum(table["converged"] & ~table["stable"]))
+        m.update(output_statistics(table, outputs, p))
+    peak_all = float(np.nanmax(peaks)) if np.isfinite(peaks).any() else None
+    m["max_peak_stress_MPa"] = peak_all
+    m["stress_yield_ratio"] = None if peak_all is None else peak_all / yield_MPa
+    m.update(part)
+    m["stable"] = unstable == 0
+    m["unstable_rows"] = unstable
+    return m
 
 
 def curves_table(

@@ -25,14 +25,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from flexopt.optimise.mechanism_objectives import statistic
-from flexopt.pipeline.study import STUDY_CONFIG
-from pydantic import BaseModel, Field
+from flexopt.pipeline.studies._mechanism_schema import (
+    build_load_case,
+    build_mechanism,
+    output_columns,
+)
 
-__all__ = ["MechanismFidelitySpec", "with_fidelity", "annotate"]
+__all__ = ["with_fidelity", "annotate"]
 
 #: why a stress requirement stays on the beam model (docs/mechanism.md, "The check of the part
 #: as exported")
@@ -44,31 +47,7 @@ STRESS_NOTE = (
 )
 
 
-class MechanismFidelitySpec(BaseModel):
-    """``fidelity:`` of a mechanism study: the check of the exported outline."""
-
-    model_config = STUDY_CONFIG
-
-    enabled: bool = Field(True, description="check the reported design in plane stress / 3D")
-    elements_through: float = Field(
-        2.0, ge=1.0, le=8.0, description="P2 triangles across the thinnest beam"
-    )
-    solid: Literal["auto", "always", "never"] = Field(
-        "auto", description="3D solid check: auto (width >= 3 x the thinnest beam), always or never"
-    )
-    layers: int = Field(2, ge=1, le=8, description="prism layers through half the width (3D)")
-    beam_stress_factor: float = Field(
-        1.0,
-        ge=1.0,
-        le=2.0,
-        description="the optimiser judges each design's beam-model peak stress (the roots' Kt "
-        "included) times this: the check's peak / beam ratio measured on this study's designs, "
-        "so that the reported design also meets its stress requirements on the check, which "
-        "the verdict reads",
-    )
-
-
-def _check(mk: Any, study: Any, solved: Any, width_mm: float, case: str) -> dict[str, Any]:
+def _check(study: Any, solved: Any, width_mm: float, case: str) -> dict[str, Any]:
     from flexopt.fea.mechanism_fidelity import FidelitySettings, mechanism_fidelity_check
     from shapely.geometry import Polygon
 
@@ -78,9 +57,10 @@ def _check(mk: Any, study: Any, solved: Any, width_mm: float, case: str) -> dict
     grounds = [*outline.pads.values(), *(Polygon(np.array(o)) for o in g.ground_outlines_mm)]
     settings = FidelitySettings(elements_through=spec.elements_through, layers=spec.layers)
     solid = {"auto": None, "always": True, "never": False}[spec.solid]
+    mech = build_mechanism(g, study.material.to_material(), width_mm)
     return mechanism_fidelity_check(
-        mk._mechanism(study, g, width_mm), mk._load_case(study, case), outline.polygon, grounds,
-        outline.bodies, list(outline.bands.values()), width_mm, settings, solid,
+        mech, build_load_case(study, case), outline.polygon, grounds, outline.bodies,
+        list(outline.bands.values()), width_mm, settings, solid,
     )  # fmt: skip
 
 
@@ -110,7 +90,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     if not study.fidelity.enabled:
         return dataclasses.replace(solved, fidelity={"skipped": "fidelity.enabled is false"})
     width = solved.width_mm
-    checks = {case: _check(mk, study, solved, width, case) for case in study.load_cases}
+    checks = {case: _check(study, solved, width, case) for case in study.load_cases}
     width_case = _width_case(mk, study)
     history = [width]
     if width_case is not None and "skipped" not in checks[width_case]:
@@ -124,7 +104,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
         if abs(new - width) > 2e-3 * width:
             width = new
             history.append(width)
-            checks = {case: _check(mk, study, solved, width, case) for case in study.load_cases}
+            checks = {case: _check(study, solved, width, case) for case in study.load_cases}
     scale = width / solved.geometry.width_mm
     tables, applied = {}, {}
     for case, response in solved.responses.items():
@@ -140,7 +120,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
             "stress": STRESS_NOTE,
         }  # fmt: skip
         control = study.load_cases[case].drive.control
-        tables[case] = corrected_columns(table, control, mk._columns(study, case), ratio, 1.0)
+        tables[case] = corrected_columns(table, control, output_columns(study, case), ratio, 1.0)
         # the stress the verdict reads: never below the check's own figure (issue 22: the best
         # figure the run computed), the beam model's peak times the check's peak ratio
         beam_peak = np.nanmax(np.asarray(response.peak_stress_MPa, float), axis=1)

@@ -1,25 +1,48 @@
-"""The ``mechanism`` study file: its pydantic models (the kind is pipeline/studies/mechanism.py;
-the full key reference is ``docs/mechanism.md``). Units are in the key names (mm, deg, N, N·mm).
+"""The ``mechanism`` study file: its pydantic models (the full key reference is
+``docs/mechanism.md``; units are in the key names: mm, deg, N, N·mm), and what they say to the
+solver: the printable part (:func:`build_outline`), the mechanism (:func:`build_mechanism`),
+each load case (:func:`build_load_case`, :func:`build_outputs`) and the columns of its response
+(:func:`output_columns`). The kind is pipeline/studies/mechanism.py.
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from typing import Any, Literal
 
 import numpy as np
-from flexopt.fea.mechanism_design import DRIVE_UNIT
-from flexopt.geometry.mechanism import curve_points
+from flexopt.fea.materials import Material
+from flexopt.fea.mechanism_design import DRIVE_UNIT, OutputColumn, width_exponent
+from flexopt.geometry.mechanism import (
+    AsMadeBeam,
+    BeamShape,
+    BodyShape,
+    MechanismOutline,
+    attachments,
+    curvature_as_made,
+    curve_points,
+    mechanism_outline,
+)
 from flexopt.optimise.names import check_name
-from flexopt.optimise.requirements import RequirementSpec
+from flexopt.optimise.requirements import RequirementSpec, unit_of
 from flexopt.optimise.variables import VariableSpec
-from flexopt.pipeline.studies._mechanism_fidelity import MechanismFidelitySpec
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 __all__ = [
     "BeamSpec",
+    "MechanismFidelitySpec",
+    "build_load_case",
+    "build_mechanism",
+    "build_outline",
+    "build_outputs",
+    "case_prefix",
+    "output_columns",
+    "output_exponent",
+    "output_refs",
+    "outputs_in",
     "BodySpec",
     "CurveSpec",
     "DriveSpec",
@@ -293,6 +316,30 @@ class WidthSolveSpec(BaseModel):
         return self
 
 
+class MechanismFidelitySpec(BaseModel):
+    """``fidelity:`` of a mechanism study: the check of the exported outline."""
+
+    model_config = STUDY_CONFIG
+
+    enabled: bool = Field(True, description="check the reported design in plane stress / 3D")
+    elements_through: float = Field(
+        2.0, ge=1.0, le=8.0, description="P2 triangles across the thinnest beam"
+    )
+    solid: Literal["auto", "always", "never"] = Field(
+        "auto", description="3D solid check: auto (width >= 3 x the thinnest beam), always or never"
+    )
+    layers: int = Field(2, ge=1, le=8, description="prism layers through half the width (3D)")
+    beam_stress_factor: float = Field(
+        1.0,
+        ge=1.0,
+        le=2.0,
+        description="the optimiser judges each design's beam-model peak stress (the roots' Kt "
+        "included) times this: the check's peak / beam ratio measured on this study's designs, "
+        "so that the reported design also meets its stress requirements on the check, which "
+        "the verdict reads",
+    )
+
+
 class MechanismGeometry(BaseModel):
     """The ``geometry:`` block (mm)."""
 
@@ -384,3 +431,149 @@ class MechanismStudy(Study):
 
 
 # --------------------------------------------------------------------------------------------
+
+
+# --------------------------------------------------------------------------------------------
+# From the study file to the solver's inputs
+
+
+def _fea():
+    # the engine, imported late so the kind always registers
+    import flexopt.fea.mechanism as fm
+
+    return fm
+
+
+def case_prefix(study: MechanismStudy, case: str) -> str:
+    """``"<case>."`` with more than one load case ('' with one): what the case's metrics and
+    columns are prefixed with."""
+    return f"{case}." if len(study.load_cases) > 1 else ""
+
+
+def outputs_in(study: MechanismStudy, case: str) -> list[str]:
+    """The outputs read in load case ``case``, in the study's order."""
+    return [n for n, o in study.outputs.items() if o.cases is None or case in o.cases]
+
+
+def output_refs(spec: OutputSpec) -> tuple[str, ...]:
+    """The outputs a slope or ratio refers to (none for a measured output)."""
+    return (spec.of,) if isinstance(spec.of, str) else tuple(spec.of or ())
+
+
+def output_exponent(study: MechanismStudy, output: str) -> int:
+    """How an output scales with the shared width (:func:`fea.mechanism_design.width_exponent`)."""
+    reads = {n: (o.quantity, output_refs(o)) for n, o in study.outputs.items()}
+    return width_exponent(reads, output)
+
+
+def output_columns(study: MechanismStudy, case: str) -> list[OutputColumn]:
+    """The case's outputs as its table writes them (:func:`fea.mechanism_design.case_table`)."""
+    out = []
+    for name in outputs_in(study, case):
+        o = study.outputs[name]
+        degrees = o.quantity == "rotation" and unit_of(name) == "deg"
+        exponent = output_exponent(study, name)
+        out.append(OutputColumn(name, o.quantity, output_refs(o), o.part, degrees, exponent))
+    return out
+
+
+def build_outline(geometry: MechanismGeometry) -> tuple[list[BeamShape], MechanismOutline]:
+    """The beams' drawn shapes and the printable part (:func:`geometry.mechanism_outline`).
+
+    Raises
+    ------
+    GeometryError
+        Where the part cannot be printed or is not the mechanism the solver analyses.
+    """
+    shapes = [BeamShape(n, b.centreline(), b.thickness()) for n, b in geometry.beams.items()]
+    bodies = [
+        BodyShape(n, np.array(b.outline_mm, dtype=float))
+        for n, b in geometry.bodies.items()
+        if b.outline_mm is not None
+    ]
+    outline = mechanism_outline(
+        shapes,
+        bodies,
+        attachments([(j.a, j.b) for j in geometry.joints], list(geometry.bodies)),
+        min_feature_mm=geometry.min_feature_mm,
+        pad_length_mm=geometry.pad_length_mm,
+        pad_thickness_mm=geometry.pad_thickness_mm,
+        ground_outlines_mm=[np.array(o, dtype=float) for o in geometry.ground_outlines_mm],
+        fillet_mm=geometry.fillet_mm,
+        max_corner_deg=geometry.max_corner_deg,
+    )
+    for name, b in geometry.beams.items():
+        _curvature_as_made(name, b, outline.beams[name])  # refuses what it cannot follow
+    return shapes, outline
+
+
+def _curvature_as_made(name: str, spec: BeamSpec, made: AsMadeBeam) -> np.ndarray | None:
+    return curvature_as_made(name, spec.curvature_per_mm, len(spec.points_mm or ()), made)
+
+
+def build_mechanism(
+    geometry: MechanismGeometry,
+    material: Material,
+    width_mm: float | None = None,
+    made: Mapping[str, AsMadeBeam] | None = None,
+):
+    """The solver's :class:`fea.mechanism.Mechanism` at ``width_mm`` (None: the geometry's);
+    with ``made`` (``MechanismOutline.beams``) the beams as made: clipped at the bodies they
+    enter, flared into their roots' fillets, with the flares' lengths as the roots whose stress
+    the concentration factors multiply."""
+    fm = _fea()
+    width = geometry.width_mm if width_mm is None else width_mm
+    beams = []
+    for name, b in geometry.beams.items():
+        curvature = None
+        points, thickness, root = b.centreline(), b.thickness(), (0.0, 0.0)
+        if made is not None:
+            shape = made[name].shape
+            points, thickness = shape.points_mm, shape.thickness_mm
+            root = (made[name].start.root_mm, made[name].end.root_mm)
+            curvature = _curvature_as_made(name, b, made[name])
+        elif b.curvature_per_mm is not None:
+            curvature = np.array(b.curvature_per_mm, dtype=float)
+        own = float(b.width_mm if b.width_mm is not None else width)
+        beams.append(fm.MechBeam(name, points, thickness, own, int(b.elements), curvature, root))
+    bodies = [
+        fm.MechBody(
+            n,
+            np.array(b.ref_mm, dtype=float),
+            None if b.outline_mm is None else np.array(b.outline_mm, dtype=float),
+        )
+        for n, b in geometry.bodies.items()
+    ]
+    joints = [fm.MechJoint(j.a, j.b, j.type) for j in geometry.joints]
+    return fm.Mechanism(tuple(beams), tuple(bodies), tuple(joints), material)
+
+
+def build_load_case(study: MechanismStudy, case: str):
+    """The solver's :class:`fea.mechanism.LoadCase` of ``load_cases.<case>`` (a rotation's
+    values in rad)."""
+    fm = _fea()
+    spec = study.load_cases[case]
+    d = spec.drive
+    lo, hi = d.range
+    factor = math.pi / 180.0 if d.control == "rotation" else 1.0
+    direction = (float(d.direction[0]), float(d.direction[1]))
+    drive = fm.MechDrive(
+        d.part, d.control, hi * factor, d.steps, direction, d.transverse, d.rotation, lo * factor
+    )
+    supports = tuple(fm.MechJoint(s.a, s.b, s.type) for s in spec.supports)
+    return fm.LoadCase(case, drive, supports)
+
+
+def build_outputs(study: MechanismStudy, case: str) -> list[Any]:
+    """The solver's :class:`fea.mechanism.MechOutput` of the case: the drive's reaction
+    (``__drive_reaction``), then every measured output read in it (slopes and ratios are
+    computed from the columns)."""
+    fm = _fea()
+    out = [fm.MechOutput("__drive_reaction", "reaction")]
+    for name in outputs_in(study, case):
+        o = study.outputs[name]
+        if o.quantity in ("slope", "ratio"):
+            continue
+        direction = (float(o.direction[0]), float(o.direction[1]))
+        out.append(fm.MechOutput(name, o.quantity, o.part, direction))
+    return out

@@ -10,29 +10,11 @@ chosen from the outputs, and requirements judged MET / NOT MET (:mod:`optimise.r
 The physics is :mod:`fea.mechanism` (geometrically exact beams tied by constraints); the
 printable part is :mod:`geometry.mechanism`. The full key reference is ``docs/mechanism.md``.
 
-YAML (abridged)::
-
-    geometry:
-      kind: mechanism
-      width_mm: 6.0
-      beams:
-        upper: {points_mm: [[0, 10], [40, 10]], thickness_mm: 1.2}
-        lower: {points_mm: [[0, -10], [40, -10]], thickness_mm: 1.2}
-      bodies:
-        shuttle: {ref_mm: [44, 0], outline_mm: [[40, -13], [48, -13], [48, 13], [40, 13]]}
-      joints:
-        - {a: upper.start, b: ground}
-        - {a: upper.end, b: shuttle}
-    material: PA12
-    load_cases:
-      stroke: {drive: {part: shuttle, control: displacement, direction: [0, 1], min_mm: -5,
-                       max_mm: 5, steps: 20}}
-    outputs:
-      force_N: {quantity: reaction}
-      stiffness_N_per_mm: {quantity: slope, of: force_N}
-    variables: [{path: geometry.beams.upper.thickness_mm, bounds: [0.8, 2.5], tie: [...]}]
-    requirements: [{quantity: min_stiffness_N_per_mm, min: 2.85}]
-    objectives: [{minimise: mass_g}]
+The study file's models and their translation to the solver's inputs are
+pipeline/studies/_mechanism_schema.py, its refusals across keys _mechanism_check.py; the
+physics of a design around the solver is :mod:`fea.mechanism_design`, its scoring
+:mod:`optimise.mechanism_objectives`, the check of its exported outline _mechanism_fidelity.py.
+The example studies: pipeline/examples/parallel-guide.yaml and the other mechanism examples.
 
 Metric names (what requirements and objectives name): per output ``o`` of a load case,
 ``max_o``, ``min_o``, ``max_abs_o``, ``mean_o`` (over the converged rows), ``end_o`` (last
@@ -51,7 +33,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -61,33 +42,16 @@ import numpy as np
 from flexopt.fea import mechanism_design as design
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
-from flexopt.fea.mechanism_design import REACTION_UNIT, OutputColumn
+from flexopt.fea.mechanism_design import REACTION_UNIT
 from flexopt.geometry.errors import GeometryError
-from flexopt.geometry.mechanism import (
-    AsMadeBeam,
-    BeamShape,
-    BodyShape,
-    MechanismOutline,
-    as_made_info,
-    attachments,
-    curvature_as_made,
-    end_ref,
-    mechanism_outline,
-)
+from flexopt.geometry.mechanism import AsMadeBeam, BeamShape, MechanismOutline, as_made_info
 from flexopt.optimise import mechanism_objectives as scoring
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
-from flexopt.optimise.mechanism_objectives import STATS, statistic
+from flexopt.optimise.mechanism_objectives import STATS
 from flexopt.optimise.mechanism_objectives import verdict_json as _verdict_json
 from flexopt.optimise.problem import CaseResponse, DesignDetail
-from flexopt.optimise.requirements import (
-    MinFeature,
-    Range,
-    Requirement,
-    TargetBand,
-    Verdict,
-    unit_of,
-)
+from flexopt.optimise.requirements import MinFeature, Range, Requirement, TargetBand, Verdict
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.variables import DesignVariables, VariableError, resolve_variables
 from flexopt.pipeline.errors import StudyError
@@ -95,45 +59,31 @@ from flexopt.pipeline.plot_targets import band_spec
 from flexopt.pipeline.plots import mechanism_shapes_png
 from flexopt.pipeline.runfolder import table_to_csv
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
+from flexopt.pipeline.studies._mechanism_check import (
+    check_choices,
+    check_references,
+    fea_refusal,
+    geometry_path,
+)
 from flexopt.pipeline.studies._mechanism_fidelity import annotate, with_fidelity
 from flexopt.pipeline.studies._mechanism_schema import (
-    BeamSpec,
-    BodySpec,
-    CurveSpec,
-    DriveSpec,
-    JointSpec,
-    LoadCaseSpec,
     MechanismGeometry,
     MechanismStudy,
     ObjectiveSpec,
-    OutputSpec,
-    WidthSolveSpec,
+    build_load_case,
+    build_mechanism,
+    build_outline,
+    build_outputs,
+    case_prefix,
+    output_columns,
+    outputs_in,
 )
 from flexopt.pipeline.study import material_record
 from flexopt.pipeline.verdict import envelope_values, with_design_range
 from pydantic import ValidationError
 
-__all__ = [
-    "BeamSpec",
-    "BodySpec",
-    "CurveSpec",
-    "DriveSpec",
-    "JointSpec",
-    "LoadCaseSpec",
-    "MechanismGeometry",
-    "MechanismProblem",
-    "MechanismStudy",
-    "ObjectiveSpec",
-    "OutputSpec",
-    "WidthSolveSpec",
-    "check",
-    "evaluate",
-    "problem",
-]
-
-#: Columns every case table has; an output may not take one of these names.
-_BUILTIN_COLUMNS = ("step", "converged", "stable", "peak_stress_MPa")
-
+#: the study file's models are _mechanism_schema's (MechanismStudy, MechanismGeometry, ...)
+__all__ = ["MechanismProblem", "MechanismStudy", "check", "evaluate", "problem"]
 
 # --------------------------------------------------------------------------------------------
 # From the study to the solver
@@ -146,43 +96,7 @@ def _fea():
     return fm
 
 
-def _part_exists(geometry: MechanismGeometry, ref: str, allow_beam: bool = False) -> bool:
-    end = end_ref(ref)
-    if end is not None:
-        return end[0] in geometry.beams
-    return ref in geometry.bodies or (allow_beam and ref in geometry.beams)
-
-
-def _part_hint(geometry: MechanismGeometry) -> str:
-    ends = [f"{b}.start, {b}.end" for b in list(geometry.beams)[:3]]
-    return ", ".join([*ends, *list(geometry.bodies)[:3]])
-
-
-def _output_unit_problem(name: str, spec: OutputSpec, control: str) -> str | None:
-    """Why an output's name does not carry its quantity's unit (None when it does)."""
-    wanted = {
-        "reaction_force": ("N",),
-        "reaction_moment": ("N·mm",),
-        "displacement": ("mm",),
-        "rotation": ("deg", "rad"),
-        "peak_stress": ("MPa",),
-        "reaction": ("N·mm",) if REACTION_UNIT[control] == "Nmm" else ("N",),
-    }.get(spec.quantity)
-    if wanted is None or unit_of(name) in wanted:
-        return None
-    suffix = {"N·mm": "_Nmm"}.get(wanted[0], f"_{wanted[0]}")
-    return (
-        f"a {spec.quantity} output is in {' or '.join(wanted)}; end its name with the unit, "
-        f"e.g. {name.rsplit('_', 1)[0] if '_' in name else name}{suffix}"
-    )
-
-
-def _prefix(study: MechanismStudy, case: str) -> str:
-    return f"{case}." if len(study.load_cases) > 1 else ""
-
-
-def _outputs_in(study: MechanismStudy, case: str) -> list[str]:
-    return [n for n, o in study.outputs.items() if o.cases is None or case in o.cases]
+_prefix = case_prefix  # (the result builders below read it by this name)
 
 
 def metric_names(study: MechanismStudy) -> tuple[str, ...]:
@@ -196,7 +110,7 @@ def metric_names(study: MechanismStudy) -> tuple[str, ...]:
         unit = spec.drive.unit
         names |= {f"{p}stable_positions", f"{p}second_stable_position_{unit}"}
         names |= {f"{p}max_peak_stress_MPa"}
-        for o in _outputs_in(study, case):
+        for o in outputs_in(study, case):
             names |= {f"{p}{s}_{o}" for s in STATS}
     return tuple(sorted(names))
 
@@ -207,49 +121,13 @@ def column_names(study: MechanismStudy) -> tuple[str, ...]:
     for case, spec in study.load_cases.items():
         p = _prefix(study, case)
         names |= {f"{p}drive_{spec.drive.unit}", f"{p}peak_stress_MPa"}
-        names |= {f"{p}{o}" for o in _outputs_in(study, case)}
+        names |= {f"{p}{o}" for o in outputs_in(study, case)}
     return tuple(sorted(names))
 
 
 def quantities(study: MechanismStudy) -> tuple[str, ...]:
     """The names a ``requirements:`` item may judge."""
     return tuple(sorted(set(metric_names(study)) | set(column_names(study))))
-
-
-def _refuse_derived_cycles(study: MechanismStudy) -> None:
-    """Refuse slopes and ratios that refer to each other in a loop (``a`` the slope of ``b``,
-    ``b`` the slope of ``a``): nothing can be computed first, so every such column would be NaN."""
-
-    def refs(name: str) -> list[str]:
-        o = study.outputs[name]
-        if o.quantity not in ("slope", "ratio"):
-            return []
-        return [o.of] if isinstance(o.of, str) else list(o.of or ())
-
-    done: set[str] = set()
-    for start in study.outputs:
-        path: list[str] = []
-        stack: list[tuple[str, int]] = [(start, 0)]
-        while stack:  # depth-first, iterative: a long chain of outputs cannot overflow
-            name, i = stack.pop()
-            if i == 0:
-                if name in done:
-                    continue
-                if name in path:
-                    loop = " -> ".join([*path[path.index(name) :], name])
-                    raise StudyError(
-                        f"outputs.{name}.of",
-                        f"outputs refer to each other in a loop ({loop}), so none of them can "
-                        "be computed; make one of them a measured quantity (reaction, "
-                        "displacement, rotation) or refer to one",
-                    )
-                path.append(name)
-            children = [r for r in refs(name) if r in study.outputs]
-            if i < len(children):
-                stack.append((name, i + 1))
-                stack.append((children[i], 0))
-            else:
-                done.add(path.pop())
 
 
 def _requirements(study: MechanismStudy) -> list[Requirement]:
@@ -293,200 +171,26 @@ def _variables(study: MechanismStudy) -> DesignVariables | None:
         raise StudyError(exc.path, exc.problem) from None
 
 
-def _refs(spec: OutputSpec) -> tuple[str, ...]:
-    """The outputs a slope or ratio refers to (none for a measured output)."""
-    return (spec.of,) if isinstance(spec.of, str) else tuple(spec.of or ())
-
-
-def _exponent(study: MechanismStudy, output: str) -> int:
-    """How an output scales with the shared width (:func:`fea.mechanism_design.width_exponent`)."""
-    reads = {n: (o.quantity, _refs(o)) for n, o in study.outputs.items()}
-    return design.width_exponent(reads, output)
-
-
-def _quantity_output(study: MechanismStudy, quantity: str) -> str | None:
-    """The output a metric or column name reads (``blocked.max_jaw_force_N`` → jaw_force_N)."""
-    name = quantity.split(".", 1)[1] if "." in quantity else quantity
-    for stat in sorted(STATS, key=len, reverse=True):
-        if name.startswith(f"{stat}_") and name[len(stat) + 1 :] in study.outputs:
-            return name[len(stat) + 1 :]
-    return name if name in study.outputs else None
-
-
 def check(study: MechanismStudy) -> None:
     """Every refusal with its key path before any run folder exists: parts named by joints,
     drives, supports and outputs; output units; variables; requirements and objectives; the
     initial design's geometry (printable, one body) and a free rigid-body motion in any case."""
-    g = study.geometry
-    hint = _part_hint(g)
-    for i, joint in enumerate(g.joints):
-        for key in ("a", "b"):
-            ref = getattr(joint, key)
-            ok = ref == "ground" and key == "b" or _part_exists(g, ref)
-            if not ok:
-                raise StudyError(
-                    f"geometry.joints[{i}].{key}",
-                    f"'{ref}' names no part; use a beam end ({hint})"
-                    + (", or ground" if key == "b" else ""),
-                )
-    for case, spec in study.load_cases.items():
-        here = f"load_cases.{case}"
-        if not _part_exists(g, spec.drive.part):
-            raise StudyError(f"{here}.drive.part", f"'{spec.drive.part}' names no part; use {hint}")
-        for j, s in enumerate(spec.supports):
-            if s.b != "ground":
-                raise StudyError(f"{here}.supports[{j}].b", "a support holds to ground; b: ground")
-            if not _part_exists(g, s.a):
-                raise StudyError(f"{here}.supports[{j}].a", f"'{s.a}' names no part; use {hint}")
-    for name, o in study.outputs.items():
-        here = f"outputs.{name}"
-        if name in _BUILTIN_COLUMNS or name.startswith("drive_"):
-            raise StudyError(here, f"'{name}' is a column every response has; rename the output")
-        for case in o.cases or ():
-            if case not in study.load_cases:
-                raise StudyError(
-                    f"{here}.cases",
-                    f"'{case}' is no load case; use {', '.join(study.load_cases)}",
-                )
-        if o.quantity in ("slope", "ratio"):
-            refs = [o.of] if isinstance(o.of, str) else list(o.of or ())
-            if len(refs) != (1 if o.quantity == "slope" else 2):
-                need = "of: <output>" if o.quantity == "slope" else "of: [numerator, denominator]"
-                raise StudyError(f"{here}.of", f"a {o.quantity} needs {need}")
-            for ref in refs:
-                if ref not in study.outputs or ref == name:
-                    raise StudyError(
-                        f"{here}.of", f"'{ref}' is no other output; use one of the outputs"
-                    )
-        elif o.part and not (_part_exists(g, o.part, allow_beam=o.quantity == "peak_stress")):
-            raise StudyError(f"{here}.part", f"'{o.part}' names no part; use {hint}")
-        for case in o.cases or study.load_cases:
-            problem = _output_unit_problem(name, o, study.load_cases[case].drive.control)
-            if problem:
-                raise StudyError(here, problem)
-    _refuse_derived_cycles(study)
-    reqs = _requirements(study)
-    valid = set(quantities(study))
-    labels = {r.label: r for r in reqs}
-    for i, (spec, req) in enumerate(zip(study.requirements, reqs, strict=True)):
-        for key, name in (("quantity", spec.quantity), ("x", spec.x)):
-            if name is not None and name not in valid:
-                import difflib
-
-                close = difflib.get_close_matches(name, sorted(valid), n=1)
-                raise StudyError(
-                    f"requirements[{i}].{key}",
-                    f"this study reports no '{name}'; "
-                    + (f"did you mean '{close[0]}'? " if close else "")
-                    + f"use one of {', '.join(sorted(valid))}",
-                )
-        del req
-    for i, obj in enumerate(study.objectives):
-        key, name = obj.key
-        if key in ("minimise", "maximise"):
-            if name not in metric_names(study):
-                raise StudyError(
-                    f"objectives[{i}].{key}",
-                    f"'{name}' is no metric of this study; use one of "
-                    + ", ".join(metric_names(study)),
-                )
-        elif not isinstance(labels.get(name), TargetBand):
-            targets = [r.label for r in reqs if isinstance(r, TargetBand)]
-            raise StudyError(
-                f"objectives[{i}].{key}",
-                f"'{name}' is no target requirement; name one of: "
-                + (", ".join(targets) or "(none: add a requirement with target:)"),
-            )
-    if study.solve_width_from is not None:
-        _check_width_solve(study, labels)
-    if len(study.objectives) > 1 and study.optimiser.algorithm == "ga":
-        raise StudyError(
-            "optimiser.algorithm",
-            f"{len(study.objectives)} objectives need algorithm: nsga2 (ga optimises one)",
-        )
+    check_references(study)
+    check_choices(study, _requirements(study), quantities(study), metric_names(study))
     variables = _variables(study)
     x0 = variables.initial if variables is not None else None
     geometry = _geometry_of(study, x0)
     try:
-        shapes, outline = _outline(geometry)
+        _, outline = build_outline(geometry)
     except GeometryError as exc:
-        raise StudyError(
-            _geometry_path(str(exc)), f"the initial design is not buildable: {exc}"
-        ) from None
-    fm = _fea()
+        where = geometry_path(str(exc))
+        raise StudyError(where, f"the initial design is not buildable: {exc}") from None
     mech = _mechanism(study, geometry, made=outline.beams)
     for case in study.load_cases:
         try:
-            fm.check_mechanism(mech, _load_case(study, case))
+            _fea().check_mechanism(mech, build_load_case(study, case))
         except FeaError as exc:
-            raise StudyError(_fea_path(study, case, str(exc)), _fea_fix(str(exc))) from None
-
-
-def _geometry_path(message: str) -> str:
-    """The key path a geometry refusal is about: the beam it names (and the point), else the
-    geometry."""
-    m = re.match(r"beam '([A-Za-z][A-Za-z0-9_-]*)'(?: turns .* at point \[(\d+)\])?", message)
-    if m is None:
-        return "geometry"
-    return f"geometry.beams.{m[1]}" + (f".points_mm[{m[2]}]" if m[2] else "")
-
-
-def _check_width_solve(study: MechanismStudy, labels: Mapping[str, Requirement]) -> None:
-    spec = study.solve_width_from
-    assert spec is not None
-    here = "solve_width_from.requirement"
-    req = labels.get(spec.requirement)
-    if not isinstance(req, Range | TargetBand):
-        raise StudyError(
-            here,
-            f"'{spec.requirement}' is no range or target requirement; name one of: "
-            + ", ".join(r for r, q in labels.items() if isinstance(q, Range | TargetBand)),
-        )
-    output = _quantity_output(study, req.quantity)
-    if output is None or _exponent(study, output) != 1:
-        raise StudyError(
-            here,
-            f"'{req.quantity}' does not scale with the width (only forces, moments and their "
-            "slopes do); solve the width from a force requirement",
-        )
-    per_beam = [n for n, b in study.geometry.beams.items() if b.width_mm is not None]
-    if per_beam:
-        raise StudyError(
-            f"geometry.beams.{per_beam[0]}.width_mm",
-            "a beam of its own width does not scale with the shared width; remove width_mm here "
-            "or drop solve_width_from",
-        )
-    for case, c in study.load_cases.items():
-        if c.drive.control in ("force", "moment"):
-            raise StudyError(
-                f"load_cases.{case}.drive.control",
-                "under force control the motion, not the force, changes with the width; drive "
-                "by displacement or rotation to solve the width",
-            )
-    for i, v in enumerate(study.variables):
-        if v.path.strip() == "geometry.width_mm":
-            raise StudyError(
-                f"variables[{i}].path", "the width is solved (solve_width_from); drop this variable"
-            )
-
-
-def _fea_path(study: MechanismStudy, case: str, message: str) -> str:
-    """The key path a refusal of the engine is about: the joints for a free motion or a joint,
-    the case's drive or supports when the message starts with them."""
-    head = message.split(":", 1)[0]
-    if "free rigid-body motion" in message or "joint" in head:
-        return "geometry.joints"
-    if "support" in head:
-        return f"load_cases.{case}.supports"
-    if "drive" in head:
-        return f"load_cases.{case}.drive"
-    return "geometry.joints"
-
-
-def _fea_fix(message: str) -> str:
-    if "free" in message and "add a joint" not in message:
-        return f"{message}; add a joint or a support that holds it"
-    return message
+            raise fea_refusal(case, str(exc)) from None
 
 
 def _geometry_of(study: MechanismStudy, x: np.ndarray | None) -> MechanismGeometry:
@@ -498,113 +202,14 @@ def _geometry_of(study: MechanismStudy, x: np.ndarray | None) -> MechanismGeomet
     return MechanismGeometry.model_validate(raw)
 
 
-def _beam_shapes(geometry: MechanismGeometry) -> list[BeamShape]:
-    return [BeamShape(n, b.centreline(), b.thickness()) for n, b in geometry.beams.items()]
-
-
-def _outline(geometry: MechanismGeometry) -> tuple[list[BeamShape], MechanismOutline]:
-    shapes = _beam_shapes(geometry)
-    bodies = [
-        BodyShape(n, np.array(b.outline_mm, dtype=float))
-        for n, b in geometry.bodies.items()
-        if b.outline_mm is not None
-    ]
-    outline = mechanism_outline(
-        shapes,
-        bodies,
-        attachments([(j.a, j.b) for j in geometry.joints], list(geometry.bodies)),
-        min_feature_mm=geometry.min_feature_mm,
-        pad_length_mm=geometry.pad_length_mm,
-        pad_thickness_mm=geometry.pad_thickness_mm,
-        ground_outlines_mm=[np.array(o, dtype=float) for o in geometry.ground_outlines_mm],
-        fillet_mm=geometry.fillet_mm,
-        max_corner_deg=geometry.max_corner_deg,
-    )
-    for name, b in geometry.beams.items():
-        _curvature_as_made(name, b, outline.beams[name])  # refuses what it cannot follow
-    return shapes, outline
-
-
-def _curvature_as_made(name: str, spec: BeamSpec, made: AsMadeBeam) -> np.ndarray | None:
-    return curvature_as_made(name, spec.curvature_per_mm, len(spec.points_mm or ()), made)
-
-
 def _mechanism(
     study: MechanismStudy,
     geometry: MechanismGeometry,
     width_mm: float | None = None,
     made: Mapping[str, AsMadeBeam] | None = None,
 ):
-    """The solver's mechanism; with ``made`` (``MechanismOutline.beams``) the beams as made:
-    clipped at the bodies they enter, flared into their roots' fillets, with the flares' lengths
-    as the roots whose stress the concentration factors multiply."""
-    fm = _fea()
-    width = geometry.width_mm if width_mm is None else width_mm
-    beams = []
-    for name, b in geometry.beams.items():
-        curvature = None
-        points, thickness, root = b.centreline(), b.thickness(), (0.0, 0.0)
-        if made is not None:
-            shape = made[name].shape
-            points, thickness = shape.points_mm, shape.thickness_mm
-            root = (made[name].start.root_mm, made[name].end.root_mm)
-            curvature = _curvature_as_made(name, b, made[name])
-        elif b.curvature_per_mm is not None:
-            curvature = np.array(b.curvature_per_mm, dtype=float)
-        beams.append(
-            fm.MechBeam(
-                name,
-                points,
-                thickness,
-                float(b.width_mm if b.width_mm is not None else width),
-                int(b.elements),
-                curvature,
-                root,
-            )
-        )
-    bodies = [
-        fm.MechBody(
-            n,
-            np.array(b.ref_mm, dtype=float),
-            None if b.outline_mm is None else np.array(b.outline_mm, dtype=float),
-        )
-        for n, b in geometry.bodies.items()
-    ]
-    joints = [fm.MechJoint(j.a, j.b, j.type) for j in geometry.joints]
-    material = study.material.to_material()
-    return fm.Mechanism(tuple(beams), tuple(bodies), tuple(joints), material)
-
-
-def _load_case(study: MechanismStudy, case: str):
-    fm = _fea()
-    spec = study.load_cases[case]
-    d = spec.drive
-    lo, hi = d.range
-    factor = math.pi / 180.0 if d.control == "rotation" else 1.0
-    drive = fm.MechDrive(
-        d.part,
-        d.control,
-        hi * factor,
-        d.steps,
-        (float(d.direction[0]), float(d.direction[1])),
-        d.transverse,
-        d.rotation,
-        lo * factor,
-    )
-    supports = tuple(fm.MechJoint(s.a, s.b, s.type) for s in spec.supports)
-    return fm.LoadCase(case, drive, supports)
-
-
-def _fea_outputs(study: MechanismStudy, case: str) -> list[Any]:
-    fm = _fea()
-    out = [fm.MechOutput("__drive_reaction", "reaction")]
-    for name in _outputs_in(study, case):
-        o = study.outputs[name]
-        if o.quantity in ("slope", "ratio"):
-            continue
-        direction = (float(o.direction[0]), float(o.direction[1]))
-        out.append(fm.MechOutput(name, o.quantity, o.part, direction))
-    return out
+    """The solver's mechanism (:func:`build_mechanism`; ``made``: the beams as made)."""
+    return build_mechanism(geometry, study.material.to_material(), width_mm, made)
 
 
 # --------------------------------------------------------------------------------------------
@@ -628,17 +233,6 @@ class _Solved:
     fidelity: dict[str, Any] | None = None  # the check of the exported outline (detail, evaluate)
 
 
-def _columns(study: MechanismStudy, case: str) -> list[OutputColumn]:
-    """The case's outputs as its table writes them (:func:`fea.mechanism_design.case_table`)."""
-    out = []
-    for name in _outputs_in(study, case):
-        o = study.outputs[name]
-        degrees = o.quantity == "rotation" and unit_of(name) == "deg"
-        exponent = _exponent(study, name)
-        out.append(OutputColumn(name, o.quantity, _refs(o), o.part, degrees, exponent))
-    return out
-
-
 def _case_table(
     study: MechanismStudy,
     case: str,
@@ -649,13 +243,13 @@ def _case_table(
     """The case's response as columns (forces scaled by ``scale`` = width / reference width);
     with ``made`` the stresses are the beams' as made."""
     control = study.load_cases[case].drive.control
-    return design.case_table(control, _columns(study, case), response, scale, made)
+    return design.case_table(control, output_columns(study, case), response, scale, made)
 
 
 def _solve_printed_path(study: MechanismStudy, mech: Any, case: str) -> Any:
     """The case solved along the path the printed part follows (issue 22, item 3;
     :func:`fea.mechanism_design.solve_printed_path`)."""
-    load_case, outputs = _load_case(study, case), _fea_outputs(study, case)
+    load_case, outputs = build_load_case(study, case), build_outputs(study, case)
     unit = study.load_cases[case].drive.unit
     return design.solve_printed_path(mech, load_case, outputs, study.imperfection_mm, unit)
 
@@ -703,37 +297,16 @@ def _metrics(
     material: Material,
     made: Mapping[str, AsMadeBeam] | None = None,
 ) -> dict[str, Any]:
-    fm = _fea()
-    m: dict[str, Any] = {}
-    peaks = []
-    unstable = 0
-    for case, table in tables.items():
-        p = _prefix(study, case)
-        spec = study.load_cases[case].drive
-        drive = table[f"drive_{spec.unit}"]
-        reaction = table[f"drive_reaction_{REACTION_UNIT[spec.control]}"]
-        if spec.control in ("displacement", "rotation"):
-            count, second = fm.stable_positions(drive, reaction)
-        else:
-            count, second = None, None
-        m[f"{p}stable_positions"] = count
-        m[f"{p}second_stable_position_{spec.unit}"] = second
-        peak = statistic(table["peak_stress_MPa"], "max")
-        m[f"{p}max_peak_stress_MPa"] = peak
-        peaks.append(peak if peak is not None else math.nan)
-        unstable += int(np.sum(table["converged"] & ~table["stable"]))
-        m.update(scoring.output_statistics(table, _outputs_in(study, case), p))
-    peak_all = float(np.nanmax(peaks)) if np.isfinite(peaks).any() else None
-    m["max_peak_stress_MPa"] = peak_all
-    m["stress_yield_ratio"] = None if peak_all is None else peak_all / material.yield_MPa
-    m["width_mm"] = float(width_mm)
-    m["min_thickness_mm"] = float(min(np.min(b.thickness()) for b in geometry.beams.values()))
-    mech = _mechanism(study, geometry, width_mm, made)
-    mass = fm.mass_g(mech, body_thickness_mm=width_mm)
-    m["mass_g"] = float(mass) if math.isfinite(mass) else None
-    m["stable"] = unstable == 0
-    m["unstable_rows"] = unstable
-    return m
+    drives = {c: study.load_cases[c].drive for c in tables}
+    cases = {c: (_prefix(study, c), d.control, d.unit, outputs_in(study, c))
+             for c, d in drives.items()}  # fmt: skip
+    mass = _fea().mass_g(_mechanism(study, geometry, width_mm, made), body_thickness_mm=width_mm)
+    part = {
+        "width_mm": float(width_mm),
+        "min_thickness_mm": float(min(np.min(b.thickness()) for b in geometry.beams.values())),
+        "mass_g": float(mass) if math.isfinite(mass) else None,
+    }
+    return scoring.response_metrics(tables, cases, material.yield_MPa, part)
 
 
 def _curves_table(
@@ -829,7 +402,7 @@ class MechanismProblem:
             loc = ".".join(str(p) for p in err["loc"])
             return None, f"invalid geometry: geometry.{loc}: {err['msg']}"
         try:
-            shapes, outline = _outline(geometry)
+            shapes, outline = build_outline(geometry)
         except GeometryError as exc:
             return None, f"invalid geometry: {exc}"
         mech = _mechanism(study, geometry, made=outline.beams)
@@ -971,7 +544,7 @@ def _cases(
         plot.update(band_spec(requirements, table, plot["x"], "y", _prefix(study, case)))
         d = study.load_cases[case].drive
         plot["x_label"] = f"drive of {d.part} ({d.control}, {d.unit})"
-        out[case] = CaseResponse(table, plot, tuple(_outputs_in(study, case)))
+        out[case] = CaseResponse(table, plot, tuple(outputs_in(study, case)))
     return out
 
 
@@ -1114,6 +687,8 @@ def _kind() -> StudyKind:
         extra["quantities"] = quantities
     if "design_space" in names:
         extra["design_space"] = design_of
+    if "summary" in names:  # `flexopt list`'s line: the model's module is _mechanism_schema
+        extra["summary"] = __doc__.split("\n\n")[0].removeprefix("Study kind ``mechanism``:")
     return StudyKind("mechanism", MechanismStudy, check, evaluate, problem, **extra)  # type: ignore[arg-type]
 
 

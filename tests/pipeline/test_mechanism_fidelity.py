@@ -18,6 +18,7 @@ from flexopt.fea import mechanism as fm
 from flexopt.fea.mechanism_design import as_made_stress
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies import mechanism as mk
+from flexopt.pipeline.studies._mechanism_schema import build_load_case, build_outline
 from flexopt.pipeline.study import validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
@@ -43,9 +44,9 @@ def _perfect_and_imperfect(study, amplitude_mm: float):
     """The shipped design's snap case, solved as drawn and with the imperfection, in the test."""
     x0 = mk._variables(study).initial
     geometry = mk._geometry_of(study, x0)
-    _, outline = mk._outline(geometry)
+    _, outline = build_outline(geometry)
     mech = mk._mechanism(study, geometry, made=outline.beams)  # the part as made
-    case = mk._load_case(study, "snap")
+    case = build_load_case(study, "snap")
     out = [fm.MechOutput("F", "reaction")]
     perfect = fm.solve_mechanism(mech, case, out)
     imperfect = fm.solve_mechanism(fm.imperfect_mechanism(mech, perfect, amplitude_mm), case, out)
@@ -134,9 +135,9 @@ def _guide_check(study, width_mm: float) -> dict:
 
     x0 = mk._variables(study).initial
     geometry = mk._geometry_of(study, x0)
-    _, outline = mk._outline(geometry)
+    _, outline = build_outline(geometry)
     return mechanism_fidelity_check(
-        mk._mechanism(study, geometry, width_mm), mk._load_case(study, "stroke"),
+        mk._mechanism(study, geometry, width_mm), build_load_case(study, "stroke"),
         outline.polygon, list(outline.pads.values()), outline.bodies,
         list(outline.bands.values()), width_mm,
         FidelitySettings(elements_through=study.fidelity.elements_through),
@@ -220,7 +221,7 @@ def test_stress_is_judged_on_the_larger_of_the_beam_and_the_check():
     # the beam model's stresses, solved here: raw peak and as made (the roots' Kt)
     x0 = mk._variables(study).initial
     geometry = mk._geometry_of(study, x0)
-    _, outline = mk._outline(geometry)
+    _, outline = build_outline(geometry)
     mech = mk._mechanism(study, geometry, made=outline.beams)
     made, raw = {}, {}
     for case in ("free", "blocked"):
