@@ -64,7 +64,7 @@ def _output_unit_problem(name: str, spec: OutputSpec, control: str) -> str | Non
 def check_references(study: MechanismStudy) -> None:
     """Refuse (StudyError at the key path) a joint, drive, support or output that names no
     part, a support not to ground, an output named like a built-in column, read in no load
-    case, refering to no other output, or whose name does not end in its unit, and slopes and
+    case, referring to no other output, or whose name does not end in its unit, and slopes and
     ratios that refer to each other in a loop."""
     g = study.geometry
     hint = _part_hint(g)

@@ -18,7 +18,9 @@ on the highest-fidelity figure:
 
 The beam model's figures stay beside them (``info.fidelity.beam_model``, and each verdict's
 detail). The optimiser's designs are judged by the beam model (the check costs seconds); the
-reported design (``flexopt evaluate``, a run's best design) by the check.
+reported design (``flexopt evaluate``, a run's best design) by the check. The study's
+``fidelity:`` block is :class:`~pipeline.studies._mechanism_schema.MechanismFidelitySpec`; the
+check's ratios and the corrected columns are :mod:`fea.mechanism_fidelity`'s.
 """
 
 from __future__ import annotations

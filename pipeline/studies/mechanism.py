@@ -229,7 +229,7 @@ class _Solved:
     metrics: dict[str, Any]
     curves_table: dict[str, np.ndarray]  # every case's columns, prefixed: what requirements read
     reason: str = ""
-    clearance: dict[str, Any] = dataclasses.field(default_factory=dict)  # _interference()
+    clearance: dict[str, Any] = dataclasses.field(default_factory=dict)  # design.interference
     fidelity: dict[str, Any] | None = None  # the check of the exported outline (detail, evaluate)
 
 
@@ -280,8 +280,9 @@ def _part_metrics(
     clearance: Mapping[str, Any],
 ) -> dict[str, Any]:
     """Every metric of the part as made at ``width_mm``: :func:`_metrics` of its tables, the
-    interference over the stroke (:func:`_interference`) and the envelope as exported. One place
-    for the solve and for the check of the exported outline, which solves the width again."""
+    interference over the stroke (``clearance``: :func:`fea.mechanism_design.interference`) and
+    the envelope as exported. One place for the solve and for the check of the exported
+    outline, which solves the width again."""
     metrics = _metrics(study, geometry, tables, width_mm, material, outline.beams)
     metrics["min_clearance_mm"] = clearance["min_clearance_mm"]
     metrics["interference_mm2"] = clearance["interference_mm2"]
@@ -297,9 +298,12 @@ def _metrics(
     material: Material,
     made: Mapping[str, AsMadeBeam] | None = None,
 ) -> dict[str, Any]:
+    """The metrics of the tables (:func:`optimise.mechanism_objectives.response_metrics`) with
+    the part's width, thinnest beam and mass (beams as ``made``, bodies ``width_mm`` deep)."""
     drives = {c: study.load_cases[c].drive for c in tables}
-    cases = {c: (_prefix(study, c), d.control, d.unit, outputs_in(study, c))
-             for c, d in drives.items()}  # fmt: skip
+    cases = {
+        c: (_prefix(study, c), d.control, d.unit, outputs_in(study, c)) for c, d in drives.items()
+    }
     mass = _fea().mass_g(_mechanism(study, geometry, width_mm, made), body_thickness_mm=width_mm)
     part = {
         "width_mm": float(width_mm),
