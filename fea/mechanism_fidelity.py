@@ -58,7 +58,13 @@ from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Translate
 from shapely.geometry import Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
-__all__ = ["FidelitySettings", "mechanism_fidelity_check"]
+__all__ = [
+    "FidelitySettings",
+    "check_summary",
+    "corrected_columns",
+    "highest_fidelity",
+    "mechanism_fidelity_check",
+]
 
 
 @dataclass(frozen=True)
@@ -456,4 +462,74 @@ def _solid(mesh, mech, ground, bodies, drive, driven, drive_at, rigid_all, depth
             "dofs": int(model.n_dofs),
             "layers": int(st.layers),
         })  # fmt: skip
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# The beam model's response judged on the check
+
+
+def highest_fidelity(check: Mapping[str, Any]) -> tuple[str, float, float]:
+    """(model, stiffness ratio, peak stress ratio) of the highest-fidelity model of a
+    :func:`mechanism_fidelity_check` (the 3D solid where it ran, else plane stress), each ratio
+    to the beam model's (no unit)."""
+    if check.get("solid"):
+        s = check["solid"][0]
+        return "3D solid", float(s["ratio"]), float(s["stress_ratio"])
+    return (
+        "plane stress",
+        float(check["plane_stress_ratio"]),
+        float(check["plane_stress_stress_ratio"]),
+    )
+
+
+def corrected_columns(
+    table: Mapping[str, np.ndarray],
+    control: str,
+    outputs: Sequence[Any],
+    ratio: float,
+    stress: float,
+) -> dict[str, np.ndarray]:
+    """A case's columns (:func:`fea.mechanism_design.case_table`) with the force-like ones
+    times the stiffness ``ratio`` to the power they scale with the width (under displacement or
+    rotation control only: under force control the force is given) and the stresses times
+    ``stress``. ``outputs`` are the case's :class:`fea.mechanism_design.OutputColumn` (their
+    ``quantity`` and ``exponent``)."""
+    by_name = {o.name: o for o in outputs}
+    out = dict(table)
+    force_like = control in ("displacement", "rotation")
+    for key in table:
+        if key.startswith("drive_reaction_") and force_like:
+            out[key] = np.asarray(table[key], float) * ratio
+        elif key == "peak_stress_MPa":
+            out[key] = np.asarray(table[key], float) * stress
+        elif key in by_name:
+            o = by_name[key]
+            if o.quantity == "peak_stress":
+                out[key] = np.asarray(table[key], float) * stress
+            elif force_like:
+                out[key] = np.asarray(table[key], float) * ratio**o.exponent
+    return out
+
+
+def check_summary(checks: Mapping[str, Any], applied: Mapping[str, Any]) -> dict[str, Any]:
+    """One flat line per figure of every case's check (the report shows flat mappings as
+    tables): the model judged on, the stiffness (its unit in the key) and the ratios."""
+    out: dict[str, Any] = {}
+    for case, check in checks.items():
+        if "skipped" in check:
+            out[f"{case}: judged on"] = f"the beam model (check skipped: {check['skipped']})"
+            continue
+        out[f"{case}: judged on"] = applied[case]["model"]
+        out[f"{case}: stiffness {check['stiffness_unit']}, beam model"] = check["beam_stiffness"]
+        out[f"{case}: stiffness, plane stress / beam"] = check["plane_stress_ratio"]
+        if check.get("solid"):
+            solid = check["solid"][0]
+            out[f"{case}: stiffness, 3D solid / beam"] = solid["ratio"]
+            out[f"{case}: 3D depth mm"] = solid["depth_mm"]
+            out[f"{case}: peak stress, 3D / beam"] = solid["stress_ratio"]
+        else:
+            out[f"{case}: 3D solid"] = f"not run ({check['solid_rule']})"
+            out[f"{case}: peak stress, plane stress / beam"] = check["plane_stress_stress_ratio"]
+        out[f"{case}: check time s"] = check["time_s"]
     return out

@@ -43,7 +43,11 @@ __all__ = [
     "EndJunction",
     "MechanismOutline",
     "as_made_beams",
+    "as_made_info",
+    "attachments",
     "beam_band",
+    "curvature_as_made",
+    "end_ref",
     "max_turn_deg",
     "shoulder_kt",
     "curve_points",
@@ -826,3 +830,70 @@ def beams_from_mapping(
 ) -> list[BeamShape]:
     """``{name: (points_mm (n, 2), thickness_mm (n,))}`` → BeamShapes (a convenience)."""
     return [BeamShape(n, p, t) for n, (p, t) in beams.items()]
+
+
+def end_ref(ref: str) -> tuple[str, str] | None:
+    """``"beam.start"`` / ``"beam.end"`` → ``(beam, end)``; None for any other reference (a
+    body, ``ground``)."""
+    name, _, end = ref.rpartition(".")
+    return (name, end) if name and end in ("start", "end") else None
+
+
+def attachments(joints: Sequence[tuple[str, str]], bodies: Sequence[str]) -> list[Attachment]:
+    """The beam ends the joints hold, each with what holds it.
+
+    ``joints`` are ``(a, b)`` part references (``beam.start``, ``beam.end``, a body's name or
+    ``ground``); a joint gives an attachment for each of its sides that is a beam end held by
+    the ground, one of ``bodies`` or another beam end (in joint order, side ``a`` first)."""
+    out = []
+    for a, b in joints:
+        for own, other in ((a, b), (b, a)):
+            end = end_ref(own)
+            if end is not None and (other == "ground" or other in bodies or end_ref(other)):
+                out.append(Attachment(end[0], end[1], other))  # type: ignore[arg-type]
+    return out
+
+
+def curvature_as_made(
+    name: str, curvature_per_mm: Sequence[float] | None, n_points: int, made: AsMadeBeam
+) -> np.ndarray | None:
+    """A beam's ``curvature_per_mm`` (one value per segment of its ``n_points`` drawn points,
+    1/mm) for the beam as made: a straight (0) value for each chord of a flare added on a
+    straight end segment; None when the beam is drawn without curvatures.
+
+    Raises
+    ------
+    GeometryError
+        For a clipped beam (a beam of exact arcs must end on the body's outline) or a flared
+        curved end segment (the flare is laid along the chord).
+    """
+    if curvature_per_mm is None:
+        return None
+    curv = list(curvature_per_mm)
+    if made.start.clipped_mm > 0 or made.end.clipped_mm > 0:
+        raise GeometryError(
+            f"beam '{name}' (geometry.beams.{name}.curvature_per_mm) runs into the body it is "
+            "attached to; a beam of exact arcs must end on the body's outline"
+        )
+    for junction, k in ((made.start, 0), (made.end, -1)):
+        if junction.fillet_mm > 0 and curv[k] != 0:
+            raise GeometryError(
+                f"beam '{name}' (geometry.beams.{name}.curvature_per_mm): its root fillet needs "
+                "a straight end segment; give that segment curvature 0 (add a point)"
+            )
+    added = len(made.shape.points_mm) - n_points
+    n_start = FILLET_CHORDS if made.start.fillet_mm > 0 else 0
+    return np.array([0.0] * n_start + curv + [0.0] * (added - n_start), dtype=float)
+
+
+def as_made_info(made: AsMadeBeam | None) -> dict[str, list[float]]:
+    """What of a beam was clipped (rigid, inside its body, mm) and filleted (radius, mm), and
+    its roots' Kt, each as ``[start, end]``; empty for None."""
+    if made is None:
+        return {}
+    ends = (made.start, made.end)
+    return {
+        "clipped_mm": [round(e.clipped_mm, 6) for e in ends],
+        "fillet_mm": [round(e.fillet_mm, 6) for e in ends],
+        "root_kt": [round(e.kt, 4) for e in ends],
+    }

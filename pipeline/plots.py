@@ -900,3 +900,87 @@ def spring_shape_png(outline: Any, shapes_mm: np.ndarray | None) -> bytes:
     ax.set_ylabel("y (mm)")
     ax.grid(True, alpha=0.3)
     return _png_at(fig, 110)
+
+
+# mechanism figures
+
+
+def mechanism_shapes_png(
+    responses: Mapping[str, Any],
+    outline: Any,
+    bodies: list[tuple[Any, Any]],
+    drives: Mapping[str, tuple[str, str]],
+    title: str,
+    n_shapes: int = 4,
+) -> bytes:
+    """One panel per load case of a ``mechanism`` design: the part at a few rows, each beam
+    drawn as its band at its own thickness along the deformed centreline
+    (:func:`fea.mechanism_design.deformed_bands`), the bodies moved with their poses; grey: the
+    part as exported (row 0).
+
+    Parameters
+    ----------
+    responses : case -> :class:`fea.mechanism.MechanismResponse`
+    outline : shapely Polygon, mm — the part as exported.
+    bodies : per body of the mechanism, in its order: (ref (2,) mm, outline (k, 2) mm or None).
+    drives : case -> (control, unit) of its drive (a rotation's rows are shown in deg).
+    n_shapes : at most this many converged rows per case, evenly spread.
+
+    Returns
+    -------
+    bytes
+        The PNG file (110 dpi).
+    """
+    import math
+
+    import matplotlib
+    from flexopt.fea.mechanism_design import deformed_bands
+    from matplotlib.patches import Polygon as Patch
+
+    def draw(ax: Any, poly: Any, colour: str, alpha: float) -> None:
+        geoms = getattr(poly, "geoms", [poly])
+        for gm in geoms:
+            if gm.is_empty:
+                continue
+            ax.add_patch(Patch(np.asarray(gm.exterior.coords), closed=True, fc=colour,
+                               ec=colour, alpha=alpha, lw=0.5))  # fmt: skip
+
+    fig = _new_figure(figsize=(5.5 * len(responses), 5.0), layout="constrained")
+    axes = fig.subplots(1, len(responses), squeeze=False)[0]
+    for ax, (case, response) in zip(axes, responses.items(), strict=True):
+        ok = np.flatnonzero(np.asarray(response.converged, bool))
+        rows = ok[
+            np.unique(np.linspace(0, len(ok) - 1, min(n_shapes, len(ok))).round().astype(int))
+        ]
+        draw(ax, outline, "0.75", 0.6)
+        cmap = matplotlib.colormaps["viridis"]
+        for j, row in enumerate(rows):
+            colour = cmap(j / max(1, len(rows) - 1))
+            for i in range(len(response.shapes_mm)):
+                pts = np.asarray(response.shapes_mm[i][row], dtype=float)
+                t = np.asarray(response.thickness_at_nodes_mm[i], dtype=float)
+                # the band the interference check uses (a disc per node would bulge at the
+                # roots' flares, where the thickness changes fast)
+                draw(ax, deformed_bands(pts[None], t)[0], colour, 0.55)
+            for k, (ref_mm, outline_mm) in enumerate(bodies):
+                if outline_mm is None:
+                    continue
+                x, y, th = response.body_poses[row, k]
+                ref = np.array(ref_mm, dtype=float)
+                rot = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
+                corners = (np.array(outline_mm, float) - ref) @ rot.T + np.array([x, y])
+                ax.add_patch(Patch(corners, closed=True, fc=colour, ec="k", alpha=0.35, lw=0.5))
+        control, unit = drives[case]
+        drive = np.asarray(response.drive, float)[rows]
+        if control == "rotation":
+            drive = np.degrees(drive)
+        ax.set_title(f"{case}: drive " + ", ".join(f"{v:.3g}" for v in drive) + f" {unit}")
+        ax.set_aspect("equal")
+        ax.autoscale_view()
+        ax.grid(True, alpha=0.3)
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+    fig.suptitle(title)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=110)  # the mechanism's figures are 110 dpi
+    return buffer.getvalue()

@@ -18,20 +18,26 @@ on the highest-fidelity figure:
 
 The beam model's figures stay beside them (``info.fidelity.beam_model``, and each verdict's
 detail). The optimiser's designs are judged by the beam model (the check costs seconds); the
-reported design (``flexopt evaluate``, a run's best design) by the check.
+reported design (``flexopt evaluate``, a run's best design) by the check. The study's
+``fidelity:`` block is :class:`~pipeline.studies._mechanism_schema.MechanismFidelitySpec`; the
+check's ratios and the corrected columns are :mod:`fea.mechanism_fidelity`'s.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from flexopt.pipeline.study import STUDY_CONFIG
-from pydantic import BaseModel, Field
+from flexopt.optimise.mechanism_objectives import statistic
+from flexopt.pipeline.studies._mechanism_schema import (
+    build_load_case,
+    build_mechanism,
+    output_columns,
+)
 
-__all__ = ["MechanismFidelitySpec", "with_fidelity", "annotate"]
+__all__ = ["with_fidelity", "annotate"]
 
 #: why a stress requirement stays on the beam model (docs/mechanism.md, "The check of the part
 #: as exported")
@@ -43,31 +49,7 @@ STRESS_NOTE = (
 )
 
 
-class MechanismFidelitySpec(BaseModel):
-    """``fidelity:`` of a mechanism study: the check of the exported outline."""
-
-    model_config = STUDY_CONFIG
-
-    enabled: bool = Field(True, description="check the reported design in plane stress / 3D")
-    elements_through: float = Field(
-        2.0, ge=1.0, le=8.0, description="P2 triangles across the thinnest beam"
-    )
-    solid: Literal["auto", "always", "never"] = Field(
-        "auto", description="3D solid check: auto (width >= 3 x the thinnest beam), always or never"
-    )
-    layers: int = Field(2, ge=1, le=8, description="prism layers through half the width (3D)")
-    beam_stress_factor: float = Field(
-        1.0,
-        ge=1.0,
-        le=2.0,
-        description="the optimiser judges each design's beam-model peak stress (the roots' Kt "
-        "included) times this: the check's peak / beam ratio measured on this study's designs, "
-        "so that the reported design also meets its stress requirements on the check, which "
-        "the verdict reads",
-    )
-
-
-def _check(mk: Any, study: Any, solved: Any, width_mm: float, case: str) -> dict[str, Any]:
+def _check(study: Any, solved: Any, width_mm: float, case: str) -> dict[str, Any]:
     from flexopt.fea.mechanism_fidelity import FidelitySettings, mechanism_fidelity_check
     from shapely.geometry import Polygon
 
@@ -77,22 +59,11 @@ def _check(mk: Any, study: Any, solved: Any, width_mm: float, case: str) -> dict
     grounds = [*outline.pads.values(), *(Polygon(np.array(o)) for o in g.ground_outlines_mm)]
     settings = FidelitySettings(elements_through=spec.elements_through, layers=spec.layers)
     solid = {"auto": None, "always": True, "never": False}[spec.solid]
+    mech = build_mechanism(g, study.material.to_material(), width_mm)
     return mechanism_fidelity_check(
-        mk._mechanism(study, g, width_mm), mk._load_case(study, case), outline.polygon, grounds,
-        outline.bodies, list(outline.bands.values()), width_mm, settings, solid,
+        mech, build_load_case(study, case), outline.polygon, grounds, outline.bodies,
+        list(outline.bands.values()), width_mm, settings, solid,
     )  # fmt: skip
-
-
-def _ratios(check: dict[str, Any]) -> tuple[str, float, float]:
-    """(model, force ratio, stress ratio) of the highest-fidelity figure of a check."""
-    if check.get("solid"):
-        s = check["solid"][0]
-        return "3D solid", float(s["ratio"]), float(s["stress_ratio"])
-    return (
-        "plane stress",
-        float(check["plane_stress_ratio"]),
-        float(check["plane_stress_stress_ratio"]),
-    )
 
 
 def _width_case(mk: Any, study: Any) -> str | None:
@@ -113,13 +84,15 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     the kind's module (pipeline/studies/mechanism.py, passed in: a module of the kind's
     helpers imports no kind)."""
 
+    from flexopt.fea.mechanism_fidelity import check_summary, corrected_columns, highest_fidelity
+
     study = problem.study
     if solved.reason:
         return solved
     if not study.fidelity.enabled:
         return dataclasses.replace(solved, fidelity={"skipped": "fidelity.enabled is false"})
     width = solved.width_mm
-    checks = {case: _check(mk, study, solved, width, case) for case in study.load_cases}
+    checks = {case: _check(study, solved, width, case) for case in study.load_cases}
     width_case = _width_case(mk, study)
     history = [width]
     if width_case is not None and "skipped" not in checks[width_case]:
@@ -128,12 +101,12 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
         # check run again there: every figure is computed at the width exported (in 3D r moves
         # a little with w, so the figure sits r(w1) / r(w0) - 1 off the centre: 0.7 % on the
         # parallel guide; plane stress's ratio does not depend on the width)
-        _, ratio, _ = _ratios(checks[width_case])
+        _, ratio, _ = highest_fidelity(checks[width_case])
         new = solved.width_mm / ratio
         if abs(new - width) > 2e-3 * width:
             width = new
             history.append(width)
-            checks = {case: _check(mk, study, solved, width, case) for case in study.load_cases}
+            checks = {case: _check(study, solved, width, case) for case in study.load_cases}
     scale = width / solved.geometry.width_mm
     tables, applied = {}, {}
     for case, response in solved.responses.items():
@@ -143,12 +116,13 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
             applied[case] = {"model": "beam", "why": check["skipped"]}
             tables[case] = table
             continue
-        model, ratio, stress = _ratios(check)
+        model, ratio, stress = highest_fidelity(check)
         applied[case] = {
             "model": model, "force_ratio": ratio, "stress_ratio_reported": stress,
             "stress": STRESS_NOTE,
         }  # fmt: skip
-        tables[case] = _corrected(mk, study, case, table, ratio, 1.0)
+        control = study.load_cases[case].drive.control
+        tables[case] = corrected_columns(table, control, output_columns(study, case), ratio, 1.0)
         # the stress the verdict reads: never below the check's own figure (issue 22: the best
         # figure the run computed), the beam model's peak times the check's peak ratio
         beam_peak = np.nanmax(np.asarray(response.peak_stress_MPa, float), axis=1)
@@ -160,10 +134,10 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     metrics = mk._part_metrics(
         study, solved.geometry, solved.outline, tables, width, problem.material, solved.clearance
     )
-    beam_values = {**solved.metrics, **_worst(mk, solved.curves_table)}
+    beam_values = {**solved.metrics, **_worst(solved.curves_table)}
     beam_verdicts = {v.name: v.value for v in problem._verdicts(solved)}
     fidelity = {
-        "summary": _summary(checks, applied),
+        "summary": check_summary(checks, applied),
         "beam_model_verdicts": {k: v for k, v in beam_verdicts.items() if math.isfinite(v)},
         "checks": checks,
         "applied": applied,
@@ -176,54 +150,8 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     )  # fmt: skip
 
 
-def _summary(checks: dict[str, Any], applied: dict[str, Any]) -> dict[str, Any]:
-    """One flat line per figure (the report shows flat mappings as tables)."""
-    out: dict[str, Any] = {}
-    for case, check in checks.items():
-        if "skipped" in check:
-            out[f"{case}: judged on"] = f"the beam model (check skipped: {check['skipped']})"
-            continue
-        out[f"{case}: judged on"] = applied[case]["model"]
-        out[f"{case}: stiffness {check['stiffness_unit']}, beam model"] = check["beam_stiffness"]
-        out[f"{case}: stiffness, plane stress / beam"] = check["plane_stress_ratio"]
-        if check.get("solid"):
-            solid = check["solid"][0]
-            out[f"{case}: stiffness, 3D solid / beam"] = solid["ratio"]
-            out[f"{case}: 3D depth mm"] = solid["depth_mm"]
-            out[f"{case}: peak stress, 3D / beam"] = solid["stress_ratio"]
-        else:
-            out[f"{case}: 3D solid"] = f"not run ({check['solid_rule']})"
-            out[f"{case}: peak stress, plane stress / beam"] = check["plane_stress_stress_ratio"]
-        out[f"{case}: check time s"] = check["time_s"]
-    return out
-
-
-def _worst(mk: Any, curves: dict[str, np.ndarray]) -> dict[str, float]:
-
-    return {k: v for k, col in curves.items() if (v := mk._stat(col, "max_abs")) is not None}
-
-
-def _corrected(
-    mk: Any, study: Any, case: str, table: dict[str, np.ndarray], ratio: float, stress: float
-) -> dict[str, np.ndarray]:
-    """Force-like columns times ``ratio`` (to the power they scale with the width), stresses
-    times ``stress``."""
-
-    d = study.load_cases[case].drive
-    out = dict(table)
-    force_like = d.control in ("displacement", "rotation")
-    for key in table:
-        if key.startswith("drive_reaction_") and force_like:
-            out[key] = np.asarray(table[key], float) * ratio
-        elif key == "peak_stress_MPa":
-            out[key] = np.asarray(table[key], float) * stress
-        elif key in study.outputs:
-            o = study.outputs[key]
-            if o.quantity == "peak_stress":
-                out[key] = np.asarray(table[key], float) * stress
-            elif force_like:
-                out[key] = np.asarray(table[key], float) * ratio ** mk._exponent(study, key)
-    return out
+def _worst(curves: dict[str, np.ndarray]) -> dict[str, float]:
+    return {k: v for k, col in curves.items() if (v := statistic(col, "max_abs")) is not None}
 
 
 def annotate(verdicts: tuple, solved: Any) -> tuple:

@@ -16,10 +16,11 @@ import math
 import re
 import time
 from dataclasses import asdict
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
+from flexopt.fea.beam_response import response_table, stability_summary, summarise
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.geometry.errors import GeometryError
@@ -294,122 +295,7 @@ def check(study: PolylineBeamStudy) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Solve and summarise
-
-
-def response_table(response: BeamResponse) -> dict[str, np.ndarray]:
-    """The response as named columns, one row per requested step (row 0 undeformed).
-
-    Returns
-    -------
-    dict of str to (steps + 1,) array
-        ``step, displacement_mm, force_N, transverse_displacement_mm, transverse_force_N,
-        moment_Nmm, end_rotation_deg, peak_stress_MPa, peak_stress_s_mm, iterations, converged,
-        stable`` (``stable`` false on a row past a bifurcation or limit point: not a safe state).
-    """
-    n = len(response.displacement_mm)
-    stable = (
-        np.ones(n, dtype=bool)
-        if response.stable is None
-        else np.asarray(response.stable, dtype=bool)
-    )
-    return {
-        "step": np.arange(n),
-        "displacement_mm": np.asarray(response.displacement_mm, dtype=float),
-        "force_N": np.asarray(response.force_N, dtype=float),
-        "transverse_displacement_mm": np.asarray(response.transverse_displacement_mm, dtype=float),
-        "transverse_force_N": np.asarray(response.transverse_force_N, dtype=float),
-        "moment_Nmm": np.asarray(response.moment_Nmm, dtype=float),
-        "end_rotation_deg": np.degrees(np.asarray(response.end_rotation_rad, dtype=float)),
-        "peak_stress_MPa": np.asarray(response.peak_stress_MPa, dtype=float),
-        "peak_stress_s_mm": np.asarray(response.peak_stress_s_mm, dtype=float),
-        "iterations": np.asarray(response.iterations, dtype=int),
-        "converged": np.asarray(response.converged, dtype=bool),
-        "stable": stable,
-    }
-
-
-def _max_abs(values: np.ndarray) -> float | None:
-    finite = values[np.isfinite(values)]
-    return float(np.max(np.abs(finite))) if finite.size else None
-
-
-def stability_summary(response: BeamResponse) -> dict[str, Any]:
-    """Whether the traced path stayed on stable equilibria (see :class:`fea.beam.BeamResponse`).
-
-    Returns
-    -------
-    dict
-        ``stable`` (bool): no converged row passed a bifurcation or limit point (every row's
-        constrained tangent is positive definite); ``unstable_rows`` (int): converged rows that
-        are not stable; ``first_unstable_step`` (int or None); ``unstable_message`` (str): the
-        solver's message naming the step and the driven value where stability was lost, empty
-        when stable. A response that was not assessed (``stable`` None) counts as stable.
-    """
-    if response.stable is None:
-        return {
-            "stable": True,
-            "unstable_rows": 0,
-            "first_unstable_step": None,
-            "unstable_message": "",
-        }
-    bad = np.flatnonzero(np.asarray(response.converged, bool) & ~np.asarray(response.stable, bool))
-    return {
-        "stable": bool(bad.size == 0 and not response.unstable),
-        "unstable_rows": int(bad.size),
-        "first_unstable_step": int(bad[0]) if bad.size else None,
-        "unstable_message": response.unstable_message,
-    }
-
-
-def summarise(
-    table: dict[str, np.ndarray], material: Material, profile: BeamProfile
-) -> dict[str, Any]:
-    """Scalar metrics of a response table, over its converged rows.
-
-    Returns
-    -------
-    dict
-        Maxima of |force| (N), |displacement| (mm), |moment| (N mm), |end rotation| (deg) and peak
-        stress (MPa, with where and when), stress/yield ratio, initial stiffness (N/mm, from the
-        first step), rows converged, Newton iterations, length (mm), volume (mm^3), mass (g).
-        The stability keys come from :func:`stability_summary` (``evaluate`` adds them).
-    """
-    ok = table["converged"]
-    rows = {key: np.asarray(col)[ok] for key, col in table.items()}
-    stress = rows["peak_stress_MPa"]
-    i_peak = int(np.nanargmax(stress)) if np.isfinite(stress).any() else None
-    peak = float(stress[i_peak]) if i_peak is not None else None
-
-    stiffness = None
-    if ok.size > 1 and ok[0] and ok[1]:
-        du = table["displacement_mm"][1] - table["displacement_mm"][0]
-        if abs(du) > 0:
-            stiffness = float((table["force_N"][1] - table["force_N"][0]) / du)
-
-    seg = profile.segment_lengths_mm
-    t = profile.thickness_mm
-    volume = float(np.sum(0.5 * (t[:-1] + t[1:]) * seg) * profile.width_mm)
-    density = material.density_kg_m3
-    return {
-        "rows_converged": int(ok.sum()),
-        "rows": int(ok.size),
-        "max_abs_force_N": _max_abs(rows["force_N"]),
-        "max_abs_displacement_mm": _max_abs(rows["displacement_mm"]),
-        "initial_stiffness_N_per_mm": stiffness,
-        "max_abs_transverse_force_N": _max_abs(rows["transverse_force_N"]),
-        "max_abs_moment_Nmm": _max_abs(rows["moment_Nmm"]),
-        "max_abs_end_rotation_deg": _max_abs(rows["end_rotation_deg"]),
-        "max_peak_stress_MPa": peak,
-        "max_peak_stress_s_mm": None if i_peak is None else float(rows["peak_stress_s_mm"][i_peak]),
-        "max_peak_stress_step": None if i_peak is None else int(rows["step"][i_peak]),
-        "yield_MPa": material.yield_MPa,
-        "stress_yield_ratio": peak / material.yield_MPa if peak is not None else None,
-        "total_iterations": int(np.sum(table["iterations"])),
-        "length_mm": profile.length_mm,
-        "volume_mm3": volume,
-        "mass_g": volume * density * 1e-6 if math.isfinite(density) else None,
-    }
+# Solve and summarise (the response's columns and figures: fea/beam_response.py)
 
 
 def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:

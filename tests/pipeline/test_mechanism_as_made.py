@@ -88,12 +88,13 @@ def test_a_leaf_run_into_its_hub_is_clipped_at_the_hubs_outline():
     assert inside.outline.polygon.symmetric_difference(edge.outline.polygon).area < 1e-6
     # solved as flexible (the defect this guards against), the leaves would be 4.6/35 longer:
     # the torque of a leaf turned at its end falls as ~1/L, far more than 1 %
-    from flexopt.pipeline.studies.mechanism import _load_case, _mechanism
+    from flexopt.pipeline.studies._mechanism_schema import build_load_case
+    from flexopt.pipeline.studies.mechanism import _mechanism
 
     study = validate_study(_hub(0.4))
     fm = __import__("flexopt.fea.mechanism", fromlist=["solve_mechanism"])
     flexible = fm.solve_mechanism(
-        _mechanism(study, study.geometry), _load_case(study, "turn"),
+        _mechanism(study, study.geometry), build_load_case(study, "turn"),
         [fm.MechOutput("t", "reaction")],
     )  # fmt: skip
     assert flexible.outputs["t"][-1] < 0.9 * t_edge[-1]

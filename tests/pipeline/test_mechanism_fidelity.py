@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 import yaml
 from flexopt.fea import mechanism as fm
+from flexopt.fea.mechanism_design import as_made_stress
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies import mechanism as mk
+from flexopt.pipeline.studies._mechanism_schema import build_load_case, build_outline
 from flexopt.pipeline.study import validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
@@ -42,9 +44,9 @@ def _perfect_and_imperfect(study, amplitude_mm: float):
     """The shipped design's snap case, solved as drawn and with the imperfection, in the test."""
     x0 = mk._variables(study).initial
     geometry = mk._geometry_of(study, x0)
-    _, outline = mk._outline(geometry)
+    _, outline = build_outline(geometry)
     mech = mk._mechanism(study, geometry, made=outline.beams)  # the part as made
-    case = mk._load_case(study, "snap")
+    case = build_load_case(study, "snap")
     out = [fm.MechOutput("F", "reaction")]
     perfect = fm.solve_mechanism(mech, case, out)
     imperfect = fm.solve_mechanism(fm.imperfect_mechanism(mech, perfect, amplitude_mm), case, out)
@@ -76,7 +78,7 @@ def test_bistable_switch_verdict_is_the_imperfect_parts_snap():
         assert 7.6 <= _first_peak(other.outputs["F"]) * scale <= 8.4
     # peak stress along the followed branch (with the filleted roots' Kt, as the kind takes
     # it), and the stable positions on it
-    stress = np.nanmax(mk._as_made_stress(imperfect, outline.beams))
+    stress = np.nanmax(as_made_stress(imperfect, outline.beams))
     assert result.summary["max_peak_stress_MPa"] == pytest.approx(stress, rel=1e-9)
     count, _ = fm.stable_positions(imperfect.drive, imperfect.outputs["F"])
     assert count == 2 and _verdict(result, "second_stable_position").met
@@ -133,9 +135,9 @@ def _guide_check(study, width_mm: float) -> dict:
 
     x0 = mk._variables(study).initial
     geometry = mk._geometry_of(study, x0)
-    _, outline = mk._outline(geometry)
+    _, outline = build_outline(geometry)
     return mechanism_fidelity_check(
-        mk._mechanism(study, geometry, width_mm), mk._load_case(study, "stroke"),
+        mk._mechanism(study, geometry, width_mm), build_load_case(study, "stroke"),
         outline.polygon, list(outline.pads.values()), outline.bodies,
         list(outline.bands.values()), width_mm,
         FidelitySettings(elements_through=study.fidelity.elements_through),
@@ -219,13 +221,13 @@ def test_stress_is_judged_on_the_larger_of_the_beam_and_the_check():
     # the beam model's stresses, solved here: raw peak and as made (the roots' Kt)
     x0 = mk._variables(study).initial
     geometry = mk._geometry_of(study, x0)
-    _, outline = mk._outline(geometry)
+    _, outline = build_outline(geometry)
     mech = mk._mechanism(study, geometry, made=outline.beams)
     made, raw = {}, {}
     for case in ("free", "blocked"):
         r = mk._solve_printed_path(study, mech, case)
         raw[case] = float(np.nanmax(r.peak_stress_MPa))
-        made[case] = float(np.nanmax(mk._as_made_stress(r, outline.beams)))
+        made[case] = float(np.nanmax(as_made_stress(r, outline.beams)))
     # the blocked case has supports: the check skips it (beam model)
     expected = max(made["free"], raw["free"] * ratio, made["blocked"])
     v = _verdict(result, "max_peak_stress_MPa")
