@@ -8,6 +8,9 @@ Moved here from ``pipeline/studies/sea_spring.py`` unchanged in its numbers:
 - :func:`correct_3d` — the 3D check of a design, its thickness correction loop and the
   converged peak stress (issue 15; docs/solid3d.md), with :func:`peak_convergence` and
   :func:`fine_geometry` (the outline the converged peak is meshed on and the part exported).
+- :class:`SpringTopology` — the two topologies (the paper's serpentine, the spiral arms)
+  behind one interface: variables, bounds, parameters, building, margins, screening factors;
+  :func:`screen_spring` one linear screening run.
 - :data:`PUBLISHED_SPRINGS` and :func:`published_comparison` — paper 004's Table 1.
 
 Units: mm, N, MPa inside; torques N m, stiffnesses N m/rad, angles rad unless named ``_deg``.
@@ -18,37 +21,50 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import replace
-from typing import Any, Protocol
+from dataclasses import dataclass, replace
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.fea.mesh import mesh_polygon
 from flexopt.fea.plane_stress import Clamp, Rotate
-from flexopt.fea.spring_analysis import MeshSize, SpringResponse
+from flexopt.fea.spring_analysis import MeshSize, SpringResponse, analyse_spring
 from flexopt.geometry.arm_spring import (
+    SPIRAL_BOUNDS,
+    SPIRAL_LEVELS,
     SPIRAL_VARIABLES,
     ArmSpringParams,
+    arm_clearances,
     build_arm_spring,
     spiral_level_values,
+    spiral_params,
 )
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.sea_spring import (
+    TABLE6_LEVELS,
     SpringFrame,
     SpringGeometry,
     SpringParams,
     build_spring,
+    clearances,
+    ga_bounds,
+    ga_variables,
+    params_from_vector,
     taguchi_params,
 )
 
 __all__ = [
     "PUBLISHED_SPRINGS",
     "Solid3DOptions",
+    "SpringTopology",
+    "build_any",
     "correct_3d",
     "fine_geometry",
     "peak_convergence",
     "published_comparison",
+    "screen_spring",
+    "spring_margins",
     "solve_for_stiffness",
     "taguchi_seed",
     "worse_direction",
@@ -91,6 +107,93 @@ def published_comparison() -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+# --------------------------------------------------------------------------------------------
+# Both topologies behind one interface
+
+
+@dataclass(frozen=True)
+class SpringTopology:
+    """The serpentine (:mod:`geometry.sea_spring`, paper 004 Tables 6 and 9; ``arcs`` arcs per
+    set) or the spiral (:mod:`geometry.arm_spring`, one curved arm per set; ``root_fillet_mm``
+    at its roots, mm) behind one interface."""
+
+    name: Literal["serpentine", "spiral"] = "serpentine"
+    arcs: int = 5
+    root_fillet_mm: float = 1.5
+
+    @property
+    def variables(self) -> tuple[str, ...]:
+        """Names of the design variables (ST included, in vector order; mm, deg, fractions)."""
+        return SPIRAL_VARIABLES if self.name == "spiral" else ga_variables(self.arcs)
+
+    @property
+    def bounds(self) -> dict[str, tuple[float, float]]:
+        """Default bounds by variable name (Table 9's, or the spiral's)."""
+        return dict(SPIRAL_BOUNDS) if self.name == "spiral" else ga_bounds(self.arcs)
+
+    @property
+    def constraints(self) -> tuple[str, ...]:
+        """The geometric margins of :func:`spring_margins` that are constraints, in order."""
+        if self.name == "spiral":
+            return ("envelope_mm", "thinnest_mm", "slot_mm", "hub_mm")
+        return ("envelope_mm", "thinnest_mm", "slot_mm", "link_reach_mm")
+
+    @property
+    def levels(self) -> dict[str, tuple[float, ...]]:
+        """The screening factors and their five levels: Table 6, or the spiral's."""
+        return SPIRAL_LEVELS if self.name == "spiral" else TABLE6_LEVELS
+
+    def params(
+        self, x: np.ndarray, n_sets: int, frame: SpringFrame
+    ) -> SpringParams | ArmSpringParams:
+        """The spring parameters of a full (n_var,) vector (ST included) with ``n_sets`` sets."""
+        x = np.asarray(x, dtype=float).ravel()
+        if self.name == "spiral":
+            values = dict(zip(SPIRAL_VARIABLES, map(float, x), strict=True))
+            return spiral_params(values, n_sets, frame, self.root_fillet_mm)
+        return params_from_vector(x, n_sets, self.arcs)
+
+    def screen_params(
+        self, values: dict[str, float], frame: SpringFrame
+    ) -> SpringParams | ArmSpringParams:
+        """The spring of one screening run: its factor values (:attr:`levels`' names)."""
+        v = values
+        if self.name == "spiral":
+            return spiral_params(spiral_level_values(v), int(v["RP"]), frame, self.root_fillet_mm)
+        return taguchi_params(v["RP"], v["RR"], v["ST"], v["A"], v["RT"], v["D"], frame)
+
+
+def build_any(p: SpringParams | ArmSpringParams, frame: SpringFrame) -> SpringGeometry:
+    """Build either topology (:func:`build_spring` or :func:`build_arm_spring`)."""
+    if isinstance(p, ArmSpringParams):
+        return build_arm_spring(p, frame)
+    return build_spring(p, frame)
+
+
+def spring_margins(p: SpringParams | ArmSpringParams, frame: SpringFrame) -> dict[str, float]:
+    """Signed geometric margins (mm, >= 0 where met) of either topology."""
+    if isinstance(p, ArmSpringParams):
+        return arm_clearances(p, frame)
+    return clearances(p, frame)
+
+
+def screen_spring(
+    values: dict[str, float], topology: SpringTopology, frame: SpringFrame, material: Material,
+    mesh: MeshSize,
+) -> tuple[float, float, str]:  # fmt: skip
+    """One screening run: the linear plane-stress stiffness (N m/rad) and peak von Mises stress
+    per radian of hub rotation (MPa/rad) of the spring of ``values`` (factor values), and why
+    it cannot be built or solved ("" when it can; nan and nan then)."""
+    try:
+        p = topology.screen_params(values, frame)
+        geom = build_any(p, frame)
+        theta = math.radians(1.0)  # linear: any angle; 1 degree keeps the numbers readable
+        r = analyse_spring(geom, material, theta, mesh, nonlinear=False)
+    except (GeometryError, FeaError) as exc:
+        return math.nan, math.nan, str(exc)
+    return r.linear_stiffness_Nm_per_rad, r.linear_peak_stress_MPa / theta, ""
 
 
 # --------------------------------------------------------------------------------------------

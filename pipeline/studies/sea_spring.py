@@ -57,39 +57,23 @@ from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.fea.sea_design import (
     PUBLISHED_SPRINGS,
+    SpringTopology,
     correct_3d,
     fine_geometry,
     peak_convergence,
     published_comparison,
+    screen_spring,
     solve_for_stiffness,
+    spring_margins,
     taguchi_seed,
     worse_direction,
 )
+from flexopt.fea.sea_design import build_any as build
 from flexopt.fea.spring_analysis import SpringResponse, analyse_spring, curve_table
 from flexopt.fea.spring_analysis import stress_map_data as _stress_map_data
-from flexopt.geometry.arm_spring import (
-    SPIRAL_BOUNDS,
-    SPIRAL_LEVELS,
-    SPIRAL_VARIABLES,
-    ArmSpringParams,
-    arm_clearances,
-    build_arm_spring,
-    spiral_level_values,
-    spiral_params,
-)
+from flexopt.geometry.arm_spring import ArmSpringParams
 from flexopt.geometry.errors import GeometryError
-from flexopt.geometry.sea_spring import (
-    TABLE6_LEVELS,
-    SpringFrame,
-    SpringGeometry,
-    SpringParams,
-    build_spring,
-    clearances,
-    ga_bounds,
-    ga_variables,
-    params_from_vector,
-    taguchi_params,
-)
+from flexopt.geometry.sea_spring import SpringFrame, SpringGeometry, SpringParams
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import (
@@ -325,21 +309,15 @@ def target_stiffness_Nm_per_rad(study: SeaSpringStudy) -> tuple[float, dict[str,
     return float(k), {"source": f"stiffness_window ({w.pick})", "k_min": lo, "k_max": hi}
 
 
-# Both topologies behind one interface: variable names and bounds, parameters from a vector,
-# building, geometric margins, Taguchi factors.
+def topology(study: SeaSpringStudy) -> SpringTopology:
+    """The study's topology (:class:`fea.sea_design.SpringTopology`)."""
+    g = study.geometry
+    return SpringTopology(g.topology, g.arcs, g.root_fillet_mm)
 
 
 def variables(study: SeaSpringStudy) -> tuple[str, ...]:
     """Names of the GA variables of the study's topology (ST included, in vector order)."""
-    if study.geometry.topology == "spiral":
-        return SPIRAL_VARIABLES
-    return ga_variables(study.geometry.arcs)
-
-
-def _bounds(study: SeaSpringStudy) -> dict[str, tuple[float, float]]:
-    if study.geometry.topology == "spiral":
-        return dict(SPIRAL_BOUNDS)
-    return ga_bounds(study.geometry.arcs)
+    return topology(study).variables
 
 
 def _unit_name(name: str) -> str:
@@ -348,45 +326,6 @@ def _unit_name(name: str) -> str:
     if name in ("F1", "F2"):
         return f"{name}_fraction"
     return f"{name}_mm"
-
-
-def params_of(
-    study: SeaSpringStudy, x: np.ndarray, n_sets: int, frame: SpringFrame
-) -> SpringParams | ArmSpringParams:
-    """The spring parameters of a full vector (ST included) of the study's topology."""
-    x = np.asarray(x, dtype=float).ravel()
-    if study.geometry.topology == "spiral":
-        values = dict(zip(SPIRAL_VARIABLES, map(float, x), strict=True))
-        return spiral_params(values, n_sets, frame, study.geometry.root_fillet_mm)
-    return params_from_vector(x, n_sets, study.geometry.arcs)
-
-
-def build(p: SpringParams | ArmSpringParams, frame: SpringFrame) -> SpringGeometry:
-    """Build either topology (:func:`build_spring` or :func:`build_arm_spring`)."""
-    if isinstance(p, ArmSpringParams):
-        return build_arm_spring(p, frame)
-    return build_spring(p, frame)
-
-
-def margins(p: SpringParams | ArmSpringParams, frame: SpringFrame) -> dict[str, float]:
-    """Signed geometric margins (mm) of either topology, in :func:`constraint_keys` order."""
-    if isinstance(p, ArmSpringParams):
-        return arm_clearances(p, frame)
-    return clearances(p, frame)
-
-
-def constraint_keys(study: SeaSpringStudy) -> tuple[str, ...]:
-    """The geometric constraints of the study's topology."""
-    if study.geometry.topology == "spiral":
-        return _SPIRAL_CONSTRAINTS
-    return _GEOMETRY_CONSTRAINTS
-
-
-def factor_levels(study: SeaSpringStudy) -> dict[str, tuple[float, ...]]:
-    """The stage-1 factors and their five levels: Table 6, or the spiral's."""
-    if study.geometry.topology == "spiral":
-        return SPIRAL_LEVELS
-    return TABLE6_LEVELS
 
 
 def _unknown(name: str, path: str, names: tuple[str, ...]) -> StudyError:
@@ -410,7 +349,7 @@ def design_space(study: SeaSpringStudy) -> DesignSpace:
         bounds, ST above ``geometry`` limits or alpha outside (0, 360 / RP).
     """
     names = variables(study)
-    bounds = {k: list(v) for k, v in _bounds(study).items()}
+    bounds = {k: list(v) for k, v in topology(study).bounds.items()}
     for name, b in study.design_space.items():
         path = f"design_space.{name}"
         if name not in bounds:
@@ -483,7 +422,7 @@ def check(study: SeaSpringStudy) -> None:
     if study.design is not None:
         x = design_vector(study)
         try:
-            build(params_of(study, x, n_sets, frame), frame)
+            build(topology(study).params(x, n_sets, frame), frame)
         except GeometryError as exc:
             raise StudyError("design", str(exc)) from exc
     target_stiffness_Nm_per_rad(study)
@@ -493,31 +432,13 @@ def check(study: SeaSpringStudy) -> None:
 # Stage 1: Taguchi L25 (paper section 5, Tables 6-8)
 
 
-def screen_params(
-    values: dict[str, float], frame: SpringFrame, topology: str = "serpentine",
-    root_fillet_mm: float = 1.5,
-) -> SpringParams | ArmSpringParams:  # fmt: skip
-    """The spring of one stage-1 run: Table 6 factors (serpentine) or SPIRAL_LEVELS (spiral)."""
-    v = values
-    if topology == "spiral":
-        return spiral_params(spiral_level_values(v), int(v["RP"]), frame, root_fillet_mm)
-    return taguchi_params(v["RP"], v["RR"], v["ST"], v["A"], v["RT"], v["D"], frame)
-
-
 def _screen_one(
     levels: tuple[int, ...], frame: SpringFrame, material: Material, study: SeaSpringStudy
 ) -> tuple[float, float, str]:
-    """(stiffness N m/rad, peak stress per radian MPa/rad, reason) of one level combination."""
-    v = levels_to_values(levels, factor_levels(study))
-    mesh = study.mesh
-    try:
-        p = screen_params(v, frame, study.geometry.topology, study.geometry.root_fillet_mm)
-        geom = build(p, frame)
-        theta = math.radians(1.0)  # linear: any angle; 1 degree keeps the numbers readable
-        r = analyse_spring(geom, material, theta, mesh, nonlinear=False)
-    except (GeometryError, FeaError) as exc:
-        return math.nan, math.nan, str(exc)
-    return r.linear_stiffness_Nm_per_rad, r.linear_peak_stress_MPa / theta, ""
+    """(stiffness N m/rad, peak stress per radian MPa/rad, reason) of one level combination:
+    :func:`fea.sea_design.screen_spring`."""
+    topo = topology(study)
+    return screen_spring(levels_to_values(levels, topo.levels), topo, frame, material, study.mesh)
 
 
 #: Stage 1 solves its screening runs in two processes where fork is available (this one and a
@@ -548,7 +469,7 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
     k_target, _ = target_stiffness_Nm_per_rad(study)
     torque = study.taguchi.torque_Nm or study.target.torque_Nm / 5.0
     theta_t = math.degrees(torque / k_target)
-    table = factor_levels(study)
+    table = topology(study).levels
     lay = select_array({n: len(v) for n, v in table.items()})
     spec = study.taguchi
     # the extra runs are drawn before any result is known, so they are solved beside the array
@@ -634,7 +555,7 @@ class SeaSpringProblem:
         self.min_gap = study.geometry.min_deformed_slot_mm
         if self.min_gap is not None:
             extra = (*extra, "deformed_slot_mm")
-        self.geometry_constraints = constraint_keys(study)
+        self.geometry_constraints = topology(study).constraints
         self.constraint_names = (*self.geometry_constraints, *extra)
         if stage1 is None and study.taguchi.enabled:
             from threadpoolctl import threadpool_limits
@@ -707,7 +628,7 @@ class SeaSpringProblem:
         return np.insert(x, self.names.index("ST"), st)
 
     def params(self, x: np.ndarray, st_mm: float | None = None) -> SpringParams | ArmSpringParams:
-        return params_of(self.study, self.full_vector(x, st_mm), self.n_sets, self.frame)
+        return topology(self.study).params(self.full_vector(x, st_mm), self.n_sets, self.frame)
 
     def nominal_design(self) -> np.ndarray:
         """(n_var,) the study's ``design:`` in this problem's space (ST left out when it is
@@ -732,7 +653,7 @@ class SeaSpringProblem:
         return x[None, :]
 
     def _margins_g(self, p: SpringParams | ArmSpringParams) -> np.ndarray:
-        m = margins(p, self.frame)
+        m = spring_margins(p, self.frame)
         return -np.array([m[k] for k in self.geometry_constraints])
 
     def solve(self, x: np.ndarray, steps: int = 1, keep_model: bool = False):
@@ -1028,10 +949,6 @@ def _detail_analyses(
     return check, analyse_spring(geom, prob.material, math.radians(1.0), spec)
 
 
-_GEOMETRY_CONSTRAINTS = ("envelope_mm", "thinnest_mm", "slot_mm", "link_reach_mm")
-_SPIRAL_CONSTRAINTS = ("envelope_mm", "thinnest_mm", "slot_mm", "hub_mm")
-
-
 # --------------------------------------------------------------------------------------------
 # Registry hooks
 
@@ -1112,7 +1029,7 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
         "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
         # the thinnest printed size: the thinnest member or the plate (as flexopt run's metric)
         "min_feature_mm": min(
-            margins(p, prob.frame)["thinnest_mm"] + prob.frame.min_feature_mm, st
+            spring_margins(p, prob.frame)["thinnest_mm"] + prob.frame.min_feature_mm, st
         ),
     }
     if r.slot_gaps_mm:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import yaml
 from flexopt.fea.spring_analysis import analyse_spring, slot_gaps_mm, stress_map_data
+from flexopt.geometry.arm_spring import SPIRAL_VARIABLES
 from flexopt.geometry.sea_spring import (
     GA_VARIABLES,
     TABLE9_BOUNDS,
@@ -191,7 +192,7 @@ def test_spiral_problem_contract_and_solved_thickness():
     assert prob.constraint_names[:4] == ("envelope_mm", "thinnest_mm", "slot_mm", "hub_mm")
     pickle.loads(pickle.dumps(prob))
     x0 = prob.initial_designs()[0]
-    assert np.allclose(x0, [SPIRAL_DESIGN[n] for n in ss.SPIRAL_VARIABLES[:-1]])
+    assert np.allclose(x0, [SPIRAL_DESIGN[n] for n in SPIRAL_VARIABLES[:-1]])
     ev = prob.evaluate(x0)
     assert ev.reason == "", ev.reason  # solved (feasible or not: ST may leave 8-20 mm)
     # both directions: the solved ST makes the mean secant stiffness the target
@@ -210,12 +211,12 @@ def test_spiral_screening_run_builds_or_explains_every_l25_row():
 
     study = validate_study(SPIRAL)
     frame = ss.spring_frame(study)
-    table = ss.factor_levels(study)
+    table = ss.topology(study).levels
     lay = select_array({n: len(v) for n, v in table.items()})
     built = 0
     for row in lay.design:
         values = levels_to_values(row, table)
-        p = ss.screen_params(values, frame, "spiral", study.geometry.root_fillet_mm)
+        p = ss.topology(study).screen_params(values, frame)
         try:
             ss.build(p, frame)
             built += 1
