@@ -3,7 +3,8 @@
 The analysis the spring kinds share (``sea_spring`` and ``threshold_spring``): linear stiffness,
 the nonlinear torque curve in one or both directions, the peak von Mises stress away from the
 rigid regions, the narrowest loaded slot (:func:`slot_gaps_mm`) and the stress map's data
-(:func:`stress_map_data`). Moved here from ``pipeline/studies/sea_spring.py`` unchanged.
+(:func:`stress_map_data`), the torque-rotation table (:func:`curve_table`). Moved here from
+``pipeline/studies/sea_spring.py`` unchanged.
 Units: mm, N, MPa inside; torques in N m and rotations in degrees at the edges (as named).
 """
 

@@ -2,6 +2,7 @@
 
 Moved here from ``pipeline/studies/sea_spring.py`` unchanged in its numbers:
 
+- :func:`screening_plan` — the screening stage's runs: an orthogonal array and extra rows.
 - :func:`taguchi_analysis` — the screening stage's Eq. 27 cost over an L25 array, its S/N
   analysis (pooled ANOVA, main effects, predicted optimum), the confirmation run and the
   additivity check; :func:`stage1_summary` the part a report shows.
@@ -24,6 +25,7 @@ from flexopt.fea.spring_analysis import SpringResponse
 __all__ = [
     "EQ27",
     "levels_to_values",
+    "screening_plan",
     "solid_3d_scalars",
     "spring_scores",
     "stage1_summary",
@@ -42,6 +44,27 @@ def levels_to_values(
 ) -> dict[str, float]:
     """The factor values of a row of level indices (``table``: factor -> its level values)."""
     return {n: float(table[n][int(lv)]) for n, lv in zip(table, levels, strict=True)}
+
+
+def screening_plan(
+    table: dict[str, tuple[float, ...]], extra_runs: int, seed: int
+) -> tuple[Any, np.ndarray, list[tuple[int, ...]]]:
+    """The runs of the screening stage over the factors of ``table`` (five levels each).
+
+    Returns
+    -------
+    (lay, extra, jobs) — the smallest catalogued array (:func:`optimise.taguchi.select_array`;
+    L25 for six factors), the (extra_runs, n_factors) level rows off the array for the
+    additivity check (drawn with ``seed`` before any result is known, so they can be solved
+    beside the array), and every run's level tuple, the array's rows first.
+    """
+    from flexopt.optimise.taguchi import select_array
+
+    lay = select_array({n: len(v) for n, v in table.items()})
+    rng = np.random.default_rng(seed)
+    extra = rng.integers(0, 5, size=(extra_runs, len(table)))
+    jobs = [tuple(int(v) for v in row) for row in (*lay.design, *extra)]
+    return lay, extra, jobs
 
 
 def taguchi_analysis(

@@ -86,6 +86,7 @@ from flexopt.optimise.requirements import (
 )
 from flexopt.optimise.sea_cost import (
     levels_to_values,
+    screening_plan,
     solid_3d_scalars,
     spring_scores,
     stage1_summary,
@@ -461,22 +462,15 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
         levels and predicted S/N, the confirmation, the additivity check, the chosen design
         (``chosen``: the better of the confirmed optimum and the best tested run) and timings.
     """
-    from flexopt.optimise.taguchi import select_array
-
     t0 = time.perf_counter()
     frame = spring_frame(study)
     material = study.material.to_material()
     k_target, _ = target_stiffness_Nm_per_rad(study)
     torque = study.taguchi.torque_Nm or study.target.torque_Nm / 5.0
     theta_t = math.degrees(torque / k_target)
-    table = topology(study).levels
-    lay = select_array({n: len(v) for n, v in table.items()})
-    spec = study.taguchi
-    # the extra runs are drawn before any result is known, so they are solved beside the array
-    rng = np.random.default_rng(spec.seed)
-    extra = rng.integers(0, 5, size=(spec.extra_runs, len(table)))
+    table, spec = topology(study).levels, study.taguchi
+    lay, extra, jobs = screening_plan(table, spec.extra_runs, spec.seed)
     n_array = len(lay.design)
-    jobs = [tuple(int(v) for v in row) for row in (*lay.design, *extra)]
     # solved by this process and a forked child beside it (pipeline.screening)
     screening = Screening(
         jobs, lambda levels: _screen_one(levels, frame, material, study), fork=TAGUCHI_FORK,

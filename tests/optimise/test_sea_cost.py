@@ -10,12 +10,12 @@ import pytest
 from flexopt.fea.spring_analysis import SpringResponse
 from flexopt.optimise.sea_cost import (
     levels_to_values,
+    screening_plan,
     solid_3d_scalars,
     spring_scores,
     stage1_summary,
     taguchi_analysis,
 )
-from flexopt.optimise.taguchi import select_array
 
 LEVELS = {n: tuple(float(10 * i + j) for j in range(5)) for i, n in enumerate("ABCDEF")}
 
@@ -80,7 +80,10 @@ def _run(levels) -> tuple[float, float, str]:
 
 
 def test_taguchi_analysis_eq27_and_the_order_of_the_confirmation_and_extra_runs():
-    lay = select_array({n: 5 for n in LEVELS})
+    lay, extra, jobs = screening_plan(LEVELS, 2, seed=1)
+    assert lay.array_name.startswith("L25") and extra.shape == (2, 6) and len(jobs) == 27
+    assert jobs[:25] == [tuple(int(v) for v in row) for row in lay.design]
+    assert np.array_equal(screening_plan(LEVELS, 2, seed=1)[1], extra)  # drawn from the seed
     runs = [_run(row) for row in lay.design]
     extra = np.array([[1, 2, 3, 4, 0, 1], [4, 4, 0, 0, 0, 0]])
     order = []
