@@ -9,6 +9,7 @@ that a study kind imports no process library):
 - :class:`SideProcess` — one worker process that runs tasks sent to it (the report's work that
   needs no 3D answer), giving None when the caller must compute a task itself.
 - :func:`fork_context_here` — multiprocessing's fork context where forking is safe here.
+- :func:`one_blas_thread` — BLAS and OpenMP pools limited to one thread, for a block of work.
 
 Both children start as :mod:`pipeline.parallel`'s workers (one BLAS thread, Ctrl-C left to the
 parent, SIGTERM ends them at once) and end when their parent is gone.
@@ -24,7 +25,14 @@ from typing import Any
 from flexopt.fea.errors import FeaError
 from flexopt.geometry.errors import GeometryError
 
-__all__ = ["Screening", "SideProcess", "fork_context_here", "screening_child", "side_main"]
+__all__ = [
+    "Screening",
+    "SideProcess",
+    "fork_context_here",
+    "one_blas_thread",
+    "screening_child",
+    "side_main",
+]
 
 log = logging.getLogger(__name__)
 
@@ -42,6 +50,14 @@ def fork_context_here() -> Any:
     if threading.active_count() != 1:
         return None
     return mp.get_context("fork")
+
+
+def one_blas_thread() -> Any:
+    """A context manager limiting the loaded BLAS and OpenMP pools to one thread (as in the
+    pool's workers) for the work inside it (:func:`threadpoolctl.threadpool_limits`)."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(1)
 
 
 class Screening:

@@ -95,7 +95,7 @@ from flexopt.optimise.sea_cost import (
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.screening import Screening, SideProcess
+from flexopt.pipeline.screening import Screening, SideProcess, one_blas_thread
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.studies._blocks import MeshSpec, Solid3DSpec
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
@@ -552,12 +552,10 @@ class SeaSpringProblem:
         self.geometry_constraints = topology(study).constraints
         self.constraint_names = (*self.geometry_constraints, *extra)
         if stage1 is None and study.taguchi.enabled:
-            from threadpoolctl import threadpool_limits
-
             # One BLAS thread, as in the pool's workers: CHOLMOD's supernodes of a 30k-DOF
             # spring are too small for a second thread to pay (the 31 screening runs took
             # ~4.7 s CPU / 3.8 s wall with two threads, 3.3 s both with one; same answers).
-            with threadpool_limits(1):
+            with one_blas_thread():
                 stage1 = run_taguchi(study)
         self.stage1 = stage1
         self.n_sets = int(stage1["chosen"]["RP"]) if stage1 else design_sets(study)
