@@ -3,7 +3,8 @@
 The analysis the spring kinds share (``sea_spring`` and ``threshold_spring``): linear stiffness,
 the nonlinear torque curve in one or both directions, the peak von Mises stress away from the
 rigid regions, the narrowest loaded slot (:func:`slot_gaps_mm`) and the stress map's data
-(:func:`stress_map_data`). Moved here from ``pipeline/studies/sea_spring.py`` unchanged.
+(:func:`stress_map_data`), the torque-rotation table (:func:`curve_table`). Moved here from
+``pipeline/studies/sea_spring.py`` unchanged.
 Units: mm, N, MPa inside; torques in N m and rotations in degrees at the edges (as named).
 """
 
@@ -31,6 +32,7 @@ __all__ = [
     "SpringMesh",
     "SpringResponse",
     "analyse_spring",
+    "curve_table",
     "slot_gaps_mm",
     "stress_map_data",
 ]
@@ -344,4 +346,26 @@ def stress_map_data(r: SpringResponse) -> dict[str, Any]:
         "points_mm": np.round(model.mesh.points, 4).tolist(),
         "triangles": model.mesh.triangles.tolist(),
         "von_mises_MPa": np.round(total / np.maximum(count, 1), 2).tolist(),
+    }
+
+
+def curve_table(r: SpringResponse) -> dict[str, np.ndarray]:
+    """Torque-rotation rows of a response, clockwise (negative) rows first when there are any.
+
+    Returns
+    -------
+    dict of (m,) float arrays, m = k + 1 (one direction) or 2 k + 1 (both): ``rotation_deg``
+    (degrees), ``torque_Nm`` (nonlinear, N m), ``torque_linear_Nm`` (K_lin theta, N m),
+    ``peak_stress_MPa`` (MPa). Moved here from ``pipeline/studies/sea_spring.py``.
+    """
+    rot, torque, stress = r.rotation_deg, r.torque_Nm, r.peak_stress_MPa
+    if r.reverse_torque_Nm is not None:
+        rot = np.concatenate([-rot[:0:-1], rot])
+        torque = np.concatenate([r.reverse_torque_Nm[:0:-1], torque])
+        stress = np.concatenate([r.reverse_peak_stress_MPa[:0:-1], stress])
+    return {
+        "rotation_deg": rot,
+        "torque_Nm": torque,
+        "torque_linear_Nm": r.linear_stiffness_Nm_per_rad * np.radians(rot),
+        "peak_stress_MPa": stress,
     }

@@ -984,3 +984,76 @@ def mechanism_shapes_png(
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=110)  # the mechanism's figures are 110 dpi
     return buffer.getvalue()
+
+
+# SEA spring figures (the sea_window kind's; moved from pipeline/studies/sea_window.py)
+
+
+def plot_sea_peak_torque(curve: Any, window: Any, k: float | None) -> bytes:
+    """Peak spring and gearbox torque after the collision against K (paper 004, Figs. 8–9),
+    the limit, K_max and the checked K.
+
+    Parameters
+    ----------
+    curve : :func:`fea.sea_window.peak_torque_curve`'s answer — (n,) stiffness_Nm_per_rad
+        (N m/rad), peak_spring_torque_Nm, peak_gearbox_torque_Nm, rigid_frictionless_Nm (N m)
+        and torque_limit_Nm.
+    window : :func:`fea.sea_window.stiffness_window`'s answer (k_min / k_max_Nm_per_rad).
+    k : float or None, N m/rad — the checked stiffness.
+
+    Returns
+    -------
+    bytes — the PNG file.
+    """
+    import math
+
+    fig = _new_figure(figsize=(6.6, 4.6), layout="constrained")
+    ax = fig.subplots()
+    ks = curve.stiffness_Nm_per_rad
+    ax.plot(ks, curve.peak_spring_torque_Nm, "-", label="peak spring torque K θ2")
+    ax.plot(ks, curve.peak_gearbox_torque_Nm, "--", label="peak gearbox torque G_k (θ1 − θ2)")
+    ax.plot(ks, curve.rigid_frictionless_Nm, ":", color="0.4", label="rigid, frictionless estimate")
+    limit = curve.torque_limit_Nm
+    ax.axhline(limit, color="C3", lw=1, label=f"limit {limit:g} N·m")
+    if math.isfinite(window.k_max_Nm_per_rad):
+        ax.axvline(window.k_max_Nm_per_rad, color="C3", ls="--", lw=1,
+                   label=f"K_max {window.k_max_Nm_per_rad:.4g}")  # fmt: skip
+    ax.axvspan(window.k_min_Nm_per_rad, max(window.k_min_Nm_per_rad, window.k_max_Nm_per_rad),
+               color="C2", alpha=0.12, label="window")  # fmt: skip
+    if k is not None:
+        ax.axvline(k, color="k", lw=1, label=f"K = {k:g}")
+    ax.set_xscale("log")
+    ax.set_xlabel("spring stiffness K (N·m/rad)")
+    ax.set_ylabel("peak torque after the collision (N·m)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small")
+    return _png(fig)
+
+
+def plot_sea_bode(bodes: list[Any], required_bandwidth_Hz: float) -> bytes:
+    """Bode magnitude of the locked-output torque transfer (paper 004, Fig. 11) for several K,
+    with the required torque ratio and the required bandwidth (Hz).
+
+    ``bodes``: :func:`fea.sea_window.bode_data`'s answers — (f,) frequency_Hz, magnitude_dB,
+    and stiffness_Nm_per_rad, bandwidth_rad_per_s, required_ratio. Returns the PNG file.
+    """
+    import math
+
+    fig = _new_figure(figsize=(6.6, 4.6), layout="constrained")
+    ax = fig.subplots()
+    for b in bodes:
+        ax.semilogx(b.frequency_Hz, b.magnitude_dB,
+                    label=f"K = {b.stiffness_Nm_per_rad:.4g} N·m/rad: "
+                          f"{b.bandwidth_rad_per_s / (2 * math.pi):.3g} Hz")  # fmt: skip
+    if bodes:
+        ratio = bodes[0].required_ratio
+        ratio_dB = 20 * math.log10(ratio)
+        label = f"required ratio {ratio:.4g} ({ratio_dB:.1f} dB)"
+        ax.axhline(ratio_dB, color="C3", lw=1, label=label)
+    ax.axvline(required_bandwidth_Hz, color="k", ls="--", lw=1,
+               label=f"required {required_bandwidth_Hz:g} Hz")  # fmt: skip
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("|T_out / T_sat| (dB)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small")
+    return _png(fig)

@@ -55,36 +55,25 @@ from typing import Any, Literal
 import numpy as np
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
-from flexopt.fea.mesh import mesh_polygon
-from flexopt.fea.plane_stress import (
-    Clamp,
-    Rotate,
+from flexopt.fea.sea_design import (
+    PUBLISHED_SPRINGS,
+    SpringTopology,
+    correct_3d,
+    fine_geometry,
+    peak_convergence,
+    published_comparison,
+    screen_spring,
+    solve_for_stiffness,
+    spring_margins,
+    taguchi_seed,
+    worse_direction,
 )
-from flexopt.fea.spring_analysis import SpringResponse, analyse_spring
+from flexopt.fea.sea_design import build_any as build
+from flexopt.fea.spring_analysis import SpringResponse, analyse_spring, curve_table
 from flexopt.fea.spring_analysis import stress_map_data as _stress_map_data
-from flexopt.geometry.arm_spring import (
-    SPIRAL_BOUNDS,
-    SPIRAL_LEVELS,
-    SPIRAL_VARIABLES,
-    ArmSpringParams,
-    arm_clearances,
-    build_arm_spring,
-    spiral_level_values,
-    spiral_params,
-)
+from flexopt.geometry.arm_spring import ArmSpringParams
 from flexopt.geometry.errors import GeometryError
-from flexopt.geometry.sea_spring import (
-    TABLE6_LEVELS,
-    SpringFrame,
-    SpringGeometry,
-    SpringParams,
-    build_spring,
-    clearances,
-    ga_bounds,
-    ga_variables,
-    params_from_vector,
-    taguchi_params,
-)
+from flexopt.geometry.sea_spring import SpringFrame, SpringGeometry, SpringParams
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import (
@@ -95,9 +84,18 @@ from flexopt.optimise.requirements import (
     Range,
     Requirement,
 )
+from flexopt.optimise.sea_cost import (
+    levels_to_values,
+    screening_plan,
+    solid_3d_scalars,
+    spring_scores,
+    stage1_summary,
+    taguchi_analysis,
+)
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.screening import Screening, SideProcess, one_blas_thread
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.studies._blocks import MeshSpec, Solid3DSpec
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
@@ -112,7 +110,6 @@ __all__ = [
     "SpringResponse",
     "analyse_spring",
     "run_taguchi",
-    "stress_map_png",
     "design_space",
     "target_stiffness_Nm_per_rad",
     "problem",
@@ -121,26 +118,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-#: Paper 004, Table 1: published SEA springs (stiffness N m/rad, max torque N m, thickness mm,
-#: diameter mm; None where the paper gives none). Row "t" is the template the paper follows.
-_TABLE1 = (  # ref, stiffness N m/rad, max torque N m, thickness mm, diameter mm
-    ("a [5]", 46, 15, 2.75, 60),
-    ("b [8]", 219, 100, 15, 75),
-    ("p [7]", 98, 7.7, 3, 85),
-    ("t [11] (template)", 500, 60, 11, 90),
-    ("s [12]", 110, 25, 12, 80),
-    ("j [13]", 84, 15, 6, 125),
-    ("ch [14]", 645, 45, None, None),
-    ("h [15]", 9.7, 7.5, 10, 71),
-    ("kh [16]", 172, 12, None, None),
-)
-PUBLISHED_SPRINGS: tuple[dict[str, Any], ...] = tuple(
-    dict(zip(("ref", "stiffness_Nm_per_rad", "torque_Nm", "thickness_mm", "diameter_mm"), row,
-             strict=True))
-    for row in _TABLE1
-)  # fmt: skip
-
 
 # --------------------------------------------------------------------------------------------
 # The study file
@@ -333,21 +310,15 @@ def target_stiffness_Nm_per_rad(study: SeaSpringStudy) -> tuple[float, dict[str,
     return float(k), {"source": f"stiffness_window ({w.pick})", "k_min": lo, "k_max": hi}
 
 
-# Both topologies behind one interface: variable names and bounds, parameters from a vector,
-# building, geometric margins, Taguchi factors.
+def topology(study: SeaSpringStudy) -> SpringTopology:
+    """The study's topology (:class:`fea.sea_design.SpringTopology`)."""
+    g = study.geometry
+    return SpringTopology(g.topology, g.arcs, g.root_fillet_mm)
 
 
 def variables(study: SeaSpringStudy) -> tuple[str, ...]:
     """Names of the GA variables of the study's topology (ST included, in vector order)."""
-    if study.geometry.topology == "spiral":
-        return SPIRAL_VARIABLES
-    return ga_variables(study.geometry.arcs)
-
-
-def _bounds(study: SeaSpringStudy) -> dict[str, tuple[float, float]]:
-    if study.geometry.topology == "spiral":
-        return dict(SPIRAL_BOUNDS)
-    return ga_bounds(study.geometry.arcs)
+    return topology(study).variables
 
 
 def _unit_name(name: str) -> str:
@@ -356,45 +327,6 @@ def _unit_name(name: str) -> str:
     if name in ("F1", "F2"):
         return f"{name}_fraction"
     return f"{name}_mm"
-
-
-def params_of(
-    study: SeaSpringStudy, x: np.ndarray, n_sets: int, frame: SpringFrame
-) -> SpringParams | ArmSpringParams:
-    """The spring parameters of a full vector (ST included) of the study's topology."""
-    x = np.asarray(x, dtype=float).ravel()
-    if study.geometry.topology == "spiral":
-        values = dict(zip(SPIRAL_VARIABLES, map(float, x), strict=True))
-        return spiral_params(values, n_sets, frame, study.geometry.root_fillet_mm)
-    return params_from_vector(x, n_sets, study.geometry.arcs)
-
-
-def build(p: SpringParams | ArmSpringParams, frame: SpringFrame) -> SpringGeometry:
-    """Build either topology (:func:`build_spring` or :func:`build_arm_spring`)."""
-    if isinstance(p, ArmSpringParams):
-        return build_arm_spring(p, frame)
-    return build_spring(p, frame)
-
-
-def margins(p: SpringParams | ArmSpringParams, frame: SpringFrame) -> dict[str, float]:
-    """Signed geometric margins (mm) of either topology, in :func:`constraint_keys` order."""
-    if isinstance(p, ArmSpringParams):
-        return arm_clearances(p, frame)
-    return clearances(p, frame)
-
-
-def constraint_keys(study: SeaSpringStudy) -> tuple[str, ...]:
-    """The geometric constraints of the study's topology."""
-    if study.geometry.topology == "spiral":
-        return _SPIRAL_CONSTRAINTS
-    return _GEOMETRY_CONSTRAINTS
-
-
-def factor_levels(study: SeaSpringStudy) -> dict[str, tuple[float, ...]]:
-    """The stage-1 factors and their five levels: Table 6, or the spiral's."""
-    if study.geometry.topology == "spiral":
-        return SPIRAL_LEVELS
-    return TABLE6_LEVELS
 
 
 def _unknown(name: str, path: str, names: tuple[str, ...]) -> StudyError:
@@ -418,7 +350,7 @@ def design_space(study: SeaSpringStudy) -> DesignSpace:
         bounds, ST above ``geometry`` limits or alpha outside (0, 360 / RP).
     """
     names = variables(study)
-    bounds = {k: list(v) for k, v in _bounds(study).items()}
+    bounds = {k: list(v) for k, v in topology(study).bounds.items()}
     for name, b in study.design_space.items():
         path = f"design_space.{name}"
         if name not in bounds:
@@ -491,7 +423,7 @@ def check(study: SeaSpringStudy) -> None:
     if study.design is not None:
         x = design_vector(study)
         try:
-            build(params_of(study, x, n_sets, frame), frame)
+            build(topology(study).params(x, n_sets, frame), frame)
         except GeometryError as exc:
             raise StudyError("design", str(exc)) from exc
     target_stiffness_Nm_per_rad(study)
@@ -501,245 +433,19 @@ def check(study: SeaSpringStudy) -> None:
 # Stage 1: Taguchi L25 (paper section 5, Tables 6-8)
 
 
-def _levels_to_values(
-    levels: np.ndarray | tuple[int, ...], table: dict[str, tuple[float, ...]] = TABLE6_LEVELS
-) -> dict[str, float]:
-    return {n: float(table[n][int(lv)]) for n, lv in zip(table, levels, strict=True)}
-
-
-def screen_params(
-    values: dict[str, float], frame: SpringFrame, topology: str = "serpentine",
-    root_fillet_mm: float = 1.5,
-) -> SpringParams | ArmSpringParams:  # fmt: skip
-    """The spring of one stage-1 run: Table 6 factors (serpentine) or SPIRAL_LEVELS (spiral)."""
-    v = values
-    if topology == "spiral":
-        return spiral_params(spiral_level_values(v), int(v["RP"]), frame, root_fillet_mm)
-    return taguchi_params(v["RP"], v["RR"], v["ST"], v["A"], v["RT"], v["D"], frame)
-
-
 def _screen_one(
     levels: tuple[int, ...], frame: SpringFrame, material: Material, study: SeaSpringStudy
 ) -> tuple[float, float, str]:
-    """(stiffness N m/rad, peak stress per radian MPa/rad, reason) of one level combination."""
-    v = _levels_to_values(levels, factor_levels(study))
-    mesh = study.mesh
-    try:
-        p = screen_params(v, frame, study.geometry.topology, study.geometry.root_fillet_mm)
-        geom = build(p, frame)
-        theta = math.radians(1.0)  # linear: any angle; 1 degree keeps the numbers readable
-        r = analyse_spring(geom, material, theta, mesh, nonlinear=False)
-    except (GeometryError, FeaError) as exc:
-        return math.nan, math.nan, str(exc)
-    return r.linear_stiffness_Nm_per_rad, r.linear_peak_stress_MPa / theta, ""
+    """(stiffness N m/rad, peak stress per radian MPa/rad, reason) of one level combination:
+    :func:`fea.sea_design.screen_spring`."""
+    topo = topology(study)
+    return screen_spring(levels_to_values(levels, topo.levels), topo, frame, material, study.mesh)
 
 
 #: Stage 1 solves its screening runs in two processes where fork is available (this one and a
 #: forked child, each on one core); False: all in this process, in order. The results are the
 #: same bit for bit (each run is an independent solve; tests/pipeline/test_sea_spring_stage1.py).
 TAGUCHI_FORK = True
-
-
-def _fork_context_here() -> Any:
-    """multiprocessing's fork context where forking is safe here, else None: not on macOS or
-    Windows (pipeline.run._fork_context's test), and only from a single-threaded process (a
-    lock another thread holds at the fork stays held for ever in the child)."""
-    import multiprocessing as mp
-    import sys
-    import threading
-
-    if sys.platform in ("darwin", "win32") or "fork" not in mp.get_all_start_methods():
-        return None
-    if threading.active_count() != 1:
-        return None
-    return mp.get_context("fork")
-
-
-class _Screening:
-    """Stage 1's screening runs ``jobs`` (level tuples; the array rows first), solved by this
-    process and, where fork is available, one forked child beside it.
-
-    Both take the next unsolved run from a shared counter, so the two cores stay busy whatever
-    each run costs (a row that cannot be built takes milliseconds, a spring ~0.1 s); the child
-    sends back ``(index, result)`` through a pipe. Fork shares the study, so nothing is pickled
-    on the way in. :meth:`get` returns the results of the first runs in order, solving here
-    what is not taken yet (later runs too, while the child finishes one of these) and then
-    waiting for what the child took: the confirmation run (which needs the array's analysis)
-    is solved while the child goes on with the extra runs. Where fork is
-    not available or the child cannot start, every run is solved here; a child that dies leaves
-    its runs to this process, and one that keeps a run much longer than the slowest run here
-    took (stuck, or starved of CPU) has it solved here too. The results do not depend on which
-    process solved a run.
-    """
-
-    def __init__(
-        self, jobs: list[tuple[int, ...]], frame: SpringFrame, material: Material,
-        study: SeaSpringStudy, fork: bool = True,
-    ) -> None:  # fmt: skip
-        self.jobs = jobs
-        self._args = (frame, material, study)
-        self.results: list[tuple[float, float, str] | None] = [None] * len(jobs)
-        self.in_child = 0  # results of the child's that were used (for the log)
-        self._slowest_s = 0.0  # the longest run solved here, s
-        self._process: Any = None
-        self._conn: Any = None
-        self._gone = ""  # why the child is no longer of use ("" while it is)
-        if fork and len(jobs) > 1:
-            self._start()
-
-    def solve(self, levels: tuple[int, ...]) -> tuple[float, float, str]:
-        """One run, in this process: :func:`_screen_one`."""
-        t0 = time.perf_counter()
-        out = _screen_one(levels, *self._args)
-        self._slowest_s = max(self._slowest_s, time.perf_counter() - t0)
-        return out
-
-    def _start(self) -> None:
-        import sys
-
-        ctx = _fork_context_here()
-        if ctx is None:
-            return
-        try:
-            from flexopt.fea.plane_stress import warm_up
-
-            # the compiled kernels and the sparse Cholesky loaded once, here, for both (~0.4 s
-            # CPU each process would spend on its first run; the pool's warm-up then finds them)
-            warm_up()
-            self._lock = ctx.Lock()
-            self._next = ctx.RawValue("i", 0)
-            receive, send = ctx.Pipe(duplex=False)
-            # output buffered here would be written a second time by the child at its exit
-            sys.stdout.flush()
-            sys.stderr.flush()
-            process = ctx.Process(target=_screening_child, args=(self, receive, send),
-                                  name="flexopt-taguchi", daemon=True)  # fmt: skip
-            process.start()
-            send.close()
-        except Exception as exc:  # a daemonic process, no more processes: all solved here
-            log.info("stage 1 in this process only (%s)", exc)
-            return
-        self._process, self._conn = process, receive
-
-    def claim(self, keep_trying: Any) -> int | None:
-        """The next run nobody has taken (``len(jobs)`` when all are), or None when the lock
-        stays held elsewhere and ``keep_trying()`` is False (the other process died or hangs
-        holding it: it is held for microseconds)."""
-        from flexopt.pipeline.parallel import PARENT_CHECK_S
-
-        while not self._lock.acquire(timeout=PARENT_CHECK_S):
-            if not keep_trying():
-                return None
-        try:
-            i = self._next.value
-            if i < len(self.jobs):
-                self._next.value = i + 1
-            return i
-        finally:
-            self._lock.release()
-
-    def get(self, n: int) -> list[tuple[float, float, str]]:
-        """The results of runs ``0 .. n-1``: (stiffness N m/rad, peak stress per radian
-        MPa/rad, reason) each, as :func:`_screen_one` gives them."""
-        while True:
-            if self._process is not None:
-                self._receive(0.0)
-            missing = [i for i in range(n) if self.results[i] is None]
-            if not missing:
-                return self.results[:n]  # type: ignore[return-value]
-            if self._process is not None and self._gone:
-                self._drop()
-            if self._process is None:
-                self.results[missing[0]] = self.solve(self.jobs[missing[0]])
-            elif self._next.value < len(self.jobs):
-                # a run nobody has taken: solve it here, also when it is not one of these
-                # (rather than wait for the child's last run of these, idle)
-                i = self.claim(lambda: False)
-                if i is None:  # the child holds the lock: dead or stuck
-                    self._process.join(0.1)
-                    code = self._process.exitcode
-                    self._gone = "is stuck" if code is None else f"ended (exit code {code})"
-                elif i < len(self.jobs):
-                    self.results[i] = self.solve(self.jobs[i])
-            elif not self._receive(2.0 * self._slowest_s + 0.05) and not self._gone:
-                # the child has the rest of these, and has kept the first much longer than
-                # the slowest run here took: solve it here (its answer would be the same)
-                log.debug("stage 1: run %d taken over from the second process", missing[0])
-                self.results[missing[0]] = self.solve(self.jobs[missing[0]])
-
-    def _receive(self, timeout_s: float) -> bool:
-        """Take the child's results that have arrived, waiting up to ``timeout_s`` for one;
-        whether one came. Sets ``_gone`` when the child has ended."""
-        try:
-            if not self._conn.poll(timeout_s):
-                if not self._process.is_alive() and not self._conn.poll():
-                    self._gone = f"ended (exit code {self._process.exitcode})"
-                return False
-            while self._conn.poll():
-                i, result = self._conn.recv()
-                if self.results[i] is None:  # else solved here meanwhile: the same answer
-                    self.results[i] = result
-                    self.in_child += 1
-            return True
-        except (EOFError, OSError):  # its end of the pipe closed: it has ended
-            self._process.join(5.0)
-            self._gone = f"ended (exit code {self._process.exitcode})"
-            return True
-
-    def _drop(self) -> None:
-        log.warning("stage 1: the second process %s before it sent all its runs; they are "
-                    "solved here", self._gone)  # fmt: skip
-        self.close()
-
-    def close(self) -> None:
-        """Stop the child (at once when it is not done: its results are not needed) and reap
-        it; idempotent."""
-        if self._process is not None:
-            log.info("stage 1: %d of %d runs solved in the second process", self.in_child,
-                     len(self.jobs))  # fmt: skip
-            if not self._gone and all(r is not None for r in self.results):
-                self._process.join(0.5)  # it has found nothing left to take and is exiting
-            if self._process.is_alive():
-                self._process.terminate()
-                self._process.join(5.0)
-            if self._process.is_alive():
-                self._process.kill()
-                self._process.join()
-            self._conn.close()
-        self._process = self._conn = None
-
-
-def _screening_child(screening: _Screening, receive: Any, send: Any) -> None:
-    """The forked child of :class:`_Screening`: takes runs until none is left, sends each
-    result; ends when its parent is gone. Starts as pipeline.parallel's workers."""
-    import os
-    import signal
-
-    from flexopt.pipeline.parallel import _limit_loaded_pools, pin_threads
-
-    receive.close()  # the parent's end: a send to a parent that died then fails at once
-    pin_threads()
-    _limit_loaded_pools()  # one BLAS thread beside the parent's, whatever its caller set
-    # Ctrl-C reaches the whole process group: the parent decides (and ends this one); a
-    # forked child inherits the CLI's SIGTERM handler, but is ended by its parent and must
-    # then end at once, as a process normally does
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    parent = os.getppid()
-
-    def parent_alive() -> bool:
-        return os.getppid() == parent
-
-    try:
-        while parent_alive():
-            i = screening.claim(parent_alive)
-            if i is None or i >= len(screening.jobs):
-                return
-            send.send((i, screening.solve(screening.jobs[i])))
-    except Exception:  # the parent is gone, or a run raised: the parent solves it again
-        return  # (and raises it, where the error belongs)
-    finally:
-        send.close()
 
 
 def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
@@ -756,170 +462,32 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
         levels and predicted S/N, the confirmation, the additivity check, the chosen design
         (``chosen``: the better of the confirmed optimum and the best tested run) and timings.
     """
-    from flexopt.optimise.taguchi import select_array
-
     t0 = time.perf_counter()
     frame = spring_frame(study)
     material = study.material.to_material()
     k_target, _ = target_stiffness_Nm_per_rad(study)
     torque = study.taguchi.torque_Nm or study.target.torque_Nm / 5.0
     theta_t = math.degrees(torque / k_target)
-    table = factor_levels(study)
-    lay = select_array({n: len(v) for n, v in table.items()})
-    spec = study.taguchi
-    # the extra runs are drawn before any result is known, so they are solved beside the array
-    rng = np.random.default_rng(spec.seed)
-    extra = rng.integers(0, 5, size=(spec.extra_runs, len(table)))
+    table, spec = topology(study).levels, study.taguchi
+    lay, extra, jobs = screening_plan(table, spec.extra_runs, spec.seed)
     n_array = len(lay.design)
-    jobs = [tuple(int(v) for v in row) for row in (*lay.design, *extra)]
-    screening = _Screening(jobs, frame, material, study, fork=TAGUCHI_FORK)
+    # solved by this process and a forked child beside it (pipeline.screening)
+    screening = Screening(
+        jobs, lambda levels: _screen_one(levels, frame, material, study), fork=TAGUCHI_FORK,
+        label="stage 1", name="flexopt-taguchi",
+    )  # fmt: skip
     try:
         runs = screening.get(n_array)
-        stage1 = _taguchi_analysis(study, lay, table, runs, extra, screening, torque, theta_t)
+        # the confirmation run solved here while the child goes on with the extra runs
+        stage1 = taguchi_analysis(
+            lay, table, runs, extra, screening.solve,
+            lambda: screening.get(len(screening.jobs))[n_array:], torque, theta_t,
+            spec.pool_below_percent, spec.min_error_dof, study.geometry.topology,
+        )  # fmt: skip
     finally:
         screening.close()
     stage1["time_s"] = time.perf_counter() - t0  # wall time of the whole stage
     return stage1
-
-
-def _taguchi_analysis(
-    study: SeaSpringStudy, lay: Any, table: dict[str, tuple[float, ...]],
-    runs: list[tuple[float, float, str]], extra: np.ndarray, screening: _Screening,
-    torque: float, theta_t: float,
-) -> dict[str, Any]:  # fmt: skip
-    """:func:`run_taguchi` from the array's results ``runs``: the analysis, the confirmation
-    run (solved here) and the ``extra`` runs (from ``screening``, solved beside the array)."""
-    from flexopt.optimise.taguchi import Pool, analyse, confirm
-
-    k = np.array([r[0] for r in runs])
-    sig_per_rad = np.array([r[1] for r in runs])
-    theta = np.degrees(torque / k)
-    sigma = sig_per_rad * np.radians(theta)
-    failed = ~np.isfinite(theta)
-    # A run that cannot be built keeps the array balanced with the worst observed values.
-    theta_err = np.abs(theta - theta_t)
-    if failed.any():
-        theta_err[failed] = np.nanmax(theta_err)
-        sigma[failed] = np.nanmax(sigma)
-    s_max, e_max = float(sigma.max()), float(theta_err.max())
-
-    def cost(sig: float, err: float) -> float:
-        # Eq. 27 on values divided by their largest over the array (positive, so S/N is finite)
-        return 0.5 * sig / s_max + 0.5 * err / e_max
-
-    C = np.array([cost(s, e) for s, e in zip(sigma, theta_err, strict=True)])
-    spec = study.taguchi
-    kw = dict(factor_names=lay.factor_names, columns=lay.columns)
-    result = analyse(
-        lay.array,
-        C,
-        "smaller",
-        pool=Pool(below_percent=spec.pool_below_percent, min_error_dof=spec.min_error_dof),
-        **kw,
-    )
-    best = tuple(int(v) for v in result.best_levels)
-
-    def measure(run: tuple[float, float, str]) -> tuple[float, float, float, float]:
-        kk, sp, _ = run
-        if not math.isfinite(kk):
-            return math.nan, math.nan, math.nan, float(C.max())
-        th = math.degrees(torque / kk)
-        sg = sp * math.radians(th)
-        return kk, th, sg, cost(sg, abs(th - theta_t))
-
-    kb, thb, sgb, cb = measure(screening.solve(best))
-    conf = confirm(result, responses=[cb])
-    n_array = len(runs)
-    extra_c = np.array([measure(r)[3] for r in screening.get(len(screening.jobs))[n_array:]])
-    additivity = (
-        result.additivity(extra_levels=extra, extra_sn=-10.0 * np.log10(extra_c**2))
-        if spec.extra_runs
-        else result.additivity()
-    )
-    i_run = int(np.argmin(C))
-    if cb <= C[i_run]:
-        chosen_levels, chosen_from = best, "S/N optimum (confirmed run)"
-    else:
-        chosen_levels, chosen_from = tuple(int(v) for v in lay.design[i_run]), f"array run {i_run}"
-    anova_rows = [
-        {k2: (float(v) if isinstance(v, float | np.floating) else v) for k2, v in row.items()}
-        for row in result.anova.rows()
-    ]
-    return {
-        "array": lay.array_name,
-        "topology": study.geometry.topology,
-        "torque_Nm": torque,
-        "target_rotation_deg": theta_t,
-        "cost": "C = 0.5 sigma/max(sigma) + 0.5 |theta_T - theta|/max|theta_T - theta| (Eq. 27)",
-        "runs": {
-            **{
-                n: [float(table[n][lv]) for lv in lay.design[:, j]] for j, n in enumerate(table)
-            },  # fmt: skip
-            "stiffness_Nm_per_rad": k.tolist(),
-            "rotation_deg": theta.tolist(),
-            "stress_MPa": sigma.tolist(),
-            "C": C.tolist(),
-            "sn_dB": np.asarray(result.sn).tolist(),
-            "failed": [r[2] for r in runs],
-        },
-        "anova": anova_rows,
-        "main_effects": {
-            me.name: {"levels": [float(v) for v in table[me.name]], "sn_dB": me.sn.tolist()}
-            for me in result.main_effects
-        },
-        "best_levels": dict(zip(lay.factor_names, best, strict=True)),
-        "best_values": _levels_to_values(best, table),
-        "predicted_sn_dB": float(result.predicted_sn),
-        "confirmation": {
-            "stiffness_Nm_per_rad": kb,
-            "rotation_deg": thb,
-            "stress_MPa": sgb,
-            "C": cb,
-            "measured_sn_dB": float(conf.measured_sn),
-            "difference_dB": float(conf.difference),
-            "half_width_dB": float(conf.half_width),
-            "within": bool(conf.within),
-        },
-        "additivity": {
-            "extra_levels": extra.tolist(),
-            "extra_residuals_dB": np.asarray(additivity.extra_residuals).tolist(),
-            "rms_extra_residual_dB": (
-                float(np.sqrt(np.mean(np.square(additivity.extra_residuals))))
-                if spec.extra_runs
-                else None
-            ),
-            "largest_pair": (
-                f"{additivity.pairs[0].a}x{additivity.pairs[0].b}" if additivity.pairs else None
-            ),
-            "notes": list(additivity.notes),
-        },
-        "best_run": {
-            "index": i_run,
-            "C": float(C[i_run]),
-            **_levels_to_values(lay.design[i_run], table),
-        },
-        "chosen": {"from": chosen_from, **_levels_to_values(chosen_levels, table)},
-    }
-
-
-def seed_from_taguchi(
-    chosen: dict[str, float], space: DesignSpace, frame: SpringFrame, n_arcs: int = 5,
-    topology: str = "serpentine",
-) -> np.ndarray:  # fmt: skip
-    """The stage-1 spring as a GA vector: ``n_arcs`` arcs (its other levels kept, arcs spread
-    evenly as in stage 1) or the spiral's variables; clipped into the space."""
-    if topology == "spiral":
-        v = spiral_level_values(chosen)
-        return space.clip(np.array([v[n] for n in SPIRAL_VARIABLES]))
-    n = int(n_arcs)
-    p = taguchi_params(
-        chosen["RP"], (n - 1) // 2, chosen["ST"], chosen["A"], chosen["RT"], chosen["D"], frame
-    )
-    x = np.array(
-        [*p.radii_mm, *p.arc_thickness_mm, *p.link_width_mm, p.hub_link_mm, p.pad_link_mm,
-         p.span_deg, p.thickness_mm]
-    )  # fmt: skip
-    return space.clip(x)
 
 
 # --------------------------------------------------------------------------------------------
@@ -981,15 +549,13 @@ class SeaSpringProblem:
         self.min_gap = study.geometry.min_deformed_slot_mm
         if self.min_gap is not None:
             extra = (*extra, "deformed_slot_mm")
-        self.geometry_constraints = constraint_keys(study)
+        self.geometry_constraints = topology(study).constraints
         self.constraint_names = (*self.geometry_constraints, *extra)
         if stage1 is None and study.taguchi.enabled:
-            from threadpoolctl import threadpool_limits
-
             # One BLAS thread, as in the pool's workers: CHOLMOD's supernodes of a 30k-DOF
             # spring are too small for a second thread to pay (the 31 screening runs took
             # ~4.7 s CPU / 3.8 s wall with two threads, 3.3 s both with one; same answers).
-            with threadpool_limits(1):
+            with one_blas_thread():
                 stage1 = run_taguchi(study)
         self.stage1 = stage1
         self.n_sets = int(stage1["chosen"]["RP"]) if stage1 else design_sets(study)
@@ -1054,7 +620,7 @@ class SeaSpringProblem:
         return np.insert(x, self.names.index("ST"), st)
 
     def params(self, x: np.ndarray, st_mm: float | None = None) -> SpringParams | ArmSpringParams:
-        return params_of(self.study, self.full_vector(x, st_mm), self.n_sets, self.frame)
+        return topology(self.study).params(self.full_vector(x, st_mm), self.n_sets, self.frame)
 
     def nominal_design(self) -> np.ndarray:
         """(n_var,) the study's ``design:`` in this problem's space (ST left out when it is
@@ -1067,8 +633,8 @@ class SeaSpringProblem:
         """The stage-1 spring (five-arc version) or else the study's ``design:``, seeded into
         the first population."""
         if self.stage1:
-            x = seed_from_taguchi(
-                self.stage1["chosen"], self.full_space, self.frame, self.n_arcs, self.topology
+            x = self.full_space.clip(
+                taguchi_seed(self.stage1["chosen"], self.frame, self.n_arcs, self.topology)
             )
         elif self.study.design is not None:
             x = self.full_space.clip(design_vector(self.study))
@@ -1079,7 +645,7 @@ class SeaSpringProblem:
         return x[None, :]
 
     def _margins_g(self, p: SpringParams | ArmSpringParams) -> np.ndarray:
-        m = margins(p, self.frame)
+        m = spring_margins(p, self.frame)
         return -np.array([m[k] for k in self.geometry_constraints])
 
     def solve(self, x: np.ndarray, steps: int = 1, keep_model: bool = False):
@@ -1102,10 +668,9 @@ class SeaSpringProblem:
         if not self.solve_st or not r.ok:
             return p, geom, r, p.thickness_mm
         # The thickness at which the (mean) secant stiffness is the target (or the held one).
-        scale = self.k_target / r.mean_stiffness_Nm_per_rad
-        if self.held_st_mm is not None:
-            scale = self.held_st_mm / p.thickness_mm
-        st = p.thickness_mm * scale
+        scale, st = solve_for_stiffness(
+            p.thickness_mm, r.mean_stiffness_Nm_per_rad, self.k_target, self.held_st_mm
+        )
         p = self.params(x, st)
         # ST is the extrusion: the outline, regions and checks do not depend on it, so the
         # built geometry only takes the new parameters (a second build cost ~25 ms a design).
@@ -1144,46 +709,20 @@ class SeaSpringProblem:
         if not r.ok:
             reason = f"nonlinear solve: {r.message}"
             return Evaluation.failed(x, n_obj, n_con, reason, time.perf_counter() - t0), None
-        mass_g = geom.mass_kg(self.material.density_kg_m3) * 1e3
-        k_mean = r.mean_stiffness_Nm_per_rad
-        err = abs(k_mean / self.k_target - 1.0) * 100.0
-        asym = abs(r.stiffness_Nm_per_rad / k_mean - 1.0) * 100.0
-        peak = r.worst_peak_stress_MPa
-        if self.solve_st:
-            f = np.array([peak, mass_g])
-            g = np.append(g_geo, [st - self.st_range[1], self.st_range[0] - st])
-        else:
-            f = np.array([peak, err])
-            g = np.append(g_geo, err - self.study.target.tolerance_percent)
-        if self.study.target.max_asymmetry_percent is not None:
-            g = np.append(g, asym - self.study.target.max_asymmetry_percent)
-        deformed_gap = math.nan
-        if r.slot_gaps_mm:
-            # no slot found (inf) counts as plenty of room, kept finite for the optimiser
-            deformed_gap = min(
-                [min(v, 1e3) for k, v in r.slot_gaps_mm.items() if k != "undeformed"] or [1e3]
-            )
-        if self.min_gap is not None:
-            g = np.append(g, self.min_gap - deformed_gap)
-        # the thinnest printed size: the thinnest member (its margin + the limit) or the plate
-        i_thin = self.geometry_constraints.index("thinnest_mm")
-        thinnest = float(-g_geo[i_thin]) + self.frame.min_feature_mm
-        metrics = {
-            "ST_mm": st,
-            "min_feature_mm": min(thinnest, st),
-            "stiffness_Nm_per_rad": r.mean_stiffness_Nm_per_rad,
-            "stiffness_ccw_Nm_per_rad": r.stiffness_Nm_per_rad,
-            "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
-            "asymmetry_percent": asym,
-            "linear_stiffness_Nm_per_rad": r.linear_stiffness_Nm_per_rad,
-            "torque_Nm": float(r.torque_Nm[-1]),
-            "peak_stress_MPa": peak,
-            "mass_g": mass_g,
-            "n_dofs": r.n_dofs,
-            "newton_iterations": r.iterations,
-            "fe_time_s": r.solve_time_s,
-            "deformed_slot_mm": deformed_gap,
-        }
+        target = self.study.target
+        f, g, metrics = spring_scores(
+            r,
+            mass_g=geom.mass_kg(self.material.density_kg_m3) * 1e3,
+            st_mm=st,
+            g_geo=g_geo,
+            thinnest_index=self.geometry_constraints.index("thinnest_mm"),
+            min_feature_mm=self.frame.min_feature_mm,
+            target_Nm_per_rad=self.k_target,
+            st_range_mm=self.st_range if self.solve_st else None,
+            tolerance_percent=target.tolerance_percent,
+            max_asymmetry_percent=target.max_asymmetry_percent,
+            min_slot_mm=self.min_gap,
+        )
         return Evaluation(x, f, g, metrics, "", time.perf_counter() - t0), (p, geom, r, st)
 
     @no_numpy_hugepages  # large arrays ahead (pipeline/_hugepages.py)
@@ -1209,7 +748,7 @@ class SeaSpringProblem:
         }
         files: dict[str, bytes] = {}
         if self.stage1:
-            info["taguchi"] = _stage1_summary(self.stage1)
+            info["taguchi"] = stage1_summary(self.stage1)
             if "main_effects" in self.stage1:
                 from flexopt.pipeline.plots import plot_taguchi
 
@@ -1224,11 +763,11 @@ class SeaSpringProblem:
         p, geom, r, st = solved
         info["design"] = dict(zip(self.names, map(float, self.full_vector(x, st)), strict=True))
         # The 3D checks keep this process busy; a second one takes what needs no 3D answer:
-        # the peak convergence and the two 2D solves below (_SideProcess).
+        # the peak convergence and the two 2D solves below (SideProcess).
         s3, side = study.solid_3d, None
         if s3.check and s3.converge_peak:
-            side = _SideProcess.start()
-            side.submit("peak", _peak_job_main, self, geom.params, _worse_direction(r))
+            side = SideProcess.start()
+            side.submit("peak", _peak_job_main, self, geom.params, worse_direction(r))
             side.submit("analyses", _detail_analyses, self, geom)
         try:
             solid = self.solid_3d(geom, r, side) if s3.check else None
@@ -1248,7 +787,7 @@ class SeaSpringProblem:
                 "ccw_stiffness_resolved_at_ST_Nm_per_rad": check.stiffness_Nm_per_rad,
                 "ccw_peak_stress_resolved_at_ST_MPa": float(check.peak_stress_MPa[-1]),
             }
-        table = _curve_table(r)
+        table = curve_table(r)
         volume = geom.volume_mm3
         mass = geom.mass_kg(self.material.density_kg_m3)
         disc_cm3 = math.pi * (0.5 * study.geometry.envelope_diameter_mm) ** 2 * p.thickness_mm
@@ -1285,7 +824,7 @@ class SeaSpringProblem:
                 "checks": geom.checks,
                 "slot_gaps_mm": r.slot_gaps_mm,
                 "mesh": {"dofs": r.n_dofs, "triangles": r.n_triangles},
-                "published_springs": _published_comparison(),
+                "published_springs": published_comparison(),
             }
         )
         height_mm, part_outline = p.thickness_mm, geom.outline
@@ -1334,248 +873,57 @@ class SeaSpringProblem:
 
     @no_numpy_hugepages  # the 3D model's arrays (pipeline/_hugepages.py)
     def solid_3d(
-        self, geom: SpringGeometry, r: SpringResponse, side: _SideProcess | None = None
+        self, geom: SpringGeometry, r: SpringResponse, side: SideProcess | None = None
     ) -> dict[str, Any]:
         """The design as a 3D solid, its thickness corrected for it, its peak stress converged
-        (issue 15; docs/solid3d.md; the study's ``solid_3d:`` block).
-
-        1. **3D check** (:func:`fea.solid3d.compare_with_plane_stress`): the plane mesh of the
-           2D model extruded to ST (P2 tetrahedra, half the thickness, hub turned rigidly, pads
-           held through the thickness), linear at theta_T, beside linear plane stress on the
-           same mesh. The stiffness ratio multiplies each direction's nonlinear 2D stiffness, the
-           vertex-averaged peak-stress ratio the 2D peak: the ratio is a property of the
-           cross-sections, the same at 1 and 11 degrees (issue 15: 1.022 by CalculiX, both).
-        2. **Correction** (``correct``, :func:`fea.solid3d.correct_thickness_3d`): when the
-           ratio is off 1 by more than ``max_fraction_of_tolerance`` of the band, ST becomes
-           ST x K_target / mean K_3D (plane stress is linear in ST, so the 2D answers scale
-           exactly) and is checked in 3D again, until both directions are in the band and the
-           mean is centred, the spread of the directions makes the band unreachable, or
-           ``max_checks`` checks were made. The part is the last checked ST.
-        3. **Converged peak** (``converge_peak``, :func:`fea.solid3d.converge_peak_stress`):
-           the outline rebuilt with its arms sampled every ``curve_step_mm``, the plane mesh
-           refined at the peak of the worse direction (nonlinear) until it moves < 1 %; the 3D
-           peak is that value times the last check's 3D/2D peak ratio. The optimiser's outline
-           is left as it is (its 1.4 deg facets cost nothing in the GA and the stress
-           objective only ranks designs; finer sampling would triple its triangles), but the
-           part exported (:meth:`detail`'s outline: STL, DXF, STEP) is the finely sampled one
-           whose peak converged (issue 22).
-
-        Cost (docs/solid3d.md): the checks share one 3D model (:class:`fea.solid3d.Solid3DModel`:
-        the mesh extruded and assembled once, ST only scales its parts; the first check
-        factorises, the re-checks solve by conjugate gradients preconditioned with that
-        factor); the peak convergence, which needs no 3D answer until its last product, runs
-        meanwhile in a second process (``side``'s "peak" task when the caller started one,
-        else its own).
+        (issue 15; docs/solid3d.md; the study's ``solid_3d:`` block): :func:`fea.sea_design.
+        correct_3d`. The peak convergence, which needs no 3D answer, runs meanwhile in a second
+        process (``side``'s "peak" task when the caller started one, else its own); without
+        one (or if that process could not run it) it runs here.
 
         Returns
         -------
         dict — N m/rad, MPa, mm, s; ``problem`` alone when the 3D model cannot be built.
         """
-        from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings, correct_thickness_3d
-
-        spec, target, s3 = self.study.mesh, self.study.target, self.study.solid_3d
-        t0 = time.perf_counter()
-        st0 = float(geom.thickness_mm)
-        ignore = geom.hub_region.union(geom.pad_region).buffer(0.05)
-        clamp = Clamp(geom.pad_region)
-        regions = geom.mesh_regions(spec.elements_through, spec.max_edge_mm)
-        k2d = {"ccw": r.stiffness_Nm_per_rad}
-        if math.isfinite(r.reverse_stiffness_Nm_per_rad):
-            k2d["cw"] = r.reverse_stiffness_Nm_per_rad
-        peak2d = r.worst_peak_stress_MPa  # plane stress: independent of ST
-        # the 2D peak convergence needs none of the 3D answers: the second core does it
+        s3, target = self.study.solid_3d, self.study.target
+        sign = worse_direction(r)
         own = side is None and s3.converge_peak
         if own:
-            side = _SideProcess.start()
-            side.submit("peak", _peak_job_main, self, geom.params, _worse_direction(r))
-        model: Solid3DModel | None = None
+            side = SideProcess.start()
+            side.submit("peak", _peak_job_main, self, geom.params, sign)
 
-        def check(st: float) -> dict[str, Any]:
-            assert model is not None
-            c = model.compare_with_plane_stress(st)
-            ratio = c["stiffness_ratio"]
-            k2 = {d: k * st / st0 for d, k in k2d.items()}  # torque is proportional to ST
-            return {
-                "stiffness_3d": {d: k * ratio for d, k in k2.items()},
-                "stiffness_2d": k2,
-                "stiffness_ratio_3d_2d": ratio,
-                "peak_stress_ratio_3d_2d": c["peak_stress_ratio"],
-                "linear_stiffness_2d_Nm_per_rad": c["stiffness_2d"] * 1e-3,
-                "linear_stiffness_3d_Nm_per_rad": c["stiffness_3d"] * 1e-3,
-                "peak_stress_3d_MPa": peak2d * c["peak_stress_ratio"],
-                "dofs": c["solid3d"]["n_dofs"],
-                "solver": c["solid3d"]["solver"],
-                "iterations": c["solid3d"]["iterations"],
-                "time_s": c["solid3d"]["times_s"]["total"] + c["time_2d_s"],
-            }
-
-        try:
-            m = mesh_polygon(geom.fe_outline, spec.max_edge_mm, refine=regions)
-            drive = Rotate(geom.hub_region, (0.0, 0.0), self.theta, 1)
-            settings = Solid3DSettings(layers=s3.layers)
-            model = Solid3DModel(m, self.material, clamp, drive, settings, stress_ignore=ignore)
-            corr = correct_thickness_3d(
-                check,
-                st0,
-                self.k_target,
-                target.tolerance_percent,
-                s3.max_fraction_of_tolerance if s3.correct else math.inf,
-                s3.max_checks,
-            )
-        except FeaError as exc:
-            if own:
-                side.close()
-            return {"problem": f"3D check not made: {exc}"}
-        except BaseException:
-            if own:
-                side.close()
-            raise
-        finally:
-            model = None  # its factor holds ~2 GB
-        checks = []
-        for c in corr["checks"]:
-            row = {"ST_mm": c["thickness_mm"], "stiffness_ratio_3d_2d": c["stiffness_ratio_3d_2d"]}
-            for d in k2d:
-                row[f"stiffness_{d}_2d_Nm_per_rad"] = c["stiffness_2d"][d]
-                row[f"stiffness_{d}_3d_Nm_per_rad"] = c["stiffness_3d"][d]
-                row[f"error_{d}_3d_percent"] = c["stiffness_error_percent"][d]
-            row.update(
-                {
-                    "in_band": c["in_band"],
-                    "peak_stress_ratio_3d_2d": c["peak_stress_ratio_3d_2d"],
-                    "peak_stress_3d_MPa": c["peak_stress_3d_MPa"],
-                    "dofs": c["dofs"],
-                    "solver": c["solver"],
-                    "iterations": c["iterations"],
-                    "time_s": c["time_s"],
-                }
-            )
-            checks.append(row)
-        last = corr["checks"][-1]
-        band = corr["band"]
-        out: dict[str, Any] = {
-            "method": "linear 3D / linear plane stress on the same plane mesh, applied to the "
-            "nonlinear 2D answers; ST corrected by the 3D/2D ratio and re-checked in 3D",
-            "corrected": corr["corrected"],
-            "ST_before_mm": corr["thickness_before_mm"],
-            "ST_after_mm": corr["thickness_after_mm"],
-            "stopped": corr["stopped"],
-            "checks": checks,
-            "stiffness_ratio_3d_2d": last["stiffness_ratio_3d_2d"],
-            "peak_stress_ratio_3d_2d": last["peak_stress_ratio_3d_2d"],
-        }
-        for d in k2d:
-            out[f"stiffness_{d}_3d_Nm_per_rad"] = last["stiffness_3d"][d]
-            out[f"stiffness_error_{d}_3d_percent"] = last["stiffness_error_percent"][d]
-        out.update(
-            {
-                "stiffness_band_Nm_per_rad": [
-                    self.k_target * (1 - target.tolerance_percent / 100),
-                    self.k_target * (1 + target.tolerance_percent / 100),
-                ],
-                "stiffness_ok_3d": corr["in_band"],
-                "stiffness_spread_3d_percent": band["spread_percent"],
-                "max_spread_percent": band["max_spread_percent"],
-                "band_reachable": band["reachable"],
-                "peak_stress_2d_MPa": peak2d,
-                "peak_stress_3d_MPa": last["peak_stress_3d_MPa"],
-                "allowable_stress_MPa": target.allowable_stress_MPa,
-                "dofs": last["dofs"],
-                "solver": last["solver"],
-                "time_3d_s": time.perf_counter() - t0,
-            }
-        )
-        if s3.converge_peak:
-            out["peak_convergence"] = self._converged_peak(
-                geom, r, last["peak_stress_ratio_3d_2d"], side
-            )
-            if own:
-                side.close()
-            conv = out["peak_convergence"]
-            if "problem" not in conv:
-                out["peak_stress_3d_MPa"] = conv["peak_stress_3d_MPa"]
-        out["stress_ok_3d"] = bool(out["peak_stress_3d_MPa"] <= target.allowable_stress_MPa)
-        out["time_s"] = time.perf_counter() - t0
-        return out
-
-    def _converged_peak(
-        self,
-        geom: SpringGeometry,
-        r: SpringResponse,
-        ratio_3d_2d: float,
-        side: _SideProcess | None = None,
-    ) -> dict[str, Any]:
-        """The 2D peak of the worse direction on a finely sampled outline, refined until it
-        moves < 1 % (:func:`fea.solid3d.converge_peak_stress`), and the 3D peak from it.
-
-        ``side``: a second process already computing it (its "peak" task); without one (or if
-        that process could not run it) it runs here."""
-        s3 = self.study.solid_3d
-        t0 = time.perf_counter()
-        sign = _worse_direction(r)
-        try:
+        def converged_peak() -> tuple[dict[str, Any], bool]:
             c = side.get("peak") if side is not None else None
-            ran = c is not None
             if c is None:
-                c = _peak_convergence(self, geom.params, sign)
-        except (FeaError, GeometryError) as exc:
-            return {"problem": f"peak-stress convergence not made: {exc}"}
-        return {
-            "direction": "ccw" if sign > 0 else "cw",
-            "curve_step_mm": s3.curve_step_mm,
-            "converged": c["converged"],
-            "status": c["status"],
-            "last_two_MPa": c["last_two_MPa"],
-            "peaks_MPa": c["peaks_MPa"],
-            "local_edge_mm": c["local_edge_mm"],
-            "peak_xy_mm": c["peak_xy_mm"],
-            "corner": c["corner"],
-            "peak_stress_2d_MPa": c["last_two_MPa"][-1],
-            "peak_stress_3d_MPa": c["last_two_MPa"][-1] * ratio_3d_2d,
-            # the convergence's own time (in the second process, beside the 3D checks) and
-            # how long the report waited for it here
-            "time_s": c["time_s"],
-            "wait_s": time.perf_counter() - t0,
-            "process": "second" if ran else "this",
-        }
+                return _peak_convergence(self, geom.params, sign), False
+            return c, True
 
-
-def _worse_direction(r: SpringResponse) -> float:
-    """+1 (ccw) or -1 (cw): the direction of the larger 2D peak stress."""
-    rev = r.reverse_peak_stress_MPa
-    return -1.0 if rev is not None and float(rev[-1]) > float(r.peak_stress_MPa[-1]) else 1.0
+        try:
+            return correct_3d(
+                geom, r, self.material, self.theta, self.k_target, target.tolerance_percent,
+                target.allowable_stress_MPa, self.study.mesh, s3, converged_peak,
+            )  # fmt: skip
+        finally:
+            if own:
+                side.close()
 
 
 def _peak_convergence(
     prob: SeaSpringProblem, params: SpringParams | ArmSpringParams, sign: float
 ) -> dict[str, Any]:
-    """:func:`fea.solid3d.converge_peak_stress` on the design rebuilt with its arms sampled
-    every ``solid_3d.curve_step_mm``, nonlinear, hub turned by ``sign`` theta_T (picklable:
-    :class:`_SideProcess` runs it in a second process). Raises FeaError, GeometryError."""
-    from flexopt.fea.solid3d import converge_peak_stress
-
-    spec = prob.study.mesh
-    smooth = _fine_geometry(prob, params)
-    return converge_peak_stress(
-        smooth.fe_outline, smooth.thickness_mm, prob.material, Clamp(smooth.pad_region),
-        Rotate(smooth.hub_region, (0.0, 0.0), sign * prob.theta, 1), spec.max_edge_mm,
-        refine=smooth.mesh_regions(spec.elements_through, spec.max_edge_mm),
-        stress_ignore=smooth.hub_region.union(smooth.pad_region).buffer(0.05),
-        kinematics="nonlinear",
+    """:func:`fea.sea_design.peak_convergence` of a design of ``prob`` (the worse direction
+    ``sign``). Raises FeaError, GeometryError."""
+    return peak_convergence(
+        params, prob.frame, prob.material, prob.theta, sign, prob.study.mesh,
+        prob.study.solid_3d.curve_step_mm,
     )  # fmt: skip
 
 
 def _fine_geometry(
     prob: SeaSpringProblem, params: SpringParams | ArmSpringParams
 ) -> SpringGeometry:
-    """The design as the peak-stress convergence meshes it and as its part is exported: the
-    arms sampled every ``solid_3d.curve_step_mm`` (the serpentine's arcs also at 0.25 deg).
-    Raises GeometryError."""
-    s3 = prob.study.solid_3d
-    if isinstance(params, ArmSpringParams):
-        return build_arm_spring(params, prob.frame, curve_step_mm=s3.curve_step_mm)
-    frame = replace(prob.frame, arc_step_deg=0.25, arc_step_mm=s3.curve_step_mm)
-    return build_spring(params, frame)
+    """:func:`fea.sea_design.fine_geometry`: the outline the peak converged on, exported."""
+    return fine_geometry(params, prob.frame, prob.study.solid_3d.curve_step_mm)
 
 
 def _peak_job_main(prob: SeaSpringProblem, params: Any, sign: float) -> dict[str, Any]:
@@ -1591,200 +939,6 @@ def _detail_analyses(
     spec = prob.study.mesh
     check = analyse_spring(geom, prob.material, prob.theta, spec) if prob.solve_st else None
     return check, analyse_spring(geom, prob.material, math.radians(1.0), spec)
-
-
-def _side_main(conn: Any) -> None:
-    """The side process: run the tasks it is sent, one after the other, until told to stop
-    (None), its pipe closes or its parent is gone. Starts as pipeline.parallel's workers."""
-    import os
-    import signal
-
-    from flexopt.pipeline.parallel import PARENT_CHECK_S, _limit_loaded_pools, pin_threads
-
-    pin_threads()  # one BLAS thread: the first process factorises beside it
-    _limit_loaded_pools()
-    # Ctrl-C reaches the whole process group: the first process decides (and ends this one);
-    # a forked child inherits the CLI's SIGTERM handler, but is ended by its parent and must
-    # then end at once, as a process normally does
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    parent = os.getppid()
-    while True:
-        try:
-            while not conn.poll(PARENT_CHECK_S):
-                if os.getppid() != parent:  # orphaned (a forked copy of the pipe stays open)
-                    return
-            task = conn.recv()
-        except (EOFError, OSError):
-            return
-        if task is None:
-            return
-        name, func, args = task
-        try:
-            out: tuple[str, Any] = ("ok", func(*args))
-        except Exception as exc:
-            out = ("error", exc)
-        try:
-            conn.send((name, out))
-        except Exception as exc:  # a result or an exception that does not pickle
-            conn.send((name, ("error", RuntimeError(f"{type(exc).__name__}: {exc}"))))
-
-
-class _SideProcess:
-    """One worker process for the report's work that needs no 3D answer.
-
-    The 3D checks keep this process busy (assembly, one factorisation, triangular solves);
-    the peak convergence (nonlinear plane-stress solves on refined meshes, ~10 s CPU on the
-    default study) and the detail's two extra 2D solves depend only on the design, so they
-    run beside them on the second core. Where a process cannot be started (a daemonic
-    worker), or dies or fails on a task, :meth:`get` gives None and the caller computes it
-    itself; FeaError and GeometryError of a task come back raised.
-    """
-
-    def __init__(self, process: Any = None, conn: Any = None) -> None:
-        self._process, self._conn = process, conn
-        self._sent: set[str] = set()
-        self._results: dict[str, tuple[str, Any]] = {}
-
-    @classmethod
-    def start(cls) -> _SideProcess:
-        try:
-            from flexopt.pipeline.parallel import _context
-
-            ctx = _context()
-            conn, child_conn = ctx.Pipe()
-            process = ctx.Process(target=_side_main, args=(child_conn,), daemon=True,
-                                  name="flexopt-report-side")  # fmt: skip
-            process.start()
-            child_conn.close()
-            return cls(process, conn)
-        except Exception as exc:  # no second process here: the callers compute in this one
-            log.info("report work in this process only (%s)", exc)
-            return cls()
-
-    def submit(self, name: str, func: Any, *args: Any) -> None:
-        if self._conn is None:
-            return
-        try:
-            self._conn.send((name, func, args))
-            self._sent.add(name)
-        except Exception as exc:  # an argument that does not pickle: computed here
-            log.info("report task %s stays in this process (%s)", name, exc)
-
-    def get(self, name: str) -> Any:
-        """The task's result, or None when the caller must compute it."""
-        if name not in self._sent:
-            return None
-        self._sent.discard(name)
-        from flexopt.pipeline.parallel import PARENT_CHECK_S
-
-        try:
-            while name not in self._results:
-                if self._conn.poll(PARENT_CHECK_S):
-                    done, out = self._conn.recv()
-                    self._results[done] = out
-                elif not self._process.is_alive():
-                    raise RuntimeError(f"it ended (exit code {self._process.exitcode})")
-        except Exception as exc:  # died (killed, out of memory) or a broken pipe
-            log.warning("report task %s: the second process failed (%s); redone here", name,
-                        exc)  # fmt: skip
-            self.close()
-            return None
-        status, value = self._results.pop(name)
-        if status == "ok":
-            return value
-        if isinstance(value, FeaError | GeometryError):
-            raise value
-        log.warning("report task %s failed in the second process (%s); redone here", name,
-                    value)  # fmt: skip
-        return None
-
-    def close(self) -> None:
-        """Stop the process (at once: a result not fetched is not needed)."""
-        if self._process is not None:
-            self._process.terminate()
-            self._process.join(5.0)
-            if self._process.is_alive():
-                self._process.kill()
-                self._process.join()
-            self._conn.close()
-        self._process = self._conn = None
-        self._sent.clear()
-
-
-def solid_3d_scalars(s3: dict[str, Any]) -> dict[str, Any]:
-    """The scalars of :meth:`SeaSpringProblem.solid_3d` the verdict judges (info / summary)."""
-    keys = (
-        "stiffness_ccw_3d_Nm_per_rad", "stiffness_cw_3d_Nm_per_rad", "peak_stress_3d_MPa",
-        "stiffness_spread_3d_percent", "stiffness_ratio_3d_2d",
-    )  # fmt: skip
-    out = {k: s3[k] for k in keys if k in s3}
-    if "ST_after_mm" in s3:
-        out["ST_3d_mm"] = s3["ST_after_mm"]
-    conv = s3.get("peak_convergence") or {}
-    if "converged" in conv:
-        out["peak_stress_converged"] = conv["converged"]
-    return out
-
-
-_GEOMETRY_CONSTRAINTS = ("envelope_mm", "thinnest_mm", "slot_mm", "link_reach_mm")
-_SPIRAL_CONSTRAINTS = ("envelope_mm", "thinnest_mm", "slot_mm", "hub_mm")
-
-
-def _curve_table(r: SpringResponse) -> dict[str, np.ndarray]:
-    """Torque-rotation rows, clockwise (negative) rows first when there are any."""
-    rot, torque, stress = r.rotation_deg, r.torque_Nm, r.peak_stress_MPa
-    if r.reverse_torque_Nm is not None:
-        rot = np.concatenate([-rot[:0:-1], rot])
-        torque = np.concatenate([r.reverse_torque_Nm[:0:-1], torque])
-        stress = np.concatenate([r.reverse_peak_stress_MPa[:0:-1], stress])
-    return {
-        "rotation_deg": rot,
-        "torque_Nm": torque,
-        "torque_linear_Nm": r.linear_stiffness_Nm_per_rad * np.radians(rot),
-        "peak_stress_MPa": stress,
-    }
-
-
-def _stage1_summary(stage1: dict[str, Any]) -> dict[str, Any]:
-    keys = (
-        "array", "topology", "torque_Nm", "target_rotation_deg", "cost", "runs", "anova",
-        "main_effects", "best_values",
-        "predicted_sn_dB", "confirmation", "additivity", "best_run", "chosen", "time_s",
-    )  # fmt: skip
-    return {k: stage1[k] for k in keys if k in stage1}
-
-
-def _published_comparison() -> list[dict[str, Any]]:
-    rows = []
-    for s in PUBLISHED_SPRINGS:
-        t, d = s["thickness_mm"], s["diameter_mm"]
-        vol = math.pi * (0.5 * d) ** 2 * t * 1e-3 if t and d else None  # cm^3, full disc
-        rows.append(
-            {
-                **s,
-                "stiffness_per_disc_volume_Nm_per_rad_cm3": (
-                    s["stiffness_Nm_per_rad"] / vol if vol else None
-                ),
-                "torque_per_disc_volume_Nm_per_cm3": s["torque_Nm"] / vol if vol else None,
-            }
-        )
-    return rows
-
-
-def stress_map_png(stress_map: dict[str, Any], allowable_MPa: float | None = None,
-                   title: str = "") -> bytes:  # fmt: skip
-    """PNG of a von Mises map of :func:`_stress_map_data` (``flexopt run`` draws the same map
-    from ``DesignDetail.field_map`` as ``stress_map.png``)."""
-    from flexopt.pipeline.plots import plot_field
-
-    return plot_field(
-        stress_map["points_mm"],
-        stress_map["triangles"],
-        stress_map["von_mises_MPa"],
-        limit=allowable_MPa,
-        title=title or "von Mises stress at the design torque",
-    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -1851,7 +1005,7 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
             raise StudyError("design", str(exc)) from exc
         times.append(time.perf_counter() - t0)
     assert r is not None and geom is not None and p is not None
-    table = _curve_table(r)
+    table = curve_table(r)
     summary = {
         "ST_mm": st,
         "stiffness_Nm_per_rad": r.mean_stiffness_Nm_per_rad,
@@ -1867,7 +1021,7 @@ def evaluate(study: SeaSpringStudy, repeat: int = 1) -> EvaluationResult:
         "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
         # the thinnest printed size: the thinnest member or the plate (as flexopt run's metric)
         "min_feature_mm": min(
-            margins(p, prob.frame)["thinnest_mm"] + prob.frame.min_feature_mm, st
+            spring_margins(p, prob.frame)["thinnest_mm"] + prob.frame.min_feature_mm, st
         ),
     }
     if r.slot_gaps_mm:

@@ -27,7 +27,6 @@ YAML (SI, as the data sheets; the drive defaults are the paper's Tables 3–4)::
 from __future__ import annotations
 
 import dataclasses
-import io
 import math
 import time
 from typing import Any, Literal
@@ -45,10 +44,9 @@ from flexopt.fea.sea_window import (
     torque_bandwidth_rad_per_s,
 )
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.plots import plot_sea_bode, plot_sea_peak_torque
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, MaterialSpec, Study
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from pydantic import BaseModel, Field, model_validator
 
 __all__ = ["SeaWindowStudy", "evaluate", "check", "drive"]
@@ -192,8 +190,8 @@ def evaluate(study: SeaWindowStudy, repeat: int = 1) -> EvaluationResult:
         "converged": np.asarray(curve.converged, dtype=bool),
     }
     files = {
-        "peak_torque.png": peak_torque_png(curve, window, k),
-        "bode.png": bode_png(
+        "peak_torque.png": plot_sea_peak_torque(curve, window, k),
+        "bode.png": plot_sea_bode(
             [
                 bode_data(kk, motor, gearbox, study.required_torque_Nm)
                 for kk in sorted(bode_ks)
@@ -224,61 +222,6 @@ def evaluate(study: SeaWindowStudy, repeat: int = 1) -> EvaluationResult:
         headline=tuple(summary),
         files=files,
     )
-
-
-def peak_torque_png(curve: Any, window: Any, k: float | None) -> bytes:
-    """Peak spring and gearbox torque after the collision against K (Figs. 8–9), the limit,
-    K_max and the checked K."""
-    fig = Figure(figsize=(6.6, 4.6), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    ks = curve.stiffness_Nm_per_rad
-    ax.plot(ks, curve.peak_spring_torque_Nm, "-", label="peak spring torque K θ2")
-    ax.plot(ks, curve.peak_gearbox_torque_Nm, "--", label="peak gearbox torque G_k (θ1 − θ2)")
-    ax.plot(ks, curve.rigid_frictionless_Nm, ":", color="0.4", label="rigid, frictionless estimate")
-    limit = curve.torque_limit_Nm
-    ax.axhline(limit, color="C3", lw=1, label=f"limit {limit:g} N·m")
-    if math.isfinite(window.k_max_Nm_per_rad):
-        ax.axvline(window.k_max_Nm_per_rad, color="C3", ls="--", lw=1,
-                   label=f"K_max {window.k_max_Nm_per_rad:.4g}")  # fmt: skip
-    ax.axvspan(window.k_min_Nm_per_rad, max(window.k_min_Nm_per_rad, window.k_max_Nm_per_rad),
-               color="C2", alpha=0.12, label="window")  # fmt: skip
-    if k is not None:
-        ax.axvline(k, color="k", lw=1, label=f"K = {k:g}")
-    ax.set_xscale("log")
-    ax.set_xlabel("spring stiffness K (N·m/rad)")
-    ax.set_ylabel("peak torque after the collision (N·m)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=120)
-    return buf.getvalue()
-
-
-def bode_png(bodes: list[Any], required_bandwidth_Hz: float) -> bytes:
-    """Bode magnitude of the locked-output torque transfer (Fig. 11) for several K, with the
-    required torque ratio and the required bandwidth."""
-    fig = Figure(figsize=(6.6, 4.6), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    for b in bodes:
-        ax.semilogx(b.frequency_Hz, b.magnitude_dB,
-                    label=f"K = {b.stiffness_Nm_per_rad:.4g} N·m/rad: "
-                          f"{b.bandwidth_rad_per_s / (2 * math.pi):.3g} Hz")  # fmt: skip
-    if bodes:
-        ratio = bodes[0].required_ratio
-        ratio_dB = 20 * math.log10(ratio)
-        label = f"required ratio {ratio:.4g} ({ratio_dB:.1f} dB)"
-        ax.axhline(ratio_dB, color="C3", lw=1, label=label)
-    ax.axvline(required_bandwidth_Hz, color="k", ls="--", lw=1,
-               label=f"required {required_bandwidth_Hz:g} Hz")  # fmt: skip
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("|T_out / T_sat| (dB)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=120)
-    return buf.getvalue()
 
 
 register(

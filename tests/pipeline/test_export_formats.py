@@ -263,7 +263,7 @@ def test_sea_spring_exports_the_outline_its_peak_converged_on_hub_bore_at_origin
     wkb = tmp_path / "meshed.wkb"
     _capture_meshed_outline(monkeypatch, wkb)
     # no second process: the peak convergence (replaced above) runs here
-    monkeypatch.setattr(ss._SideProcess, "start", classmethod(lambda cls: cls()))
+    monkeypatch.setattr(ss.SideProcess, "start", classmethod(lambda cls: cls()))
     study = validate_study(SEA_STUDY)
     prob = ss.SeaSpringProblem(study, stage1={})
     x = np.delete(ss.design_vector(study), prob.names.index("ST"))

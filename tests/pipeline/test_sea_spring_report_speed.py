@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 from flexopt.fea.mesh import mesh_polygon
 from flexopt.fea.plane_stress import Clamp, Rotate
+from flexopt.fea.sea_design import worse_direction
 from flexopt.fea.solid3d import Solid3DSettings, compare_with_plane_stress
 from flexopt.fea.spring_analysis import analyse_spring
 from flexopt.pipeline._hugepages import without_numpy_hugepages
+from flexopt.pipeline.screening import SideProcess
 from flexopt.pipeline.study import validate_study
 
 STUDY = {
@@ -89,7 +91,7 @@ def test_second_process_work_equals_this_process_work(monkeypatch):
     conv = info["solid_3d"]["peak_convergence"]
     assert conv["process"] == "second" and conv["time_s"] != float(os.getpid())
     _, geom, r, _ = prob.solve(x, prob.study.mesh.curve_steps)
-    here = fake_convergence(prob, geom.params, ss._worse_direction(r))
+    here = fake_convergence(prob, geom.params, worse_direction(r))
     assert conv["peaks_MPa"] == here["peaks_MPa"]
     ratio = info["solid_3d"]["checks"][-1]["peak_stress_ratio_3d_2d"]
     assert conv["peak_stress_3d_MPa"] == here["last_two_MPa"][-1] * ratio
@@ -145,7 +147,7 @@ def test_side_process_death_and_errors_come_back(monkeypatch):
     from flexopt.fea.errors import FeaError
 
     monkeypatch.setattr(parallel, "_context", lambda: multiprocessing.get_context("fork"))
-    side = ss._SideProcess.start()
+    side = SideProcess.start()
     side.submit("sum", sum, [1.0, 2.5])
     side.submit("fea", _fail_fea)
     assert side.get("sum") == 3.5

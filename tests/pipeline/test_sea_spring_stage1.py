@@ -12,6 +12,7 @@ import threading
 import time
 from pathlib import Path
 
+import flexopt.pipeline.screening as screening_mod
 import flexopt.pipeline.studies.sea_spring as ss
 import pytest
 from flexopt.pipeline.study import validate_study
@@ -34,8 +35,8 @@ needs_fork = pytest.mark.skipif(FORK is None, reason="stage 1 forks only on Linu
 def _fork_beside_the_timeout_thread(monkeypatch):
     # Stage 1 does not fork from a process that runs other threads; pytest-timeout's thread
     # (timeout_method = "thread") only waits for the test to end, so the tests let it fork.
-    real = ss._fork_context_here
-    monkeypatch.setattr(ss, "_fork_context_here", lambda: FORK)
+    real = screening_mod.fork_context_here
+    monkeypatch.setattr(screening_mod, "fork_context_here", lambda: FORK)
     return real
 
 
@@ -80,7 +81,7 @@ def _solved_in_child(caplog: pytest.LogCaptureFixture) -> int:
 @needs_fork
 def test_forked_stage1_equals_the_serial_one_and_leaves_no_process(monkeypatch, caplog):
     before = _children()
-    with caplog.at_level(logging.INFO, logger=ss.__name__):
+    with caplog.at_level(logging.INFO, logger=screening_mod.__name__):
         serial, _ = _stage1(False, monkeypatch)
         assert not any("second process" in r.message for r in caplog.records)
         forked, stage1 = _stage1(True, monkeypatch)
@@ -132,10 +133,13 @@ def test_a_child_that_dies_or_hangs_leaves_its_runs_to_this_process(
     jobs = [(0, 0, 0, 0, 0, 0), (1, 2, 3, 4, 0, 1), (0, 1, 2, 3, 4, 0), (1, 1, 1, 1, 1, 1)]
     serial = [ss._screen_one(levels, frame, material, study) for levels in jobs]
     before = _children()
-    monkeypatch.setattr(ss, "_screening_child", child)
-    screening = ss._Screening(jobs, frame, material, study, fork=True)
+    monkeypatch.setattr(screening_mod, "screening_child", child)
+    screening = screening_mod.Screening(
+        jobs, lambda levels: ss._screen_one(levels, frame, material, study), fork=True,
+        label="stage 1",
+    )  # fmt: skip
     assert screening._process is not None
-    with caplog.at_level(logging.INFO, logger=ss.__name__):
+    with caplog.at_level(logging.INFO, logger=screening_mod.__name__):
         try:
             got = screening.get(len(jobs))
         finally:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import yaml
 from flexopt.fea.spring_analysis import analyse_spring, slot_gaps_mm, stress_map_data
+from flexopt.geometry.arm_spring import SPIRAL_VARIABLES
 from flexopt.geometry.sea_spring import (
     GA_VARIABLES,
     TABLE9_BOUNDS,
@@ -20,7 +21,9 @@ from flexopt.geometry.sea_spring import (
     params_from_vector,
 )
 from flexopt.optimise import DesignProblem
+from flexopt.optimise.sea_cost import levels_to_values
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.plots import plot_field
 from flexopt.pipeline.study import list_examples, load_study, validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
@@ -142,7 +145,7 @@ def test_stress_map_png_is_drawn():
     r = analyse_spring(geom, prob.material, 0.05, prob.study.mesh, keep_model=True)
     data = stress_map_data(r)
     assert len(data["von_mises_MPa"]) == len(data["points_mm"])
-    png = ss.stress_map_png(data, 800.0)
+    png = plot_field(data["points_mm"], data["triangles"], data["von_mises_MPa"], limit=800.0)
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -189,7 +192,7 @@ def test_spiral_problem_contract_and_solved_thickness():
     assert prob.constraint_names[:4] == ("envelope_mm", "thinnest_mm", "slot_mm", "hub_mm")
     pickle.loads(pickle.dumps(prob))
     x0 = prob.initial_designs()[0]
-    assert np.allclose(x0, [SPIRAL_DESIGN[n] for n in ss.SPIRAL_VARIABLES[:-1]])
+    assert np.allclose(x0, [SPIRAL_DESIGN[n] for n in SPIRAL_VARIABLES[:-1]])
     ev = prob.evaluate(x0)
     assert ev.reason == "", ev.reason  # solved (feasible or not: ST may leave 8-20 mm)
     # both directions: the solved ST makes the mean secant stiffness the target
@@ -208,12 +211,12 @@ def test_spiral_screening_run_builds_or_explains_every_l25_row():
 
     study = validate_study(SPIRAL)
     frame = ss.spring_frame(study)
-    table = ss.factor_levels(study)
+    table = ss.topology(study).levels
     lay = select_array({n: len(v) for n, v in table.items()})
     built = 0
     for row in lay.design:
-        values = ss._levels_to_values(row, table)
-        p = ss.screen_params(values, frame, "spiral", study.geometry.root_fillet_mm)
+        values = levels_to_values(row, table)
+        p = ss.topology(study).screen_params(values, frame)
         try:
             ss.build(p, frame)
             built += 1
