@@ -45,7 +45,7 @@ from flexopt.geometry.cam import (
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.targets import (
     TargetCurve,
@@ -324,7 +324,7 @@ def evaluate(study: CamStudy, repeat: int = 1) -> EvaluationResult:
 # Optimise: size the springs and rest radius
 
 
-class CamProblem:
+class CamProblem(DesignProblem):
     """Smallest (or flattest) cam for the target within the pressure-angle and contact limits.
 
     Variables: the study's ``design_space`` (default: rest radius and spring rate, ±50 % around

@@ -59,7 +59,7 @@ from flexopt.geometry.constant_force import min_feature_mm as design_min_feature
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.curve_metrics import CurveMetrics, curve_metrics
 from flexopt.optimise.evaluation import Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
@@ -428,7 +428,7 @@ def _thinnest(design: ConstantForceDesign) -> tuple[str, float]:
     return names[i], float(t[i])
 
 
-class ConstantForceProblem:
+class ConstantForceProblem(DesignProblem):
     """The :class:`optimise.DesignProblem` of a ``constant_force`` study.
 
     Holds only the validated study and plain numbers, so it pickles small and each worker

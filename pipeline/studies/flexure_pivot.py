@@ -60,7 +60,7 @@ from flexopt.geometry.flexures import (
     VariableLeaf,
 )
 from flexopt.optimise.evaluation import Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, Figure
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
@@ -393,7 +393,7 @@ def check(study: FlexurePivotStudy) -> None:
 # The design problem
 
 
-class FlexurePivotProblem:
+class FlexurePivotProblem(DesignProblem):
     """The :class:`optimise.DesignProblem` of a ``flexure_pivot`` study (picklable)."""
 
     objective_names = ("stress_ratio",)

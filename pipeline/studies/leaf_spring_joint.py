@@ -43,7 +43,7 @@ from flexopt.fea.materials import Material, get_material
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.leaf_joint import LeafJoint
 from flexopt.optimise.evaluation import Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
@@ -379,7 +379,7 @@ def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
 # Design: flexopt run
 
 
-class LeafJointProblem:
+class LeafJointProblem(DesignProblem):
     """Design the joint arm, leaf thickness and width for a stiffness range (picklable).
 
     For a design x = (l_j, t, b) the support travels between l_min and l_max, the free lengths

@@ -75,7 +75,7 @@ from flexopt.geometry.mechanism import (
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.names import check_name
-from flexopt.optimise.problem import CaseResponse, DesignDetail
+from flexopt.optimise.problem import CaseResponse, DesignDetail, DesignProblem
 from flexopt.optimise.requirements import (
     MinFeature,
     Range,
@@ -1312,7 +1312,7 @@ def _solve_width(
     return ref_width * scale, ""
 
 
-class MechanismProblem:
+class MechanismProblem(DesignProblem):
     """The :class:`optimise.DesignProblem` of a ``mechanism`` study (picklable, deterministic,
     never raises for a bad design)."""
 

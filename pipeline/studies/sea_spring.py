@@ -86,7 +86,7 @@ from flexopt.geometry.sea_spring import (
     taguchi_params,
 )
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import (
     PLANE_STRESS,
     SOLID_3D,
@@ -926,7 +926,7 @@ def seed_from_taguchi(
 # Stage 2: the design problem
 
 
-class SeaSpringProblem:
+class SeaSpringProblem(DesignProblem):
     """The NSGA-II problem of stage 2 (picklable; stage 1 runs in the constructor).
 
     With ``thickness: solve`` (default) the variables are the 17 planform variables of Table 9

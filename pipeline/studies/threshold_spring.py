@@ -69,7 +69,7 @@ from flexopt.geometry.threshold_spring import (
 )
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, SOLID_3D
 from flexopt.optimise.requirements import Figure as FigureOf
 from flexopt.optimise.space import DesignSpace
@@ -313,7 +313,7 @@ def check(study: ThresholdSpringStudy) -> None:
 # The design problem
 
 
-class ThresholdSpringProblem:
+class ThresholdSpringProblem(DesignProblem):
     """GA over the arm shape; ST solved from the target; beam model per design.
 
     Objective: the error measure (``f[0]``). Constraints (``g <= 0``): error − tolerance,
