@@ -3,9 +3,10 @@
 A kind is one module in this package that calls :func:`register` with a :class:`StudyKind`: the
 pydantic model of its whole study, a ``check`` that builds the geometry and material once, and a
 design ``problem`` (whose nominal design's :meth:`~optimise.problem.DesignProblem.result` is what
-``flexopt evaluate`` shows) or an ``evaluate`` that solves the study. The CLI and the runner know only this registry, so a new kind
-is a new module here and touches no other file (modules are discovered on first use; names
-starting with ``_`` are skipped so they can hold shared helpers).
+``flexopt evaluate`` shows) or an ``evaluate`` that solves the study. The CLI and the runner
+know only this registry, so a new kind is a new module here and touches no other file (modules
+are discovered on first use; names starting with ``_`` are skipped so they can hold shared
+helpers).
 
 A kind may also come from a package of the user's own, through the entry-point group
 ``flexopt.kinds`` (docs/plugins.md). The entry point's name is the kind's name; its value is either
