@@ -19,6 +19,8 @@ _EXPORTS = {
     "run_ga": "ga",
     "DesignDetail": "problem",
     "DesignProblem": "problem",
+    "DesignResult": "problem",
+    "as_design_problem": "problem",
     "DesignSpace": "space",
     "analyse": "taguchi",
     "get_array": "taguchi",

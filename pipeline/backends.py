@@ -12,7 +12,7 @@ import logging
 from collections.abc import Iterator
 from typing import Any
 
-from flexopt.optimise.problem import DesignProblem
+from flexopt.optimise.problem import DesignProblem, as_design_problem
 from flexopt.pipeline.parallel import (
     BackendError,
     BatchBackend,
@@ -68,17 +68,12 @@ def _warm_up_kernels(problem: DesignProblem) -> None:
 
     Forked workers inherit them; otherwise each would compile them on its first design (in a
     fresh install ~14 s CPU each, all at once) or load them from numba's cache. A problem names
-    its kernels by an optional ``warm_up()`` (the constrained-beam kinds load the constrained
-    engine's too, ~18 s CPU once per install); else the beam kernel, which most kinds use, is
-    loaded. A failure here is not the run's: the workers then compile or fall back on their own.
+    its kernels by :meth:`~optimise.problem.DesignProblem.warm_up` (the constrained-beam kinds
+    load the constrained engine's too, ~18 s CPU once per install; the default loads the beam
+    kernel, which most kinds use). A failure here is not the run's: the workers then compile or
+    fall back on their own.
     """
     try:
-        hook = getattr(problem, "warm_up", None)
-        if callable(hook):
-            hook()
-        else:
-            from flexopt.fea.beam import warm_up
-
-            warm_up()
+        as_design_problem(problem).warm_up()
     except Exception:  # noqa: BLE001 - only an optimisation
         log.debug("kernel warm-up failed", exc_info=True)

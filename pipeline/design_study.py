@@ -33,7 +33,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from flexopt.optimise.problem import DesignProblem
+from flexopt.optimise.problem import DesignProblem, as_design_problem
 from flexopt.optimise.variables import (
     VariableError,
     VariableSpec,
@@ -81,9 +81,9 @@ def design_values(study: Study, problem: DesignProblem, x: np.ndarray) -> dict[s
     """
     names = tuple(problem.space.names)
     values = {name: float(v) for name, v in zip(names, np.asarray(x, float).ravel(), strict=True)}
-    hook = getattr(problem, "study_values", None)
-    if callable(hook):
-        return dict(hook(np.asarray(x, dtype=float)))
+    own = as_design_problem(problem).study_values(np.asarray(x, dtype=float))
+    if own is not None:
+        return dict(own)
     specs = getattr(study, "variables", None)
     if specs and all(isinstance(s, VariableSpec) for s in specs):
         return {f"variables[{i}].initial": values[n] for i, n in enumerate(names)}
@@ -131,7 +131,8 @@ def design_study(
         the design (naming the variable and both values).
     """
     x = np.asarray(x, dtype=float).ravel()
-    inner = getattr(problem, "study", None)
+    problem = as_design_problem(problem)
+    inner = problem.study
     if isinstance(inner, Study) and inner.kind != study.kind:
         # a kind that optimises another kind's study (gripper: its resolved constant_force
         # study): the design lives in that study, which is what the run optimised
@@ -140,7 +141,7 @@ def design_study(
     if (
         specs
         and all(isinstance(s, VariableSpec) for s in specs)
-        and not callable(getattr(problem, "study_values", None))
+        and problem.study_values(x) is None
     ):
         return _checked(study, problem, x, _with_variables(study, x), name)
     changes = design_values(study, problem, x)

@@ -13,9 +13,11 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from flexopt.optimise.problem import DesignResult
 from flexopt.optimise.requirements import verdict_record
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plots import plot_cases, plot_response
+from flexopt.pipeline.problems import can_evaluate, study_result
 from flexopt.pipeline.report_html import evaluate_html
 from flexopt.pipeline.responses import stacked_table, stress_allowable
 from flexopt.pipeline.robustness import run_robustness
@@ -28,9 +30,9 @@ from flexopt.pipeline.runfolder import (
     to_json,
     write_atomic,
 )
-from flexopt.pipeline.studies import EvaluationResult, get_kind
+from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.study import Study, study_to_yaml
-from flexopt.pipeline.verdict import judge
+from flexopt.pipeline.verdict import judge_result
 
 __all__ = [
     "EVALUATE_FILES",
@@ -69,7 +71,7 @@ class EvaluateOutcome:
     """Where the results went and what they say."""
 
     run_dir: Path
-    result: EvaluationResult
+    result: DesignResult
     record: dict[str, Any]
 
 
@@ -87,8 +89,8 @@ def versions() -> dict[str, str | None]:
 _FILE_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
-def _extra_files(result: EvaluationResult) -> dict[str, bytes]:
-    """The kind's own files (``EvaluationResult.files``), checked to be plain new file names."""
+def _extra_files(result: DesignResult) -> dict[str, bytes]:
+    """The kind's own files (``DesignResult.files``), checked to be plain new file names."""
     files = {}
     for name, data in result.files.items():
         if not _FILE_NAME_RE.match(name) or name in EVALUATE_FILES:
@@ -98,20 +100,21 @@ def _extra_files(result: EvaluationResult) -> dict[str, bytes]:
     return files
 
 
-def solve_study(study: Study, repeat: int = 1, source: str = "") -> EvaluationResult:
-    """Solve ``study`` ``repeat`` times with its kind's ``evaluate`` and judge the last solve.
+def solve_study(study: Study, repeat: int = 1, source: str = "") -> DesignResult:
+    """Solve the design ``study`` describes ``repeat`` times
+    (:func:`pipeline.problems.study_result`) and judge the last solve.
 
     The result's ``verdicts`` are the kind's own, else the study's requirements judged on its
-    summary and table (:func:`pipeline.verdict.judge`). Nothing is written.
+    values and table (:func:`pipeline.verdict.judge_result`). Nothing is written.
 
     Raises
     ------
     StudyError
-        When the kind has no ``evaluate`` (it is only optimised: ``flexopt run``) or the solver
+        When the kind cannot be evaluated (it is only optimised: ``flexopt run``) or the solver
         refuses the inputs.
     """
     kind = get_kind(study.kind)
-    if kind.evaluate is None:
+    if not can_evaluate(kind):
         raise StudyError(
             "geometry.kind",
             f"kind '{kind.name}' is only optimised, not evaluated on its own; "
@@ -119,13 +122,11 @@ def solve_study(study: Study, repeat: int = 1, source: str = "") -> EvaluationRe
             source=source or None,
         )
     log.info("evaluating %s (%s), %d repeat(s)", study.name, study.kind, repeat)
-    result = kind.evaluate(study, repeat)
-    if not result.verdicts:
-        result = replace(result, verdicts=judge(study, result.summary, result.table))
-    return result
+    result = study_result(study, repeat, source)
+    return replace(result, verdicts=judge_result(study, result))
 
 
-def response_plot_args(study: Study, result: EvaluationResult) -> dict[str, Any]:
+def response_plot_args(study: Study, result: DesignResult) -> dict[str, Any]:
     """The arguments of :func:`pipeline.plots.plot_response` (or ``response_figure``) beyond
     the table, for the response of ``result``: what force_displacement.png shows. The stress
     line is the allowable the verdict uses (:func:`pipeline.responses.stress_allowable`)."""
@@ -143,7 +144,7 @@ def response_plot_args(study: Study, result: EvaluationResult) -> dict[str, Any]
     }
 
 
-def case_plot_args(study: Study, result: EvaluationResult) -> dict[str, Any]:
+def case_plot_args(study: Study, result: DesignResult) -> dict[str, Any]:
     """The arguments of :func:`pipeline.plots.cases_figure` beyond the rows, for a result with
     load cases (``result.cases``): every case with the allowable the verdict uses for it."""
     return {
@@ -156,7 +157,7 @@ def case_plot_args(study: Study, result: EvaluationResult) -> dict[str, Any]:
     }
 
 
-def response_table(result: EvaluationResult) -> dict[str, Any]:
+def response_table(result: DesignResult) -> dict[str, Any]:
     """The response as one table: every load case's rows with a ``load_case`` column for a
     result with cases (:func:`pipeline.responses.stacked_table`), else ``result.table``."""
     return stacked_table(result.cases) if result.cases else dict(result.table)

@@ -21,6 +21,9 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from flexopt.optimise.problem import as_design_problem
+from flexopt.optimise.variables import DesignVariables
+
 __all__ = [
     "MAXIMISED",
     "best_design_rows",
@@ -318,11 +321,10 @@ def label(name: str, given: str | None = None, plain: bool = False) -> str:
 def _mechanism_meanings(problem: Any) -> dict[str, str]:
     """A mechanism study's variables: each one's path in words, its factor and offset, and the
     keys tied to it (``problem.variables``: optimise.variables.DesignVariables)."""
-    variables = getattr(problem, "variables", None)
-    paths = getattr(variables, "paths", None)
-    targets = getattr(variables, "targets", None)
-    if variables is None or paths is None:
+    variables = as_design_problem(problem).variables
+    if not isinstance(variables, DesignVariables):
         return {}
+    paths, targets = variables.paths, variables.targets
     out: dict[str, str] = {}
     for k, (name, path) in enumerate(zip(variables.names, paths, strict=True)):
         meaning, unit = split_meaning(path_words(path))
@@ -354,7 +356,7 @@ def variable_meanings(kind: str, names: Iterable[str], problem: Any = None) -> d
     """What each design variable means, ``words (unit)``: the problem's ``variable_meanings``
     mapping, else the study path in words (``mechanism``), else :data:`VARIABLES` of the kind,
     else the variable's label (its words and unit)."""
-    own = getattr(problem, "variable_meanings", None)
+    own = as_design_problem(problem).variable_meanings if problem is not None else None
     table: Mapping[str, str]
     if isinstance(own, Mapping):
         table = own

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 from flexopt.optimise.errors import OptimiseError
-from flexopt.optimise.problem import DesignProblem
+from flexopt.optimise.problem import DesignProblem, DesignResult, as_design_problem
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.parallel import ParallelSettings
@@ -22,8 +22,11 @@ from flexopt.pipeline.study import ParallelSpec, Study
 __all__ = [
     "ExportError",
     "build_base_problem",
+    "can_evaluate",
+    "kind_problem",
     "nominal_design",
     "parallel_settings",
+    "study_result",
 ]
 
 
@@ -45,6 +48,20 @@ def build_base_problem(study: Study) -> DesignProblem:
     StudyError
         When the kind cannot be optimised, or refuses the study while building the problem.
     """
+    from flexopt.pipeline.verdict import with_requirement_constraints
+
+    return with_requirement_constraints(study, kind_problem(study))
+
+
+def kind_problem(study: Study) -> DesignProblem:
+    """The kind's design problem for ``study`` as the kind builds it (a plugin's protocol-only
+    problem adapted, :func:`optimise.problem.as_design_problem`).
+
+    Raises
+    ------
+    StudyError
+        When the kind cannot be optimised, or refuses the study while building the problem.
+    """
     kind = get_kind(study.kind)
     if kind.problem is None:
         raise StudyError(
@@ -60,14 +77,60 @@ def build_base_problem(study: Study) -> DesignProblem:
         raise StudyError(
             "", f"the design problem cannot be set up: {type(exc).__name__}: {exc}"
         ) from exc
-    if not isinstance(problem, DesignProblem) or not isinstance(problem.space, DesignSpace):
+    try:  # a plugin's problem with only the protocol's parts takes the hooks' defaults
+        problem = as_design_problem(problem)
+    except TypeError:
         raise TypeError(
             f"kind '{kind.name}' returned {type(problem).__name__}, which is not a DesignProblem "
             "(space, objective_names, constraint_names, evaluate, detail)"
-        )
-    from flexopt.pipeline.verdict import with_requirement_constraints
+        ) from None
+    if not isinstance(problem.space, DesignSpace):
+        raise TypeError(f"kind '{kind.name}' returned a problem whose space is no DesignSpace")
+    return problem
 
-    return with_requirement_constraints(study, problem)
+
+def can_evaluate(study_kind: Any) -> bool:
+    """Whether ``flexopt evaluate`` can solve a study of this kind (a StudyKind): it has a
+    ``evaluate(study)`` of its own or a design problem (:func:`study_result`)."""
+    return study_kind.evaluate is not None or study_kind.problem is not None
+
+
+def study_result(study: Study, repeat: int = 1, source: str = "") -> DesignResult:
+    """The result of the design ``study`` describes, solved ``repeat`` times: what
+    ``flexopt evaluate``, the API and a robustness sample of a study show. Nothing is judged
+    (:func:`pipeline.verdict.judge_result`) and nothing written.
+
+    One path for every kind: the nominal design's result from the kind's problem
+    (:func:`nominal_design`, :meth:`optimise.problem.DesignProblem.result`). A kind whose
+    evaluation is not one design of a problem (it has none: ``collision``, ``sea_window``,
+    ``polyline_beam``; or it analyses more than a design: ``leaf_spring_joint``'s every
+    structure and length) keeps its ``StudyKind.evaluate(study, repeat)``, the one hook for a
+    study's result without a problem, which wins where a kind has it.
+
+    ``source``: where the study came from, named in the hint of a refusal.
+
+    Raises
+    ------
+    StudyError
+        When the kind has neither or its study names no design (it is only optimised), or the
+        kind refuses the study.
+    """
+    kind = get_kind(study.kind)
+    if kind.evaluate is not None:
+        return kind.evaluate(study, repeat)
+    problem = kind_problem(study) if kind.problem is not None else None
+    try:
+        if problem is None:
+            raise ExportError("it has no design problem")
+        x = nominal_design(problem, study)
+    except ExportError as exc:
+        raise StudyError(
+            "geometry.kind",
+            f"kind '{kind.name}' is only optimised, not evaluated on its own ({exc}); "
+            f"run it with `flexopt run {source or 'STUDY'}`",
+            source=source or None,
+        ) from None
+    return problem.result(x, repeat)
 
 
 def parallel_settings(
@@ -107,19 +170,20 @@ def parallel_settings(
 def nominal_design(problem: DesignProblem, study: Study) -> np.ndarray:
     """The design a study file describes, the one ``flexopt evaluate`` solves.
 
-    The problem's optional ``nominal_design()`` (beyond the DesignProblem protocol) when it has
-    one; else each design variable read from the study by its name (the ``design:`` block
-    first, then a key of that name found once anywhere in the study).
+    The problem's :meth:`~optimise.problem.DesignProblem.nominal_design` when it gives one;
+    else each design variable read from the study by its name (the ``design:`` block first,
+    then a key of that name found once anywhere in the study).
 
     Raises
     ------
     ExportError
         When neither says what the design is.
     """
-    method = getattr(problem, "nominal_design", None)
+    problem = as_design_problem(problem)
     names = problem.space.names
-    if callable(method):
-        x = np.asarray(method(), dtype=float).ravel()
+    own = problem.nominal_design()
+    if own is not None:
+        x = np.asarray(own, dtype=float).ravel()
         if x.shape != (len(names),) or not np.all(np.isfinite(x)):
             raise ExportError(
                 f"kind '{study.kind}': nominal_design() gave shape {x.shape}, expected "

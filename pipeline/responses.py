@@ -2,11 +2,12 @@
 
 A kind with several load cases (a mechanism's free and blocked jaw) gives each case's table, plot
 spec and the user's outputs (:class:`optimise.problem.CaseResponse`, in
-``DesignDetail.cases`` / ``EvaluationResult.cases``); a kind with one gives only ``table`` and
-``plot``. :func:`case_responses` makes both one mapping of case name to response, so the plots,
-report.md, report.html, the console and :class:`flexopt.Result` show every case and every output
-from the same data. :func:`stress_allowable` is the allowable the verdict judges a case's stress
-against (a stress line drawn at the yield when the verdict uses yield / 1.5 would mislead).
+``DesignResult.cases``, of a run's design and of ``flexopt evaluate`` alike); a kind with one
+gives only ``table`` and ``plot``. :func:`case_responses` makes both one mapping of case name to
+response, so the plots, report.md, report.html, the console and :class:`flexopt.Result` show
+every case and every output from the same data. :func:`stress_allowable` is the allowable the
+verdict judges a case's stress against (a stress line drawn at the yield when the verdict uses
+yield / 1.5 would mislead).
 """
 
 from __future__ import annotations

@@ -19,8 +19,8 @@ requirements (``fidelity``, ``prb``, ``check_3d``), are switched off in a sample
 multiply its cost by ~100 and judge nothing.
 
 The **design vector** of a kind that ``flexopt run`` optimises (:func:`scatter_design`): the
-problem's optional ``scatter_design(x, thickness_delta_mm, width_delta_mm) -> x`` when it has
-one (a kind whose variable names do not say what they are: ``t1_mm``, ``B_mm``); else, for a
+problem's :meth:`~optimise.problem.DesignProblem.scatter_design` when it gives one (a kind
+whose variable names do not say what they are: ``t1_mm``, ``B_mm``); else, for a
 problem whose ``variables`` are :class:`optimise.variables.DesignVariables` (variables on key
 paths), each variable that sets a ``*thickness_mm`` / ``*width_mm`` key moves that key by the
 delta; else every variable whose name contains ``thickness`` gets ``thickness_delta_mm`` and
@@ -29,11 +29,12 @@ lists exactly what moved.
 
 A quantity the problem **solves per design** (the SEA and threshold springs' thickness ST, from
 the stiffness target) is not re-solved in a sample, or every sample would meet the target by
-construction: the problem's optional ``held_state(evaluation) -> {name: value}`` takes it from
-the nominal design's evaluation, and ``hold_solved(held, thickness_delta_mm, width_delta_mm)``
-makes the sample's problem use it, moved by the scatter (ST by ``width_delta_mm``: a plate's
-thickness is the out-of-plane width of the print or cut). ``held_scatter`` (``{name: "width"}``)
-names it in ``perturbed``.
+construction: a problem that names it in its ``held_scatter`` (``{name: "width"}``, also
+listed in ``perturbed``) has ``held_state(evaluation) -> {name: value}`` take it from the
+nominal design's evaluation, and ``hold_solved(held, thickness_delta_mm, width_delta_mm)``
+make the sample's problem use it, moved by the scatter (ST by ``width_delta_mm``: a plate's
+thickness is the out-of-plane width of the print or cut); the hooks of
+:class:`~optimise.problem.DesignProblem`.
 
 Which path a sample takes
 -------------------------
@@ -54,6 +55,7 @@ from typing import Any, Literal
 
 import numpy as np
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
+from flexopt.optimise.problem import DesignProblem, ProblemWrapper, as_design_problem
 from flexopt.optimise.requirements import Verdict
 from flexopt.optimise.robustness import (
     SAMPLE_COLUMNS,
@@ -183,13 +185,14 @@ def scatter_design(
         In the units of ``problem.space``.
     """
     x = np.array(x, dtype=float)
-    hook = getattr(problem, "scatter_design", None)
-    if callable(hook):
-        out = np.asarray(hook(x.copy(), thickness_delta_mm, width_delta_mm), dtype=float)
+    problem = as_design_problem(problem)
+    own = problem.scatter_design(x.copy(), thickness_delta_mm, width_delta_mm)
+    if own is not None:
+        out = np.asarray(own, dtype=float)
         if out.shape != x.shape:
             raise TypeError(f"scatter_design() gave shape {out.shape}, expected {x.shape}")
         return out
-    variables = getattr(problem, "variables", None)
+    variables = problem.variables
     if isinstance(variables, DesignVariables):  # variables on key paths (the mechanism kind)
         for i, targets in enumerate(variables.targets):
             # the key the variable sets moves by the delta: factor * x' + offset = value + delta
@@ -211,8 +214,7 @@ def scatter_design(
 def held_state(problem: Any, evaluation: Evaluation) -> dict[str, float]:
     """What the problem solved for the nominal design and a print holds (``{}`` when the
     problem solves nothing per design): see the module docstring."""
-    hook = getattr(problem, "held_state", None)
-    return dict(hook(evaluation)) if callable(hook) else {}
+    return dict(as_design_problem(problem).held_state(evaluation))
 
 
 def hold_solved(
@@ -221,9 +223,7 @@ def hold_solved(
     """Make a sample's problem use the nominal design's solved quantities, moved by the
     scatter, instead of solving them again (an empty ``held`` makes it solve them again: the
     worst-case problem reuses a sample's problem for every design)."""
-    hook = getattr(problem, "hold_solved", None)
-    if callable(hook):
-        hook(held, thickness_delta_mm, width_delta_mm)
+    as_design_problem(problem).hold_solved(held, thickness_delta_mm, width_delta_mm)
 
 
 # --------------------------------------------------------------------------------------------
@@ -238,7 +238,7 @@ class _Outcome:
     table: dict[str, np.ndarray]
 
 
-class SampleProblem:
+class SampleProblem(DesignProblem):
     """A design problem whose design vector is one sample ``(E_factor, thickness_delta_mm,
     width_delta_mm)`` of a fixed design; picklable, for the parallel backends.
 
@@ -263,19 +263,9 @@ class SampleProblem:
         self.held = dict(held or {})  # solved at the nominal design, held in a sample
         self.space = DesignSpace(SAMPLE_COLUMNS, np.array([0.01, -50.0, -50.0]), np.ones(3) * 50)
 
-    def _judge(
-        self, study: Study, values: Mapping[str, Any], table: Mapping[str, Any]
-    ) -> tuple[Verdict, ...]:
-        from flexopt.pipeline.verdict import judge, study_requirements
-
-        # the sample's own study: its printable minimum moved with the print (THICKNESS_KEYS),
-        # every other requirement is the verdict's
-        return judge(study, values, table, study_requirements(study))
-
     def evaluate(self, s: np.ndarray) -> Evaluation:
-        from flexopt.pipeline.problems import build_base_problem
-        from flexopt.pipeline.studies import get_kind
-        from flexopt.pipeline.verdict import detail_values
+        from flexopt.pipeline.problems import build_base_problem, study_result
+        from flexopt.pipeline.verdict import judge_result, study_requirements
 
         E_factor, dt, dw = (float(v) for v in np.asarray(s, dtype=float).ravel())
         try:
@@ -289,17 +279,15 @@ class SampleProblem:
         if self.mode == "design":
             problem = build_base_problem(study)
             hold_solved(problem, self.held, dt, dw)
-            detail = problem.detail(scatter_design(problem, self.x, dt, dw))
-            table = dict(detail.table)
-            verdicts = tuple(detail.verdicts) or self._judge(
-                study, detail_values(detail, detail.evaluation), table
-            )
-            reason = detail.evaluation.reason
+            result = problem.detail(scatter_design(problem, self.x, dt, dw))
+            reason = result.evaluation.reason if result.evaluation is not None else ""
         else:
-            result = get_kind(study.kind).evaluate(study, 1)  # type: ignore[misc]
-            table = dict(result.table)
-            verdicts = tuple(result.verdicts) or self._judge(study, result.summary, table)
+            result = study_result(study, 1)
             reason = "" if result.converged else (result.message or "did not converge")
+        table = dict(result.table)
+        # the sample's own study: its printable minimum moved with the print (THICKNESS_KEYS),
+        # every other requirement is the verdict's
+        verdicts = judge_result(study, result, requirements=study_requirements(study))
         n_not_met = sum(not v.met for v in verdicts)
         return Evaluation(
             np.asarray(s, dtype=float),
@@ -539,7 +527,7 @@ def compact(record: Mapping[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in record.items() if k not in ("samples", "band")}
 
 
-class WorstCaseProblem:
+class WorstCaseProblem(ProblemWrapper):
     """A design problem scored by its worst scatter sample (``robustness.objective: worst``).
 
     Each design is evaluated at every sample of the block (the problem of the sample's study,
@@ -555,10 +543,11 @@ class WorstCaseProblem:
 
     def __init__(self, inner: Any, study: Study) -> None:
         spec: RobustnessSpec = study.robustness  # type: ignore[attr-defined]
-        self.inner = inner
-        self.study = study
+        super().__init__(as_design_problem(inner))
+        # the study the samples perturb (``study`` stays the inner problem's, where the design
+        # lives: the gripper's is its resolved constant-force study)
+        self.sampled_study = study
         self.samples = samples_of(spec)
-        self.space = inner.space
         self.objective_names = tuple(f"worst_{n}" for n in inner.objective_names)
         self.constraint_names = tuple(f"worst_{n}" for n in inner.constraint_names)
         self._problems: dict[int, Any] = {}
@@ -566,17 +555,13 @@ class WorstCaseProblem:
     def __getstate__(self) -> dict[str, Any]:
         return {**self.__dict__, "_problems": {}}  # rebuilt in each worker
 
-    def __getattr__(self, name: str) -> Any:
-        if name == "inner":  # during unpickling, before __dict__ is filled
-            raise AttributeError(name)
-        return getattr(self.inner, name)
-
     def _problem(self, row: int) -> Any:
         if row not in self._problems:
             from flexopt.pipeline.problems import build_base_problem
 
             e, dt, dw = (float(v) for v in self.samples[row])
-            self._problems[row] = build_base_problem(perturb_study(self.study, e, dt, dw)[0])
+            study = perturb_study(self.sampled_study, e, dt, dw)[0]
+            self._problems[row] = build_base_problem(study)
         return self._problems[row]
 
     def evaluate(self, x: np.ndarray) -> Evaluation:
@@ -691,7 +676,7 @@ def run_robustness(
     samples = samples_of(spec)
     perturbed = _describe(study, spec, problem if mode == "design" else None, x)
     held: dict[str, float] = {}
-    if mode == "design" and callable(getattr(problem, "held_state", None)):
+    if mode == "design" and problem is not None and problem.held_scatter:
         held = held_state(problem, problem.evaluate(x))  # one solve: ST for the target
     sample_problem = SampleProblem(study, mode, x, held)
     settings = settings if settings is not None else parallel_settings(study)
@@ -737,7 +722,7 @@ def _describe(study: Study, spec: RobustnessSpec, problem: Any, x: np.ndarray | 
         dw = scatter_design(problem, x, 0.0, spec.width_mm) - np.asarray(x, dtype=float)
         thick += [f"design variable {n}" for n, d in zip(names, dt, strict=True) if d != 0]
         wide += [f"design variable {n}" for n, d in zip(names, dw, strict=True) if d != 0]
-        for name, which in (getattr(problem, "held_scatter", None) or {}).items():
+        for name, which in as_design_problem(problem).held_scatter.items():
             (wide if which == "width" else thick).append(
                 f"{name} (solved for the nominal design, then held)"
             )

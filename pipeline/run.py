@@ -339,12 +339,9 @@ def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> R
 
 
 def initial_designs(problem: DesignProblem) -> np.ndarray | None:
-    """The designs a problem asks to seed the first population with (optional
-    ``initial_designs()`` method beyond the DesignProblem protocol), as (k, n_var), or None."""
-    method = getattr(problem, "initial_designs", None)
-    if not callable(method):
-        return None
-    initial = method()
+    """The designs a problem asks to seed the first population with (its
+    :meth:`~optimise.problem.DesignProblem.initial_designs`), as (k, n_var), or None."""
+    initial = problem.initial_designs()
     if initial is None:
         return None
     initial = np.atleast_2d(np.asarray(initial, dtype=float))
@@ -1427,15 +1424,14 @@ def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
     """
     if settings.backend == "serial":
         return None
-    warm = getattr(problem, "warm_up_detail", None)
+    warm = problem.warm_up_detail
 
     def load() -> None:
         try:
             import matplotlib.backends.backend_agg  # noqa: F401  (the plots' first import)
             import matplotlib.figure  # noqa: F401
 
-            if callable(warm):
-                warm()
+            warm()
             # the part's STL (trimesh, ~0.5 s) and DXF (ezdxf). Not build123d for best.step
             # (~2.6 s): the STEP file is made in a forked child that imports it and exits
             # without the ~1 s of interpreter teardown OpenCascade adds to a process.

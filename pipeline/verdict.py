@@ -27,8 +27,12 @@ A kind states two things in its :class:`~pipeline.studies.StudyKind`:
     callable ``(study) -> iterable of str``. An unknown name in ``requirements:`` is refused at
     load time with this list.
 
-:func:`judge` turns scalar values (a summary, an :class:`~optimise.Evaluation`'s metrics, a
-detail's ``info``) and a response table into verdicts; :class:`RequirementConstraints` adds the
+:func:`judge_result` is the one place a design is judged: one
+:class:`~optimise.problem.DesignResult` (``flexopt evaluate``'s, the API's, a run's best
+design's, a robustness sample's) against the study's requirements, through :func:`judge`, which
+turns scalar values and a response table into verdicts. A requirement added for every kind is
+added to :func:`builtin_requirements` / ``requirements:`` and judged here once.
+:class:`RequirementConstraints` adds the
 ``role: constraint`` items of ``requirements:`` to a kind's :class:`~optimise.DesignProblem` as
 ``g <= 0`` rows.
 """
@@ -42,7 +46,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import (
+    DesignDetail,
+    DesignResult,
+    ProblemWrapper,
+    as_design_problem,
+)
 from flexopt.optimise.requirements import (
     DesignRange,
     Figure,
@@ -69,7 +78,9 @@ __all__ = [
     "figures_of",
     "judge",
     "judge_detail",
+    "judge_result",
     "quantities_of",
+    "result_values",
     "study_requirements",
     "user_requirements",
     "with_design_range",
@@ -323,32 +334,59 @@ def judge(
     )
 
 
-def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[str, Any]:
-    """Scalars of a run's design: its metrics, the detail's info, the outline's bounding box."""
-    info = detail.info if detail is not None else {}
-    values = _scalars(info, evaluation.metrics)
-    outline = getattr(detail, "outline", None)
-    if outline is not None:
-        values.update(envelope_values(outline, getattr(detail, "height_mm", None)))
+def result_values(result: DesignResult) -> dict[str, Any]:
+    """Scalars of one design's result (as :meth:`~optimise.problem.DesignResult.values`: the
+    detail's info, the evaluation's metrics, the summary; a later scalar wins, a later None or
+    non-scalar does not hide an earlier value) and the outline's bounding box."""
+    metrics = result.evaluation.metrics if result.evaluation is not None else None
+    values = _scalars(result.info, metrics, result.summary)
+    if result.outline is not None:
+        values.update(envelope_values(result.outline, result.height_mm))
     return values
+
+
+def judge_result(
+    study: Study,
+    result: DesignResult,
+    design: Any = None,
+    requirements: Sequence[Requirement] | None = None,
+) -> tuple[Verdict, ...]:
+    """Verdicts of one design's result: the one place a design is judged, for
+    ``flexopt evaluate``, ``flexopt run``'s best design, the API and the robustness samples.
+
+    The kind's own verdicts (``result.verdicts``) when it gives them, with the design-range
+    row where they lack it; else :func:`judge` of :func:`result_values` and ``result.table``.
+
+    Parameters
+    ----------
+    design : (n_var,) the design vector judged (default: the study's own design).
+    requirements : judge these instead of the study's (a robustness sample: no design-range
+        row, see the module docstring).
+    """
+    given = tuple(result.verdicts)
+    if given:
+        if requirements is not None or any(v.quantity == DesignRange.quantity for v in given):
+            return given
+        return with_design_range(study, given, design)
+    return judge(study, result_values(result), result.table, requirements, design)
+
+
+def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[str, Any]:
+    """Scalars of a run's design: its metrics, the detail's info, the outline's bounding box
+    (:func:`result_values` of the detail, or of the evaluation alone)."""
+    return result_values(detail if detail is not None else DesignResult(evaluation))
 
 
 def judge_detail(
     study: Study, detail: DesignDetail | None, evaluation: Evaluation
 ) -> tuple[Verdict, ...]:
-    """Verdicts of a run's design: the kind's own (``detail.verdicts``) when it gives them,
-    else the study's requirements judged on :func:`detail_values` and ``detail.table``; with
-    the design-range row of ``evaluation.x`` either way."""
-    given = tuple(getattr(detail, "verdicts", ()) or ())
-    if given:
-        if any(v.quantity == DesignRange.quantity for v in given):
-            return given
-        return with_design_range(study, given, evaluation.x)
-    table = detail.table if detail is not None else {}
-    return judge(study, detail_values(detail, evaluation), table, design=evaluation.x)
+    """Verdicts of a run's design (:func:`judge_result` of its detail, or of its evaluation
+    when the detail failed), with the design-range row of ``evaluation.x``."""
+    result = detail if detail is not None else DesignResult(evaluation)
+    return judge_result(study, result, design=evaluation.x)
 
 
-class RequirementConstraints:
+class RequirementConstraints(ProblemWrapper):
     """A kind's design problem with the ``role: constraint`` requirements as more constraints.
 
     The extra rows are ``requirement.constraint(metrics)`` (``-margin / scale``, dimensionless,
@@ -360,19 +398,12 @@ class RequirementConstraints:
     """
 
     def __init__(self, inner: Any, requirements: Sequence[Requirement]) -> None:
-        self.inner = inner
+        super().__init__(as_design_problem(inner))
         self.requirements = tuple(requirements)
-        self.space = inner.space
-        self.objective_names = tuple(inner.objective_names)
         self.constraint_names = (
-            *inner.constraint_names,
+            *self.inner.constraint_names,
             *(f"req_{r.label}" for r in self.requirements),
         )
-
-    def __getattr__(self, name: str) -> Any:
-        if name == "inner":  # during unpickling, before __dict__ is filled
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
     def _extend(self, ev: Evaluation) -> Evaluation:
         from dataclasses import replace

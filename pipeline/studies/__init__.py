@@ -1,10 +1,12 @@
 """Registry of study kinds, keyed by the YAML ``geometry.kind``.
 
 A kind is one module in this package that calls :func:`register` with a :class:`StudyKind`: the
-pydantic model of its whole study, a ``check`` that builds the geometry and material once, and an
-``evaluate`` that solves one design. The CLI and the runner know only this registry, so a new kind
-is a new module here and touches no other file (modules are discovered on first use; names
-starting with ``_`` are skipped so they can hold shared helpers).
+pydantic model of its whole study, a ``check`` that builds the geometry and material once, and a
+design ``problem`` (whose nominal design's :meth:`~optimise.problem.DesignProblem.result` is what
+``flexopt evaluate`` shows) or an ``evaluate`` that solves the study. The CLI and the runner
+know only this registry, so a new kind is a new module here and touches no other file (modules
+are discovered on first use; names starting with ``_`` are skipped so they can hold shared
+helpers).
 
 A kind may also come from a package of the user's own, through the entry-point group
 ``flexopt.kinds`` (docs/plugins.md). The entry point's name is the kind's name; its value is either
@@ -27,12 +29,12 @@ import pkgutil
 import sys
 import threading
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from flexopt.optimise.problem import CaseResponse, DesignProblem
-from flexopt.optimise.requirements import Figure, Requirement, Verdict
+from flexopt.optimise.problem import DesignProblem, DesignResult
+from flexopt.optimise.requirements import Figure, Requirement
 from flexopt.pipeline.errors import StudyError
 
 if TYPE_CHECKING:  # annotations only: study.validate_study looks kinds up here at run time
@@ -60,58 +62,30 @@ ENTRY_POINT_GROUP = "flexopt.kinds"
 PLUGIN_IMPORT_TIMEOUT_S = 15.0
 
 
-@dataclass(frozen=True)
-class EvaluationResult:
-    """What one evaluation of a study returns; the pipeline turns it into a run folder.
-
-    Attributes
-    ----------
-    table : dict of str to (n_rows,) array
-        Response columns in output order; names carry units (``force_N``).
-    summary : dict
-        Scalar metrics (names carry units); ``None`` where a metric is undefined.
-    converged : bool
-        Every row converged.
-    message : str
-        Why not, when not converged.
-    solve_times_s : tuple of float, s
-        Wall time of building the model and solving, one per repeat.
-    inputs : dict
-        Resolved inputs beyond the study itself (material record, settings, derived geometry).
-    diagnostics : dict
-        What the solver reports about itself (element and DOF counts, sub-steps, ...).
-    plot : dict
-        Names of the columns to plot: ``x``, ``left``, ``right`` and the ``allowable_MPa`` line;
-        optional words: ``left_title``, ``right_title``, ``x_label``, ``left_label``,
-        ``right_label``, ``allowable_label`` (see :func:`pipeline.plots.plot_response`);
-        the target of ``left``: ``target``, ``target_curve`` or ``target_range`` with its band
-        (see :mod:`pipeline.plot_targets`), drawn in the PNG and report.html.
-    headline : tuple of str
-        The summary keys worth a line in the CLI's table (all of them when empty).
-    files : dict of str to bytes
-        Files of the kind beyond the standard ones (``sweeps.png``, a resolved study), by plain
-        file name; ``flexopt evaluate`` writes them into the run folder, atomically.
-    verdicts : tuple of optimise.requirements.Verdict
-        The kind's own verdicts when it judges itself; empty (the default) lets
-        ``flexopt evaluate`` judge ``summary`` and ``table`` against the study's requirements
-        (:func:`pipeline.verdict.judge`), which is what every shipped kind does.
-    cases : dict of str to optimise.problem.CaseResponse
-        Every load case by name, for a kind with several (``table`` and ``plot`` are then the
-        first one's); empty for a kind with one.
+class EvaluationResult(DesignResult):
+    """A kind's evaluation of its study: a :class:`~optimise.problem.DesignResult` built with
+    the positional order this name always had (``table, summary, converged, message,
+    solve_times_s``, then keywords). The old name, kept while the kinds move to the one result
+    type; see :class:`~optimise.problem.DesignResult` for every field.
     """
 
-    table: dict[str, np.ndarray]
-    summary: dict[str, Any]
-    converged: bool
-    message: str
-    solve_times_s: tuple[float, ...]
-    inputs: dict[str, Any] = field(default_factory=dict)
-    diagnostics: dict[str, Any] = field(default_factory=dict)
-    plot: dict[str, Any] = field(default_factory=dict)
-    headline: tuple[str, ...] = ()
-    files: dict[str, bytes] = field(default_factory=dict)
-    verdicts: tuple[Verdict, ...] = ()
-    cases: dict[str, CaseResponse] = field(default_factory=dict)
+    def __init__(
+        self,
+        table: dict[str, np.ndarray] | None = None,
+        summary: dict[str, Any] | None = None,
+        converged: bool = True,
+        message: str = "",
+        solve_times_s: tuple[float, ...] = (),
+        **fields: Any,
+    ) -> None:
+        super().__init__(
+            table={} if table is None else table,
+            summary={} if summary is None else summary,
+            converged=converged,
+            message=message,
+            solve_times_s=tuple(solve_times_s),
+            **fields,
+        )
 
 
 @dataclass(frozen=True)
@@ -126,12 +100,16 @@ class StudyKind:
         The pydantic model of the whole study file.
     check : callable(study) -> None
         Builds geometry and material once; raises :class:`StudyError` naming the key path.
-    evaluate : callable(study, repeat) -> EvaluationResult
-        Solves the study ``repeat`` times (for timing) and summarises the last solve.
+    evaluate : callable(study, repeat) -> optimise.problem.DesignResult, optional
+        The result hook of a kind whose ``flexopt evaluate`` is not one design of a problem (it
+        has none, or analyses more than one design): solves the study ``repeat`` times (for
+        timing) and summarises the last solve. Without it, ``flexopt evaluate`` is the result
+        of the problem's nominal design (:func:`pipeline.problems.study_result`).
     problem : callable(study) -> optimise.DesignProblem, optional
         For kinds that ``flexopt run`` optimises: the picklable problem built once from the study
         (its ``optimiser:`` block is an :class:`pipeline.study.OptimiserSpec` at
-        ``study.optimiser``).
+        ``study.optimiser``); a subclass of :class:`optimise.problem.DesignProblem`, or (a
+        plugin's) an object with the protocol's parts, adapted.
     requirements : callable(study) -> sequence of optimise.requirements.Requirement, optional
         The kind's BUILT-IN requirements: what its study already constrains or targets (an
         allowable stress, a force band, a stiffness window, stability), judged MET / NOT MET
@@ -268,11 +246,12 @@ def _guarded(kind: StudyKind) -> StudyKind:
                 raise
             except (Exception, SystemExit) as exc:  # whatever third-party code raises
                 raise failed(part, exc) from None
-            if part == "evaluate" and not isinstance(result, EvaluationResult):
+            if part == "evaluate" and not isinstance(result, DesignResult):
                 raise StudyError(
                     "geometry.kind",
                     f"{who}'s evaluate returned {type(result).__name__}, not an "
-                    "EvaluationResult (a fault of the plugin: report it to its authors)",
+                    "EvaluationResult (a DesignResult; a fault of the plugin: report it to its "
+                    "authors)",
                 )
             if part == "problem" and result is None:
                 raise StudyError(

@@ -46,14 +46,14 @@ from flexopt.optimise.curve_objectives import (
 )
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.targets import (
     TargetCurve,
     ThresholdTarget,
 )
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies._cam import (
     _VARIABLES,
     CamGeometry,
@@ -209,67 +209,11 @@ def _sab_info(study: CamStudy) -> dict[str, Any]:
     return {} if sab is None else sab_table(sab.a_mm, sab.R_mm, sab.R1_over_R2)
 
 
-def evaluate(study: CamStudy, repeat: int = 1) -> EvaluationResult:
-    """Synthesise the cam, build its plate and check it by virtual work (``repeat`` times)."""
-    times = []
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        target, curve, profile, correction = build_cam(study)
-        table = _table(study, target, curve, profile)
-        times.append(time.perf_counter() - t0)
-    summary = _summary(study, target, curve, table, profile)
-    # the plate as exported (its outline extruded by the thickness), as flexopt run measures it
-    summary.update(envelope_values(cam_outline(profile), study.geometry.thickness_mm))
-    inputs: dict[str, Any] = {
-        "material": material_record(study.material.to_material()),
-        "target_curve": repr(target),
-        "notes": list(profile.notes),
-    }
-    if correction:
-        inputs["correction"] = correction
-    if study.sab is not None:
-        inputs["sab"] = _sab_info(study)
-    return EvaluationResult(
-        table=table,
-        summary=summary,
-        converged=True,
-        message="",
-        solve_times_s=tuple(times),
-        inputs=inputs,
-        diagnostics={"synthesis_points": study.geometry.points},
-        plot={
-            "x": "rotation_deg",
-            "left": "virtual_work_torque_Nm",
-            "right": "contact_pressure_MPa",
-            "allowable_MPa": summary["onset_pressure_MPa"],
-            "allowable_label": "onset of yield, contact",
-            "target_curve": "target_torque_Nm",  # drawn by pipeline.plot_targets
-        },
-        headline=tuple(
-            k
-            for k in summary
-            if k.startswith("target_")
-            or k
-            in (
-                "virtual_work_max_relative_error",
-                "mechanism_diameter_mm",
-                "max_pressure_angle_deg",
-                "max_contact_pressure_MPa",
-                "stress_yield_ratio",
-                "undercut",
-                "sab_joint_max_relative_error",
-                "mode_split_deg",
-                "equivalent_stiffness_Nm_per_rad",
-            )
-        ),
-    )
-
-
 # --------------------------------------------------------------------------------------------
 # Optimise: size the springs and rest radius
 
 
-class CamProblem:
+class CamProblem(DesignProblem):
     """Smallest (or flattest) cam for the target within the pressure-angle and contact limits.
 
     Variables: the study's ``design_space`` (default: rest radius and spring rate, ±50 % around
@@ -373,6 +317,67 @@ class CamProblem:
             return x[None, :]
         return None
 
+    def nominal_design(self) -> np.ndarray:
+        """(n_var,) the study's own values in the design space: what ``flexopt evaluate`` solves."""
+        return design_of(self.study)[1]
+
+    def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
+        """Synthesise the cam of design ``x`` (n_var,), build its plate and check it by virtual
+        work (``repeat`` times)."""
+        study = self._study(np.asarray(x, dtype=float))
+        times = []
+        for _ in range(max(1, repeat)):
+            t0 = time.perf_counter()
+            target, curve, profile, correction = build_cam(study)
+            table = _table(study, target, curve, profile)
+            times.append(time.perf_counter() - t0)
+        summary = _summary(study, target, curve, table, profile)
+        # the plate as exported (its outline extruded by the thickness), as flexopt run measures it
+        summary.update(envelope_values(cam_outline(profile), study.geometry.thickness_mm))
+        inputs: dict[str, Any] = {
+            "material": material_record(study.material.to_material()),
+            "target_curve": repr(target),
+            "notes": list(profile.notes),
+        }
+        if correction:
+            inputs["correction"] = correction
+        if study.sab is not None:
+            inputs["sab"] = _sab_info(study)
+        return DesignResult(
+            table=table,
+            summary=summary,
+            converged=True,
+            message="",
+            solve_times_s=tuple(times),
+            inputs=inputs,
+            diagnostics={"synthesis_points": study.geometry.points},
+            plot={
+                "x": "rotation_deg",
+                "left": "virtual_work_torque_Nm",
+                "right": "contact_pressure_MPa",
+                "allowable_MPa": summary["onset_pressure_MPa"],
+                "allowable_label": "onset of yield, contact",
+                "target_curve": "target_torque_Nm",  # drawn by pipeline.plot_targets
+            },
+            headline=tuple(
+                k
+                for k in summary
+                if k.startswith("target_")
+                or k
+                in (
+                    "virtual_work_max_relative_error",
+                    "mechanism_diameter_mm",
+                    "max_pressure_angle_deg",
+                    "max_contact_pressure_MPa",
+                    "stress_yield_ratio",
+                    "undercut",
+                    "sab_joint_max_relative_error",
+                    "mode_split_deg",
+                    "equivalent_stiffness_Nm_per_rad",
+                )
+            ),
+        )
+
 
 def problem(study: CamStudy) -> CamProblem:
     """The design problem ``flexopt run`` optimises."""
@@ -398,7 +403,7 @@ register(
         "cam",
         CamStudy,
         check,
-        evaluate,
+        None,  # flexopt evaluate: the nominal design's CamProblem.result
         problem,
         requirements=_builtin.cam,
         quantities=_builtin.CAM,

@@ -22,7 +22,7 @@ YAML (every key optional but ``name``, ``geometry.kind`` and ``material``; see
     fidelity: {points: 4, max_edge_mm: 0.5}
 
 ``problem(study)`` returns a picklable :class:`ConstantForceProblem` (the
-:class:`optimise.DesignProblem` that ``flexopt run`` optimises); ``evaluate(study)`` analyses one
+:class:`optimise.DesignProblem` that ``flexopt run`` optimises); its ``result(x)`` analyses one
 design (the study's ``design:``, by default Table 3) for ``flexopt evaluate``.
 """
 
@@ -65,10 +65,10 @@ from flexopt.optimise.curve_objectives import (
     plane_stress_peak_figures,
 )
 from flexopt.optimise.evaluation import Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, field_validator, model_validator
@@ -87,7 +87,6 @@ __all__ = [
     "prb_report",
     "prb_synthesis",
     "problem",
-    "evaluate",
     "check",
 ]
 
@@ -434,7 +433,7 @@ def _thinnest(design: ConstantForceDesign) -> tuple[str, float]:
     return names[i], float(t[i])
 
 
-class ConstantForceProblem:
+class ConstantForceProblem(DesignProblem):
     """The :class:`optimise.DesignProblem` of a ``constant_force`` study.
 
     Holds only the validated study and plain numbers, so it pickles small and each worker
@@ -718,6 +717,91 @@ class ConstantForceProblem:
             info=info,
         )
 
+    def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
+        """``flexopt evaluate``: trace the design ``x`` (23,) (the study's ``design:``, Table 3 by
+        default: :meth:`nominal_design`) once per repeat.
+
+        Raises
+        ------
+        StudyError
+            When the design cannot be built or is not printable, naming ``design``.
+        """
+        prob, study = self, self.study
+        x = np.asarray(x, dtype=float)
+        times: list[float] = []
+        evaluation = None
+        response = None
+        design = None
+        for _ in range(max(1, repeat)):
+            t0 = time.perf_counter()
+            design, response, reason = prob._solve(x)
+            times.append(time.perf_counter() - t0)
+            if response is None:
+                raise StudyError("design", reason)
+        evaluation = prob.evaluate(x)
+        assert response is not None and design is not None
+        table = _response_table(response, study.target.force_N)
+        table["converged"] = np.asarray(response.converged, dtype=bool)
+        summary = dict(evaluation.metrics)
+        peak = float(np.max(response.peak_stress_MPa))
+        summary["stress_yield_ratio"] = peak / study.material.yield_MPa
+        summary["feasible"] = evaluation.feasible
+        # ``stable`` (bool) and ``unstable_rows`` come with the metrics; the message names the step.
+        summary["stable"] = not response.unstable
+        summary["unstable_rows"] = _unstable_rows(response)
+        summary["unstable_message"] = response.unstable_message
+        summary.update(
+            {name: float(v) for name, v in zip(prob.objective_names, evaluation.f, strict=True)}
+        )
+        summary.update(
+            {name: float(v) for name, v in zip(prob.constraint_names, evaluation.g, strict=True)}
+        )
+        g = study.geometry  # the part as exported (best.stl's outline and B): its envelope
+        shape = outline(design, TABLE1, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+        summary.update(envelope_values(shape, design.B))
+        diagnostics = dict(response.extra)
+        if study.fidelity.enabled:  # the figure the verdict judges, as flexopt run's report does
+            lo, hi = compared_over(prob._metrics(design, response), study.boundary.stroke_mm)
+            check = _guarded(fidelity_check, prob, design, response, lo, hi)
+            diagnostics["fidelity"] = check
+            summary.update(plane_stress_peak_figures(check))
+            column = plane_stress_force_column(table, check)
+            if column is not None:
+                table["plane_stress_force_N"] = column
+        profile = beam_profile(design, end_flexures=study.geometry.end_flexures)
+        return DesignResult(
+            table=table,
+            summary=summary,
+            converged=bool(response.ok),
+            message="; ".join(m for m in (response.message, response.unstable_message) if m),
+            solve_times_s=tuple(times),
+            inputs={
+                "material": material_record(prob.material) | {"G_MPa": prob.material.G_MPa},
+                "design": {n: float(v) for n, v in zip(DESIGN_VARIABLE_NAMES, x, strict=True)},
+                "beam_length_mm": profile.length_mm,
+                "allowable_stress_MPa": prob.allowable_MPa,
+            },
+            diagnostics=diagnostics,
+            plot={
+                "x": "displacement_mm",
+                "left": "force_N",
+                "right": "peak_stress_MPa",
+                "allowable_MPa": prob.allowable_MPa,
+                "target": study.target.force_N,  # the force band, drawn (pipeline.plot_targets)
+                "tolerance": study.target.force_N * study.target.tolerance_percent / 100.0,
+            },
+            headline=(
+                "mean_force_N",
+                "flatness_percent",
+                "operative_stroke_mm",
+                "plateau_mean_force_N",
+                "plateau_flatness_percent",
+                "stress_limit_stroke_mm",
+                "peak_stress_MPa",
+                "rms_error_N",
+            ),
+        )
+
 
 def _guarded(check: Any, *args: Any) -> dict[str, Any]:
     try:
@@ -865,97 +949,12 @@ def problem(study: ConstantForceStudy) -> ConstantForceProblem:
     return ConstantForceProblem(study)
 
 
-def evaluate(study: ConstantForceStudy, repeat: int = 1) -> EvaluationResult:
-    """``flexopt evaluate``: trace the study's ``design:`` (Table 3 by default) once per repeat.
-
-    Raises
-    ------
-    StudyError
-        When the design cannot be built or is not printable, naming ``design``.
-    """
-    prob = ConstantForceProblem(study)
-    x = design_vector(study)
-    times: list[float] = []
-    evaluation = None
-    response = None
-    design = None
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        design, response, reason = prob._solve(x)
-        times.append(time.perf_counter() - t0)
-        if response is None:
-            raise StudyError("design", reason)
-    evaluation = prob.evaluate(x)
-    assert response is not None and design is not None
-    table = _response_table(response, study.target.force_N)
-    table["converged"] = np.asarray(response.converged, dtype=bool)
-    summary = dict(evaluation.metrics)
-    peak = float(np.max(response.peak_stress_MPa))
-    summary["stress_yield_ratio"] = peak / study.material.yield_MPa
-    summary["feasible"] = evaluation.feasible
-    # ``stable`` (bool) and ``unstable_rows`` come with the metrics; the message names the step.
-    summary["stable"] = not response.unstable
-    summary["unstable_rows"] = _unstable_rows(response)
-    summary["unstable_message"] = response.unstable_message
-    summary.update(
-        {name: float(v) for name, v in zip(prob.objective_names, evaluation.f, strict=True)}
-    )
-    summary.update(
-        {name: float(v) for name, v in zip(prob.constraint_names, evaluation.g, strict=True)}
-    )
-    g = study.geometry  # the part as exported (best.stl's outline and B): its envelope
-    shape = outline(design, TABLE1, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
-    summary.update(envelope_values(shape, design.B))
-    diagnostics = dict(response.extra)
-    if study.fidelity.enabled:  # the figure the verdict judges, as flexopt run's report does
-        lo, hi = compared_over(prob._metrics(design, response), study.boundary.stroke_mm)
-        check = _guarded(fidelity_check, prob, design, response, lo, hi)
-        diagnostics["fidelity"] = check
-        summary.update(plane_stress_peak_figures(check))
-        column = plane_stress_force_column(table, check)
-        if column is not None:
-            table["plane_stress_force_N"] = column
-    profile = beam_profile(design, end_flexures=study.geometry.end_flexures)
-    return EvaluationResult(
-        table=table,
-        summary=summary,
-        converged=bool(response.ok),
-        message="; ".join(m for m in (response.message, response.unstable_message) if m),
-        solve_times_s=tuple(times),
-        inputs={
-            "material": material_record(prob.material) | {"G_MPa": prob.material.G_MPa},
-            "design": {n: float(v) for n, v in zip(DESIGN_VARIABLE_NAMES, x, strict=True)},
-            "beam_length_mm": profile.length_mm,
-            "allowable_stress_MPa": prob.allowable_MPa,
-        },
-        diagnostics=diagnostics,
-        plot={
-            "x": "displacement_mm",
-            "left": "force_N",
-            "right": "peak_stress_MPa",
-            "allowable_MPa": prob.allowable_MPa,
-            "target": study.target.force_N,  # the force band, drawn (pipeline.plot_targets)
-            "tolerance": study.target.force_N * study.target.tolerance_percent / 100.0,
-        },
-        headline=(
-            "mean_force_N",
-            "flatness_percent",
-            "operative_stroke_mm",
-            "plateau_mean_force_N",
-            "plateau_flatness_percent",
-            "stress_limit_stroke_mm",
-            "peak_stress_MPa",
-            "rms_error_N",
-        ),
-    )
-
-
 register(
     StudyKind(
         "constant_force",
         ConstantForceStudy,
         check,  # type: ignore[arg-type]
-        evaluate,  # type: ignore[arg-type]
+        None,  # flexopt evaluate: the nominal design's ConstantForceProblem.result
         problem,  # type: ignore[arg-type],
         requirements=_builtin.constant_force,
         quantities=_builtin.CONSTANT_FORCE,

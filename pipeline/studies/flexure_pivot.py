@@ -55,11 +55,11 @@ from flexopt.optimise.joint_objectives import (
     pivot_objective,
     pivot_plane_stress_figures,
 )
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, Figure
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, model_validator
@@ -79,7 +79,6 @@ __all__ = [
     "design_space",
     "check",
     "problem",
-    "evaluate",
 ]
 
 PivotType = Literal[
@@ -334,7 +333,7 @@ def check(study: FlexurePivotStudy) -> None:
 # The design problem
 
 
-class FlexurePivotProblem:
+class FlexurePivotProblem(DesignProblem):
     """The :class:`optimise.DesignProblem` of a ``flexure_pivot`` study (picklable)."""
 
     objective_names = ("stress_ratio",)
@@ -541,6 +540,86 @@ class FlexurePivotProblem:
             info=info,
         )
 
+    def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
+        """``flexopt evaluate``: the design ``x`` (4,) (the study's design or the best closed-form
+        seed: :meth:`nominal_design`) turned to its range of motion by the beam model, with the
+        closed forms beside it."""
+        prob = self
+        x = np.asarray(x, dtype=float)
+        times = []
+        detail = None
+        for _ in range(max(1, repeat)):
+            t0 = time.perf_counter()
+            detail = prob.detail(x)
+            times.append(time.perf_counter() - t0)
+        assert detail is not None
+        ev = detail.evaluation
+        table = dict(detail.table)
+        summary: dict[str, Any] = {
+            "type": detail.info["type"],
+            "small_angle_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"][
+                "beam_small_angle"
+            ],
+            "closed_form_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"][
+                "closed_form"
+            ],
+            "target_stiffness_Nmm_per_rad": prob.target_Nmm,
+            "peak_stress_MPa": ev.metrics.get("peak_stress_MPa"),
+            "stress_yield_ratio": float(ev.metrics.get("peak_stress_MPa", np.nan))
+            / prob.material.yield_MPa,
+            "safety_factor": ev.metrics.get("safety_factor"),
+            "centre_shift_at_range_mm": detail.info["centre_shift_at_range_mm"],
+            "feasible": ev.feasible,
+            "stable": bool(np.all(table["stable"][table["converged"]])),
+        }
+        for key in ("stiffness_Nmm_per_rad", "centre_shift_mm", "envelope_length_mm",
+                    "envelope_height_mm"):  # fmt: skip
+            summary.setdefault(key, ev.metrics.get(key))  # the names flexopt run judges too
+        # the part as exported (its planar outline extruded), as flexopt run measures it
+        summary.update(envelope_values(detail.outline, detail.height_mm))
+        ps = detail.info.get("plane_stress")
+        if isinstance(ps, dict) and "linear_stiffness_Nmm_per_rad" in ps:
+            summary["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]
+            summary["plane_stress_safety_factor"] = ps.get("safety_factor")
+            summary.update(pivot_plane_stress_figures(ps))
+        converged = bool(np.all(table["converged"]))
+        return DesignResult(
+            table=table,
+            summary=summary,
+            converged=converged,
+            message=detail.info["beam"]["message"],
+            solve_times_s=tuple(times),
+            inputs={
+                "material": material_record(prob.material),
+                "design": {n: float(v) for n, v in zip(VARIABLES, x, strict=True)},
+                "flexure": detail.info["parameters"],
+                "closed_form": detail.info["closed_form"],
+            },
+            diagnostics=dict(detail.info["beam"]),
+            plot={
+                "x": "rotation_deg",
+                "left": "torque_Nmm",
+                "right": "peak_stress_MPa",
+                "allowable_MPa": prob.allowable_MPa,
+                # the target stiffness as a torque line K theta, with the stiffness band
+                "target_curve": {
+                    "x": table["rotation_deg"],
+                    "y": prob.target_Nmm * np.radians(table["rotation_deg"]),
+                },
+                "tolerance_rel": prob.tolerance,
+                "target_label": f"target K θ, K = {prob.target_Nmm:g} N·mm/rad",
+            },
+            headline=(
+                "type",
+                "small_angle_stiffness_Nmm_per_rad",
+                "closed_form_stiffness_Nmm_per_rad",
+                "plane_stress_stiffness_Nmm_per_rad",
+                "peak_stress_MPa",
+                "safety_factor",
+                "centre_shift_at_range_mm",
+            ),
+        )
+
 
 #: The figures of a quantity by model (pipeline.verdict): the stiffness band and the allowable
 #: stress are judged on the plane-stress check's figures where the run made one.
@@ -603,90 +682,12 @@ def design_of(study: FlexurePivotStudy) -> tuple[DesignSpace, np.ndarray | None]
     return space, np.array([cands.index(d.type) + 0.5, d.length_mm, d.thickness_mm, d.shape])
 
 
-def evaluate(study: FlexurePivotStudy, repeat: int = 1) -> EvaluationResult:
-    """``flexopt evaluate``: the study's design (or the best closed-form seed) turned to its range
-    of motion by the beam model, with the closed forms beside it."""
-    prob = FlexurePivotProblem(study)
-    x = design_vector(study, prob)
-    times = []
-    detail = None
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        detail = prob.detail(x)
-        times.append(time.perf_counter() - t0)
-    assert detail is not None
-    ev = detail.evaluation
-    table = dict(detail.table)
-    summary: dict[str, Any] = {
-        "type": detail.info["type"],
-        "small_angle_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"][
-            "beam_small_angle"
-        ],
-        "closed_form_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"]["closed_form"],
-        "target_stiffness_Nmm_per_rad": prob.target_Nmm,
-        "peak_stress_MPa": ev.metrics.get("peak_stress_MPa"),
-        "stress_yield_ratio": float(ev.metrics.get("peak_stress_MPa", np.nan))
-        / prob.material.yield_MPa,
-        "safety_factor": ev.metrics.get("safety_factor"),
-        "centre_shift_at_range_mm": detail.info["centre_shift_at_range_mm"],
-        "feasible": ev.feasible,
-        "stable": bool(np.all(table["stable"][table["converged"]])),
-    }
-    for key in ("stiffness_Nmm_per_rad", "centre_shift_mm", "envelope_length_mm",
-                "envelope_height_mm"):  # fmt: skip
-        summary.setdefault(key, ev.metrics.get(key))  # the names flexopt run judges too
-    # the part as exported (its planar outline extruded), as flexopt run measures it
-    summary.update(envelope_values(detail.outline, detail.height_mm))
-    ps = detail.info.get("plane_stress")
-    if isinstance(ps, dict) and "linear_stiffness_Nmm_per_rad" in ps:
-        summary["plane_stress_stiffness_Nmm_per_rad"] = ps["linear_stiffness_Nmm_per_rad"]
-        summary["plane_stress_safety_factor"] = ps.get("safety_factor")
-        summary.update(pivot_plane_stress_figures(ps))
-    converged = bool(np.all(table["converged"]))
-    return EvaluationResult(
-        table=table,
-        summary=summary,
-        converged=converged,
-        message=detail.info["beam"]["message"],
-        solve_times_s=tuple(times),
-        inputs={
-            "material": material_record(prob.material),
-            "design": {n: float(v) for n, v in zip(VARIABLES, x, strict=True)},
-            "flexure": detail.info["parameters"],
-            "closed_form": detail.info["closed_form"],
-        },
-        diagnostics=dict(detail.info["beam"]),
-        plot={
-            "x": "rotation_deg",
-            "left": "torque_Nmm",
-            "right": "peak_stress_MPa",
-            "allowable_MPa": prob.allowable_MPa,
-            # the target stiffness as a torque line K theta, with the stiffness band
-            "target_curve": {
-                "x": table["rotation_deg"],
-                "y": prob.target_Nmm * np.radians(table["rotation_deg"]),
-            },
-            "tolerance_rel": prob.tolerance,
-            "target_label": f"target K θ, K = {prob.target_Nmm:g} N·mm/rad",
-        },
-        headline=(
-            "type",
-            "small_angle_stiffness_Nmm_per_rad",
-            "closed_form_stiffness_Nmm_per_rad",
-            "plane_stress_stiffness_Nmm_per_rad",
-            "peak_stress_MPa",
-            "safety_factor",
-            "centre_shift_at_range_mm",
-        ),
-    )
-
-
 register(
     StudyKind(
         "flexure_pivot",
         FlexurePivotStudy,
         check,  # type: ignore[arg-type]
-        evaluate,  # type: ignore[arg-type]
+        None,  # flexopt evaluate: the nominal design's FlexurePivotProblem.result
         problem,  # type: ignore[arg-type],
         requirements=_builtin.flexure_pivot,
         quantities=_builtin.FLEXURE_PIVOT,

@@ -333,8 +333,9 @@ def resolved_constant_force_study(
     try:
         resolved = validate_study(raw, source=f"{link.study} (resolved by {study.name})")
         if link.rescale_width:
-            kind = get_kind("constant_force")
-            base = kind.evaluate(resolved, 1)  # type: ignore[misc]
+            from flexopt.pipeline.problems import study_result
+
+            base = study_result(resolved, 1)  # the base design's result, as flexopt evaluate's
             plateau = plateau_mean_N(base.table["displacement_mm"], base.table["force_N"], *window)
             if not plateau > 0:
                 raise StudyError(
@@ -381,13 +382,20 @@ def check(study: GripperStudy) -> None:
 
 
 def evaluate(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
-    """The requirement, the resolved constant-force study and the response of its design."""
+    """The requirement, the resolved constant-force study and the response of its design.
+
+    The kind's ``StudyKind.evaluate`` (the result hook of a kind whose result is not one design
+    of its problem): the gripper's answer is the grip requirement solved by statics beside the
+    result of the constant-force study it resolves (:func:`pipeline.problems.study_result`).
+    """
+    from flexopt.pipeline.problems import study_result
+
     times = []
     for _ in range(max(1, repeat)):
         t0 = time.perf_counter()
         req = requirement(study)
         resolved, changes = resolved_constant_force_study(study, req)
-        beam = get_kind("constant_force").evaluate(resolved, 1)  # type: ignore[misc]
+        beam = study_result(resolved, 1)  # the resolved design's result (flexopt evaluate's)
         times.append(time.perf_counter() - t0)
     table = dict(beam.table)
     force = req["target_force_N"]

@@ -48,7 +48,7 @@ from flexopt.optimise.joint_objectives import (
     leaf_joint_objective,
     leaf_joint_unreachable,
 )
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
@@ -377,7 +377,7 @@ def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
 # Design: flexopt run
 
 
-class LeafJointProblem:
+class LeafJointProblem(DesignProblem):
     """Design the joint arm, leaf thickness and width for a stiffness range (picklable).
 
     For a design x = (l_j, t, b) the support travels between l_min and l_max, the free lengths

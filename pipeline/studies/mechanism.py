@@ -50,7 +50,7 @@ from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.mechanism_objectives import STATS
 from flexopt.optimise.mechanism_objectives import verdict_json as _verdict_json
-from flexopt.optimise.problem import CaseResponse, DesignDetail
+from flexopt.optimise.problem import CaseResponse, DesignDetail, DesignProblem
 from flexopt.optimise.requirements import MinFeature, Range, Requirement, TargetBand, Verdict
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.variables import DesignVariables, VariableError, resolve_variables
@@ -341,7 +341,7 @@ def _solve_width(
     return design.width_for_target(req.quantity, x, y, target, req.over, relative, ref_width)
 
 
-class MechanismProblem:
+class MechanismProblem(DesignProblem):
     """The :class:`optimise.DesignProblem` of a ``mechanism`` study (picklable, deterministic,
     never raises for a bad design)."""
 

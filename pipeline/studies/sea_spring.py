@@ -75,7 +75,7 @@ from flexopt.geometry.arm_spring import ArmSpringParams
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.sea_spring import SpringFrame, SpringGeometry, SpringParams
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import (
     PLANE_STRESS,
     SOLID_3D,
@@ -494,7 +494,7 @@ def run_taguchi(study: SeaSpringStudy) -> dict[str, Any]:
 # Stage 2: the design problem
 
 
-class SeaSpringProblem:
+class SeaSpringProblem(DesignProblem):
     """The NSGA-II problem of stage 2 (picklable; stage 1 runs in the constructor).
 
     With ``thickness: solve`` (default) the variables are the 17 planform variables of Table 9

@@ -77,7 +77,7 @@ from flexopt.optimise.curve_objectives import (
 )
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
-from flexopt.optimise.problem import DesignDetail
+from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, SOLID_3D
 from flexopt.optimise.requirements import Figure as FigureOf
 from flexopt.optimise.space import DesignSpace
@@ -86,7 +86,7 @@ from flexopt.optimise.thickness_fit import fit_thickness
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.plot_targets import measure_band
 from flexopt.pipeline.plots import plot_field, spring_shape_png, threshold_curve_png
-from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies._blocks import CurveSolid3DSpec, ImpactSpec
 from flexopt.pipeline.studies._blocks import MeshSpec as PlaneStressMesh
 from flexopt.pipeline.studies._spring_frame import SpringFrameBlock
@@ -101,7 +101,6 @@ __all__ = [
     "design_vector",
     "check",
     "problem",
-    "evaluate",
 ]
 
 #: Reference thickness of the search solves, mm (torques scale with ST, stresses do not).
@@ -319,7 +318,7 @@ def check(study: ThresholdSpringStudy) -> None:
 # The design problem
 
 
-class ThresholdSpringProblem:
+class ThresholdSpringProblem(DesignProblem):
     """GA over the arm shape; ST solved from the target; beam model per design.
 
     Objective: the error measure (``f[0]``). Constraints (``g <= 0``): error − tolerance,
@@ -640,6 +639,85 @@ class ThresholdSpringProblem:
             curve_step_mm=self.study.solid_3d.curve_step_mm,
         )  # fmt: skip
 
+    def nominal_design(self) -> np.ndarray:
+        """(10,) the study's ``design:`` (unlisted variables at the middle of their range): what
+        ``flexopt evaluate`` solves. As given: one outside design_space is solved and judged NOT
+        MET on the design-range row (pipeline.verdict), never moved into the space unsaid."""
+        return design_vector(self.study)
+
+    def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
+        """Trace the design ``x`` (10,) (the study's ``design:``: :meth:`nominal_design`): beam,
+        plane-stress check, impact, with plots and an STL."""
+        prob, study = self, self.study
+        x = np.asarray(x, dtype=float)
+        times = []
+        for _ in range(max(1, repeat)):
+            t0 = time.perf_counter()
+            d = prob.detail(x)
+            times.append(time.perf_counter() - t0)
+        ev = d.evaluation
+        plot = {
+            "x": "rotation_deg",
+            "left": "torque_Nm",
+            "right": "peak_stress_MPa",
+            "allowable_MPa": prob.allowable_MPa,
+            "target_curve": "target_torque_Nm",  # drawn with its band (pipeline.plot_targets)
+            **measure_band(prob.measure, study.tolerance),
+        }
+        if not d.table:
+            empty = np.zeros(0)
+            reasons = ev.reason or ", ".join(
+                n
+                for n, g in zip(prob.constraint_names, ev.g, strict=True)
+                if 0 < g < INFEASIBLE_VALUE
+            )
+            return DesignResult(
+                table={"rotation_deg": empty, "torque_Nm": empty, "peak_stress_MPa": empty},
+                summary={"feasible": False, "reason": f"not buildable: {reasons}"},
+                converged=False,
+                message=f"design not buildable: {reasons}",
+                solve_times_s=tuple(times),
+                inputs={
+                    "info": d.info,
+                    "constraints": dict(zip(prob.constraint_names, map(float, ev.g), strict=True)),
+                },
+                plot=plot,
+            )
+        files: dict[str, bytes] = {
+            "curve.png": threshold_curve_png(
+                d.table, study.tolerance, d.plot.get("allowable_MPa"), study.name
+            ),
+            "shape.png": spring_shape_png(d.outline, d.shapes_mm),
+        }
+        if d.outline is not None and d.height_mm:
+            files["spring.stl"] = stl_bytes(extrude(d.outline, d.height_mm))
+        if d.field_map:
+            f = d.field_map
+            files["stress_map.png"] = plot_field(
+                f["points_mm"], f["triangles"], f["values"], f["label"], f.get("limit"), study.name
+            )
+        summary = _summary(prob, d)
+        summary.update(envelope_values(d.outline, d.height_mm))  # the part as exported
+        for key in (prob.error_name, "peak_stress_MPa", "min_feature_mm"):  # as flexopt run
+            summary.setdefault(key, ev.metrics.get(key))
+        ps = d.info.get("plane_stress", {})
+        return DesignResult(
+            table=d.table,
+            summary=summary,
+            converged=bool(np.all(d.table["converged"])) and ps.get("converged", True),
+            message=ps.get("message", "") or "",
+            solve_times_s=tuple(times),
+            inputs={
+                "design": d.info.get("design"),
+                "constraints": dict(zip(prob.constraint_names, map(float, ev.g), strict=True)),
+                "info": {k: v for k, v in d.info.items() if k not in ("design",)},
+            },
+            diagnostics={"beam_time_s": ev.metrics.get("beam_time_s")},
+            plot=plot,
+            headline=tuple(k for k in summary if summary[k] is not None),
+            files=files,
+        )
+
 
 def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
     """The figures of a quantity by model (pipeline.verdict): the error measure and the peak
@@ -717,85 +795,12 @@ def _summary(prob: ThresholdSpringProblem, d: DesignDetail) -> dict[str, Any]:
     return s
 
 
-def evaluate(study: ThresholdSpringStudy, repeat: int = 1) -> EvaluationResult:
-    """Trace the study's ``design:`` (beam, plane-stress check, impact) with plots and an STL."""
-    prob = problem(study)
-    # the design as given: one outside design_space is solved and judged NOT MET on the
-    # design-range row (pipeline.verdict), never moved into the space unsaid
-    x = design_vector(study)
-    times = []
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        d = prob.detail(x)
-        times.append(time.perf_counter() - t0)
-    ev = d.evaluation
-    plot = {
-        "x": "rotation_deg",
-        "left": "torque_Nm",
-        "right": "peak_stress_MPa",
-        "allowable_MPa": prob.allowable_MPa,
-        "target_curve": "target_torque_Nm",  # drawn with its band (pipeline.plot_targets)
-        **measure_band(prob.measure, study.tolerance),
-    }
-    if not d.table:
-        empty = np.zeros(0)
-        reasons = ev.reason or ", ".join(
-            n for n, g in zip(prob.constraint_names, ev.g, strict=True) if 0 < g < INFEASIBLE_VALUE
-        )
-        return EvaluationResult(
-            table={"rotation_deg": empty, "torque_Nm": empty, "peak_stress_MPa": empty},
-            summary={"feasible": False, "reason": f"not buildable: {reasons}"},
-            converged=False,
-            message=f"design not buildable: {reasons}",
-            solve_times_s=tuple(times),
-            inputs={
-                "info": d.info,
-                "constraints": dict(zip(prob.constraint_names, map(float, ev.g), strict=True)),
-            },
-            plot=plot,
-        )
-    files: dict[str, bytes] = {
-        "curve.png": threshold_curve_png(
-            d.table, study.tolerance, d.plot.get("allowable_MPa"), study.name
-        ),
-        "shape.png": spring_shape_png(d.outline, d.shapes_mm),
-    }
-    if d.outline is not None and d.height_mm:
-        files["spring.stl"] = stl_bytes(extrude(d.outline, d.height_mm))
-    if d.field_map:
-        f = d.field_map
-        files["stress_map.png"] = plot_field(
-            f["points_mm"], f["triangles"], f["values"], f["label"], f.get("limit"), study.name
-        )
-    summary = _summary(prob, d)
-    summary.update(envelope_values(d.outline, d.height_mm))  # the part as exported
-    for key in (prob.error_name, "peak_stress_MPa", "min_feature_mm"):  # as flexopt run
-        summary.setdefault(key, ev.metrics.get(key))
-    ps = d.info.get("plane_stress", {})
-    return EvaluationResult(
-        table=d.table,
-        summary=summary,
-        converged=bool(np.all(d.table["converged"])) and ps.get("converged", True),
-        message=ps.get("message", "") or "",
-        solve_times_s=tuple(times),
-        inputs={
-            "design": d.info.get("design"),
-            "constraints": dict(zip(prob.constraint_names, map(float, ev.g), strict=True)),
-            "info": {k: v for k, v in d.info.items() if k not in ("design",)},
-        },
-        diagnostics={"beam_time_s": ev.metrics.get("beam_time_s")},
-        plot=plot,
-        headline=tuple(k for k in summary if summary[k] is not None),
-        files=files,
-    )
-
-
 register(
     StudyKind(
         "threshold_spring",
         ThresholdSpringStudy,
         check,
-        evaluate,
+        None,  # flexopt evaluate: the nominal design's ThresholdSpringProblem.result
         problem,
         requirements=_builtin.threshold_spring,
         quantities=_builtin.THRESHOLD_SPRING,

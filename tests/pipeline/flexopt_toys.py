@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
+from flexopt.optimise import DesignDetail, DesignProblem, DesignSpace, Evaluation
 from flexopt.pipeline.studies import StudyKind, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
 from pydantic import BaseModel, Field
@@ -62,7 +62,7 @@ def _above(value: float, threshold: float | None) -> bool:
 
 
 @dataclass
-class FaultProblem:
+class FaultProblem(DesignProblem):
     geometry: FaultGeometry
     space: DesignSpace = DesignSpace(("a", "b", "c"), np.zeros(3), np.ones(3))
     objective_names: tuple[str, ...] = ("error",)

@@ -11,6 +11,7 @@ import yaml
 from flexopt.fea.statics import STANDARD_GRAVITY_M_PER_S2
 from flexopt.geometry.solid import extrude
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.problems import study_result
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies.cam import CamProblem
 from flexopt.pipeline.studies.collision import extra_files as collision_files
@@ -25,7 +26,7 @@ def raw_example(name: str) -> dict:
 @pytest.fixture(scope="module")
 def cam_result():
     study = load_study("threshold-cam")
-    return study, get_kind("cam").evaluate(study, 1)
+    return study, study_result(study, 1)
 
 
 @pytest.fixture(scope="module")
@@ -75,11 +76,11 @@ def test_cam_from_a_csv_table_and_with_the_paper_correction(tmp_path, monkeypatc
         "measure": "max_normalised",
         "window_deg": [3, 85],
     }
-    result = get_kind("cam").evaluate(validate_study(raw), 1)
+    result = study_result(validate_study(raw), 1)
     assert result.summary["target_max_normalised_error"] < 0.01  # the table's chords near 0
     raw = raw_example("threshold-cam")
     raw["correction"] = {"coefficients": [1.001, -0.0369, 2.588]}
-    result = get_kind("cam").evaluate(validate_study(raw), 1)
+    result = study_result(validate_study(raw), 1)
     t = result.table
     np.testing.assert_allclose(
         t["cam_torque_Nm"][1:80] / t["virtual_work_torque_Nm"][1:80], 1.0, rtol=5e-3

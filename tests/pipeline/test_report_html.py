@@ -31,6 +31,7 @@ from flexopt.pipeline.labels import (
 )
 from flexopt.pipeline.plot_targets import measure_band, target_overlay
 from flexopt.pipeline.plots import curve_figure, response_figure
+from flexopt.pipeline.problems import study_result
 from flexopt.pipeline.report_html import (
     EVALUATE_SECTIONS,
     SECTIONS,
@@ -453,7 +454,7 @@ def test_siblings_are_the_curves_of_one_quantity_and_their_comparisons():
 @pytest.fixture(scope="module")
 def leaf_result():
     study = load_study("leaf-spring-joint")
-    return study, get_kind(study.kind).evaluate(study, 1)
+    return study, study_result(study, 1)
 
 
 def test_leaf_joint_png_and_html_show_all_six_curves(leaf_result):
@@ -500,7 +501,7 @@ def test_leaf_joint_run_plot_draws_both_settings_and_the_stiffness_range():
 def test_flexure_pivot_and_cam_plots_draw_their_targets(tmp_path):
     # flexure pivot: the target stiffness K (N·mm/rad) as the torque line K theta, ±tolerance
     study = load_study("flexure-pivot")
-    result = get_kind(study.kind).evaluate(study, 1)
+    result = study_result(study, 1)
     k, tol = study.target.stiffness_Nmm_per_rad, study.target.tolerance_percent / 100
     theta = np.radians(result.table["rotation_deg"])
     torque = response_figure(result.table, **response_plot_args(study, result)).axes[0]
@@ -586,7 +587,7 @@ def test_every_optimising_kind_says_what_its_variables_mean():
 def test_a_mechanism_study_draws_its_target_band_requirement():
     # constant-force-mechanism.yaml: force_N within ±2 % of 1.5 N over a drive of 0.5..30 mm
     study = load_study("constant-force-mechanism")
-    result = get_kind(study.kind).evaluate(study, 1)
+    result = study_result(study, 1)
     fig = response_figure(result.table, **response_plot_args(study, result))
     force = fig.axes[0]
     (target,) = [v for name, v in _lines(force).items() if name.startswith("target")]

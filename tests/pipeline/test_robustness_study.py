@@ -140,7 +140,9 @@ def test_perturb_study_shifts_printed_sizes_only():
 
 
 def test_design_vectors_shift_by_name_or_by_the_kind():
-    class ByName:
+    from flexopt.optimise.problem import DesignProblem
+
+    class ByName(DesignProblem):  # no scatter_design of its own: the rule by name
         class space:  # noqa: N801 - a stand-in for a DesignSpace
             names = ("leaf_thickness_mm", "length_mm", "width_mm")
 

@@ -678,16 +678,17 @@ def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():
     failing preload is only logged."""
     import threading
 
+    from flexopt.optimise.problem import DesignProblem
     from flexopt.pipeline.parallel import ParallelSettings
     from flexopt.pipeline.run import _preload_report
 
     seen: list[str] = []
 
-    class Problem:
+    class Problem(DesignProblem):
         def warm_up_detail(self) -> None:
             seen.append(threading.current_thread().name)
 
-    class Failing:
+    class Failing(DesignProblem):
         def warm_up_detail(self) -> None:
             raise RuntimeError("no kernels here")
 

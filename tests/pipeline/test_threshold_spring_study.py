@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from flexopt.fea.collision import CollisionModel, score_spring_curve
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import get_kind
+from flexopt.pipeline.problems import study_result
 from flexopt.pipeline.studies import threshold_spring as ts
 from flexopt.pipeline.study import load_study, parse_study_text, resolve_study_path, validate_study
 
@@ -139,7 +139,7 @@ def test_torque_is_proportional_to_the_solved_thickness(shipped):
 def evaluated():
     # without the 3D check (one 3D solve: ~35 s and 3.6 GB; test_threshold_spring_solid3d.py)
     study = load_study("threshold-spring").with_values({"solid_3d.check": False})
-    return study, get_kind("threshold_spring").evaluate(study, 1)
+    return study, study_result(study, 1)
 
 
 def test_plane_stress_check_agrees_with_the_beam(evaluated):
@@ -210,7 +210,7 @@ def test_quick_run_end_to_end(tmp_path):
 
 def test_evaluate_of_an_unbuildable_design_is_a_result_not_a_crash():
     raw_design = dict(EXAMPLE["design"], F1=0.437, F2=0.31, G1=0.446, G2=0.048)  # folded arm
-    result = ts.evaluate(study_with(design=raw_design, fidelity={"enabled": False}))
+    result = study_result(study_with(design=raw_design, fidelity={"enabled": False}))
     assert not result.converged and result.summary["feasible"] is False
     assert "fold_shortfall_mm" in result.message
     assert result.plot["x"] in result.table and result.plot["left"] in result.table

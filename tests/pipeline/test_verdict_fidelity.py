@@ -18,6 +18,7 @@ from flexopt.optimise.requirements import (
     to_records,
     verdict_lines,
 )
+from flexopt.pipeline.problems import study_result
 from flexopt.pipeline.study import load_study
 from flexopt.pipeline.verdict import builtin_requirements, judge, quantities_of
 
@@ -108,10 +109,9 @@ def _cf_study(**values):
 
 
 def test_constant_force_stress_requirement_is_the_plane_stress_figure():
-    import flexopt.pipeline.studies.constant_force as cf
 
     study = _cf_study()
-    result = cf.evaluate(study)
+    result = study_result(study)
     check = result.diagnostics["fidelity"]
     assert all(check["converged"])
     beam_peak = float(np.max(result.table["peak_stress_MPa"]))
@@ -157,10 +157,9 @@ def test_constant_force_run_judges_its_best_design_on_the_plane_stress_figure():
 
 
 def test_constant_force_without_the_check_is_judged_on_the_beam():
-    import flexopt.pipeline.studies.constant_force as cf
 
     study = _cf_study(**{"fidelity.enabled": False})
-    result = cf.evaluate(study)
+    result = study_result(study)
     assert "fidelity" not in result.diagnostics
     v = {v.name: v for v in judge(study, result.summary, result.table)}["peak stress"]
     beam_peak = float(np.max(result.table["peak_stress_MPa"]))
@@ -191,10 +190,9 @@ def test_a_verdict_with_figures_reads_back_from_its_record():
 
 
 def test_flexure_pivot_is_judged_on_its_plane_stress_check():
-    from flexopt.pipeline.studies import get_kind
 
     study = load_study("flexure-pivot")
-    result = get_kind("flexure_pivot").evaluate(study, 1)
+    result = study_result(study, 1)
     s = result.summary
     verdicts = {v.name: v for v in judge(study, s, result.table)}
     k = verdicts["stiffness band"]

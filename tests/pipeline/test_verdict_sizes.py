@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from flexopt.pipeline.problems import study_result
 from flexopt.pipeline.studies.mechanism import MechanismProblem
 from flexopt.pipeline.study import load_study, validate_study
 from flexopt.pipeline.verdict import judge, quantities_of
@@ -95,7 +96,7 @@ def test_envelope_of_another_kind_from_flexopt_evaluate():
 
     study = load_study("constant-force").with_values({"fidelity.enabled": False})
     assert "envelope_depth_mm" in quantities_of(study)
-    result = cf.evaluate(study)
+    result = study_result(study)
     design = cf.design_vector(study)
     shape = cf.outline(
         cf.ConstantForceProblem(study)._design(design), cf.TABLE1,
@@ -165,7 +166,7 @@ def test_envelope_of_a_cam_plate_from_flexopt_evaluate():
     import flexopt.pipeline.studies.cam as cam
 
     study = load_study("threshold-cam")
-    result = cam.evaluate(study)
+    result = study_result(study)
     *_, profile, _ = cam.build_cam(study)
     x0, y0, x1, y1 = cam.cam_outline(profile).bounds
     s = result.summary
