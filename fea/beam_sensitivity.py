@@ -35,8 +35,7 @@ import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, EndDrive
 from flexopt.fea.errors import FeaError
 from flexopt.geometry.profile import BeamProfile
-from scipy.linalg import cho_solve_banded, cholesky_banded
-from scipy.linalg.lapack import dgbtrf, dgbtrs
+from scipy.linalg.lapack import dgbtrf, dgbtrs, dpbtrf, dpbtrs
 
 __all__ = ["BeamSensitivity", "beam_sensitivities", "ks_aggregate"]
 
@@ -129,46 +128,55 @@ class _Factor:
     """The tangent with the held DOFs replaced by identity rows/columns, factorised once.
 
     ``ab`` is BeamModel's band storage (2 kl + ku + 1, n), ``A[i, j] = ab[kl + ku + i - j, j]``,
-    kl = ku = 8. Banded Cholesky when positive definite (a stable row), banded LU otherwise.
+    kl = ku = 8; ``zero`` the (rows, cols) of ``ab`` in the held rows and columns and ``diag``
+    the columns of the held diagonal (:func:`_held_entries`). Banded Cholesky (LAPACK dpbtrf)
+    when positive definite (a stable row), banded LU (dgbtrf) otherwise.
     """
 
-    def __init__(self, ab: np.ndarray, fixed: np.ndarray) -> None:
-        n = ab.shape[1]
-        full = np.zeros((3 * _KD + 1, n))
-        full[:] = ab
-        for c in fixed:  # zero row and column c, unit diagonal
-            j = np.arange(max(0, c - _KD), min(n, c + _KD + 1))
-            full[2 * _KD + c - j, j] = 0.0
-            full[2 * _KD + j - c, c] = 0.0
-            full[2 * _KD, c] = 1.0
-        try:
-            self.chol = cholesky_banded(full[_KD : 2 * _KD + 1], lower=False)
-            self.lu = None
-        except np.linalg.LinAlgError:  # not positive definite: an unstable row
+    def __init__(
+        self, ab: np.ndarray, zero: tuple[np.ndarray, np.ndarray], diag: np.ndarray
+    ) -> None:
+        full = np.array(ab, order="F")
+        full[zero] = 0.0
+        full[2 * _KD, diag] = 1.0
+        self.chol, info = dpbtrf(np.asfortranarray(full[_KD : 2 * _KD + 1]), lower=0)
+        self.lu = None
+        if info != 0:  # not positive definite: an unstable row
             self.chol = None
-            self.lu, self.piv, info = dgbtrf(full.copy(order="F"), _KD, _KD)
-        if self.chol is None and info != 0:
-            raise FeaError(f"singular tangent at a converged row (dgbtrf info {info})")
+            self.lu, self.piv, info = dgbtrf(full, _KD, _KD)
+            if info != 0:
+                raise FeaError(f"singular tangent at a converged row (dgbtrf info {info})")
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve for (n,) or (n, m) right-hand sides (held DOFs of ``rhs`` must be 0)."""
-        if self.chol is not None:
-            return cho_solve_banded((self.chol, False), rhs)
         b = rhs.reshape(rhs.shape[0], -1)
-        x, info = dgbtrs(self.lu, _KD, _KD, b, self.piv)
+        if self.chol is not None:
+            x, info = dpbtrs(self.chol, b, lower=0)
+        else:
+            x, info = dgbtrs(self.lu, _KD, _KD, b, self.piv)
         if info != 0:
-            raise FeaError(f"dgbtrs failed (info {info})")
+            raise FeaError(f"banded back-substitution failed (info {info})")
         return x.reshape(rhs.shape)
 
 
-def _band_matvec(ab: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """The full tangent (band storage as BeamModel's) times (n, m) ``x``."""
+def _held_entries(fixed: np.ndarray, n: int) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Band-storage (rows, cols) of the held rows and columns, and the held diagonal's columns."""
+    rows, cols = [], []
+    for c in fixed:
+        j = np.arange(max(0, c - _KD), min(n, c + _KD + 1))
+        rows += [2 * _KD + c - j, 2 * _KD + j - c]  # row c: A[c, j]; column c: A[j, c]
+        cols += [j, np.full(j.size, c)]
+    return (np.concatenate(rows), np.concatenate(cols)), np.asarray(fixed)
+
+
+def _reactions(ab: np.ndarray, dofs: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(len(dofs), m): rows ``dofs`` of the full tangent (band storage as BeamModel's) times x."""
     n = ab.shape[1]
-    y = np.zeros_like(x)
-    for k in range(-_KD, _KD + 1):
-        i = np.arange(max(0, -k), min(n, n - k))
-        y[i] += ab[2 * _KD - k, i + k][:, None] * x[i + k]
-    return y
+    out = np.empty((len(dofs), x.shape[1]))
+    for k, c in enumerate(dofs):
+        j = np.arange(max(0, c - _KD), min(n, c + _KD + 1))
+        out[k] = ab[2 * _KD + c - j, j] @ x[j]
+    return out
 
 
 class _Twin:
@@ -182,8 +190,10 @@ class _Twin:
                 model.profile, model.material, model.start, replace(model.settings, kernel="numpy")
             )
         )
+        #: the model whose assembly polishes the states: the compiled one where it runs (the same
+        #: numbers as the reference path to round-off, ~30 x faster)
+        self.solver = model
         m = self.model
-        self.n = m.n_dofs
         # arc length of the Gauss points (E, Q) and of the stress sampling points (E, 3)
         s_vert = m.mesh.p[0]
         h = np.diff(s_vert)
@@ -195,9 +205,24 @@ class _Twin:
         self.s_gauss = s_vert[:-1, None] + xi_g[None, :] * h[:, None]
         self.assemblies = 0
 
+    def hats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Hat functions of the vertices in arc length at the Gauss points (E, Q, n_pts) and the
+        sampling points (E, 3, n_pts), and the thickness at the Gauss points (E, Q) mm."""
+        if not hasattr(self, "_hats"):
+            prof = self.model.profile
+            s_pts = prof.arc_length_mm
+            eye = np.eye(prof.n_points)
+            self._hats = (
+                np.stack([np.interp(self.s_gauss, s_pts, e) for e in eye], -1),
+                np.stack([np.interp(self.s_samp, s_pts, e) for e in eye], -1),
+                np.interp(self.s_gauss, s_pts, prof.thickness_mm),
+            )
+        return self._hats
+
     def assemble(self, q: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         self.assemblies += 1
-        return self.model._assemble(q, frame)
+        r, ab = self.solver._assemble(q, frame)
+        return r, np.asfortranarray(ab)
 
     def physical(self, q: np.ndarray, frame: np.ndarray) -> np.ndarray:
         return self.model._physical(q, frame)
@@ -289,6 +314,7 @@ def _polish(
     q: np.ndarray,
     frame: np.ndarray,
     fixed: np.ndarray,
+    held: tuple,
     f_ext: np.ndarray,
     counts: dict,
     max_iterations: int = 12,
@@ -302,7 +328,7 @@ def _polish(
     q = q.copy()
     for _ in range(max_iterations):
         r, ab = twin.assemble(q, frame)
-        fac = _Factor(ab, fixed)
+        fac = _Factor(ab, *held)
         counts["factorisations"] += 1
         res = f_ext - r
         res[fixed] = 0.0
@@ -310,7 +336,7 @@ def _polish(
         q += delta
         if np.abs(delta).max() <= 1e-9 * scale:
             r, ab = twin.assemble(q, frame)
-            fac = _Factor(ab, fixed)
+            fac = _Factor(ab, *held)
             counts["factorisations"] += 1
             counts["lu_rows"] += fac.chol is None
             return q, r, ab, fac
@@ -329,11 +355,7 @@ def _thickness_terms(twin: _Twin, u: np.ndarray) -> tuple[np.ndarray, np.ndarray
     """
     m = twin.model
     prof = m.profile
-    s_pts = prof.arc_length_mm
-    eye = np.eye(prof.n_points)
-    psi_g = np.stack([np.interp(twin.s_gauss, s_pts, eye[i]) for i in range(prof.n_points)], -1)
-    psi_s = np.stack([np.interp(twin.s_samp, s_pts, eye[i]) for i in range(prof.n_points)], -1)
-    t_g = np.interp(twin.s_gauss, s_pts, prof.thickness_mm)
+    psi_g, psi_s, t_g = twin.hats()
     b = prof.width_mm
     E, G = m.material.E_MPa, m.material.G_MPa
     f = twin.fields(u)
@@ -348,8 +370,8 @@ def _thickness_terms(twin: _Twin, u: np.ndarray) -> tuple[np.ndarray, np.ndarray
         + d_ei[..., None] * (E * b * t_g**2 / 4.0)[..., None, None]
     ) * psi_g[:, :, None, :]  # (E, Q, 4, n_pts)
     n_el, n_q = g1.shape
-    rmap = m._Rmap.reshape(n_el, n_q, 4, 9)
-    dre = np.einsum("eqrp,eqrk->ekp", drs, rmap)
+    # (E, 9, Q * 4) @ (E, Q * 4, n_pts): the element residual map applied to every column
+    dre = np.matmul(m._Rmap.transpose(0, 2, 1), drs.reshape(n_el, n_q * 4, -1))
     kap_s = np.einsum("eqk,ek->eq", m._dNs, f["qe"][:, :, 2])
     dbend = (0.5 * E * kap_s)[..., None] * psi_s  # (EI / Z) kappa = E t kappa / 2
     return dre, dbend
@@ -397,6 +419,7 @@ def beam_sensitivities(
     n = m.n_dofs
     frame = _frame(drive)
     fixed = m._fixed_dofs(drive)
+    held = _held_entries(fixed, n)
     ia, it, ir = n - 3, n - 2, n - 1
     is_disp = drive.control == "displacement"
     rho = KS_RHO_YIELD / m.material.yield_MPa if ks_rho_per_MPa is None else ks_rho_per_MPa
@@ -455,7 +478,7 @@ def beam_sensitivities(
         for dof in fixed:  # held DOFs at their prescribed values
             if dof != ia:
                 q0[dof] = 0.0
-        q, r, ab, fac = _polish(twin, q0, frame, fixed, f_ext, counts)
+        q, r, ab, fac = _polish(twin, q0, frame, fixed, held, f_ext, counts)
         mismatch = max(mismatch, abs(r[ia] - response.force_N[row]))
         u = twin.physical(q, frame)
 
@@ -469,7 +492,8 @@ def beam_sensitivities(
             dre, dc_t = _thickness_terms(twin, u)
             dre[-1] = _to_generalised_rows(dre[-1], frame)
             npt = prof.n_points
-            np.add.at(dR[:, col : col + npt], edofs.ravel(), dre.reshape(-1, npt))
+            for k in range(9):  # distinct DOFs within one local index: plain fancy += is safe
+                dR[edofs[:, k], col : col + npt] += dre[:, k]
             dc_x[..., col : col + npt] = dc_t
             col += npt
         if "width" in variables:
@@ -491,9 +515,9 @@ def beam_sensitivities(
         rhs[fixed] = 0.0
         dq = fac.solve(rhs)
         counts["back_substitutions"] += n_var
-        dr = dR + _band_matvec(ab, dq)
-        free = np.setdiff1d(np.arange(n), fixed)
-        dr[free] = 0.0  # a free DOF's force is the applied load (0 or the prescribed one)
+        # reactions of the held DOFs; a free DOF's force is the applied load (0 or prescribed)
+        dr = np.zeros((n, n_var))
+        dr[fixed] = dR[fixed] + _reactions(ab, fixed, dq)
 
         values["displacement_mm"][row] = q[ia]
         values["transverse_displacement_mm"][row] = q[it]
@@ -513,8 +537,8 @@ def beam_sensitivities(
         du = dq.copy()
         du[n - 3 : n - 1] = frame.T @ dq[n - 3 : n - 1]
         due = du[edofs]  # (E, 9, n_var)
-        da = np.einsum("emk,ekv->emv", da_du, due) + da_x
-        dc = np.einsum("emk,ekv->emv", dc_du, due) + dc_x
+        da = np.matmul(da_du, due) + da_x
+        dc = np.matmul(dc_du, due) + dc_x
         fibre[row] = np.stack([a + c, a - c], -1).reshape(-1, 2)
         d_fibre[row] = np.stack([da + dc, da - dc], 2).reshape(3 * n_el, 2, n_var)
         # KS over the four signed fibre values +-(a + c), +-(a - c) of every sampling point: its
@@ -545,6 +569,5 @@ def _shim(model: BeamModel) -> _Twin:
     """A :class:`_Twin` view of a numpy-kernel model, for its stresses at fixed DOFs."""
     twin = _Twin.__new__(_Twin)
     twin.model = model
-    twin.n = model.n_dofs
     twin.assemblies = 0
     return twin
