@@ -192,6 +192,39 @@ def test_centreline_coordinates_of_a_kinked_cantilever():
         assert err.max() <= TOL, (name, dict(zip(keys, err, strict=True)))
 
 
+def test_circular_arcs_under_an_oblique_drive():
+    """Two arc segments (the reference angle linear in s) and a drive at 45 degrees to the axes
+    (the end node's DOFs in a rotated frame), transverse motion held: thickness and coordinates."""
+    profile = BeamProfile(
+        [[0.0, 0.0], [40.0, 0.0], [80.0, 10.0]],
+        [1.2, 1.0, 0.8],
+        3.0,
+        curvature_per_mm=[0.01, -0.005],
+    )
+    drive = EndDrive("displacement", (-1.0, -1.0), 20.0, 8, "free", "fixed")
+    model = BeamModel(profile, MAT, settings=TIGHT)
+    response = model.solve(drive)
+    assert response.ok and not response.unstable
+    sens = beam_sensitivities(model, drive, response, ("thickness", "coordinates"))
+    keys = ("force_N", "transverse_force_N", "end_rotation_rad", "ks_stress_MPa")
+    fd = _thickness_fd(profile, MAT, drive, TIGHT, 1, keys)
+    err = _relative_error(_analytic(sens, keys, sens.variables.index("t[1]")), fd)
+    assert err.max() <= TOL, ("t[1]", dict(zip(keys, err, strict=True)))
+    for name in ("y[1]", "x[2]"):
+        idx = (int(name[2]), "xy".index(name[0]))
+
+        def fun(step, idx=idx):
+            pts = np.array(profile.points_mm)
+            pts[idx] += step
+            prof = BeamProfile(
+                pts, profile.thickness_mm, profile.width_mm, profile.curvature_per_mm
+            )
+            return _responses(prof, MAT, drive, TIGHT, keys)
+
+        err = _relative_error(_analytic(sens, keys, sens.variables.index(name)), _fd(fun, 1e-2))
+        assert err.max() <= TOL, (name, dict(zip(keys, err, strict=True)))
+
+
 def test_constant_force_beam_after_its_buckling_onset():
     """Paper 003's beam buckles at ~0.03 mm of stroke (the branch guards pick the branch): the
     rows after the onset are smooth in the thicknesses and match the full solve's differences."""
