@@ -384,6 +384,103 @@ def _to_generalised_rows(dre_last: np.ndarray, frame: np.ndarray) -> np.ndarray:
     return out
 
 
+def _segment_of_elements(model: BeamModel) -> np.ndarray:
+    """(E,) int: the profile segment each element lies on."""
+    s_vert = model.mesh.p[0]
+    mid = 0.5 * (s_vert[:-1] + s_vert[1:])
+    seg = np.searchsorted(model.profile.arc_length_mm, mid, side="right") - 1
+    return np.clip(seg, 0, model.profile.n_points - 2)
+
+
+class _CoordinateBatch:
+    """The explicit derivatives by the centreline coordinates, at fixed DOFs, for all of them at
+    once: central differences between models with one vertex moved by +-``step``.
+
+    Moving vertex i changes only the elements of segments i - 1 and i (their lengths, reference
+    angles and hat functions; the arc length further on shifts, which the element integrals do
+    not see). Those elements of every perturbed model are gathered once into one batch of
+    "virtual elements" (element, variable, sign), so each row needs one vectorised residual and
+    stress evaluation over the batch instead of two full assemblies per coordinate.
+    """
+
+    def __init__(self, model: BeamModel, step: float, counts: dict) -> None:
+        prof = model.profile
+        seg = _segment_of_elements(model)
+        keys = ("_dN", "_w", "_theta0", "_c0", "_s0", "_ea", "_kga", "_ei", "_dNs")
+        tables: dict[str, list[np.ndarray]] = {k: [] for k in (*keys, "ratio")}
+        e_idx, col, sign = [], [], []
+        self.names: list[str] = []
+        for i in range(prof.n_points):
+            els = np.flatnonzero((seg == i - 1) | (seg == i))
+            for k, axis in enumerate("xy"):
+                for sgn in (1.0, -1.0):
+                    pts = np.array(prof.points_mm)
+                    pts[i, k] += sgn * step
+                    p2 = BeamProfile(pts, prof.thickness_mm, prof.width_mm, prof.curvature_per_mm)
+                    pm = BeamModel(p2, model.material, model.start, model.settings)
+                    counts["model_builds"] += 1
+                    if pm.n_elements != model.n_elements or np.any(_segment_of_elements(pm) != seg):
+                        raise FeaError(
+                            f"coordinate step {step:g} mm changes the mesh at vertex {i}; "
+                            "pass a smaller coordinate_step_mm"
+                        )
+                    for key in keys:
+                        tables[key].append(getattr(pm, key)[els])
+                    tables["ratio"].append((pm._EI_s / pm._section_modulus_s)[els])
+                    e_idx.append(els)
+                    col.append(np.full(els.size, len(self.names)))
+                    sign.append(np.full(els.size, sgn / (2.0 * step)))
+                self.names.append(f"{axis}[{i}]")
+        self.t = {k: np.concatenate(v) for k, v in tables.items()}
+        self.e = np.concatenate(e_idx)
+        self.col = np.concatenate(col)
+        self.weight = np.concatenate(sign)
+        self.N = model._N  # (Q, 3), the same reference table for every model
+        self.g2s = model._gauss_to_samples
+        self.edofs = model._edofs
+        self.last = self.e == model.n_elements - 1
+        self.n_el = model.n_elements
+        self.E = model.material.E_MPa
+
+    def terms(
+        self, u: np.ndarray, frame: np.ndarray, n: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """dR/dx (n, n_coord) in generalised DOFs, and the explicit derivatives of the fibre
+        stress terms a = E Gamma1 and c = E t kappa / 2, (E, 3, n_coord) each, at physical
+        DOFs ``u`` (n,)."""
+        t, nc = self.t, len(self.names)
+        qe = u[self.edofs[self.e].reshape(-1, 3, 3)]  # (V, node, field)
+        grad = t["_dN"] @ qe  # (V, Q, field)
+        theta = t["_theta0"] + qe[:, :, 2] @ self.N.T
+        c, s = np.cos(theta), np.sin(theta)
+        x1 = t["_c0"] + grad[..., 0]
+        x2 = t["_s0"] + grad[..., 1]
+        h1 = c * x1 + s * x2
+        g2 = c * x2 - s * x1
+        nf = t["_ea"] * (h1 - 1.0)
+        qf = t["_kga"] * g2
+        wd = t["_w"][..., None] * t["_dN"]  # (V, Q, 3)
+        wn = t["_w"][..., None] * self.N[None]
+        re = np.empty(qe.shape)
+        re[..., 0] = np.einsum("vqk,vq->vk", wd, nf * c - qf * s)
+        re[..., 1] = np.einsum("vqk,vq->vk", wd, nf * s + qf * c)
+        re[..., 2] = np.einsum("vqk,vq->vk", wd, t["_ei"] * grad[..., 2]) + np.einsum(
+            "vqk,vq->vk", wn, nf * g2 - qf * h1
+        )
+        re[self.last, 2, :2] = re[self.last, 2, :2] @ frame.T  # end node: (direction, normal)
+        w = self.weight
+        idx = self.edofs[self.e] * nc + self.col[:, None]  # (V, 9)
+        dR = np.bincount(idx.ravel(), (re.reshape(-1, 9) * w[:, None]).ravel(), n * nc)
+        g1s = (h1 - 1.0) @ self.g2s  # (V, 3)
+        kap = np.einsum("vmk,vk->vm", t["_dNs"], qe[:, :, 2])
+        sidx = ((3 * self.e[:, None] + np.arange(3)) * nc + self.col[:, None]).ravel()
+        size = 3 * self.n_el * nc
+        da = np.bincount(sidx, (self.E * g1s * w[:, None]).ravel(), size)
+        dc = np.bincount(sidx, (t["ratio"] * kap * w[:, None]).ravel(), size)
+        shape = (self.n_el, 3, nc)
+        return dR.reshape(n, nc), da.reshape(shape), dc.reshape(shape)
+
+
 def beam_sensitivities(
     model: BeamModel,
     drive: EndDrive,
@@ -429,7 +526,6 @@ def beam_sensitivities(
         names += [f"t[{i}]" for i in range(prof.n_points)]
     if "width" in variables:
         names.append("b")
-    coord_models: list[tuple[BeamModel, BeamModel, float]] = []
     counts = {
         "assemblies": 0,
         "factorisations": 0,
@@ -437,25 +533,11 @@ def beam_sensitivities(
         "model_builds": 0,
         "lu_rows": 0,
     }
+    coords = None
     if "coordinates" in variables:
         step = 1e-6 * prof.length_mm if coordinate_step_mm is None else coordinate_step_mm
-        for i in range(prof.n_points):
-            for k, axis in enumerate("xy"):
-                pair = []
-                for sign in (1.0, -1.0):
-                    pts = np.array(prof.points_mm)
-                    pts[i, k] += sign * step
-                    p2 = BeamProfile(pts, prof.thickness_mm, prof.width_mm, prof.curvature_per_mm)
-                    mm = BeamModel(p2, m.material, m.start, m.settings)
-                    counts["model_builds"] += 1
-                    if mm.n_elements != m.n_elements:
-                        raise FeaError(
-                            f"coordinate step {step:g} mm changes the mesh at vertex {i}; "
-                            "pass a smaller coordinate_step_mm"
-                        )
-                    pair.append(mm)
-                coord_models.append((pair[0], pair[1], step))
-                names.append(f"{axis}[{i}]")
+        coords = _CoordinateBatch(m, step, counts)
+        names += coords.names
     n_var = len(names)
 
     n_rows = len(response.force_N)
@@ -499,16 +581,12 @@ def beam_sensitivities(
         if "width" in variables:
             dR[:, col] = r / prof.width_mm  # every stiffness is proportional to b
             col += 1
-        for mp, mn, step in coord_models:
-            rp, _ = mp._assemble(q, frame)
-            rn, _ = mn._assemble(q, frame)
-            counts["assemblies"] += 2
-            dR[:, col] = (rp - rn) / (2 * step)
-            gp, cp = _shim(mp).section_terms(u)
-            gn, cn = _shim(mn).section_terms(u)
-            da_x[..., col] = m.material.E_MPa * (gp - gn) / (2 * step)
-            dc_x[..., col] = (cp - cn) / (2 * step)
-            col += 1
+        if coords is not None:
+            nc = len(coords.names)
+            dR[:, col : col + nc], da_x[..., col : col + nc], dc_x[..., col : col + nc] = (
+                coords.terms(u, frame, n)
+            )
+            col += nc
 
         # one back-substitution per variable with the row's factorised tangent
         rhs = -dR
