@@ -301,9 +301,8 @@ def test_polished_rows_are_the_solves_rows():
 
 def test_sensitivities_cost_less_than_one_solve_per_variable():
     """Counted, not timed: per converged row one factorised tangent (after a few polishing
-    iterations) and one back-substitution per variable; in all, fewer assemblies and
-    factorisations than the one solve that traced the path, where finite differences would
-    need one (forward) or two (central) solves per variable."""
+    iterations) and one back-substitution per variable, where finite differences would need one
+    (forward) or two (central) solves per variable."""
     profile = _constant_force_profile()
     drive = EndDrive("displacement", (-1.0, 0.0), 30.0, 30, "fixed", "fixed")
     model = BeamModel(profile, get_material("ABS"), settings=BeamSettings(n_elements=60))
@@ -314,10 +313,13 @@ def test_sensitivities_cost_less_than_one_solve_per_variable():
     solve_iterations = int(response.iterations.sum())  # one assembly + one solve each
     c = sens.counts
     assert n_var == 13
-    assert c["back_substitutions"] == n_rows * n_var
-    assert c["assemblies"] <= solve_iterations + n_rows
-    assert c["factorisations"] <= solve_iterations + n_rows
-    assert c["assemblies"] + c["factorisations"] < n_var * 2 * solve_iterations
+    assert c["back_substitutions"] == n_rows * n_var  # one per variable per row
+    # polishing each row: a few Newton iterations and the final tangent (measured: 242 for the
+    # 61 rows, against the solve's 193 iterations)
+    assert c["assemblies"] == c["factorisations"] <= 5 * n_rows
+    # all 13 variables together: fewer assemblies and factorisations than two solves, i.e. far
+    # less than one solve per variable (forward differences) or two (central)
+    assert c["assemblies"] < 2 * solve_iterations
 
 
 def test_ks_aggregate_bounds_the_max():
