@@ -17,8 +17,9 @@ evaluations per coordinate, "semi-analytic").
 
 The response differentiated is the compiled solve's: its rows carry the deformed node positions
 (``BeamResponse.shapes_mm``) and the end rotation, not the section rotations, so each converged row
-is rebuilt here (translations from the shapes, section rotations from the deformed tangent) and
-polished by Newton iterations of the numpy reference path to equilibrium at machine precision.
+is rebuilt here (translations from the shapes, section rotations from the discrete equilibrium
+at the Gauss points, see :func:`_initial_state`) and polished by a Newton correction to
+equilibrium at round-off (the compiled assembly where it runs).
 That state is the compiled solve's row to within its own tolerance (``rtol``; reported as
 ``force_mismatch``), and the tangent of its last iteration is the one factorised.
 
@@ -35,6 +36,7 @@ import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, EndDrive
 from flexopt.fea.errors import FeaError
 from flexopt.geometry.profile import BeamProfile
+from scipy.linalg import lu_factor, lu_solve
 from scipy.linalg.lapack import dgbtrf, dgbtrs, dpbtrf, dpbtrs
 
 __all__ = ["BeamSensitivity", "beam_sensitivities", "ks_aggregate"]
@@ -205,6 +207,20 @@ class _Twin:
         self.s_gauss = s_vert[:-1, None] + xi_g[None, :] * h[:, None]
         self.assemblies = 0
 
+    def rotation_system(self):
+        """Solver of the (2 E + 1) square system: the P2 interpolation of the nodal rotations at
+        the Gauss points (rows 2 e + g) and the end rotation (last row); factorised once."""
+        if not hasattr(self, "_rot"):
+            m = self.model
+            n_el, n_q = m._theta0.shape
+            a = np.zeros((n_el * n_q + 1, m.n_nodes))
+            for e in range(n_el):
+                a[e * n_q : (e + 1) * n_q, 2 * e : 2 * e + 3] = m._N
+            a[-1, -1] = 1.0
+            lu = lu_factor(a)
+            self._rot = lambda rhs: lu_solve(lu, rhs)
+        return self._rot
+
     def hats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Hat functions of the vertices in arc length at the Gauss points (E, Q, n_pts) and the
         sampling points (E, 3, n_pts), and the thickness at the Gauss points (E, Q) mm."""
@@ -280,28 +296,38 @@ class _Twin:
 
 
 def _initial_state(
-    twin: _Twin, shape: np.ndarray, end_rotation: float, frame: np.ndarray
+    twin: _Twin,
+    shape: np.ndarray,
+    end_rotation: float,
+    end_force: np.ndarray,
+    frame: np.ndarray,
 ) -> np.ndarray:
-    """Generalised DOFs (n,) of a row from its node positions (n_nodes, 2) mm and end rotation.
+    """Generalised DOFs (n,) of a row from its node positions (n_nodes, 2) mm, end rotation (rad)
+    and end force (2,) N in the drive's frame (driven, transverse).
 
-    The section rotation is not in the response: it is estimated as the angle of the deformed
-    tangent x' = X' + u' minus the reference angle (the shear strain, Q / kGA ~ 1e-4, is the
-    error), and then polished to equilibrium by :func:`_polish`.
+    The section rotations are not in the response; they follow from the discrete equilibrium.
+    With no load along the span, the u, v equations make the stress resultant
+    N e1 + Q e2 at every Gauss point equal to the end force (the interior node's equation of a
+    P2 element with two Gauss points equates the two, the vertex equations chain them to the
+    end). The deformed tangent there is x' = (1 + Gamma1) e1 + Gamma2 e2 with Gamma1 = N / EA,
+    Gamma2 = Q / kGA, so theta = angle(x') - atan2(Gamma2, 1 + Gamma1) at the 2 E Gauss points
+    (e1, e2 taken at angle(x'): an error of Gamma2^2), and with the end rotation these are
+    2 E + 1 linear equations for the 2 E + 1 nodal rotations (:meth:`_Twin.rotation_system`).
+    The estimate is at the solve's tolerance; :func:`_polish` then takes it to round-off.
     """
     m = twin.model
     u = shape - m.reference_nodes_mm  # (n_nodes, 2), physical
     ue = u[2 * np.arange(m.n_elements)[:, None] + np.arange(3)[None, :]]  # (E, 3, 2)
-    th0 = m._theta0 @ m._gauss_to_samples  # (E, 3): linear in s within an element
-    d = np.einsum("emk,ekf->emf", m._dNs, ue)  # (E, 3 samples, 2)
-    ang = np.arctan2(np.sin(th0) + d[..., 1], np.cos(th0) + d[..., 0])
-    phi_s = np.angle(np.exp(1j * (ang - th0)))  # wrapped to (-pi, pi]
-    phi = np.zeros(m.n_nodes)
-    weight = np.zeros(m.n_nodes)
-    idx = 2 * np.arange(m.n_elements)[:, None] + np.arange(3)[None, :]
-    np.add.at(phi, idx, phi_s)
-    np.add.at(weight, idx, 1.0)
-    phi = np.unwrap(phi / weight)
-    phi += 2 * np.pi * np.round((end_rotation - phi[-1]) / (2 * np.pi))
+    d = m._dN @ ue  # (E, Q, 2): u', v' at the Gauss points
+    ang = np.arctan2(m._s0 + d[..., 1], m._c0 + d[..., 0])
+    n_xy = frame.T @ end_force  # the stress resultant, physical x, y (N)
+    c, s = np.cos(ang), np.sin(ang)
+    axial = (n_xy[0] * c + n_xy[1] * s) / m._ea
+    shear = (n_xy[1] * c - n_xy[0] * s) / m._kga
+    phi_g = np.angle(np.exp(1j * (ang - np.arctan2(shear, 1.0 + axial) - m._theta0)))
+    phi_g = np.unwrap(phi_g.ravel())  # along s: the Gauss points are in order
+    phi_g += 2 * np.pi * np.round((end_rotation - phi_g[-1]) / (2 * np.pi))
+    phi = twin.rotation_system()(np.append(phi_g, end_rotation))
     q = np.zeros(m.n_dofs)
     q[0::3], q[1::3], q[2::3] = u[:, 0], u[:, 1], phi
     q[-3:-1] = frame @ u[-1]  # generalised end translations (direction, normal)
@@ -321,8 +347,10 @@ def _polish(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, _Factor]:
     """Newton from ``q`` (held DOFs kept) to equilibrium at round-off; the final tangent factorised.
 
-    Stops after the correction that is below 1e-9 of the length scale: with quadratic convergence
-    the state it reaches is at round-off. Returns (q, r, ab, factor) at the final state.
+    Stops after a correction below 1e-6 of the length scale: from :func:`_initial_state`'s
+    estimate (at the solve's tolerance, a first correction of ~1e-7 mm) quadratic convergence
+    leaves ~C delta^2, round-off; a worse start (a load along the span, which the estimate does
+    not know) only costs iterations. Returns (q, r, ab, factor) at the final state.
     """
     scale = max(twin.model.profile.length_mm, 1.0)
     q = q.copy()
@@ -334,7 +362,7 @@ def _polish(
         res[fixed] = 0.0
         delta = fac.solve(res)
         q += delta
-        if np.abs(delta).max() <= 1e-9 * scale:
+        if np.abs(delta).max() <= 1e-6 * scale:
             r, ab = twin.assemble(q, frame)
             fac = _Factor(ab, *held)
             counts["factorisations"] += 1
@@ -554,7 +582,13 @@ def beam_sensitivities(
         f_ext = np.zeros(n)
         if not is_disp:
             f_ext[ia] = response.force_N[row]
-        q0 = _initial_state(twin, response.shapes_mm[row], response.end_rotation_rad[row], frame)
+        q0 = _initial_state(
+            twin,
+            response.shapes_mm[row],
+            response.end_rotation_rad[row],
+            np.array([response.force_N[row], response.transverse_force_N[row]]),
+            frame,
+        )
         if is_disp:
             q0[ia] = response.displacement_mm[row]
         for dof in fixed:  # held DOFs at their prescribed values
