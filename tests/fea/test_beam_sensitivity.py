@@ -299,6 +299,21 @@ def test_polished_rows_are_the_solves_rows():
         assert np.abs(sens.values[k] - ref).max() <= 1e-6 * np.abs(ref).max(), k
 
 
+def test_both_kernels_give_the_same_sensitivities():
+    """The compiled and the numpy reference path trace the same rows (to round-off), so the
+    derivatives from either agree."""
+    profile = _tapered(points=((0.0, 0.0), (50.0, 4.0), (100.0, 0.0)))
+    out = []
+    for kernel in ("numba", "numpy"):
+        settings = BeamSettings(n_elements=20, rtol=1e-11, kernel=kernel)
+        model = BeamModel(profile, MAT, settings=settings)
+        response = model.solve(CANTILEVER)
+        out.append(beam_sensitivities(model, CANTILEVER, response, ("thickness", "coordinates")))
+    for k in ("force_N", "end_rotation_rad", "ks_stress_MPa"):
+        a, b = out[0].derivatives[k], out[1].derivatives[k]
+        assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), k
+
+
 def test_sensitivities_cost_less_than_one_solve_per_variable():
     """Counted, not timed: per converged row one factorised tangent (after a few polishing
     iterations) and one back-substitution per variable, where finite differences would need one
