@@ -12,16 +12,17 @@ with the path value (driven displacement or force) held::
 where the row is unstable) and every variable costs one back-substitution. The explicit
 derivative ``dR/dp|_q`` is analytic for the vertex thicknesses and the width (see
 :func:`beam_sensitivities` and docs/sensitivities.md); for the centreline coordinates it is a
-central difference of the residual at fixed ``q`` (no solve: two model builds and two residual
-evaluations per coordinate, "semi-analytic").
+central difference of the residual at fixed ``q`` (no solve is differenced, "semi-analytic"): two
+model builds per coordinate, and per row one batched evaluation of the elements each vertex moves
+(:class:`_CoordinateBatch`).
 
 The response differentiated is the compiled solve's: its rows carry the deformed node positions
-(``BeamResponse.shapes_mm``) and the end rotation, not the section rotations, so each converged row
-is rebuilt here (translations from the shapes, section rotations from the discrete equilibrium
-at the Gauss points, see :func:`_initial_state`) and polished by a Newton correction to
-equilibrium at round-off (the compiled assembly where it runs).
-That state is the compiled solve's row to within its own tolerance (``rtol``; reported as
-``force_mismatch``), and the tangent of its last iteration is the one factorised.
+(``BeamResponse.shapes_mm``), the end forces and the end rotation, not the section rotations, so
+each converged row is rebuilt here (translations from the shapes, section rotations from the
+discrete equilibrium at the Gauss points, see :func:`_initial_state`) and polished by a Newton
+correction to equilibrium at round-off (the compiled assembly where it runs). That state is the
+compiled solve's row to within its own tolerance (``rtol``; reported as ``force_mismatch``), and
+the tangent there is the one factorised.
 
 This module reads the reference-path internals of :class:`fea.beam.BeamModel` (the element
 tables and the assembly of a numpy-kernel twin of the model); it lives next to it in ``fea``
@@ -30,6 +31,7 @@ for that reason, and the compiled path is untouched.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -193,7 +195,7 @@ class _Twin:
             )
         )
         #: the model whose assembly polishes the states: the compiled one where it runs (the same
-        #: numbers as the reference path to round-off, ~30 x faster)
+        #: numbers as the reference path to round-off, and faster)
         self.solver = model
         m = self.model
         # arc length of the Gauss points (E, Q) and of the stress sampling points (E, 3)
@@ -207,7 +209,7 @@ class _Twin:
         self.s_gauss = s_vert[:-1, None] + xi_g[None, :] * h[:, None]
         self.assemblies = 0
 
-    def rotation_system(self):
+    def rotation_system(self) -> Callable[[np.ndarray], np.ndarray]:
         """Solver of the (2 E + 1) square system: the P2 interpolation of the nodal rotations at
         the Gauss points (rows 2 e + g) and the end rotation (last row); factorised once."""
         if not hasattr(self, "_rot"):
@@ -675,11 +677,3 @@ def beam_sensitivities(
         force_mismatch=mismatch / f_scale,
         counts=counts,
     )
-
-
-def _shim(model: BeamModel) -> _Twin:
-    """A :class:`_Twin` view of a numpy-kernel model, for its stresses at fixed DOFs."""
-    twin = _Twin.__new__(_Twin)
-    twin.model = model
-    twin.assemblies = 0
-    return twin
