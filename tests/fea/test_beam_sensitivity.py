@@ -48,12 +48,12 @@ def _constant_force_profile() -> BeamProfile:
     return beam_profile(TABLE3_OPTIMUM, end_flexures="centred")
 
 
-def _responses(profile, material, drive, settings, keys, sample=None):
+def _responses(profile, material, drive, settings, keys, sample=None, start="clamped"):
     """(n_rows, n_keys) responses of the full solve of ``profile``, read at its rows polished to
     equilibrium at round-off (:func:`beam_sensitivities` with no variable): the solve stops once a
     Newton correction is below dtol = 1e-12 L, which leaves up to K x 1e-10 mm ~ 1e-9 N in a
     force, and divided by a step of 1e-3 mm that noise alone would be ~1e-6."""
-    model = BeamModel(profile, material, settings=settings)
+    model = BeamModel(profile, material, start, settings)
     response = model.solve(drive)
     assert response.ok, response.message
     states = beam_sensitivities(model, drive, response, variables=())
@@ -87,7 +87,9 @@ def _relative_error(analytic, fd):
 STRESS_KEYS = ("ks_stress_MPa", "stress_at_sample")
 
 
-def _thickness_fd(profile, material, drive, settings, j, keys, sample=None, stress_step=1e-3):
+def _thickness_fd(
+    profile, material, drive, settings, j, keys, sample=None, stress_step=1e-3, start="clamped"
+):
     """FD of ``keys`` by t_j: relative step 1e-2 for the end quantities, ``stress_step`` (1e-3)
     for the stresses."""
     stress = [k for k in keys if k in STRESS_KEYS]
@@ -95,12 +97,14 @@ def _thickness_fd(profile, material, drive, settings, j, keys, sample=None, stre
     fd = {}
     for group, rel in ((other, 1e-2), (stress, stress_step)):
         if group:
-            cols = _thickness_fd_step(profile, material, drive, settings, j, group, sample, rel)
+            cols = _thickness_fd_step(
+                profile, material, drive, settings, j, group, sample, rel, start
+            )
             fd.update(zip(group, cols.T, strict=True))
     return np.array([fd[k] for k in keys]).T
 
 
-def _thickness_fd_step(profile, material, drive, settings, j, keys, sample, rel):
+def _thickness_fd_step(profile, material, drive, settings, j, keys, sample, rel, start="clamped"):
     t0 = np.array(profile.thickness_mm)
     h = rel * t0[j]
 
@@ -108,7 +112,7 @@ def _thickness_fd_step(profile, material, drive, settings, j, keys, sample, rel)
         t = t0.copy()
         t[j] += step
         prof = BeamProfile(profile.points_mm, t, profile.width_mm, profile.curvature_per_mm)
-        return _responses(prof, material, drive, settings, keys, sample)
+        return _responses(prof, material, drive, settings, keys, sample, start)
 
     return _fd(fun, h)
 
@@ -223,6 +227,21 @@ def test_circular_arcs_under_an_oblique_drive():
 
         err = _relative_error(_analytic(sens, keys, sens.variables.index(name)), _fd(fun, 1e-2))
         assert err.max() <= TOL, (name, dict(zip(keys, err, strict=True)))
+
+
+def test_pinned_start():
+    """A pinned start (its rotation free), the end guided: rotation held, pushed across."""
+    profile = _tapered()
+    drive = EndDrive("displacement", (0.0, 1.0), 40.0, 8, "fixed", "free")
+    model = BeamModel(profile, MAT, start="pinned", settings=TIGHT)
+    response = model.solve(drive)
+    assert response.ok and not response.unstable
+    sens = beam_sensitivities(model, drive, response, ("thickness",))
+    keys = ("force_N", "moment_Nmm", "transverse_displacement_mm", "ks_stress_MPa")
+    for j in (0, 2):
+        fd = _thickness_fd(profile, MAT, drive, TIGHT, j, keys, start="pinned")
+        err = _relative_error(_analytic(sens, keys, j), fd)
+        assert err.max() <= TOL, (j, dict(zip(keys, err, strict=True)))
 
 
 def test_constant_force_beam_after_its_buckling_onset():
