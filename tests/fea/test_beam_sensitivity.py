@@ -1,7 +1,7 @@
 """Exact sensitivities of a traced beam path (fea/beam_sensitivity.py) against finite differences.
 
 Every reference derivative is a central finite difference of the full nonlinear solve (the
-compiled kernel, re-traced from the undeformed state for each perturbed design). The stencil is
+default kernel, re-traced from the undeformed state for each perturbed design). The stencil is
 the fourth-order one, ``(8 (f(h) - f(-h)) - (f(2h) - f(-2h))) / 12 h``: its truncation error is
 O(h^4), so a step of 1e-2 of the thickness (or 1e-2 mm of a coordinate) leaves ~1e-8 of
 truncation (measured: the derivatives at steps 1e-2 and 3e-2 agree to ~1e-7), while the noise
@@ -10,8 +10,8 @@ of the solve (its rows polished to equilibrium, see :func:`_responses`) divided 
 moves ~1e-9 mm for the round-off of a residual of EA ~ 6000 N); a second-order stencil would
 need that small a step for the same truncation. The stresses checked are smooth ones: the KS
 aggregate over the signed outer-fibre stresses, and one fibre's signed stress (the solver's
-|N|/A + |M| c/I has a kink where the small axial strain of a sampling point changes sign, which a
-2 % thickness step straddles on paper 003's beam: KS over |.|-stresses failed there at 1e-5).
+|N|/A + |M| c/I has a kink where the small axial strain of a sampling point changes sign). The KS
+stress is differenced with a smaller step, see STRESS_KEYS.
 
 "Relative error" is |analytic - FD| over the largest |FD| of that response and variable along the
 path (a pointwise ratio is meaningless where a derivative crosses zero, at the undeformed row).
