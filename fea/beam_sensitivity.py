@@ -19,7 +19,7 @@ model builds per coordinate, and per row one batched evaluation of the elements 
 The response differentiated is the compiled solve's: its rows carry the deformed node positions
 (``BeamResponse.shapes_mm``), the end forces and the end rotation, not the section rotations, so
 each converged row is rebuilt here (translations from the shapes, section rotations from the
-discrete equilibrium at the Gauss points, see :func:`_initial_state`) and polished by a Newton
+discrete equilibrium at the Gauss points, see :func:`_initial_states`) and polished by a Newton
 correction to equilibrium at round-off (the compiled assembly where it runs). That state is the
 compiled solve's row to within its own tolerance (``rtol``; reported as ``force_mismatch``), and
 the tangent there is the one factorised.
@@ -297,15 +297,15 @@ class _Twin:
         return E * g1s, bend, da.reshape(n_el, 3, 9), dc.reshape(n_el, 3, 9)
 
 
-def _initial_state(
+def _initial_states(
     twin: _Twin,
-    shape: np.ndarray,
-    end_rotation: float,
+    shapes: np.ndarray,
+    end_rotation: np.ndarray,
     end_force: np.ndarray,
     frame: np.ndarray,
 ) -> np.ndarray:
-    """Generalised DOFs (n,) of a row from its node positions (n_nodes, 2) mm, end rotation (rad)
-    and end force (2,) N in the drive's frame (driven, transverse).
+    """Generalised DOFs (R, n) of R rows from their node positions (R, n_nodes, 2) mm, end
+    rotations (R,) rad and end forces (R, 2) N in the drive's frame (driven, transverse).
 
     The section rotations are not in the response; they follow from the discrete equilibrium.
     With no load along the span, the u, v equations make the stress resultant
@@ -318,22 +318,22 @@ def _initial_state(
     The estimate is at the solve's tolerance; :func:`_polish` then takes it to round-off.
     """
     m = twin.model
-    u = shape - m.reference_nodes_mm  # (n_nodes, 2), physical
-    ue = u[2 * np.arange(m.n_elements)[:, None] + np.arange(3)[None, :]]  # (E, 3, 2)
-    d = m._dN @ ue  # (E, Q, 2): u', v' at the Gauss points
+    u = shapes - m.reference_nodes_mm  # (R, n_nodes, 2), physical
+    ue = u[:, 2 * np.arange(m.n_elements)[:, None] + np.arange(3)[None, :]]  # (R, E, 3, 2)
+    d = m._dN @ ue  # (R, E, Q, 2): u', v' at the Gauss points
     ang = np.arctan2(m._s0 + d[..., 1], m._c0 + d[..., 0])
-    n_xy = frame.T @ end_force  # the stress resultant, physical x, y (N)
+    n_xy = (end_force @ frame)[:, None, None, :]  # the stress resultant, physical x, y (N)
     c, s = np.cos(ang), np.sin(ang)
-    axial = (n_xy[0] * c + n_xy[1] * s) / m._ea
-    shear = (n_xy[1] * c - n_xy[0] * s) / m._kga
+    axial = (n_xy[..., 0] * c + n_xy[..., 1] * s) / m._ea
+    shear = (n_xy[..., 1] * c - n_xy[..., 0] * s) / m._kga
     phi_g = np.angle(np.exp(1j * (ang - np.arctan2(shear, 1.0 + axial) - m._theta0)))
-    phi_g = np.unwrap(phi_g.ravel())  # along s: the Gauss points are in order
-    phi_g += 2 * np.pi * np.round((end_rotation - phi_g[-1]) / (2 * np.pi))
-    phi = twin.rotation_system()(np.append(phi_g, end_rotation))
-    q = np.zeros(m.n_dofs)
-    q[0::3], q[1::3], q[2::3] = u[:, 0], u[:, 1], phi
-    q[-3:-1] = frame @ u[-1]  # generalised end translations (direction, normal)
-    q[-1] = end_rotation
+    phi_g = np.unwrap(phi_g.reshape(len(u), -1), axis=1)  # along s: the Gauss points in order
+    phi_g += 2 * np.pi * np.round((end_rotation - phi_g[:, -1]) / (2 * np.pi))[:, None]
+    phi = twin.rotation_system()(np.concatenate([phi_g, end_rotation[:, None]], axis=1).T).T
+    q = np.zeros((len(u), m.n_dofs))
+    q[:, 0::3], q[:, 1::3], q[:, 2::3] = u[..., 0], u[..., 1], phi
+    q[:, -3:-1] = u[:, -1] @ frame.T  # generalised end translations (direction, normal)
+    q[:, -1] = end_rotation
     return q
 
 
@@ -349,7 +349,7 @@ def _polish(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, _Factor]:
     """Newton from ``q`` (held DOFs kept) to equilibrium at round-off; the final tangent factorised.
 
-    Stops after a correction below 1e-6 of the length scale: from :func:`_initial_state`'s
+    Stops after a correction below 1e-6 of the length scale: from :func:`_initial_states`'s
     estimate (at the solve's tolerance, a first correction of ~1e-7 mm) quadratic convergence
     leaves ~C delta^2, round-off; a worse start (a load along the span, which the estimate does
     not know) only costs iterations. Returns (q, r, ab, factor) at the final state.
@@ -580,17 +580,20 @@ def beam_sensitivities(
     edofs = m._edofs  # (E, 9)
     mismatch = 0.0
 
-    for row in np.flatnonzero(response.converged):
+    done = np.flatnonzero(response.converged)
+    starts = np.zeros((n_rows, n))
+    starts[done] = _initial_states(
+        twin,
+        response.shapes_mm[done],
+        response.end_rotation_rad[done],
+        np.stack([response.force_N[done], response.transverse_force_N[done]], axis=1),
+        frame,
+    )
+    for row in done:
         f_ext = np.zeros(n)
         if not is_disp:
             f_ext[ia] = response.force_N[row]
-        q0 = _initial_state(
-            twin,
-            response.shapes_mm[row],
-            response.end_rotation_rad[row],
-            np.array([response.force_N[row], response.transverse_force_N[row]]),
-            frame,
-        )
+        q0 = starts[row]
         if is_disp:
             q0[ia] = response.displacement_mm[row]
         for dof in fixed:  # held DOFs at their prescribed values
