@@ -1,0 +1,682 @@
+"""Exact sensitivities of a traced beam path (:class:`fea.beam.BeamModel`) to its design variables.
+
+An elastic path is a sequence of equilibria ``R(q, p) = f`` (internal force ``R`` at the
+generalised DOFs ``q``, design variables ``p``, applied end load ``f`` independent of ``p``, the
+held and prescribed DOFs independent of ``p``). Differentiating one converged row along ``p``
+with the path value (driven displacement or force) held::
+
+    K_ff dq_f/dp = -dR_f/dp|_q              (free DOFs; dq = 0 on the held/prescribed ones)
+    dr/dp        =  dR/dp|_q + K_{.f} dq_f/dp   (end force, moment: reactions of held DOFs)
+
+``K`` is the tangent at the row: it is factorised once per row (banded Cholesky, the banded LU
+where the row is unstable) and every variable costs one back-substitution. The explicit
+derivative ``dR/dp|_q`` is analytic for the vertex thicknesses and the width (see
+:func:`beam_sensitivities` and docs/sensitivities.md); for the centreline coordinates it is a
+central difference of the residual at fixed ``q`` (no solve is differenced, "semi-analytic"): two
+model builds per coordinate, and per row one batched evaluation of the elements each vertex moves
+(:class:`_CoordinateBatch`).
+
+The response differentiated is the compiled solve's: its rows carry the deformed node positions
+(``BeamResponse.shapes_mm``), the end forces and the end rotation, not the section rotations, so
+each converged row is rebuilt here (translations from the shapes, section rotations from the
+discrete equilibrium at the Gauss points, see :func:`_initial_states`) and polished by a Newton
+correction to equilibrium at round-off (the compiled assembly where it runs). That state is the
+compiled solve's row to within its own tolerance (``rtol``; reported as ``force_mismatch``), and
+the tangent there is the one factorised.
+
+This module reads the reference-path internals of :class:`fea.beam.BeamModel` (the element
+tables and the assembly of a numpy-kernel twin of the model); it lives next to it in ``fea``
+for that reason, and the compiled path is untouched.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from flexopt.fea.beam import BeamModel, BeamResponse, EndDrive
+from flexopt.fea.errors import FeaError
+from flexopt.geometry.profile import BeamProfile
+from scipy.linalg import lu_factor, lu_solve
+from scipy.linalg.lapack import dgbtrf, dgbtrs, dpbtrf, dpbtrs
+
+__all__ = ["BeamSensitivity", "beam_sensitivities", "ks_aggregate"]
+
+#: half-bandwidth of the beam's node-by-node numbering (3 nodes x 3 fields per element - 1)
+_KD = 8
+
+#: default Kreisselmeier-Steinhauser parameter, as rho = KS_RHO_YIELD / yield_MPa (1/MPa)
+KS_RHO_YIELD = 100.0
+
+#: the responses, as named in :class:`fea.beam.BeamResponse`
+RESPONSES = (
+    "displacement_mm",
+    "force_N",
+    "transverse_displacement_mm",
+    "transverse_force_N",
+    "moment_Nmm",
+    "end_rotation_rad",
+)
+
+
+@dataclass(frozen=True)
+class BeamSensitivity:
+    """Derivatives of every row of a traced path with respect to the design variables.
+
+    Shapes: ``n_rows`` rows of the response (row 0 undeformed), ``n_var`` variables, ``n_samp``
+    stress sampling points (3 per element: both ends and the middle, as the solver samples).
+    Rows that did not converge are NaN.
+
+    Attributes
+    ----------
+    variables : (n_var,) str — "t[i]" (vertex thickness i, mm), "b" (width, mm), "x[i]", "y[i]"
+        (centreline vertex i, mm), in the order of the last axis of every derivative.
+    values : response name -> (n_rows,) — the responses at the polished states (units as in
+        BeamResponse: mm, N, N mm, rad), plus "ks_stress_MPa" (the smooth peak stress, KS over
+        the signed outer-fibre stresses of every sampling point, +- both) and "peak_stress_MPa"
+        (their max, the solver's peak stress).
+    derivatives : response name -> (n_rows, n_var) — d(value)/d(variable), unit of the value per mm.
+        Names as ``values`` (the peak stress itself has no derivative: see "ks_stress_MPa").
+    fibre_stress_MPa : (n_rows, n_samp, 2) — signed stress N/A + M c/I and N/A - M c/I of the two
+        outer fibres at every sampling point; the solver's stress there, |N|/A + |M| c / I, is the
+        larger magnitude (:attr:`stress_MPa`).
+    d_fibre_stress : (n_rows, n_samp, 2, n_var) — their derivatives (MPa/mm): the stress at a fixed
+        point, smooth where the solver's |.| form is not (where N or M changes sign).
+    stress_s_mm : (n_samp,) — arc length of the sampling points.
+    ks_rho_per_MPa : float — the KS parameter rho used (1/MPa).
+    force_mismatch : float — max over rows of |driven force of the polished state - the solve's|,
+        relative to the largest |driven force| of the path: the solve's own tolerance.
+    counts : operation counts: "assemblies" (residual + tangent), "factorisations",
+        "back_substitutions" (right-hand sides solved), "model_builds" (coordinate variables),
+        "lu_rows" (rows whose tangent is not positive definite, solved by banded LU).
+    """
+
+    variables: tuple[str, ...]
+    values: dict[str, np.ndarray]
+    derivatives: dict[str, np.ndarray]
+    fibre_stress_MPa: np.ndarray
+    d_fibre_stress: np.ndarray
+    stress_s_mm: np.ndarray
+    ks_rho_per_MPa: float
+    force_mismatch: float
+    counts: dict = field(default_factory=dict)
+
+    @property
+    def stress_MPa(self) -> np.ndarray:
+        """(n_rows, n_samp) MPa: |N|/A + |M| c / I at every sampling point, the solver's stress."""
+        return np.abs(self.fibre_stress_MPa).max(axis=-1)
+
+
+def ks_aggregate(sigma: np.ndarray, rho: float) -> tuple[float, np.ndarray]:
+    """Kreisselmeier-Steinhauser aggregate ``1/rho ln sum exp(rho sigma_j)`` and its weights.
+
+    ``sigma`` (n,) MPa, ``rho`` 1/MPa. Returns ``(KS, w)``: KS (MPa) with
+    ``max <= KS <= max + ln(n) / rho`` and ``w = dKS/dsigma`` (n,), the softmax weights (sum 1).
+    Computed shifted by the max, so it does not overflow.
+    """
+    m = float(np.max(sigma))
+    e = np.exp(rho * (sigma - m))
+    total = float(e.sum())
+    return m + np.log(total) / rho, e / total
+
+
+def _frame(drive: EndDrive) -> np.ndarray:
+    """(2, 2) rows: the end node's generalised axes (direction, normal), as BeamModel uses."""
+    d = np.asarray(drive.direction, dtype=float)
+    d = d / np.hypot(*d)
+    return np.array([d, [-d[1], d[0]]])
+
+
+class _Factor:
+    """The tangent with the held DOFs replaced by identity rows/columns, factorised once.
+
+    ``ab`` is BeamModel's band storage (2 kl + ku + 1, n), ``A[i, j] = ab[kl + ku + i - j, j]``,
+    kl = ku = 8; ``zero`` the (rows, cols) of ``ab`` in the held rows and columns and ``diag``
+    the columns of the held diagonal (:func:`_held_entries`). Banded Cholesky (LAPACK dpbtrf)
+    when positive definite (a stable row), banded LU (dgbtrf) otherwise.
+    """
+
+    def __init__(
+        self, ab: np.ndarray, zero: tuple[np.ndarray, np.ndarray], diag: np.ndarray
+    ) -> None:
+        full = np.array(ab, order="F")
+        full[zero] = 0.0
+        full[2 * _KD, diag] = 1.0
+        self.chol, info = dpbtrf(np.asfortranarray(full[_KD : 2 * _KD + 1]), lower=0)
+        self.lu = None
+        if info != 0:  # not positive definite: an unstable row
+            self.chol = None
+            self.lu, self.piv, info = dgbtrf(full, _KD, _KD)
+            if info != 0:
+                raise FeaError(f"singular tangent at a converged row (dgbtrf info {info})")
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve for (n,) or (n, m) right-hand sides (held DOFs of ``rhs`` must be 0)."""
+        b = rhs.reshape(rhs.shape[0], -1)
+        if self.chol is not None:
+            x, info = dpbtrs(self.chol, b, lower=0)
+        else:
+            x, info = dgbtrs(self.lu, _KD, _KD, b, self.piv)
+        if info != 0:
+            raise FeaError(f"banded back-substitution failed (info {info})")
+        return x.reshape(rhs.shape)
+
+
+def _held_entries(fixed: np.ndarray, n: int) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Band-storage (rows, cols) of the held rows and columns, and the held diagonal's columns."""
+    rows, cols = [], []
+    for c in fixed:
+        j = np.arange(max(0, c - _KD), min(n, c + _KD + 1))
+        rows += [2 * _KD + c - j, 2 * _KD + j - c]  # row c: A[c, j]; column c: A[j, c]
+        cols += [j, np.full(j.size, c)]
+    return (np.concatenate(rows), np.concatenate(cols)), np.asarray(fixed)
+
+
+def _reactions(ab: np.ndarray, dofs: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(len(dofs), m): rows ``dofs`` of the full tangent (band storage as BeamModel's) times x."""
+    n = ab.shape[1]
+    out = np.empty((len(dofs), x.shape[1]))
+    for k, c in enumerate(dofs):
+        j = np.arange(max(0, c - _KD), min(n, c + _KD + 1))
+        out[k] = ab[2 * _KD + c - j, j] @ x[j]
+    return out
+
+
+class _Twin:
+    """The numpy reference path of a model (same mesh, same numbers) and what it needs here."""
+
+    def __init__(self, model: BeamModel) -> None:
+        self.model = (
+            model
+            if model.kernel == "numpy"
+            else BeamModel(
+                model.profile, model.material, model.start, replace(model.settings, kernel="numpy")
+            )
+        )
+        #: the model whose assembly polishes the states: the compiled one where it runs (the same
+        #: numbers as the reference path to round-off, and faster)
+        self.solver = model
+        m = self.model
+        # arc length of the Gauss points (E, Q) and of the stress sampling points (E, 3)
+        s_vert = m.mesh.p[0]
+        h = np.diff(s_vert)
+        self.s_samp = m._s_samp
+        # Gauss positions: the sampling points are at xi = 0, 1/2, 1 and the model's table
+        # extrapolates Gauss values linearly to them (xi_s = g2s^T xi_g for the linear function
+        # xi), so xi_g follows by least squares, exactly.
+        xi_g = np.linalg.lstsq(m._gauss_to_samples.T, np.array([0.0, 0.5, 1.0]), rcond=None)[0]
+        self.s_gauss = s_vert[:-1, None] + xi_g[None, :] * h[:, None]
+        self.assemblies = 0
+
+    def rotation_system(self) -> Callable[[np.ndarray], np.ndarray]:
+        """Solver of the (2 E + 1) square system: the P2 interpolation of the nodal rotations at
+        the Gauss points (rows 2 e + g) and the end rotation (last row); factorised once."""
+        if not hasattr(self, "_rot"):
+            m = self.model
+            n_el, n_q = m._theta0.shape
+            a = np.zeros((n_el * n_q + 1, m.n_nodes))
+            for e in range(n_el):
+                a[e * n_q : (e + 1) * n_q, 2 * e : 2 * e + 3] = m._N
+            a[-1, -1] = 1.0
+            lu = lu_factor(a)
+            self._rot = lambda rhs: lu_solve(lu, rhs)
+        return self._rot
+
+    def hats(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Hat functions of the vertices in arc length at the Gauss points (E, Q, n_pts) and the
+        sampling points (E, 3, n_pts), and the thickness at the Gauss points (E, Q) mm."""
+        if not hasattr(self, "_hats"):
+            prof = self.model.profile
+            s_pts = prof.arc_length_mm
+            eye = np.eye(prof.n_points)
+            self._hats = (
+                np.stack([np.interp(self.s_gauss, s_pts, e) for e in eye], -1),
+                np.stack([np.interp(self.s_samp, s_pts, e) for e in eye], -1),
+                np.interp(self.s_gauss, s_pts, prof.thickness_mm),
+            )
+        return self._hats
+
+    def assemble(self, q: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        self.assemblies += 1
+        r, ab = self.solver._assemble(q, frame)
+        return r, np.asfortranarray(ab)
+
+    def physical(self, q: np.ndarray, frame: np.ndarray) -> np.ndarray:
+        return self.model._physical(q, frame)
+
+    def fields(self, u: np.ndarray) -> dict[str, np.ndarray]:
+        """Per Gauss point (E, Q): cos, sin of theta, 1 + Gamma1, Gamma2, kappa; (E, 3, 3) qe."""
+        m = self.model
+        qe = u[m._edofs3]
+        grad = m._dN @ qe
+        theta = m._theta0 + qe[:, :, 2] @ m._N.T
+        c, s = np.cos(theta), np.sin(theta)
+        x1 = m._c0 + grad[..., 0]
+        x2 = m._s0 + grad[..., 1]
+        return {
+            "c": c,
+            "s": s,
+            "h1": c * x1 + s * x2,
+            "g2": c * x2 - s * x1,
+            "kappa": grad[..., 2],
+            "qe": qe,
+        }
+
+    def section_terms(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed axial strain Gamma1 and bending term (EI / Z) kappa [MPa] at the sampling points,
+        (E, 3) each: the stress there is ``E |Gamma1| + |(EI / Z) kappa|``."""
+        m = self.model
+        f = self.fields(u)
+        g1s = (f["h1"] - 1.0) @ m._gauss_to_samples
+        kap = np.einsum("eqk,ek->eq", m._dNs, f["qe"][:, :, 2])
+        return g1s, m._EI_s / m._section_modulus_s * kap
+
+    def fibre_terms(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The two terms of the fibre stresses at the sampling points and their derivatives.
+
+        Returns ``a = E Gamma1`` and ``c = (EI / Z) kappa = E t kappa / 2`` (E, 3) MPa, and
+        ``da``, ``dc`` (E, 3, 9) by the element's physical DOFs (MPa/mm, MPa/rad). The outer
+        fibres carry ``a + c`` and ``a - c``; the solver's stress is ``|a| + |c|``, the larger of
+        their magnitudes (BeamModel._stress, the same formula).
+        """
+        m = self.model
+        f = self.fields(u)
+        E = m.material.E_MPa
+        g2s = m._gauss_to_samples  # (Q, 3)
+        g1s, bend = self.section_terms(u)
+        # dGamma1/dq at the Gauss points: (E, Q, node, field)
+        dg1 = np.empty(m._dN.shape + (3,))
+        dg1[..., 0] = f["c"][..., None] * m._dN
+        dg1[..., 1] = f["s"][..., None] * m._dN
+        dg1[..., 2] = f["g2"][..., None] * m._N[None]
+        da = E * np.einsum("gm,egkf->emkf", g2s, dg1)  # (E, 3, node, field)
+        dc = np.zeros_like(da)
+        dc[..., 2] = (m._EI_s / m._section_modulus_s)[..., None] * m._dNs
+        n_el = g1s.shape[0]
+        return E * g1s, bend, da.reshape(n_el, 3, 9), dc.reshape(n_el, 3, 9)
+
+
+def _initial_states(
+    twin: _Twin,
+    shapes: np.ndarray,
+    end_rotation: np.ndarray,
+    end_force: np.ndarray,
+    frame: np.ndarray,
+) -> np.ndarray:
+    """Generalised DOFs (R, n) of R rows from their node positions (R, n_nodes, 2) mm, end
+    rotations (R,) rad and end forces (R, 2) N in the drive's frame (driven, transverse).
+
+    The section rotations are not in the response; they follow from the discrete equilibrium.
+    With no load along the span, the u, v equations make the stress resultant
+    N e1 + Q e2 at every Gauss point equal to the end force (the interior node's equation of a
+    P2 element with two Gauss points equates the two, the vertex equations chain them to the
+    end). The deformed tangent there is x' = (1 + Gamma1) e1 + Gamma2 e2 with Gamma1 = N / EA,
+    Gamma2 = Q / kGA, so theta = angle(x') - atan2(Gamma2, 1 + Gamma1) at the 2 E Gauss points
+    (e1, e2 taken at angle(x'): an error of Gamma2^2), and with the end rotation these are
+    2 E + 1 linear equations for the 2 E + 1 nodal rotations (:meth:`_Twin.rotation_system`).
+    The estimate is at the solve's tolerance; :func:`_polish` then takes it to round-off.
+    """
+    m = twin.model
+    u = shapes - m.reference_nodes_mm  # (R, n_nodes, 2), physical
+    ue = u[:, 2 * np.arange(m.n_elements)[:, None] + np.arange(3)[None, :]]  # (R, E, 3, 2)
+    d = m._dN @ ue  # (R, E, Q, 2): u', v' at the Gauss points
+    ang = np.arctan2(m._s0 + d[..., 1], m._c0 + d[..., 0])
+    n_xy = (end_force @ frame)[:, None, None, :]  # the stress resultant, physical x, y (N)
+    c, s = np.cos(ang), np.sin(ang)
+    axial = (n_xy[..., 0] * c + n_xy[..., 1] * s) / m._ea
+    shear = (n_xy[..., 1] * c - n_xy[..., 0] * s) / m._kga
+    phi_g = np.angle(np.exp(1j * (ang - np.arctan2(shear, 1.0 + axial) - m._theta0)))
+    phi_g = np.unwrap(phi_g.reshape(len(u), -1), axis=1)  # along s: the Gauss points in order
+    phi_g += 2 * np.pi * np.round((end_rotation - phi_g[:, -1]) / (2 * np.pi))[:, None]
+    phi = twin.rotation_system()(np.concatenate([phi_g, end_rotation[:, None]], axis=1).T).T
+    q = np.zeros((len(u), m.n_dofs))
+    q[:, 0::3], q[:, 1::3], q[:, 2::3] = u[..., 0], u[..., 1], phi
+    q[:, -3:-1] = u[:, -1] @ frame.T  # generalised end translations (direction, normal)
+    q[:, -1] = end_rotation
+    return q
+
+
+def _polish(
+    twin: _Twin,
+    q: np.ndarray,
+    frame: np.ndarray,
+    fixed: np.ndarray,
+    held: tuple,
+    f_ext: np.ndarray,
+    counts: dict,
+    max_iterations: int = 12,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, _Factor]:
+    """Newton from ``q`` (held DOFs kept) to equilibrium at round-off; the final tangent factorised.
+
+    Stops after a correction below 1e-6 of the length scale: from :func:`_initial_states`'s
+    estimate (at the solve's tolerance, a first correction of ~1e-7 mm) quadratic convergence
+    leaves ~C delta^2, round-off; a worse start (a load along the span, which the estimate does
+    not know) only costs iterations. Returns (q, r, ab, factor) at the final state.
+    """
+    scale = max(twin.model.profile.length_mm, 1.0)
+    q = q.copy()
+    for _ in range(max_iterations):
+        r, ab = twin.assemble(q, frame)
+        fac = _Factor(ab, *held)
+        counts["factorisations"] += 1
+        res = f_ext - r
+        res[fixed] = 0.0
+        delta = fac.solve(res)
+        q += delta
+        if np.abs(delta).max() <= 1e-6 * scale:
+            r, ab = twin.assemble(q, frame)
+            fac = _Factor(ab, *held)
+            counts["factorisations"] += 1
+            counts["lu_rows"] += fac.chol is None
+            return q, r, ab, fac
+    raise FeaError("the row state did not polish to equilibrium (is the row converged?)")
+
+
+def _thickness_terms(twin: _Twin, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """dR/dt_i at fixed physical DOFs ``u``: (E, 9, n_pts) element vectors, physical DOFs; and
+    the explicit derivative of the bending term c = E t kappa / 2 of the fibre stresses,
+    (E, 3, n_pts) MPa/mm (the axial term E Gamma1 does not depend on t at fixed DOFs).
+
+    With t(s) = sum_i psi_i(s) t_i (psi_i the hat function of vertex i in arc length), A = b t,
+    I = b t^3 / 12: d(EA)/dt_i = E b psi_i, d(kGA)/dt_i = k G b psi_i, d(EI)/dt_i = E b t^2/4 psi_i.
+    The residual is linear in (EA, kGA, EI) at fixed strains, with the element scalars
+    (N c - Q s, N s + Q c, M, N Gamma2 - Q h), N = EA Gamma1, Q = kGA Gamma2, M = EI kappa.
+    """
+    m = twin.model
+    prof = m.profile
+    psi_g, psi_s, t_g = twin.hats()
+    b = prof.width_mm
+    E, G = m.material.E_MPa, m.material.G_MPa
+    f = twin.fields(u)
+    g1, g2, c, s = f["h1"] - 1.0, f["g2"], f["c"], f["s"]
+    z = np.zeros_like(g1)
+    d_ea = np.stack([g1 * c, g1 * s, z, g1 * g2], -1)  # (E, Q, 4): d(scalars)/d(EA)
+    d_kga = np.stack([-g2 * s, g2 * c, z, -g2 * f["h1"]], -1)
+    d_ei = np.stack([z, z, f["kappa"], z], -1)
+    drs = (
+        d_ea[..., None] * (E * b)
+        + d_kga[..., None] * (m.settings.shear_factor * G * b)
+        + d_ei[..., None] * (E * b * t_g**2 / 4.0)[..., None, None]
+    ) * psi_g[:, :, None, :]  # (E, Q, 4, n_pts)
+    n_el, n_q = g1.shape
+    # (E, 9, Q * 4) @ (E, Q * 4, n_pts): the element residual map applied to every column
+    dre = np.matmul(m._Rmap.transpose(0, 2, 1), drs.reshape(n_el, n_q * 4, -1))
+    kap_s = np.einsum("eqk,ek->eq", m._dNs, f["qe"][:, :, 2])
+    dbend = (0.5 * E * kap_s)[..., None] * psi_s  # (EI / Z) kappa = E t kappa / 2
+    return dre, dbend
+
+
+def _to_generalised_rows(dre_last: np.ndarray, frame: np.ndarray) -> np.ndarray:
+    """The last element's (9, m) physical residual derivative in generalised DOFs."""
+    out = dre_last.copy()
+    out[6:8] = frame @ dre_last[6:8]  # T^T r with T's end block = frame.T
+    return out
+
+
+def _segment_of_elements(model: BeamModel) -> np.ndarray:
+    """(E,) int: the profile segment each element lies on."""
+    s_vert = model.mesh.p[0]
+    mid = 0.5 * (s_vert[:-1] + s_vert[1:])
+    seg = np.searchsorted(model.profile.arc_length_mm, mid, side="right") - 1
+    return np.clip(seg, 0, model.profile.n_points - 2)
+
+
+class _CoordinateBatch:
+    """The explicit derivatives by the centreline coordinates, at fixed DOFs, for all of them at
+    once: central differences between models with one vertex moved by +-``step``.
+
+    Moving vertex i changes only the elements of segments i - 1 and i (their lengths, reference
+    angles and hat functions; the arc length further on shifts, which the element integrals do
+    not see). Those elements of every perturbed model are gathered once into one batch of
+    "virtual elements" (element, variable, sign), so each row needs one vectorised residual and
+    stress evaluation over the batch instead of two full assemblies per coordinate.
+    """
+
+    def __init__(self, model: BeamModel, step: float, counts: dict) -> None:
+        prof = model.profile
+        seg = _segment_of_elements(model)
+        keys = ("_dN", "_w", "_theta0", "_c0", "_s0", "_ea", "_kga", "_ei", "_dNs")
+        tables: dict[str, list[np.ndarray]] = {k: [] for k in (*keys, "ratio")}
+        e_idx, col, sign = [], [], []
+        self.names: list[str] = []
+        for i in range(prof.n_points):
+            els = np.flatnonzero((seg == i - 1) | (seg == i))
+            for k, axis in enumerate("xy"):
+                for sgn in (1.0, -1.0):
+                    pts = np.array(prof.points_mm)
+                    pts[i, k] += sgn * step
+                    p2 = BeamProfile(pts, prof.thickness_mm, prof.width_mm, prof.curvature_per_mm)
+                    pm = BeamModel(p2, model.material, model.start, model.settings)
+                    counts["model_builds"] += 1
+                    if pm.n_elements != model.n_elements or np.any(_segment_of_elements(pm) != seg):
+                        raise FeaError(
+                            f"coordinate step {step:g} mm changes the mesh at vertex {i}; "
+                            "pass a smaller coordinate_step_mm"
+                        )
+                    for key in keys:
+                        tables[key].append(getattr(pm, key)[els])
+                    tables["ratio"].append((pm._EI_s / pm._section_modulus_s)[els])
+                    e_idx.append(els)
+                    col.append(np.full(els.size, len(self.names)))
+                    sign.append(np.full(els.size, sgn / (2.0 * step)))
+                self.names.append(f"{axis}[{i}]")
+        self.t = {k: np.concatenate(v) for k, v in tables.items()}
+        self.e = np.concatenate(e_idx)
+        self.col = np.concatenate(col)
+        self.weight = np.concatenate(sign)
+        self.N = model._N  # (Q, 3), the same reference table for every model
+        self.g2s = model._gauss_to_samples
+        self.edofs = model._edofs
+        self.last = self.e == model.n_elements - 1
+        self.n_el = model.n_elements
+        self.E = model.material.E_MPa
+
+    def terms(
+        self, u: np.ndarray, frame: np.ndarray, n: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """dR/dx (n, n_coord) in generalised DOFs, and the explicit derivatives of the fibre
+        stress terms a = E Gamma1 and c = E t kappa / 2, (E, 3, n_coord) each, at physical
+        DOFs ``u`` (n,)."""
+        t, nc = self.t, len(self.names)
+        qe = u[self.edofs[self.e].reshape(-1, 3, 3)]  # (V, node, field)
+        grad = t["_dN"] @ qe  # (V, Q, field)
+        theta = t["_theta0"] + qe[:, :, 2] @ self.N.T
+        c, s = np.cos(theta), np.sin(theta)
+        x1 = t["_c0"] + grad[..., 0]
+        x2 = t["_s0"] + grad[..., 1]
+        h1 = c * x1 + s * x2
+        g2 = c * x2 - s * x1
+        nf = t["_ea"] * (h1 - 1.0)
+        qf = t["_kga"] * g2
+        wd = t["_w"][..., None] * t["_dN"]  # (V, Q, 3)
+        wn = t["_w"][..., None] * self.N[None]
+        re = np.empty(qe.shape)
+        re[..., 0] = np.einsum("vqk,vq->vk", wd, nf * c - qf * s)
+        re[..., 1] = np.einsum("vqk,vq->vk", wd, nf * s + qf * c)
+        re[..., 2] = np.einsum("vqk,vq->vk", wd, t["_ei"] * grad[..., 2]) + np.einsum(
+            "vqk,vq->vk", wn, nf * g2 - qf * h1
+        )
+        re[self.last, 2, :2] = re[self.last, 2, :2] @ frame.T  # end node: (direction, normal)
+        w = self.weight
+        idx = self.edofs[self.e] * nc + self.col[:, None]  # (V, 9)
+        dR = np.bincount(idx.ravel(), (re.reshape(-1, 9) * w[:, None]).ravel(), n * nc)
+        g1s = (h1 - 1.0) @ self.g2s  # (V, 3)
+        kap = np.einsum("vmk,vk->vm", t["_dNs"], qe[:, :, 2])
+        sidx = ((3 * self.e[:, None] + np.arange(3)) * nc + self.col[:, None]).ravel()
+        size = 3 * self.n_el * nc
+        da = np.bincount(sidx, (self.E * g1s * w[:, None]).ravel(), size)
+        dc = np.bincount(sidx, (t["ratio"] * kap * w[:, None]).ravel(), size)
+        shape = (self.n_el, 3, nc)
+        return dR.reshape(n, nc), da.reshape(shape), dc.reshape(shape)
+
+
+def beam_sensitivities(
+    model: BeamModel,
+    drive: EndDrive,
+    response: BeamResponse,
+    variables: tuple[str, ...] = ("thickness", "width"),
+    ks_rho_per_MPa: float | None = None,
+    coordinate_step_mm: float | None = None,
+) -> BeamSensitivity:
+    """Derivatives of every converged row of ``response`` (``model.solve(drive)``).
+
+    Parameters
+    ----------
+    model, drive, response : the model, the drive and the path it traced (either kernel).
+    variables : any of "thickness" (every vertex thickness t_i, mm), "width" (b, mm) and
+        "coordinates" (x_i, y_i of every centreline vertex, mm; arcs keep their curvature).
+    ks_rho_per_MPa : KS parameter rho (1/MPa) of the smooth peak stress; default
+        ``KS_RHO_YIELD / yield_MPa`` (100 / yield): KS exceeds the max by at most
+        ln(n_samp) / rho, about 5 % of the yield stress for 180 sampling points, and much less
+        when one point dominates.
+    coordinate_step_mm : the central-difference step of dR/dx|_q for "coordinates" (no solve is
+        differenced, only the residual at fixed q); default 1e-6 of the beam length.
+
+    Returns
+    -------
+    BeamSensitivity
+    """
+    for v in variables:
+        if v not in ("thickness", "width", "coordinates"):
+            raise FeaError(f"variable {v!r}; use 'thickness', 'width' or 'coordinates'")
+    twin = _Twin(model)
+    m = twin.model
+    prof = m.profile
+    n = m.n_dofs
+    frame = _frame(drive)
+    fixed = m._fixed_dofs(drive)
+    held = _held_entries(fixed, n)
+    ia, it, ir = n - 3, n - 2, n - 1
+    is_disp = drive.control == "displacement"
+    rho = KS_RHO_YIELD / m.material.yield_MPa if ks_rho_per_MPa is None else ks_rho_per_MPa
+
+    names: list[str] = []
+    if "thickness" in variables:
+        names += [f"t[{i}]" for i in range(prof.n_points)]
+    if "width" in variables:
+        names.append("b")
+    counts = {
+        "assemblies": 0,
+        "factorisations": 0,
+        "back_substitutions": 0,
+        "model_builds": 0,
+        "lu_rows": 0,
+    }
+    coords = None
+    if "coordinates" in variables:
+        step = 1e-6 * prof.length_mm if coordinate_step_mm is None else coordinate_step_mm
+        coords = _CoordinateBatch(m, step, counts)
+        names += coords.names
+    n_var = len(names)
+
+    n_rows = len(response.force_N)
+    n_el = m.n_elements
+    nan = np.full(n_rows, np.nan)
+    values = {k: nan.copy() for k in (*RESPONSES, "ks_stress_MPa", "peak_stress_MPa")}
+    derivs = {k: np.full((n_rows, n_var), np.nan) for k in (*RESPONSES, "ks_stress_MPa")}
+    fibre = np.full((n_rows, 3 * n_el, 2), np.nan)
+    d_fibre = np.full((n_rows, 3 * n_el, 2, n_var), np.nan)
+    edofs = m._edofs  # (E, 9)
+    mismatch = 0.0
+
+    done = np.flatnonzero(response.converged)
+    starts = np.zeros((n_rows, n))
+    starts[done] = _initial_states(
+        twin,
+        response.shapes_mm[done],
+        response.end_rotation_rad[done],
+        np.stack([response.force_N[done], response.transverse_force_N[done]], axis=1),
+        frame,
+    )
+    for row in done:
+        f_ext = np.zeros(n)
+        if not is_disp:
+            f_ext[ia] = response.force_N[row]
+        q0 = starts[row]
+        if is_disp:
+            q0[ia] = response.displacement_mm[row]
+        for dof in fixed:  # held DOFs at their prescribed values
+            if dof != ia:
+                q0[dof] = 0.0
+        q, r, ab, fac = _polish(twin, q0, frame, fixed, held, f_ext, counts)
+        mismatch = max(mismatch, abs(r[ia] - response.force_N[row]))
+        u = twin.physical(q, frame)
+
+        # explicit derivatives at fixed q: residual (n, n_var), and the two terms of the fibre
+        # stresses, axial a = E Gamma1 and bending c = E t kappa / 2 (E, 3, n_var)
+        dR = np.zeros((n, n_var))
+        da_x = np.zeros((n_el, 3, n_var))
+        dc_x = np.zeros((n_el, 3, n_var))
+        col = 0
+        if "thickness" in variables:
+            dre, dc_t = _thickness_terms(twin, u)
+            dre[-1] = _to_generalised_rows(dre[-1], frame)
+            npt = prof.n_points
+            for k in range(9):  # distinct DOFs within one local index: plain fancy += is safe
+                dR[edofs[:, k], col : col + npt] += dre[:, k]
+            dc_x[..., col : col + npt] = dc_t
+            col += npt
+        if "width" in variables:
+            dR[:, col] = r / prof.width_mm  # every stiffness is proportional to b
+            col += 1
+        if coords is not None:
+            nc = len(coords.names)
+            dR[:, col : col + nc], da_x[..., col : col + nc], dc_x[..., col : col + nc] = (
+                coords.terms(u, frame, n)
+            )
+            col += nc
+
+        # one back-substitution per variable with the row's factorised tangent
+        rhs = -dR
+        rhs[fixed] = 0.0
+        dq = fac.solve(rhs)
+        counts["back_substitutions"] += n_var
+        # reactions of the held DOFs; a free DOF's force is the applied load (0 or prescribed)
+        dr = np.zeros((n, n_var))
+        dr[fixed] = dR[fixed] + _reactions(ab, fixed, dq)
+
+        values["displacement_mm"][row] = q[ia]
+        values["transverse_displacement_mm"][row] = q[it]
+        values["end_rotation_rad"][row] = q[ir]
+        values["force_N"][row] = r[ia]
+        values["transverse_force_N"][row] = r[it]
+        values["moment_Nmm"][row] = r[ir]
+        derivs["displacement_mm"][row] = dq[ia]
+        derivs["transverse_displacement_mm"][row] = dq[it]
+        derivs["end_rotation_rad"][row] = dq[ir]
+        derivs["force_N"][row] = dr[ia]
+        derivs["transverse_force_N"][row] = dr[it]
+        derivs["moment_Nmm"][row] = dr[ir]
+
+        # fibre stresses: the implicit part through dq (generalised -> physical end translations)
+        a, c, da_du, dc_du = twin.fibre_terms(u)  # (E, 3), (E, 3), (E, 3, 9), (E, 3, 9)
+        du = dq.copy()
+        du[n - 3 : n - 1] = frame.T @ dq[n - 3 : n - 1]
+        due = du[edofs]  # (E, 9, n_var)
+        da = np.matmul(da_du, due) + da_x
+        dc = np.matmul(dc_du, due) + dc_x
+        fibre[row] = np.stack([a + c, a - c], -1).reshape(-1, 2)
+        d_fibre[row] = np.stack([da + dc, da - dc], 2).reshape(3 * n_el, 2, n_var)
+        # KS over the four signed fibre values +-(a + c), +-(a - c) of every sampling point: its
+        # max is the solver's |a| + |c|, and unlike |.| it is smooth where a term changes sign
+        signed = np.concatenate([fibre[row], -fibre[row]], axis=1).ravel()
+        d_signed = np.concatenate([d_fibre[row], -d_fibre[row]], axis=1).reshape(12 * n_el, n_var)
+        ks, w = ks_aggregate(signed, rho)
+        values["ks_stress_MPa"][row] = ks
+        values["peak_stress_MPa"][row] = signed.max()
+        derivs["ks_stress_MPa"][row] = w @ d_signed
+
+    counts["assemblies"] += twin.assemblies
+    f_scale = max(float(np.nanmax(np.abs(response.force_N))), 1e-300)
+    return BeamSensitivity(
+        variables=tuple(names),
+        values=values,
+        derivatives=derivs,
+        fibre_stress_MPa=fibre,
+        d_fibre_stress=d_fibre,
+        stress_s_mm=twin.s_samp.ravel(),
+        ks_rho_per_MPa=float(rho),
+        force_mismatch=mismatch / f_scale,
+        counts=counts,
+    )
