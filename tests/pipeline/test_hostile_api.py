@@ -56,6 +56,7 @@ CASES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_api_study_data_has_the_limits_of_a_study_file(case, tmp_path, monkeypatch, solve_log):
     monkeypatch.chdir(tmp_path)
@@ -119,6 +120,7 @@ def test_outputs_that_refer_to_each_other_in_a_loop_are_refused_at_load(tmp_path
     load_study(chained)
 
 
+@pytest.mark.slow
 def test_numpy_runtime_warnings_stay_off_stderr_without_v():
     code = (
         "import sys, numpy as np; from flexopt.pipeline import cli; original = cli._list\n"

@@ -273,6 +273,8 @@ def _env() -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(HERE)])}
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_sigterm_ends_a_run_like_ctrl_c_and_it_resumes(tmp_path):
     raw = flexopt_toys.study(sleep_s=0.05)
     raw["optimiser"] = {"pop_size": 6, "n_gen": 40, "seed": 3}
@@ -311,6 +313,8 @@ def test_sigterm_ends_a_run_like_ctrl_c_and_it_resumes(tmp_path):
     assert json.loads((out / "run.json").read_text())["status"] == "finished"
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_an_all_infeasible_run_prints_no_traceback_and_keeps_its_files(tmp_path):
     # Every design raises, and so does the best design's detail (the report notes it): the
     # console shows warnings, never a traceback (logging's last resort printed one before).

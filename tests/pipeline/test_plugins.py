@@ -123,6 +123,8 @@ def flexopt(plugin_path: Path, cwd: Path, *args: str) -> subprocess.CompletedPro
     )
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_plugin_kinds_run_from_the_cli(plugin_path, tmp_path):
     listed = flexopt(plugin_path, tmp_path, "list")
     assert listed.returncode == 0, listed.stderr
@@ -175,6 +177,7 @@ def test_plugin_kinds_run_from_the_cli(plugin_path, tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_a_broken_plugin_is_one_line_only_when_asked_for(plugin_path, tmp_path):
     (tmp_path / "b.yaml").write_text("name: b\ngeometry: {kind: broken_kind}\nmaterial: PLA\n")
     done = flexopt(plugin_path, tmp_path, "evaluate", "b.yaml")

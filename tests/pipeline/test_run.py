@@ -307,6 +307,8 @@ def test_run_writes_every_file(tmp_path, capsys):
         assert needle in report, needle
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_same_seed_same_best_and_quick_and_seed_options(tmp_path):
     first = run_toy(tmp_path, "one")
     second = run_toy(tmp_path, "two")
@@ -484,6 +486,7 @@ def test_info_rendering_keeps_scalars_and_small_tables():
     assert "| stroke_mm | F_N |\n|---|---|\n| 1 | 4 |" in lines and "| band | [1, 2] |" in lines
 
 
+@pytest.mark.e2e
 def test_constant_force_quick_smoke(tmp_path):
     """The shipped optimisable example runs end to end (`flexopt run constant-force --quick`)."""
     from flexopt.pipeline.studies import kinds
