@@ -335,3 +335,113 @@ def test_the_banded_lu_and_the_pattern_builder_are_written_once():
         assert writers[name], f"the scan finds no {name}[...] write at all: is it still {home}'s?"
         strays = sorted(w for w in writers[name] if not w.startswith(home + "."))
         assert not strays, f"{name}[...] written outside {home}: {strays}"
+
+
+# -- what a study kind may hold (issue 24): no process, solver or plotting library; a size bound --
+#
+# A kind is its schema, its composition, its requirements and labels (shared/DESIGN.md): process
+# handling belongs to the execution layer (pipeline/parallel.py), solving to fea/ and optimise/,
+# figures to the shared plotting module. Only kinds count (pipeline/studies/<name>.py, not the
+# ``_``-prefixed shared blocks nor the registry ``__init__.py``).
+
+#: library family -> the top-level packages that make it up
+FORBIDDEN_IN_KINDS = {
+    "process": {"multiprocessing", "concurrent", "subprocess"},
+    "solver": {"scipy"},
+    "plotting": {"matplotlib", "plotly"},
+}
+
+#: the most lines a kind may have
+MAX_KIND_LINES = 700
+
+#: Today's offenders, to be emptied by #24: kind -> the forbidden packages it imports. A kind
+#: listed here may drop a package (then remove it from here: the test says so) but not add one.
+#: Measured on main 932f7ea; other helpers are moving these out right now.
+KIND_IMPORT_OFFENDERS: dict[str, set[str]] = {
+    "collision": {"matplotlib"},
+    "flexure_pivot": {"scipy"},
+    "mechanism": {"matplotlib"},
+    "sea_spring": {"multiprocessing"},
+    "sea_window": {"matplotlib"},
+    "threshold_spring": {"matplotlib"},
+}
+
+#: Today's offenders, to be emptied by #24: kind -> its line count measured on main 932f7ea.
+#: A kind listed here may shrink but not grow; once it is at or under MAX_KIND_LINES, remove it.
+KIND_SIZE_OFFENDERS: dict[str, int] = {
+    "constant_force": 1100,
+    "flexure_pivot": 862,
+    "mechanism": 2036,
+    "sea_spring": 1925,
+    "threshold_spring": 1106,
+}
+
+
+def _kinds() -> dict[str, Path]:
+    """Kind name (``sea_spring``) -> its source file, for every kind in pipeline/studies/."""
+    prefix = STUDIES + "."
+    return {m[len(prefix) :]: path for m, path in sorted(MODULES.items()) if _is_kind(m)}
+
+
+def _external_imports(path: Path) -> set[str]:
+    """Top-level names of the non-flexopt packages a file imports, anywhere in it (also inside
+    functions and under ``TYPE_CHECKING``: a lazy import is still a dependency)."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+        if isinstance(node, ast.Import):
+            found |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            found.add(node.module.split(".")[0])
+    return found
+
+
+def _line_count(path: Path) -> int:
+    return len(path.read_text(encoding="utf-8").splitlines())
+
+
+def test_the_kind_scan_sees_the_kinds():
+    # Guards the two tests below: an empty or wrong kind list would make them vacuous.
+    kinds = _kinds()
+    assert {"constant_force", "sea_spring", "polyline_beam"} <= set(kinds), sorted(kinds)
+    assert not any(name.startswith("_") for name in kinds)
+    assert "multiprocessing" in _external_imports(MODULES["flexopt.pipeline.parallel"])
+    assert set(KIND_IMPORT_OFFENDERS) <= set(kinds) and set(KIND_SIZE_OFFENDERS) <= set(kinds)
+
+
+def test_kinds_import_no_process_solver_or_plotting_library():
+    forbidden = set().union(*FORBIDDEN_IN_KINDS.values())
+    family = {pkg: fam for fam, pkgs in FORBIDDEN_IN_KINDS.items() for pkg in pkgs}
+    new, gone = [], []
+    for kind, path in _kinds().items():
+        imported = _external_imports(path) & forbidden
+        allowed = KIND_IMPORT_OFFENDERS.get(kind, set())
+        new += [f"{kind} imports {p} (a {family[p]} library)" for p in sorted(imported - allowed)]
+        gone += [f"{kind}: {p}" for p in sorted(allowed - imported)]
+    assert not new, (
+        "a study kind imports a process, solver or plotting library; processes go through "
+        "pipeline/parallel.py, solving into fea/ or optimise/, figures into the shared plotting "
+        "module:\n" + "\n".join(new)
+    )
+    assert not gone, "no longer imported: remove from KIND_IMPORT_OFFENDERS:\n" + "\n".join(gone)
+
+
+def test_every_kind_is_at_most_700_lines():
+    over, grown, done = [], [], []
+    for kind, path in _kinds().items():
+        lines = _line_count(path)
+        if kind in KIND_SIZE_OFFENDERS:
+            if lines <= MAX_KIND_LINES:
+                done.append(f"{kind}: {lines} lines")
+            elif lines > KIND_SIZE_OFFENDERS[kind]:
+                grown.append(f"{kind}: {lines} lines, was {KIND_SIZE_OFFENDERS[kind]}")
+        elif lines > MAX_KIND_LINES:
+            over.append(f"{kind}: {lines} lines")
+    assert not over, (
+        f"a study kind over {MAX_KIND_LINES} lines (a kind is its schema and a short "
+        "composition; physics goes into fea/, scoring into optimise/):\n" + "\n".join(over)
+    )
+    assert not grown, "a listed kind grew; it may only shrink:\n" + "\n".join(grown)
+    assert not done, (
+        f"at or under {MAX_KIND_LINES} lines now: remove from KIND_SIZE_OFFENDERS:\n"
+        + "\n".join(done)
+    )

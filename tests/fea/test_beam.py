@@ -49,6 +49,7 @@ def elastica_cantilever(alpha):
     return delta, np.sqrt(2.0 * sin_tip / alpha)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("alpha", [0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0])
 def test_cantilever_tip_force_matches_elastica_with_20_elements(alpha):
     L, t, b = 100.0, 0.25, 2.0

@@ -106,6 +106,8 @@ def _without_3d(name: str, tmp_path: Path) -> str:
     return str(path)
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 @pytest.mark.parametrize("name", list_examples())
 def test_every_shipped_example_runs(name, tmp_path):
     out = tmp_path / name
@@ -201,6 +203,7 @@ def _env_with_source_tree() -> dict[str, str]:
     return env
 
 
+@pytest.mark.e2e
 def test_module_entry_point_in_a_subprocess(tmp_path):
     out = tmp_path / "run"
     ok = subprocess.run(
@@ -240,6 +243,7 @@ def test_module_entry_point_in_a_subprocess(tmp_path):
     assert not (tmp_path / "n").exists()
 
 
+@pytest.mark.e2e
 def test_installed_console_script(tmp_path):
     """The `flexopt` script next to this interpreter, when flexopt is installed (as in CI)."""
     script = Path(sys.executable).with_name("flexopt")

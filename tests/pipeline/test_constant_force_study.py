@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import copy
 import pickle
-import time
 from pathlib import Path
 
 import flexopt.pipeline as pipeline
@@ -177,9 +176,7 @@ def test_too_thin_design_is_infeasible_before_any_solve(monkeypatch):
     monkeypatch.setattr(cf.BeamModel, "solve", no_solve)
     x = TABLE3.copy()
     x[DESIGN_VARIABLE_NAMES.index("t6")] = 0.7
-    start = time.perf_counter()
-    ev = prob.evaluate(x)
-    assert time.perf_counter() - start < 0.05
+    ev = prob.evaluate(x)  # no_solve above: not one beam solve (speed: benchmarks/refusals.py)
     assert not ev.feasible
     assert ev.reason.startswith("not printable: t6 = 0.7 mm")
     assert "min_feature_mm = 0.8" in ev.reason

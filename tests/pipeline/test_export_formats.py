@@ -197,6 +197,7 @@ def test_step_without_the_extra_and_bad_formats_are_one_line_exit_2(tmp_path, ca
     assert "ends in .dxf but --format is stl" in capsys.readouterr().err
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("name", ["flexure-pivot", "sea-spring-quick", "constant-force"])
 def test_export_of_a_shipped_study_evaluate_folder(name, tmp_path, capsys):
     # the design that `flexopt evaluate` solved is the one rebuilt (the kind's nominal_design)
@@ -253,6 +254,7 @@ def _assert_exported_is_meshed(detail, meshed, coarse) -> Polygon:
     return exported
 
 
+@pytest.mark.slow
 def test_sea_spring_exports_the_outline_its_peak_converged_on_hub_bore_at_origin(
     tmp_path, monkeypatch
 ):
@@ -374,6 +376,8 @@ def _part_as_exported(name: str):
     return d
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 @pytest.mark.parametrize("name", _example_names())
 def test_every_built_in_example_makes_its_step_solid(name):
     pytest.importorskip("build123d", reason="STEP needs the step extra (in the test extra)")

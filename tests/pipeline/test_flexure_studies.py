@@ -149,6 +149,8 @@ def test_type_index_maps_to_every_candidate():
     assert f.depth_mm == pytest.approx(0.25 * 4.0 * 8.0)
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_flexure_pivot_quick_run_writes_plots_and_a_watertight_stl(tmp_path):
     out = tmp_path / "pivot"
     assert main(["run", "flexure-pivot", "--quick", "--out", str(out), "-q"]) == 0
@@ -214,6 +216,8 @@ def test_leaf_spring_joint_evaluate_summary(tmp_path):
     assert {"torque_Nm_sliding_l28", "stiffness_Nm_per_rad_fixed_l28"} <= set(header)
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_leaf_spring_joint_quick_run_writes_plots_and_a_watertight_stl(tmp_path):
     out = tmp_path / "joint"
     assert main(["run", "leaf-spring-joint", "--quick", "--out", str(out), "-q"]) == 0

@@ -4,9 +4,9 @@ The corpus is generated here (a 50 MB file and alias bombs are not worth shippin
 writes one hostile study, and ``flexopt run`` and ``flexopt evaluate`` must refuse it with exit 2
 and one stderr line that names the problem, no traceback, nothing written (no default ``runs/``
 in the working folder) and an existing run folder given as ``--out`` left byte for byte as it
-was. Each refusal must come quickly: the limit asserted below (5 s) is a guard against the
-minutes and gigabytes these files took before, not a speed target (that is "well under a
-second" on an idle machine, docs/usage.md).
+was. Each refusal must come before anything is solved (asserted below: no FE solve); how
+quickly it comes, against the minutes and gigabytes these files took before, is timed by
+benchmarks/refusals.py ("well under a second" on an idle machine, docs/usage.md).
 """
 
 from __future__ import annotations
@@ -35,8 +35,6 @@ from flexopt.pipeline.study import (
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 CLI = "import sys, flexopt_toys; from pipeline.cli import main; sys.exit(main(sys.argv[1:]))"
-#: A refusal must not take anywhere near the minutes a bomb took before (see the module note).
-QUICK_S = 5.0
 
 CANTILEVER = """\
 name: cantilever
@@ -211,7 +209,7 @@ def one_line(err: str, fragment: str) -> str:
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_a_hostile_study_is_one_quick_line_and_changes_nothing(
-    case, existing_run, tmp_path, monkeypatch, capsys
+    case, existing_run, tmp_path, monkeypatch, capsys, solve_log
 ):
     path = tmp_path / "hostile" / f"{case}.yaml"
     path.parent.mkdir()
@@ -227,13 +225,11 @@ def test_a_hostile_study_is_one_quick_line_and_changes_nothing(
         ["evaluate", str(path)],
         ["evaluate", str(path), "--out", str(existing_run)],
     ):
-        start = time.perf_counter()
         code = main(argv)
-        elapsed = time.perf_counter() - start
         err = capsys.readouterr().err
         assert code == 2, (argv, err[:500])
         one_line(err, fragment)
-        assert elapsed < QUICK_S, f"{case}: {elapsed:.2f} s"
+        assert solve_log.count == 0, f"{case}: refused after solving: {solve_log.calls}"
     assert list(workdir.iterdir()) == []
     assert snapshot_bytes(existing_run) == before
 
@@ -277,6 +273,8 @@ def _env() -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(HERE)])}
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_sigterm_ends_a_run_like_ctrl_c_and_it_resumes(tmp_path):
     raw = flexopt_toys.study(sleep_s=0.05)
     raw["optimiser"] = {"pop_size": 6, "n_gen": 40, "seed": 3}
@@ -315,6 +313,8 @@ def test_sigterm_ends_a_run_like_ctrl_c_and_it_resumes(tmp_path):
     assert json.loads((out / "run.json").read_text())["status"] == "finished"
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_an_all_infeasible_run_prints_no_traceback_and_keeps_its_files(tmp_path):
     # Every design raises, and so does the best design's detail (the report notes it): the
     # console shows warnings, never a traceback (logging's last resort printed one before).

@@ -427,6 +427,8 @@ def _no_design_twice(run_dir: Path) -> None:
 SLOW = {"sleep_s": 0.06}  # ~3 s of solving left after the first generation: the two overlap
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_two_resumes_at_once_one_runs_and_the_other_is_refused(tmp_path):
     raw = {**flexopt_toys.study(**SLOW), "optimiser": {"pop_size": 8, "n_gen": 8, "seed": 2}}
     run_dir = tmp_path / "run"
@@ -448,6 +450,8 @@ def test_two_resumes_at_once_one_runs_and_the_other_is_refused(tmp_path):
     assert len(json.loads((run_dir / "run.json").read_text())["resumed"]) == 1
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_two_runs_into_one_new_folder_one_runs_and_the_other_is_refused(tmp_path):
     study = tmp_path / "toy.yaml"
     raw = {**flexopt_toys.study(**SLOW), "optimiser": {"pop_size": 8, "n_gen": 4, "seed": 2}}

@@ -4,14 +4,13 @@ The corpus is generated here: files in odd encodings, a field far over the csv m
 files of 300 MB and 1 GB (sparse: they cost no disk), ``/dev/zero``, a FIFO, a folder, and files
 whose first line is a secret. ``flexopt evaluate`` and ``flexopt run`` must refuse each with exit
 2 and one line naming the key, no traceback, nothing written, an existing run folder unchanged,
-within seconds; and no error may echo a byte of the file.
+nothing solved (how quickly: benchmarks/refusals.py); and no error may echo a byte of the file.
 """
 
 from __future__ import annotations
 
 import codecs
 import os
-import time
 from pathlib import Path
 
 import flexopt_toys
@@ -23,7 +22,6 @@ from flexopt.pipeline.run import prepare_run, run_study
 from flexopt.pipeline.studies._targets import MAX_TABLE_BYTES, read_table_csv
 from flexopt.pipeline.study import load_study, validate_study
 
-QUICK_S = 5.0
 KEY = "requirements[0].target.file"
 SECRET = "S3CRET"
 
@@ -122,7 +120,7 @@ def _table(case: str, tmp_path: Path) -> Path:
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_a_hostile_table_file_is_one_quick_line_and_changes_nothing(
-    case, existing_run, tmp_path, monkeypatch, capsys
+    case, existing_run, tmp_path, monkeypatch, capsys, solve_log
 ):
     table = _table(case, tmp_path)
     study = tmp_path / "study.yaml"
@@ -137,9 +135,7 @@ def test_a_hostile_table_file_is_one_quick_line_and_changes_nothing(
         ["evaluate", str(study), "--out", str(existing_run)],
         ["run", str(study), "-q", "--workers", "1", "--quick"],
     ):
-        start = time.perf_counter()
         code = main(argv)
-        elapsed = time.perf_counter() - start
         err = capsys.readouterr().err
         assert code == 2, (argv, err[:500])
         lines = err.splitlines()
@@ -147,7 +143,7 @@ def test_a_hostile_table_file_is_one_quick_line_and_changes_nothing(
         assert KEY in lines[0] and fragment in lines[0], lines[0]
         assert SECRET not in err, "an error echoed the file's content"
         assert len(lines[0]) < 1000
-        assert elapsed < QUICK_S, f"{case}: {elapsed:.2f} s"
+        assert solve_log.count == 0, f"{case}: refused after solving: {solve_log.calls}"
     assert list(workdir.iterdir()) == []
     assert snapshot(existing_run) == before
 

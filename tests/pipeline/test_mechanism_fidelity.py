@@ -53,6 +53,7 @@ def _perfect_and_imperfect(study, amplitude_mm: float):
     return geometry, perfect, imperfect, outline
 
 
+@pytest.mark.slow
 def test_bistable_switch_verdict_is_the_imperfect_parts_snap():
     # the beam model's verdict (the check of the outline, tested below on the parallel guide,
     # scales the forces by its ratio: off here, so the figures are the beam's own)

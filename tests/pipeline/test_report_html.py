@@ -331,6 +331,7 @@ def test_flexopt_report_rebuilds_report_html(run_dir):
     assert page.sections == list(SECTIONS) and "fig-part-3d" in figures
 
 
+@pytest.mark.browser
 @pytest.mark.skipif(shutil.which("chromium") is None, reason="chromium is not installed")
 def test_report_html_draws_offline_in_a_headless_browser(run_dir, tmp_path):
     """Every figure is drawn by the embedded plotly.js in a real browser, with no network."""

@@ -40,6 +40,7 @@ except ImportError:  # the test extra brings it; a bare install may not have it
 
 CHROMIUM = _chromium()
 pytestmark = [
+    pytest.mark.browser,
     pytest.mark.skipif(
         sync_playwright is None,
         reason="playwright is not installed (pip install 'flexopt[test]'); report.html is not "

@@ -68,6 +68,8 @@ def lines(path: Path) -> list[str]:
     return path.read_text().splitlines() if path.exists() else []
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_sigkill_mid_run_then_resume_ends_as_an_uninterrupted_run(tmp_path, capsys):
     log_ref, log_run = tmp_path / "calls-ref.log", tmp_path / "calls-run.log"
     reference_study = validate_study(

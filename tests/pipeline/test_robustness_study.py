@@ -201,6 +201,7 @@ def test_bad_blocks_name_the_key(block, where, words, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.e2e
 def test_run_reports_the_chosen_designs_robustness(tmp_path, capsys):
     raw = flexopt_toys.study("toy-robust")
     raw["optimiser"] = {"pop_size": 4, "n_gen": 2, "seed": 1}

@@ -307,6 +307,8 @@ def test_run_writes_every_file(tmp_path, capsys):
         assert needle in report, needle
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_same_seed_same_best_and_quick_and_seed_options(tmp_path):
     first = run_toy(tmp_path, "one")
     second = run_toy(tmp_path, "two")
@@ -484,6 +486,7 @@ def test_info_rendering_keeps_scalars_and_small_tables():
     assert "| stroke_mm | F_N |\n|---|---|\n| 1 | 4 |" in lines and "| band | [1, 2] |" in lines
 
 
+@pytest.mark.e2e
 def test_constant_force_quick_smoke(tmp_path):
     """The shipped optimisable example runs end to end (`flexopt run constant-force --quick`)."""
     from flexopt.pipeline.studies import kinds
@@ -649,27 +652,39 @@ def test_best_step_child_is_forked_early_and_makes_the_part_it_is_sent(monkeypat
     assert int(data) in (os.getpriority(os.PRIO_PROCESS, 0), lowered)
 
 
-def test_waiting_for_an_idle_core_ends_on_work_or_at_its_limit():
+def test_waiting_for_an_idle_core_ends_on_work_or_at_its_limit(monkeypatch):
     """_wait_for_idle_core: at once when there is work, after one period when any idle share
-    will do, at its time limit when the idle share asked for cannot happen."""
+    will do, at its time limit when the idle share asked for cannot happen. Counted in periods
+    waited on a clock of the test's own (each wait moves it by its timeout), not in wall time."""
     import time
+    import types
 
     from flexopt.pipeline.run import _wait_for_idle_core
 
-    t0 = time.monotonic()
-    _wait_for_idle_core(lambda timeout: True, idle_cores=1e9)
-    assert time.monotonic() - t0 < 0.5
+    clock = [0.0]
+    fake_time = types.SimpleNamespace(monotonic=lambda: clock[0])
+    monkeypatch.setitem(_wait_for_idle_core.__globals__, "time", fake_time)
+    waits: list[float] = []
+
+    def work(timeout: float) -> bool:
+        waits.append(timeout)
+        return True
+
+    _wait_for_idle_core(work, idle_cores=1e9)
+    assert waits == [0.2]  # the first look finds work
 
     def no_work(timeout: float) -> bool:
-        time.sleep(timeout)
+        waits.append(timeout)
+        clock[0] += timeout
+        time.sleep(0.05)  # real time too: /proc/stat's counters move on
         return False
 
-    t0 = time.monotonic()
-    _wait_for_idle_core(no_work, period_s=0.05, idle_cores=1e9, limit_s=0.3)
-    assert 0.25 <= time.monotonic() - t0 < 2.0
-    t0 = time.monotonic()
-    _wait_for_idle_core(no_work, period_s=0.05, idle_cores=0.0, limit_s=30.0)
-    assert time.monotonic() - t0 < 2.0
+    waits.clear()
+    _wait_for_idle_core(no_work, period_s=0.25, idle_cores=1e9, limit_s=1.0)
+    assert waits == [0.25] * 4  # to its limit, not a period longer
+    waits.clear()
+    _wait_for_idle_core(no_work, period_s=0.25, idle_cores=0.0, limit_s=30.0)
+    assert waits == [0.25]  # any idle share will do: one period
 
 
 def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():

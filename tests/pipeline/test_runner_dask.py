@@ -126,6 +126,7 @@ def table(run_dir: Path, columns=("generation", "index", "a", "b", "c", "error",
 FAULTS = {"raise_above": 0.9, "nan_above": 0.8, "mesh_fail_above": 0.7}
 
 
+@pytest.mark.e2e
 def test_serial_processes_and_dask_give_the_same_run(tmp_path, address):
     serial = run_toy(tmp_path, "serial", ParallelSettings("serial"), **FAULTS)
     pool = run_toy(tmp_path, "pool", ParallelSettings("processes", workers=2), **FAULTS)
@@ -149,6 +150,7 @@ def test_serial_processes_and_dask_give_the_same_run(tmp_path, address):
     assert "RuntimeError" in reasons and "MeshError" in reasons
 
 
+@pytest.mark.slow
 def test_dask_time_limit_and_a_design_that_kills_workers(tmp_path, own_cluster):
     # limits with room for a loaded machine: 1 s against a fast design of microseconds
     problem = toy_setup(hang_above=0.8, hang_s=4.0, exit_above=0.95).problem
@@ -163,6 +165,7 @@ def test_dask_time_limit_and_a_design_that_kills_workers(tmp_path, own_cluster):
     assert out[2].reason.startswith("WorkerDied")
 
 
+@pytest.mark.e2e
 def test_flexopt_run_on_dask_from_the_command_line(tmp_path, address, capsys):
     path = tmp_path / "toy.yaml"
     path.write_text(json.dumps(flexopt_toys.study(**FAULTS)))

@@ -65,6 +65,7 @@ def test_every_3d_check_equals_the_reference_check_at_its_st():
         assert c["dofs"] == ref["solid3d"]["n_dofs"]
 
 
+@pytest.mark.slow
 def test_second_process_work_equals_this_process_work(monkeypatch):
     """detail with the side process: the two extra 2D solves are the values the same calls
     give here, and the peak convergence comes back from the other process with the arguments

@@ -149,6 +149,8 @@ def test_stress_map_png_is_drawn():
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_quick_example_runs_end_to_end(tmp_path):
     """`flexopt run sea-spring-quick --quick`, on a coarse mesh and one direction to stay quick."""
     import json

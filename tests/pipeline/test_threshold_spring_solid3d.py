@@ -26,6 +26,7 @@ def _study(**solid_3d):
     return validate_study(raw)
 
 
+@pytest.mark.slow
 def test_solid_3d_is_reported_corrected_rechecked_and_judged(monkeypatch):
     # the peak convergence on the optimiser's arm sampling (0.5 mm: 1-2 deg facets) and three
     # rounds (the least it makes) keeps it quick; its own logic is tested in tests/fea

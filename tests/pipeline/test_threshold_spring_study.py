@@ -191,6 +191,7 @@ def test_evaluate_writes_plots_and_a_watertight_stl(evaluated):
     assert mesh.volume * 1e-9 * rho * 1e3 == pytest.approx(result.summary["mass_g"], rel=1e-3)
 
 
+@pytest.mark.e2e
 def test_quick_run_end_to_end(tmp_path):
     from flexopt.pipeline.parallel import ParallelSettings
     from flexopt.pipeline.run import prepare_run, run_study

@@ -26,6 +26,8 @@ def _without_3d(study):
     return study.with_values({"solid_3d.check": False}) if s3 is not None and s3.check else study
 
 
+@pytest.mark.slow
+@pytest.mark.e2e
 @pytest.mark.parametrize("example", list_examples())
 def test_every_example_writes_a_verdict_first(example, tmp_path):
     """Every shipped example's evaluation.json opens with a verdict of at least one requirement,
@@ -155,6 +157,7 @@ def test_a_constraint_requirement_becomes_a_row_of_the_problem():
     assert ev.g[-1] == pytest.approx((peak - 10.0) / 10.0)
 
 
+@pytest.mark.e2e
 def test_a_run_opens_best_json_report_and_console_with_the_verdict(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["run", "flexure-pivot", "--quick", "--out", str(out), "--workers", "1"]) == 0

@@ -127,6 +127,7 @@ def _guide_study(initial: float | None = None):
     return validate_study(raw)
 
 
+@pytest.mark.e2e
 def test_mechanism_variables_in_their_bounds_evaluated_and_run():
     from flexopt.pipeline.errors import StudyError
     from flexopt.pipeline.studies.mechanism import MechanismProblem, evaluate
