@@ -96,6 +96,7 @@ def test_calibrate_refuses_bad_inputs(tmp_path):
         calibrate(tmp_path / "b.csv", tmp_path / "coupon.json")
 
 
+@pytest.mark.e2e
 def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
     """design -> "print" (a spool whose E is 10 % below the datasheet's) -> compare -> re-trim
     the width -> the second "print" meets the constant-force band the first one missed.
@@ -132,6 +133,7 @@ def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
     assert all(v.met for v in second.verdict), [str(v) for v in second.verdict]
 
 
+@pytest.mark.slow
 def test_cli_coupon_and_calibrate(tmp_path, monkeypatch, capsys):
     from flexopt.pipeline.cli import main
 
