@@ -131,6 +131,12 @@ class Solid3DSettings:
     # scikit-fem's Basis and a global sort of the node pairs, the reference (the tests check
     # that both agree to round-off); also what runs when numba does not import.
     assembly: Literal["compiled", "numpy"] = "compiled"
+    # With the compiled assembly: drop the stiffness parts and the reduced lower triangle's
+    # pattern (the model's two largest arrays, ~0.4 GB on the SEA spring's 408k DOFs) while
+    # CHOLMOD factorises, and make them again from the mesh afterwards (~1 s; the same
+    # arrays bit for bit): the factorisation is the check's peak of memory (docs/solid3d.md,
+    # "Memory"). False keeps them (the reference for the tests and the benchmark).
+    lean_factorisation: bool = True
 
 
 @dataclass(frozen=True)
@@ -762,21 +768,21 @@ def _p2_tables(tmesh, kernels) -> tuple:
     return dofs, nv + uniq.size, doflocs, G, dx, Gc, xyz
 
 
-def _p2_gradients(tmesh, kernels) -> tuple[np.ndarray, np.ndarray]:
-    """The gradients ``G`` and ``Gc`` of :func:`_p2_tables` again, bit for bit (the same
-    kernel on the same vertices): the compiled model drops them after the assembly and makes
-    them anew for the stress, so that they (2 x 74 MB on the SEA spring) are not held while
-    CHOLMOD factorises."""
+def _p2_gradients(tmesh, kernels) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``G``, ``dx`` and ``Gc`` of :func:`_p2_tables` again, bit for bit (the same kernel on
+    the same vertices): the compiled model drops them after the assembly and makes them anew
+    for the stress (and the parts, :attr:`Solid3DSettings.lean_factorisation`), so that they
+    (2 x 74 MB on the SEA spring) are not held while CHOLMOD factorises."""
     from skfem.quadrature import get_quadrature
     from skfem.refdom import RefTet
 
     p = np.ascontiguousarray(tmesh.p, dtype=float)
     t = np.ascontiguousarray(tmesh.t.T, dtype=np.int64)
     X, w = get_quadrature(RefTet, 2)
-    G = kernels.p2_tables(p, t, np.ascontiguousarray(X, dtype=float),
-                          np.ascontiguousarray(w, dtype=float), kernels._EDGES)[0]  # fmt: skip
+    G, dx, _ = kernels.p2_tables(p, t, np.ascontiguousarray(X, dtype=float),
+                                 np.ascontiguousarray(w, dtype=float), kernels._EDGES)  # fmt: skip
     Gc = kernels.p2_tables(p, t, _CORNERS[0], _CORNERS[1], kernels._EDGES)[0]
-    return G, Gc
+    return G, dx, Gc
 
 
 # Components (c, d) of a 3x3 node block that each part of the stiffness fills: the in-plane
@@ -994,6 +1000,18 @@ class Solid3DModel:
         self._factor: _Solver | None = None
         self._q: np.ndarray | None = None
 
+    def _assemble_compiled(self) -> None:
+        """The compiled path's pattern, parts and reduced lower triangle, made again from the
+        mesh (the same kernels on the same input: the same arrays, bit for bit) after a
+        factorisation that ran without them (:attr:`Solid3DSettings.lean_factorisation`)."""
+        kernels = self._kernels
+        G, dx, _ = _p2_gradients(self._tmesh, kernels)
+        self._indptr, self._indices, self._parts = kernels.block_pattern_parts(
+            self._dofs, self.n_dofs // 3, G, dx, self._lam, self._mu
+        )
+        del G, dx
+        self._lower = self._reduced_lower_pattern(kernels)
+
     def _reduced_lower_pattern(self, kernels=None) -> tuple | None:
         """Where the reduced matrix's lower triangle sits in the blocks: (flat index into the
         (nnzb, 3, 3) block values, reduced row, reduced column), or None when the unknowns are
@@ -1087,11 +1105,17 @@ class Solid3DModel:
                 # afterwards, and the values go to the solver in a one-element list that it
                 # empties, so that it frees them once CHOLMOD's copy is made.
                 vals = [K.data.ravel()[flat]]
-                del K
+                del K, flat
+                lean = self._kernels is not None and st.lean_factorisation
+                if lean:  # made again below, bit for bit, from the mesh
+                    self._parts = self._lower = None
                 if self._kernels is not None:  # compressed columns
                     self._factor = _Solver(None, st.solver, columns=(vals, rows, third, P.shape[1]))
                 else:  # triplets
                     self._factor = _Solver(None, st.solver, (vals, rows, third, P.shape[1]))
+                del rows, third
+                if lean:
+                    self._assemble_compiled()
                 K = self.stiffness_matrix(thickness_mm)
             else:
                 self._factor = _Solver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
@@ -1100,11 +1124,12 @@ class Solid3DModel:
         u = sup.ubar + P @ q
         times["factorise_solve"] = time.perf_counter() - t1
         rx = _reactions(K @ u, sup, st)  # internal force = force applied by the supports
+        del K  # not held beside the stress gradients
         t2 = time.perf_counter()
         zs = float(thickness_mm) / self.reference_thickness_mm
         stretch = np.array([1.0, 1.0, zs])
         if self._G is None:
-            G, Gc = _p2_gradients(self._tmesh, self._kernels)
+            G, _, Gc = _p2_gradients(self._tmesh, self._kernels)
         else:
             G, Gc = self._G, self._Gc
         peaks = _peaks(u, self._dofs, G, self._xyz_qp * stretch[:, None, None], Gc,
