@@ -921,8 +921,10 @@ class Solid3DModel:
     reference_thickness_mm : float, mm — the extrusion the model is built at (1 mm; a
         model solved at its reference thickness involves no stretch: solve_solid3d)
 
-    Memory: the factor of the first thickness is kept (~2 GB for 400k DOFs) while the model
-    lives.
+    Memory: the factor of the first thickness is kept (CHOLMOD: 1.04 GB for the SEA spring's
+    375k free DOFs) while the model lives. The peak is the first factorisation (2.0 GB there):
+    K is not held through it, and with ``lean_factorisation`` neither are the parts nor the
+    reduced triangle's pattern (made again after); docs/solid3d.md, "Memory".
     """
 
     def __init__(
@@ -1105,7 +1107,7 @@ class Solid3DModel:
                 # afterwards, and the values go to the solver in a one-element list that it
                 # empties, so that it frees them once CHOLMOD's copy is made.
                 vals = [K.data.ravel()[flat]]
-                del K, flat
+                K = flat = None
                 lean = self._kernels is not None and st.lean_factorisation
                 if lean:  # made again below, bit for bit, from the mesh
                     self._parts = self._lower = None
@@ -1124,7 +1126,7 @@ class Solid3DModel:
         u = sup.ubar + P @ q
         times["factorise_solve"] = time.perf_counter() - t1
         rx = _reactions(K @ u, sup, st)  # internal force = force applied by the supports
-        del K  # not held beside the stress gradients
+        K = None  # not held beside the stress gradients
         t2 = time.perf_counter()
         zs = float(thickness_mm) / self.reference_thickness_mm
         stretch = np.array([1.0, 1.0, zs])
