@@ -1110,7 +1110,7 @@ class Solid3DModel:
                 K = flat = None
                 lean = self._kernels is not None and st.lean_factorisation
                 if lean:  # made again below, bit for bit, from the mesh
-                    self._parts = self._lower = None
+                    self._parts = self._lower = self._indices = self._indptr = None
                 if self._kernels is not None:  # compressed columns
                     self._factor = _Solver(None, st.solver, columns=(vals, rows, third, P.shape[1]))
                 else:  # triplets
