@@ -131,6 +131,12 @@ class Solid3DSettings:
     # scikit-fem's Basis and a global sort of the node pairs, the reference (the tests check
     # that both agree to round-off); also what runs when numba does not import.
     assembly: Literal["compiled", "numpy"] = "compiled"
+    # With the compiled assembly: drop the stiffness parts and the reduced lower triangle's
+    # pattern (the model's two largest arrays, ~0.4 GB on the SEA spring's 408k DOFs) while
+    # CHOLMOD factorises, and make them again from the mesh afterwards (~1 s; the same
+    # arrays bit for bit): the factorisation is the check's peak of memory (docs/solid3d.md,
+    # "Memory"). False keeps them (the reference for the tests and the benchmark).
+    lean_factorisation: bool = True
 
 
 @dataclass(frozen=True)
@@ -329,7 +335,11 @@ def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
 
 
 def _gathered(vals) -> np.ndarray:
-    """Values given as an array, or as a pair (data, flat) for ``data[flat]``."""
+    """Values given as an array, as a pair (data, flat) for ``data[flat]``, or as a
+    one-element list holding either (emptied: the caller hands its only reference over, so
+    that the values can be freed as soon as a solver has copied them)."""
+    if isinstance(vals, list):
+        vals = vals.pop()
     return vals[0][vals[1]] if isinstance(vals, tuple) else vals
 
 
@@ -358,13 +368,16 @@ class _Solver:
             assert K is not None
             L = sp.tril(K, format="coo")
             lower = (L.data, L.row, L.col, K.shape[0])
+        compressed = columns is not None
         if columns is not None:
             vals, rows, colptr, self.n = columns
-            vals = _gathered(vals)
             cols = None
         else:
             assert lower is not None
             vals, rows, cols, self.n = lower
+        # the caller's tuples go: a list in them (see _gathered) then holds the values alone
+        del lower, columns
+        vals = _gathered(vals)
         if which in ("auto", "cholmod"):
             try:
                 from cvxopt import cholmod, matrix, spmatrix
@@ -372,14 +385,19 @@ class _Solver:
                 if which == "cholmod":
                     raise FeaError(f"solver 'cholmod' needs cvxopt ({exc})") from exc
             else:
+                # cvxopt copies each array into its own matrix and then into the sparse
+                # matrix: made one at a time and each numpy array let go as soon as it is
+                # copied, at most three arrays of the triangle's length live beside CHOLMOD's
+                # matrix instead of five (docs/solid3d.md, "Memory").
+                xv = matrix(np.asarray(vals, dtype=float))
+                vals = None
+                xr = matrix(np.asarray(rows, dtype=np.int64))
                 if cols is None:
-                    cols = np.repeat(np.arange(self.n), np.diff(colptr))
-                A = spmatrix(
-                    matrix(np.asarray(vals, dtype=float)),
-                    matrix(np.asarray(rows, dtype=np.int64)),
-                    matrix(np.asarray(cols, dtype=np.int64)),
-                    (self.n, self.n),
-                )
+                    cols = np.repeat(np.arange(self.n, dtype=np.int64), np.diff(colptr))
+                xc = matrix(np.asarray(cols, dtype=np.int64))
+                cols = None
+                A = spmatrix(xv, xr, xc, (self.n, self.n))
+                del xv, xr, xc
                 self._cholmod, self._matrix = cholmod, matrix
                 self._F = cholmod.symbolic(A, uplo="L")
                 try:
@@ -388,7 +406,7 @@ class _Solver:
                     raise self._not_definite(exc) from exc
                 self.name = "cholmod"
                 return
-        if columns is not None:
+        if compressed:
             L = sp.csc_matrix((vals, rows, colptr), shape=(self.n, self.n))
         else:
             L = sp.coo_matrix((vals, (rows, cols)), shape=(self.n, self.n)).tocsc()
@@ -750,6 +768,23 @@ def _p2_tables(tmesh, kernels) -> tuple:
     return dofs, nv + uniq.size, doflocs, G, dx, Gc, xyz
 
 
+def _p2_gradients(tmesh, kernels) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``G``, ``dx`` and ``Gc`` of :func:`_p2_tables` again, bit for bit (the same kernel on
+    the same vertices): the compiled model drops them after the assembly and makes them anew
+    for the stress (and the parts, :attr:`Solid3DSettings.lean_factorisation`), so that they
+    (2 x 74 MB on the SEA spring) are not held while CHOLMOD factorises."""
+    from skfem.quadrature import get_quadrature
+    from skfem.refdom import RefTet
+
+    p = np.ascontiguousarray(tmesh.p, dtype=float)
+    t = np.ascontiguousarray(tmesh.t.T, dtype=np.int64)
+    X, w = get_quadrature(RefTet, 2)
+    G, dx, _ = kernels.p2_tables(p, t, np.ascontiguousarray(X, dtype=float),
+                                 np.ascontiguousarray(w, dtype=float), kernels._EDGES)  # fmt: skip
+    Gc = kernels.p2_tables(p, t, _CORNERS[0], _CORNERS[1], kernels._EDGES)[0]
+    return G, dx, Gc
+
+
 # Components (c, d) of a 3x3 node block that each part of the stiffness fills: the in-plane
 # part (both gradients in-plane) has the in-plane block and, from mu delta_cd g_a.g_b, the
 # (z, z) entry; the mixed part the four entries with one z; the out-of-plane part the
@@ -886,8 +921,10 @@ class Solid3DModel:
     reference_thickness_mm : float, mm — the extrusion the model is built at (1 mm; a
         model solved at its reference thickness involves no stretch: solve_solid3d)
 
-    Memory: the factor of the first thickness is kept (~2 GB for 400k DOFs) while the model
-    lives.
+    Memory: the factor of the first thickness is kept (CHOLMOD: 1.04 GB for the SEA spring's
+    375k free DOFs) while the model lives. The peak is the first factorisation (2.0 GB there):
+    K is not held through it, and with ``lean_factorisation`` neither are the parts nor the
+    reduced triangle's pattern (made again after); docs/solid3d.md, "Memory".
     """
 
     def __init__(
@@ -956,9 +993,26 @@ class Solid3DModel:
                 min(2_000, settings.block_elements),
             )  # fmt: skip
         self._lower = self._reduced_lower_pattern(kernels)
+        if kernels is not None:
+            # Made anew for the stress (_p2_gradients, ~0.1 s): not held while CHOLMOD
+            # factorises (docs/solid3d.md, "Memory").
+            self._tmesh = tmesh
+            self._G = self._Gc = None
         self._build_times = {"mesh": t1 - t0, "assemble": time.perf_counter() - t1}
         self._factor: _Solver | None = None
         self._q: np.ndarray | None = None
+
+    def _assemble_compiled(self) -> None:
+        """The compiled path's pattern, parts and reduced lower triangle, made again from the
+        mesh (the same kernels on the same input: the same arrays, bit for bit) after a
+        factorisation that ran without them (:attr:`Solid3DSettings.lean_factorisation`)."""
+        kernels = self._kernels
+        G, dx, _ = _p2_gradients(self._tmesh, kernels)
+        self._indptr, self._indices, self._parts = kernels.block_pattern_parts(
+            self._dofs, self.n_dofs // 3, G, dx, self._lam, self._mu
+        )
+        del G, dx
+        self._lower = self._reduced_lower_pattern(kernels)
 
     def _reduced_lower_pattern(self, kernels=None) -> tuple | None:
         """Where the reduced matrix's lower triangle sits in the blocks: (flat index into the
@@ -1048,12 +1102,23 @@ class Solid3DModel:
             self._factor = None  # release the old factor before the new one is built
             if self._lower is not None:
                 flat, rows, third = self._lower
-                if self._kernels is not None:  # compressed columns, K's values at flat
-                    cols = ((K.data.ravel(), flat), rows, third, P.shape[1])
-                    self._factor = _Solver(None, st.solver, columns=cols)
+                # Only the reduced lower triangle's values are kept through the
+                # factorisation: K (its blocks, 245 MB on the SEA spring) is formed again
+                # afterwards, and the values go to the solver in a one-element list that it
+                # empties, so that it frees them once CHOLMOD's copy is made.
+                vals = [K.data.ravel()[flat]]
+                K = flat = None
+                lean = self._kernels is not None and st.lean_factorisation
+                if lean:  # made again below, bit for bit, from the mesh
+                    self._parts = self._lower = self._indices = self._indptr = None
+                if self._kernels is not None:  # compressed columns
+                    self._factor = _Solver(None, st.solver, columns=(vals, rows, third, P.shape[1]))
                 else:  # triplets
-                    vals = K.data.ravel()[flat]
                     self._factor = _Solver(None, st.solver, (vals, rows, third, P.shape[1]))
+                del rows, third
+                if lean:
+                    self._assemble_compiled()
+                K = self.stiffness_matrix(thickness_mm)
             else:
                 self._factor = _Solver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
             q = self._factor.solve(b)
@@ -1061,12 +1126,18 @@ class Solid3DModel:
         u = sup.ubar + P @ q
         times["factorise_solve"] = time.perf_counter() - t1
         rx = _reactions(K @ u, sup, st)  # internal force = force applied by the supports
+        K = None  # not held beside the stress gradients
         t2 = time.perf_counter()
         zs = float(thickness_mm) / self.reference_thickness_mm
         stretch = np.array([1.0, 1.0, zs])
-        peaks = _peaks(u, self._dofs, self._G, self._xyz_qp * stretch[:, None, None], self._Gc,
+        if self._G is None:
+            G, _, Gc = _p2_gradients(self._tmesh, self._kernels)
+        else:
+            G, Gc = self._G, self._Gc
+        peaks = _peaks(u, self._dofs, G, self._xyz_qp * stretch[:, None, None], Gc,
                        self._t, self._p * stretch[:, None], self._mask, self._lam, self._mu,
                        z_scale=zs, kernels=self._kernels)  # fmt: skip
+        del G, Gc
         times["stress"] = time.perf_counter() - t2
         times["total"] = sum(times.values())
         solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"

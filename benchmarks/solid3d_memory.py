@@ -1,0 +1,136 @@
+"""Peak memory of the SEA spring's 3D check (fea/solid3d.py; issue 27 item 5).
+
+What the report's 3D check holds at its peak: ``Solid3DModel(...)`` on the design's plane mesh,
+``model.solve(ST)`` (the first thickness: CHOLMOD's, or QDLDL's, factorisation) and a re-check
+at 0.98 ST (PCG preconditioned with that factor), as ``SeaSpringProblem.solid_3d`` makes them.
+Run from the repository root::
+
+    python benchmarks/solid3d_memory.py [study] [--run RUN_FOLDER] [--repeat 3] [--solver auto]
+
+The design is the study's ``design:`` (default ``sea-spring``, ST from the target as the run
+solves it) or the best design of a finished run folder (``--run``; nothing is written there).
+Each measurement is a fresh process (one BLAS thread, numpy's huge pages off as in the report)
+with ``Solid3DSettings.lean_factorisation`` True (the default: the parts and the reduced
+triangle's pattern dropped while the factor is made, made again after) or False (kept); the
+two alternate, ``--repeat`` times each. Printed: medians of the peak RSS (``ru_maxrss``) of the
+process, wall and CPU time of the build, first solve and re-check, the answers of both (which
+must be equal bit for bit) and the load average before and after (the times move with it on a
+shared machine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import pickle
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _make_case(study: str, run: str | None) -> dict:
+    """The plane mesh, supports and ST (benchmarks/solid3d_build_speed.py's ``make_case``)."""
+    spec = importlib.util.spec_from_file_location(
+        "solid3d_build_speed", Path(__file__).with_name("solid3d_build_speed.py")
+    )
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.make_case(study, run)
+
+
+def child(case_file: str, lean: str, solver: str) -> None:
+    """One measurement, printed as one JSON line."""
+    from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings
+    from flexopt.pipeline._hugepages import without_numpy_hugepages
+
+    case = pickle.loads(Path(case_file).read_bytes())
+    settings = Solid3DSettings(layers=case["layers"], lean_factorisation=lean == "lean",
+                               solver=solver)  # fmt: skip
+    marks = [(time.perf_counter(), time.process_time())]
+    with without_numpy_hugepages():
+        model = Solid3DModel(case["mesh"], case["material"], case["clamp"], case["drive"],
+                             settings, stress_ignore=case["ignore"])  # fmt: skip
+        marks.append((time.perf_counter(), time.process_time()))
+        r = model.solve(case["st_mm"])
+        marks.append((time.perf_counter(), time.process_time()))
+        r2 = model.solve(0.98 * case["st_mm"])
+        marks.append((time.perf_counter(), time.process_time()))
+    out = {"mode": lean, "peak_rss_GB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+    for k, name in enumerate(("build", "solve", "recheck")):
+        out[name + "_wall"] = marks[k + 1][0] - marks[k][0]
+        out[name + "_cpu"] = marks[k + 1][1] - marks[k][1]
+    out.update(n_dofs=r.n_dofs, solver=r.solver, stiffness=r.stiffness,
+               peak_stress_MPa=r.peak_stress_MPa, peak_nodal_stress_MPa=r.peak_nodal_stress_MPa,
+               recheck_stiffness=r2.stiffness, recheck_peak_nodal_MPa=r2.peak_nodal_stress_MPa,
+               recheck_iterations=r2.iterations)  # fmt: skip
+    print(json.dumps(out))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("study", nargs="?", default="sea-spring")
+    ap.add_argument("--run", help="a finished run folder: its best design (read only)")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--solver", default="auto", choices=("auto", "cholmod", "qdldl"))
+    ap.add_argument("--case", help=argparse.SUPPRESS)  # a pickled case (re-use between runs)
+    ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        child(*args.child)
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.case:
+            case_file = Path(args.case)
+        else:
+            t0 = time.perf_counter()
+            case = _make_case(args.study, args.run)
+            case_file = Path(tmp) / "case.pkl"
+            case_file.write_bytes(pickle.dumps(case))
+            print(f"{args.run or args.study}: ST = {case['st_mm']:.4f} mm "
+                  f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
+        rows: dict[str, list[dict]] = {"lean": [], "keep": []}
+        load0 = os.getloadavg()
+        for k in range(args.repeat):
+            for mode in ("lean", "keep") if k % 2 == 0 else ("keep", "lean"):
+                out = subprocess.run(
+                    [sys.executable, __file__, "--child", str(case_file), mode, args.solver],
+                    check=True, capture_output=True, text=True, cwd=ROOT,
+                ).stdout  # fmt: skip
+                rows[mode].append(json.loads(out.strip().splitlines()[-1]))
+        load1 = os.getloadavg()
+    print(f"load average before {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}, "
+          f"after {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f} (2 cores)")  # fmt: skip
+    print(f"medians of {args.repeat} fresh processes each, one BLAS thread, s (wall / CPU):")
+    keys = ("build", "solve", "recheck")
+    print(f"{'mode':6s}" + "".join(f"{k:>16s}" for k in keys) + "   peak RSS GB")
+    for mode, rs in rows.items():
+        cells = "".join(
+            f"{statistics.median(r[k + '_wall'] for r in rs):8.2f} /"
+            f"{statistics.median(r[k + '_cpu'] for r in rs):6.2f}"
+            for k in keys
+        )
+        peaks = sorted(r["peak_rss_GB"] for r in rs)
+        print(f"{mode:6s}{cells}   {statistics.median(peaks):.2f} "
+              f"({' '.join(f'{p:.2f}' for p in peaks)})")  # fmt: skip
+    a, b = rows["lean"][0], rows["keep"][0]
+    for key in ("stiffness", "peak_stress_MPa", "peak_nodal_stress_MPa", "recheck_stiffness",
+                "recheck_peak_nodal_MPa"):  # fmt: skip
+        print(f"{key}: lean {a[key]:.12g}, keep {b[key]:.12g}, "
+              f"relative difference {abs(a[key] / b[key] - 1):.1e}")  # fmt: skip
+    print(f"DOFs {a['n_dofs']}, solver {a['solver']}, re-check PCG iterations "
+          f"{a['recheck_iterations']}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
