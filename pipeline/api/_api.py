@@ -439,7 +439,7 @@ def _evaluation_table(run_dir: Path, record: Mapping[str, Any]) -> dict[str, np.
     """evaluations.csv, checked as ``flexopt report`` checks it, as columns."""
     from types import SimpleNamespace
 
-    from flexopt.pipeline.run import _Columns, _evaluations_csv
+    from flexopt.pipeline.run.folder import _Columns, _evaluations_csv
 
     names = [record.get(key) for key in ("variables", "objectives", "constraints")]
     if any(n is None for n in names):

@@ -11,7 +11,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from flexopt.pipeline.run import _fork_context
+from flexopt.pipeline.fork import _fork_context
 
 pytestmark = pytest.mark.skipif(
     _fork_context() is None or not Path("/proc/self/stat").exists(),
@@ -21,7 +21,8 @@ pytestmark = pytest.mark.skipif(
 PRELUDE = """
 import os, signal, sys, time
 from flexopt.pipeline import cli
-from flexopt.pipeline.run import _ForkedMakes, _EarlyStep
+from flexopt.pipeline.fork import _ForkedMakes
+from flexopt.pipeline.run.step_child import _EarlyStep
 cli._stop_on_sigterm()  # the CLI's handler, which a forked child inherits
 
 def slow():

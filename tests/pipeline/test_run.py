@@ -514,16 +514,17 @@ def test_generation_files_are_written_off_the_main_thread_in_order(tmp_path, mon
     them are on disk, complete, before the run goes on to its report."""
     import threading
 
-    import flexopt.pipeline.run as run_mod
+    from flexopt.pipeline.run import folder, runner, state
 
     writes: list[tuple[str, str]] = []
-    real = run_mod.write_atomic
+    real = folder.write_atomic
 
     def recording(path, data):
         writes.append((threading.current_thread().name, Path(path).name))
         real(path, data)
 
-    monkeypatch.setattr(run_mod, "write_atomic", recording)
+    for run_mod in (folder, runner, state):
+        monkeypatch.setattr(run_mod, "write_atomic", recording)
     outcome = run_toy(tmp_path)
     per_generation = ["evaluations.csv", "history.csv", "checkpoint.json", "run.json"]
     threaded = [name for thread, name in writes if thread.startswith("flexopt-writes")]
@@ -541,9 +542,9 @@ def test_generation_files_are_written_off_the_main_thread_in_order(tmp_path, mon
 def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monkeypatch):
     """A write the writer thread could not make (a full disk) is not lost in the thread: the
     run stops with that error, and run.json says so."""
-    import flexopt.pipeline.run as run_mod
+    from flexopt.pipeline.run import folder, runner, state
 
-    real = run_mod.write_atomic
+    real = folder.write_atomic
     count = {"checkpoint": 0}
 
     def failing(path, data):
@@ -553,7 +554,8 @@ def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monke
                 raise OSError(28, "No space left on device")
         real(path, data)
 
-    monkeypatch.setattr(run_mod, "write_atomic", failing)
+    for run_mod in (folder, runner, state):
+        monkeypatch.setattr(run_mod, "write_atomic", failing)
     with pytest.raises(OSError, match="No space left"):
         run_toy(tmp_path)
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
@@ -567,7 +569,7 @@ def test_report_files_are_made_in_a_forked_child_and_its_failures_are_notes(monk
     without fork the files are made here."""
     import os
 
-    from flexopt.pipeline import run as run_mod
+    from flexopt.pipeline import fork as run_mod
 
     if run_mod._fork_context() is None:
         pytest.skip("no fork on this platform")
@@ -601,7 +603,7 @@ def test_best_step_child_is_forked_early_and_makes_the_part_it_is_sent(monkeypat
     import time
     import types
 
-    from flexopt.pipeline import run as run_mod
+    from flexopt.pipeline.run import step_child as run_mod
 
     if run_mod._fork_context() is None:
         pytest.skip("no fork on this platform")
@@ -654,7 +656,7 @@ def test_waiting_for_an_idle_core_ends_on_work_or_at_its_limit():
     will do, at its time limit when the idle share asked for cannot happen."""
     import time
 
-    from flexopt.pipeline.run import _wait_for_idle_core
+    from flexopt.pipeline.run.step_child import _wait_for_idle_core
 
     t0 = time.monotonic()
     _wait_for_idle_core(lambda timeout: True, idle_cores=1e9)
@@ -679,7 +681,7 @@ def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():
     import threading
 
     from flexopt.pipeline.parallel import ParallelSettings
-    from flexopt.pipeline.run import _preload_report
+    from flexopt.pipeline.run.runner import _preload_report
 
     seen: list[str] = []
 
@@ -708,7 +710,7 @@ def test_the_early_step_child_is_lowered_only_where_it_can_come_back(monkeypatch
     import os
     import resource
 
-    from flexopt.pipeline import run as run_mod
+    from flexopt.pipeline.run import step_child as run_mod
 
     monkeypatch.setattr(os, "geteuid", lambda: 0)
     assert run_mod._can_restore_priority()
