@@ -208,12 +208,12 @@ def _rigid_map(
 
 def _solve(K: sp.spmatrix, T: sp.csr_matrix, ubar: np.ndarray) -> np.ndarray:
     """u (N,) minimising the energy with u = T q + ubar: (T^T K T) q = -T^T K ubar."""
-    from flexopt.fea.solid3d import _Solver  # the project's Cholesky (CHOLMOD / QDLDL / LU)
+    from flexopt.fea.solid3d import SparseSolver  # the project's Cholesky (CHOLMOD / QDLDL / LU)
 
     K = sp.csr_matrix(K)
     Kr = (T.T @ K @ T).tocsc()
     b = -(T.T @ (K @ ubar))
-    q = _Solver(Kr, "auto").solve(b)
+    q = SparseSolver(Kr, "auto").solve(b)
     return T @ q + ubar
 
 

@@ -102,7 +102,7 @@ class Solid3DSettings:
     # Distance under which a node counts as on a clamp / drive geometry, mm (the plane model's).
     select_tol_mm: float = 1e-6
     # "auto": CHOLMOD's supernodal Cholesky (through cvxopt) when it imports, else QDLDL's
-    # LDLᵀ, else SuperLU; see _Solver for the measured difference.
+    # LDLᵀ, else SuperLU; see SparseSolver for the measured difference.
     solver: Literal["auto", "cholmod", "qdldl", "superlu"] = "auto"
     # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
     # (20 000 blocks use ~150 MB each) independently of the mesh size. Solid3DModel's
@@ -333,7 +333,7 @@ def _gathered(vals) -> np.ndarray:
     return vals[0][vals[1]] if isinstance(vals, tuple) else vals
 
 
-class _Solver:
+class SparseSolver:
     """Factorise a symmetric positive definite matrix once and solve with it.
 
     "cholmod": CHOLMOD's supernodal Cholesky through cvxopt (the optional ``cholmod`` extra,
@@ -957,7 +957,7 @@ class Solid3DModel:
             )  # fmt: skip
         self._lower = self._reduced_lower_pattern(kernels)
         self._build_times = {"mesh": t1 - t0, "assemble": time.perf_counter() - t1}
-        self._factor: _Solver | None = None
+        self._factor: SparseSolver | None = None
         self._q: np.ndarray | None = None
 
     def _reduced_lower_pattern(self, kernels=None) -> tuple | None:
@@ -1050,12 +1050,12 @@ class Solid3DModel:
                 flat, rows, third = self._lower
                 if self._kernels is not None:  # compressed columns, K's values at flat
                     cols = ((K.data.ravel(), flat), rows, third, P.shape[1])
-                    self._factor = _Solver(None, st.solver, columns=cols)
+                    self._factor = SparseSolver(None, st.solver, columns=cols)
                 else:  # triplets
                     vals = K.data.ravel()[flat]
-                    self._factor = _Solver(None, st.solver, (vals, rows, third, P.shape[1]))
+                    self._factor = SparseSolver(None, st.solver, (vals, rows, third, P.shape[1]))
             else:
-                self._factor = _Solver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
+                self._factor = SparseSolver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
             q = self._factor.solve(b)
         self._q = q
         u = sup.ubar + P @ q

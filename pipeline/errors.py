@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["MAX_PROBLEM_CHARS", "StudyError", "Terminated", "printable"]
+__all__ = [
+    "MAX_PROBLEM_CHARS",
+    "MAX_REASON_CHARS",
+    "StudyError",
+    "Terminated",
+    "one_line",
+    "printable",
+]
 
 #: Characters never printed as they are: C0 controls (escape sequences start with ESC), DEL, C1
 #: controls, and the bidirectional and zero-width formatting characters that make a line read
@@ -28,6 +35,16 @@ def printable(text: object, keep_newlines: bool = False) -> str:
     if keep_newlines:
         return "\n".join(_UNPRINTABLE.sub(_escaped, line) for line in value.split("\n"))
     return _UNPRINTABLE.sub(_escaped, value)
+
+
+#: Longest failure reason kept in a row (exception messages can quote whole arrays).
+MAX_REASON_CHARS = 300
+
+
+def one_line(text: str) -> str:
+    """``text`` folded to one line of at most :data:`MAX_REASON_CHARS` characters."""
+    text = " ".join(text.split())
+    return text if len(text) <= MAX_REASON_CHARS else text[: MAX_REASON_CHARS - 3] + "..."
 
 
 #: Longest problem text of one error: echoed values are cut at their source to ~60 characters,

@@ -105,10 +105,10 @@ def _study_and_source(study: StudyLike, source: str | None = None) -> tuple[Stud
     if isinstance(study, studies.Study):
         return study, source or ""
     if isinstance(study, Mapping):
-        from flexopt.pipeline.study_edit import _plain
+        from flexopt.pipeline.study_edit import plain
 
         studies.check_data_limits(study, source or "")  # a YAML file's limits, before a copy
-        return studies.validate_study(_plain(study), source=source), source or ""
+        return studies.validate_study(plain(study), source=source), source or ""
     if isinstance(study, str | os.PathLike):
         path = studies.resolve_study_path(os.fspath(study))
         where = source or str(path)
@@ -285,9 +285,9 @@ def run(
     }
     shown = None
     if progress:
-        from flexopt.pipeline.cli import _RunProgress
+        from flexopt.pipeline.progress import RunProgress
 
-        shown = _RunProgress(quiet=False)
+        shown = RunProgress(quiet=False)
         callbacks.update(
             on_start=shown.start, on_generation=shown.generation, on_result=shown.result
         )
@@ -439,7 +439,7 @@ def _evaluation_table(run_dir: Path, record: Mapping[str, Any]) -> dict[str, np.
     """evaluations.csv, checked as ``flexopt report`` checks it, as columns."""
     from types import SimpleNamespace
 
-    from flexopt.pipeline.run.folder import _Columns, _evaluations_csv
+    from flexopt.pipeline.run.folder import Columns, evaluations_csv
 
     names = [record.get(key) for key in ("variables", "objectives", "constraints")]
     if any(n is None for n in names):
@@ -452,8 +452,8 @@ def _evaluation_table(run_dir: Path, record: Mapping[str, Any]) -> dict[str, np.
     problem = SimpleNamespace(
         space=SimpleNamespace(names=names[0]), objective_names=names[1], constraint_names=names[2]
     )
-    columns = _Columns.of(problem)  # type: ignore[arg-type]
-    rows = _evaluations_csv(run_dir, columns, _OPTION)
+    columns = Columns.of(problem)  # type: ignore[arg-type]
+    rows = evaluations_csv(run_dir, columns, _OPTION)
     if rows is None:
         raise StudyError(
             _OPTION,

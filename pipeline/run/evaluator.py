@@ -39,7 +39,7 @@ class Evaluator:
         Called once per design the backend finishes.
     store : EvaluationStore, optional
         Every design the backend finishes is appended here at once (fsynced by
-        :meth:`_Run.generation_done` before the generation is reported, and by the store's
+        :meth:`RunState.generation_done` before the generation is reported, and by the store's
         own interval).
     restored : iterable of Evaluation, optional
         Evaluations finished by an earlier session of this run (``--resume``): served instead of

@@ -20,11 +20,11 @@ from flexopt.pipeline.problems import (
 )
 from flexopt.pipeline.problems import nominal_design as _nominal_design
 from flexopt.pipeline.run.folder import (
-    _Columns,
-    _csv_fix,
-    _evaluations_csv,
-    _run_folder_study,
+    Columns,
+    csv_fix,
+    evaluations_csv,
     read_run_record,
+    run_folder_study,
 )
 from flexopt.pipeline.run.setup import build_problem
 from flexopt.pipeline.runfolder import (
@@ -103,7 +103,7 @@ class ExportOutcome:
 
 
 def _design_vector(
-    run_dir: Path, design: str, space: DesignSpace, columns: _Columns | None = None
+    run_dir: Path, design: str, space: DesignSpace, columns: Columns | None = None
 ) -> tuple[np.ndarray, dict[str, Any]]:
     """The design vector of ``best`` or of evaluation INDEX, and where it came from.
 
@@ -141,8 +141,8 @@ def _design_vector(
                 f"got {echo(design)}; give 'best' or a whole number (an evaluation index)",
             ) from None
         path = run_dir / "evaluations.csv"
-        columns = columns or _Columns.of_space(space)
-        rows = _evaluations_csv(run_dir, columns, "RUN_DIR")
+        columns = columns or Columns.of_space(space)
+        rows = evaluations_csv(run_dir, columns, "RUN_DIR")
         if rows is None:
             raise StudyError("RUN_DIR", f"'{run_dir}' has no evaluations.csv; is it a run folder?")
         if not 0 <= index < len(rows):
@@ -153,11 +153,11 @@ def _design_vector(
                 "the index column of evaluations.csv",
             )
         # a variable's column is not always its name (one named `feasible` is written as
-        # `x_feasible`, see _Columns): read each by the column the writer gave it
+        # `x_feasible`, see Columns): read each by the column the writer gave it
         row = rows[index]
         values = {n: row[c] for n, c in zip(space.names, columns.variables, strict=True)}
         source = f"'{path}' row {index}"
-        fix = _csv_fix(run_dir)
+        fix = csv_fix(run_dir)
     missing = [name for name in space.names if name not in values]
     if missing:
         raise StudyError(
@@ -323,9 +323,9 @@ def export_design(
         default = f"design.{fmt}"
     else:
         read_run_record(run_dir)  # a folder of flexopt run, its run.json readable
-        study = _run_folder_study(run_dir, "RUN_DIR")
+        study = run_folder_study(run_dir, "RUN_DIR")
         problem = build_problem(study)
-        x, _ = _design_vector(run_dir, design, problem.space, _Columns.of(problem))
+        x, _ = _design_vector(run_dir, design, problem.space, Columns.of(problem))
         default = f"best.{fmt}" if design == "best" else f"design-{int(design)}.{fmt}"
     target = out or run_dir / default
     if target.is_dir():
@@ -423,9 +423,9 @@ def design_study_of(run_dir: Path, design: str = "best") -> tuple[Study, str, np
             )
         return _evaluate_folder_study(run_dir), "evaluated", None
     read_run_record(run_dir)
-    study = _run_folder_study(run_dir, "RUN_DIR")
+    study = run_folder_study(run_dir, "RUN_DIR")
     problem = build_problem(study)
-    x, _ = _design_vector(run_dir, design, problem.space, _Columns.of(problem))
+    x, _ = _design_vector(run_dir, design, problem.space, Columns.of(problem))
     return design_study(study, problem, x), design, x
 
 

@@ -7,24 +7,24 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from flexopt.pipeline import plots
-from flexopt.pipeline.run.folder import _Columns
+from flexopt.pipeline.run.folder import Columns
 
 if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
     pass
 
 
-def _spec_label(spec: Mapping[str, Any], axis: str) -> str | None:
+def spec_label(spec: Mapping[str, Any], axis: str) -> str | None:
     """Axis label of a DesignDetail.plot: ``x_label`` or ``xlabel`` (both are in use)."""
     return spec.get(f"{axis}_label") or spec.get(f"{axis}label")
 
 
-def _float_or_none(value: Any) -> float | None:
+def float_or_none(value: Any) -> float | None:
     return None if value is None else float(value)
 
 
-def _curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: str) -> bytes:
-    target = _float_or_none(spec.get("target"))
-    tolerance = _float_or_none(spec.get("tolerance"))
+def curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: str) -> bytes:
+    target = float_or_none(spec.get("target"))
+    tolerance = float_or_none(spec.get("tolerance"))
     if tolerance is None and target is not None and spec.get("tolerance_rel") is not None:
         tolerance = abs(target) * float(spec["tolerance_rel"])
     band = spec.get("band_x")
@@ -35,14 +35,14 @@ def _curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: 
         target=target,
         tolerance=tolerance,
         band_x=(float(band[0]), float(band[1])) if band is not None else None,
-        x_label=_spec_label(spec, "x"),
-        y_label=_spec_label(spec, "y"),
+        x_label=spec_label(spec, "x"),
+        y_label=spec_label(spec, "y"),
         title=title,
         spec=spec,  # a target curve or range of the kind (pipeline.plot_targets)
     )
 
 
-def _convergence_png(history: list[dict[str, Any]], columns: _Columns) -> bytes:
+def convergence_png(history: list[dict[str, Any]], columns: Columns) -> bytes:
     from flexopt.pipeline.labels import MAXIMISED
 
     best = np.array([[h[f"best_{name}"] for name in columns.objectives] for h in history])

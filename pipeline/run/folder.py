@@ -59,7 +59,7 @@ RUN_FILES = (
 
 
 @dataclass
-class _Columns:
+class Columns:
     """CSV column names of the variables, objectives, constraints and metrics, made unique."""
 
     variables: tuple[str, ...] = ()
@@ -78,7 +78,7 @@ class _Columns:
         return column
 
     @classmethod
-    def of(cls, problem: DesignProblem) -> _Columns:
+    def of(cls, problem: DesignProblem) -> Columns:
         columns = cls()
         columns.variables = tuple(columns._unique(n, "x") for n in problem.space.names)
         columns.objectives = tuple(columns._unique(n, "objective") for n in problem.objective_names)
@@ -88,7 +88,7 @@ class _Columns:
         return columns
 
     @classmethod
-    def of_space(cls, space: DesignSpace) -> _Columns:
+    def of_space(cls, space: DesignSpace) -> Columns:
         """The variables' columns alone (as :meth:`of` names them: they come first)."""
         columns = cls()
         columns.variables = tuple(columns._unique(n, "x") for n in space.names)
@@ -125,7 +125,7 @@ class _Columns:
         ]
 
 
-def _write_files(run_dir: Path, files: Iterable[Any]) -> None:
+def write_files(run_dir: Path, files: Iterable[Any]) -> None:
     """Write each (name, text) into ``run_dir`` atomically, in order; an item may also be a
     callable that returns such pairs (formatted here, on the writer thread)."""
     for item in files:
@@ -164,7 +164,7 @@ def read_run_record(run_dir: Path, option: str = "RUN_DIR") -> dict[str, Any]:
     return read_run_json(run_dir, option)
 
 
-def _run_folder_study(run_dir: Path, option: str) -> Study:
+def run_folder_study(run_dir: Path, option: str) -> Study:
     """The study.yaml of a run folder (a missing one is named as such, not as an example)."""
     path = run_dir / "study.yaml"
     if not path.exists():
@@ -180,17 +180,17 @@ def _run_folder_study(run_dir: Path, option: str) -> Study:
     return load_folder_study(run_dir, path)
 
 
-def _csv_fix(run_dir: Path) -> str:
+def csv_fix(run_dir: Path) -> str:
     return (
         "was it edited or cut short? restore it from a copy, or move it away (flexopt report "
         "works from the store evaluations.jsonl without it)"
     )
 
 
-def _evaluations_csv(run_dir: Path, columns: _Columns, option: str) -> list[dict[str, str]] | None:
+def evaluations_csv(run_dir: Path, columns: Columns, option: str) -> list[dict[str, str]] | None:
     """evaluations.csv, checked: its columns are the study's, its indices and designs numbers."""
     path = run_dir / "evaluations.csv"
-    fix = _csv_fix(run_dir)
+    fix = csv_fix(run_dir)
     required = ["generation", "index", *columns.variables, *columns.objectives]
     rows = read_folder_csv(path, option, fix, [*required, *columns.constraints])
     if rows is None:
@@ -211,7 +211,7 @@ def _evaluations_csv(run_dir: Path, columns: _Columns, option: str) -> list[dict
     return rows
 
 
-def _evaluations_in(
+def evaluations_in(
     run_dir: Path, problem: DesignProblem, option: str = "RUN_DIR"
 ) -> tuple[list[Evaluation], list[str]]:
     """The run's evaluations (the lossless store, or evaluations.csv in a folder without one)
@@ -227,8 +227,8 @@ def _evaluations_in(
     n_con = len(problem.constraint_names)
     if store.path.exists() or store.path.is_symlink():  # a folder there is refused by load
         return store.load(n_var, n_obj, n_con, option=option), list(store.notes)
-    columns = _Columns.of(problem)
-    rows = _evaluations_csv(run_dir, columns, option)
+    columns = Columns.of(problem)
+    rows = evaluations_csv(run_dir, columns, option)
     out = []
     for row in rows or []:
         out.append(
@@ -244,7 +244,7 @@ def _evaluations_in(
     return out, []
 
 
-def _history_in(run_dir: Path, columns: _Columns | None = None) -> list[dict[str, Any]]:
+def history_in(run_dir: Path, columns: Columns | None = None) -> list[dict[str, Any]]:
     """history.csv with its numbers and booleans read back (checked when ``columns`` are given:
     the columns the convergence plot reads are there and hold numbers)."""
     path = run_dir / "history.csv"

@@ -16,15 +16,15 @@ from flexopt.pipeline.parallel import (
 from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.run.folder import (
     RUN_FILES,
-    _Columns,
-    _evaluations_csv,
-    _evaluations_in,
-    _history_in,
-    _run_folder_study,
+    Columns,
+    evaluations_csv,
+    evaluations_in,
+    history_in,
     read_run_record,
+    run_folder_study,
 )
 from flexopt.pipeline.run.setup import prepare_run
-from flexopt.pipeline.run.state import _Run
+from flexopt.pipeline.run.state import RunState
 from flexopt.pipeline.runfolder import (
     RunDirLock,
     lock_run_dir,
@@ -93,15 +93,15 @@ def rebuild_report(run_dir: Path) -> ReportOutcome:
 def _rebuild_report(run_dir: Path, lock: RunDirLock) -> ReportOutcome:
     """:func:`rebuild_report` under the folder's lock: read and check everything, then write."""
     record = read_run_record(run_dir)
-    study = _run_folder_study(run_dir, "RUN_DIR")
+    study = run_folder_study(run_dir, "RUN_DIR")
     setup = prepare_run(study, quick=bool(record.get("quick", False)))
     problem = setup.problem
-    evaluations, notes = _evaluations_in(run_dir, problem)
+    evaluations, notes = evaluations_in(run_dir, problem)
     if not evaluations:
         raise StudyError("RUN_DIR", f"'{run_dir}' holds no evaluation yet; nothing to report")
-    columns = _Columns.of(problem)
-    history = _history_in(run_dir, columns)
-    rows = _evaluations_csv(run_dir, columns, "RUN_DIR") or []
+    columns = Columns.of(problem)
+    history = history_in(run_dir, columns)
+    rows = evaluations_csv(run_dir, columns, "RUN_DIR") or []
     for name in RUN_FILES:  # what the report may write must not be a folder
         path = run_dir / name
         if path.exists() and not path.is_file():
@@ -110,7 +110,7 @@ def _rebuild_report(run_dir: Path, lock: RunDirLock) -> ReportOutcome:
             )
     probe_writable(run_dir)
     lock.claim("report")
-    run = _Run(setup, run_dir, record, None, None)
+    run = RunState(setup, run_dir, record, None, None)
     run.notes.extend(notes)
     run.evaluator.solved = list(evaluations)
     run.history = history

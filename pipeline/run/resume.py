@@ -20,7 +20,7 @@ from flexopt.pipeline.parallel import (
 from flexopt.pipeline.problems import (
     parallel_settings,
 )
-from flexopt.pipeline.run.folder import _run_folder_study, read_run_record
+from flexopt.pipeline.run.folder import read_run_record, run_folder_study
 from flexopt.pipeline.run.runner import Resume, RunOutcome, run_study
 from flexopt.pipeline.run.setup import prepare_run
 from flexopt.pipeline.run.state import GenerationReport
@@ -119,7 +119,7 @@ def resume_run(
         study = (
             load_study(study_path)
             if study_path is not None
-            else _run_folder_study(run_dir, "--resume")
+            else run_folder_study(run_dir, "--resume")
         )
         quick = bool(record.get("quick", False))
         spec = getattr(study, "optimiser", None) or OptimiserSpec()

@@ -45,8 +45,8 @@ from flexopt.pipeline.problems import (
 from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.run.export import step_available
 from flexopt.pipeline.run.setup import RunSetup
-from flexopt.pipeline.run.state import GenerationReport, _Run
-from flexopt.pipeline.run.step_child import EARLY_STEP_NICE, _can_restore_priority, _EarlyStep
+from flexopt.pipeline.run.state import GenerationReport, RunState
+from flexopt.pipeline.run.step_child import EARLY_STEP_NICE, EarlyStep, can_restore_priority
 from flexopt.pipeline.runfolder import (
     RunDirLock,
     check_out_dir,
@@ -327,8 +327,8 @@ def _run_in(
     # priority, in the moments a core idles while the workers solve (generation barriers),
     # instead of on the report's critical path.
     early = (
-        _EarlyStep.start(nice=EARLY_STEP_NICE)
-        if threading.active_count() == 1 and step_available() and _can_restore_priority()
+        EarlyStep.start(nice=EARLY_STEP_NICE)
+        if threading.active_count() == 1 and step_available() and can_restore_priority()
         else None
     )
     if on_start is not None:
@@ -336,7 +336,7 @@ def _run_in(
 
     store = EvaluationStore(run_dir / STORE_FILE)
     restored = resume.restored if resume is not None else ()
-    run = _Run(setup, run_dir, record, on_generation, on_result, backend, store, restored)
+    run = RunState(setup, run_dir, record, on_generation, on_result, backend, store, restored)
     t_start = time.perf_counter()
     preload = _preload_report(setup.problem, settings)
 

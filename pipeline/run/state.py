@@ -22,7 +22,7 @@ from flexopt.pipeline.checkpoint import (
     EvaluationStore,
     checkpoint_text,
 )
-from flexopt.pipeline.fork import _ForkedMakes
+from flexopt.pipeline.fork import ForkedMakes
 from flexopt.pipeline.parallel import (
     BatchBackend,
     ParallelSettings,
@@ -40,10 +40,10 @@ from flexopt.pipeline.run.export import (
     part_of,
     step_available,
 )
-from flexopt.pipeline.run.figures import _convergence_png, _curve_png, _float_or_none, _spec_label
-from flexopt.pipeline.run.folder import RUN_FILES, _Columns, _write_files
+from flexopt.pipeline.run.figures import convergence_png, curve_png, float_or_none, spec_label
+from flexopt.pipeline.run.folder import RUN_FILES, Columns, write_files
 from flexopt.pipeline.run.setup import RunSetup
-from flexopt.pipeline.run.step_child import _EarlyStep
+from flexopt.pipeline.run.step_child import EarlyStep
 from flexopt.pipeline.runfolder import (
     records_to_csv,
     table_to_csv,
@@ -89,7 +89,7 @@ class GenerationReport:
     objective_names: tuple[str, ...] = ()
 
 
-class _Run:
+class RunState:
     """The state of one run and the files it keeps up to date."""
 
     def __init__(
@@ -108,7 +108,7 @@ class _Run:
         self.run_dir = run_dir
         self.record = record
         self.on_generation = on_generation
-        self.columns = _Columns.of(setup.problem)
+        self.columns = Columns.of(setup.problem)
         self.evaluator = Evaluator(
             setup.problem, backend, on_result=on_result, store=store, restored=restored
         )
@@ -128,8 +128,8 @@ class _Run:
         self._pending: Future | None = None
         # files made in forked children at the end of the run (see artefact)
         self._groups: dict[str, list[tuple[str, Callable[[], str | bytes | None]]]] = {}
-        self._started: list[_ForkedMakes | _EarlyStep] = []
-        self._early: _EarlyStep | None = None  # best.step's child, once it has the part
+        self._started: list[ForkedMakes | EarlyStep] = []
+        self._early: EarlyStep | None = None  # best.step's child, once it has the part
         self._csv_header: list[str] | None = None
         self._csv_body: list[str] = []
         self._csv_rows = 0
@@ -235,7 +235,7 @@ class _Run:
         self.drain_writes()
         if self._writer is None:
             self._writer = ThreadPoolExecutor(1, thread_name_prefix="flexopt-writes")
-        self._pending = self._writer.submit(_write_files, self.run_dir, files)
+        self._pending = self._writer.submit(write_files, self.run_dir, files)
 
     def drain_writes(self) -> None:
         """Wait until the writer thread has written everything handed to it (raises its error)."""
@@ -289,7 +289,7 @@ class _Run:
     def write_tables(self) -> None:
         """evaluations.csv and history.csv now, after anything the writer thread still holds."""
         self.drain_writes()
-        _write_files(self.run_dir, self.table_texts())
+        write_files(self.run_dir, self.table_texts())
 
     def table_texts(
         self,
@@ -353,8 +353,8 @@ class _Run:
         self.files.append(name)
 
     def start_groups(self) -> None:
-        """Make each queued group of files in a child process (see :class:`_ForkedMakes`)."""
-        self._started = [_ForkedMakes(items) for items in self._groups.values()]
+        """Make each queued group of files in a child process (see :class:`ForkedMakes`)."""
+        self._started = [ForkedMakes(items) for items in self._groups.values()]
         self._groups = {}
 
     def collect_groups(self) -> None:
@@ -393,19 +393,19 @@ class _Run:
             self.notes.append(note)
             return ()
 
-    def finish(self, result: GAResult, early: _EarlyStep | None = None) -> DesignDetail | None:
+    def finish(self, result: GAResult, early: EarlyStep | None = None) -> DesignDetail | None:
         # best.step's child: the one the run started (``early``, it imported build123d at low
         # priority while the workers solved), else forked now: it imports build123d (~3 s)
-        # while the best design's detail is solved, once a core is idle (see _EarlyStep)
+        # while the best design's detail is solved, once a core is idle (see EarlyStep)
         if early is None and step_available():
-            early = _EarlyStep.start()
+            early = EarlyStep.start()
         try:
             return self._finish(result, early)
         finally:
             if early is not None:
                 early.close()
 
-    def _finish(self, result: GAResult, early: _EarlyStep | None) -> DesignDetail | None:
+    def _finish(self, result: GAResult, early: EarlyStep | None) -> DesignDetail | None:
         study, problem = self.setup.study, self.problem
         best = result.best
         title = f"{study.name}: best design"
@@ -463,14 +463,14 @@ class _Run:
         cases = dict(detail.cases) if detail is not None else {}
         # the stress line at the allowable the verdict uses (yield / SF, a plane-stress limit)
         allowables = {
-            case: stress_allowable(self.verdicts, case, _float_or_none(c.plot.get("allowable_MPa")))
+            case: stress_allowable(self.verdicts, case, float_or_none(c.plot.get("allowable_MPa")))
             for case, c in case_responses(table, spec, cases).items()
         }
         if cases:  # several load cases: one panel each, every output on the axis of its unit
             self._case_plots(cases, allowables, title)
         elif x in table and y in table:
             self.artefact(
-                "force_displacement.png", lambda: _curve_png(table, spec, title), group="png"
+                "force_displacement.png", lambda: curve_png(table, spec, title), group="png"
             )
         elif table:
             self.notes.append(f"force_displacement.png skipped: no columns '{x}' and '{y}'")
@@ -483,7 +483,7 @@ class _Run:
                     x,
                     stress,
                     allowable_MPa=line[0] if line else None,
-                    x_label=_spec_label(spec, "x"),
+                    x_label=spec_label(spec, "x"),
                     title=title,
                     allowable_label=line[1] if line else None,
                 ),
@@ -492,7 +492,7 @@ class _Run:
         elif table and not cases:
             self.notes.append(f"stress.png skipped: the response has no '{stress}' column")
         self.artefact(
-            "convergence.png", lambda: _convergence_png(self.history, self.columns), group="png"
+            "convergence.png", lambda: convergence_png(self.history, self.columns), group="png"
         )
         if detail is not None and detail.shapes_mm is not None:
             values = table.get(x)
@@ -513,7 +513,7 @@ class _Run:
                     fmap["triangles"],
                     fmap["values"],
                     label=fmap.get("label", "von Mises stress (MPa)"),
-                    limit=_float_or_none(fmap.get("limit")),
+                    limit=float_or_none(fmap.get("limit")),
                     title=title,
                 ),
                 group="png",

@@ -10,7 +10,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from flexopt.pipeline.fork import _fork_context, _make_here, _quiet_child
+from flexopt.pipeline.fork import fork_context, make_here, quiet_child
 from flexopt.pipeline.parallel import one_line as _one_line
 from flexopt.pipeline.run.export import part_bytes
 
@@ -25,7 +25,7 @@ log = logging.getLogger(__name__)
 EARLY_STEP_NICE = 19
 
 
-class _EarlyStep:
+class EarlyStep:
     """best.step made in a child forked before the part is known: when the run starts, at the
     lowest priority (:data:`EARLY_STEP_NICE`), or else when the report starts.
 
@@ -34,7 +34,7 @@ class _EarlyStep:
     (:func:`_wait_for_idle_core`): the SEA spring's 3D checks keep one core busy and its peak
     convergence the other for their first ~10 s, and an import beside them would slow the
     checks. When the part arrives (:meth:`send`) the child imports at once if it has not yet,
-    makes the file and sends it back (:meth:`results`, as :class:`_ForkedMakes`). Where fork is
+    makes the file and sends it back (:meth:`results`, as :class:`ForkedMakes`). Where fork is
     not available or the child cannot start, :meth:`start` gives None and the file is made as
     before (a "step" group).
     """
@@ -46,10 +46,10 @@ class _EarlyStep:
         self._sent = False
 
     @classmethod
-    def start(cls, nice: int = 0) -> _EarlyStep | None:
+    def start(cls, nice: int = 0) -> EarlyStep | None:
         """Fork the child; with ``nice`` > 0 it runs at that lower priority and imports at once
         (it only takes CPU time no other process wants)."""
-        ctx = _fork_context()
+        ctx = fork_context()
         if ctx is None:
             return None
         try:
@@ -97,7 +97,7 @@ class _EarlyStep:
             self.process.join(5)
 
 
-def _can_restore_priority(nice: int = EARLY_STEP_NICE) -> bool:
+def can_restore_priority(nice: int = EARLY_STEP_NICE) -> bool:
     """Whether a child lowered by ``nice`` (and put on SCHED_IDLE) may come back to this
     process's priority: root, or an RLIMIT_NICE that allows it (Linux's rule for leaving
     SCHED_IDLE is the same). An ordinary user's limit is 0: a child there would build best.step
@@ -118,12 +118,12 @@ def _can_restore_priority(nice: int = EARLY_STEP_NICE) -> bool:
 
 
 def _early_step_main(conn: Any, nice: int = 0, ours: Any = None) -> None:
-    """:class:`_EarlyStep`'s child: import the STEP writer when a core is idle (at once when
+    """:class:`EarlyStep`'s child: import the STEP writer when a core is idle (at once when
     ``nice`` > 0: at that priority it only gets idle CPU time), then make the part it is sent
     (None: nothing to make)."""
     # Ctrl-C reaches the whole process group and a forked child inherits the CLI's SIGTERM
     # handler: the run decides what stops, and closes this child (as a pool worker).
-    _quiet_child()
+    quiet_child()
     if ours is not None:  # the parent's end, inherited: closed, so a parent that dies is an
         ours.close()  # end of file here instead of a child waiting for a part forever
     try:
@@ -150,7 +150,7 @@ def _early_step_main(conn: Any, nice: int = 0, ours: Any = None) -> None:
                 os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
                 os.setpriority(os.PRIO_PROCESS, 0, priority)
         if part is not None:
-            conn.send(_make_here([("best.step", lambda: part_bytes(part, "step"))]))
+            conn.send(make_here([("best.step", lambda: part_bytes(part, "step"))]))
     except BaseException:  # noqa: BLE001 - the parent is gone or closed the pipe, or stopped:
         pass  # it says why in one line; this child ends quietly
     finally:

@@ -201,13 +201,13 @@ def test_every_solver_gives_cholmods_answer(solver):
 
 
 def test_qdldl_refuses_an_indefinite_stiffness():
-    """LDLᵀ without pivoting factorises an indefinite matrix too: _Solver reads D's signs and
+    """LDLᵀ without pivoting factorises an indefinite matrix too: SparseSolver reads D's signs and
     refuses it as CHOLMOD does, and solves a definite one."""
-    from flexopt.fea.solid3d import _Solver
+    from flexopt.fea.solid3d import SparseSolver
 
     A = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, -3.0, 1.0], [0.0, 1.0, 4.0]]))
     with pytest.raises(FeaError, match="not positive definite"):
-        _Solver(A, "qdldl")
+        SparseSolver(A, "qdldl")
     B = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 4.0]]))
-    x = _Solver(B, "qdldl").solve(np.array([1.0, 2.0, 3.0]))
+    x = SparseSolver(B, "qdldl").solve(np.array([1.0, 2.0, 3.0]))
     np.testing.assert_allclose(B @ x, [1.0, 2.0, 3.0], rtol=1e-13)
