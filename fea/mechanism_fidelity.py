@@ -423,7 +423,7 @@ def _solid(mesh, mech, ground, bodies, drive, driven, drive_at, rigid_all, depth
     # the P2 node locations in the model's numbering (its own tables, rebuilt)
     tmesh = s3.extrude_mesh(mesh, s3.extrude_layers_mm(ref, st))
     if model._kernels is not None:
-        locs = s3._p2_tables(tmesh, model._kernels)[2]
+        locs = s3.p2_tables(tmesh, model._kernels)[2]
     else:
         from skfem import Basis, ElementTetP2
 
@@ -443,9 +443,10 @@ def _solid(mesh, mech, ground, bodies, drive, driven, drive_at, rigid_all, depth
         k_3d = 2.0 * float(presc @ (K @ u))  # the half model carries half the force
         zs = float(depth) / ref
         stretch = np.array([1.0, 1.0, zs])
-        peaks = s3._peaks(u, model._dofs, model._G, model._xyz_qp * stretch[:, None, None],
-                          model._Gc, model._t, model._p * stretch[:, None], model._mask,
-                          model._lam, model._mu, z_scale=zs, kernels=model._kernels)  # fmt: skip
+        peaks = s3.peak_stresses(u, model._dofs, model._G, model._xyz_qp * stretch[:, None, None],
+                                 model._Gc, model._t, model._p * stretch[:, None], model._mask,
+                                 model._lam, model._mu, z_scale=zs,
+                                 kernels=model._kernels)  # fmt: skip
         out.append({
             "depth_mm": float(depth),
             "stiffness": k_3d,

@@ -653,7 +653,7 @@ def _stress_mask(nel: int, mesh: TriMesh, ignore: BaseGeometry | None) -> np.nda
     return mask
 
 
-def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=None):
+def peak_stresses(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=None):
     """Peak von Mises at quadrature points and vertex-averaged, with their (x, y, z), mm.
 
     u (ndof,) mm; dofs (nel, 10) scalar P2 DOFs; G (nel, nqp, 10, 3) and Gc (nel, 4, 10, 3)
@@ -682,7 +682,7 @@ def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=Non
 
 
 def _peak_values(vm, vc, xyz_qp, t, p, mask):
-    """_peaks' answer from the von Mises stress vm (nel, nqp) and vc (nel, 4), MPa."""
+    """peak_stresses' answer from the von Mises stress vm (nel, nqp) and vc (nel, 4), MPa."""
     vm_m = np.where(mask[:, None], vm, -np.inf)
     e, qp = np.unravel_index(np.argmax(vm_m), vm_m.shape)
     xyz = xyz_qp[:, e, qp]
@@ -716,7 +716,7 @@ def _compiled():
     return _KERNELS[0]
 
 
-def _p2_tables(tmesh, kernels) -> tuple:
+def p2_tables(tmesh, kernels) -> tuple:
     """The P2 tables of a tetrahedral mesh without scikit-fem's Basis (the compiled path).
 
     scikit-fem's numbering (the tests check it): the vertices, then one node per edge, the
@@ -927,7 +927,7 @@ class Solid3DModel:
         self._n_layers = z.size - 1
         tmesh = extrude_mesh(mesh, z)
         if kernels is not None:
-            self._dofs, n_scalar, doflocs, self._G, dx, self._Gc, self._xyz_qp = _p2_tables(
+            self._dofs, n_scalar, doflocs, self._G, dx, self._Gc, self._xyz_qp = p2_tables(
                 tmesh, kernels
             )
         else:
@@ -1064,9 +1064,9 @@ class Solid3DModel:
         t2 = time.perf_counter()
         zs = float(thickness_mm) / self.reference_thickness_mm
         stretch = np.array([1.0, 1.0, zs])
-        peaks = _peaks(u, self._dofs, self._G, self._xyz_qp * stretch[:, None, None], self._Gc,
-                       self._t, self._p * stretch[:, None], self._mask, self._lam, self._mu,
-                       z_scale=zs, kernels=self._kernels)  # fmt: skip
+        peaks = peak_stresses(u, self._dofs, self._G, self._xyz_qp * stretch[:, None, None],
+                              self._Gc, self._t, self._p * stretch[:, None], self._mask, self._lam,
+                              self._mu, z_scale=zs, kernels=self._kernels)  # fmt: skip
         times["stress"] = time.perf_counter() - t2
         times["total"] = sum(times.values())
         solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"

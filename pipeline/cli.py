@@ -30,7 +30,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from flexopt.pipeline.errors import StudyError, Terminated, printable
+from flexopt.pipeline.errors import FlexoptError, StudyError, Terminated, printable
 from flexopt.pipeline.evaluate import MAX_REPEAT, EvaluateOutcome, evaluate_study, versions
 from flexopt.pipeline.progress import RunProgress, format_generation
 from flexopt.pipeline.study import list_examples, load_study, resolve_study_path, workers_problem
@@ -819,7 +819,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-class _StdoutFailed(Exception):
+class _StdoutFailed(FlexoptError):
     """Standard output is closed, full or a closed pipe: the command's output cannot be given.
 
     Not an :class:`OSError`, so no handler takes it for a run folder it could not write.

@@ -1,11 +1,14 @@
-"""Exception family of the pipeline package."""
+"""Exception family of the pipeline package (under :class:`FlexoptError`, the root of all)."""
 
 from __future__ import annotations
 
 import re
 
+from flexopt.geometry.errors import FlexoptError
+
 __all__ = [
     "MAX_PROBLEM_CHARS",
+    "FlexoptError",
     "MAX_REASON_CHARS",
     "StudyError",
     "Terminated",
@@ -52,7 +55,7 @@ def one_line(text: str) -> str:
 MAX_PROBLEM_CHARS = 600
 
 
-class StudyError(ValueError):
+class StudyError(FlexoptError, ValueError):
     """A study file cannot be read or describes something flexopt cannot evaluate.
 
     Parameters

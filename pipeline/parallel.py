@@ -41,7 +41,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignProblem
-from flexopt.pipeline.errors import one_line
+from flexopt.pipeline.errors import FlexoptError, one_line
 from flexopt.pipeline.fork import limit_loaded_pools, pool_context, quiet_child
 
 __all__ = [
@@ -115,7 +115,7 @@ class BatchBackend(Protocol):
     ) -> list[Evaluation]: ...
 
 
-class EvaluationTimeout(Exception):  # noqa: N818 - the reason reads "EvaluationTimeout: ..."
+class EvaluationTimeout(FlexoptError):  # noqa: N818 - the reason reads "EvaluationTimeout: ..."
     """A design took longer than the per-evaluation time limit."""
 
 
@@ -335,7 +335,7 @@ def chunk_rows(
     return max(1, math.ceil(n / (per_worker * max(1, n_workers))))
 
 
-class BackendError(RuntimeError):
+class BackendError(FlexoptError, RuntimeError):
     """The backend cannot run at all (not a design's fault): the message says what to do."""
 
 

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from flexopt.pipeline.errors import StudyError
 
-from ._result import BestDesign, Result, RunResult, _readonly, finite_or_nan
+from ._result import BestDesign, Result, RunResult, finite_or_nan, readonly_table
 
 if TYPE_CHECKING:
     from flexopt.optimise.requirements import Verdict
@@ -200,7 +200,7 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         plot_args = response_plot_args(study, result)
     return Result(
         study=study,
-        table=_readonly(response_table(result)),
+        table=readonly_table(response_table(result)),
         summary=dict(result.summary),
         verdict=tuple(result.verdicts),
         converged=bool(result.converged),
@@ -208,7 +208,7 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         solve_time_s=float(statistics.median(result.solve_times_s)),
         run_dir=run_dir,
         plot_args=plot_args,
-        cases={name: _readonly(c.table) for name, c in result.cases.items()},
+        cases={name: readonly_table(c.table) for name, c in result.cases.items()},
     )
 
 
