@@ -3,23 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, MutableMapping
-from typing import TYPE_CHECKING
 
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignProblem
-from flexopt.pipeline.checkpoint import (
-    EvaluationStore,
-)
-from flexopt.pipeline.parallel import (
-    BatchBackend,
-    design_key,
-    evaluate_batch,
-)
-
-if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
-    pass
-
+from flexopt.pipeline.checkpoint import EvaluationStore
+from flexopt.pipeline.parallel import BatchBackend, design_key, evaluate_batch
 
 # --------------------------------------------------------------------------------------------
 # Evaluating designs: one function, one cache

@@ -15,9 +15,7 @@ from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.parallel import one_line as _one_line
-from flexopt.pipeline.problems import (
-    ExportError,
-)
+from flexopt.pipeline.problems import ExportError
 from flexopt.pipeline.problems import nominal_design as _nominal_design
 from flexopt.pipeline.run.folder import (
     Columns,
@@ -27,12 +25,7 @@ from flexopt.pipeline.run.folder import (
     run_folder_study,
 )
 from flexopt.pipeline.run.setup import build_problem
-from flexopt.pipeline.runfolder import (
-    echo,
-    load_folder_study,
-    read_folder_json,
-    write_atomic,
-)
+from flexopt.pipeline.runfolder import echo, load_folder_study, read_folder_json, write_atomic
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.study import Study, study_to_yaml
 

@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from flexopt.pipeline import plots
 from flexopt.pipeline.run.folder import Columns
-
-if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
-    pass
 
 
 def spec_label(spec: Mapping[str, Any], axis: str) -> str | None:

@@ -8,16 +8,13 @@ import socket
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignProblem
 from flexopt.optimise.space import DesignSpace
-from flexopt.pipeline.checkpoint import (
-    STORE_FILE,
-    EvaluationStore,
-)
+from flexopt.pipeline.checkpoint import STORE_FILE, EvaluationStore
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.runfolder import (
     cell_float,
@@ -28,10 +25,6 @@ from flexopt.pipeline.runfolder import (
     write_atomic,
 )
 from flexopt.pipeline.study import Study
-
-if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
-    pass
-
 
 #: Files a finished run folder can hold (plots, STL and the response only when the kind gives what
 #: they need). run.json is written first and last: its ``status`` says whether the run finished.

@@ -4,15 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAResult, best_of, pareto_front
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.parallel import (
-    design_key,
-)
+from flexopt.pipeline.parallel import design_key
 from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.run.folder import (
     RUN_FILES,
@@ -25,16 +22,7 @@ from flexopt.pipeline.run.folder import (
 )
 from flexopt.pipeline.run.setup import prepare_run
 from flexopt.pipeline.run.state import RunState
-from flexopt.pipeline.runfolder import (
-    RunDirLock,
-    lock_run_dir,
-    probe_writable,
-    write_atomic,
-)
-
-if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
-    pass
-
+from flexopt.pipeline.runfolder import RunDirLock, lock_run_dir, probe_writable, write_atomic
 
 # --------------------------------------------------------------------------------------------
 # flexopt report

@@ -5,21 +5,13 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from flexopt.optimise.ga import GAConfig
-from flexopt.pipeline.checkpoint import (
-    STORE_FILE,
-    EvaluationStore,
-    study_sha256,
-)
+from flexopt.pipeline.checkpoint import STORE_FILE, EvaluationStore, study_sha256
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.parallel import (
-    ParallelSettings,
-)
-from flexopt.pipeline.problems import (
-    parallel_settings,
-)
+from flexopt.pipeline.parallel import ParallelSettings
+from flexopt.pipeline.problems import parallel_settings
 from flexopt.pipeline.run.folder import read_run_record, run_folder_study
 from flexopt.pipeline.run.runner import Resume, RunOutcome, run_study
 from flexopt.pipeline.run.setup import prepare_run
@@ -32,9 +24,6 @@ from flexopt.pipeline.runfolder import (
     study_sha256_with_inputs,
 )
 from flexopt.pipeline.study import OptimiserSpec, Study, load_study
-
-if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
-    pass
 
 log = logging.getLogger(__name__)
 

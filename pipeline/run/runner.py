@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass
 from datetime import datetime
 from importlib import metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
@@ -24,24 +24,12 @@ from flexopt.optimise.ga import GAConfig, GAResult, run_ga
 from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict
 from flexopt.pipeline.backends import open_backend
-from flexopt.pipeline.checkpoint import (
-    CHECKPOINT_FILE,
-    STORE_FILE,
-    EvaluationStore,
-    study_sha256,
-)
+from flexopt.pipeline.checkpoint import CHECKPOINT_FILE, STORE_FILE, EvaluationStore, study_sha256
 from flexopt.pipeline.errors import StudyError, Terminated
 from flexopt.pipeline.evaluate import versions
-from flexopt.pipeline.parallel import (
-    BackendError,
-    BatchBackend,
-    ParallelSettings,
-    design_key,
-)
+from flexopt.pipeline.parallel import BackendError, BatchBackend, ParallelSettings, design_key
 from flexopt.pipeline.parallel import one_line as _one_line
-from flexopt.pipeline.problems import (
-    parallel_settings,
-)
+from flexopt.pipeline.problems import parallel_settings
 from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.run.export import step_available
 from flexopt.pipeline.run.setup import RunSetup
@@ -60,9 +48,6 @@ from flexopt.pipeline.runfolder import (
     write_atomic,
 )
 from flexopt.pipeline.study import study_to_yaml
-
-if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
-    pass
 
 log = logging.getLogger(__name__)
 

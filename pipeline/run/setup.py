@@ -3,21 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.ga import GAConfig
 from flexopt.optimise.problem import DesignProblem
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.problems import (
-    build_base_problem,
-)
+from flexopt.pipeline.problems import build_base_problem
 from flexopt.pipeline.study import OptimiserSpec, Study
-
-if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
-    pass
-
 
 # --------------------------------------------------------------------------------------------
 # Setting a run up (everything that can refuse the inputs, before any file is written)

@@ -23,12 +23,7 @@ from flexopt.pipeline.checkpoint import (
     checkpoint_text,
 )
 from flexopt.pipeline.fork import ForkedMakes
-from flexopt.pipeline.parallel import (
-    BatchBackend,
-    ParallelSettings,
-    design_key,
-    evaluate_batch,
-)
+from flexopt.pipeline.parallel import BatchBackend, ParallelSettings, design_key, evaluate_batch
 from flexopt.pipeline.parallel import one_line as _one_line
 from flexopt.pipeline.report_html import HtmlData, render_html
 from flexopt.pipeline.responses import case_responses, stacked_table, stress_allowable
@@ -44,12 +39,7 @@ from flexopt.pipeline.run.figures import convergence_png, curve_png, float_or_no
 from flexopt.pipeline.run.folder import RUN_FILES, Columns, write_files
 from flexopt.pipeline.run.setup import RunSetup
 from flexopt.pipeline.run.step_child import EarlyStep
-from flexopt.pipeline.runfolder import (
-    records_to_csv,
-    table_to_csv,
-    to_json,
-    write_atomic,
-)
+from flexopt.pipeline.runfolder import records_to_csv, table_to_csv, to_json, write_atomic
 from flexopt.pipeline.verdict import judge_detail
 
 if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
