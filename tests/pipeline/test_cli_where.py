@@ -1,4 +1,4 @@
-"""progress._where: the "on processes (2 workers)" decoration of the progress header never raises."""
+"""progress._where: the "on processes (2 workers)" decoration never raises."""
 
 from __future__ import annotations
 
