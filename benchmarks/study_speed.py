@@ -6,7 +6,7 @@ time (the child and its workers, ``RUSAGE_CHILDREN``). Inside the child a few me
 with timers, which changes nothing they do:
 
 * **writes** — ``EvaluationStore.append`` / ``sync`` / ``close`` (the store) and
-  ``_Run.generation_done`` (evaluations.csv, history.csv, checkpoint.json, run.json, the
+  ``RunState.generation_done`` (evaluations.csv, history.csv, checkpoint.json, run.json, the
   generation's console line);
 * **solve** — the evaluations' own times (``time_s``, measured in the worker around
   ``problem.evaluate``) summed, and divided by the number of workers for its share of the wall;
@@ -61,8 +61,9 @@ def child(study: str, out: str, store_mode: str, extra: list[str]) -> None:
     """Run ``flexopt run STUDY --out OUT -q`` here, print one JSON line of timings."""
     t_start = time.perf_counter()
     sys.path.insert(0, str(ROOT))
-    from flexopt.pipeline import checkpoint, run
+    from flexopt.pipeline import checkpoint
     from flexopt.pipeline.cli import main
+    from flexopt.pipeline.run import state
 
     timers: dict[str, float] = defaultdict(float)
     depth: dict[str, int] = defaultdict(int)
@@ -85,7 +86,7 @@ def child(study: str, out: str, store_mode: str, extra: list[str]) -> None:
     for name in ("append", "sync", "close"):
         if hasattr(checkpoint.EvaluationStore, name):
             wrap(checkpoint.EvaluationStore, name, "store")
-    wrap(run._Run, "generation_done", "generation")
+    wrap(state.RunState, "generation_done", "generation")
     if store_mode == "fsync-each":  # the store before issue 13: one fsync per design
         init = checkpoint.EvaluationStore.__init__
 

@@ -279,7 +279,7 @@ def _compiled() -> ModuleType | None:
     return _beam_kernels
 
 
-def _resolve_kernel(setting: str) -> str:
+def resolve_kernel(setting: str) -> str:
     """The kernel that runs for ``BeamSettings.kernel`` = ``setting`` ("numba" or "numpy")."""
     choice = setting
     if setting == "auto":
@@ -365,7 +365,7 @@ class BeamModel:
         if int(settings.n_elements) < 1:
             raise FeaError(f"n_elements = {settings.n_elements} must be >= 1")
         #: "numba" (compiled, fea/_beam_kernels.py) or "numpy" (the reference): which one runs
-        self.kernel = _resolve_kernel(settings.kernel)
+        self.kernel = resolve_kernel(settings.kernel)
         self.profile = profile
         self.material = material
         self.start = start
@@ -1259,7 +1259,7 @@ def warm_up() -> str:
     str
         The kernel that runs: "numba", or "numpy" when numba is unavailable (nothing to do).
     """
-    kernel = _resolve_kernel("auto")
+    kernel = resolve_kernel("auto")
     if kernel != "numba":
         return kernel
     profile = BeamProfile(np.array([[0.0, 0.0], [10.0, 0.0]]), np.array([1.0, 1.0]), 1.0)

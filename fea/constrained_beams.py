@@ -51,7 +51,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
-from flexopt.fea.beam import BeamModel, _resolve_kernel
+from flexopt.fea.beam import BeamModel, resolve_kernel
 from flexopt.fea.errors import FeaError
 from scipy.linalg.lapack import dsytrf
 from scipy.sparse.linalg import splu
@@ -73,10 +73,10 @@ LoadFunction = Callable[[float, np.ndarray], tuple[np.ndarray, "sp.spmatrix | No
 """``(p, z) -> (f, dfdz)``: applied loads (N,) and their derivative (N, N) or None."""
 
 #: half-bandwidth of BeamModel's band storage (node-by-node numbering, 3 nodes x 3 fields)
-_BAND = 8
+BAND = 8
 #: band storage of the compiled kernels: rows per column and the diagonal's row (fea/_beam_kernels)
-_LDAB = 3 * _BAND + 1
-_KV = 2 * _BAND
+LDAB = 3 * BAND + 1
+_KV = 2 * BAND
 
 log = logging.getLogger(__name__)
 
@@ -92,9 +92,9 @@ def _kernels() -> ModuleType | None:
     return _constrained_kernels
 
 
-def _resolve(setting: str) -> str:
+def resolve_constrained_kernel(setting: str) -> str:
     """The path that runs for ``kernel`` = ``setting``: "numba" or "numpy" (the reference)."""
-    kernel = _resolve_kernel(setting)
+    kernel = resolve_kernel(setting)
     return "numba" if kernel == "numba" and _kernels() is not None else "numpy"
 
 
@@ -266,14 +266,14 @@ class ConstrainedBeams:
         # Band -> sparse (row, col) of each beam's tangent (rows kl.. of LAPACK gbsv storage).
         rows, cols, self._band_src = [], [], []
         for i, beam in enumerate(self.beams):
-            r_i, c_i, src = _band_entries(beam.n_dofs)
+            r_i, c_i, src = band_entries(beam.n_dofs)
             rows.append(r_i + self.offsets[i])
             cols.append(c_i + self.offsets[i])
             self._band_src.append(src)
         self._k_rows = np.concatenate(rows)
         self._k_cols = np.concatenate(cols)
         #: "numba" (compiled, fea/_constrained_kernels.py) or "numpy" (the reference)
-        self.kernel = _resolve(settings.kernel)
+        self.kernel = resolve_constrained_kernel(settings.kernel)
         if any(b.kernel != "numba" for b in self.beams):
             self.kernel = "numpy"
         if self.kernel == "numba":
@@ -334,7 +334,7 @@ class ConstrainedBeams:
             a, b = self.offsets[i], self.offsets[i + 1]
             ri, ab = beam._assemble(z[a:b], self._frame)
             r[a:b] = ri
-            vals.append(ab[_BAND:][self._band_src[i]])
+            vals.append(ab[BAND:][self._band_src[i]])
         K = sp.coo_matrix(
             (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
         )
@@ -415,7 +415,7 @@ class ConstrainedBeams:
         z = np.array(z0, dtype=np.float64)
         lam = np.array(lam0, dtype=np.float64)
         r = np.empty(self.n)
-        abc = np.empty((self._n_beam, _LDAB))
+        abc = np.empty((self._n_beam, LDAB))
         args = (self._geo, self._eoff, self._offsets64, self._frame, self._rot64)
         if self.loads is None:
             code, it = kern.newton(z, lam, C, d, *args, self._fpar, st.max_iterations, r, abc)
@@ -592,7 +592,7 @@ class ConstrainedBeams:
             kern = _kernels()
             z = np.ascontiguousarray(z, dtype=np.float64)
             r, u = np.empty(self.n), np.empty(self.n)
-            abc = np.empty((self._n_beam, _LDAB))
+            abc = np.empty((self._n_beam, LDAB))
             kern.assemble_all(z, self._geo, self._eoff, self._offsets64, self._frame, u, r, abc)
             _, kf = self._loads_coo(p, z)
             C, _ = self._constraint_arrays(p)
@@ -618,18 +618,18 @@ class ConstrainedBeams:
             shapes[i][k] = beam.reference_nodes_mm + q[:, :2]
 
 
-def _band_entries(n: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+def band_entries(n: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
     """(row, col) and band-storage indices of the entries of an (n, n) banded tangent.
 
     The model's tangent is in LAPACK gbsv storage, A[i, j] = ab[kl + ku + i - j, j]; its rows
     kl.. are the plain band (A[i, j] = ab[ku + i - j, j] of ``ab[kl:]``).
     """
     # row by row, columns increasing (what a dense n x n mask would give, in O(n) memory)
-    i = np.repeat(np.arange(n), 2 * _BAND + 1).reshape(n, -1)
-    j = i + np.arange(-_BAND, _BAND + 1)
+    i = np.repeat(np.arange(n), 2 * BAND + 1).reshape(n, -1)
+    j = i + np.arange(-BAND, BAND + 1)
     inside = (j >= 0) & (j < n)
     rows, cols = i[inside], j[inside]
-    return rows, cols, (_BAND + rows - cols, cols)
+    return rows, cols, (BAND + rows - cols, cols)
 
 
 _NO_INDEX = np.zeros(0, dtype=np.int64)
@@ -653,7 +653,7 @@ def kkt_negative_count(H: sp.spmatrix, G: sp.spmatrix, kernel: str = "auto") -> 
     compiled in envelope storage (fea/_constrained_kernels.py), and only a zero pivot goes on to
     the dense count.
     """
-    if _resolve(kernel) == "numba":
+    if resolve_constrained_kernel(kernel) == "numba":
         Hc = sp.coo_matrix(H)
         Gr = sp.csr_matrix(G)
         Gr.sum_duplicates()
@@ -722,7 +722,7 @@ def warm_up() -> str:
     from flexopt.geometry.profile import BeamProfile
 
     beam_warm_up()
-    kernel = _resolve("auto")
+    kernel = resolve_constrained_kernel("auto")
     if kernel != "numba":
         return kernel
     material = Material("warm-up", E_MPa=1000.0, nu=0.3, yield_MPa=10.0)

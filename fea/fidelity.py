@@ -93,10 +93,9 @@ def _eigenvalue_nearest_zero(model: PlaneStressModel, K: sp.csr_matrix) -> float
     is the shift-invert operator at shift 0: one numerical Cholesky instead of the SuperLU of
     ``K + 1e-9 I`` that ``eigsh`` makes by itself, which still runs for the other solvers.
     """
-    reduced = model._reduced(K)
-    if model._chol is not None:
-        model._reduced_solve(K, np.zeros(reduced.shape[0]))  # factorises K (or keeps it)
-        factor = model._chol if model._chol_lu is None else model._chol_lu
+    reduced = model.reduced(K)
+    factor = model.cholesky_factor(K)  # factorises K (or keeps it)
+    if factor is not None:
         inverse = spla.LinearOperator(reduced.shape, matvec=factor.solve, dtype=float)
         values = spla.eigsh(
             reduced, k=1, sigma=0.0, OPinv=inverse, which="LM", return_eigenvectors=False

@@ -43,7 +43,13 @@ from typing import Literal, NamedTuple
 import numpy as np
 import scipy.sparse as sp
 from flexopt.fea.beam import BeamModel, BeamSettings
-from flexopt.fea.constrained_beams import _BAND, _LDAB, _band_entries, _resolve, kkt_negative_count
+from flexopt.fea.constrained_beams import (
+    BAND,
+    LDAB,
+    band_entries,
+    kkt_negative_count,
+    resolve_constrained_kernel,
+)
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.geometry.profile import BeamProfile
@@ -500,7 +506,7 @@ class _Model:
         )
         rows, cols, self._band_src = [], [], []
         for i, m in enumerate(self.models):
-            r_i, c_i, src = _band_entries(m.n_dofs)
+            r_i, c_i, src = band_entries(m.n_dofs)
             rows.append(r_i + self.offsets[i])
             cols.append(c_i + self.offsets[i])
             self._band_src.append(src)
@@ -712,7 +718,7 @@ class _Model:
             a, b = self.offsets[i], self.offsets[i + 1]
             ri, ab = m._assemble(z[a:b], frame)
             r[a:b] = ri
-            vals.append(ab[_BAND:][self._band_src[i]])
+            vals.append(ab[BAND:][self._band_src[i]])
         K = sp.coo_matrix(
             (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
         )
@@ -881,7 +887,7 @@ class _Solver:
     def __init__(self, model: _Model) -> None:
         self.model = model
         self.st = model.settings
-        kernel = _resolve(self.st.kernel)
+        kernel = resolve_constrained_kernel(self.st.kernel)
         if kernel == "numba" and (
             _kernels() is None or any(m.kernel != "numba" for m in model.models)
         ):
@@ -926,7 +932,7 @@ class _Solver:
         z = np.array(start[0], dtype=np.float64)
         lam = np.array(start[1], dtype=np.float64)
         r = np.empty(md.n)
-        abc = np.empty((md.n_beam_dofs, _LDAB))
+        abc = np.empty((md.n_beam_dofs, LDAB))
         G = np.empty((md.m, md.n))
         kf = np.empty(self._nl_row.shape[0])
         z_pred = np.empty(md.n)
@@ -1463,7 +1469,7 @@ def warm_up() -> str:
     from flexopt.fea.constrained_beams import warm_up as constrained_warm_up
 
     constrained_warm_up()
-    kernel = _resolve("auto")
+    kernel = resolve_constrained_kernel("auto")
     if kernel != "numba" or _kernels() is None:
         return "numpy"
     material = Material("warm-up", E_MPa=1000.0, nu=0.3, yield_MPa=10.0)

@@ -214,12 +214,12 @@ def _rigid_map(
 
 def _solve(K: sp.spmatrix, T: sp.csr_matrix, ubar: np.ndarray) -> np.ndarray:
     """u (N,) minimising the energy with u = T q + ubar: (T^T K T) q = -T^T K ubar."""
-    from flexopt.fea.solid3d import _Solver  # the project's Cholesky (CHOLMOD / QDLDL / LU)
+    from flexopt.fea.solid3d import SparseSolver  # the project's Cholesky (CHOLMOD / QDLDL / LU)
 
     K = sp.csr_matrix(K)
     Kr = (T.T @ K @ T).tocsc()
     b = -(T.T @ (K @ ubar))
-    q = _Solver(Kr, "auto").solve(b)
+    q = SparseSolver(Kr, "auto").solve(b)
     return T @ q + ubar
 
 
@@ -429,7 +429,7 @@ def _solid(mesh, mech, ground, bodies, drive, driven, drive_at, rigid_all, depth
     # the P2 node locations in the model's numbering (its own tables, rebuilt)
     tmesh = s3.extrude_mesh(mesh, s3.extrude_layers_mm(ref, st))
     if model._kernels is not None:
-        locs = s3._p2_tables(tmesh, model._kernels)[2]
+        locs = s3.p2_tables(tmesh, model._kernels)[2]
     else:
         from skfem import Basis, ElementTetP2
 
@@ -449,9 +449,10 @@ def _solid(mesh, mech, ground, bodies, drive, driven, drive_at, rigid_all, depth
         k_3d = 2.0 * float(presc @ (K @ u))  # the half model carries half the force
         zs = float(depth) / ref
         stretch = np.array([1.0, 1.0, zs])
-        peaks = s3._peaks(u, model._dofs, model._G, model._xyz_qp * stretch[:, None, None],
-                          model._Gc, model._t, model._p * stretch[:, None], model._mask,
-                          model._lam, model._mu, z_scale=zs, kernels=model._kernels)  # fmt: skip
+        peaks = s3.peak_stresses(u, model._dofs, model._G, model._xyz_qp * stretch[:, None, None],
+                                 model._Gc, model._t, model._p * stretch[:, None], model._mask,
+                                 model._lam, model._mu, z_scale=zs,
+                                 kernels=model._kernels)  # fmt: skip
         out.append({
             "depth_mm": float(depth),
             "stiffness": k_3d,

@@ -31,7 +31,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -1231,6 +1231,20 @@ class PlaneStressModel:
         """P^T K P: a sub-matrix written by the assembly when P is a selection."""
         Kr = getattr(K, "_reduced", None)
         return Kr if Kr is not None else (self.PT @ K @ self.P).tocsr()
+
+    def reduced(self, K: sp.csr_matrix) -> sp.csr_matrix:
+        """P^T K P (n_free, n_free) N/mm: the tangent ``K`` (N, N) on the free DOFs."""
+        return self._reduced(K)
+
+    def cholesky_factor(self, K: sp.csr_matrix) -> Any | None:
+        """The model's factor of P^T K P, with ``solve(rhs)``: its Cholesky (the pattern's
+        analysis kept; LU where K is not positive definite), made as a solve makes it or kept
+        from the last solve of this K. None when the model's solver is not a Cholesky (CHOLMOD,
+        QDLDL)."""
+        if self._chol is None:
+            return None
+        self._reduced_solve(K, np.zeros(self.P.shape[1]))  # factorises K (or keeps it)
+        return self._chol if self._chol_lu is None else self._chol_lu
 
     def _factorise(self, Kr: sp.csr_matrix):
         self.counters["factorisations"] += 1

@@ -102,7 +102,7 @@ class Solid3DSettings:
     # Distance under which a node counts as on a clamp / drive geometry, mm (the plane model's).
     select_tol_mm: float = 1e-6
     # "auto": CHOLMOD's supernodal Cholesky (through cvxopt) when it imports, else QDLDL's
-    # LDLᵀ, else SuperLU; see _Solver for the measured difference.
+    # LDLᵀ, else SuperLU; see SparseSolver for the measured difference.
     solver: Literal["auto", "cholmod", "qdldl", "superlu"] = "auto"
     # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
     # (20 000 blocks use ~150 MB each) independently of the mesh size. Solid3DModel's
@@ -343,7 +343,7 @@ def _gathered(vals) -> np.ndarray:
     return vals[0][vals[1]] if isinstance(vals, tuple) else vals
 
 
-class _Solver:
+class SparseSolver:
     """Factorise a symmetric positive definite matrix once and solve with it.
 
     "cholmod": CHOLMOD's supernodal Cholesky through cvxopt (the optional ``cholmod`` extra,
@@ -671,7 +671,7 @@ def _stress_mask(nel: int, mesh: TriMesh, ignore: BaseGeometry | None) -> np.nda
     return mask
 
 
-def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=None):
+def peak_stresses(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=None):
     """Peak von Mises at quadrature points and vertex-averaged, with their (x, y, z), mm.
 
     u (ndof,) mm; dofs (nel, 10) scalar P2 DOFs; G (nel, nqp, 10, 3) and Gc (nel, 4, 10, 3)
@@ -700,7 +700,7 @@ def _peaks(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=Non
 
 
 def _peak_values(vm, vc, xyz_qp, t, p, mask):
-    """_peaks' answer from the von Mises stress vm (nel, nqp) and vc (nel, 4), MPa."""
+    """peak_stresses' answer from the von Mises stress vm (nel, nqp) and vc (nel, 4), MPa."""
     vm_m = np.where(mask[:, None], vm, -np.inf)
     e, qp = np.unravel_index(np.argmax(vm_m), vm_m.shape)
     xyz = xyz_qp[:, e, qp]
@@ -734,7 +734,7 @@ def _compiled():
     return _KERNELS[0]
 
 
-def _p2_tables(tmesh, kernels) -> tuple:
+def p2_tables(tmesh, kernels) -> tuple:
     """The P2 tables of a tetrahedral mesh without scikit-fem's Basis (the compiled path).
 
     scikit-fem's numbering (the tests check it): the vertices, then one node per edge, the
@@ -964,7 +964,7 @@ class Solid3DModel:
         self._n_layers = z.size - 1
         tmesh = extrude_mesh(mesh, z)
         if kernels is not None:
-            self._dofs, n_scalar, doflocs, self._G, dx, self._Gc, self._xyz_qp = _p2_tables(
+            self._dofs, n_scalar, doflocs, self._G, dx, self._Gc, self._xyz_qp = p2_tables(
                 tmesh, kernels
             )
         else:
@@ -999,7 +999,7 @@ class Solid3DModel:
             self._tmesh = tmesh
             self._G = self._Gc = None
         self._build_times = {"mesh": t1 - t0, "assemble": time.perf_counter() - t1}
-        self._factor: _Solver | None = None
+        self._factor: SparseSolver | None = None
         self._q: np.ndarray | None = None
 
     def _assemble_compiled(self) -> None:
@@ -1112,15 +1112,17 @@ class Solid3DModel:
                 if lean:  # made again below, bit for bit, from the mesh
                     self._parts = self._lower = self._indices = self._indptr = None
                 if self._kernels is not None:  # compressed columns
-                    self._factor = _Solver(None, st.solver, columns=(vals, rows, third, P.shape[1]))
+                    self._factor = SparseSolver(
+                        None, st.solver, columns=(vals, rows, third, P.shape[1])
+                    )
                 else:  # triplets
-                    self._factor = _Solver(None, st.solver, (vals, rows, third, P.shape[1]))
+                    self._factor = SparseSolver(None, st.solver, (vals, rows, third, P.shape[1]))
                 del rows, third
                 if lean:
                     self._assemble_compiled()
                 K = self.stiffness_matrix(thickness_mm)
             else:
-                self._factor = _Solver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
+                self._factor = SparseSolver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
             q = self._factor.solve(b)
         self._q = q
         u = sup.ubar + P @ q
@@ -1134,7 +1136,7 @@ class Solid3DModel:
             G, _, Gc = _p2_gradients(self._tmesh, self._kernels)
         else:
             G, Gc = self._G, self._Gc
-        peaks = _peaks(u, self._dofs, G, self._xyz_qp * stretch[:, None, None], Gc,
+        peaks = peak_stresses(u, self._dofs, G, self._xyz_qp * stretch[:, None, None], Gc,
                        self._t, self._p * stretch[:, None], self._mask, self._lam, self._mu,
                        z_scale=zs, kernels=self._kernels)  # fmt: skip
         del G, Gc

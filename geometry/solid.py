@@ -28,7 +28,7 @@ import manifold3d
 import numpy as np
 import shapely
 import trimesh
-from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.errors import FlexoptError, GeometryError
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
@@ -581,7 +581,7 @@ def _n_edges(ring) -> int:
     return int(np.count_nonzero(np.any(np.diff(xy, axis=0) != 0.0, axis=1)))
 
 
-class StepUnavailable(ImportError):
+class StepUnavailable(FlexoptError, ImportError):
     """STEP needs build123d (``pip install 'flexopt[step]'``), which is not installed."""
 
 

@@ -48,6 +48,7 @@ import numpy as np
 from flexopt.fea.coupon import CouponSpec, strip_curve
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
+from flexopt.optimise.errors import OptimiseError
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 from scipy.stats import t as student_t
@@ -80,7 +81,7 @@ OFFSET_RANGE = (-0.6, 0.6)
 CSV_COLUMNS = ("thickness_mm", "displacement_mm", "force_N")
 
 
-class CalibrationError(ValueError):
+class CalibrationError(OptimiseError):
     """Measured data that cannot be calibrated from; the message says what and how to fix it."""
 
 

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from flexopt.geometry.errors import FlexoptError
 from flexopt.optimise.names import NAME_MAX_CHARS, check_name
 from flexopt.optimise.space import DesignSpace
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -71,7 +72,7 @@ _CONFIG = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 POSITIVE_KEY_WORDS = ("thickness", "width", "radius", "diameter", "length")
 
 
-class VariableError(ValueError):
+class VariableError(FlexoptError, ValueError):
     """A variables block that cannot be used: ``path`` is where in the study, ``problem`` what
     is wrong and how to fix it (one line)."""
 

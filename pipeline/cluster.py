@@ -52,6 +52,7 @@ from distributed.protocol import loads as dask_loads
 from distributed.protocol.utils import unpack_frames
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignProblem
+from flexopt.pipeline.errors import FlexoptError
 from flexopt.pipeline.parallel import (
     DASK_CHUNKS_PER_WORKER,
     BackendError,
@@ -137,7 +138,7 @@ def _bounded(call: Callable[[], T], timeout_s: float) -> T:
     return box[0]
 
 
-class Unreachable(Exception):
+class Unreachable(FlexoptError):
     """The check of an address failed in a known way; the message says how, in plain words."""
 
 

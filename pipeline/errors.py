@@ -1,10 +1,20 @@
-"""Exception family of the pipeline package."""
+"""Exception family of the pipeline package (under :class:`FlexoptError`, the root of all)."""
 
 from __future__ import annotations
 
 import re
 
-__all__ = ["MAX_PROBLEM_CHARS", "StudyError", "Terminated", "printable"]
+from flexopt.geometry.errors import FlexoptError
+
+__all__ = [
+    "MAX_PROBLEM_CHARS",
+    "FlexoptError",
+    "MAX_REASON_CHARS",
+    "StudyError",
+    "Terminated",
+    "one_line",
+    "printable",
+]
 
 #: Characters never printed as they are: C0 controls (escape sequences start with ESC), DEL, C1
 #: controls, and the bidirectional and zero-width formatting characters that make a line read
@@ -30,12 +40,22 @@ def printable(text: object, keep_newlines: bool = False) -> str:
     return _UNPRINTABLE.sub(_escaped, value)
 
 
+#: Longest failure reason kept in a row (exception messages can quote whole arrays).
+MAX_REASON_CHARS = 300
+
+
+def one_line(text: str) -> str:
+    """``text`` folded to one line of at most :data:`MAX_REASON_CHARS` characters."""
+    text = " ".join(text.split())
+    return text if len(text) <= MAX_REASON_CHARS else text[: MAX_REASON_CHARS - 3] + "..."
+
+
 #: Longest problem text of one error: echoed values are cut at their source to ~60 characters,
 #: and this is the safety net for any that are not (the start and the fix at the end are kept).
 MAX_PROBLEM_CHARS = 600
 
 
-class StudyError(ValueError):
+class StudyError(FlexoptError, ValueError):
     """A study file cannot be read or describes something flexopt cannot evaluate.
 
     Parameters

@@ -29,7 +29,7 @@ from flexopt.pipeline.studies import (
     refused_plugins,
     unavailable_kinds,
 )
-from flexopt.pipeline.study import _NAME_RE, list_examples, parse_study_text
+from flexopt.pipeline.study import NAME_RE, list_examples, parse_study_text
 from pydantic.json_schema import models_json_schema
 
 __all__ = [
@@ -141,7 +141,7 @@ def check_study_name(name: str) -> None:
     StudyError
         At ``name``, with the fix.
     """
-    if not _NAME_RE.match(name) or len(name) > 100:
+    if not NAME_RE.match(name) or len(name) > 100:
         suggestion = re.sub(r"[^A-Za-z0-9_.-]+", "_", name[:60]).strip("_.-") or "my_study"
         raise StudyError(
             "name",

@@ -30,7 +30,6 @@ import multiprocessing
 import os
 import pickle
 import signal
-import sys
 import threading
 import time
 from collections import deque
@@ -42,6 +41,8 @@ from typing import Any, Literal, Protocol
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignProblem
+from flexopt.pipeline.errors import FlexoptError, one_line
+from flexopt.pipeline.fork import limit_loaded_pools, pool_context, quiet_child
 
 __all__ = [
     "MAX_ATTEMPTS",
@@ -62,9 +63,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-#: Longest failure reason kept in a row (exception messages can quote whole arrays).
-MAX_REASON_CHARS = 300
 
 #: How often a design is tried when its worker process dies under it (os._exit, segfault, OOM
 #: kill): a design that kills every worker it is given must end as a failed row, not a loop.
@@ -117,7 +115,7 @@ class BatchBackend(Protocol):
     ) -> list[Evaluation]: ...
 
 
-class EvaluationTimeout(Exception):  # noqa: N818 - the reason reads "EvaluationTimeout: ..."
+class EvaluationTimeout(FlexoptError):  # noqa: N818 - the reason reads "EvaluationTimeout: ..."
     """A design took longer than the per-evaluation time limit."""
 
 
@@ -127,12 +125,6 @@ def timeout_reason(timeout_s: float) -> str:
         f"EvaluationTimeout: took longer than the time limit of {timeout_s:g} s "
         "(--eval-timeout / parallel.eval_timeout_s)"
     )
-
-
-def one_line(text: str) -> str:
-    """``text`` folded to one line of at most :data:`MAX_REASON_CHARS` characters."""
-    text = " ".join(text.split())
-    return text if len(text) <= MAX_REASON_CHARS else text[: MAX_REASON_CHARS - 3] + "..."
 
 
 def design_key(x: np.ndarray) -> bytes:
@@ -331,16 +323,6 @@ def pin_threads() -> None:
         os.environ[var] = "1"
 
 
-def _limit_loaded_pools() -> None:
-    """One thread for the BLAS/OpenMP pools already loaded (a forked worker inherits the
-    parent's, sized before the variables were set)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # optional: the environment variables cover freshly started workers
-        return
-    threadpool_limits(1)
-
-
 def chunk_rows(
     n: int,
     n_workers: int,
@@ -353,7 +335,7 @@ def chunk_rows(
     return max(1, math.ceil(n / (per_worker * max(1, n_workers))))
 
 
-class BackendError(RuntimeError):
+class BackendError(FlexoptError, RuntimeError):
     """The backend cannot run at all (not a design's fault): the message says what to do."""
 
 
@@ -368,12 +350,11 @@ def _worker_main(conn: Connection, payload: bytes) -> None:
     evaluation)`` per design, ``("fatal", message)`` when the problem cannot be loaded.
     """
     pin_threads()  # for libraries this worker loads itself
-    _limit_loaded_pools()
-    # Ctrl-C reaches the whole process group; the parent decides what stops, and stops us.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    # A forked worker inherits the CLI's SIGTERM handler (which stops a run cleanly); a worker is
+    limit_loaded_pools()
+    # Ctrl-C reaches the whole process group; the parent decides what stops, and stops us. A
+    # forked worker inherits the CLI's SIGTERM handler (which stops a run cleanly); a worker is
     # stopped by its parent, so it ends at once on SIGTERM as a process normally does.
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    quiet_child()
     try:
         problem = pickle.loads(payload)
     except BaseException as exc:
@@ -410,23 +391,6 @@ class _Worker:
     ready: bool = False
     task: deque[tuple[int, np.ndarray]] | None = None  # designs sent and not yet reported
     started: float = 0.0  # when the design at the head of ``task`` started (perf_counter)
-
-
-def _context() -> multiprocessing.context.BaseContext:
-    # fork is instant and the worker inherits the imported modules, but forking a process that
-    # runs other threads (a progress bar, a Dask client) can deadlock the child, and macOS
-    # libraries do not survive it: fork only on Linux from a single-threaded process (the pool
-    # starts its workers before the progress bar). Otherwise forkserver, which forks from a clean
-    # single-threaded server without re-running the user's __main__ each time as spawn does;
-    # spawn where there is no forkserver (Windows).
-    if sys.platform == "linux" and threading.active_count() == 1:
-        return multiprocessing.get_context("fork")
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx = multiprocessing.get_context("forkserver")
-        # the server imports numpy and this module once; each worker forks with them loaded
-        ctx.set_forkserver_preload(["flexopt.pipeline.parallel"])
-        return ctx
-    return multiprocessing.get_context("spawn")
 
 
 class ProcessPool:
@@ -482,7 +446,7 @@ class ProcessPool:
 
     def _start(self) -> _Worker:
         pin_threads()  # before the first worker (and the forkserver) starts
-        ctx = _context()
+        ctx = pool_context()
         parent, child = ctx.Pipe(duplex=True)
         process = ctx.Process(
             target=_worker_main,

@@ -34,7 +34,7 @@ __all__ = [
 def _new_figure(**kwargs: Any) -> Figure:
     """An off-screen figure with its Agg canvas. matplotlib is imported here, not with this
     module: a run imports this module at its start but makes its plots at the end, in a forked
-    child (pipeline/run.py), so the import stays off the run's critical path."""
+    child (pipeline/fork.py), so the import stays off the run's critical path."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

@@ -14,7 +14,7 @@ import numpy as np
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.problem import DesignProblem, DesignResult, as_design_problem
 from flexopt.optimise.space import DesignSpace
-from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.errors import FlexoptError, StudyError
 from flexopt.pipeline.parallel import ParallelSettings
 from flexopt.pipeline.studies import get_kind, kinds
 from flexopt.pipeline.study import ParallelSpec, Study
@@ -30,7 +30,7 @@ __all__ = [
 ]
 
 
-class ExportError(RuntimeError):
+class ExportError(FlexoptError, RuntimeError):
     """A design could not be rebuilt or turned into a solid (the message says why)."""
 
 

@@ -1334,14 +1334,14 @@ def _robustness_section(
     """The response's band (min-max over the samples, shaded) around the nominal curve, and
     per requirement its nominal margin, share of samples MET and robust verdict."""
     import plotly.graph_objects as go
-    from flexopt.pipeline.robustness import _scatter_text
+    from flexopt.pipeline.robustness import scatter_text
 
     required = float(record.get("share_percent_required", 100.0))
     method = record.get("method")
     how = f"Monte Carlo, seed {record.get('seed')}" if method == "monte_carlo" else "corners"
     body = (
         f"<p>{_e(record.get('n_samples'))} samples ({_e(how)}, the nominal included) of "
-        f"{_e(_scatter_text(record))}; a requirement is MET robustly when at least "
+        f"{_e(scatter_text(record))}; a requirement is MET robustly when at least "
         f"{required:g} % of the samples meet it. Perturbed: "
         f"{_e('; '.join(record.get('perturbed') or ['nothing']))}.</p>"
     )

@@ -435,7 +435,7 @@ class RobustnessResult:
             x=self.x,
             y=self.y,
             title=title,
-            note=f"{self.n_samples} samples: {_scatter_text(self.record())}",
+            note=f"{self.n_samples} samples: {scatter_text(self.record())}",
             target=self.target,
             tolerance=self.tolerance,
         )
@@ -449,7 +449,7 @@ def robustness_lines(record: Mapping[str, Any] | None) -> list[str]:
     n = record.get("n_samples", 0)
     required = record.get("share_percent_required", 100.0)
     out = [
-        f"robustness ({record.get('method')}, {n} samples: {_scatter_text(record)}; MET "
+        f"robustness ({record.get('method')}, {n} samples: {scatter_text(record)}; MET "
         f"robustly at >= {required:g} % of samples):"
     ]
     reqs = record.get("requirements") or []
@@ -465,7 +465,7 @@ def robustness_lines(record: Mapping[str, Any] | None) -> list[str]:
     return out
 
 
-def _scatter_text(record: Mapping[str, Any]) -> str:
+def scatter_text(record: Mapping[str, Any]) -> str:
     scatter = record.get("scatter") or {}
     return ", ".join(
         text.format(scatter[key])
@@ -488,7 +488,7 @@ def robustness_markdown(record: Mapping[str, Any], plot_file: str | None = None)
         "## Robustness",
         "",
         f"{record.get('n_samples')} samples ({how}, the nominal design included) of "
-        f"{_scatter_text(record)}. A requirement is MET robustly when at least {required:g} % "
+        f"{scatter_text(record)}. A requirement is MET robustly when at least {required:g} % "
         "of the samples meet it.",
         "",
         "Perturbed: " + "; ".join(record.get("perturbed") or ["nothing"]) + ".",

@@ -38,18 +38,12 @@ log = logging.getLogger(__name__)
 
 
 def fork_context_here() -> Any:
-    """multiprocessing's fork context where forking is safe here, else None: not on macOS or
-    Windows (pipeline.run._fork_context's test), and only from a single-threaded process (a
-    lock another thread holds at the fork stays held for ever in the child)."""
-    import multiprocessing as mp
-    import sys
-    import threading
+    """multiprocessing's fork context where forking is safe here, else None: the one fork helper
+    (:func:`pipeline.fork.fork_context`) for a long child, from a single-threaded process only
+    (a lock another thread holds at the fork stays held for ever in the child)."""
+    from flexopt.pipeline.fork import fork_context
 
-    if sys.platform in ("darwin", "win32") or "fork" not in mp.get_all_start_methods():
-        return None
-    if threading.active_count() != 1:
-        return None
-    return mp.get_context("fork")
+    return fork_context(single_threaded=True)
 
 
 def one_blas_thread() -> Any:
@@ -224,14 +218,12 @@ def _start_as_worker() -> None:
     the parent decides, and ends this one), SIGTERM ending it at once (a forked child inherits
     the CLI's handler, but is ended by its parent and must then end as a process normally does).
     """
-    import signal
-
-    from flexopt.pipeline.parallel import _limit_loaded_pools, pin_threads
+    from flexopt.pipeline.fork import limit_loaded_pools, quiet_child
+    from flexopt.pipeline.parallel import pin_threads
 
     pin_threads()
-    _limit_loaded_pools()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    limit_loaded_pools()
+    quiet_child()
 
 
 def screening_child(screening: Screening, receive: Any, send: Any) -> None:
@@ -309,9 +301,9 @@ class SideProcess:
     @classmethod
     def start(cls) -> SideProcess:
         try:
-            from flexopt.pipeline.parallel import _context
+            from flexopt.pipeline.fork import pool_context
 
-            ctx = _context()
+            ctx = pool_context()
             conn, child_conn = ctx.Pipe()
             process = ctx.Process(target=side_main, args=(child_conn,), daemon=True,
                                   name="flexopt-report-side")  # fmt: skip

@@ -63,7 +63,7 @@ __all__ = [
 #: refused at the door rather than poisoning a solve.
 STUDY_CONFIG = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
 #: Plausibility limits of a material (unit slips, not physics): diamond has E = 1.05e6 MPa, the
@@ -266,7 +266,7 @@ class Study(BaseModel):
     @field_validator("name")
     @classmethod
     def _name_is_a_folder_name(cls, value: str) -> str:
-        if not _NAME_RE.fullmatch(value) or len(value) > 100:  # fullmatch: no final newline
+        if not NAME_RE.fullmatch(value) or len(value) > 100:  # fullmatch: no final newline
             head = value[:200]
             suggestion = re.sub(r"[^A-Za-z0-9_.-]+", "_", head).strip("_.-") or "my_study"
             raise ValueError(

@@ -51,7 +51,7 @@ def study_data(study: Study) -> dict[str, Any]:
     return study.model_dump(mode="json", exclude_none=True)
 
 
-def _plain(value: Any) -> Any:
+def plain(value: Any) -> Any:
     """A value given in Python as the plain data a study file would hold."""
     if isinstance(value, BaseModel):
         return value.model_dump(mode="json", exclude_none=True)
@@ -60,9 +60,9 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
+        return [plain(v) for v in value]
     return value
 
 
@@ -95,7 +95,7 @@ def replace_blocks(study: Study, changes: Mapping[str, Any], validate: Validator
         if value is None:
             data.pop(key, None)  # back to the kind's default (a required block is then missing)
         else:
-            data[key] = _plain(value)
+            data[key] = plain(value)
     _move_variables(study, old, data, [(key, (key,)) for key in changes])
     return validate(data)
 
@@ -225,7 +225,7 @@ def _set_path(
                 indices = (part,)
             for index in indices:
                 if last:
-                    holder[index] = _plain(value)  # type: ignore[index]
+                    holder[index] = plain(value)  # type: ignore[index]
                 else:
                     following.append((holder[index], (*done, index)))  # type: ignore[index]
         holders = following

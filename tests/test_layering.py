@@ -10,7 +10,9 @@ itself) is parsed with ``ast``; every import counts, also inside functions and u
 - no import cycle among flexopt modules (imports under ``TYPE_CHECKING`` never run and do not
   count here);
 - fea/'s pivoting banded LU and its sparsity-pattern builder are written once (fea/_banded.py,
-  fea/_sparse.py).
+  fea/_sparse.py);
+- no module uses a private (``_name``) name of another flexopt module (a private module is its
+  package's own), and every flexopt error class derives from ``FlexoptError``.
 """
 
 from __future__ import annotations
@@ -142,7 +144,7 @@ def test_the_scan_sees_the_layers():
     layers = {_layer(m) for m in MODULES}
     assert layers == set(LAYER_RANK), layers
     assert "flexopt.fea.beam" in MODULES
-    assert "flexopt.pipeline.study" in GRAPH["flexopt.pipeline.run"]
+    assert "flexopt.pipeline.study" in GRAPH["flexopt.pipeline.run.setup"]
     assert "flexopt.fea.beam" in GRAPH["flexopt.fea.mechanism"]
     # an import inside a function counts, at run time too
     assert "flexopt.pipeline.verdict" in RUNTIME_GRAPH["flexopt.pipeline.study"]
@@ -435,3 +437,169 @@ def test_every_kind_is_at_most_700_lines():
         f"at or under {MAX_KIND_LINES} lines now: remove from KIND_SIZE_OFFENDERS:\n"
         + "\n".join(done)
     )
+
+
+# -- no private names across modules (issue 24) ----------------------------------------------------
+
+#: (importing module, "module.name") pairs the rule below still lets through: private names of
+#: pipeline/studies/ that are left for the kinds' own refactor (the study kinds' imports, and the
+#: kinds' private module _targets read by two modules outside the package). Remove an entry when
+#: its import is gone; none may be added.
+PRIVATE_IMPORTS_ALLOWED: frozenset[tuple[str, str]] = frozenset(
+    {
+        (f"{STUDIES}.cam", f"{STUDIES}._cam._VARIABLES"),
+        # the kinds' shared block of target tables, read outside the package too: it needs a
+        # public home (e.g. pipeline/targets.py), which is an edit of pipeline/studies/
+        ("flexopt.pipeline.runfolder", f"{STUDIES}._targets"),
+        ("flexopt.pipeline.verdict", f"{STUDIES}._targets"),
+    }
+)
+
+
+def _is_private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def _private_uses(module: str, source: str | None = None) -> set[str]:
+    """The private names of other flexopt modules that ``module`` uses, as ``"module.name"``.
+
+    Counted: ``from flexopt.x import _name`` (also relative, inside functions, under
+    TYPE_CHECKING), ``import flexopt.x._y``, and ``alias._name`` where ``alias`` is a flexopt
+    module imported by name. A private *module* (``fea/_banded.py``) is private to its package:
+    any module of that package may import it. ``source`` stands in for the module's file.
+    """
+    if source is None:
+        source = MODULES[module].read_text(encoding="utf-8")
+    tree = ast.parse(source)
+    package = module if _is_package(module) else module.rpartition(".")[0]
+    found: set[str] = set()
+    aliases: dict[str, str] = {}  # local name -> the flexopt module it is bound to
+
+    def inside(owner: str) -> bool:  # module is owner's package or one of its modules
+        return module == owner or module.startswith(owner + ".")
+
+    def private_module_ok(path: str) -> bool:
+        """Every private part of a dotted module path is one ``module`` may reach."""
+        parts = path.split(".")
+        return all(
+            not _is_private(part) or inside(".".join(parts[:i]))
+            for i, part in enumerate(parts)
+            if i
+        )
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] != "flexopt":
+                    continue
+                if not private_module_ok(a.name):
+                    found.add(a.name)
+                if a.asname:
+                    aliases[a.asname] = a.name
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                if node.level > 1:
+                    base = base[: -(node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.split(".")[0] != "flexopt" or target == module:
+                continue
+            if not private_module_ok(target):
+                found.add(target)
+            for a in node.names:
+                full = f"{target}.{a.name}"
+                if full in MODULES:  # a module: private to its package
+                    if not private_module_ok(full):
+                        found.add(full)
+                    aliases[a.asname or a.name] = full
+                elif _is_private(a.name):
+                    found.add(full)
+    for node in ast.walk(tree):
+        if (
+            isinstance(node, ast.Attribute)
+            and _is_private(node.attr)
+            and isinstance(node.value, ast.Name)
+            and node.value.id in aliases
+            and aliases[node.value.id] != module
+        ):
+            full = f"{aliases[node.value.id]}.{node.attr}"
+            if full not in MODULES or not private_module_ok(full):
+                found.add(full)
+    return found
+
+
+def test_the_private_name_scan_sees_what_it_must():
+    # Guards the rule: a scan that finds nothing would make it vacuous.
+    source = (
+        "from flexopt.pipeline.run.folder import Columns, _csv\n"
+        "from flexopt.fea import _banded\n"
+        "import flexopt.fea._sparse\n"
+        "from flexopt.pipeline import parallel\n"
+        "def f():\n"
+        "    from .fork import _hidden\n"
+        "    return parallel._context()\n"
+    )
+    assert _private_uses("flexopt.pipeline.cli", source) == {
+        "flexopt.pipeline.run.folder._csv",
+        "flexopt.fea._banded",
+        "flexopt.fea._sparse",
+        "flexopt.pipeline.fork._hidden",
+        "flexopt.pipeline.parallel._context",
+    }
+    # a private module imported inside its package is the package's own (fea's kernels)
+    assert not _private_uses("flexopt.fea.beam", "from flexopt.fea import _banded\n")
+    assert not _private_uses("flexopt.fea.beam")
+
+
+def test_no_private_name_is_used_across_modules():
+    """A name starting with ``_`` is its module's own: another module that needs it gets a
+    public name in its home module (or the code moves). Tests are not scanned."""
+    used = {(module, name) for module in MODULES for name in _private_uses(module)}
+    stray = sorted(used - PRIVATE_IMPORTS_ALLOWED)
+    assert not stray, "private names used across modules:\n" + "\n".join(
+        f"{module} uses {name}" for module, name in stray
+    )
+    gone = sorted(PRIVATE_IMPORTS_ALLOWED - used)
+    assert not gone, "remove from PRIVATE_IMPORTS_ALLOWED, it is gone:\n" + "\n".join(
+        f"{module} uses {name}" for module, name in gone
+    )
+
+
+#: Exception classes that are not under FlexoptError, with why: Ctrl-C / SIGTERM is not an error,
+#: and a plugin's failure in pipeline/studies/__init__.py is left to the kinds' refactor.
+NOT_FLEXOPT_ERRORS = {
+    "flexopt.geometry.errors.FlexoptError": "the root itself",
+    "flexopt.pipeline.errors.Terminated": "a KeyboardInterrupt: a stop, not an error",
+    "flexopt.pipeline.studies._PluginFailed": "internal to the plugin loader; the kinds' refactor",
+}
+
+
+def test_every_flexopt_error_derives_from_flexopt_error():
+    """One root: a class of flexopt that derives from a built-in exception names FlexoptError
+    among its bases (or derives from a flexopt error, which does)."""
+    import builtins
+
+    bare, exempt = [], set()
+    for module in MODULES:
+        tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ClassDef):
+                continue
+            bases = {b.id for b in node.bases if isinstance(b, ast.Name)}
+            builtin = {
+                b
+                for b in bases
+                if isinstance(getattr(builtins, b, None), type)
+                and issubclass(getattr(builtins, b), BaseException)
+            }
+            if builtin and "FlexoptError" not in bases:
+                name = f"{module}.{node.name}"
+                if name in NOT_FLEXOPT_ERRORS:
+                    exempt.add(name)
+                else:
+                    bare.append(f"{name}({', '.join(sorted(builtin))})")
+    assert not bare, "errors not under FlexoptError (add it to their bases):\n" + "\n".join(bare)
+    gone = sorted(set(NOT_FLEXOPT_ERRORS) - exempt)
+    assert not gone, f"remove from NOT_FLEXOPT_ERRORS, gone or under FlexoptError now: {gone}"

@@ -47,6 +47,7 @@ _LAZY = {
     "BestDesign": "flexopt._result",
     "Study": "flexopt.pipeline.study",
     "StudyError": "flexopt.pipeline.errors",
+    "FlexoptError": "flexopt.pipeline.errors",
     "Verdict": "flexopt.optimise.requirements",
 }
 
@@ -65,6 +66,7 @@ __all__ = [
     "BestDesign",
     "Study",
     "StudyError",
+    "FlexoptError",
     "Verdict",
 ]
 
@@ -81,7 +83,7 @@ if TYPE_CHECKING:  # for editors and type checkers; at run time __getattr__ impo
     )
     from flexopt._result import BestDesign, Result, RunResult
     from flexopt.optimise.requirements import Verdict
-    from flexopt.pipeline.errors import StudyError
+    from flexopt.pipeline.errors import FlexoptError, StudyError
     from flexopt.pipeline.study import Study
 
 

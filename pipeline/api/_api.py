@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from flexopt.pipeline.errors import StudyError
 
-from ._result import BestDesign, Result, RunResult, _readonly, finite_or_nan
+from ._result import BestDesign, Result, RunResult, finite_or_nan, readonly_table
 
 if TYPE_CHECKING:
     from flexopt.optimise.requirements import Verdict
@@ -105,10 +105,10 @@ def _study_and_source(study: StudyLike, source: str | None = None) -> tuple[Stud
     if isinstance(study, studies.Study):
         return study, source or ""
     if isinstance(study, Mapping):
-        from flexopt.pipeline.study_edit import _plain
+        from flexopt.pipeline.study_edit import plain
 
         studies.check_data_limits(study, source or "")  # a YAML file's limits, before a copy
-        return studies.validate_study(_plain(study), source=source), source or ""
+        return studies.validate_study(plain(study), source=source), source or ""
     if isinstance(study, str | os.PathLike):
         path = studies.resolve_study_path(os.fspath(study))
         where = source or str(path)
@@ -200,7 +200,7 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         plot_args = response_plot_args(study, result)
     return Result(
         study=study,
-        table=_readonly(response_table(result)),
+        table=readonly_table(response_table(result)),
         summary=dict(result.summary),
         verdict=tuple(result.verdicts),
         converged=bool(result.converged),
@@ -208,7 +208,7 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         solve_time_s=float(statistics.median(result.solve_times_s)),
         run_dir=run_dir,
         plot_args=plot_args,
-        cases={name: _readonly(c.table) for name, c in result.cases.items()},
+        cases={name: readonly_table(c.table) for name, c in result.cases.items()},
     )
 
 
@@ -285,9 +285,9 @@ def run(
     }
     shown = None
     if progress:
-        from flexopt.pipeline.cli import _RunProgress
+        from flexopt.pipeline.progress import RunProgress
 
-        shown = _RunProgress(quiet=False)
+        shown = RunProgress(quiet=False)
         callbacks.update(
             on_start=shown.start, on_generation=shown.generation, on_result=shown.result
         )
@@ -439,7 +439,7 @@ def _evaluation_table(run_dir: Path, record: Mapping[str, Any]) -> dict[str, np.
     """evaluations.csv, checked as ``flexopt report`` checks it, as columns."""
     from types import SimpleNamespace
 
-    from flexopt.pipeline.run import _Columns, _evaluations_csv
+    from flexopt.pipeline.run.folder import Columns, evaluations_csv
 
     names = [record.get(key) for key in ("variables", "objectives", "constraints")]
     if any(n is None for n in names):
@@ -452,8 +452,8 @@ def _evaluation_table(run_dir: Path, record: Mapping[str, Any]) -> dict[str, np.
     problem = SimpleNamespace(
         space=SimpleNamespace(names=names[0]), objective_names=names[1], constraint_names=names[2]
     )
-    columns = _Columns.of(problem)  # type: ignore[arg-type]
-    rows = _evaluations_csv(run_dir, columns, _OPTION)
+    columns = Columns.of(problem)  # type: ignore[arg-type]
+    rows = evaluations_csv(run_dir, columns, _OPTION)
     if rows is None:
         raise StudyError(
             _OPTION,

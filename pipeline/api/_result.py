@@ -39,7 +39,7 @@ def _pandas() -> Any:
     return pandas
 
 
-def _readonly(table: Mapping[str, Any]) -> dict[str, np.ndarray]:
+def readonly_table(table: Mapping[str, Any]) -> dict[str, np.ndarray]:
     """Copies of the columns as read-only arrays: a frozen result stays as it was solved."""
     out = {}
     for name, column in table.items():

@@ -268,9 +268,9 @@ _rerun(test_beam_stability)
 
 def test_warm_up_compiles_the_kernel_the_models_use():
     # the process pool calls warm_up before it forks, so workers inherit the compiled code
-    from flexopt.fea.beam import BeamSettings, _resolve_kernel, warm_up
+    from flexopt.fea.beam import BeamSettings, resolve_kernel, warm_up
 
-    assert warm_up() == _resolve_kernel(BeamSettings().kernel)
+    assert warm_up() == resolve_kernel(BeamSettings().kernel)
 
 
 # -- the linear solve: banded Cholesky first, the pivoting LU when it fails ----------------------

@@ -273,7 +273,7 @@ def test_settings_default_follows_the_beam_switch():
 def test_warm_up_compiles_the_constrained_kernels():
     from flexopt.fea.constrained_beams import warm_up
 
-    assert warm_up() == cb._resolve("auto")
+    assert warm_up() == cb.resolve_constrained_kernel("auto")
 
 
 # -- the engine's own tests once more, on the reference path -------------------------------------

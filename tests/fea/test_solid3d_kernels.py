@@ -24,11 +24,11 @@ from flexopt.fea.solid3d import (
     _compiled,
     _gradients,
     _lame,
-    _p2_tables,
     _stiffness_parts,
     _von_mises,
     extrude_layers_mm,
     extrude_mesh,
+    p2_tables,
 )
 from shapely.geometry import LineString, Point, box
 
@@ -54,7 +54,7 @@ def test_p2_tables_are_scikit_fems(symmetric):
     from skfem import Basis, ElementTetP2
 
     tmesh = _tets(symmetric)
-    dofs, n, doflocs, G, dx, Gc, xyz = _p2_tables(tmesh, KERNELS)
+    dofs, n, doflocs, G, dx, Gc, xyz = p2_tables(tmesh, KERNELS)
     sb = Basis(tmesh, ElementTetP2(), intorder=2)
     cb = Basis(tmesh, sb.elem, quadrature=_CORNERS)
     assert n == sb.N
@@ -70,7 +70,7 @@ def test_block_pattern_and_parts_equal_the_numpy_assembly():
     """The node-block pattern exactly, the twelve parts of every block to round-off (the same
     products summed in another order)."""
     tmesh = _tets(False)
-    dofs, n, _, G, dx, _, _ = _p2_tables(tmesh, KERNELS)
+    dofs, n, _, G, dx, _, _ = p2_tables(tmesh, KERNELS)
     lam, mu = _lame(STEEL)
     indptr, indices, parts = KERNELS.block_pattern_parts(dofs, n, G, dx, lam, mu)
     ref_indptr, ref_indices, ref_parts = _stiffness_parts(G, dx, dofs, n, lam, mu, 500)
@@ -144,7 +144,7 @@ def test_reduced_lower_triangle_is_the_numpy_one_sorted_by_column():
 def test_von_mises_kernel_equals_numpy():
     """The stress of a random displacement at the quadrature points, with a z stretch."""
     tmesh = _tets(True)
-    dofs, n, _, G, _, _, _ = _p2_tables(tmesh, KERNELS)
+    dofs, n, _, G, _, _, _ = p2_tables(tmesh, KERNELS)
     u = np.random.default_rng(5).standard_normal(3 * n)
     lam, mu = _lame(STEEL)
     zs = 2.5
@@ -201,13 +201,13 @@ def test_every_solver_gives_cholmods_answer(solver):
 
 
 def test_qdldl_refuses_an_indefinite_stiffness():
-    """LDLᵀ without pivoting factorises an indefinite matrix too: _Solver reads D's signs and
+    """LDLᵀ without pivoting factorises an indefinite matrix too: SparseSolver reads D's signs and
     refuses it as CHOLMOD does, and solves a definite one."""
-    from flexopt.fea.solid3d import _Solver
+    from flexopt.fea.solid3d import SparseSolver
 
     A = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, -3.0, 1.0], [0.0, 1.0, 4.0]]))
     with pytest.raises(FeaError, match="not positive definite"):
-        _Solver(A, "qdldl")
+        SparseSolver(A, "qdldl")
     B = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 4.0]]))
-    x = _Solver(B, "qdldl").solve(np.array([1.0, 2.0, 3.0]))
+    x = SparseSolver(B, "qdldl").solve(np.array([1.0, 2.0, 3.0]))
     np.testing.assert_allclose(B @ x, [1.0, 2.0, 3.0], rtol=1e-13)

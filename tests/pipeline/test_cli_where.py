@@ -1,11 +1,11 @@
-"""cli._where: the "on processes (2 workers)" decoration of the progress header never raises."""
+"""progress._where: the "on processes (2 workers)" decoration never raises."""
 
 from __future__ import annotations
 
 import json
 
 import pytest
-from flexopt.pipeline.cli import _where
+from flexopt.pipeline.progress import _where
 
 
 @pytest.mark.parametrize(

@@ -183,7 +183,7 @@ def test_export_of_an_evaluate_folder(tmp_path, capsys):
 def test_step_without_the_extra_and_bad_formats_are_one_line_exit_2(tmp_path, capsys, monkeypatch):
     run_dir = _run(tmp_path)
     capsys.readouterr()
-    monkeypatch.setattr("flexopt.pipeline.run.step_available", lambda: False)
+    monkeypatch.setattr("flexopt.pipeline.run.export.step_available", lambda: False)
     assert main(["export", str(run_dir), "--format", "step"]) == 2
     assert capsys.readouterr().err == (
         "flexopt export: error: --format step needs the optional extra: "

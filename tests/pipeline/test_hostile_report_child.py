@@ -11,17 +11,18 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from flexopt.pipeline.run import _fork_context
+from flexopt.pipeline.fork import fork_context
 
 pytestmark = pytest.mark.skipif(
-    _fork_context() is None or not Path("/proc/self/stat").exists(),
+    fork_context() is None or not Path("/proc/self/stat").exists(),
     reason="no fork or no /proc on this platform",
 )
 
 PRELUDE = """
 import os, signal, sys, time
 from flexopt.pipeline import cli
-from flexopt.pipeline.run import _ForkedMakes, _EarlyStep
+from flexopt.pipeline.fork import ForkedMakes
+from flexopt.pipeline.run.step_child import EarlyStep
 cli._stop_on_sigterm()  # the CLI's handler, which a forked child inherits
 
 def slow():
@@ -44,7 +45,7 @@ def _child_run(body: str) -> subprocess.CompletedProcess:
 def test_sigterm_to_the_group_ends_the_report_child_quietly():
     done = _child_run(
         """
-        makes = _ForkedMakes([("a.png", slow)])
+        makes = ForkedMakes([("a.png", slow)])
         time.sleep(0.5)
         try:
             os.killpg(0, signal.SIGTERM)  # a scheduler's stop: parent and child at once
@@ -63,7 +64,7 @@ def test_a_parent_that_gives_up_leaves_a_quiet_child():
     # closed pipe and it ends without a word
     done = _child_run(
         """
-        makes = _ForkedMakes([("a.png", lambda: time.sleep(0.5) or b"x" * 10_000_000)])
+        makes = ForkedMakes([("a.png", lambda: time.sleep(0.5) or b"x" * 10_000_000)])
         makes.conn.close()
         makes.process.join(30)
         print("exit", makes.process.exitcode, file=sys.stderr)
@@ -75,7 +76,7 @@ def test_a_parent_that_gives_up_leaves_a_quiet_child():
 def test_the_early_step_child_ends_quietly_on_sigterm():
     done = _child_run(
         """
-        early = _EarlyStep.start()
+        early = EarlyStep.start()
         time.sleep(0.3)
         os.kill(early.process.pid, signal.SIGTERM)
         early.process.join(10)
@@ -90,7 +91,7 @@ def test_the_early_step_child_ends_when_its_parent_dies():
     # and exit, not wait for a part forever
     done = _child_run(
         """
-        early = _EarlyStep.start()
+        early = EarlyStep.start()
         pid = os.fork()
         if pid == 0:  # a watcher outside the parent: does the child end once the parent dies?
             early.conn.close()  # (the watcher's copy of the parent's end)

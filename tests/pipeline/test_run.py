@@ -517,16 +517,17 @@ def test_generation_files_are_written_off_the_main_thread_in_order(tmp_path, mon
     them are on disk, complete, before the run goes on to its report."""
     import threading
 
-    import flexopt.pipeline.run as run_mod
+    from flexopt.pipeline.run import folder, runner, state
 
     writes: list[tuple[str, str]] = []
-    real = run_mod.write_atomic
+    real = folder.write_atomic
 
     def recording(path, data):
         writes.append((threading.current_thread().name, Path(path).name))
         real(path, data)
 
-    monkeypatch.setattr(run_mod, "write_atomic", recording)
+    for run_mod in (folder, runner, state):
+        monkeypatch.setattr(run_mod, "write_atomic", recording)
     outcome = run_toy(tmp_path)
     per_generation = ["evaluations.csv", "history.csv", "checkpoint.json", "run.json"]
     threaded = [name for thread, name in writes if thread.startswith("flexopt-writes")]
@@ -544,9 +545,9 @@ def test_generation_files_are_written_off_the_main_thread_in_order(tmp_path, mon
 def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monkeypatch):
     """A write the writer thread could not make (a full disk) is not lost in the thread: the
     run stops with that error, and run.json says so."""
-    import flexopt.pipeline.run as run_mod
+    from flexopt.pipeline.run import folder, runner, state
 
-    real = run_mod.write_atomic
+    real = folder.write_atomic
     count = {"checkpoint": 0}
 
     def failing(path, data):
@@ -556,7 +557,8 @@ def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monke
                 raise OSError(28, "No space left on device")
         real(path, data)
 
-    monkeypatch.setattr(run_mod, "write_atomic", failing)
+    for run_mod in (folder, runner, state):
+        monkeypatch.setattr(run_mod, "write_atomic", failing)
     with pytest.raises(OSError, match="No space left"):
         run_toy(tmp_path)
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
@@ -565,55 +567,55 @@ def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monke
 
 
 def test_report_files_are_made_in_a_forked_child_and_its_failures_are_notes(monkeypatch):
-    """_ForkedMakes: the files come from another process, in order; a failing make is that
+    """ForkedMakes: the files come from another process, in order; a failing make is that
     file's note; a child that dies is a note for each of its files, not a crash of the run;
     without fork the files are made here."""
     import os
 
-    from flexopt.pipeline import run as run_mod
+    from flexopt.pipeline import fork as run_mod
 
-    if run_mod._fork_context() is None:
+    if run_mod.fork_context() is None:
         pytest.skip("no fork on this platform")
 
     def boom() -> bytes:
         raise ValueError("no such column")
 
     items = [("a.png", lambda: str(os.getpid()).encode()), ("b.png", boom), ("c.png", lambda: None)]
-    out = run_mod._ForkedMakes(items).results()
+    out = run_mod.ForkedMakes(items).results()
     assert [name for name, _, _ in out] == ["a.png", "b.png", "c.png"]
     assert out[0][1] != str(os.getpid()).encode() and out[0][2] is None  # another process
     assert out[1] == ("b.png", None, "ValueError: no such column")
     assert out[2] == ("c.png", None, None)
 
-    dead = run_mod._ForkedMakes([("d.png", lambda: os._exit(3)), ("e.png", lambda: b"x")])
+    dead = run_mod.ForkedMakes([("d.png", lambda: os._exit(3)), ("e.png", lambda: b"x")])
     assert [(n, d, e) for n, d, e in dead.results()] == [
         ("d.png", None, "the process making it died (exit code 3)"),
         ("e.png", None, "the process making it died (exit code 3)"),
     ]
 
-    monkeypatch.setattr(run_mod, "_fork_context", lambda: None)
-    here = run_mod._ForkedMakes([("a.png", lambda: str(os.getpid()).encode())]).results()
+    monkeypatch.setattr(run_mod, "fork_context", lambda: None)
+    here = run_mod.ForkedMakes([("a.png", lambda: str(os.getpid()).encode())]).results()
     assert here == [("a.png", str(os.getpid()).encode(), None)]
 
 
 def test_best_step_child_is_forked_early_and_makes_the_part_it_is_sent(monkeypatch):
-    """_EarlyStep: forked before the part is known, it makes best.step in another process once
+    """EarlyStep: forked before the part is known, it makes best.step in another process once
     sent the part; without a part it ends when closed; a child that dies is a note."""
     import os
     import sys
     import time
     import types
 
-    from flexopt.pipeline import run as run_mod
+    from flexopt.pipeline.run import step_child as run_mod
 
-    if run_mod._fork_context() is None:
+    if run_mod.fork_context() is None:
         pytest.skip("no fork on this platform")
     # the child's import of the STEP writer is instant here, and its "STEP" says who made it
     monkeypatch.setitem(sys.modules, "build123d", types.ModuleType("build123d"))
     monkeypatch.setattr(
         run_mod, "part_bytes", lambda part, fmt: f"{fmt} {part} {os.getpid()}".encode()
     )
-    early = run_mod._EarlyStep.start()
+    early = run_mod.EarlyStep.start()
     assert early is not None and early.send("plate")
     ((name, data, error),) = early.results()
     early.close()
@@ -622,12 +624,12 @@ def test_best_step_child_is_forked_early_and_makes_the_part_it_is_sent(monkeypat
     assert (fmt, part) == ("step", "plate") and int(pid) != os.getpid()
     assert not early.process.is_alive()
 
-    idle = run_mod._EarlyStep.start()  # no part (a kind without an outline): closed, it ends
+    idle = run_mod.EarlyStep.start()  # no part (a kind without an outline): closed, it ends
     idle.close()
     assert not idle.process.is_alive() and idle.process.exitcode == 0
 
     monkeypatch.setattr(run_mod, "part_bytes", lambda part, fmt: os._exit(3))
-    dead = run_mod._EarlyStep.start()
+    dead = run_mod.EarlyStep.start()
     assert dead.send("plate")
     assert dead.results() == [("best.step", None, "the process making it died (exit code 3)")]
     dead.close()
@@ -637,7 +639,7 @@ def test_best_step_child_is_forked_early_and_makes_the_part_it_is_sent(monkeypat
     monkeypatch.setattr(
         run_mod, "part_bytes", lambda part, fmt: str(os.getpriority(os.PRIO_PROCESS, 0)).encode()
     )
-    low = run_mod._EarlyStep.start(nice=run_mod.EARLY_STEP_NICE)
+    low = run_mod.EarlyStep.start(nice=run_mod.EARLY_STEP_NICE)
     assert low.process.is_alive()
     lowered = min(19, os.getpriority(os.PRIO_PROCESS, 0) + run_mod.EARLY_STEP_NICE)
     deadline = time.monotonic() + 30.0  # it lowers its priority first thing
@@ -659,7 +661,7 @@ def test_waiting_for_an_idle_core_ends_on_work_or_at_its_limit(monkeypatch):
     import time
     import types
 
-    from flexopt.pipeline.run import _wait_for_idle_core
+    from flexopt.pipeline.run.step_child import _wait_for_idle_core
 
     clock = [0.0]
     fake_time = types.SimpleNamespace(monotonic=lambda: clock[0])
@@ -695,7 +697,7 @@ def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():
 
     from flexopt.optimise.problem import DesignProblem
     from flexopt.pipeline.parallel import ParallelSettings
-    from flexopt.pipeline.run import _preload_report
+    from flexopt.pipeline.run.runner import _preload_report
 
     seen: list[str] = []
 
@@ -718,25 +720,25 @@ def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():
 
 
 def test_the_early_step_child_is_lowered_only_where_it_can_come_back(monkeypatch):
-    """_can_restore_priority: root may; an ordinary user with RLIMIT_NICE 0 may not (the child
+    """can_restore_priority: root may; an ordinary user with RLIMIT_NICE 0 may not (the child
     would stay SCHED_IDLE and starve while the report runs), so the run starts it at the report
     instead; a limit that reaches the run's nice value may."""
     import os
     import resource
 
-    from flexopt.pipeline import run as run_mod
+    from flexopt.pipeline.run import step_child as run_mod
 
     monkeypatch.setattr(os, "geteuid", lambda: 0)
-    assert run_mod._can_restore_priority()
+    assert run_mod.can_restore_priority()
     monkeypatch.setattr(os, "geteuid", lambda: 1000)
     monkeypatch.setattr(os, "getpriority", lambda *a: 0)
     monkeypatch.setattr(resource, "getrlimit", lambda what: (0, 0))
-    assert not run_mod._can_restore_priority()
+    assert not run_mod.can_restore_priority()
     monkeypatch.setattr(resource, "getrlimit", lambda what: (20, 20))  # down to nice 0
-    assert run_mod._can_restore_priority()
+    assert run_mod.can_restore_priority()
     monkeypatch.setattr(os, "getpriority", lambda *a: -5)  # a run at nice -5 needs 25
-    assert not run_mod._can_restore_priority()
+    assert not run_mod.can_restore_priority()
     monkeypatch.setattr(
         resource, "getrlimit", lambda what: (resource.RLIM_INFINITY, resource.RLIM_INFINITY)
     )
-    assert run_mod._can_restore_priority()
+    assert run_mod.can_restore_priority()

@@ -55,7 +55,8 @@ def two_case_printed(tmp_path_factory: pytest.TempPathFactory) -> tuple[flexopt.
     with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stdout(printed):
         # no best.step: its child imports OpenCascade at idle priority (a minute on a busy
         # machine); the STEP file is not what these tests are about
-        patch.setattr("flexopt.pipeline.run.step_available", lambda: False)
+        for where in ("runner", "state"):  # the early child, the one at the report
+            patch.setattr(f"flexopt.pipeline.run.{where}.step_available", lambda: False)
         command = ["run", str(path), "--quick", "--workers", "1", "--seed", "1", "--quiet"]
         assert main([*command, "--out", str(base / "run")]) == 0
     return flexopt.open_run(base / "run"), printed.getvalue()

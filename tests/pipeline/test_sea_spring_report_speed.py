@@ -74,7 +74,7 @@ def test_second_process_work_equals_this_process_work(monkeypatch):
     import multiprocessing
     import os
 
-    import flexopt.pipeline.parallel as parallel
+    import flexopt.pipeline.fork as fork
 
     def fake_convergence(prob, params, sign):
         peaks = [100.0 * sign + params.thickness_mm, 200.0 + prob.theta]
@@ -83,7 +83,7 @@ def test_second_process_work_equals_this_process_work(monkeypatch):
                 "corner": None, "time_s": float(os.getpid())}  # fmt: skip
 
     # fork (the CLI's choice on Linux) carries the stand-in into the side process
-    monkeypatch.setattr(parallel, "_context", lambda: multiprocessing.get_context("fork"))
+    monkeypatch.setattr(fork, "pool_context", lambda: multiprocessing.get_context("fork"))
     monkeypatch.setattr(ss, "_peak_convergence", fake_convergence)
     # one 3D check (correct: false): its ratio is all the peak needs
     study = {**STUDY, "solid_3d": {"converge_peak": True, "correct": False, "layers": 1}}
@@ -108,12 +108,12 @@ def test_second_process_work_equals_this_process_work(monkeypatch):
 
 def test_without_a_second_process_the_work_is_done_here(monkeypatch):
     """No process can be started (a daemonic worker): solid_3d computes it in this one."""
-    import flexopt.pipeline.parallel as parallel
+    import flexopt.pipeline.fork as fork
 
     def refuse():
         raise AssertionError("daemonic processes are not allowed to have children")
 
-    monkeypatch.setattr(parallel, "_context", refuse)
+    monkeypatch.setattr(fork, "pool_context", refuse)
     monkeypatch.setattr(ss, "_peak_convergence", lambda prob, params, sign: {
         "converged": False, "status": "not converged", "last_two_MPa": [1.0, 2.0],
         "peaks_MPa": [1.0, 2.0], "local_edge_mm": [1.0, 0.5], "peak_xy_mm": [0.0, 0.0],
@@ -144,10 +144,10 @@ def test_side_process_death_and_errors_come_back(monkeypatch):
     FeaError of a task comes back raised, a plain value comes back as it is."""
     import multiprocessing
 
-    import flexopt.pipeline.parallel as parallel
+    import flexopt.pipeline.fork as fork
     from flexopt.fea.errors import FeaError
 
-    monkeypatch.setattr(parallel, "_context", lambda: multiprocessing.get_context("fork"))
+    monkeypatch.setattr(fork, "pool_context", lambda: multiprocessing.get_context("fork"))
     side = SideProcess.start()
     side.submit("sum", sum, [1.0, 2.5])
     side.submit("fea", _fail_fea)

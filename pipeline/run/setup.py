@@ -1,0 +1,109 @@
+"""Setting a run up: everything that can refuse the inputs, before any file is written."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.ga import GAConfig
+from flexopt.optimise.problem import DesignProblem
+from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.problems import build_base_problem
+from flexopt.pipeline.study import OptimiserSpec, Study
+
+# --------------------------------------------------------------------------------------------
+# Setting a run up (everything that can refuse the inputs, before any file is written)
+
+
+@dataclass(frozen=True)
+class RunSetup:
+    """A validated run, ready to go.
+
+    Attributes
+    ----------
+    study : the study as it will run (``optimiser.seed`` replaced by ``--seed``).
+    problem : the kind's design problem, built once.
+    config : GA settings (``--quick`` applied).
+    quick : whether ``--quick`` was given.
+    initial : (k, n_var) designs seeded into the first population, from the problem's optional
+        ``initial_designs()`` (e.g. a published optimum), or None.
+    """
+
+    study: Study
+    problem: DesignProblem
+    config: GAConfig
+    quick: bool
+    initial: np.ndarray | None = None
+
+
+def build_problem(study: Study) -> DesignProblem:
+    """The kind's design problem for ``study``, as ``flexopt run`` optimises it: the kind's own
+    problem with the study's ``role: constraint`` requirements as g rows
+    (:func:`pipeline.problems.build_base_problem`), scored by its worst scatter sample when
+    ``robustness.objective`` is ``worst``.
+
+    Raises
+    ------
+    StudyError
+        When the kind cannot be optimised, or refuses the study while building the problem.
+    """
+    from flexopt.pipeline.robustness import with_worst_case
+
+    return with_worst_case(study, build_base_problem(study))
+
+
+def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> RunSetup:
+    """Check the optimiser settings and build the design problem once.
+
+    Parameters
+    ----------
+    study : Study
+        A validated study whose kind has a ``problem``.
+    quick : bool
+        Use ``optimiser.quick_pop_size`` and ``optimiser.quick_n_gen``.
+    seed : int, optional
+        Replaces ``optimiser.seed`` (also in the resolved study.yaml).
+
+    Raises
+    ------
+    StudyError
+        Naming the key path, for anything that would stop the run before it starts.
+    """
+    spec = getattr(study, "optimiser", None)
+    if spec is None:
+        spec = OptimiserSpec()
+    if seed is not None:
+        spec = spec.model_copy(update={"seed": int(seed)})
+        if hasattr(study, "optimiser"):
+            study = study.model_copy(update={"optimiser": spec})
+    problem = build_problem(study)
+    n_obj = len(problem.objective_names)
+    if spec.algorithm == "ga" and n_obj != 1:
+        raise StudyError(
+            "optimiser.algorithm",
+            f"'ga' optimises one objective but kind '{study.kind}' has {n_obj} "
+            f"({', '.join(problem.objective_names)}); set algorithm: nsga2",
+        )
+    pop_size, n_gen = (
+        (spec.quick_pop_size, spec.quick_n_gen) if quick else (spec.pop_size, spec.n_gen)
+    )
+    try:
+        config = GAConfig(spec.algorithm, pop_size, n_gen, spec.seed)
+    except OptimiseError as exc:
+        raise StudyError("optimiser", str(exc)) from None
+    return RunSetup(study, problem, config, quick, initial_designs(problem))
+
+
+def initial_designs(problem: DesignProblem) -> np.ndarray | None:
+    """The designs a problem asks to seed the first population with (its
+    :meth:`~optimise.problem.DesignProblem.initial_designs`), as (k, n_var), or None."""
+    initial = problem.initial_designs()
+    if initial is None:
+        return None
+    initial = np.atleast_2d(np.asarray(initial, dtype=float))
+    if initial.ndim != 2 or initial.shape[1] != problem.space.n_var or not len(initial):
+        raise TypeError(
+            f"initial_designs() returned shape {initial.shape}; expected (k, {problem.space.n_var})"
+        )
+    return initial
