@@ -447,12 +447,7 @@ def _solid(mesh, mech, ground, bodies, drive, driven, drive_at, rigid_all, depth
         K = model.stiffness_matrix(float(depth))
         u = _solve(K, T, ubar)
         k_3d = 2.0 * float(presc @ (K @ u))  # the half model carries half the force
-        zs = float(depth) / ref
-        stretch = np.array([1.0, 1.0, zs])
-        peaks = s3.peak_stresses(u, model._dofs, model._G, model._xyz_qp * stretch[:, None, None],
-                                 model._Gc, model._t, model._p * stretch[:, None], model._mask,
-                                 model._lam, model._mu, z_scale=zs,
-                                 kernels=model._kernels)  # fmt: skip
+        peaks = model.peak_stresses(u, float(depth))
         out.append({
             "depth_mm": float(depth),
             "stiffness": k_3d,
