@@ -41,7 +41,15 @@ from flexopt.optimise.requirements import MaxValue, Requirement, Verdict
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, Study, material_record
-from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationInfo,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 __all__ = [
     "BeamBoundary",
@@ -294,6 +302,15 @@ class PolylineBeamStudy(Study):
         description="rigid stops the beam meets: {outlines: [{name, points_mm, closed}], "
         "penalty_factor} (or the list of outlines)",
     )
+
+    @model_serializer(mode="wrap")
+    def _no_stops_key_without_stops(self, handler: SerializerFunctionWrapHandler) -> dict:
+        # a study without stops dumps as it did before the block existed (evaluation.json and
+        # the run folders of every stop-free study stay byte-for-byte the same)
+        out = handler(self)
+        if isinstance(out, dict) and out.get("stops", 0) is None:
+            del out["stops"]
+        return out
 
 
 # --------------------------------------------------------------------------------------------
