@@ -58,6 +58,7 @@ __all__ = [
     "ContactSettings",
     "ContactResponse",
     "BeamContact",
+    "overlaps",
     "solve_with_stops",
 ]
 
@@ -513,6 +514,14 @@ class BeamContact:
         )
 
 
+def overlaps(contact: BeamContact) -> list[tuple[int, float]]:
+    """The stops of ``contact`` that overlap its undeformed beam deeper than the penetration
+    tolerance, as ``(index of the stop, overlap depth in mm > 0)``; empty when all are clear
+    (touching is clear)."""
+    _, gap0, _, _ = contact.state(contact.model.reference_nodes_mm)
+    return [(i, float(-g)) for i, g in enumerate(gap0) if g < -contact.tolerance_mm]
+
+
 def solve_with_stops(
     model: BeamModel,
     drive: EndDrive,
@@ -537,13 +546,11 @@ def solve_with_stops(
     # the undeformed beam must be clear of the stops (touching is fine): the first row is not
     # solved, and a stop across the beam has no side to push it to
     first = BeamContact(model, stops, settings)
-    _, gap0, _, _ = first.state(model.reference_nodes_mm)
-    for name, g in zip(first.names, gap0, strict=True):
-        if g < -first.tolerance_mm:
-            raise FeaError(
-                f"stop {name!r} overlaps the undeformed beam by {-g:.4g} mm; move it clear "
-                f"(the gap is measured from the beam's surface, t/2 from the centreline)"
-            )
+    for i, depth in overlaps(first):
+        raise FeaError(
+            f"stop {first.names[i]!r} overlaps the undeformed beam by {depth:.4g} mm; move it "
+            f"clear (the gap is measured from the beam's surface, t/2 from the centreline)"
+        )
     for raises in range(int(settings.max_raises) + 1):
         contact = first if raises == 0 else BeamContact(model, stops, settings)
         beam = model.solve(drive, contact=contact)

@@ -1057,3 +1057,57 @@ def plot_sea_bode(bodes: list[Any], required_bandwidth_Hz: float) -> bytes:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     return _png(fig)
+
+
+# rigid stops (polyline_beam with a stops: block)
+
+__all__ += ["stops_shapes_png"]
+
+
+def stops_shapes_png(
+    shapes_mm: np.ndarray,
+    stops: Any,
+    displacement_mm: np.ndarray,
+    in_contact: np.ndarray,
+    max_shapes: int = 6,
+) -> bytes:
+    """A beam's deformed centrelines and the rigid stops it meets, PNG.
+
+    Parameters
+    ----------
+    shapes_mm : (n_rows, n_nodes, 2) float, mm — converged rows, undeformed first.
+    stops : sequence of (name, outline (m, 2) mm, closed) — a point, a polyline or a polygon.
+    displacement_mm : (n_rows,) float, mm — the end displacement of each row (the legend).
+    in_contact : (n_rows,) bool — some stop touches the beam in that row (drawn solid; clear
+        rows dashed).
+    """
+    import matplotlib
+
+    shapes = np.asarray(shapes_mm, dtype=float)
+    fig = _new_figure(figsize=(6.4, 5.0), layout="constrained")
+    ax = fig.subplots()
+    for name, outline, closed in stops:
+        p = np.asarray(outline, dtype=float).reshape(-1, 2)
+        if p.shape[0] == 1:
+            ax.plot(p[:, 0], p[:, 1], "k^", ms=7, label=f"stop {name}")
+        elif closed:
+            ax.fill(p[:, 0], p[:, 1], color="0.6", alpha=0.7, label=f"stop {name}")
+        else:
+            ax.plot(p[:, 0], p[:, 1], "-", color="0.3", lw=3, label=f"stop {name}")
+    n = len(shapes)
+    rows = np.unique(np.linspace(0, n - 1, min(max_shapes, n)).round().astype(int)) if n else []
+    colours = matplotlib.colormaps["viridis"](np.linspace(0, 0.9, max(len(rows), 1)))
+    for colour, row in zip(colours, rows, strict=False):
+        touching = bool(np.asarray(in_contact)[row])
+        ax.plot(
+            shapes[row, :, 0], shapes[row, :, 1], "-" if touching else "--", color=colour,
+            lw=1.5, label=f"end displacement = {float(displacement_mm[row]):.3g} mm"
+            + (" (in contact)" if touching else ""),
+        )  # fmt: skip
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title("deformed shapes and rigid stops")
+    return _png(fig)

@@ -8,6 +8,12 @@ YAML (units in the key names; see docs/usage.md)::
       start: clamped                     # or pinned
       end: {control: displacement, direction: [0, 1], max_mm: 20, steps: 20,
             rotation: free, transverse: free}
+    stops:                               # optional rigid stops (docs/contact.md)
+      penalty_factor: 1000               # optional
+      outlines:
+        - {name: anvil, points_mm: [[29, -3], [31, -3], [30, -1.25]], closed: true}
+
+``stops:`` may also be the plain list of outlines (the default penalty then).
 """
 
 from __future__ import annotations
@@ -15,28 +21,46 @@ from __future__ import annotations
 import math
 import re
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Annotated, Literal
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
-from flexopt.fea.beam_response import response_table, stability_summary, summarise
+from flexopt.fea.beam_response import (
+    contact_summary,
+    response_table,
+    stability_summary,
+    summarise,
+)
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
+from flexopt.fea.stops import BeamContact, ContactSettings, RigidStop, overlaps, solve_with_stops
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.profile import BeamProfile, first_crossing
+from flexopt.optimise.requirements import MaxValue, Requirement, Verdict
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, Study, material_record
-from pydantic import BaseModel, Field, ValidationInfo, field_validator
+from pydantic import (
+    BaseModel,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationInfo,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 __all__ = [
     "BeamBoundary",
     "EndSpec",
     "PolylineBeamGeometry",
     "PolylineBeamStudy",
+    "StopOutline",
+    "StopsSpec",
     "build_drive",
     "build_profile",
+    "build_stops",
     "response_table",
     "stability_summary",
     "summarise",
@@ -183,6 +207,89 @@ class BeamBoundary(BaseModel):
     end: EndSpec = Field(description="how the last point is driven")
 
 
+_STOP_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,39}")
+
+
+class StopOutline(BaseModel):
+    """One rigid stop of the ``stops:`` block: an outline in the beam's plane (mm)."""
+
+    model_config = STUDY_CONFIG
+
+    name: str = Field(
+        description="label of the stop; names its columns (<name>_contact_force_N ...)"
+    )
+    points_mm: tuple[tuple[float, float], ...] = Field(
+        min_length=1,
+        description="[x, y] points: one (a pin), an open polyline (a wall) or a polygon, mm",
+    )
+    closed: bool = Field(False, description="the points bound a rigid body (polygon, >= 3 points)")
+
+    @field_validator("name")
+    @classmethod
+    def _name_is_a_column_prefix(cls, value: str) -> str:
+        if not _STOP_NAME.fullmatch(value):
+            raise ValueError(
+                f"'{value}' is not a stop name: a letter, then letters, digits or _ "
+                "(at most 40; it starts the stop's column names)"
+            )
+        return value
+
+    @field_validator("points_mm")
+    @classmethod
+    def _no_repeated_point(
+        cls, points: tuple[tuple[float, float], ...]
+    ) -> tuple[tuple[float, float], ...]:
+        for i in range(len(points) - 1):
+            if math.dist(points[i], points[i + 1]) <= 1e-9:
+                raise ValueError(
+                    f"points [{i}] and [{i + 1}] coincide at {list(points[i])}; remove one"
+                )
+        return points
+
+    @model_validator(mode="after")
+    def _polygon_has_an_area(self) -> StopOutline:
+        if self.closed and len(self.points_mm) < 3:
+            raise ValueError(
+                f"closed: true needs at least 3 points_mm (a polygon), got "
+                f"{len(self.points_mm)}; add points or set closed: false"
+            )
+        return self
+
+
+class StopsSpec(BaseModel):
+    """The ``stops:`` block: rigid stops the beam meets (frictionless penalty contact, see
+    docs/contact.md). A plain list is read as ``outlines``."""
+
+    model_config = STUDY_CONFIG
+
+    outlines: tuple[StopOutline, ...] = Field(
+        min_length=1, max_length=50, description="the stops: a list of {name, points_mm, closed}"
+    )
+    penalty_factor: float = Field(
+        ContactSettings().penalty_factor,
+        gt=0,
+        description="penalty stiffness k = penalty_factor x EI / h^3 per element",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _a_list_is_the_outlines(cls, value: object) -> object:
+        return {"outlines": value} if isinstance(value, list | tuple) else value
+
+    @field_validator("outlines")
+    @classmethod
+    def _unique_names(cls, outlines: tuple[StopOutline, ...]) -> tuple[StopOutline, ...]:
+        seen: dict[str, int] = {}
+        for i, stop in enumerate(outlines):
+            if stop.name in seen:
+                raise ValueError(
+                    f"[{i}].name '{stop.name}' is already the name of [{seen[stop.name]}]; "
+                    "give every stop its own name"
+                )
+            seen[stop.name] = i
+        return outlines
+
+
 class PolylineBeamStudy(Study):
     """A whole ``polyline_beam`` study file."""
 
@@ -190,6 +297,20 @@ class PolylineBeamStudy(Study):
         description="kind: polyline_beam, points_mm, thickness_mm, width_mm"
     )
     boundary: BeamBoundary = Field(description="start support and end drive: {start, end}")
+    stops: StopsSpec | None = Field(
+        None,
+        description="rigid stops the beam meets: {outlines: [{name, points_mm, closed}], "
+        "penalty_factor} (or the list of outlines)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _no_stops_key_without_stops(self, handler: SerializerFunctionWrapHandler) -> dict:
+        # a study without stops dumps as it did before the block existed (evaluation.json and
+        # the run folders of every stop-free study stay byte-for-byte the same)
+        out = handler(self)
+        if isinstance(out, dict) and out.get("stops", 0) is None:
+            del out["stops"]
+        return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -287,11 +408,51 @@ def build_settings(geometry: PolylineBeamGeometry) -> BeamSettings:
     return BeamSettings(n_elements=geometry.elements)
 
 
+def build_stops(study: PolylineBeamStudy) -> tuple[tuple[RigidStop, ...], ContactSettings]:
+    """The solver's rigid stops and contact settings of a validated ``stops:`` block (no stops:
+    an empty tuple and the default settings)."""
+    spec = study.stops
+    if spec is None:
+        return (), ContactSettings()
+    stops = tuple(
+        RigidStop(np.array(o.points_mm, dtype=float), o.closed, o.name) for o in spec.outlines
+    )
+    return stops, ContactSettings(penalty_factor=spec.penalty_factor)
+
+
+def check_stops_clear(study: PolylineBeamStudy, model: BeamModel) -> None:
+    """Refuse a stop that overlaps the undeformed beam (fea.stops.overlaps).
+
+    Raises
+    ------
+    StudyError
+        At ``stops.outlines[i]``, with the overlap depth (mm).
+    """
+    stops, contact_settings = build_stops(study)
+    if not stops:
+        return
+    contact = BeamContact(model, stops, contact_settings)
+    for i, depth in overlaps(contact):
+        raise StudyError(
+            f"stops.outlines[{i}]",
+            f"stop '{stops[i].name}' overlaps the undeformed beam by {depth:.4g} mm (the beam's "
+            f"surface is t/2 from its centreline); move the stop clear of the beam",
+        )
+
+
 def check(study: PolylineBeamStudy) -> None:
     """Build geometry, material and drive once so every refusal is reported before a solve."""
-    build_profile(study.geometry)
-    build_material(study)
+    profile = build_profile(study.geometry)
+    material = build_material(study)
     build_drive(study.boundary.end)
+    if study.stops is not None:
+        try:
+            model = BeamModel(
+                profile, material, study.boundary.start, build_settings(study.geometry)
+            )
+        except FeaError as exc:
+            raise StudyError(fea_error_path(str(exc)), str(exc)) from exc
+        check_stops_clear(study, model)
 
 
 # --------------------------------------------------------------------------------------------
@@ -313,12 +474,18 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
     material = build_material(study)
     drive = build_drive(study.boundary.end)
     settings = build_settings(study.geometry)
+    stops, contact_settings = build_stops(study)
     times = []
     response: BeamResponse | None = None
     for _ in range(max(1, repeat)):
         start = time.perf_counter()
         try:
-            response = BeamModel(profile, material, study.boundary.start, settings).solve(drive)
+            model = BeamModel(profile, material, study.boundary.start, settings)
+            if stops:
+                check_stops_clear(study, model)
+                response = solve_with_stops(model, drive, stops, contact_settings)
+            else:
+                response = model.solve(drive)
         except FeaError as exc:
             raise StudyError(fea_error_path(str(exc)), str(exc)) from exc
         times.append(time.perf_counter() - start)
@@ -327,6 +494,12 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
     converged = bool(response.ok)
     message = response.message or ("" if converged else "not every step converged")
     summary = summarise(table, material, profile)
+    files: dict[str, bytes] = {}
+    if stops:
+        summary.update(contact_summary(response, drive.control))
+        if summary["contact_message"]:
+            message = "; ".join(m for m in (message, summary["contact_message"]) if m)
+        files["contact_shapes.png"] = stops_png(response, stops)
     # A path that passed a bifurcation (a strut pushed past its Euler load stays straight in the
     # solver) is never reported as a plain result: the summary says stable = False and the message
     # names the step. ``converged`` keeps meaning that every row is an equilibrium.
@@ -375,8 +548,92 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
             "stress_yield_ratio",
             "mass_g",
             "stable",
+            *(_CONTACT_HEADLINE[drive.control] if stops else ()),
         ),
+        files=files,
     )
+
+
+_CONTACT_HEADLINE = {
+    control: (f"first_contact_{unit}", "max_contact_force_N", "max_penetration_mm")
+    for control, unit in (("displacement", "displacement_mm"), ("force", "force_N"))
+}
+
+
+def stops_png(response: BeamResponse, stops: tuple[RigidStop, ...]) -> bytes:
+    """The deformed centrelines with the stops (pipeline.plots.stops_shapes_png), PNG."""
+    from flexopt.pipeline import plots  # matplotlib only when there is a figure to draw
+
+    ok = np.asarray(response.converged, dtype=bool)
+    return plots.stops_shapes_png(
+        np.asarray(response.shapes_mm, dtype=float)[ok],
+        [(st.name, st.outline_mm, st.closed) for st in stops],
+        np.asarray(response.displacement_mm, dtype=float)[ok],
+        np.asarray(response.contact.rows_in_contact, dtype=bool)[ok],
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Requirements and quantities with stops
+
+
+class PenetrationWithin(MaxValue):
+    """``max_penetration_mm <= tolerance``: the penalty held the beam out of the stops to within
+    fea's tolerance (ContactSettings.penetration_tol x the thinnest section). Not met when even
+    the raised penalty (solve_with_stops raises it 10x at most max_raises times) left a deeper
+    penetration; the detail says with which penalty factor."""
+
+    def check(self, metrics, curves=None) -> Verdict:  # type: ignore[no-untyped-def]
+        verdict = super().check(metrics, curves)
+        if verdict.met or not math.isfinite(verdict.value):
+            return verdict
+        factor = metrics.get("contact_penalty_factor")
+        raises = metrics.get("contact_penalty_raises")
+        detail = (
+            f"the penalty could not hold the beam out of the stops: penetration "
+            f"{verdict.value:.4g} mm > {self.maximum:.4g} mm with penalty_factor {factor:g} "
+            f"(raised {raises} time(s)); raise stops.penalty_factor or refine geometry.elements"
+            if isinstance(factor, int | float)
+            else "the penalty could not hold the beam out of the stops"
+        )
+        return replace(verdict, detail=detail)
+
+
+def penetration_tolerance_mm(study: PolylineBeamStudy) -> float:
+    """fea's penetration tolerance for the study's beam, mm: ContactSettings.penetration_tol x
+    the thinnest section (the thickness is linear between the points)."""
+    return ContactSettings().penetration_tol * float(min(study.geometry.thickness_mm))
+
+
+def requirements(study: PolylineBeamStudy) -> list[Requirement]:
+    """The built-in requirements; with stops also "contact penetration within tolerance"."""
+    reqs = list(_builtin.polyline_beam(study))
+    if study.stops is not None:
+        reqs.append(
+            PenetrationWithin(
+                "max_penetration_mm",
+                "contact penetration within tolerance",
+                "check",
+                penetration_tolerance_mm(study),
+            )
+        )
+    return reqs
+
+
+def quantities(study: PolylineBeamStudy) -> tuple[str, ...]:
+    """The names a requirement may judge; with stops, each stop's columns and figures too."""
+    names = list(_builtin.POLYLINE_BEAM)
+    if study.stops is None:
+        return tuple(names)
+    unit = "displacement_mm" if study.boundary.end.control == "displacement" else "force_N"
+    names += [f"first_contact_{unit}", "max_contact_force_N", "max_penetration_mm", "contact_rows"]
+    for stop in study.stops.outlines:
+        n = stop.name
+        names += [
+            f"{n}_contact_force_N", f"{n}_gap_mm", f"{n}_in_contact",
+            f"{n}_first_contact_{unit}", f"{n}_max_contact_force_N", f"{n}_min_gap_mm",
+        ]  # fmt: skip
+    return tuple(names)
 
 
 register(
@@ -385,7 +642,7 @@ register(
         PolylineBeamStudy,
         check,
         evaluate,
-        requirements=_builtin.polyline_beam,
-        quantities=_builtin.POLYLINE_BEAM,
+        requirements=requirements,
+        quantities=quantities,
     )
 )  # type: ignore[arg-type]
