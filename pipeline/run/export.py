@@ -398,8 +398,10 @@ def _export_vtu(
         raise ExportError(f"kind '{kind}' gives no beam shapes and no stress field to write as VTU")
     write_atomic(target, data)
     log.info("wrote %s (vtu)", target)
-    zero = (0.0, 0.0, 0.0)
-    return ExportOutcome(target, design, x, detail.evaluation, 0.0, 0, zero, VTU_FORMAT, frame="design")
+    zero = (0.0, 0.0, 0.0)  # no part: no volume, size or triangles
+    return ExportOutcome(
+        target, design, x, detail.evaluation, 0.0, 0, zero, VTU_FORMAT, frame="design"
+    )
 
 
 # --------------------------------------------------------------------------------------------
