@@ -246,7 +246,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     export = commands.add_parser(
         "export",
-        help="write one design of a run or evaluate folder as STL, DXF, STEP or a study (YAML)",
+        help="write one design of a run or evaluate folder as STL, DXF, STEP, VTU or a study "
+        "(YAML)",
         description=(
             "Rebuild a design of a run (from its study.yaml), or the design of a flexopt "
             "evaluate folder, and write its part in mm: binary STL (to print; laid flat and "
@@ -254,7 +255,9 @@ def build_parser() -> argparse.ArgumentParser:
             "STEP (needs pip install 'flexopt[step]'), these two in the design frame (where the "
             "kind draws the part: a spring's axis at the origin); --frame chooses. A sheet part "
             "(the leaf-spring joint's leaf) is laid flat as its flat profile, and its DXF is "
-            "that profile. --format yaml writes the design as a study instead (the run's study "
+            "that profile. --format vtu writes the design's beam shapes per load step and its "
+            "stress field for ParaView (in the design frame). --format yaml writes the design "
+            "as a study instead (the run's study "
             "with the design's values set), which flexopt evaluate solves to the numbers of "
             "best.json."
         ),
@@ -273,7 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     export.add_argument(
         "--format",
-        choices=("stl", "dxf", "step", "yaml"),
+        choices=("stl", "dxf", "step", "vtu", "yaml"),
         default=None,
         help="file format (default: what --out ends in, else stl)",
     )
@@ -291,7 +294,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("design", "bed"),
         default=None,
         help="design (the kind's coordinates) or bed (laid flat, first quadrant); default: "
-        "bed for stl, design for dxf and step",
+        "bed for stl, design for dxf, step and vtu (only design)",
     )
     export.set_defaults(handler=_export)
     _add_study_tools(commands)
@@ -670,6 +673,19 @@ def _export(args: argparse.Namespace) -> int:
     )
     if outcome is None:
         return code
+    if outcome.format == "vtu":  # no part: the mesh and results for ParaView
+        print(f"wrote {outcome.path} (design {outcome.design}, VTU: shapes and stress field)")
+    else:
+        _print_part(outcome)
+    # (an evaluate folder's design is judged by its own verdict, not by the run's constraints)
+    if not outcome.evaluation.feasible and outcome.design != "evaluated":
+        reason = f": {outcome.evaluation.reason}" if outcome.evaluation.reason else ""
+        print(f"{prog}: warning: this design is not feasible{reason}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _print_part(outcome: Any) -> None:
+    """The line of an exported part (STL, DXF, STEP): its size, frame and volume."""
     w, h = outcome.footprint_mm
     laid = "flat profile of the sheet" if outcome.sheet else "laid flat"
     if outcome.frame == "design":
@@ -682,11 +698,6 @@ def _export(args: argparse.Namespace) -> int:
         f"{w:.4g} x {h:.4g} mm, {outcome.thickness_mm:.4g} mm thick, {laid}; {triangles}"
         f"volume {outcome.volume_mm3:.6g} mm^3)"
     )
-    # (an evaluate folder's design is judged by its own verdict, not by the run's constraints)
-    if not outcome.evaluation.feasible and outcome.design != "evaluated":
-        reason = f": {outcome.evaluation.reason}" if outcome.evaluation.reason else ""
-        print(f"{prog}: warning: this design is not feasible{reason}", file=sys.stderr)
-    return EXIT_OK
 
 
 def _list(args: argparse.Namespace) -> int:

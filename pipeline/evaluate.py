@@ -100,6 +100,24 @@ def _extra_files(result: DesignResult) -> dict[str, bytes]:
     return files
 
 
+#: The VTU of an evaluate folder (the name ``flexopt export --format vtu`` gives it there too).
+DESIGN_VTU = "design.vtu"
+
+
+def _design_vtu(result: DesignResult) -> bytes | None:
+    """design.vtu of an evaluation that has beam shapes or a stress field (None without them,
+    or, with a warning, when it cannot be made: the evaluation's other files still stand)."""
+    from flexopt.pipeline.vtu import has_mesh, vtu_bytes
+
+    if not has_mesh(result):
+        return None
+    try:
+        return vtu_bytes(result)
+    except Exception as exc:
+        log.warning("%s not written: %s: %s", DESIGN_VTU, type(exc).__name__, exc)
+        return None
+
+
 def solve_study(study: Study, repeat: int = 1, source: str = "") -> DesignResult:
     """Solve the design ``study`` describes ``repeat`` times
     (:func:`pipeline.problems.study_result`) and judge the last solve.
@@ -253,6 +271,9 @@ def evaluate_study(
         png = robust.png(f"{study.name}: robustness")
         if png is not None:
             extra["robustness.png"] = png
+    vtu = _design_vtu(result)
+    if vtu is not None:
+        extra[DESIGN_VTU] = vtu
     for name, data in extra.items():
         write_atomic(run_dir / name, data)
     record["files"] = [*EVALUATE_FILES, *extra]

@@ -1,4 +1,5 @@
-"""``flexopt export``: one design of a run or evaluate folder as STL, DXF, STEP or a study."""
+"""``flexopt export``: one design of a run or evaluate folder as STL, DXF, STEP, VTU or a
+study."""
 
 from __future__ import annotations
 
@@ -39,12 +40,16 @@ log = logging.getLogger(__name__)
 # flexopt export
 
 
-#: What ``flexopt export --format`` writes: binary STL (to print), DXF (the outline, to cut) and
-#: STEP (a solid for CAD; needs the optional extra ``flexopt[step]``).
+#: The parts ``flexopt export --format`` writes: binary STL (to print), DXF (the outline, to
+#: cut) and STEP (a solid for CAD; needs the optional extra ``flexopt[step]``).
 EXPORT_FORMATS = ("stl", "dxf", "step")
+#: ``flexopt export --format vtu``: not a part but the design's mesh and results for ParaView
+#: (the beam's deformed shapes, the stress field; :mod:`pipeline.vtu`), always in the design
+#: frame; kept out of :data:`EXPORT_FORMATS`, whose formats have a frame and a part.
+VTU_FORMAT = "vtu"
 
 #: File name endings taken as a format when ``--format`` is not given.
-_SUFFIX_FORMATS = {".stl": "stl", ".dxf": "dxf", ".step": "step", ".stp": "step"}
+_SUFFIX_FORMATS = {".stl": "stl", ".dxf": "dxf", ".step": "step", ".stp": "step", ".vtu": "vtu"}
 
 STEP_EXTRA_FIX = "--format step needs the optional extra: pip install 'flexopt[step]'"
 #: The frame each format is written in unless ``--frame`` says otherwise (docs/usage.md): STL is
@@ -73,7 +78,8 @@ class ExportOutcome:
     evaluation : the design re-evaluated by ``problem.detail``.
     volume_mm3 : mm^3 (area x thickness), triangles : count (STL only, else 0),
     size_mm : size (x, y, z) of the part as written (in its frame), mm.
-    format : ``stl``, ``dxf`` or ``step``.
+    format : ``stl``, ``dxf``, ``step`` or ``vtu`` (a VTU has no part: volume, size, footprint
+        and thickness are 0, frame ``design``).
     footprint_mm : (x, y) mm, the size in its frame; thickness_mm : mm along z.
     rotation_deg : deg the kind's outline was turned to align it; sheet : laid flat from a sheet
         standing on its edge (its flat profile).
@@ -228,8 +234,9 @@ def _export_format(fmt: str | None, out: Path | None) -> str:
     implied = _SUFFIX_FORMATS.get(out.suffix.lower()) if out is not None else None
     if fmt is None:
         return implied or "stl"
-    if fmt not in EXPORT_FORMATS:
-        raise StudyError("--format", f"got {echo(fmt)}; use one of {', '.join(EXPORT_FORMATS)}")
+    if fmt not in (*EXPORT_FORMATS, VTU_FORMAT):
+        known = ", ".join((*EXPORT_FORMATS, VTU_FORMAT))
+        raise StudyError("--format", f"got {echo(fmt)}; use one of {known}")
     if implied is not None and implied != fmt:
         raise StudyError(
             "--out",
@@ -257,7 +264,9 @@ def export_design(
     fmt: str | None = None,
     frame: str | None = None,
 ) -> ExportOutcome:
-    """Rebuild one design of a run or evaluate folder and write its part: STL, DXF or STEP.
+    """Rebuild one design of a run or evaluate folder and write its part: STL, DXF or STEP; or
+    its mesh and results for ParaView: VTU (:func:`pipeline.vtu.vtu_bytes`, in the design
+    frame; ``frame`` does not apply).
 
     The part is the kind's outline extruded by its height, in the ``design`` frame (where the
     kind draws it) or laid flat on the ``bed`` (turned so its minimum-area rectangle is aligned
@@ -277,7 +286,7 @@ def export_design(
         The file; default ``run_dir/best.<fmt>``, ``run_dir/design-<INDEX>.<fmt>`` or, in an
         evaluate folder, ``run_dir/design.<fmt>``.
     fmt : str, optional
-        ``stl``, ``dxf`` or ``step``; default the one ``out`` ends in, else ``stl``.
+        ``stl``, ``dxf``, ``step`` or ``vtu``; default the one ``out`` ends in, else ``stl``.
     frame : str, optional
         ``design`` or ``bed``; default the format's (:data:`DEFAULT_FRAMES`: STL on the bed,
         DXF and STEP in the design frame).
@@ -290,11 +299,14 @@ def export_design(
         optional extra (bad arguments). Export takes no lock: it reads files that are replaced
         atomically, also while a run writes the folder.
     ExportError
-        When the design cannot be rebuilt or has no outline to make a part of.
+        When the design cannot be rebuilt or has no outline to make a part of (for ``vtu``: no
+        beam shapes and no stress field).
     OSError
         When the file cannot be written.
     """
     fmt = _export_format(fmt, out)
+    if fmt == VTU_FORMAT and frame == "bed":
+        raise StudyError("--frame", "a VTU is written in the design frame only; drop --frame")
     if frame is not None and frame not in DEFAULT_FRAMES.values():
         raise StudyError("--frame", f"got {echo(frame)}; use design or bed")
     if fmt == "step" and not step_available():
@@ -331,6 +343,8 @@ def export_design(
         raise ExportError(
             f"design {design} could not be rebuilt: {_one_line(f'{type(exc).__name__}: {exc}')}"
         ) from exc
+    if fmt == VTU_FORMAT:
+        return _export_vtu(target, design, x, detail, study.kind)
     if detail.outline is None or not detail.height_mm:
         raise ExportError(f"kind '{study.kind}' gives no outline and height_mm to extrude")
     from flexopt.geometry.solid import StepUnavailable
@@ -366,6 +380,27 @@ def export_design(
         part.rotation_deg,
         part.sheet,
         part.frame,
+    )
+
+
+def _export_vtu(
+    target: Path, design: str, x: np.ndarray, detail: DesignDetail, kind: str
+) -> ExportOutcome:
+    """Write the VTU of a rebuilt design (:func:`export_design` with ``fmt='vtu'``)."""
+    from flexopt.pipeline.vtu import vtu_bytes
+
+    try:
+        data = vtu_bytes(detail)
+    except Exception as exc:
+        why = _one_line(f"{type(exc).__name__}: {exc}")
+        raise ExportError(f"design {design} cannot be written as VTU: {why}") from exc
+    if data is None:
+        raise ExportError(f"kind '{kind}' gives no beam shapes and no stress field to write as VTU")
+    write_atomic(target, data)
+    log.info("wrote %s (vtu)", target)
+    zero = (0.0, 0.0, 0.0)  # no part: no volume, size or triangles
+    return ExportOutcome(
+        target, design, x, detail.evaluation, 0.0, 0, zero, VTU_FORMAT, frame="design"
     )
 
 

@@ -46,6 +46,7 @@ RUN_FILES = (
     "best.stl",
     "best.dxf",
     "best.step",
+    "best.vtu",
     "report.md",
     "report.html",
 )

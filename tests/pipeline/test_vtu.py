@@ -1,0 +1,238 @@
+"""best.vtu of a run, design.vtu of an evaluate folder and ``flexopt export --format vtu``
+(:mod:`pipeline.vtu`, issue #26 item 5): read back by meshio.
+
+A toy kind with analytic beam shapes and a two-triangle stress field checks the file exactly
+and fast; the sea-spring-quick evaluate folder (0.7 s, its export rebuilds the design with its
+plane-stress field) checks a real field against the peak stress the evaluation reports.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Literal
+
+import meshio
+import numpy as np
+import pytest
+from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
+from flexopt.pipeline.cli import main
+from flexopt.pipeline.run import prepare_run, run_study
+from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
+from flexopt.pipeline.vtu import (
+    DISPLACEMENT,
+    GAP_BEAM_STRESS,
+    GAP_FIELD_DISPLACEMENT,
+    MODEL,
+    MODELS,
+    UNITS,
+    VON_MISES,
+    step_name,
+    vtu_bytes,
+)
+from pydantic import BaseModel
+from shapely.geometry import box
+
+KIND = "toy_vtu_part"
+N_ROWS, N_NODES = 4, 6
+
+
+class VtuGeometry(BaseModel):
+    model_config = STUDY_CONFIG
+
+    kind: Literal["toy_vtu_part"]
+    a_mm: float = 20.0  # the design (flexopt evaluate's nominal design)
+    shapes: bool = True  # the detail has beam shapes
+    field: bool = True  # ... and a plane-stress field
+
+
+class VtuStudy(Study):
+    geometry: VtuGeometry
+    optimiser: OptimiserSpec = OptimiserSpec()
+
+
+def toy_shapes(a: float) -> np.ndarray:
+    """(N_ROWS, N_NODES, 2) mm: a straight beam of length a whose tip rises by the drive."""
+    drive = np.linspace(0.0, 3.0, N_ROWS)
+    x = np.linspace(0.0, a, N_NODES)
+    return np.stack([np.column_stack([x + 0.1 * d * x / a, d * (x / a) ** 2]) for d in drive])
+
+
+def toy_field(a: float) -> dict:
+    """A square of side a in two triangles, von Mises 0, a, 2a, 3a (MPa) at its corners."""
+    points = np.array([[0.0, 0.0], [a, 0.0], [a, a], [0.0, a]])
+    return {
+        "points_mm": points,
+        "triangles": np.array([[0, 1, 2], [0, 2, 3]]),
+        "values": np.array([0.0, a, 2 * a, 3 * a]),
+        "label": "von Mises stress (MPa)",
+        "limit": 100.0,
+    }
+
+
+class VtuProblem:
+    objective_names = ("error_mm",)
+    constraint_names = ()
+
+    def __init__(self, study: VtuStudy) -> None:
+        self.geometry = study.geometry
+        self.space = DesignSpace(("a_mm",), np.array([10.0]), np.array([40.0]))
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        return Evaluation(np.array(x), np.array([(x[0] - 30.0) ** 2]), np.zeros(0))
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        a = float(x[0])
+        drive = np.linspace(0.0, 3.0, N_ROWS)
+        table = {"displacement_mm": drive, "force_N": 2 * drive, "peak_stress_MPa": a * drive}
+        return DesignDetail(
+            self.evaluate(x),
+            table=table,
+            plot={"x": "displacement_mm", "y": "force_N"},
+            shapes_mm=toy_shapes(a) if self.geometry.shapes else None,
+            field_map=toy_field(a) if self.geometry.field else None,
+            outline=box(0.0, 0.0, a, 5.0),
+            height_mm=3.0,
+            info={"field_peak_MPa": 3 * a},
+        )
+
+
+register(StudyKind(KIND, VtuStudy, lambda s: None, None, VtuProblem))  # type: ignore[arg-type]
+
+
+def _study(**geometry: object) -> VtuStudy:
+    data = {
+        "name": "vtu",
+        "geometry": {"kind": KIND, **geometry},
+        "material": "PLA",
+        "optimiser": {"pop_size": 4, "n_gen": 2, "seed": 1},
+    }
+    return validate_study(data)  # type: ignore[return-value]
+
+
+@pytest.fixture
+def no_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No best.step in the runs here: its child imports OpenCascade (slow on a busy machine),
+    and the STEP file is not what these tests are about."""
+    for where in ("runner", "state"):  # the early child, the one at the report
+        monkeypatch.setattr(f"flexopt.pipeline.run.{where}.step_available", lambda: False)
+
+
+def _read(path: Path) -> meshio.Mesh:
+    return meshio.read(path, file_format="vtu")
+
+
+def test_vtu_of_beam_shapes_and_a_field_reads_back(tmp_path: Path) -> None:
+    a = 20.0
+    detail = VtuProblem(_study()).detail(np.array([a]))
+    data = vtu_bytes(detail)
+    assert data is not None and data.startswith(b"<?xml") and b"<FieldData>" in data
+    (tmp_path / "d.vtu").write_bytes(data)
+    mesh = _read(tmp_path / "d.vtu")
+    lines, tri = mesh.cells_dict["line"], mesh.cells_dict["triangle"]
+    shapes = toy_shapes(a)
+    # the beam: its rest centreline as lines, a displacement per step, the last one plain
+    np.testing.assert_array_equal(mesh.points[:N_NODES, :2], shapes[0])
+    assert lines.tolist() == [[i, i + 1] for i in range(N_NODES - 1)]
+    beam = slice(0, N_NODES)
+    for k, d in enumerate(np.linspace(0.0, 3.0, N_ROWS)):
+        name = step_name(k, "displacement_mm", d)
+        got = mesh.points[beam, :2] + mesh.point_data[name][beam, :2]
+        np.testing.assert_allclose(got, shapes[k], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(
+        mesh.point_data[DISPLACEMENT][beam],
+        mesh.point_data[step_name(3, "displacement_mm", 3.0)][beam],
+    )
+    assert np.all(mesh.point_data[DISPLACEMENT][beam, 2] == 0)
+    assert np.all(np.isnan(mesh.point_data[VON_MISES][beam]))  # no per-node beam stress
+    # the plane stress: its triangles and von Mises; no displacement there
+    np.testing.assert_array_equal(tri - N_NODES, toy_field(a)["triangles"])
+    np.testing.assert_array_equal(mesh.points[N_NODES:, :2], toy_field(a)["points_mm"])
+    np.testing.assert_array_equal(mesh.point_data[VON_MISES][N_NODES:], [0, a, 2 * a, 3 * a])
+    assert np.all(np.isnan(mesh.point_data[DISPLACEMENT][N_NODES:]))
+    model = mesh.cell_data_dict[MODEL]
+    assert set(model["line"]) == {MODELS["beam"]} and set(model["triangle"]) == {1}
+    # the units, the per-step table and the gaps are in the field data
+    fields = mesh.field_data
+    for name in (UNITS, GAP_BEAM_STRESS, GAP_FIELD_DISPLACEMENT):
+        assert name in fields
+    np.testing.assert_array_equal(
+        fields["per load step: peak_stress_MPa"], a * np.linspace(0, 3, 4)
+    )
+    peak = [
+        v for k, v in fields.items() if k.startswith(f"plane stress {VON_MISES}") and "peak" in k
+    ]
+    assert peak and peak[0][0] == 3 * a
+
+
+def test_nothing_to_write_is_none() -> None:
+    detail = VtuProblem(_study(shapes=False, field=False)).detail(np.array([20.0]))
+    assert vtu_bytes(detail) is None
+
+
+@pytest.mark.usefixtures("no_step")
+def test_best_vtu_of_a_run_and_its_export(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    run_dir = run_study(prepare_run(_study()), out=tmp_path / "run").run_dir
+    best = json.loads((run_dir / "best.json").read_text())
+    a = best["parameters"]["a_mm"]
+    assert "best.vtu" in json.loads((run_dir / "run.json").read_text())["files"]
+    mesh = _read(run_dir / "best.vtu")
+    # the mesh of the part, the peak stress of best.json, the last step's shape
+    np.testing.assert_array_equal(mesh.cells_dict["triangle"] - N_NODES, toy_field(a)["triangles"])
+    assert np.nanmax(mesh.point_data[VON_MISES]) == best["info"]["field_peak_MPa"]
+    last = mesh.points[:N_NODES, :2] + mesh.point_data[DISPLACEMENT][:N_NODES, :2]
+    np.testing.assert_allclose(last, toy_shapes(a)[-1], rtol=0, atol=1e-12)
+
+    out = tmp_path / "again.vtu"
+    assert main(["export", str(run_dir), "--format", "vtu", "--out", str(out)]) == 0
+    assert "VTU" in capsys.readouterr().out
+    again = _read(out)
+    np.testing.assert_array_equal(again.points, mesh.points)
+    assert sorted(again.point_data) == sorted(mesh.point_data)
+    # the format from the name; a design index; --frame bed refused
+    assert main(["export", str(run_dir), "--design", "1", "--out", str(tmp_path / "d.vtu")]) == 0
+    assert (tmp_path / "d.vtu").is_file()
+    assert main(["export", str(run_dir), "--format", "vtu", "--frame", "bed"]) == 2
+    assert "design frame only" in capsys.readouterr().err
+
+
+@pytest.mark.usefixtures("no_step")
+def test_a_kind_without_shapes_gets_no_vtu(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    run = run_study(prepare_run(_study(shapes=False, field=False)), out=tmp_path / "run")
+    assert not (run.run_dir / "best.vtu").exists()
+    record = json.loads((run.run_dir / "run.json").read_text())
+    assert "best.vtu" not in record["files"] and not any("vtu" in n for n in record["notes"])
+    assert main(["export", str(run.run_dir), "--format", "vtu"]) == 1
+    assert "no beam shapes and no stress field" in capsys.readouterr().err
+    assert not (run.run_dir / "best.vtu").exists()
+
+
+def test_evaluate_folder_has_design_vtu(tmp_path: Path) -> None:
+    path = tmp_path / "vtu.yaml"
+    path.write_text(
+        f"name: vtu\ngeometry: {{kind: {KIND}, field: false}}\nmaterial: PLA\n", encoding="utf-8"
+    )
+    assert main(["evaluate", str(path), "--out", str(tmp_path / "ev")]) == 0
+    record = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
+    assert "design.vtu" in record["files"]
+    mesh = _read(tmp_path / "ev" / "design.vtu")
+    assert "triangle" not in mesh.cells_dict and GAP_FIELD_DISPLACEMENT not in mesh.field_data
+    assert len(mesh.cells_dict["line"]) == N_NODES - 1
+    last = mesh.points[:, :2] + mesh.point_data[DISPLACEMENT][:, :2]
+    np.testing.assert_allclose(last, toy_shapes(20.0)[-1], rtol=0, atol=1e-12)
+
+
+def test_sea_spring_quick_field_has_the_peak_stress_of_the_evaluation(tmp_path: Path) -> None:
+    """A real plane-stress field: the evaluate folder has no design.vtu (the kind's evaluation
+    carries no field), its export rebuilds the design with it. The kind rounds the nodal von
+    Mises values to 0.01 MPa (fea/spring_analysis.stress_map_data), hence the tolerance."""
+    ev = tmp_path / "ev"
+    assert main(["evaluate", "sea-spring-quick", "--out", str(ev)]) == 0
+    assert not (ev / "design.vtu").exists()
+    assert main(["export", str(ev), "--format", "vtu"]) == 0
+    mesh = _read(ev / "design.vtu")
+    summary = json.loads((ev / "evaluation.json").read_text())["summary"]
+    assert len(mesh.cells_dict["triangle"]) > 1000 and "line" not in mesh.cells_dict
+    assert np.max(mesh.point_data[VON_MISES]) == pytest.approx(summary["peak_stress_MPa"], abs=0.01)
+    assert GAP_FIELD_DISPLACEMENT not in mesh.field_data  # no beam: nothing else to say
