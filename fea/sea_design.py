@@ -3,11 +3,13 @@
 Moved here from ``pipeline/studies/sea_spring.py`` unchanged in its numbers:
 
 - :func:`solve_for_stiffness` — the plate thickness ST at which the spring meets a stiffness
-  target, from one plane-stress solve at a reference thickness (torque is proportional to ST).
+  target, from one plane-stress solve at a reference thickness (torque is proportional to ST);
+  :func:`solve_spring` a design built, solved and so rescaled.
 - :func:`taguchi_seed` — the screening stage's closed-form spring as a full design vector.
 - :func:`correct_3d` — the 3D check of a design, its thickness correction loop and the
   converged peak stress (issue 15; docs/solid3d.md), with :func:`peak_convergence` and
-  :func:`fine_geometry` (the outline the converged peak is meshed on and the part exported).
+  :func:`fine_geometry` (the outline the converged peak is meshed on and the part exported);
+  :func:`detail_solves` the report's two extra 2D solves of a design.
 - :class:`SpringTopology` — the two topologies (the paper's serpentine, the spiral arms)
   behind one interface: variables, bounds, parameters, building, margins, screening factors;
   :func:`screen_spring` one linear screening run.
@@ -60,12 +62,14 @@ __all__ = [
     "SpringTopology",
     "build_any",
     "correct_3d",
+    "detail_solves",
     "fine_geometry",
     "peak_convergence",
     "published_comparison",
     "screen_spring",
     "spring_margins",
     "solve_for_stiffness",
+    "solve_spring",
     "taguchi_seed",
     "worse_direction",
 ]
@@ -225,6 +229,53 @@ def solve_for_stiffness(
     return scale, thickness_mm * scale
 
 
+def solve_spring(
+    params_at: Callable[[float | None], SpringParams | ArmSpringParams],
+    frame: SpringFrame,
+    material: Material,
+    theta_rad: float,
+    mesh: MeshSize,
+    steps: int,
+    keep_model: bool,
+    both_directions: bool,
+    gaps: bool,
+    target_Nm_per_rad: float | None,
+    held_st_mm: float | None = None,
+) -> tuple[SpringParams | ArmSpringParams, SpringGeometry, SpringResponse, float]:
+    """Build and analyse a design: the hub turned to ``theta_rad`` in ``steps`` (both ways
+    with ``both_directions``; ``gaps``: measure the loaded slots), the model kept with
+    ``keep_model`` (a stress map reads it).
+
+    ``params_at(st_mm)`` gives the design's parameters at a plate thickness (None: its own,
+    or the reference thickness when ST is solved). With ``target_Nm_per_rad`` (N m/rad) ST is
+    solved: the analysis is made at the reference thickness and ST is the thickness at which
+    the (mean) secant stiffness is the target, or ``held_st_mm`` when given
+    (:func:`solve_for_stiffness`); the response is rescaled to it (torques scale with ST,
+    displacements and stresses do not).
+
+    Returns
+    -------
+    (params, geometry, response, ST mm). Raises GeometryError, FeaError.
+    """
+    p = params_at(None)
+    geom = build_any(p, frame)
+    r = analyse_spring(geom, material, theta_rad, mesh, steps, True, keep_model,
+                       both_directions=both_directions, gaps=gaps)  # fmt: skip
+    if target_Nm_per_rad is None or not r.ok:
+        return p, geom, r, p.thickness_mm
+    scale, st = solve_for_stiffness(
+        p.thickness_mm, r.mean_stiffness_Nm_per_rad, target_Nm_per_rad, held_st_mm
+    )
+    p = params_at(st)
+    # ST is the extrusion: the outline, regions and checks do not depend on it, so the
+    # built geometry only takes the new parameters (a second build cost ~25 ms a design).
+    geom = replace(geom, params=p)
+    r = r.scaled(scale)
+    if r.model is not None:
+        r.model.thickness_mm = st  # only the stress map reads it; stresses do not change
+    return p, geom, r, st
+
+
 def taguchi_seed(
     chosen: dict[str, float], frame: SpringFrame, n_arcs: int = 5, topology: str = "serpentine"
 ) -> np.ndarray:
@@ -298,6 +349,16 @@ def peak_convergence(
         stress_ignore=smooth.hub_region.union(smooth.pad_region).buffer(0.05),
         kinematics="nonlinear",
     )  # fmt: skip
+
+
+def detail_solves(
+    geom: SpringGeometry, material: Material, theta_rad: float, mesh: MeshSize, resolve: bool
+) -> tuple[SpringResponse | None, SpringResponse]:
+    """A report's two extra 2D solves of a built design: at ``theta_rad`` again when
+    ``resolve`` (the design re-solved at its solved ST: it shows that torque is proportional
+    to ST), and at 1 degree (the linear-vs-nonlinear row). Raises FeaError."""
+    check = analyse_spring(geom, material, theta_rad, mesh) if resolve else None
+    return check, analyse_spring(geom, material, math.radians(1.0), mesh)
 
 
 def correct_3d(
@@ -390,7 +451,7 @@ def correct_3d(
     except FeaError as exc:
         return {"problem": f"3D check not made: {exc}"}
     finally:
-        model = None  # its factor holds ~2 GB
+        model = None  # its factor holds 1.04 GB (docs/solid3d.md, "Memory")
     checks = []
     for c in corr["checks"]:
         row = {"ST_mm": c["thickness_mm"], "stiffness_ratio_3d_2d": c["stiffness_ratio_3d_2d"]}

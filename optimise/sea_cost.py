@@ -9,6 +9,9 @@ Moved here from ``pipeline/studies/sea_spring.py`` unchanged in its numbers:
 - :func:`spring_scores` — the optimiser's objectives, constraints (``g <= 0``) and metrics of
   one solved design.
 - :func:`solid_3d_scalars` — the 3D check's scalars the verdict judges.
+- :func:`evaluation_summary` — the scalars ``flexopt evaluate`` records of one solved design;
+  :func:`detail_values` the figures a report shows of it (stiffness per volume, mass, the
+  linear-vs-nonlinear comparison, paper 004's Table 1 beside it).
 
 Units: N m, N m/rad, MPa, mm, g, degrees as named.
 """
@@ -20,10 +23,14 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from flexopt.fea.sea_design import published_comparison
 from flexopt.fea.spring_analysis import SpringResponse
+from flexopt.geometry.sea_spring import SpringGeometry
 
 __all__ = [
     "EQ27",
+    "detail_values",
+    "evaluation_summary",
     "levels_to_values",
     "screening_plan",
     "solid_3d_scalars",
@@ -303,3 +310,104 @@ def solid_3d_scalars(s3: dict[str, Any]) -> dict[str, Any]:
     if "converged" in conv:
         out["peak_stress_converged"] = conv["converged"]
     return out
+
+
+def evaluation_summary(
+    r: SpringResponse,
+    *,
+    st_mm: float,
+    mass_g: float,
+    outer_diameter_mm: float,
+    thinnest_mm: float,
+    target_Nm_per_rad: float,
+    yield_MPa: float,
+    allowable_MPa: float,
+) -> dict[str, Any]:
+    """The scalars ``flexopt evaluate`` records of one solved spring (units in the names).
+
+    Parameters
+    ----------
+    r : the response at the plate thickness ``st_mm`` (mm); ``mass_g`` its mass, g;
+        ``outer_diameter_mm`` its built outline's, mm.
+    thinnest_mm : the thinnest member, mm (the printed size is it or the plate, the smaller).
+    target_Nm_per_rad : the stiffness target; ``yield_MPa``, ``allowable_MPa`` the stress
+        the ratios are of, MPa.
+    """
+    k_mean = r.mean_stiffness_Nm_per_rad
+    summary = {
+        "ST_mm": st_mm,
+        "stiffness_Nm_per_rad": k_mean,
+        "stiffness_ccw_Nm_per_rad": r.stiffness_Nm_per_rad,
+        "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
+        "linear_stiffness_Nm_per_rad": r.linear_stiffness_Nm_per_rad,
+        "stiffness_error_percent": (k_mean / target_Nm_per_rad - 1) * 100,
+        "asymmetry_percent": abs(r.stiffness_Nm_per_rad / k_mean - 1) * 100,
+        "peak_stress_MPa": r.worst_peak_stress_MPa,
+        "stress_yield_ratio": r.worst_peak_stress_MPa / yield_MPa,
+        "stress_allowable_ratio": r.worst_peak_stress_MPa / allowable_MPa,
+        "mass_g": mass_g,
+        "outer_diameter_mm": outer_diameter_mm,
+        # the thinnest printed size: the thinnest member or the plate (as flexopt run's metric)
+        "min_feature_mm": min(thinnest_mm, st_mm),
+    }
+    if r.slot_gaps_mm:
+        summary["slot_mm"] = r.slot_gaps_mm["undeformed"]
+        summary["deformed_slot_mm"] = min(v for k, v in r.slot_gaps_mm.items() if k != "undeformed")
+    return summary
+
+
+def detail_values(
+    r: SpringResponse,
+    small: SpringResponse,
+    geom: SpringGeometry,
+    *,
+    thickness_mm: float,
+    density_kg_m3: float,
+    target_Nm_per_rad: float,
+    torque_Nm: float,
+    allowable_MPa: float,
+    envelope_diameter_mm: float,
+) -> dict[str, Any]:
+    """The figures a report shows of one solved spring (units in the names).
+
+    Parameters
+    ----------
+    r : the response at the design rotation and the plate thickness ``thickness_mm`` (mm);
+        ``small`` the same design's at 1 degree (the linear-vs-nonlinear row).
+    geom : the built spring (outline, volume mm^3, checks); ``density_kg_m3`` its material's.
+    target_Nm_per_rad, torque_Nm, allowable_MPa : the study's target, design torque and
+        allowable stress; ``envelope_diameter_mm`` the disc the spring fits (the per-disc
+        figures of paper 004's Table 1 are of that disc, ``thickness_mm`` thick).
+    """
+    volume = geom.volume_mm3
+    mass = geom.mass_kg(density_kg_m3)
+    disc_cm3 = math.pi * (0.5 * envelope_diameter_mm) ** 2 * thickness_mm
+    disc_cm3 *= 1e-3
+    k_mean = r.mean_stiffness_Nm_per_rad
+    return {
+        "stiffness_Nm_per_rad": k_mean,
+        "stiffness_ccw_Nm_per_rad": r.stiffness_Nm_per_rad,
+        "stiffness_cw_Nm_per_rad": r.reverse_stiffness_Nm_per_rad,
+        "stiffness_error_percent": (k_mean / target_Nm_per_rad - 1) * 100,
+        "peak_stress_MPa": r.worst_peak_stress_MPa,
+        "peak_stress_ccw_xy_mm": r.peak_stress_xy_mm[-1].tolist(),
+        "allowable_stress_MPa": allowable_MPa,
+        "stress_ok": bool(r.worst_peak_stress_MPa <= allowable_MPa),
+        "linear_vs_nonlinear": {
+            "at_1_deg_percent": (small.stiffness_Nm_per_rad / small.linear_stiffness_Nm_per_rad - 1)
+            * 100,
+            "at_design_percent": (r.stiffness_Nm_per_rad / r.linear_stiffness_Nm_per_rad - 1) * 100,
+        },  # fmt: skip
+        "outer_diameter_mm": 2 * geom.checks["outer_radius_mm"],
+        "thickness_mm": thickness_mm,
+        "mass_g": mass * 1e3,
+        "volume_mm3": volume,
+        "stiffness_per_volume_Nm_per_rad_cm3": k_mean / (volume * 1e-3),
+        "stiffness_per_disc_volume_Nm_per_rad_cm3": k_mean / disc_cm3,
+        "torque_per_disc_volume_Nm_per_cm3": torque_Nm / disc_cm3,
+        "max_torque_per_mass_Nm_per_kg": torque_Nm / mass,
+        "checks": geom.checks,
+        "slot_gaps_mm": r.slot_gaps_mm,
+        "mesh": {"dofs": r.n_dofs, "triangles": r.n_triangles},
+        "published_springs": published_comparison(),
+    }

@@ -10,6 +10,8 @@ that a study kind imports no process library):
   needs no 3D answer), giving None when the caller must compute a task itself.
 - :func:`fork_context_here` — multiprocessing's fork context where forking is safe here.
 - :func:`one_blas_thread` — BLAS and OpenMP pools limited to one thread, for a block of work.
+- :func:`taguchi_stage` — the ``sea_spring`` kind's stage 1 (an orthogonal array, its Eq. 27
+  analysis and extra runs, :mod:`optimise.sea_cost`) solved by a :class:`Screening`.
 
 Both children start as :mod:`pipeline.parallel`'s workers (one BLAS thread, Ctrl-C left to the
 parent, SIGTERM ends them at once) and end when their parent is gone.
@@ -32,6 +34,7 @@ __all__ = [
     "one_blas_thread",
     "screening_child",
     "side_main",
+    "taguchi_stage",
 ]
 
 log = logging.getLogger(__name__)
@@ -362,3 +365,40 @@ class SideProcess:
             self._conn.close()
         self._process = self._conn = None
         self._sent.clear()
+
+
+def taguchi_stage(
+    table: dict[str, tuple[float, ...]],
+    solve_one: Callable[[tuple[int, ...]], Any],
+    spec: Any,
+    torque_Nm: float,
+    theta_t_deg: float,
+    topology: str,
+    fork: bool = True,
+) -> dict[str, Any]:
+    """The screening stage over the factors of ``table`` (factor -> its five level values):
+    the runs of :func:`optimise.sea_cost.screening_plan` solved by ``solve_one`` (a level
+    tuple -> (stiffness N m/rad, peak stress per radian MPa/rad, reason)) in this process and,
+    with ``fork``, a forked child beside it (:class:`Screening`), then analysed by
+    :func:`optimise.sea_cost.taguchi_analysis` at the screening torque ``torque_Nm`` (N m) and
+    target rotation ``theta_t_deg`` (degrees).
+
+    ``spec``: the ``taguchi:`` block (``extra_runs``, ``seed``, ``pool_below_percent``,
+    ``min_error_dof``); ``topology`` names the topology in the result. Returns
+    :func:`optimise.sea_cost.taguchi_analysis`'s dict (plain data).
+    """
+    from flexopt.optimise.sea_cost import screening_plan, taguchi_analysis
+
+    lay, extra, jobs = screening_plan(table, spec.extra_runs, spec.seed)
+    n_array = len(lay.design)
+    screening = Screening(jobs, solve_one, fork=fork, label="stage 1", name="flexopt-taguchi")
+    try:
+        runs = screening.get(n_array)
+        # the confirmation run solved here while the child goes on with the extra runs
+        return taguchi_analysis(
+            lay, table, runs, extra, screening.solve,
+            lambda: screening.get(len(screening.jobs))[n_array:], torque_Nm, theta_t_deg,
+            spec.pool_below_percent, spec.min_error_dof, topology,
+        )  # fmt: skip
+    finally:
+        screening.close()

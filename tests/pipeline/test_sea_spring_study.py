@@ -121,6 +121,35 @@ def test_problem_contract_and_geometry_violations_skip_the_fe():
     assert search.space.n_var == 18 and search.objective_names[1] == "stiffness_error_percent"
 
 
+def test_stage1_runs_on_first_use_and_never_for_flexopt_evaluate(monkeypatch):
+    """Building the problem runs no Taguchi stage (flexopt evaluate, export and the API build it
+    too); the first use that needs it (the run's initial designs, the sets of a design) runs it
+    once, and a pickled problem carries its result. flexopt evaluate's result (the nominal
+    design, :func:`pipeline.problems.study_result`) never runs it: its sets are the study's."""
+    from flexopt.pipeline.problems import study_result
+
+    calls = []
+
+    def stage1(study):
+        calls.append(study.name)
+        return {"chosen": {"RP": 3}}
+
+    monkeypatch.setattr(ss, "run_taguchi", stage1)
+    raw = {**MINIMAL, "geometry": {"kind": "sea_spring", "n_sets": None},
+           "mesh": {**COARSE, "curve_steps": 1}, "taguchi": {"enabled": True},
+           "target": {"directions": "positive"}, "solid_3d": {"check": False}}  # fmt: skip
+    prob = ss.SeaSpringProblem(validate_study(raw))
+    assert calls == []
+    assert prob.n_sets == 3 and calls == ["sea"]
+    again = pickle.loads(pickle.dumps(prob))
+    assert again.n_sets == 3 and again.stage1 == {"chosen": {"RP": 3}} and calls == ["sea"]
+    assert ss.SeaSpringProblem(validate_study(raw), stage1={}).n_sets == 4  # design_sets
+    monkeypatch.setattr(ss, "run_taguchi", lambda study: pytest.fail("stage 1 ran"))
+    result = study_result(validate_study(raw))
+    assert result.inputs["n_sets"] == 4 and result.converged, result.message
+    assert result.summary["stiffness_Nm_per_rad"] == pytest.approx(275.0, rel=1e-9)
+
+
 def test_solved_thickness_meets_the_stiffness_and_linear_agrees_at_one_degree():
     prob = ss.SeaSpringProblem(study_with(mesh=COARSE, target={"directions": "positive"}))
     geom = build_spring(params_from_vector(MID, 4), prob.frame)
