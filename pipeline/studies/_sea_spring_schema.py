@@ -133,7 +133,9 @@ class TaguchiSpec(BaseModel):
 
     model_config = STUDY_CONFIG
 
-    enabled: bool = Field(True, description="run stage 1 when the problem is built")
+    enabled: bool = Field(
+        True, description="run stage 1 before the optimisation (flexopt run; not flexopt evaluate)"
+    )
     torque_Nm: float | None = Field(
         None, gt=0, description="screening torque (default: a fifth of target.torque_Nm)"
     )
