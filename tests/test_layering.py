@@ -439,19 +439,10 @@ def test_every_kind_is_at_most_700_lines():
 
 # -- no private names across modules (issue 24) ----------------------------------------------------
 
-#: (importing module, "module.name") pairs the rule below still lets through: private names of
-#: pipeline/studies/ that are left for the kinds' own refactor (the study kinds' imports, and the
-#: kinds' private module _targets read by two modules outside the package). Remove an entry when
-#: its import is gone; none may be added.
-PRIVATE_IMPORTS_ALLOWED: frozenset[tuple[str, str]] = frozenset(
-    {
-        (f"{STUDIES}.cam", f"{STUDIES}._cam._VARIABLES"),
-        # the kinds' shared block of target tables, read outside the package too: it needs a
-        # public home (e.g. pipeline/targets.py), which is an edit of pipeline/studies/
-        ("flexopt.pipeline.runfolder", f"{STUDIES}._targets"),
-        ("flexopt.pipeline.verdict", f"{STUDIES}._targets"),
-    }
-)
+#: (importing module, "module.name") pairs the rule below still lets through. Emptied by #24 (the
+#: kinds' target tables are pipeline/targets.py, cam's variables _cam.CAM_VARIABLES); none may be
+#: added.
+PRIVATE_IMPORTS_ALLOWED: frozenset[tuple[str, str]] = frozenset()
 
 
 def _is_private(name: str) -> bool:
