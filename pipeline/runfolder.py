@@ -183,7 +183,7 @@ def input_hashes(study: Any) -> dict[str, str]:
     them: bounded, regular files only; a bad file is the study's :class:`StudyError`)."""
     import hashlib
 
-    from flexopt.pipeline.studies._targets import read_table_bytes
+    from flexopt.pipeline.targets import read_table_bytes
 
     return {
         key: hashlib.sha256(read_table_bytes(file, key)).hexdigest()
@@ -245,7 +245,7 @@ def copy_inputs(study: Any, run_dir: Path) -> tuple[Any, dict[str, dict[str, str
     """
     import hashlib
 
-    from flexopt.pipeline.studies._targets import read_table_bytes, table_root
+    from flexopt.pipeline.targets import read_table_bytes, table_root
 
     files = input_files(study)
     if not files:
@@ -269,8 +269,8 @@ def load_folder_study(run_dir: Path, path: Path) -> Any:
     copies (``inputs/``) wherever the command runs; the returned study names them by absolute
     path, so it works in any folder and process. A folder written before the copies were made
     names files relative to the working folder, which is tried next."""
-    from flexopt.pipeline.studies._targets import table_root
     from flexopt.pipeline.study import load_study
+    from flexopt.pipeline.targets import table_root
 
     with table_root(run_dir):
         study = load_study(path)

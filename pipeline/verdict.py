@@ -145,7 +145,7 @@ def user_requirements(study: Study) -> tuple[Requirement, ...]:
         key = f"requirements[{i}]"
         table = columns = None
         if spec.target is not None and spec.target.kind == "table" and spec.target.file:
-            from flexopt.pipeline.studies._targets import read_table_csv
+            from flexopt.pipeline.targets import read_table_csv
 
             table, columns = read_table_csv(
                 spec.target.file, spec.target.columns, f"{key}.target.file"

@@ -360,12 +360,9 @@ MAX_KIND_LINES = 700
 #: drop a package (then remove it from here: the test says so) but not add one. Emptied by #24.
 KIND_IMPORT_OFFENDERS: dict[str, set[str]] = {}
 
-#: Offenders, to be emptied by #24: kind -> its line count after the first "one house" step.
-#: A kind listed here may shrink but not grow; once it is at or under MAX_KIND_LINES, remove it.
-KIND_SIZE_OFFENDERS: dict[str, int] = {
-    "constant_force": 964,
-    "threshold_spring": 810,
-}
+#: Offenders, to be kept empty: kind -> its line count. A kind listed here may shrink but not
+#: grow; once it is at or under MAX_KIND_LINES, remove it. Emptied by #24: every kind is under 700.
+KIND_SIZE_OFFENDERS: dict[str, int] = {}
 
 
 def _kinds() -> dict[str, Path]:
@@ -440,19 +437,10 @@ def test_every_kind_is_at_most_700_lines():
 
 # -- no private names across modules (issue 24) ----------------------------------------------------
 
-#: (importing module, "module.name") pairs the rule below still lets through: private names of
-#: pipeline/studies/ that are left for the kinds' own refactor (the study kinds' imports, and the
-#: kinds' private module _targets read by two modules outside the package). Remove an entry when
-#: its import is gone; none may be added.
-PRIVATE_IMPORTS_ALLOWED: frozenset[tuple[str, str]] = frozenset(
-    {
-        (f"{STUDIES}.cam", f"{STUDIES}._cam._VARIABLES"),
-        # the kinds' shared block of target tables, read outside the package too: it needs a
-        # public home (e.g. pipeline/targets.py), which is an edit of pipeline/studies/
-        ("flexopt.pipeline.runfolder", f"{STUDIES}._targets"),
-        ("flexopt.pipeline.verdict", f"{STUDIES}._targets"),
-    }
-)
+#: (importing module, "module.name") pairs the rule below still lets through. Emptied by #24 (the
+#: kinds' target tables are pipeline/targets.py, cam's variables _cam.CAM_VARIABLES); none may be
+#: added.
+PRIVATE_IMPORTS_ALLOWED: frozenset[tuple[str, str]] = frozenset()
 
 
 def _is_private(name: str) -> bool:

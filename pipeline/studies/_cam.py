@@ -16,11 +16,12 @@ from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.targets import TargetCurve, TargetSpec
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies._targets import resolve_target
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
+from flexopt.pipeline.targets import resolve_target
 from pydantic import BaseModel, Field, model_validator
 
 __all__ = [
+    "CAM_VARIABLES",
     "CamGeometry",
     "CamStudyFields",
     "CorrectionSpec",
@@ -112,7 +113,8 @@ class LimitsSpec(BaseModel):
     )
 
 
-_VARIABLES = ("rest_radius_mm", "stiffness_N_per_mm", "free_length_mm", "offset_mm")
+#: The cam's design variables by name (``design_space:`` keys of a cam study), mm and N/mm.
+CAM_VARIABLES = ("rest_radius_mm", "stiffness_N_per_mm", "free_length_mm", "offset_mm")
 
 
 class CamStudyFields(Study):
@@ -137,7 +139,7 @@ class CamStudyFields(Study):
     rows: int = Field(91, ge=3, le=2001, description="rows of the response table over the range")
     design_space: dict[str, tuple[float, float]] = Field(
         default_factory=dict,
-        description="bounds by name for flexopt run: " + ", ".join(_VARIABLES),
+        description="bounds by name for flexopt run: " + ", ".join(CAM_VARIABLES),
     )
     objective: Literal["diameter", "pressure_angle"] = Field(
         "diameter", description="minimise the mechanism diameter or the largest pressure angle"

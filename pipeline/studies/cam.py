@@ -55,7 +55,7 @@ from flexopt.optimise.targets import (
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies._cam import (
-    _VARIABLES,
+    CAM_VARIABLES,
     CamGeometry,
     CamStudyFields,
     SpringsSpec,
@@ -83,9 +83,9 @@ class CamStudy(CamStudyFields):
 def check(study: CamStudy) -> None:
     """Build the target, the cam and its plate once, so that every refusal names its key."""
     for name, (lo, hi) in study.design_space.items():
-        if name not in _VARIABLES:
+        if name not in CAM_VARIABLES:
             raise StudyError(
-                f"design_space.{name}", f"unknown variable; use one of {', '.join(_VARIABLES)}"
+                f"design_space.{name}", f"unknown variable; use one of {', '.join(CAM_VARIABLES)}"
             )
         if not lo < hi:
             raise StudyError(
@@ -234,7 +234,7 @@ class CamProblem(DesignProblem):
                 1.5 * study.springs.stiffness_N_per_mm,
             ),
         }
-        names = tuple(n for n in _VARIABLES if n in bounds)
+        names = tuple(n for n in CAM_VARIABLES if n in bounds)
         try:
             self.space = DesignSpace(
                 names,

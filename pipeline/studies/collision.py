@@ -58,8 +58,8 @@ from flexopt.pipeline.studies._cam import (
     SpringsSpec,
     build_cam,
 )
-from flexopt.pipeline.studies._targets import resolve_target
 from flexopt.pipeline.study import STUDY_CONFIG, MaterialSpec, Study, material_record
+from flexopt.pipeline.targets import resolve_target
 from pydantic import BaseModel, Field
 
 __all__ = [

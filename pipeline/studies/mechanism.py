@@ -135,7 +135,7 @@ def _requirements(study: MechanismStudy) -> list[Requirement]:
     for i, spec in enumerate(study.requirements):
         table = columns = None
         if spec.target is not None and spec.target.kind == "table" and spec.target.file:
-            from flexopt.pipeline.studies._targets import read_table_csv  # a target table's file
+            from flexopt.pipeline.targets import read_table_csv  # a target table's file
 
             table, columns = read_table_csv(
                 spec.target.file, spec.target.columns, f"requirements[{i}].target.file"

@@ -19,8 +19,8 @@ import pytest
 from flexopt.pipeline.cli import main
 from flexopt.pipeline.parallel import ParallelSettings
 from flexopt.pipeline.run import prepare_run, run_study
-from flexopt.pipeline.studies._targets import MAX_TABLE_BYTES, read_table_csv
 from flexopt.pipeline.study import load_study, validate_study
+from flexopt.pipeline.targets import MAX_TABLE_BYTES, read_table_csv
 
 KEY = "requirements[0].target.file"
 SECRET = "S3CRET"

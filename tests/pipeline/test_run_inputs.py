@@ -15,8 +15,8 @@ import pytest
 from flexopt.optimise.targets import TargetSpec
 from flexopt.pipeline.cli import main
 from flexopt.pipeline.studies import StudyKind, register
-from flexopt.pipeline.studies._targets import resolve_target
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
+from flexopt.pipeline.targets import resolve_target
 from pydantic import BaseModel
 
 TABLE = "displacement_mm,force_N\n0,0\n1,1\n"

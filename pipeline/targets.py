@@ -1,7 +1,9 @@
 """Target curves from a study: a target spec, its table read from a CSV file when it has one.
 
-Shared by the kinds that take a torque target (``cam``, ``collision``) and by the verdict (a
-``requirements:`` target table). Moved here from ``pipeline/studies/cam.py`` unchanged.
+Shared by the kinds that take a target curve (``cam``, ``collision``, a ``mechanism`` target
+table), by the verdict (a ``requirements:`` target table) and by the run folder (its copies of
+the tables, :func:`table_root`). Moved unchanged from ``pipeline/studies/_targets.py``, which
+modules outside the kinds' package had to reach into.
 """
 
 from __future__ import annotations
