@@ -254,3 +254,24 @@ def test_flexopt_evaluate_states_the_life_in_the_verdict(tmp_path, capsys):
     assert record["verdict"]["overall"] == "NOT MET"
     assert record["summary"]["fatigue_damage_per_cycle_block"] == pytest.approx(1 / life)
     assert "lives_1e5_cycles" in capsys.readouterr().out
+
+
+def test_the_stress_is_scaled_to_the_figure_the_verdict_judges():
+    from pathlib import Path
+
+    import yaml
+
+    root = Path(__file__).resolve().parents[2]
+    raw = yaml.safe_load((root / "pipeline/examples/constant-force.yaml").read_text("utf-8"))
+    raw["duty_cycle"] = {"levels": [{"fraction": 0.5, "cycles": 1}], "correction": "none"}
+    result = solve_study(validate_study(raw))
+    peak = np.asarray(result.table["peak_stress_MPa"], dtype=float)
+    scale = result.summary["plane_stress_peak_stress_MPa"] / float(np.nanmax(np.abs(peak)))
+    assert result.info["fatigue"]["scale"] == pytest.approx(scale, rel=1e-12)
+    assert "plane stress" in result.summary["life_method"]
+    x = np.asarray(result.table["displacement_mm"], dtype=float)
+    half = 0.5 * float(np.nanmax(np.abs(x)))
+    s_max = scale * float(np.interp(half, x, np.abs(peak)))  # the table rises from 0 to stroke
+    level = result.info["fatigue"]["levels"][0]
+    assert level["stress_max_MPa"] == pytest.approx(s_max, rel=1e-12)
+    assert level["cycles_to_failure"] == pytest.approx(basquin_abs_cycles(0.5 * s_max), rel=1e-12)
