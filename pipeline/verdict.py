@@ -69,6 +69,7 @@ if TYPE_CHECKING:  # annotations only: study.validate_study calls check_requirem
 
 __all__ = [
     "GENERIC_QUANTITIES",
+    "LifeDetail",
     "RequirementConstraints",
     "builtin_requirements",
     "check_requirement_names",
@@ -536,12 +537,30 @@ class RequirementConstraints(ProblemWrapper):
         return replace(detail, evaluation=self._extend(detail.evaluation))
 
 
+class LifeDetail(ProblemWrapper):
+    """A kind's design problem whose :meth:`detail` carries the fatigue life over the study's
+    ``duty_cycle:`` (:func:`with_life`: the summary and ``info["fatigue"]``, which a run's
+    best.json writes). Picklable; everything else is the inner problem's."""
+
+    def __init__(self, inner: Any, study: Study) -> None:
+        super().__init__(as_design_problem(inner))
+        self.duty_study = study
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        return with_life(self.duty_study, self.inner.detail(x))
+
+
 def with_requirement_constraints(study: Study, problem: Any) -> Any:
-    """``problem`` with the study's ``role: constraint`` scalar requirements added (or itself)."""
+    """``problem`` with the study's ``role: constraint`` scalar requirements added and, with a
+    ``duty_cycle:``, the life in its detail (:class:`LifeDetail`); or itself."""
     constraints = [
         r for r in user_requirements(study) if r.role == "constraint" and not r.needs_curve
     ]
-    return RequirementConstraints(problem, constraints) if constraints else problem
+    if constraints:
+        problem = RequirementConstraints(problem, constraints)
+    if getattr(study, "duty_cycle", None) is not None:
+        problem = LifeDetail(problem, study)
+    return problem
 
 
 def scalar_names(values: Iterable[str]) -> tuple[str, ...]:

@@ -275,3 +275,22 @@ def test_the_stress_is_scaled_to_the_figure_the_verdict_judges():
     level = result.info["fatigue"]["levels"][0]
     assert level["stress_max_MPa"] == pytest.approx(s_max, rel=1e-12)
     assert level["cycles_to_failure"] == pytest.approx(basquin_abs_cycles(0.5 * s_max), rel=1e-12)
+
+
+def test_a_run_s_best_detail_carries_the_life():
+    from pathlib import Path
+
+    import yaml
+    from flexopt.pipeline.problems import build_base_problem, nominal_design
+
+    root = Path(__file__).resolve().parents[2]
+    raw = yaml.safe_load((root / "pipeline/examples/constant-force.yaml").read_text("utf-8"))
+    study = validate_study({**raw, "duty_cycle": [{"fraction": 0.5, "cycles": 1}]})
+    problem = build_base_problem(study)
+    detail = problem.detail(nominal_design(problem, study))
+    fatigue = detail.info["fatigue"]  # best.json writes the detail's info
+    assert fatigue["life_cycles"] == pytest.approx(1.0 / fatigue["fatigue_damage_per_cycle_block"])
+    assert detail.summary["life_cycles"] == fatigue["life_cycles"]
+    # without the block the problem is the kind's, unwrapped
+    plain = build_base_problem(validate_study(raw))
+    assert type(plain).__name__ != "LifeDetail"
