@@ -48,6 +48,7 @@ __all__ = [
     "levels_from_history",
     "material_sn_curve",
     "miner",
+    "rainflow_cycles",
     "shigley_sn_curve",
     "size_factor_bending",
     "surface_factor",
@@ -516,4 +517,19 @@ def levels_from_history(history_MPa: Sequence[float] | np.ndarray) -> list[LoadL
         LoadLevel(amplitude_MPa=0.5 * float(rng), mean_MPa=float(mean), cycles=float(count))
         for rng, mean, count, _i, _j in rainflow.extract_cycles(h)
         if rng > 0.0
+    ]
+
+
+def rainflow_cycles(history: Sequence[float] | np.ndarray) -> list[tuple[float, float, float]]:
+    """Rainflow count (ASTM E1049-85, the ``rainflow`` package) with each cycle's mean:
+    ``(range, mean, cycles)`` per counted cycle or half cycle (``cycles`` 1.0 or 0.5).
+
+    Parameters
+    ----------
+    history : (n,) array_like
+        Load, drive or stress history in time order (any unit; ranges and means in the same).
+    """
+    return [
+        (float(rng), float(mean), float(count))
+        for rng, mean, count, _i, _j in rainflow.extract_cycles(_history(history))
     ]

@@ -32,7 +32,7 @@ from flexopt.pipeline.runfolder import (
 )
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.study import Study, study_to_yaml
-from flexopt.pipeline.verdict import judge_result
+from flexopt.pipeline.verdict import judge_result, with_life
 
 __all__ = [
     "EVALUATE_FILES",
@@ -140,7 +140,7 @@ def solve_study(study: Study, repeat: int = 1, source: str = "") -> DesignResult
             source=source or None,
         )
     log.info("evaluating %s (%s), %d repeat(s)", study.name, study.kind, repeat)
-    result = study_result(study, repeat, source)
+    result = with_life(study, study_result(study, repeat, source))  # duty_cycle: its life
     return replace(result, verdicts=judge_result(study, result))
 
 

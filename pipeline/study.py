@@ -27,6 +27,7 @@ from typing import Any, Literal
 import yaml
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import MATERIALS, Material, get_material
+from flexopt.optimise.durability import DutyCycleSpec
 from flexopt.optimise.requirements import RequirementSpec
 from flexopt.optimise.robustness import RobustnessSpec
 from flexopt.pipeline.errors import StudyError
@@ -39,6 +40,7 @@ from pydantic import (
     Field,
     ValidationError,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -242,6 +244,9 @@ class Study(BaseModel):
         What the design must meet beyond the kind's built-in requirements, each judged MET or
         NOT MET in every verdict (``role: constraint`` also constrains the optimisation); see
         :mod:`optimise.requirements` and docs/usage.md, "Requirements and the verdict".
+    duty_cycle : DutyCycleSpec or None
+        Load levels (or a drive history) the part sees in service: the fatigue life over them
+        is reported and ``life_cycles`` / ``life_hours`` may be required (docs/durability.md).
     """
 
     model_config = STUDY_CONFIG
@@ -262,6 +267,19 @@ class Study(BaseModel):
         description="scatter of E, thickness and width: the share of samples meeting each "
         "requirement and the band of the response (docs/robustness.md)",
     )
+    duty_cycle: DutyCycleSpec | None = Field(
+        None,
+        description="service load levels {drive or fraction, cycles or share_percent} or a "
+        "drive history, for the fatigue life (docs/durability.md)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _without_empty_duty_cycle(self, handler: Any) -> Any:
+        # a study without a duty cycle dumps as it did before the block existed
+        data = handler(self)
+        if isinstance(data, dict) and "duty_cycle" in data and data["duty_cycle"] is None:
+            del data["duty_cycle"]
+        return data
 
     @field_validator("name")
     @classmethod
@@ -669,6 +687,27 @@ def check_robustness(study: Study) -> None:
         )
 
 
+def check_duty_cycle(study: Study) -> None:
+    """Refuse a ``duty_cycle:`` block the study cannot use (its material has no fatigue data,
+    its steel finish is unknown).
+
+    Raises
+    ------
+    StudyError
+        At ``duty_cycle`` (or ``duty_cycle.surface``) with the fix.
+    """
+    spec: DutyCycleSpec | None = getattr(study, "duty_cycle", None)
+    if spec is None:
+        return
+    from flexopt.fea.fatigue import material_sn_curve
+
+    try:
+        material_sn_curve(study.material.name, surface=spec.surface)
+    except FeaError as exc:
+        key = "duty_cycle.surface" if spec.surface is not None else "duty_cycle"
+        raise StudyError(key, str(exc).removeprefix("fatigue: ")) from None
+
+
 def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
     """Validate a raw mapping into the frozen study model of its geometry kind.
 
@@ -700,6 +739,7 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
 
         check_requirement_names(study)
         check_robustness(study)
+        check_duty_cycle(study)
     except ValidationError as exc:
         raise validation_error_to_study_error(exc, kind.model, source) from None
     except StudyError as exc:

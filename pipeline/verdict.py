@@ -44,6 +44,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from flexopt.optimise.durability import LIFE_QUANTITIES, LifeResult, life_of_table
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import (
@@ -68,6 +69,7 @@ if TYPE_CHECKING:  # annotations only: study.validate_study calls check_requirem
 
 __all__ = [
     "GENERIC_QUANTITIES",
+    "LifeDetail",
     "RequirementConstraints",
     "builtin_requirements",
     "check_requirement_names",
@@ -79,11 +81,14 @@ __all__ = [
     "judge",
     "judge_detail",
     "judge_result",
+    "life_of_result",
+    "life_values",
     "quantities_of",
     "result_values",
     "study_requirements",
     "user_requirements",
     "with_design_range",
+    "with_life",
 ]
 
 #: Names every kind offers (measured by the pipeline on the part as exported, when there is
@@ -184,6 +189,8 @@ def quantities_of(study: Study) -> tuple[str, ...]:
         if hasattr(req, "x"):
             found.add(req.x)
     found.discard("envelope_mm")
+    if getattr(study, "duty_cycle", None) is not None:
+        found.update(LIFE_QUANTITIES)
     return tuple(sorted(found | set(GENERIC_QUANTITIES)))
 
 
@@ -212,9 +219,18 @@ def check_requirement_names(study: Study) -> None:
                     f"kind {study.kind} reports no '{name}'; {hint}use one of "
                     + ", ".join(sorted(valid)),
                 )
+        if spec.quantity == "life_hours" and getattr(study, "duty_cycle", None) is not None:
+            if study.duty_cycle.rate_hz is None:  # type: ignore[attr-defined]
+                raise StudyError(
+                    f"requirements[{i}].quantity",
+                    "life_hours needs duty_cycle.rate_hz (cycles per second in service); give "
+                    "it, or require life_cycles",
+                )
         if spec.role == "constraint":
             why = ""
-            if getattr(_kind(study), "problem", None) is None:
+            if spec.quantity in LIFE_QUANTITIES:
+                why = "the life is computed from the response table of the judged design"
+            elif getattr(_kind(study), "problem", None) is None:
                 why = f"kind {study.kind} is not optimised (flexopt evaluate only)"
             elif spec.target is not None or spec.envelope_mm is not None:
                 why = "a target curve or an envelope is judged on the best design only"
@@ -363,12 +379,108 @@ def judge_result(
     requirements : judge these instead of the study's (a robustness sample: no design-range
         row, see the module docstring).
     """
+    life = life_values(study, result)
     given = tuple(result.verdicts)
     if given:
+        given = _with_life_rows(study, given, life)
         if requirements is not None or any(v.quantity == DesignRange.quantity for v in given):
             return given
         return with_design_range(study, given, design)
-    return judge(study, result_values(result), result.table, requirements, design)
+    return judge(study, {**result_values(result), **life}, result.table, requirements, design)
+
+
+def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | None:
+    """The fatigue life of ``result`` over the study's ``duty_cycle:`` (None without one), or
+    why it cannot be computed (a str: no response table, a drive beyond the stroke ...).
+
+    The driven column is the kind's plot x (``result.plot["x"]``), the stress the
+    ``peak_stress_MPa`` column of the same solve; where the kind reports a higher-fidelity
+    figure of the peak stress (:func:`figures_of`: plane stress, 3D), the beam's peak is
+    scaled by the ratio of the highest-ranked figure the design has to the table's maximum.
+    """
+    spec = getattr(study, "duty_cycle", None)
+    if spec is None:
+        return None
+    table = result.table or {}
+    x_col = (result.plot or {}).get("x")
+    if not x_col or x_col not in table or "peak_stress_MPa" not in table:
+        return (
+            "the response has no driven column with a peak_stress_MPa column "
+            f"(columns: {', '.join(table) or 'none'})"
+        )
+    peak = np.abs(np.asarray(table["peak_stress_MPa"], dtype=float))
+    peak = peak[np.isfinite(peak)]
+    scale, model = 1.0, ""
+    values = result_values(result)
+    # the figure the verdict judges the peak stress on (judge_best): the highest-ranked one the
+    # design has, not one a built-in row of its own judges (a spring's 3D row)
+    taken = {r.quantity for r in builtin_requirements(study)} - {"peak_stress_MPa"}
+    ladder = [
+        f
+        for f in figures_of(study).get("peak_stress_MPa", ())
+        if f.quantity not in taken
+        and isinstance(values.get(f.quantity), int | float)
+        and math.isfinite(float(values[f.quantity]))
+    ]
+    ladder.sort(key=lambda f: -f.rank)  # stable: the first listed of a rank wins
+    if ladder and ladder[0].quantity != "peak_stress_MPa" and peak.size and peak.max() > 0.0:
+        scale = float(values[ladder[0].quantity]) / float(peak.max())
+        model = ladder[0].model
+    try:
+        return life_of_table(
+            spec, table, str(x_col), study.material.name, scale=scale, scale_model=model
+        )
+    except OptimiseError as exc:
+        return str(exc)
+
+
+def life_values(study: Study, result: DesignResult) -> dict[str, Any]:
+    """The life figures a requirement judges (empty without ``duty_cycle:``; None values
+    when the life cannot be computed or lies in low-cycle fatigue: NOT MET)."""
+    life = life_of_result(study, result)
+    if life is None:
+        return {}
+    if isinstance(life, str):
+        return dict.fromkeys(LIFE_QUANTITIES)
+    return life.values()
+
+
+def with_life(study: Study, result: DesignResult) -> DesignResult:
+    """``result`` with the fatigue life over the study's ``duty_cycle:`` in its summary
+    (``life_cycles``, ``life_hours``, ``fatigue_damage_per_cycle_block``, the method and the
+    data source) and each level in ``info["fatigue"]``; ``result`` itself without one."""
+    from dataclasses import replace
+
+    life = life_of_result(study, result)
+    if life is None:
+        return result
+    if isinstance(life, str):
+        note = {"life_cycles": None, "life_hours": None, "fatigue_note": life}
+        return replace(result, summary={**result.summary, **note})
+    info = {
+        **result.info,
+        "fatigue": {
+            **life.summary(),
+            "scale": life.scale,
+            "levels": [lv.record() for lv in life.levels],
+        },
+    }
+    head = result.headline and (*result.headline, *LIFE_QUANTITIES)  # empty: the CLI shows all
+    summary = {**result.summary, **life.summary()}
+    return replace(result, summary=summary, info=info, headline=head or ())
+
+
+def _with_life_rows(
+    study: Study, given: tuple[Verdict, ...], life: Mapping[str, Any]
+) -> tuple[Verdict, ...]:
+    """A kind's own verdicts with its rows on the life quantities judged on ``life`` (the
+    kind does not compute the life: the pipeline does, once for every kind)."""
+    if not life:
+        return given
+    reqs = [r for r in user_requirements(study) if r.quantity in LIFE_QUANTITIES]
+    judged = {v.name: v for v in (r.check(dict(life)) for r in reqs)}
+    out = [judged.pop(v.name, v) if v.quantity in LIFE_QUANTITIES else v for v in given]
+    return (*out, *judged.values())
 
 
 def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[str, Any]:
@@ -425,12 +537,30 @@ class RequirementConstraints(ProblemWrapper):
         return replace(detail, evaluation=self._extend(detail.evaluation))
 
 
+class LifeDetail(ProblemWrapper):
+    """A kind's design problem whose :meth:`detail` carries the fatigue life over the study's
+    ``duty_cycle:`` (:func:`with_life`: the summary and ``info["fatigue"]``, which a run's
+    best.json writes). Picklable; everything else is the inner problem's."""
+
+    def __init__(self, inner: Any, study: Study) -> None:
+        super().__init__(as_design_problem(inner))
+        self.duty_study = study
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        return with_life(self.duty_study, self.inner.detail(x))
+
+
 def with_requirement_constraints(study: Study, problem: Any) -> Any:
-    """``problem`` with the study's ``role: constraint`` scalar requirements added (or itself)."""
+    """``problem`` with the study's ``role: constraint`` scalar requirements added and, with a
+    ``duty_cycle:``, the life in its detail (:class:`LifeDetail`); or itself."""
     constraints = [
         r for r in user_requirements(study) if r.role == "constraint" and not r.needs_curve
     ]
-    return RequirementConstraints(problem, constraints) if constraints else problem
+    if constraints:
+        problem = RequirementConstraints(problem, constraints)
+    if getattr(study, "duty_cycle", None) is not None:
+        problem = LifeDetail(problem, study)
+    return problem
 
 
 def scalar_names(values: Iterable[str]) -> tuple[str, ...]:
