@@ -70,7 +70,8 @@ def main() -> None:
                     times[name]["wall"].append(time.perf_counter() - w0)
     load1 = os.getloadavg()
     print(f"study {args.study}: {args.designs} designs x {args.rounds} rounds per setting")
-    print(f"load average before {load0[0]:.2f} after {load1[0]:.2f} (1 min), cores {os.cpu_count()}")
+    cores = os.cpu_count()
+    print(f"load average before {load0[0]:.2f} after {load1[0]:.2f} (1 min), cores {cores}")
     for name, label in (("one", "1 thread"), ("default", f"default ({default} threads)")):
         cpu, wall = statistics.median(times[name]["cpu"]), statistics.median(times[name]["wall"])
         print(f"{label:22s} CPU {cpu:.3f} s   wall {wall:.3f} s   per design (median)")
