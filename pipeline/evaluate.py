@@ -17,11 +17,8 @@ from flexopt.optimise.problem import DesignResult
 from flexopt.optimise.requirements import verdict_record
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.fork import limit_loaded_pools
-from flexopt.pipeline.plots import plot_cases, plot_response
 from flexopt.pipeline.problems import can_evaluate, study_result
-from flexopt.pipeline.report_html import evaluate_html
 from flexopt.pipeline.responses import stacked_table, stress_allowable
-from flexopt.pipeline.robustness import run_robustness
 from flexopt.pipeline.runfolder import (
     check_out_dir,
     copy_inputs,
@@ -201,6 +198,11 @@ def evaluate_study(
         When ``out`` cannot be a folder, the kind has no ``evaluate`` (it is only optimised:
         ``flexopt run``) or the solver refuses the inputs.
     """
+    # here, not at the top: the CLI imports this module for every command (--version, list)
+    from flexopt.pipeline.plots import plot_cases, plot_response
+    from flexopt.pipeline.report_html import evaluate_html
+    from flexopt.pipeline.robustness import run_robustness
+
     if out is not None:
         check_out_dir(out)
     started = datetime.now().astimezone()
