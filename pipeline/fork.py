@@ -83,7 +83,7 @@ def limit_loaded_pools() -> contextlib.AbstractContextManager[Any]:
     the variables were set). Used as ``with limit_loaded_pools():`` wherever this process
     solves many small systems itself (``flexopt evaluate``, the serial backend, the API): a
     banded or sparse factorisation of a few thousand rows is latency-bound, so a second BLAS
-    thread only spins (an SEA design took ~1.6x the CPU with two threads; docs/benchmarks.md,
+    thread only spins (an SEA design took ~1.9x the CPU with two threads; docs/benchmarks.md,
     benchmarks/serial_threads.py), and the scope keeps a caller's own numpy work unslowed.
     """
     try:
