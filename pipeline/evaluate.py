@@ -16,11 +16,9 @@ from typing import Any
 from flexopt.optimise.problem import DesignResult
 from flexopt.optimise.requirements import verdict_record
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.plots import plot_cases, plot_response
+from flexopt.pipeline.fork import limit_loaded_pools
 from flexopt.pipeline.problems import can_evaluate, study_result
-from flexopt.pipeline.report_html import evaluate_html
 from flexopt.pipeline.responses import stacked_table, stress_allowable
-from flexopt.pipeline.robustness import run_robustness
 from flexopt.pipeline.runfolder import (
     check_out_dir,
     copy_inputs,
@@ -140,7 +138,12 @@ def solve_study(study: Study, repeat: int = 1, source: str = "") -> DesignResult
             source=source or None,
         )
     log.info("evaluating %s (%s), %d repeat(s)", study.name, study.kind, repeat)
-    result = with_life(study, study_result(study, repeat, source))  # duty_cycle: its life
+    # one BLAS/OpenMP thread for the solve, as in the pool's workers: its factorisations are
+    # too small for a second thread to pay (fork.limit_loaded_pools); the caller's limits are
+    # back afterwards (the API's caller's own numpy work keeps its threads)
+    with limit_loaded_pools():
+        result = study_result(study, repeat, source)
+    result = with_life(study, result)  # duty_cycle: its life
     return replace(result, verdicts=judge_result(study, result))
 
 
@@ -214,6 +217,11 @@ def evaluate_study(
         When ``out`` cannot be a folder, the kind has no ``evaluate`` (it is only optimised:
         ``flexopt run``) or the solver refuses the inputs.
     """
+    # here, not at the top: the CLI imports this module for every command (--version, list)
+    from flexopt.pipeline.plots import plot_cases, plot_response
+    from flexopt.pipeline.report_html import evaluate_html
+    from flexopt.pipeline.robustness import run_robustness
+
     if out is not None:
         check_out_dir(out)
     started = datetime.now().astimezone()
@@ -223,7 +231,8 @@ def evaluate_study(
     # what rebuilding the part for report.html would cost again
     evaluation_wall_s = (time.perf_counter() - started_s) / max(repeat, 1)
     verdicts = result.verdicts
-    robust = run_robustness(study, plot=result.plot)  # before the folder: it may refuse
+    with limit_loaded_pools():  # its scatter samples: small solves too (solve_study)
+        robust = run_robustness(study, plot=result.plot)  # before the folder: it may refuse
     run_dir = make_run_dir(out or new_run_dir_path(runs_root, study.name, "evaluate", started))
     record = {
         "verdict": verdict_record(verdicts),  # first: what the design meets, and what not
@@ -264,7 +273,8 @@ def evaluate_study(
     if robust is not None:  # before report.html, which draws its band
         record["robustness"] = robust.record()
     # report.html: the verdict, the response with its target, the part in 3D (one offline file)
-    html = evaluate_html(study, result, record, evaluation_wall_s)
+    with limit_loaded_pools():  # it solves the design again for its 3D view (a short solve)
+        html = evaluate_html(study, result, record, evaluation_wall_s)
     if html is not None:
         extra["report.html"] = html.encode("utf-8")
     if robust is not None:

@@ -8,7 +8,8 @@
   :mod:`pipeline.parallel`, a report's side process): fork where safe, else forkserver, else
   spawn.
 - :func:`quiet_child` and :func:`limit_loaded_pools`: what every child does first (signals, one
-  BLAS thread).
+  BLAS thread); the latter also scoped (``with``) where this process solves many small systems
+  itself: ``flexopt evaluate``, a serial run, the API.
 - :class:`ForkedMakes` (:func:`make_in_child`, :func:`make_here`): make some result files in a
   quiet forked child while this process goes on.
 
@@ -74,14 +75,22 @@ def pool_context() -> multiprocessing.context.BaseContext:
     return multiprocessing.get_context("spawn")
 
 
-def limit_loaded_pools() -> None:
-    """One thread for the BLAS/OpenMP pools already loaded (a forked worker inherits the
-    parent's, sized before the variables were set)."""
+def limit_loaded_pools() -> contextlib.AbstractContextManager[Any]:
+    """One thread for the BLAS/OpenMP pools already loaded, from now on; the returned object,
+    used as a context manager, gives the caller's limits back on exit.
+
+    Called bare in a worker process (a forked worker inherits the parent's pools, sized before
+    the variables were set). Used as ``with limit_loaded_pools():`` wherever this process
+    solves many small systems itself (``flexopt evaluate``, the serial backend, the API): a
+    banded or sparse factorisation of a few thousand rows is latency-bound, so a second BLAS
+    thread only spins (an SEA design took ~1.9x the CPU with two threads; docs/benchmarks.md,
+    benchmarks/serial_threads.py), and the scope keeps a caller's own numpy work unslowed.
+    """
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # optional: the environment variables cover freshly started workers
-        return
-    threadpool_limits(1)
+        return contextlib.nullcontext()
+    return threadpool_limits(1)
 
 
 class ForkedMakes:

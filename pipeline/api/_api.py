@@ -151,6 +151,9 @@ def _out_path(out: Any) -> Path | None:
 def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = None) -> Result:
     """Solve a study once with its kind's analysis, as ``flexopt evaluate`` does.
 
+    The solve runs with the BLAS/OpenMP pools at one thread (its systems are too small for more
+    to pay; :func:`pipeline.fork.limit_loaded_pools`); the caller's limits are back on return.
+
     Parameters
     ----------
     study : Study, or anything :func:`load_study` takes
@@ -227,6 +230,9 @@ def run(
     progress: bool = False,
 ) -> RunResult:
     """Optimise a study as ``flexopt run`` does, into a run folder, and read the result back.
+
+    With ``workers=1`` the designs are solved in this process with the BLAS/OpenMP pools at one
+    thread, as in a pool's workers; the caller's limits are back for the report and on return.
 
     Parameters
     ----------

@@ -27,6 +27,7 @@ from flexopt.pipeline.backends import open_backend
 from flexopt.pipeline.checkpoint import CHECKPOINT_FILE, STORE_FILE, EvaluationStore, study_sha256
 from flexopt.pipeline.errors import StudyError, Terminated
 from flexopt.pipeline.evaluate import versions
+from flexopt.pipeline.fork import limit_loaded_pools
 from flexopt.pipeline.parallel import BackendError, BatchBackend, ParallelSettings, design_key
 from flexopt.pipeline.parallel import one_line as _one_line
 from flexopt.pipeline.problems import parallel_settings
@@ -374,15 +375,21 @@ def _run_in(
     optimised = False
     try:
         try:
-            result = run_ga(
-                setup.problem.space,
-                run.evaluator,
-                len(setup.problem.objective_names),
-                len(setup.problem.constraint_names),
-                config,
-                on_generation=run.generation_done,
-                initial=setup.initial,
-            )
+            # a serial run solves every design in this process: one BLAS/OpenMP thread for the
+            # optimisation, as in the pool's workers (fork.limit_loaded_pools: the systems are
+            # too small for a second thread to pay); the report after it (an SEA spring's 3D
+            # check, one large sparse factorisation) keeps the caller's threads
+            serial = settings.backend == "serial"
+            with limit_loaded_pools() if serial else contextlib.nullcontext():
+                result = run_ga(
+                    setup.problem.space,
+                    run.evaluator,
+                    len(setup.problem.objective_names),
+                    len(setup.problem.constraint_names),
+                    config,
+                    on_generation=run.generation_done,
+                    initial=setup.initial,
+                )
             optimised = True
         finally:
             try:
