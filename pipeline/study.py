@@ -22,7 +22,7 @@ import typing
 from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import yaml
 from flexopt.fea.errors import FeaError
@@ -273,12 +273,18 @@ class Study(BaseModel):
         "drive history, for the fatigue life (docs/durability.md)",
     )
 
+    #: Blocks added after studies were first written, left out of a dump when unset: a study
+    #: without them dumps (evaluation.json, the run folder's study.yaml) as it did before they
+    #: existed. A kind adds its own (``polyline_beam``: ``stops``); one serializer serves all.
+    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = ("duty_cycle",)
+
     @model_serializer(mode="wrap")
-    def _without_empty_duty_cycle(self, handler: Any) -> Any:
-        # a study without a duty cycle dumps as it did before the block existed
+    def _without_unset_optional_blocks(self, handler: Any) -> Any:
         data = handler(self)
-        if isinstance(data, dict) and "duty_cycle" in data and data["duty_cycle"] is None:
-            del data["duty_cycle"]
+        if isinstance(data, dict):
+            for key in type(self).OPTIONAL_BLOCKS:
+                if key in data and data[key] is None:
+                    del data[key]
         return data
 
     @field_validator("name")

@@ -22,7 +22,7 @@ import math
 import re
 import time
 from dataclasses import asdict, replace
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
@@ -44,10 +44,8 @@ from flexopt.pipeline.study import STUDY_CONFIG, Study, material_record
 from pydantic import (
     BaseModel,
     Field,
-    SerializerFunctionWrapHandler,
     ValidationInfo,
     field_validator,
-    model_serializer,
     model_validator,
 )
 
@@ -303,14 +301,8 @@ class PolylineBeamStudy(Study):
         "penalty_factor} (or the list of outlines)",
     )
 
-    @model_serializer(mode="wrap")
-    def _no_stops_key_without_stops(self, handler: SerializerFunctionWrapHandler) -> dict:
-        # a study without stops dumps as it did before the block existed (evaluation.json and
-        # the run folders of every stop-free study stay byte-for-byte the same)
-        out = handler(self)
-        if isinstance(out, dict) and out.get("stops", 0) is None:
-            del out["stops"]
-        return out
+    # a study without stops dumps as it did before the block existed (Study's serializer)
+    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = (*Study.OPTIONAL_BLOCKS, "stops")
 
 
 # --------------------------------------------------------------------------------------------
