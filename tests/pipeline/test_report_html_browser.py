@@ -60,10 +60,18 @@ pytestmark = [
 
 @dataclass
 class _Problem:
+    """A stand-in with the DesignProblem protocol; the report reads its names, never solves."""
+
     space: DesignSpace
     objective_names: tuple[str, ...]
     constraint_names: tuple[str, ...] = ("stress_ratio_minus_1",)
     variable_meanings: dict = field(default_factory=dict)
+
+    def evaluate(self, x):
+        raise AssertionError("the report never solves a design")
+
+    def detail(self, x):
+        raise AssertionError("the report never solves a design")
 
 
 def _data(
