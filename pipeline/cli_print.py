@@ -108,9 +108,9 @@ def add_print_commands(commands: Any) -> None:
     trim.add_argument("measured", type=_path, metavar="MEASURED.csv")
     trim.add_argument(
         "--key",
-        required=True,
         metavar="KEY",
-        help="the width's key in the design's study, e.g. design.B (constant-force)",
+        help="the width's key in the design's study (default: the kind's, e.g. design.B for "
+        "constant-force)",
     )
     trim.add_argument(
         "--out", type=_path, metavar="FILE", help="study to write (default RUN_DIR/retrimmed.yaml)"
@@ -252,7 +252,7 @@ def _retrim(args: Any) -> int:
     except (CalibrationError, StudyError) as exc:
         return _fail(args, exc)
     header = (
-        f"{args.run_dir}'s design re-trimmed from {args.measured}: {args.key} "
+        f"{args.run_dir}'s design re-trimmed from {args.measured}: {t.key} "
         f"{t.old_mm:.4g} -> {t.new_mm:.4g} (x {t.scale:.4f});\n"
         f"print it and measure again: flexopt evaluate {target}"
     )
@@ -262,7 +262,7 @@ def _retrim(args: Any) -> int:
         print(f"flexopt retrim: error: cannot write {target}: {exc}", file=sys.stderr)
         return EXIT_WRITE
     print(
-        f"{args.key}: {t.old_mm:.4g} -> {t.new_mm:.4g} (x {t.scale:.4f}; measured force error "
+        f"{t.key}: {t.old_mm:.4g} -> {t.new_mm:.4g} (x {t.scale:.4f}; measured force error "
         f"{t.comparison.comparison.force_error_percent:+.2f} %); wrote {target}"
     )
     return EXIT_OK

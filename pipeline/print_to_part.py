@@ -410,14 +410,16 @@ class RetrimOutcome:
     comparison: Any
 
 
-def retrim_run(run_dir: Path, measured_csv: Path, key: str) -> RetrimOutcome:
-    """The run's design with its out-of-plane width (at study key ``key``, mm) scaled so the
-    measured curve lands on the prediction (:func:`optimise.calibration.width_scale`).
+def retrim_run(run_dir: Path, measured_csv: Path, key: str | None = None) -> RetrimOutcome:
+    """The run's design with its out-of-plane width (at study key ``key``, mm; default the
+    kind's ``width_key``) scaled so the measured curve lands on the prediction
+    (:func:`optimise.calibration.width_scale`).
 
     Raises
     ------
     CalibrationError
-        As :func:`compare_run`, or when ``key`` is not a number in the design's study.
+        As :func:`compare_run`, when ``key`` is not a number in the design's study, or when no
+        ``key`` is given and the kind declares no width key.
     StudyError
         When the corrected value is refused by the study (outside its design range).
     """
@@ -427,6 +429,15 @@ def retrim_run(run_dir: Path, measured_csv: Path, key: str) -> RetrimOutcome:
 
     cmp = compare_run(run_dir, measured_csv)
     study, _, _ = design_study_of(run_dir, "best")
+    if key is None:
+        from flexopt.pipeline.studies import get_kind
+
+        key = get_kind(study.kind).width_key
+        if key is None:
+            raise CalibrationError(
+                f"the {study.kind} kind declares no out-of-plane width that scales every force; "
+                "give the study key to scale with --key"
+            )
     node: Any = study_data(study)
     for part in key.split("."):
         if not isinstance(node, dict) or part not in node:

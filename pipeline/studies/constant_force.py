@@ -641,6 +641,7 @@ register(
         quantities=_builtin.CONSTANT_FORCE,
         figures=FIGURES,
         design_space=lambda study: (design_space(study), design_vector(study)),
+        width_key="design.B",  # B, the out-of-plane width, scales every force (flexopt retrim)
         # `flexopt list`'s line: the model's module is _constant_force_schema
         summary=(__doc__ or "").split("\n\n")[0].removeprefix("Study kind ``constant_force``:"),
     )

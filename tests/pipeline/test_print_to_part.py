@@ -125,7 +125,8 @@ def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
     cmp = compare_run(tmp_path / "design", tmp_path / "measured.csv")
     assert cmp.comparison.force_error_percent == pytest.approx(-10.0, abs=0.3)
     assert set(cmp.files) == {"compare.json", "compare.png"}
-    trim = retrim_run(tmp_path / "design", tmp_path / "measured.csv", "design.B")
+    trim = retrim_run(tmp_path / "design", tmp_path / "measured.csv")  # the kind's width key
+    assert trim.key == "design.B"
     assert trim.new_mm == pytest.approx(trim.old_mm / 0.9, rel=2e-3)
     second = flexopt.evaluate(
         trim.study.with_values({"material.E_MPa": hidden_E}), out=tmp_path / "second"
