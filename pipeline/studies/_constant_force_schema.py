@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from flexopt.fea.materials import get_material
@@ -24,6 +24,11 @@ from flexopt.geometry.constant_force import (
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies._constant_force_spec import (
+    ConstantForceSpec,
+    check_spec,
+    fill_from_spec,
+)
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
 from pydantic import BaseModel, Field, field_validator, model_validator
 
@@ -34,6 +39,7 @@ __all__ = [
     "ForceTarget",
     "PRBSpec",
     "FidelitySpec",
+    "ConstantForceSpec",
     "ConstantForceStudy",
     "check",
     "design_space",
@@ -191,6 +197,22 @@ class ConstantForceStudy(Study):
     fidelity: FidelitySpec = Field(
         default_factory=FidelitySpec, description="plane-stress check of the best design"
     )
+    spec: ConstantForceSpec | None = Field(
+        None,
+        description="a user's {force_N, stroke_mm, envelope: {length_mm, height_mm}, "
+        "width_max_mm}: sets the frame, target, stroke and design space, judged before the run "
+        "(docs/constant_force.md, section 7)",
+    )
+
+    #: ``spec`` is left out of a dump when unset: studies without it dump as before it existed.
+    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = (*Study.OPTIONAL_BLOCKS, "spec")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _spec_fills_the_study(cls, data: Any) -> Any:
+        # The resolved study records what the spec set (frame scale, target, stroke, design
+        # space, design, envelope requirement); conflicts are left for check() to refuse.
+        return fill_from_spec(data, ConstantForceGeometry)
 
     @model_validator(mode="before")
     @classmethod
@@ -340,6 +362,7 @@ def design_vector(study: ConstantForceStudy) -> np.ndarray:
 def check(study: ConstantForceStudy) -> None:
     """Build the design space, the study's design and its beam once, so that every refusal is
     reported (with its key path) before any run folder exists."""
+    check_spec(study)  # a user's spec the material cannot give: refused with the figure first
     space = design_space(study)
     x = design_vector(study)
     try:
