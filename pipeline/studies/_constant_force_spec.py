@@ -345,13 +345,19 @@ def check_spec(study: Any) -> SpecEstimate | None:
     key = _geometry_key(g)
     scale = spec.frame_scale or fit_scale(spec.envelope.length_mm, spec.envelope.height_mm, key)
     w, h = part_box_mm(scale, key)
+    fitted = fit_scale(spec.envelope.length_mm, spec.envelope.height_mm, key)
     if w > spec.envelope.length_mm * (1 + 1e-6) or h > spec.envelope.height_mm * (1 + 1e-6):
         raise StudyError(
             "spec.envelope",
             f"{spec.envelope.length_mm:g} x {spec.envelope.height_mm:g} mm cannot hold the "
             f"part: at frame_scale {scale:g} it is {w:.1f} x {h:.1f} mm (the smallest frame, "
             f"scale {MIN_SCALE:g}, is {part_box_mm(MIN_SCALE, key)[0]:.1f} x "
-            f"{part_box_mm(MIN_SCALE, key)[1]:.1f} mm); give a larger envelope",
+            f"{part_box_mm(MIN_SCALE, key)[1]:.1f} mm); "
+            + (
+                f"give a larger envelope, or spec.frame_scale <= {fitted:g} (or none)"
+                if spec.frame_scale is not None and fitted > MIN_SCALE
+                else "give a larger envelope"
+            ),
         )
     est = spec_estimate(spec, g, study.material.E_MPa, study.allowable_MPa)
     material = getattr(study.material, "name", None) or "this material"
