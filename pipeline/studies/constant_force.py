@@ -20,6 +20,8 @@ YAML (every key optional but ``name``, ``geometry.kind`` and ``material``; see
     optimiser: {pop_size: 40, n_gen: 60}
     prb: {target_force_N: 1.5, stroke_mm: 35}
     fidelity: {points: 4, max_edge_mm: 0.5}
+    # or, instead of the paper's frame, target and stroke, a user's spec (section 7):
+    # spec: {force_N: 5, stroke_mm: 15, envelope: {length_mm: 90, height_mm: 60}, width_max_mm: 10}
 
 ``problem(study)`` returns a picklable :class:`ConstantForceProblem` (the
 :class:`optimise.DesignProblem` that ``flexopt run`` optimises); its ``result(x)`` analyses one
