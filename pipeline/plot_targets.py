@@ -175,7 +175,7 @@ def band_spec(
         if r.over is not None:
             xs = xs[(xs >= r.over[0] - 1e-12) & (xs <= r.over[1] + 1e-12)]
         try:
-            ys = r._target_in_y_units(xs)  # noqa: SLF001 - the target in the column's unit
+            ys = r.target_at(xs)  # the target in the column's unit
         except Exception:  # a target outside its table: nothing to draw, never a failure
             continue
         band = {"tolerance": r.tolerance} if r.tolerance is not None else {}

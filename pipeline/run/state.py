@@ -128,7 +128,7 @@ class RunState:
 
     # -- bookkeeping ------------------------------------------------------------------------
 
-    def _collect(self, generation: int) -> int:
+    def collect(self, generation: int) -> int:
         """Rows for the designs solved since the last call; returns how many."""
         new = self.evaluator.solved[len(self.rows) :]
         for ev in new:
@@ -144,7 +144,7 @@ class RunState:
             self.evaluator.store.sync()
         now = time.perf_counter()
         number = gen.index + 1
-        self._collect(number)
+        self.collect(number)
         # solved now, not served from the store of an earlier session: the rate a user can plan by
         n_new = self.evaluator.n_backend - self.n_backend_last
         self.n_backend_last = self.evaluator.n_backend
