@@ -85,6 +85,7 @@ __all__ = [
     "BeamSettings",
     "BeamResponse",
     "BeamModel",
+    "BeamTables",
     "ContactTerms",
     "solve_beam",
 ]
@@ -339,6 +340,56 @@ def _gauss_rule() -> tuple[np.ndarray, np.ndarray]:
 # -- the model ------------------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class BeamTables:
+    """The tables of a :class:`BeamModel` that do not depend on the deformation: what its solver
+    integrates with, for code that builds its own operators on the same mesh (the sensitivities
+    of fea/beam_sensitivity.py, the coupled beams of fea/mechanism.py). The model's own arrays,
+    not copies: read them, never write them.
+
+    E elements, Q = 2 Gauss points per element, 3 nodes per element (P2), 3 stress sampling
+    points per element (both ends and the middle), 3 DOFs per node (u, v in mm, phi in rad).
+
+    Attributes
+    ----------
+    N : (Q, 3) float — the shape functions at the Gauss points.
+    NgT : (3, Q) float — ``N`` transposed, C-ordered (the rotation at the Gauss points is
+        ``phi_e @ NgT``).
+    dN : (E, Q, 3) float, 1/mm — their derivatives by arc length at the Gauss points.
+    w : (E, Q) float, mm — the quadrature weights.
+    theta0, cos_theta0, sin_theta0 : (E, Q) float, rad and 1 — the reference tangent angle at
+        the Gauss points, its cosine and sine.
+    EA, kGA, EI : (E, Q) float, N, N and N mm^2 — the section stiffnesses at the Gauss points.
+    gauss_to_samples : (Q, 3) float — the linear extrapolation of Gauss-point values to the
+        sampling points (``values_g @ gauss_to_samples``).
+    dN_samples : (E, 3, 3) float, 1/mm — the shape functions' derivatives at the sampling
+        points (sampling point, node).
+    EI_samples : (E, 3) float, N mm^2 — the bending stiffness at the sampling points.
+    section_modulus_samples : (E, 3) float, mm^3 — the section modulus b t^2 / 6 there.
+    s_samples : (E, 3) float, mm — the arc length of the sampling points.
+    edofs : (E, 9) int — the global DOFs of each element (node-major: u, v, phi per node).
+    edofs3 : (E, 3, 3) int — the same as (element, node, field).
+    """
+
+    N: np.ndarray
+    NgT: np.ndarray
+    dN: np.ndarray
+    w: np.ndarray
+    theta0: np.ndarray
+    cos_theta0: np.ndarray
+    sin_theta0: np.ndarray
+    EA: np.ndarray
+    kGA: np.ndarray
+    EI: np.ndarray
+    gauss_to_samples: np.ndarray
+    dN_samples: np.ndarray
+    EI_samples: np.ndarray
+    section_modulus_samples: np.ndarray
+    s_samples: np.ndarray
+    edofs: np.ndarray
+    edofs3: np.ndarray
+
+
 class BeamModel:
     """A meshed planar beam, ready to trace responses under different drives.
 
@@ -456,6 +507,68 @@ class BeamModel:
         self._band_index = (cols * self._ldab + kl + ku + rows - cols).ravel()
         if self.kernel == "numba":
             self._geo, self._sgeo = self._kernel_geometry()
+
+    # ---------------------------------------------------------------- public tables and operators
+
+    @property
+    def tables(self) -> BeamTables:
+        """The mesh tables the solver integrates with (:class:`BeamTables`; the model's own
+        arrays, read-only by contract)."""
+        return BeamTables(
+            N=self._N,
+            NgT=self._NgT if hasattr(self, "_NgT") else np.ascontiguousarray(self._N.T),
+            dN=self._dN,
+            w=self._w,
+            theta0=self._theta0,
+            cos_theta0=self._c0,
+            sin_theta0=self._s0,
+            EA=self._ea,
+            kGA=self._kga,
+            EI=self._ei,
+            gauss_to_samples=self._gauss_to_samples,
+            dN_samples=self._dNs,
+            EI_samples=self._EI_s,
+            section_modulus_samples=self._section_modulus_s,
+            s_samples=self._s_samp,
+            edofs=self._edofs,
+            edofs3=self._edofs3,
+        )
+
+    @property
+    def residual_map(self) -> np.ndarray:
+        """(E, Q * 4, 9) float: the element residual (E, 9) is ``scalars (E, 1, Q * 4) @ map``,
+        the four residual scalars per Gauss point of :meth:`_element_arrays` weighted by the
+        shape functions and quadrature weights (built on first use for a compiled model)."""
+        if not hasattr(self, "_Rmap"):
+            self._precompute_kernels(self._N)
+        return self._Rmap
+
+    @property
+    def force_floor(self) -> float:
+        """N: the force below which a residual is round-off (the Newton solver's floor)."""
+        return self._force_floor
+
+    def physical(self, q: np.ndarray, frame: np.ndarray) -> np.ndarray:
+        """Physical DOFs (n_dofs,) [mm, rad] from generalised ones ``q`` (n_dofs,), whose end-node
+        translations are along the rows of ``frame`` (2, 2) (direction, normal)."""
+        return self._physical(q, frame)
+
+    def assemble(
+        self, q: np.ndarray, frame: np.ndarray, contact: ContactTerms | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Internal force (n_dofs,) [N, N mm] and tangent in LAPACK band storage at generalised
+        DOFs ``q`` (n_dofs,): see :meth:`_assemble` for the storage."""
+        return self._assemble(q, frame, contact)
+
+    def peak_stress(self, q: np.ndarray) -> tuple[float, float]:
+        """Peak |N|/A + |M| c/I (MPa) over the sampling points at physical DOFs ``q``
+        (n_dofs,) and its arc length (mm): the stress the solver reports."""
+        return self._stress(q)
+
+    def fixed_dofs(self, drive: EndDrive) -> np.ndarray:
+        """(n_fixed,) int64, sorted: the held and prescribed DOFs of ``drive`` (generalised
+        numbering)."""
+        return self._fixed_dofs(drive)
 
     # ---------------------------------------------------------------- element kernels (batched)
 

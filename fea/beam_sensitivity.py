@@ -201,11 +201,13 @@ class _Twin:
         # arc length of the Gauss points (E, Q) and of the stress sampling points (E, 3)
         s_vert = m.mesh.p[0]
         h = np.diff(s_vert)
-        self.s_samp = m._s_samp
+        self.s_samp = m.tables.s_samples
         # Gauss positions: the sampling points are at xi = 0, 1/2, 1 and the model's table
         # extrapolates Gauss values linearly to them (xi_s = g2s^T xi_g for the linear function
         # xi), so xi_g follows by least squares, exactly.
-        xi_g = np.linalg.lstsq(m._gauss_to_samples.T, np.array([0.0, 0.5, 1.0]), rcond=None)[0]
+        xi_g = np.linalg.lstsq(m.tables.gauss_to_samples.T, np.array([0.0, 0.5, 1.0]), rcond=None)[
+            0
+        ]
         self.s_gauss = s_vert[:-1, None] + xi_g[None, :] * h[:, None]
         self.assemblies = 0
 
@@ -214,10 +216,10 @@ class _Twin:
         the Gauss points (rows 2 e + g) and the end rotation (last row); factorised once."""
         if not hasattr(self, "_rot"):
             m = self.model
-            n_el, n_q = m._theta0.shape
+            n_el, n_q = m.tables.theta0.shape
             a = np.zeros((n_el * n_q + 1, m.n_nodes))
             for e in range(n_el):
-                a[e * n_q : (e + 1) * n_q, 2 * e : 2 * e + 3] = m._N
+                a[e * n_q : (e + 1) * n_q, 2 * e : 2 * e + 3] = m.tables.N
             a[-1, -1] = 1.0
             lu = lu_factor(a)
             self._rot = lambda rhs: lu_solve(lu, rhs)
@@ -239,21 +241,21 @@ class _Twin:
 
     def assemble(self, q: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         self.assemblies += 1
-        r, ab = self.solver._assemble(q, frame)
+        r, ab = self.solver.assemble(q, frame)
         return r, np.asfortranarray(ab)
 
     def physical(self, q: np.ndarray, frame: np.ndarray) -> np.ndarray:
-        return self.model._physical(q, frame)
+        return self.model.physical(q, frame)
 
     def fields(self, u: np.ndarray) -> dict[str, np.ndarray]:
         """Per Gauss point (E, Q): cos, sin of theta, 1 + Gamma1, Gamma2, kappa; (E, 3, 3) qe."""
         m = self.model
-        qe = u[m._edofs3]
-        grad = m._dN @ qe
-        theta = m._theta0 + qe[:, :, 2] @ m._N.T
+        qe = u[m.tables.edofs3]
+        grad = m.tables.dN @ qe
+        theta = m.tables.theta0 + qe[:, :, 2] @ m.tables.N.T
         c, s = np.cos(theta), np.sin(theta)
-        x1 = m._c0 + grad[..., 0]
-        x2 = m._s0 + grad[..., 1]
+        x1 = m.tables.cos_theta0 + grad[..., 0]
+        x2 = m.tables.sin_theta0 + grad[..., 1]
         return {
             "c": c,
             "s": s,
@@ -268,9 +270,9 @@ class _Twin:
         (E, 3) each: the stress there is ``E |Gamma1| + |(EI / Z) kappa|``."""
         m = self.model
         f = self.fields(u)
-        g1s = (f["h1"] - 1.0) @ m._gauss_to_samples
-        kap = np.einsum("eqk,ek->eq", m._dNs, f["qe"][:, :, 2])
-        return g1s, m._EI_s / m._section_modulus_s * kap
+        g1s = (f["h1"] - 1.0) @ m.tables.gauss_to_samples
+        kap = np.einsum("eqk,ek->eq", m.tables.dN_samples, f["qe"][:, :, 2])
+        return g1s, m.tables.EI_samples / m.tables.section_modulus_samples * kap
 
     def fibre_terms(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The two terms of the fibre stresses at the sampling points and their derivatives.
@@ -278,21 +280,23 @@ class _Twin:
         Returns ``a = E Gamma1`` and ``c = (EI / Z) kappa = E t kappa / 2`` (E, 3) MPa, and
         ``da``, ``dc`` (E, 3, 9) by the element's physical DOFs (MPa/mm, MPa/rad). The outer
         fibres carry ``a + c`` and ``a - c``; the solver's stress is ``|a| + |c|``, the larger of
-        their magnitudes (BeamModel._stress, the same formula).
+        their magnitudes (BeamModel.peak_stress, the same formula).
         """
         m = self.model
         f = self.fields(u)
         E = m.material.E_MPa
-        g2s = m._gauss_to_samples  # (Q, 3)
+        g2s = m.tables.gauss_to_samples  # (Q, 3)
         g1s, bend = self.section_terms(u)
         # dGamma1/dq at the Gauss points: (E, Q, node, field)
-        dg1 = np.empty(m._dN.shape + (3,))
-        dg1[..., 0] = f["c"][..., None] * m._dN
-        dg1[..., 1] = f["s"][..., None] * m._dN
-        dg1[..., 2] = f["g2"][..., None] * m._N[None]
+        dg1 = np.empty(m.tables.dN.shape + (3,))
+        dg1[..., 0] = f["c"][..., None] * m.tables.dN
+        dg1[..., 1] = f["s"][..., None] * m.tables.dN
+        dg1[..., 2] = f["g2"][..., None] * m.tables.N[None]
         da = E * np.einsum("gm,egkf->emkf", g2s, dg1)  # (E, 3, node, field)
         dc = np.zeros_like(da)
-        dc[..., 2] = (m._EI_s / m._section_modulus_s)[..., None] * m._dNs
+        dc[..., 2] = (m.tables.EI_samples / m.tables.section_modulus_samples)[
+            ..., None
+        ] * m.tables.dN_samples
         n_el = g1s.shape[0]
         return E * g1s, bend, da.reshape(n_el, 3, 9), dc.reshape(n_el, 3, 9)
 
@@ -320,13 +324,13 @@ def _initial_states(
     m = twin.model
     u = shapes - m.reference_nodes_mm  # (R, n_nodes, 2), physical
     ue = u[:, 2 * np.arange(m.n_elements)[:, None] + np.arange(3)[None, :]]  # (R, E, 3, 2)
-    d = m._dN @ ue  # (R, E, Q, 2): u', v' at the Gauss points
-    ang = np.arctan2(m._s0 + d[..., 1], m._c0 + d[..., 0])
+    d = m.tables.dN @ ue  # (R, E, Q, 2): u', v' at the Gauss points
+    ang = np.arctan2(m.tables.sin_theta0 + d[..., 1], m.tables.cos_theta0 + d[..., 0])
     n_xy = (end_force @ frame)[:, None, None, :]  # the stress resultant, physical x, y (N)
     c, s = np.cos(ang), np.sin(ang)
-    axial = (n_xy[..., 0] * c + n_xy[..., 1] * s) / m._ea
-    shear = (n_xy[..., 1] * c - n_xy[..., 0] * s) / m._kga
-    phi_g = np.angle(np.exp(1j * (ang - np.arctan2(shear, 1.0 + axial) - m._theta0)))
+    axial = (n_xy[..., 0] * c + n_xy[..., 1] * s) / m.tables.EA
+    shear = (n_xy[..., 1] * c - n_xy[..., 0] * s) / m.tables.kGA
+    phi_g = np.angle(np.exp(1j * (ang - np.arctan2(shear, 1.0 + axial) - m.tables.theta0)))
     phi_g = np.unwrap(phi_g.reshape(len(u), -1), axis=1)  # along s: the Gauss points in order
     phi_g += 2 * np.pi * np.round((end_rotation - phi_g[:, -1]) / (2 * np.pi))[:, None]
     phi = twin.rotation_system()(np.concatenate([phi_g, end_rotation[:, None]], axis=1).T).T
@@ -401,8 +405,8 @@ def _thickness_terms(twin: _Twin, u: np.ndarray) -> tuple[np.ndarray, np.ndarray
     ) * psi_g[:, :, None, :]  # (E, Q, 4, n_pts)
     n_el, n_q = g1.shape
     # (E, 9, Q * 4) @ (E, Q * 4, n_pts): the element residual map applied to every column
-    dre = np.matmul(m._Rmap.transpose(0, 2, 1), drs.reshape(n_el, n_q * 4, -1))
-    kap_s = np.einsum("eqk,ek->eq", m._dNs, f["qe"][:, :, 2])
+    dre = np.matmul(m.residual_map.transpose(0, 2, 1), drs.reshape(n_el, n_q * 4, -1))
+    kap_s = np.einsum("eqk,ek->eq", m.tables.dN_samples, f["qe"][:, :, 2])
     dbend = (0.5 * E * kap_s)[..., None] * psi_s  # (EI / Z) kappa = E t kappa / 2
     return dre, dbend
 
@@ -436,7 +440,7 @@ class _CoordinateBatch:
     def __init__(self, model: BeamModel, step: float, counts: dict) -> None:
         prof = model.profile
         seg = _segment_of_elements(model)
-        keys = ("_dN", "_w", "_theta0", "_c0", "_s0", "_ea", "_kga", "_ei", "_dNs")
+        keys = ("dN", "w", "theta0", "cos_theta0", "sin_theta0", "EA", "kGA", "EI", "dN_samples")
         tables: dict[str, list[np.ndarray]] = {k: [] for k in (*keys, "ratio")}
         e_idx, col, sign = [], [], []
         self.names: list[str] = []
@@ -454,9 +458,12 @@ class _CoordinateBatch:
                             f"coordinate step {step:g} mm changes the mesh at vertex {i}; "
                             "pass a smaller coordinate_step_mm"
                         )
+                    own = pm.tables
                     for key in keys:
-                        tables[key].append(getattr(pm, key)[els])
-                    tables["ratio"].append((pm._EI_s / pm._section_modulus_s)[els])
+                        tables[key].append(getattr(own, key)[els])
+                    tables["ratio"].append(
+                        (pm.tables.EI_samples / pm.tables.section_modulus_samples)[els]
+                    )
                     e_idx.append(els)
                     col.append(np.full(els.size, len(self.names)))
                     sign.append(np.full(els.size, sgn / (2.0 * step)))
@@ -465,9 +472,9 @@ class _CoordinateBatch:
         self.e = np.concatenate(e_idx)
         self.col = np.concatenate(col)
         self.weight = np.concatenate(sign)
-        self.N = model._N  # (Q, 3), the same reference table for every model
-        self.g2s = model._gauss_to_samples
-        self.edofs = model._edofs
+        self.N = model.tables.N  # (Q, 3), the same reference table for every model
+        self.g2s = model.tables.gauss_to_samples
+        self.edofs = model.tables.edofs
         self.last = self.e == model.n_elements - 1
         self.n_el = model.n_elements
         self.E = model.material.E_MPa
@@ -480,21 +487,21 @@ class _CoordinateBatch:
         DOFs ``u`` (n,)."""
         t, nc = self.t, len(self.names)
         qe = u[self.edofs[self.e].reshape(-1, 3, 3)]  # (V, node, field)
-        grad = t["_dN"] @ qe  # (V, Q, field)
-        theta = t["_theta0"] + qe[:, :, 2] @ self.N.T
+        grad = t["dN"] @ qe  # (V, Q, field)
+        theta = t["theta0"] + qe[:, :, 2] @ self.N.T
         c, s = np.cos(theta), np.sin(theta)
-        x1 = t["_c0"] + grad[..., 0]
-        x2 = t["_s0"] + grad[..., 1]
+        x1 = t["cos_theta0"] + grad[..., 0]
+        x2 = t["sin_theta0"] + grad[..., 1]
         h1 = c * x1 + s * x2
         g2 = c * x2 - s * x1
-        nf = t["_ea"] * (h1 - 1.0)
-        qf = t["_kga"] * g2
-        wd = t["_w"][..., None] * t["_dN"]  # (V, Q, 3)
-        wn = t["_w"][..., None] * self.N[None]
+        nf = t["EA"] * (h1 - 1.0)
+        qf = t["kGA"] * g2
+        wd = t["w"][..., None] * t["dN"]  # (V, Q, 3)
+        wn = t["w"][..., None] * self.N[None]
         re = np.empty(qe.shape)
         re[..., 0] = np.einsum("vqk,vq->vk", wd, nf * c - qf * s)
         re[..., 1] = np.einsum("vqk,vq->vk", wd, nf * s + qf * c)
-        re[..., 2] = np.einsum("vqk,vq->vk", wd, t["_ei"] * grad[..., 2]) + np.einsum(
+        re[..., 2] = np.einsum("vqk,vq->vk", wd, t["EI"] * grad[..., 2]) + np.einsum(
             "vqk,vq->vk", wn, nf * g2 - qf * h1
         )
         re[self.last, 2, :2] = re[self.last, 2, :2] @ frame.T  # end node: (direction, normal)
@@ -502,7 +509,7 @@ class _CoordinateBatch:
         idx = self.edofs[self.e] * nc + self.col[:, None]  # (V, 9)
         dR = np.bincount(idx.ravel(), (re.reshape(-1, 9) * w[:, None]).ravel(), n * nc)
         g1s = (h1 - 1.0) @ self.g2s  # (V, 3)
-        kap = np.einsum("vmk,vk->vm", t["_dNs"], qe[:, :, 2])
+        kap = np.einsum("vmk,vk->vm", t["dN_samples"], qe[:, :, 2])
         sidx = ((3 * self.e[:, None] + np.arange(3)) * nc + self.col[:, None]).ravel()
         size = 3 * self.n_el * nc
         da = np.bincount(sidx, (self.E * g1s * w[:, None]).ravel(), size)
@@ -545,7 +552,7 @@ def beam_sensitivities(
     prof = m.profile
     n = m.n_dofs
     frame = _frame(drive)
-    fixed = m._fixed_dofs(drive)
+    fixed = m.fixed_dofs(drive)
     held = _held_entries(fixed, n)
     ia, it, ir = n - 3, n - 2, n - 1
     is_disp = drive.control == "displacement"
@@ -577,7 +584,7 @@ def beam_sensitivities(
     derivs = {k: np.full((n_rows, n_var), np.nan) for k in (*RESPONSES, "ks_stress_MPa")}
     fibre = np.full((n_rows, 3 * n_el, 2), np.nan)
     d_fibre = np.full((n_rows, 3 * n_el, 2, n_var), np.nan)
-    edofs = m._edofs  # (E, 9)
+    edofs = m.tables.edofs  # (E, 9)
     mismatch = 0.0
 
     done = np.flatnonzero(response.converged)

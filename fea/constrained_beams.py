@@ -332,7 +332,7 @@ class ConstrainedBeams:
         vals = []
         for i, beam in enumerate(self.beams):
             a, b = self.offsets[i], self.offsets[i + 1]
-            ri, ab = beam._assemble(z[a:b], self._frame)
+            ri, ab = beam.assemble(z[a:b], self._frame)
             r[a:b] = ri
             vals.append(ab[BAND:][self._band_src[i]])
         K = sp.coo_matrix(
@@ -344,7 +344,7 @@ class ConstrainedBeams:
         peak = np.empty(len(self.beams))
         where = np.empty(len(self.beams))
         for i, beam in enumerate(self.beams):
-            peak[i], where[i] = beam._stress(z[self.offsets[i] : self.offsets[i + 1]])
+            peak[i], where[i] = beam.peak_stress(z[self.offsets[i] : self.offsets[i + 1]])
         return peak, where
 
     def _newton(

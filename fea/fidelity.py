@@ -135,7 +135,7 @@ def plane_stress_check(
     tangent (``stable``) confirms that equilibrium is stable, i.e. the physical one.
     ``max_shape_change_mm`` is how far Newton moved the mesh from the beam's shape.
 
-    Newton's linear solves are the model's (``PlaneStressModel._reduced_solve``: CHOLMOD or
+    Newton's linear solves are the model's (``PlaneStressModel.reduced_solve``: CHOLMOD or
     QDLDL, and SuperLU for a tangent that is not positive definite); the eigenvalue is
     shift-invert Lanczos on the model's factor of the converged tangent
     (:func:`_eigenvalue_nearest_zero`). Before, every iteration and every eigenvalue made a fresh
@@ -225,7 +225,7 @@ def plane_stress_check(
                 break
             # The model's own factoriser: CHOLMOD with the pattern's analysis kept (when cvxopt
             # imports), SuperLU where a tangent is not positive definite; SuperLU otherwise.
-            u = u + model.P @ model._reduced_solve(state.K, -residual)
+            u = u + model.P @ model.reduced_solve(state.K, -residual)
         reaction = np.array([state.f[model.drive_dofs_x].sum(), state.f[model.drive_dofs_y].sum()])
         # The eigenvalue nearest to zero: negative means an unstable equilibrium.
         eig = _eigenvalue_nearest_zero(model, state.K)

@@ -499,7 +499,7 @@ class _Model:
         self.n_beam_dofs = int(self.offsets[-1])
         self.n = self.n_beam_dofs + 3 * len(bodies)
         self.length = max(max(m.profile.length_mm for m in self.models), 1.0)
-        self.force_floor = max(m._force_floor for m in self.models)
+        self.force_floor = max(m.force_floor for m in self.models)
         self.rot_dofs = np.concatenate(
             [np.arange(self.offsets[i] + 2, self.offsets[i + 1], 3) for i in range(len(beams))]
             + [self.n_beam_dofs + 3 * np.arange(len(bodies)) + 2]
@@ -716,7 +716,7 @@ class _Model:
         frame = np.eye(2)
         for i, m in enumerate(self.models):
             a, b = self.offsets[i], self.offsets[i + 1]
-            ri, ab = m._assemble(z[a:b], frame)
+            ri, ab = m.assemble(z[a:b], frame)
             r[a:b] = ri
             vals.append(ab[BAND:][self._band_src[i]])
         K = sp.coo_matrix(
@@ -735,7 +735,7 @@ class _Model:
         """(B,) peak stress (MPa) of each beam."""
         return np.array(
             [
-                m._stress(z[self.offsets[i] : self.offsets[i + 1]])[0]
+                m.peak_stress(z[self.offsets[i] : self.offsets[i + 1]])[0]
                 for i, m in enumerate(self.models)
             ]
         )
@@ -834,20 +834,23 @@ class _Model:
 
 def _stress_samples(m: BeamModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """|N|/A + |M| c/I (MPa) at every stress sampling point of a beam and their arc lengths (mm),
-    both flat: the numbers :meth:`fea.beam.BeamModel._stress` takes the largest of (its numpy
+    both flat: the numbers :meth:`fea.beam.BeamModel.peak_stress` takes the largest of (its numpy
     path, whichever kernel the model runs)."""
-    if not hasattr(m, "_NgT"):
-        m._precompute_kernels(m._N)
-    qe = q[m._edofs3]
-    grad = m._dN @ qe
-    theta = m._theta0 + qe[:, :, 2] @ m._NgT
-    g1 = np.cos(theta) * (m._c0 + grad[..., 0]) + np.sin(theta) * (m._s0 + grad[..., 1]) - 1.0
-    kappa = np.einsum("eqk,ek->eq", m._dNs, qe[:, :, 2])
-    sigma = (
-        m.material.E_MPa * np.abs(g1 @ m._gauss_to_samples)
-        + np.abs(m._EI_s * kappa) / m._section_modulus_s
+    t = m.tables
+    qe = q[t.edofs3]
+    grad = t.dN @ qe
+    theta = t.theta0 + qe[:, :, 2] @ t.NgT
+    g1 = (
+        np.cos(theta) * (t.cos_theta0 + grad[..., 0])
+        + np.sin(theta) * (t.sin_theta0 + grad[..., 1])
+        - 1.0
     )
-    return sigma.ravel(), m._s_samp.ravel()
+    kappa = np.einsum("eqk,ek->eq", t.dN_samples, qe[:, :, 2])
+    sigma = (
+        m.material.E_MPa * np.abs(g1 @ t.gauss_to_samples)
+        + np.abs(t.EI_samples * kappa) / t.section_modulus_samples
+    )
+    return sigma.ravel(), t.s_samples.ravel()
 
 
 def _row(pt: _Point, w: np.ndarray, group: int) -> tuple:

@@ -360,7 +360,7 @@ def mechanism_fidelity_check(
     try:
         ps, T, ubar, presc = _plane_stress(mesh, mech, ground, bodies, case.drive, driven,
                                            drive_at, rigid_all, width)  # fmt: skip
-        K = ps._linear_stiffness()
+        K = ps.linear_stiffness()
         u = _solve(K, T, ubar)
         k_ps = float(presc @ (K @ u))
         s_ps = float(ps.peak_stress(u, "linear")[0])
@@ -428,8 +428,8 @@ def _solid(mesh, mech, ground, bodies, drive, driven, drive_at, rigid_all, depth
                             stress_ignore=rigid_all, reference_thickness_mm=ref)  # fmt: skip
     # the P2 node locations in the model's numbering (its own tables, rebuilt)
     tmesh = s3.extrude_mesh(mesh, s3.extrude_layers_mm(ref, st))
-    if model._kernels is not None:
-        locs = s3.p2_tables(tmesh, model._kernels)[2]
+    if model.kernels is not None:
+        locs = s3.p2_tables(tmesh, model.kernels)[2]
     else:
         from skfem import Basis, ElementTetP2
 

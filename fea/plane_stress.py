@@ -1107,6 +1107,19 @@ class PlaneStressModel:
 
     # ---- physics ----------------------------------------------------------------------------
 
+    def linear_stiffness(self) -> sp.csr_matrix:
+        """(n_dofs, n_dofs) N/mm: the stiffness at u = 0 (the SVK tangent there), assembled once
+        and kept."""
+        return self._linear_stiffness()
+
+    def reduced_solve(self, K: sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:
+        """The free DOFs' correction (n_free,) of ``P^T K P dq = rhs`` for a tangent ``K``
+        (n_dofs, n_dofs) N/mm of this model and a reduced right-hand side ``rhs`` (n_free,) N,
+        with the model's own factoriser (CHOLMOD with the pattern's analysis kept, SuperLU
+        where a tangent is not positive definite; PARDISO or SuperLU / PCG otherwise) and its
+        counters (``counters["factorisations"]`` ...)."""
+        return self._reduced_solve(K, rhs)
+
     def _linear_stiffness(self) -> sp.csr_matrix:
         return self._state_linear(np.zeros(self.n_dofs)).K
 

@@ -53,6 +53,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from types import ModuleType
 from typing import Literal
 
 import numpy as np
@@ -1136,6 +1137,12 @@ class Solid3DModel:
         solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"
         return _result(sup, rx, peaks, self.n_dofs, self._t.shape[0], self._n_layers, st,
                        solver, times, iterations)  # fmt: skip
+
+    @property
+    def kernels(self) -> ModuleType | None:
+        """The compiled kernels this model assembles with (fea/_solid3d_kernels.py: pass them
+        to :func:`p2_tables` for its node tables), or None on the numpy path."""
+        return self._kernels
 
     def peak_stresses(self, u: np.ndarray, thickness_mm: float) -> tuple:
         """The peak von Mises stresses of the displacement ``u`` (n_dofs,) mm of this model

@@ -208,7 +208,7 @@ def target_objective(
         return INFEASIBLE_VALUE
     xs = np.linspace(lo, hi, 201)
     ys = np.interp(xs, x, y)
-    t = req._target_in_y_units(xs)  # noqa: SLF001
+    t = req.target_at(xs)
     if key == "target_error":
         return float(np.sqrt(np.mean((ys - t) ** 2)))
     band = (

@@ -46,8 +46,8 @@ class CaseResponse:
     Attributes
     ----------
     table : dict of str to (n_rows,) array — the case's response columns, units in the names.
-    plot : dict — how to plot it, as :attr:`DesignResult.plot` (``x``, ``y``, ``stress``,
-        ``allowable_MPa``, a target band, ``x_label``).
+    plot : dict — how to plot it, in the vocabulary of :attr:`DesignResult.plot` (``x``,
+        ``y``, ``stress``, ``allowable_MPa``, a target band, ``x_label``).
     outputs : tuple of str — the columns the user defined for this case (``advantage``,
         ``jaw_force_N``), each drawn on the axis of its unit.
     """
@@ -72,12 +72,16 @@ class DesignResult:
         study solved without a design problem).
     table : dict of str to (n_rows,) array — response columns, units in the names
         (``displacement_mm``, ``force_N``, ``peak_stress_MPa``); written as CSV.
-    plot : dict — how to plot ``table``. A problem's detail names ``x`` and ``y`` columns,
-        optional ``stress`` column, ``target`` value with ``tolerance`` (absolute, unit of
-        ``y``) or ``tolerance_rel`` (band), ``band_x`` (x-range of the band), ``allowable_MPa``
-        line, ``xlabel`` / ``ylabel``; an evaluation names ``x``, ``left``, ``right`` and the
-        words of :func:`pipeline.plots.plot_response` (``left_title``, ``x_label`` ...) and the
-        target of ``left`` (:mod:`pipeline.plot_targets`).
+    plot : dict — how to plot ``table``, one vocabulary for a problem's detail and an
+        evaluation (:mod:`pipeline.plot_targets`, whose ``plot_spec`` every reader goes
+        through): the columns ``x`` (default ``displacement_mm``), ``y`` (the response, default
+        ``force_N``) and ``stress`` (the second panel, default ``peak_stress_MPa``); the words
+        ``x_label``, ``y_label``, ``stress_label``, ``y_title``, ``stress_title``; the stress
+        line ``allowable_MPa`` (MPa) with ``allowable_label``; the target of ``y``: ``target``,
+        ``target_curve`` or ``target_range``, its band ``tolerance`` (absolute, unit of ``y``),
+        ``tolerance_rel`` or ``tolerance_of_max``, ``band_x`` (x-range of the band),
+        ``target_label``. The old names a plugin may still give (``left`` / ``right`` for ``y``
+        / ``stress``, ``xlabel``, ``ylabel``, ``left_label`` ...) are read as these.
     shapes_mm : (n_rows, n_nodes, 2) float, mm, optional — deformed centrelines to draw.
     outline : shapely Polygon, optional — the printable outline (mm), extruded by ``height_mm``.
     height_mm : float, optional — extrusion height of the outline (the out-of-plane width).

@@ -17,6 +17,7 @@ from flexopt.optimise.problem import DesignResult
 from flexopt.optimise.requirements import verdict_record
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.fork import limit_loaded_pools
+from flexopt.pipeline.plot_targets import plot_spec
 from flexopt.pipeline.problems import can_evaluate, study_result
 from flexopt.pipeline.responses import stacked_table, stress_allowable
 from flexopt.pipeline.runfolder import (
@@ -151,14 +152,14 @@ def response_plot_args(study: Study, result: DesignResult) -> dict[str, Any]:
     """The arguments of :func:`pipeline.plots.plot_response` (or ``response_figure``) beyond
     the table, for the response of ``result``: what force_displacement.png shows. The stress
     line is the allowable the verdict uses (:func:`pipeline.responses.stress_allowable`)."""
-    line = stress_allowable(result.verdicts, "", result.plot.get("allowable_MPa"))
-    labels = dict(result.plot)
+    labels = plot_spec(result.plot)
+    line = stress_allowable(result.verdicts, "", labels.get("allowable_MPa"))
     if line is not None and line[1].startswith("allowable"):  # the verdict's own bound
         labels["allowable_text"] = line[1]
     return {
-        "x": result.plot.get("x", "displacement_mm"),
-        "left": result.plot.get("left", "force_N"),
-        "right": result.plot.get("right", "peak_stress_MPa"),
+        "x": labels["x"],
+        "left": labels["y"],
+        "right": labels["stress"],
         "allowable_MPa": line[0] if line is not None else None,
         "title": f"{study.name} ({study.kind})",
         "labels": labels,

@@ -1,8 +1,30 @@
-"""The target a response plot draws, read from a kind's plot spec.
+"""A result's plot spec: its one vocabulary (:func:`plot_spec`) and the target a response plot
+draws (:func:`target_overlay`).
 
-A kind's plot dict (``EvaluationResult.plot`` of ``flexopt evaluate``, ``DesignDetail.plot`` of
-``flexopt run``) names its response column (``y``, or ``left`` in an evaluate spec) and may state
-the target of that column in one of three forms, all in the column's unit:
+A kind's plot dict (:attr:`optimise.problem.DesignResult.plot`, of ``flexopt evaluate`` and of
+``flexopt run``'s best design alike; :attr:`optimise.problem.CaseResponse.plot` of a load case)
+names its columns and its words with these keys:
+
+- columns: ``x`` (the abscissa, default ``displacement_mm``), ``y`` (the response, default
+  ``force_N``) and ``stress`` (the second panel, default ``peak_stress_MPa``: the peak stress of
+  every structural kind; a kind without one names its second response there, the SEA window's
+  ``bandwidth_Hz``);
+- words: ``x_label``, ``y_label``, ``stress_label`` (axes; ``y_label`` also names a lone
+  response curve in the legend), ``y_title``, ``stress_title`` (panel titles), and for the line
+  on the stress panel ``allowable_MPa`` (its value, MPa), ``allowable_label`` (its word, "yield"
+  by default for a stress column, "allowable" otherwise) or ``allowable_text`` (its whole
+  legend);
+- the target of ``y``, below.
+
+Every reader (the PNG plots, report.html, the robustness band, the run folder) reads a spec
+through :func:`plot_spec`, the one place that knows the old names a plugin may still give:
+``left`` / ``right`` for ``y`` / ``stress`` (the vocabulary of the kinds' former evaluate
+results), ``xlabel`` / ``ylabel`` and ``left_label`` for ``x_label`` / ``y_label``,
+``right_label`` for ``stress_label``, ``left_title`` / ``right_title`` for ``y_title`` /
+``stress_title`` (:data:`OLD_PLOT_KEYS`).
+
+A spec may state the target of its response column in one of three forms, all in the column's
+unit:
 
 - ``target``: a constant (a force of 1.5 N, a stiffness of 300 N·mm/rad);
 - ``target_curve``: the name of a table column holding the target at each row (the cam's
@@ -28,11 +50,57 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
-__all__ = ["TargetOverlay", "band_spec", "measure_band", "response_column", "target_overlay"]
+__all__ = [
+    "OLD_PLOT_KEYS",
+    "PLOT_DEFAULTS",
+    "TargetOverlay",
+    "band_spec",
+    "measure_band",
+    "plot_spec",
+    "response_column",
+    "target_overlay",
+]
+
+#: The columns a spec names, with the column each means when the spec does not name it.
+PLOT_DEFAULTS: Mapping[str, str] = MappingProxyType(
+    {"x": "displacement_mm", "y": "force_N", "stress": "peak_stress_MPa"}
+)
+
+#: The old names of plot-spec keys a plugin may still give, with the key each stands for. Where
+#: a spec gives both, the key of the one vocabulary wins; among old names, the first listed.
+OLD_PLOT_KEYS: Mapping[str, str] = MappingProxyType(
+    {
+        "left": "y",
+        "right": "stress",
+        "xlabel": "x_label",
+        "ylabel": "y_label",
+        "left_label": "y_label",
+        "right_label": "stress_label",
+        "left_title": "y_title",
+        "right_title": "stress_title",
+    }
+)
+
+
+def plot_spec(spec: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``spec`` in the one vocabulary (the module docstring): every old key
+    (:data:`OLD_PLOT_KEYS`) under its new name, the columns ``x``, ``y`` and ``stress`` always
+    present (:data:`PLOT_DEFAULTS` where the spec names none; a column given as None stays None:
+    the spec has none, e.g. no stress panel). The target and word keys pass as they are; the
+    input is not changed."""
+    spec = spec or {}
+    out = {key: value for key, value in spec.items() if key not in OLD_PLOT_KEYS}
+    for old, new in OLD_PLOT_KEYS.items():
+        if old in spec and new not in out:
+            out[new] = spec[old]
+    for key, default in PLOT_DEFAULTS.items():
+        out.setdefault(key, default)
+    return out
 
 
 @dataclass(frozen=True)
@@ -91,9 +159,9 @@ def band_spec(
 ) -> dict[str, Any]:
     """Plot-spec entries drawing a study's target band (an
     :class:`optimise.requirements.TargetBand` on a column of ``table`` against ``x``): that
-    column as the response (``key``: ``y`` of a run spec, ``left`` of an evaluate spec), its
-    target curve at the rows of ``over`` and the band's tolerance. ``prefix`` (``case.``) keeps
-    the requirements of one load case of a multi-case study. Empty when there is none.
+    column as the response (under ``key``, ``y``) with its words (``y_label``), its target curve
+    at the rows of ``over`` and the band's tolerance. ``prefix`` (``case.``) keeps the
+    requirements of one load case of a multi-case study. Empty when there is none.
     """
     from flexopt.optimise.requirements import TargetBand
 
@@ -107,7 +175,7 @@ def band_spec(
         if r.over is not None:
             xs = xs[(xs >= r.over[0] - 1e-12) & (xs <= r.over[1] + 1e-12)]
         try:
-            ys = r._target_in_y_units(xs)  # noqa: SLF001 - the target in the column's unit
+            ys = r.target_at(xs)  # the target in the column's unit
         except Exception:  # a target outside its table: nothing to draw, never a failure
             continue
         band = {"tolerance": r.tolerance} if r.tolerance is not None else {}
@@ -118,8 +186,7 @@ def band_spec(
         words = label(column, plain=True)  # a study's own column: its own words, not NAMES
         return {
             key: column,
-            "ylabel": words,
-            "left_label": words,
+            "y_label": words,
             "target_curve": {"x": xs, "y": ys},
             **band,
             "target_label": f"target ({r.label})" if r.label else "target",
@@ -128,9 +195,9 @@ def band_spec(
 
 
 def response_column(spec: Mapping[str, Any]) -> str:
-    """The response column of a plot spec: ``y`` (run), else ``left`` (evaluate), else
-    ``force_N``."""
-    return str(spec.get("y") or spec.get("left") or "force_N")
+    """The response column of a plot spec: its ``y`` (:func:`plot_spec`; ``force_N`` when it
+    names none)."""
+    return str(plot_spec(spec)["y"] or PLOT_DEFAULTS["y"])
 
 
 def _band_text(spec: Mapping[str, Any], unit: str) -> str:
@@ -165,11 +232,12 @@ def target_overlay(
     unit : str, optional
         Written after the numbers of the legend (``" N"``), when given.
     """
+    spec = plot_spec(spec)
     y_name = response_column(spec)
     column = column or y_name
     if column != str(spec.get("target_of") or y_name):
         return None
-    x_name = spec.get("x", "displacement_mm")
+    x_name = spec["x"]
     if x_name not in table:
         return None
     xs = np.asarray(table[x_name], dtype=float)

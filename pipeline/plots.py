@@ -131,10 +131,11 @@ def response_figure(
     title: str = "",
     labels: Mapping[str, str] | None = None,
 ) -> Figure:
-    """The figure of :func:`plot_response`: ``left`` and ``right`` against ``x``, each with every
-    curve of its quantity (the six torque curves of the leaf-spring joint, a reference, a closed
-    form), the target of ``left`` (:func:`pipeline.plot_targets.target_overlay` of the spec) and
-    the allowable line on ``right``.
+    """The figure of :func:`plot_response`: ``left`` (a spec's ``y``) and ``right`` (its
+    ``stress``) against ``x``, each with every curve of its quantity (the six torque curves of
+    the leaf-spring joint, a reference, a closed form), the target of ``left``
+    (:func:`pipeline.plot_targets.target_overlay` of the spec) and the allowable line on
+    ``right``.
 
     Only converged rows are drawn; a title note says when some are missing.
 
@@ -145,36 +146,37 @@ def response_figure(
     allowable_MPa : float, MPa, optional
         Drawn as a dashed horizontal line on the right panel.
     labels : mapping, optional
-        The kind's plot dict: its target keys (``target``, ``target_curve``, ``target_range``,
-        ``tolerance``, ... see :mod:`pipeline.plot_targets`) and words: ``left_title`` and
-        ``right_title`` (panel titles, default "<left quantity> – <x quantity>", e.g. "torque –
-        rotation"), ``x_label``, ``left_label``, ``right_label`` (axes) and ``allowable_label``
-        (legend of the line, default "yield <value> MPa" for a stress column, "allowable <value>
-        MPa" otherwise) or ``allowable_text`` (the whole legend: the verdict's bound).
+        The kind's plot dict (read through :func:`pipeline.plot_targets.plot_spec`): its target
+        keys (``target``, ``target_curve``, ``target_range``, ``tolerance``, ... see
+        :mod:`pipeline.plot_targets`) and words: ``y_title`` and ``stress_title`` (panel titles,
+        default "<left quantity> – <x quantity>", e.g. "torque – rotation"), ``x_label``,
+        ``y_label``, ``stress_label`` (axes) and ``allowable_label`` (legend of the line,
+        default "yield <value> MPa" for a stress column, "allowable <value> MPa" otherwise) or
+        ``allowable_text`` (the whole legend: the verdict's bound).
 
     Returns
     -------
     matplotlib.figure.Figure
         Not attached to pyplot (a notebook shows it as the cell's value).
     """
-    from flexopt.pipeline.plot_targets import target_overlay
+    from flexopt.pipeline.plot_targets import plot_spec, target_overlay
 
-    labels = dict(labels or {})
+    labels = plot_spec(labels)
     ok = np.asarray(table.get("converged", np.ones(len(table[x]), bool)), dtype=bool)
     two = right is not None and right in table
     fig = _new_figure(figsize=(10 if two else 5.5, 4), layout="constrained")
     axes = fig.subplots(1, 2) if two else [fig.subplots(1, 1)]
-    x_label = labels.get("x_label") or labels.get("xlabel") or _labels.label(x)
+    x_label = labels.get("x_label") or _labels.label(x)
     ax_f = axes[0]
     curves = _draw_curves(ax_f, table, x, left, ok, "tab:blue")
-    if labels.get("left_label") and len(curves) == 1:  # the kind's words name the curve too
-        ax_f.lines[0].set_label(_labels.strip_unit(labels["left_label"]))
+    if labels.get("y_label") and len(curves) == 1:  # the kind's words name the curve too
+        ax_f.lines[0].set_label(_labels.strip_unit(labels["y_label"]))
     overlay = target_overlay({**labels, "x": x, "y": left}, table, left, _labels.unit_of(left))
     if overlay is not None:
         _draw_target(ax_f, overlay)
     ax_f.set_xlabel(x_label)
-    ax_f.set_ylabel(labels.get("left_label") or _curves_label(left, curves))
-    ax_f.set_title(labels.get("left_title") or f"{quantity_name(left)} – {quantity_name(x)}")
+    ax_f.set_ylabel(labels.get("y_label") or _curves_label(left, curves))
+    ax_f.set_title(labels.get("y_title") or f"{quantity_name(left)} – {quantity_name(x)}")
     if len(curves) > 1 or overlay is not None:
         ax_f.legend(loc="best", fontsize="small")
     if two:
@@ -189,8 +191,8 @@ def response_figure(
         if allowable_MPa is not None or len(stress_curves) > 1:
             ax_s.legend(loc="best", fontsize="small")
         ax_s.set_xlabel(x_label)
-        ax_s.set_ylabel(labels.get("right_label") or _curves_label(right, stress_curves))
-        ax_s.set_title(labels.get("right_title") or f"{quantity_name(right)} – {quantity_name(x)}")
+        ax_s.set_ylabel(labels.get("stress_label") or _curves_label(right, stress_curves))
+        ax_s.set_title(labels.get("stress_title") or f"{quantity_name(right)} – {quantity_name(x)}")
     for ax in axes:
         ax.grid(True, alpha=0.3)
     note = "" if ok.all() else f"  ({int((~ok).sum())} of {ok.size} rows not converged)"
@@ -249,7 +251,7 @@ def curve_figure(
         The kind's plot dict; its target (a constant, a target curve or a range, see
         :mod:`pipeline.plot_targets`) is drawn when ``target`` is not given.
     """
-    from flexopt.pipeline.plot_targets import target_overlay
+    from flexopt.pipeline.plot_targets import plot_spec, target_overlay
 
     ok = _converged(table, x)
     xs = np.asarray(table[x], dtype=float)
@@ -262,7 +264,7 @@ def curve_figure(
     if target is not None:
         own.update(target=target, tolerance=tolerance, band_x=band_x)
     elif spec is not None:
-        own = {**spec, **own}
+        own = {**plot_spec(spec), **own}
     overlay = target_overlay(own, table, y, _labels.unit_of(y)) if xs.size else None
     if overlay is not None:
         _draw_target(ax, overlay)
@@ -369,29 +371,28 @@ def cases_figure(
     matplotlib.figure.Figure
         Only converged rows are drawn; a stable row is a filled marker, an unstable one open.
     """
-    from flexopt.pipeline.plot_targets import target_overlay
+    from flexopt.pipeline.plot_targets import plot_spec, target_overlay
     from flexopt.pipeline.responses import output_units
 
     allowables = dict(allowables or {})
+    specs = {name: plot_spec(c.plot) for name, c in cases.items()}
     units = output_units(cases) if "outputs" in rows else {}
     plan: list[tuple[str, str]] = []  # (row kind, unit of an outputs row)
     for row in rows:
         if row == "outputs":
             plan += [("outputs", unit) for unit in units]
         elif row == "curve" and any(
-            c.plot.get("x") in c.table and c.plot.get("y") in c.table for c in cases.values()
+            specs[n]["x"] in c.table and specs[n]["y"] in c.table for n, c in cases.items()
         ):
             plan.append(("curve", ""))
-        elif row == "stress" and any(
-            c.plot.get("stress", "peak_stress_MPa") in c.table for c in cases.values()
-        ):
+        elif row == "stress" and any(specs[n]["stress"] in c.table for n, c in cases.items()):
             plan.append(("stress", ""))
     n_rows, n_cols = max(1, len(plan)), max(1, len(cases))
     fig = _new_figure(figsize=(5.2 * n_cols, 3.4 * n_rows + 0.6), layout="constrained")
     axes = fig.subplots(n_rows, n_cols, squeeze=False)
     for j, (name, case) in enumerate(cases.items()):
-        table, spec = case.table, case.plot
-        x = spec.get("x", "displacement_mm")
+        table, spec = case.table, specs[name]
+        x = spec["x"]
         if x not in table:
             continue
         ok = _converged(table, x)
@@ -400,11 +401,11 @@ def cases_figure(
         for i, (kind, unit) in enumerate(plan):
             ax = axes[i, j]
             ax.grid(True, alpha=0.3)
-            ax.set_xlabel(_label(x, spec.get("x_label") or spec.get("xlabel")), fontsize="small")
+            ax.set_xlabel(_label(x, spec.get("x_label")), fontsize="small")
             if i == 0 and name:
                 ax.set_title(f"load case {name}")
             if kind == "curve":
-                y = spec.get("y", "force_N")
+                y = spec["y"]
                 if y not in table:
                     ax.set_axis_off()
                     continue
@@ -414,9 +415,9 @@ def cases_figure(
                     _draw_target(ax, overlay)
                 if overlay is not None or len(curves) > 1:
                     ax.legend(loc="best", fontsize="small")
-                ax.set_ylabel(spec.get("ylabel") or _curves_label(y, curves))
+                ax.set_ylabel(spec.get("y_label") or _curves_label(y, curves))
             elif kind == "stress":
-                column = spec.get("stress", "peak_stress_MPa")
+                column = spec["stress"]
                 if column not in table:
                     ax.set_axis_off()
                     continue

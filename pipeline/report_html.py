@@ -34,6 +34,7 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict, overall, verdict_rows
 from flexopt.pipeline import labels
+from flexopt.pipeline.plot_targets import plot_spec
 
 __all__ = [
     "EVALUATE_SECTIONS",
@@ -463,7 +464,8 @@ def _response_fig(
     import plotly.graph_objects as go
     from flexopt.pipeline.plot_targets import target_overlay
 
-    x = spec.get("x", "displacement_mm")
+    spec = plot_spec(spec)
+    x = spec["x"]
     xs = np.asarray(table[x], dtype=float)
     converged = np.asarray(table.get("converged", np.ones(len(xs), bool)), dtype=bool)
     fig = go.Figure()
@@ -472,7 +474,7 @@ def _response_fig(
         ys = np.asarray(table[column], dtype=float)
         ys = np.where(converged & np.isfinite(ys), ys, np.nan)
         sparse = np.isfinite(ys).sum() < 0.5 * converged.sum()  # a check at a few rows
-        given = spec.get("ylabel") or spec.get("y_label") or spec.get("left_label")
+        given = spec.get("y_label")
         name = labels.words(column)
         if kind != "stress" and given and len(curves) == 1:  # the kind's words name it too
             name = labels.strip_unit(given)
@@ -512,7 +514,7 @@ def _response_fig(
             target_text = f"{said}drawn as a dashed line"
         else:
             target_text = "no allowable stress given by the study kind"
-        ylabel = spec.get("right_label") or labels.curves_label(y, curves)
+        ylabel = spec.get("stress_label") or labels.curves_label(y, curves)
     else:
         unit = labels.unit_of(y) or ""
         overlay = target_overlay({**spec, "y": y}, table, y, unit)
@@ -544,9 +546,9 @@ def _response_fig(
             target_text = f"{overlay.label} drawn in green"
         else:
             target_text = "no target given by the study kind for this response"
-        given = spec.get("ylabel") or spec.get("y_label") or spec.get("left_label")
+        given = spec.get("y_label")
         ylabel = labels.label(y, given) if given else labels.curves_label(y, curves)
-    xlabel = labels.label(x, spec.get("xlabel") or spec.get("x_label"))
+    xlabel = labels.label(x, spec.get("x_label"))
     fig.update_layout(
         _layout(
             f"{_no_unit(ylabel)} against {_no_unit(xlabel)} ({whose})",
@@ -1115,8 +1117,7 @@ def _section(sid: str, title: str, body: str) -> str:
 _BOOKKEEPING = frozenset({"step", "row", "index", "converged", "stable", "case"})
 #: Keys of a plot spec that describe the axes and the stress line, not a target: what a load
 #: case other than the first keeps (the target band of the spec was measured on the first).
-_AXIS_KEYS = ("xlabel", "x_label", "ylabel", "y_label", "left_label", "right_label",
-              "allowable_MPa", "allowable_label")  # fmt: skip
+_AXIS_KEYS = ("x_label", "y_label", "stress_label", "allowable_MPa", "allowable_label")
 
 
 def _csv_table(data: bytes) -> dict[str, np.ndarray]:
@@ -1249,7 +1250,7 @@ def _response_section(
     the allowable the verdict uses) and every other output of the table, by unit."""
     if detail is None or not detail.table:
         return f"<p>No response: the {whose}'s detail failed or the kind gives no table.</p>"
-    spec = detail.plot
+    spec = plot_spec(detail.plot)
     cases = case_tables(detail)
     several = len(cases) > 1
     body = (
@@ -1261,10 +1262,9 @@ def _response_section(
     )
     for k, (case, table) in enumerate(cases):
         here = dict(spec) if k == 0 else {key: spec[key] for key in _AXIS_KEYS if key in spec}
-        x = _column_like(table, spec.get("x", "displacement_mm"), "drive_", "drive_reaction_")
-        y = _column_like(table, spec.get("y") or spec.get("left") or "force_N",
-                         "drive_reaction_")  # fmt: skip
-        stress = spec.get("stress") or spec.get("right") or "peak_stress_MPa"
+        x = _column_like(table, spec["x"], "drive_", "drive_reaction_")
+        y = _column_like(table, spec["y"], "drive_reaction_")
+        stress = spec["stress"]
         suffix = f"-{re.sub(r'[^A-Za-z0-9_-]', '_', case)}" if several and case else ""
         tag = f"load case {case}: " if several else ""
         whose_here = f"{whose}, load case {case}" if several else whose
@@ -1296,7 +1296,7 @@ def _response_section(
             if arr.dtype.kind not in "fiu" or not np.isfinite(arr.astype(float)).any():
                 continue
             by_unit.setdefault(labels.unit_of(column) or "", []).append(column)
-        xlabel = labels.label(x, spec.get("xlabel") or spec.get("x_label"))
+        xlabel = labels.label(x, spec.get("x_label"))
         for j, (unit, columns) in enumerate(by_unit.items()):
             what = (
                 f"Outputs in {unit or 'no unit'}" if len(columns) > 1 else labels.words(columns[0])
@@ -1362,7 +1362,8 @@ def _robustness_section(
               f"robust verdict (at {required:g} %)"]  # fmt: skip
     body += _table(header, rows) if rows else "<p>No requirement to judge.</p>"
     band = record.get("band") or {}
-    x = spec.get("x", "displacement_mm")
+    spec = plot_spec(spec)
+    x = spec["x"]
     y = next((c for c in band if c != x), None)
     if y is None:
         return _section(
@@ -1400,7 +1401,7 @@ def _robustness_section(
                 line={"color": "#1f77b4"},
             )
         )
-    xlabel = labels.label(x, spec.get("xlabel") or spec.get("x_label"))
+    xlabel = labels.label(x, spec.get("x_label"))
     ylabel = labels.label(y)
     fig.update_layout(
         _layout(

@@ -21,6 +21,7 @@ import numpy as np
 from flexopt.optimise.problem import CaseResponse
 from flexopt.optimise.requirements import Verdict
 from flexopt.pipeline import labels
+from flexopt.pipeline.plot_targets import plot_spec
 
 __all__ = [
     "LOAD_CASE",
@@ -138,9 +139,9 @@ def case_rows(case: CaseResponse) -> list[tuple[str, str, str, float, float, flo
     """One row per column worth reading of a load case: the drive, its reaction, the peak
     stress and every output of the case, as ``(column, "response" or "output", unit, start,
     end, smallest, largest)`` over the converged rows (NaN where a column has no value)."""
-    table, spec = case.table, case.plot
+    table, spec = case.table, plot_spec(case.plot)
     ok = np.asarray(table.get("converged", []), dtype=bool)
-    columns = [spec.get("x"), spec.get("y"), spec.get("stress", "peak_stress_MPa")]
+    columns = [spec["x"], spec["y"], spec["stress"]]
     columns += [c for c in case.outputs if c not in columns]
     rows = []
     for column in columns:

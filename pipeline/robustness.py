@@ -610,10 +610,13 @@ def with_worst_case(study: Study, problem: Any) -> Any:
     return WorstCaseProblem(problem, study)
 
 
-def _plot_columns(study: Study, mode: str, spec: Mapping[str, Any]) -> tuple[str, str]:
-    if mode == "design":
-        return str(spec.get("x", "displacement_mm")), str(spec.get("y", "force_N"))
-    return str(spec.get("x", "displacement_mm")), str(spec.get("left", "force_N"))
+def _plot_columns(spec: Mapping[str, Any]) -> tuple[str, str]:
+    """The band's columns: the plot spec's ``x`` and ``y``
+    (:func:`pipeline.plot_targets.plot_spec`)."""
+    from flexopt.pipeline.plot_targets import plot_spec
+
+    spec = plot_spec(spec)
+    return str(spec["x"]), str(spec["y"])
 
 
 def _backend_opener() -> Any:
@@ -644,7 +647,7 @@ def run_robustness(
     settings : ParallelSettings, optional
         Where the samples run (default: the study's ``parallel:`` block).
     plot : mapping, optional
-        The nominal response's plot dict (``x`` and ``y`` or ``left``): the band's columns.
+        The nominal response's plot dict (its ``x`` and ``y``): the band's columns.
     backend : BatchBackend, optional
         Run the samples here instead of opening the backend ``settings`` describe.
 
@@ -686,7 +689,7 @@ def run_robustness(
     else:
         with _backend_opener()(settings, sample_problem) as opened:
             evaluations = opened(sample_problem, samples)
-    result = _collect(spec, samples, perturbed, evaluations, _plot_columns(study, mode, plot or {}))
+    result = _collect(spec, samples, perturbed, evaluations, _plot_columns(plot or {}))
     return replace(result, **_target_of(plot or {}))
 
 

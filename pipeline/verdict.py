@@ -292,7 +292,7 @@ def design_range_verdicts(study: Study, x: Any = None) -> tuple[Verdict, ...]:
     try:
         values = req.values(design)
     except OptimiseError as exc:  # a design of another space: NOT MET, said, never skipped
-        return (req._missing(f"every variable in its range ({req.where})", str(exc)),)  # noqa: SLF001
+        return (req.missing(f"every variable in its range ({req.where})", str(exc)),)
     return (req.check(values),)
 
 

@@ -7,12 +7,14 @@ from typing import Any
 
 import numpy as np
 from flexopt.pipeline import plots
+from flexopt.pipeline.plot_targets import plot_spec
 from flexopt.pipeline.run.folder import Columns
 
 
 def spec_label(spec: Mapping[str, Any], axis: str) -> str | None:
-    """Axis label of a DesignDetail.plot: ``x_label`` or ``xlabel`` (both are in use)."""
-    return spec.get(f"{axis}_label") or spec.get(f"{axis}label")
+    """Axis label of a DesignDetail.plot: its ``x_label`` / ``y_label``
+    (:func:`pipeline.plot_targets.plot_spec`, which also reads the old ``xlabel`` ...)."""
+    return plot_spec(spec).get(f"{axis}_label")
 
 
 def float_or_none(value: Any) -> float | None:
@@ -20,6 +22,7 @@ def float_or_none(value: Any) -> float | None:
 
 
 def curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: str) -> bytes:
+    spec = plot_spec(spec)
     target = float_or_none(spec.get("target"))
     tolerance = float_or_none(spec.get("tolerance"))
     if tolerance is None and target is not None and spec.get("tolerance_rel") is not None:
@@ -27,8 +30,8 @@ def curve_png(table: Mapping[str, np.ndarray], spec: Mapping[str, Any], title: s
     band = spec.get("band_x")
     return plots.plot_curve(
         table,
-        spec.get("x", "displacement_mm"),
-        spec.get("y", "force_N"),
+        spec["x"],
+        spec["y"],
         target=target,
         tolerance=tolerance,
         band_x=(float(band[0]), float(band[1])) if band is not None else None,

@@ -368,7 +368,7 @@ def _run_in(
     def abandon(status: str, error: str) -> None:
         # Keep what was done; a folder that cannot be written any more must not hide the cause.
         with contextlib.suppress(OSError):
-            run._collect(len(run.generations) + 1)  # the unfinished generation's designs
+            run.collect(len(run.generations) + 1)  # the unfinished generation's designs
             run.write_tables()
             close(status, error)
 

@@ -25,6 +25,7 @@ from flexopt.pipeline.checkpoint import (
 from flexopt.pipeline.fork import ForkedMakes
 from flexopt.pipeline.parallel import BatchBackend, ParallelSettings, design_key, evaluate_batch
 from flexopt.pipeline.parallel import one_line as _one_line
+from flexopt.pipeline.plot_targets import plot_spec
 from flexopt.pipeline.report_html import HtmlData, render_html
 from flexopt.pipeline.responses import case_responses, stacked_table, stress_allowable
 from flexopt.pipeline.run.evaluator import Evaluator
@@ -127,7 +128,7 @@ class RunState:
 
     # -- bookkeeping ------------------------------------------------------------------------
 
-    def _collect(self, generation: int) -> int:
+    def collect(self, generation: int) -> int:
         """Rows for the designs solved since the last call; returns how many."""
         new = self.evaluator.solved[len(self.rows) :]
         for ev in new:
@@ -143,7 +144,7 @@ class RunState:
             self.evaluator.store.sync()
         now = time.perf_counter()
         number = gen.index + 1
-        self._collect(number)
+        self.collect(number)
         # solved now, not served from the store of an earlier session: the rate a user can plan by
         n_new = self.evaluator.n_backend - self.n_backend_last
         self.n_backend_last = self.evaluator.n_backend
@@ -440,10 +441,8 @@ class RunState:
         self.files.append("best.json")
 
         table = dict(detail.table) if detail is not None else {}
-        spec = dict(detail.plot) if detail is not None else {}
-        x = spec.get("x", "displacement_mm")
-        y = spec.get("y", "force_N")
-        stress = spec.get("stress", "peak_stress_MPa")
+        spec = plot_spec(detail.plot if detail is not None else None)
+        x, y, stress = spec["x"], spec["y"], spec["stress"]
         if detail is not None and detail.cases:  # every case, a load_case column first
             every = stacked_table(detail.cases)
             self.artefact("best_response.csv", lambda: table_to_csv(every))

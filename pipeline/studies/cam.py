@@ -353,8 +353,8 @@ class CamProblem(DesignProblem):
             diagnostics={"synthesis_points": study.geometry.points},
             plot={
                 "x": "rotation_deg",
-                "left": "virtual_work_torque_Nm",
-                "right": "contact_pressure_MPa",
+                "y": "virtual_work_torque_Nm",
+                "stress": "contact_pressure_MPa",
                 "allowable_MPa": summary["onset_pressure_MPa"],
                 "allowable_label": "onset of yield, contact",
                 "target_curve": "target_torque_Nm",  # drawn by pipeline.plot_targets

@@ -365,7 +365,7 @@ def evaluate(study: CollisionStudy, repeat: int = 1) -> EvaluationResult:
         solve_times_s=tuple(times),
         inputs=inputs,
         diagnostics={"dt_s": settings.dt_s, "samples": int(mine.time_s.size)},
-        plot={"x": "time_ms", "left": "contact_force_N", "right": "head_acceleration_g"},
+        plot={"x": "time_ms", "y": "contact_force_N", "stress": "head_acceleration_g"},
         headline=(
             "hic15",
             "reference_hic15",

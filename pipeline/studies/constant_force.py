@@ -394,8 +394,8 @@ class ConstantForceProblem(DesignProblem):
             "target": study.target.force_N,
             "tolerance": tol_N,
             "allowable_MPa": self.allowable_MPa,
-            "xlabel": "stroke of S6 along the work direction (mm)",
-            "ylabel": "output force (N)",
+            "x_label": "stroke of S6 along the work direction (mm)",
+            "y_label": "output force (N)",
         }
         return DesignDetail(
             evaluation=evaluation,
@@ -474,8 +474,8 @@ class ConstantForceProblem(DesignProblem):
             diagnostics=diagnostics,
             plot={
                 "x": "displacement_mm",
-                "left": "force_N",
-                "right": "peak_stress_MPa",
+                "y": "force_N",
+                "stress": "peak_stress_MPa",
                 "allowable_MPa": prob.allowable_MPa,
                 "target": study.target.force_N,  # the force band, drawn (pipeline.plot_targets)
                 "tolerance": study.target.force_N * study.target.tolerance_percent / 100.0,

@@ -527,8 +527,8 @@ class FlexurePivotProblem(DesignProblem):
             "target": self.target_Nmm,
             "tolerance": self.target_Nmm * self.tolerance,
             "allowable_MPa": self.allowable_MPa,
-            "xlabel": "rotation of the moving block (deg)",
-            "ylabel": "tangent stiffness dM/dtheta (N·mm/rad)",
+            "x_label": "rotation of the moving block (deg)",
+            "y_label": "tangent stiffness dM/dtheta (N·mm/rad)",
         }
         return DesignDetail(
             evaluation=evaluation,
@@ -598,8 +598,8 @@ class FlexurePivotProblem(DesignProblem):
             diagnostics=dict(detail.info["beam"]),
             plot={
                 "x": "rotation_deg",
-                "left": "torque_Nmm",
-                "right": "peak_stress_MPa",
+                "y": "torque_Nmm",
+                "stress": "peak_stress_MPa",
                 "allowable_MPa": prob.allowable_MPa,
                 # the target stiffness as a torque line K theta, with the stiffness band
                 "target_curve": {

@@ -526,8 +526,8 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
         diagnostics=dict(response.extra),
         plot={
             "x": "displacement_mm",
-            "left": "force_N",
-            "right": "peak_stress_MPa",
+            "y": "force_N",
+            "stress": "peak_stress_MPa",
             "allowable_MPa": material.yield_MPa,
         },
         headline=(

@@ -490,8 +490,8 @@ class SeaSpringProblem(DesignProblem):
             # the band where the design torque must be met: near +theta_T
             "band_x": [0.9 * math.degrees(self.theta), math.degrees(self.theta)],
             "allowable_MPa": target.allowable_stress_MPa,
-            "xlabel": "hub rotation (deg)",
-            "ylabel": "torque on the hub (N m)",
+            "x_label": "hub rotation (deg)",
+            "y_label": "torque on the hub (N m)",
         }
         field_map = None
         if smap:
@@ -568,8 +568,8 @@ class SeaSpringProblem(DesignProblem):
             },  # fmt: skip
             plot={
                 "x": "rotation_deg",
-                "left": "torque_Nm",
-                "right": "peak_stress_MPa",
+                "y": "torque_Nm",
+                "stress": "peak_stress_MPa",
                 "allowable_MPa": target.allowable_stress_MPa,
                 # the target stiffness as a torque line K theta, with its band
                 "target_curve": {

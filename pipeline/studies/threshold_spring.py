@@ -356,8 +356,8 @@ class ThresholdSpringProblem(DesignProblem):
             "target_curve": "target_torque_Nm",
             **measure_band(self.measure, study.tolerance),
             "allowable_MPa": self.allowable_MPa,
-            "xlabel": "hub rotation (deg)",
-            "ylabel": "torque on the hub (N m)",
+            "x_label": "hub rotation (deg)",
+            "y_label": "torque on the hub (N m)",
         }
         return DesignDetail(
             evaluation=evaluation,
@@ -462,8 +462,8 @@ class ThresholdSpringProblem(DesignProblem):
         ev = d.evaluation
         plot = {
             "x": "rotation_deg",
-            "left": "torque_Nm",
-            "right": "peak_stress_MPa",
+            "y": "torque_Nm",
+            "stress": "peak_stress_MPa",
             "allowable_MPa": prob.allowable_MPa,
             "target_curve": "target_torque_Nm",  # drawn with its band (pipeline.plot_targets)
             **measure_band(prob.measure, study.tolerance),

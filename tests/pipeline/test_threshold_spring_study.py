@@ -214,4 +214,4 @@ def test_evaluate_of_an_unbuildable_design_is_a_result_not_a_crash():
     result = study_result(study_with(design=raw_design, fidelity={"enabled": False}))
     assert not result.converged and result.summary["feasible"] is False
     assert "fold_shortfall_mm" in result.message
-    assert result.plot["x"] in result.table and result.plot["left"] in result.table
+    assert result.plot["x"] in result.table and result.plot["y"] in result.table
