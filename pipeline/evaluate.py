@@ -157,8 +157,9 @@ def response_plot_args(study: Study, result: DesignResult) -> dict[str, Any]:
         labels["allowable_text"] = line[1]
     return {
         "x": result.plot.get("x", "displacement_mm"),
-        "left": result.plot.get("left", "force_N"),
-        "right": result.plot.get("right", "peak_stress_MPa"),
+        # a spec of x / y / stress (a problem's result) or of x / left / right (an evaluate)
+        "left": result.plot.get("left", result.plot.get("y", "force_N")),
+        "right": result.plot.get("right", result.plot.get("stress", "peak_stress_MPa")),
         "allowable_MPa": line[0] if line is not None else None,
         "title": f"{study.name} ({study.kind})",
         "labels": labels,
