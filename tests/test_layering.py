@@ -12,7 +12,9 @@ itself) is parsed with ``ast``; every import counts, also inside functions and u
 - fea/'s pivoting banded LU and its sparsity-pattern builder are written once (fea/_banded.py,
   fea/_sparse.py);
 - no module uses a private (``_name``) name of another flexopt module (a private module is its
-  package's own), and every flexopt error class derives from ``FlexoptError``.
+  package's own), and every flexopt error class derives from ``FlexoptError``;
+- no built-in study kind has both a design problem and its own ``evaluate`` (one result per
+  design: ``flexopt evaluate`` of a kind with a problem is its nominal design's result).
 """
 
 from __future__ import annotations
@@ -432,6 +434,27 @@ def test_every_kind_is_at_most_700_lines():
     assert not done, (
         f"at or under {MAX_KIND_LINES} lines now: remove from KIND_SIZE_OFFENDERS:\n"
         + "\n".join(done)
+    )
+
+
+def test_no_builtin_kind_has_both_a_problem_and_an_evaluate():
+    """One result per design (issue 24): ``flexopt evaluate``, the API and a robustness sample of
+    a kind with a design problem are its nominal design's ``DesignProblem.result``
+    (:func:`pipeline.problems.study_result`; a kind overrides ``result`` where its answer is more
+    than the design's detail). ``StudyKind.evaluate`` is the result hook of a kind without a
+    problem only (and of plugins): a kind with both would answer one design two ways."""
+    from flexopt.pipeline.studies import builtin_kind_names, get_kind
+
+    names = builtin_kind_names()
+    # guards the rule: the scan sees the kinds that lost their evaluate to their problem
+    assert {"gripper", "mechanism", "leaf_spring_joint", "constant_force"} <= names
+    assert all(get_kind(n).problem is not None for n in ("gripper", "mechanism"))
+    both = sorted(
+        n for n in names if get_kind(n).problem is not None and get_kind(n).evaluate is not None
+    )
+    assert not both, (
+        "built-in kinds with both a design problem and their own evaluate (give the problem a "
+        "result() override instead): " + ", ".join(both)
     )
 
 
