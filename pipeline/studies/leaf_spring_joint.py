@@ -63,7 +63,6 @@ __all__ = [
     "LeafJointDesignSpace",
     "LeafSpringJointStudy",
     "LeafJointProblem",
-    "analyse",
     "check",
     "problem",
 ]
@@ -276,7 +275,7 @@ def _rows(study: LeafSpringJointStudy) -> np.ndarray:
     return math.radians(b.max_deflection_deg) * np.arange(b.steps + 1) / b.steps
 
 
-def analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> DesignResult:
+def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> DesignResult:
     """Every structure x effective length of the study's joint (``design``: ``arm_mm``,
     ``thickness_mm``, ``width_mm`` in mm instead of the geometry's), to
     ``boundary.max_deflection_deg``, solved ``repeat`` times: what ``flexopt evaluate`` shows
@@ -425,10 +424,10 @@ class LeafJointProblem(DesignProblem):
 
     def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
         """``flexopt evaluate``: the joint ``x`` = (l_j, t, b) (mm) analysed in every structure
-        and effective length of the study (:func:`analyse`), ``repeat`` times: the kind's answer
+        and effective length of the study (:func:`_analyse`), ``repeat`` times: the kind's answer
         for a joint is the study's whole analysis, not the design mode's two settings."""
         arm, t, b = (float(v) for v in np.asarray(x, dtype=float))
-        return analyse(self.study, repeat, arm_mm=arm, thickness_mm=t, width_mm=b)
+        return _analyse(self.study, repeat, arm_mm=arm, thickness_mm=t, width_mm=b)
 
     def lengths(self, x: np.ndarray) -> tuple[float, float]:
         """(l_min, l_max) of design x, mm."""
