@@ -128,6 +128,18 @@ def test_a_study_without_variables_is_one_design_evaluated_and_not_run(tmp_path,
     assert not out.exists()
 
 
+def test_a_study_without_variables_has_its_robustness_samples(tmp_path):
+    # the samples of the one design (main refused them with flexopt run's message)
+    from flexopt.pipeline.evaluate import evaluate_study
+
+    raw = _guide(parallel={"workers": 1})
+    del raw["variables"]
+    raw["robustness"] = {"method": "corners", "E_percent": 10, "thickness_mm": 0.1}
+    outcome = evaluate_study(validate_study(raw), out=tmp_path / "out")
+    robust = outcome.record["robustness"]
+    assert robust["n_samples"] == 5 and robust["n_failed"] == 0
+
+
 def test_a_design_that_crosses_beams_is_infeasible_with_the_reason():
     raw = _guide(
         variables=[
