@@ -145,6 +145,8 @@ def run_ga(
     initial : (k, n_var) designs to put into the first population (e.g. a published optimum or
         the Taguchi optimum); the rest is a Latin hypercube.
     """
+    if not space.n_var:  # a space without variables is one fixed design: nothing to search
+        raise OptimiseError("the design space is empty: give at least one variable")
     if config.algorithm == "ga" and n_obj != 1:
         raise OptimiseError(f"algorithm 'ga' needs one objective, got {n_obj}; use 'nsga2'")
     problem = _Box(space, n_obj, n_con)

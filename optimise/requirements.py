@@ -743,10 +743,6 @@ class TargetBand(Requirement):
         """
         return np.asarray(self.target(x * _unit_factor(self.x)), dtype=float) / self._fy()  # type: ignore[misc]
 
-    #: The old private name of :meth:`target_at`, kept while pipeline/studies/mechanism.py still
-    #: reads it (tests/test_layering.py's PRIVATE_ATTRIBUTES_ALLOWED names it).
-    _target_in_y_units = target_at
-
     def scale(self) -> float:
         if self.tolerance is not None:
             return float(self.tolerance)

@@ -15,9 +15,12 @@ __all__ = ["DesignSpace"]
 class DesignSpace:
     """Box-bounded continuous design variables.
 
+    A space without variables (``names=()``) is the one design a study fixes (a ``mechanism``
+    study without ``variables:``): ``flexopt evaluate`` solves it, ``flexopt run`` refuses it.
+
     Attributes
     ----------
-    names : tuple of str — one per variable.
+    names : tuple of str — one per variable (none: the study's own design only).
     lower, upper : (n_var,) float — bounds in the variables' own units (named by the study).
     """
 
@@ -29,8 +32,6 @@ class DesignSpace:
         names = tuple(self.names)
         lo = np.asarray(self.lower, dtype=float).ravel()
         hi = np.asarray(self.upper, dtype=float).ravel()
-        if not names:
-            raise OptimiseError("the design space is empty: give at least one variable")
         if len(set(names)) != len(names):
             dup = next(n for n in names if names.count(n) > 1)
             raise OptimiseError(f"design variable '{dup}' is given twice")

@@ -100,12 +100,13 @@ def study_result(study: Study, repeat: int = 1, source: str = "") -> DesignResul
     ``flexopt evaluate``, the API and a robustness sample of a study show. Nothing is judged
     (:func:`pipeline.verdict.judge_result`) and nothing written.
 
-    One path for every kind: the nominal design's result from the kind's problem
-    (:func:`nominal_design`, :meth:`optimise.problem.DesignProblem.result`). A kind whose
-    evaluation is not one design of a problem (it has none: ``collision``, ``sea_window``,
-    ``polyline_beam``; or it analyses more than a design: ``leaf_spring_joint``'s every
-    structure and length) keeps its ``StudyKind.evaluate(study, repeat)``, the one hook for a
-    study's result without a problem, which wins where a kind has it.
+    One path for every kind with a design problem: the nominal design's result from the kind's
+    problem (:func:`nominal_design`, :meth:`optimise.problem.DesignProblem.result`, which a
+    kind overrides where its answer for a design is more than its detail: the leaf-spring
+    joint's analysis of every structure and length, the gripper's requirement). A kind without
+    a design problem (``collision``, ``sea_window``, ``polyline_beam``, a plugin's) has
+    ``StudyKind.evaluate(study, repeat)`` instead, the one hook for a study's result without a
+    problem; no built-in kind has both (tests/test_layering.py).
 
     ``source``: where the study came from, named in the hint of a refusal.
 

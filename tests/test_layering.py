@@ -15,6 +15,8 @@ itself) is parsed with ``ast``; every import counts, also inside functions and u
   package's own), and every flexopt error class derives from ``FlexoptError``;
 - no module reads a private attribute of another module's objects (``model._chol``, a private
   method or table of a class defined elsewhere): the owner has a public name for it.
+- no built-in study kind has both a design problem and its own ``evaluate`` (one result per
+  design: ``flexopt evaluate`` of a kind with a problem is its nominal design's result).
 """
 
 from __future__ import annotations
@@ -437,6 +439,27 @@ def test_every_kind_is_at_most_700_lines():
     )
 
 
+def test_no_builtin_kind_has_both_a_problem_and_an_evaluate():
+    """One result per design (issue 24): ``flexopt evaluate``, the API and a robustness sample of
+    a kind with a design problem are its nominal design's ``DesignProblem.result``
+    (:func:`pipeline.problems.study_result`; a kind overrides ``result`` where its answer is more
+    than the design's detail). ``StudyKind.evaluate`` is the result hook of a kind without a
+    problem only (and of plugins): a kind with both would answer one design two ways."""
+    from flexopt.pipeline.studies import builtin_kind_names, get_kind
+
+    names = builtin_kind_names()
+    # guards the rule: the scan sees the kinds that lost their evaluate to their problem
+    assert {"gripper", "mechanism", "leaf_spring_joint", "constant_force"} <= names
+    assert all(get_kind(n).problem is not None for n in ("gripper", "mechanism"))
+    both = sorted(
+        n for n in names if get_kind(n).problem is not None and get_kind(n).evaluate is not None
+    )
+    assert not both, (
+        "built-in kinds with both a design problem and their own evaluate (give the problem a "
+        "result() override instead): " + ", ".join(both)
+    )
+
+
 # -- no private names across modules (issue 24) ----------------------------------------------------
 
 #: (importing module, "module.name") pairs the rule below still lets through. Emptied by #24 (the
@@ -596,19 +619,9 @@ def test_every_flexopt_error_derives_from_flexopt_error():
 
 # -- no reaching into another module's objects (issue 24) ------------------------------------------
 
-#: (module, private attribute) reads of another module's object the rule below still lets through,
-#: each with why. Both are in pipeline/studies/mechanism.py and its helper, which another step of
-#: #24 rewrites (the kind's evaluate goes); public names wait for them there:
-PRIVATE_ATTRIBUTES_ALLOWED: dict[tuple[str, str], str] = {
-    # TargetBand.target_at is the public name; mechanism.py still reads the old one (an alias)
-    ("flexopt.pipeline.studies.mechanism", "_target_in_y_units"): "mechanism.py: use target_at",
-    # with_fidelity(problem, solved, mk) is handed the mechanism problem and the kind module and
-    # calls their private functions (the progress note of #24 names it)
-    **{
-        ("flexopt.pipeline.studies._mechanism_fidelity", name): "mechanism.py's own"
-        for name in ("_verdicts", "_part_metrics", "_case_table", "_curves_table", "_requirements")
-    },
-}
+#: (module, private attribute) reads of another module's object the rule below lets through, each
+#: with why: none (the mechanism kind's reads went with its evaluate, issue 24).
+PRIVATE_ATTRIBUTES_ALLOWED: dict[tuple[str, str], str] = {}
 
 _OWN = ("self", "cls")
 #: The public API of a namedtuple, underscored so as not to clash with its fields.

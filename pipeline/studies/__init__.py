@@ -101,10 +101,11 @@ class StudyKind:
     check : callable(study) -> None
         Builds geometry and material once; raises :class:`StudyError` naming the key path.
     evaluate : callable(study, repeat) -> optimise.problem.DesignResult, optional
-        The result hook of a kind whose ``flexopt evaluate`` is not one design of a problem (it
-        has none, or analyses more than one design): solves the study ``repeat`` times (for
-        timing) and summarises the last solve. Without it, ``flexopt evaluate`` is the result
-        of the problem's nominal design (:func:`pipeline.problems.study_result`).
+        The result hook of a kind without a design problem: solves the study ``repeat`` times
+        (for timing) and summarises the last solve. Without it, ``flexopt evaluate`` is the
+        result of the problem's nominal design (:func:`pipeline.problems.study_result`; a kind
+        whose answer is more than a design's detail overrides ``DesignProblem.result``). No
+        built-in kind has both (tests/test_layering.py).
     problem : callable(study) -> optimise.DesignProblem, optional
         For kinds that ``flexopt run`` optimises: the picklable problem built once from the study
         (its ``optimiser:`` block is an :class:`pipeline.study.OptimiserSpec` at

@@ -1,10 +1,11 @@
 """The ``mechanism`` kind's check of the part as exported (issue 22, items 2 and 4).
 
-:func:`with_fidelity` takes a design solved by the beam model (``_Solved`` of
-``pipeline/studies/mechanism.py``), runs :func:`fea.mechanism_fidelity.mechanism_fidelity_check`
-on its exported outline in every load case the check can take (plane stress always, the 3D
-solid where the width is at least three times the thinnest beam), and returns the design judged
-on the highest-fidelity figure:
+:func:`with_fidelity` takes a design solved by the beam model (a
+:class:`~pipeline.studies._mechanism_result.Solved`) and the kind's problem (through the
+public methods :class:`SolvedBy` names), runs
+:func:`fea.mechanism_fidelity.mechanism_fidelity_check` on its exported outline in every load
+case the check can take (plane stress always, the 3D solid where the width is at least three
+times the thinnest beam), and returns the design judged on the highest-fidelity figure:
 
 * forces, moments and their slopes (outputs that scale with the width) times the
   highest-fidelity model's stiffness ratio to the beam's, in that case;
@@ -27,17 +28,19 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, Protocol
 
 import numpy as np
 from flexopt.optimise.mechanism_objectives import statistic
+from flexopt.pipeline.studies._mechanism_result import Solved
 from flexopt.pipeline.studies._mechanism_schema import (
     build_load_case,
     build_mechanism,
     output_columns,
 )
 
-__all__ = ["with_fidelity", "annotate"]
+__all__ = ["SolvedBy", "with_fidelity", "annotate"]
 
 #: why a stress requirement stays on the beam model (docs/mechanism.md, "The check of the part
 #: as exported")
@@ -47,6 +50,34 @@ STRESS_NOTE = (
     "chorded fillets rises slowly under mesh refinement, so it is a lower bound of the "
     "exported part's"
 )
+
+
+class SolvedBy(Protocol):
+    """What :func:`with_fidelity` uses of the problem that solved a design (the kind's
+    ``MechanismProblem``, pipeline/studies/mechanism.py): the study and material, and the
+    parts of a design's answer the check recomputes at the width it solves."""
+
+    study: Any
+    material: Any
+
+    def width_requirement(self) -> Any:
+        """The requirement the width is solved from, or None."""
+
+    def case_table(
+        self, case: str, response: Any, scale: float, made: Any = None
+    ) -> dict[str, np.ndarray]:
+        """A load case's response as columns, forces times ``scale``."""
+
+    def part_metrics(
+        self, geometry: Any, outline: Any, tables: Any, width_mm: float, clearance: Any
+    ) -> dict[str, Any]:
+        """Every metric of the part as made at ``width_mm`` (mm)."""
+
+    def curves_table(self, tables: Mapping[str, Mapping[str, np.ndarray]]) -> dict[str, Any]:
+        """Every case's columns, prefixed by the case."""
+
+    def judge(self, solved: Solved) -> tuple:
+        """The requirements judged on ``solved``'s figures, without notes."""
 
 
 def _check(study: Any, solved: Any, width_mm: float, case: str) -> dict[str, Any]:
@@ -66,23 +97,24 @@ def _check(study: Any, solved: Any, width_mm: float, case: str) -> dict[str, Any
     )  # fmt: skip
 
 
-def _width_case(mk: Any, study: Any) -> str | None:
+def _width_case(problem: SolvedBy) -> str | None:
     """The load case the solved width's requirement reads (None: the width is not solved)."""
-
-    if study.solve_width_from is None:
+    study = problem.study
+    req = problem.width_requirement()
+    if req is None:
         return None
-    req = {r.label: r for r in mk._requirements(study)}[study.solve_width_from.requirement]
     quantity = req.quantity
     if len(study.load_cases) > 1 and "." in quantity:
         return quantity.split(".", 1)[0]
     return next(iter(study.load_cases))
 
 
-def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
+def with_fidelity(problem: SolvedBy, solved: Solved) -> Solved:
     """``solved`` judged on the check of its exported outline (see the module); unchanged, with
-    the reason in ``fidelity``, where the check is off, skipped or the design failed. ``mk`` is
-    the kind's module (pipeline/studies/mechanism.py, passed in: a module of the kind's
-    helpers imports no kind)."""
+    the reason in ``fidelity``, where the check is off, skipped or the design failed.
+
+    ``problem`` is the kind's ``MechanismProblem`` (passed in: a module of the kind's helpers
+    imports no kind), used through :class:`SolvedBy`'s public methods only."""
 
     from flexopt.fea.mechanism_fidelity import check_summary, corrected_columns, highest_fidelity
 
@@ -93,7 +125,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
         return dataclasses.replace(solved, fidelity={"skipped": "fidelity.enabled is false"})
     width = solved.width_mm
     checks = {case: _check(study, solved, width, case) for case in study.load_cases}
-    width_case = _width_case(mk, study)
+    width_case = _width_case(problem)
     history = [width]
     if width_case is not None and "skipped" not in checks[width_case]:
         # the width that centres the corrected figure: forces are linear in the width and the
@@ -110,7 +142,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     scale = width / solved.geometry.width_mm
     tables, applied = {}, {}
     for case, response in solved.responses.items():
-        table = mk._case_table(study, case, response, scale, solved.outline.beams)
+        table = problem.case_table(case, response, scale, solved.outline.beams)
         check = checks[case]
         if "skipped" in check:
             applied[case] = {"model": "beam", "why": check["skipped"]}
@@ -131,11 +163,9 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
             tables[case]["peak_stress_MPa"] = np.where(
                 np.isfinite(stress_col), np.fmax(stress_col, beam_peak * stress), stress_col
             )
-    metrics = mk._part_metrics(
-        study, solved.geometry, solved.outline, tables, width, problem.material, solved.clearance
-    )
+    metrics = problem.part_metrics(solved.geometry, solved.outline, tables, width, solved.clearance)
     beam_values = {**solved.metrics, **_worst(solved.curves_table)}
-    beam_verdicts = {v.name: v.value for v in problem._verdicts(solved)}
+    beam_verdicts = {v.name: v.value for v in problem.judge(solved)}
     fidelity = {
         "summary": check_summary(checks, applied),
         "beam_model_verdicts": {k: v for k, v in beam_verdicts.items() if math.isfinite(v)},
@@ -146,7 +176,7 @@ def with_fidelity(problem: Any, solved: Any, mk: Any) -> Any:
     }
     return dataclasses.replace(
         solved, width_mm=width, tables=tables, metrics=metrics,
-        curves_table=mk._curves_table(study, tables), fidelity=fidelity,
+        curves_table=problem.curves_table(tables), fidelity=fidelity,
     )  # fmt: skip
 
 

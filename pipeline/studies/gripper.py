@@ -9,8 +9,13 @@ stroke. The constant-force study is a shipped or user study (``constant_force.st
 keys replaced and its width ``B`` rescaled so that its design holds the new force (the beam's
 force is proportional to ``B``).
 
-* ``flexopt evaluate gripper``: the requirement, the resolved constant-force study (in
-  ``evaluation.json`` under ``inputs.constant_force_study``) and the response of its design.
+Both commands work on one design problem, :class:`GripperProblem`: the resolved constant-force
+study's, with the gripper's requirement beside it.
+
+* ``flexopt evaluate gripper``: the nominal design's result (:meth:`GripperProblem.result`):
+  the requirement, the resolved constant-force study (in ``evaluation.json`` under
+  ``inputs.constant_force_study``, and as ``constant-force.yaml``) and the response of its
+  design.
 * ``flexopt run gripper --quick``: optimises the resolved constant-force beam (its GA, report,
   ``best.stl``).
 
@@ -27,7 +32,6 @@ YAML::
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 import time
 from typing import Any, Literal
@@ -43,15 +47,9 @@ from flexopt.fea.statics import (
     overtravel_mm,
 )
 from flexopt.optimise.joint_objectives import plateau_mean_N
+from flexopt.optimise.problem import DesignResult, ProblemWrapper
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import (
-    EvaluationResult,
-    StudyKind,
-    _builtin,
-    get_kind,
-    kinds,
-    register,
-)
+from flexopt.pipeline.studies import StudyKind, _builtin, get_kind, kinds, register
 from flexopt.pipeline.study import (
     STUDY_CONFIG,
     OptimiserSpec,
@@ -67,10 +65,9 @@ from pydantic import BaseModel, Field, model_validator
 __all__ = [
     "GripperGeometry",
     "GripperStudy",
+    "GripperProblem",
     "requirement",
     "resolved_constant_force_study",
-    "evaluate",
-    "extra_files",
 ]
 
 
@@ -378,25 +375,45 @@ def check(study: GripperStudy) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Evaluate / run
+# The design problem: flexopt run and flexopt evaluate
 
 
-def evaluate(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
-    """The requirement, the resolved constant-force study and the response of its design.
+class GripperProblem(ProblemWrapper):
+    """The constant-force design problem of the resolved study (``inner``: the
+    ``constant_force`` kind's problem; every hook, ``study`` included, is its own), with the
+    gripper's study (``gripper``), its requirement (``grip``, :func:`requirement`) and what the
+    resolution changed (``changes``) for the result of a design. Picklable."""
 
-    The kind's ``StudyKind.evaluate`` (the result hook of a kind whose result is not one design
-    of its problem): the gripper's answer is the grip requirement solved by statics beside the
-    result of the constant-force study it resolves (:func:`pipeline.problems.study_result`).
-    """
-    from flexopt.pipeline.problems import study_result
+    def __init__(self, study: GripperStudy) -> None:
+        self.gripper = study
+        self.grip = requirement(study)
+        self.resolved, self.changes = resolved_constant_force_study(study, self.grip)
+        kind = get_kind("constant_force")
+        assert kind.problem is not None
+        super().__init__(kind.problem(self.resolved))
 
-    times = []
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        req = requirement(study)
-        resolved, changes = resolved_constant_force_study(study, req)
-        beam = study_result(resolved, 1)  # the resolved design's result (flexopt evaluate's)
-        times.append(time.perf_counter() - t0)
+    def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
+        """``flexopt evaluate``: the requirement by statics beside the response of the beam
+        ``x`` (23,) (the resolved study's design, :meth:`nominal_design`), solved ``repeat``
+        times; ``constant-force.yaml`` (the resolved study, ready for ``flexopt run``) among
+        the files."""
+        times = []
+        for _ in range(max(1, repeat)):
+            t0 = time.perf_counter()
+            beam = self.inner.result(x, 1)  # the resolved design's result (flexopt evaluate's)
+            times.append(time.perf_counter() - t0)
+        return _with_requirement(self.gripper, self.grip, self.resolved, self.changes, beam, times)
+
+
+def _with_requirement(
+    study: GripperStudy,
+    req: dict[str, Any],
+    resolved: Study,
+    changes: dict[str, Any],
+    beam: DesignResult,
+    times: list[float],
+) -> DesignResult:
+    """The gripper's result: the requirement ``req`` and the beam's response ``beam``."""
     table = dict(beam.table)
     force = req["target_force_N"]
     window = (min(study.constant_force.pre_stroke_mm, req["stroke_mm"]), req["stroke_mm"])
@@ -433,7 +450,8 @@ def evaluate(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
             "stress_yield_ratio": float(np.max(stress)) / study.material.yield_MPa,
         }
     )
-    return EvaluationResult(
+    header = f"Constant-force study resolved by the gripper study '{study.name}'"
+    return DesignResult(
         table=table,
         summary=summary,
         converged=beam.converged,
@@ -448,8 +466,8 @@ def evaluate(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
         diagnostics=dict(beam.diagnostics),
         plot={
             "x": "displacement_mm",
-            "left": "force_N",
-            "right": "peak_stress_MPa",
+            "y": "force_N",
+            "stress": "peak_stress_MPa",
             "allowable_MPa": study.material.yield_MPa,
             # the finger's force and the band the beam is held to, over the gripping stroke
             "target": force,
@@ -467,29 +485,13 @@ def evaluate(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
             "beam_max_deviation_percent",
             "stress_yield_ratio",
         ),
+        files={"constant-force.yaml": study_to_yaml(resolved, header).encode("utf-8")},
     )
 
 
-def extra_files(study: GripperStudy, result: EvaluationResult) -> dict[str, bytes]:
-    """``constant-force.yaml``: the resolved study, ready for ``flexopt run``. For a pipeline
-    hook that writes kind-specific files."""
-    resolved, _ = resolved_constant_force_study(study)
-    header = f"Constant-force study resolved by the gripper study '{study.name}'"
-    return {"constant-force.yaml": study_to_yaml(resolved, header).encode("utf-8")}
-
-
-def problem(study: GripperStudy) -> Any:
-    """``flexopt run``: the constant-force design problem of the resolved study."""
-    resolved, _ = resolved_constant_force_study(study)
-    kind = get_kind("constant_force")
-    assert kind.problem is not None
-    return kind.problem(resolved)
-
-
-def evaluate_with_files(study: GripperStudy, repeat: int = 1) -> EvaluationResult:
-    """:func:`evaluate`, with :func:`extra_files` for ``flexopt evaluate`` to write."""
-    result = evaluate(study, repeat)
-    return dataclasses.replace(result, files={**result.files, **extra_files(study, result)})
+def problem(study: GripperStudy) -> GripperProblem:
+    """The design problem: the resolved constant-force study's, with the requirement."""
+    return GripperProblem(study)
 
 
 register(
@@ -497,7 +499,7 @@ register(
         "gripper",
         GripperStudy,
         check,
-        evaluate_with_files,
+        None,  # flexopt evaluate: the nominal design's GripperProblem.result
         problem,
         requirements=_builtin.gripper,
         quantities=_builtin.GRIPPER,

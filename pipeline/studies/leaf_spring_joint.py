@@ -2,8 +2,9 @@
 
 Two modes share one study file (see docs/leaf_joint.md):
 
-* ``flexopt evaluate`` — analysis: joint torque, stiffness and leaf stress against deflection for
-  every effective length in ``geometry.effective_lengths_mm`` and every structure in
+* ``flexopt evaluate`` — analysis of the study's joint (the nominal design of the problem below,
+  :meth:`LeafJointProblem.result`): joint torque, stiffness and leaf stress against deflection
+  for every effective length in ``geometry.effective_lengths_mm`` and every structure in
   ``geometry.structures`` (paper Figs. 7, 8, 10, 11), by the large-deflection beam model, with the
   elastic limit of each curve and the stiffness range the joint reaches elastically.
 * ``flexopt run`` — design: the joint arm l_j, leaf thickness and width that give the requested
@@ -48,10 +49,10 @@ from flexopt.optimise.joint_objectives import (
     leaf_joint_objective,
     leaf_joint_unreachable,
 )
-from flexopt.optimise.problem import DesignDetail, DesignProblem
+from flexopt.optimise.problem import DesignProblem, DesignResult
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from pydantic import BaseModel, Field, model_validator
 
@@ -64,7 +65,6 @@ __all__ = [
     "LeafJointProblem",
     "check",
     "problem",
-    "evaluate",
 ]
 
 Structure = Literal["sliding", "fixed"]
@@ -275,8 +275,11 @@ def _rows(study: LeafSpringJointStudy) -> np.ndarray:
     return math.radians(b.max_deflection_deg) * np.arange(b.steps + 1) / b.steps
 
 
-def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
-    """Every structure x effective length of the study, to ``boundary.max_deflection_deg``.
+def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> DesignResult:
+    """Every structure x effective length of the study's joint (``design``: ``arm_mm``,
+    ``thickness_mm``, ``width_mm`` in mm instead of the geometry's), to
+    ``boundary.max_deflection_deg``, solved ``repeat`` times: what ``flexopt evaluate`` shows
+    (:meth:`LeafJointProblem.result`).
 
     The table has one row per deflection and, per curve ``<structure>_l<l>``, the joint torque
     (N·m), tangent stiffness (N·m/rad), leaf stress (MPa) and loaded length (mm); rows past a
@@ -284,6 +287,11 @@ def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
     summary gives each curve's elastic limit (traced on its own), the stiffness range the joint
     passes through while its leaves stay elastic, and what ``boundary.check_deflection_deg``
     (the paper's 50 deg) would take.
+
+    Raises
+    ------
+    StudyError
+        At ``geometry`` when a joint of the design cannot be built.
     """
     g = study.geometry
     material = study.material.to_material()
@@ -295,7 +303,10 @@ def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
         t0 = time.perf_counter()
         for s in g.structures:
             for l in g.effective_lengths_mm:
-                joint = _joint(study, l, s)
+                try:
+                    joint = _joint(study, l, s, **design)
+                except GeometryError as exc:
+                    raise StudyError("geometry", f"the joint cannot be built: {exc}") from exc
                 resp = joint_response(
                     joint, material, float(angles[-1]), study.boundary.steps, g.elements
                 )
@@ -342,7 +353,8 @@ def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
             summary[f"{s}_elastic_stiffness_range_Nm_per_rad"] = [min(values), max(values)]
     messages = [f"{n}: {r.message}" for n, (_, r) in curves.items() if not r.ok]
     first = next(iter(curves))
-    return EvaluationResult(
+    thickness = design.get("thickness_mm", g.thickness_mm)
+    return DesignResult(
         table=table,
         summary=summary,
         converged=not messages,
@@ -350,14 +362,14 @@ def evaluate(study: LeafSpringJointStudy, repeat: int = 1) -> EvaluationResult:
         solve_times_s=tuple(times),
         inputs={
             "material": material_record(material),
-            "second_moment_mm4": g.width_mm * g.thickness_mm**3 / 12.0,
+            "second_moment_mm4": design.get("width_mm", g.width_mm) * thickness**3 / 12.0,
             "curves": list(curves),
         },
         diagnostics={n: r.extra for n, (_, r) in curves.items()},
         plot={
             "x": "deflection_deg",
-            "left": f"torque_Nm_{first}",
-            "right": f"stress_MPa_{first}",
+            "y": f"torque_Nm_{first}",
+            "stress": f"stress_MPa_{first}",
             "allowable_MPa": allowable,
         },
         headline=tuple(
@@ -404,6 +416,18 @@ class LeafJointProblem(DesignProblem):
         lo, hi = study.target.stiffness_range_Nm_per_rad
         self.range_Nmm = (1000.0 * lo, 1000.0 * hi)
         self.max_rad = math.radians(study.target.max_deflection_deg)
+
+    def nominal_design(self) -> np.ndarray:
+        """(3,) the study's joint: ``geometry.arm_mm``, ``thickness_mm``, ``width_mm`` (mm)."""
+        g = self.study.geometry
+        return np.array([g.arm_mm, g.thickness_mm, g.width_mm], dtype=float)
+
+    def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
+        """``flexopt evaluate``: the joint ``x`` = (l_j, t, b) (mm) analysed in every structure
+        and effective length of the study (:func:`_analyse`), ``repeat`` times: the kind's answer
+        for a joint is the study's whole analysis, not the design mode's two settings."""
+        arm, t, b = (float(v) for v in np.asarray(x, dtype=float))
+        return _analyse(self.study, repeat, arm_mm=arm, thickness_mm=t, width_mm=b)
 
     def lengths(self, x: np.ndarray) -> tuple[float, float]:
         """(l_min, l_max) of design x, mm."""
@@ -466,7 +490,7 @@ class LeafJointProblem(DesignProblem):
         }
         return Evaluation(x, np.array([ratio]), g, metrics, "", time.perf_counter() - t0)
 
-    def detail(self, x: np.ndarray) -> DesignDetail:
+    def detail(self, x: np.ndarray) -> DesignResult:
         evaluation = self.evaluate(x)
         x = np.asarray(x, dtype=float)
         l_min, l_max = self.lengths(x)
@@ -531,7 +555,7 @@ class LeafJointProblem(DesignProblem):
             max(joint.overhang_mm, needed) if joint.structure == "fixed" else joint.overhang_mm
         )
         outline = replace(joint, overhang_mm=overhang).leaf_outline()
-        return DesignDetail(
+        return DesignResult(
             evaluation=evaluation,
             table=table,
             plot=plot,
@@ -552,7 +576,7 @@ register(
         "leaf_spring_joint",
         LeafSpringJointStudy,
         check,  # type: ignore[arg-type]
-        evaluate,  # type: ignore[arg-type]
+        None,  # flexopt evaluate: the nominal design's LeafJointProblem.result
         problem,  # type: ignore[arg-type],
         requirements=_builtin.leaf_spring_joint,
         quantities=_builtin.LEAF_SPRING_JOINT,

@@ -33,32 +33,27 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from flexopt.fea import mechanism_design as design
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
-from flexopt.fea.mechanism_design import REACTION_UNIT
 from flexopt.geometry.errors import GeometryError
-from flexopt.geometry.mechanism import AsMadeBeam, BeamShape, MechanismOutline, as_made_info
+from flexopt.geometry.mechanism import AsMadeBeam, MechanismOutline
 from flexopt.optimise import mechanism_objectives as scoring
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.mechanism_objectives import STATS
 from flexopt.optimise.mechanism_objectives import verdict_json as _verdict_json
-from flexopt.optimise.problem import CaseResponse, DesignDetail, DesignProblem
+from flexopt.optimise.problem import DesignProblem, DesignResult
 from flexopt.optimise.requirements import MinFeature, Range, Requirement, TargetBand, Verdict
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.variables import DesignVariables, VariableError, resolve_variables
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.plot_targets import band_spec
-from flexopt.pipeline.plots import mechanism_shapes_png
-from flexopt.pipeline.runfolder import table_to_csv
-from flexopt.pipeline.studies import EvaluationResult, StudyKind, register
+from flexopt.pipeline.studies import StudyKind, register
 from flexopt.pipeline.studies._mechanism_check import (
     check_choices,
     check_references,
@@ -66,6 +61,13 @@ from flexopt.pipeline.studies._mechanism_check import (
     geometry_path,
 )
 from flexopt.pipeline.studies._mechanism_fidelity import annotate, with_fidelity
+from flexopt.pipeline.studies._mechanism_result import (
+    Solved,
+    case_responses,
+    design_files,
+    design_info,
+    response_plot,
+)
 from flexopt.pipeline.studies._mechanism_schema import (
     MechanismGeometry,
     MechanismStudy,
@@ -83,7 +85,7 @@ from flexopt.pipeline.verdict import envelope_values, with_design_range
 from pydantic import ValidationError
 
 #: the study file's models are _mechanism_schema's (MechanismStudy, MechanismGeometry, ...)
-__all__ = ["MechanismProblem", "MechanismStudy", "check", "evaluate", "problem"]
+__all__ = ["MechanismProblem", "MechanismStudy", "check", "problem"]
 
 # --------------------------------------------------------------------------------------------
 # From the study to the solver
@@ -96,7 +98,7 @@ def _fea():
     return fm
 
 
-_prefix = case_prefix  # (the result builders below read it by this name)
+_prefix = case_prefix  # (the metric builders below read it by this name)
 
 
 def metric_names(study: MechanismStudy) -> tuple[str, ...]:
@@ -216,23 +218,6 @@ def _mechanism(
 # One design
 
 
-@dataclasses.dataclass
-class _Solved:
-    """Everything one design's solve gives (before and after the width is solved)."""
-
-    geometry: MechanismGeometry
-    shapes: list[BeamShape]
-    outline: MechanismOutline
-    width_mm: float
-    responses: dict[str, Any]  # case -> MechanismResponse (at the reference width)
-    tables: dict[str, dict[str, np.ndarray]]  # case -> columns (width solved)
-    metrics: dict[str, Any]
-    curves_table: dict[str, np.ndarray]  # every case's columns, prefixed: what requirements read
-    reason: str = ""
-    clearance: dict[str, Any] = dataclasses.field(default_factory=dict)  # design.interference
-    fidelity: dict[str, Any] | None = None  # the check of the exported outline (detail, evaluate)
-
-
 def _case_table(
     study: MechanismStudy,
     case: str,
@@ -254,7 +239,7 @@ def _solve_printed_path(study: MechanismStudy, mech: Any, case: str) -> Any:
     return design.solve_printed_path(mech, load_case, outputs, study.imperfection_mm, unit)
 
 
-def _as_the_optimiser_judges(study: MechanismStudy, solved: _Solved) -> _Solved:
+def _as_the_optimiser_judges(study: MechanismStudy, solved: Solved) -> Solved:
     """``solved`` with its peak stresses times ``fidelity.beam_stress_factor``: the optimiser
     solves every design with the beam model, and the reported design's check of its exported
     outline finds the peak a few % higher (the verdict reads the larger figure,
@@ -336,14 +321,16 @@ def _solve_width(
     x, y = reference.get(req.x), reference.get(req.quantity)
     if x is None or y is None:
         return math.nan, f"no {req.quantity}({req.x}) to solve the width from"
-    target = req._target_in_y_units  # noqa: SLF001 - the target in the column's unit
+    target = req.target_at  # the target (a function of x) in the column's unit
     relative = req.tolerance_rel is not None
     return design.width_for_target(req.quantity, x, y, target, req.over, relative, ref_width)
 
 
 class MechanismProblem(DesignProblem):
     """The :class:`optimise.DesignProblem` of a ``mechanism`` study (picklable, deterministic,
-    never raises for a bad design)."""
+    never raises for a bad design). A study without ``variables:`` is one design: its space
+    has no variables, ``flexopt evaluate`` solves it and ``flexopt run`` refuses it
+    (:meth:`initial_designs`)."""
 
     def warm_up(self) -> None:
         """Load the compiled beam, constrained-beam and mechanism kernels (a pool calls this
@@ -354,18 +341,10 @@ class MechanismProblem(DesignProblem):
 
     def __init__(self, study: MechanismStudy) -> None:
         self.variables = _variables(study)
-        if self.variables is None:
-            raise StudyError(
-                "variables",
-                "flexopt run needs design variables; add variables: [{path, bounds}] (see "
-                "docs/mechanism.md) or use flexopt evaluate",
-            )
-        self.space: DesignSpace = self.variables.space
-        self._set_up(study)
-
-    def _set_up(self, study: MechanismStudy) -> None:
-        """What the problem and the evaluator of ``flexopt evaluate`` share: the requirements,
-        the objectives and the constraint rows."""
+        none = np.zeros(0)
+        self.space: DesignSpace = (
+            self.variables.space if self.variables is not None else DesignSpace((), none, none)
+        )
         self.study = study
         self.material = study.material.to_material()
         self.requirements = _requirements(study) + _solved_size_requirements(study)
@@ -385,18 +364,63 @@ class MechanismProblem(DesignProblem):
         return [ObjectiveSpec(minimise="mass_g")]
 
     def nominal_design(self) -> np.ndarray:
-        """(n_var,) the study's initial design (what ``flexopt evaluate`` solves)."""
-        assert self.variables is not None
+        """(n_var,) the study's initial design (what ``flexopt evaluate`` solves); (0,) without
+        variables."""
+        if self.variables is None:
+            return np.zeros(0)
         return np.asarray(self.variables.initial, dtype=float)
 
     def initial_designs(self) -> np.ndarray:
-        """The study's initial design seeds the first population."""
-        assert self.variables is not None
+        """The study's initial design seeds the first population.
+
+        Raises
+        ------
+        StudyError
+            At ``variables`` for a study without variables: ``flexopt run`` asks for the first
+            population before it writes anything, and such a study has nothing to optimise.
+        """
+        if self.variables is None:
+            raise StudyError(
+                "variables",
+                "flexopt run needs design variables; add variables: [{path, bounds}] (see "
+                "docs/mechanism.md) or use flexopt evaluate",
+            )
         return self.space.clip(self.variables.initial)[None, :]
+
+    # ---- the parts of a design's answer the check of the exported outline recomputes
+
+    def width_requirement(self) -> Requirement | None:
+        """The requirement the width is solved from (``solve_width_from``), or None."""
+        spec = self.study.solve_width_from
+        return None if spec is None else self.labels[spec.requirement]
+
+    def case_table(
+        self, case: str, response: Any, scale: float, made: Mapping[str, AsMadeBeam] | None = None
+    ) -> dict[str, np.ndarray]:
+        """The load case's response as columns, forces times ``scale`` (width / reference
+        width), stresses of the beams as ``made`` (each column (n_rows,))."""
+        return _case_table(self.study, case, response, scale, made)
+
+    def part_metrics(
+        self,
+        geometry: MechanismGeometry,
+        outline: MechanismOutline,
+        tables: Mapping[str, Mapping[str, np.ndarray]],
+        width_mm: float,
+        clearance: Mapping[str, Any],
+    ) -> dict[str, Any]:
+        """Every metric of the part as made at ``width_mm`` (mm) from its case ``tables``."""
+        return _part_metrics(
+            self.study, geometry, outline, tables, width_mm, self.material, clearance
+        )
+
+    def curves_table(self, tables: Mapping[str, Mapping[str, np.ndarray]]) -> dict[str, Any]:
+        """Every case's columns, prefixed by the case: what the requirements read."""
+        return _curves_table(self.study, tables)
 
     # ---- solving
 
-    def solve(self, x: np.ndarray | None) -> _Solved | tuple[None, str]:
+    def solve(self, x: np.ndarray | None) -> Solved | tuple[None, str]:
         """Build, check and solve one design; ``(None, reason)`` when it cannot be."""
         study = self.study
         try:
@@ -424,8 +448,8 @@ class MechanismProblem(DesignProblem):
              if not r.ok),
             "",
         )  # fmt: skip
-        if study.solve_width_from is not None and not reason:
-            req = self.labels[study.solve_width_from.requirement]
+        req = self.width_requirement()
+        if req is not None and not reason:
             width, why = _solve_width(study, req, ref, geometry.width_mm)
             if why:
                 reason = f"width not solved: {why}"
@@ -437,19 +461,21 @@ class MechanismProblem(DesignProblem):
         grounds = geometry.ground_outlines_mm
         clearance = design.interference(mech, outline, grounds, responses, controls)
         metrics = _part_metrics(study, geometry, outline, tables, width, self.material, clearance)
-        return _Solved(
+        return Solved(
             geometry, shapes, outline, width, responses, tables, metrics,
             _curves_table(study, tables), reason, clearance,
         )  # fmt: skip
 
-    def verdicts(self, solved: _Solved) -> tuple[Verdict, ...]:
-        return annotate(self._verdicts(solved), solved)
+    def verdicts(self, solved: Solved) -> tuple[Verdict, ...]:
+        """:meth:`judge`, each verdict the check of the exported outline changed saying so."""
+        return annotate(self.judge(solved), solved)
 
-    def _verdicts(self, solved: _Solved) -> tuple[Verdict, ...]:
+    def judge(self, solved: Solved) -> tuple[Verdict, ...]:
+        """The requirements and the interference judged on ``solved``'s figures."""
         judged = scoring.judge(self.requirements, solved.metrics, solved.curves_table)
         return (*judged, scoring.interference_verdict(solved.metrics, solved.clearance))
 
-    def _evaluation(self, x: np.ndarray, solved: _Solved, t0: float) -> Evaluation:
+    def _evaluation(self, x: np.ndarray, solved: Solved, t0: float) -> Evaluation:
         verdicts = self.verdicts(solved)
         metrics = dict(solved.metrics)
         metrics["verdict"] = "MET" if verdicts and all(v.met for v in verdicts) else "NOT MET"
@@ -482,110 +508,88 @@ class MechanismProblem(DesignProblem):
             )  # fmt: skip
         return self._evaluation(x, _as_the_optimiser_judges(self.study, solved), t0)
 
-    def detail(self, x: np.ndarray) -> DesignDetail:
+    def detail(self, x: np.ndarray) -> DesignResult:
         t0 = time.perf_counter()
         solved = self.solve(x)
-        if not isinstance(solved, tuple):
-            solved = with_fidelity(self, solved, sys.modules[__name__])
         if isinstance(solved, tuple):
             ev = Evaluation.failed(
                 x, len(self.objective_names), len(self.constraint_names), solved[1],
                 time.perf_counter() - t0,
             )  # fmt: skip
-            return DesignDetail(ev, info={"reason": solved[1]})
+            return DesignResult(ev, info={"reason": solved[1]})
+        solved = with_fidelity(self, solved)
         ev = self._evaluation(x, solved, t0)
         verdicts = self.verdicts(solved)
         first = next(iter(solved.tables))
-        kwargs: dict[str, Any] = {}
-        if "verdicts" in {f.name for f in dataclasses.fields(DesignDetail)}:
-            kwargs["verdicts"] = verdicts
-        return DesignDetail(
+        return DesignResult(
             evaluation=ev,
             table=solved.tables[first],
-            plot={
-                **_plot_spec(self.study, first, self.material),
-                **band_spec(
-                    self.requirements,
-                    solved.tables[first],
-                    _plot_spec(self.study, first, self.material)["x"],
-                    "y",
-                    _prefix(self.study, first),
-                ),  # a target band, drawn
-            },  # fmt: skip
+            plot=response_plot(self.study, solved, first, self.material, self.requirements),
             outline=solved.outline.polygon,
             height_mm=solved.width_mm,
             info={
-                **_info(self.study, solved),
+                **design_info(self.study, solved),
                 "verdicts": [_verdict_json(v) for v in verdicts],
             },
-            files=_files(self.study, solved, self.requirements),
-            cases=_cases(self.study, solved, self.material, self.requirements),
-            **kwargs,
+            files=design_files(self.study, solved),
+            cases=case_responses(self.study, solved, self.material, self.requirements),
+            verdicts=verdicts,
         )
 
+    def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
+        """``flexopt evaluate``: the design ``x`` (n_var,) (the study's initial design,
+        :meth:`nominal_design`; none without variables) solved ``repeat`` times in every load
+        case and checked as exported; the kind's verdicts with "every variable in its range",
+        the metrics (and the objectives' values) as the summary.
 
-def _plot_spec(study: MechanismStudy, case: str, material: Material) -> dict[str, Any]:
-    d = study.load_cases[case].drive
-    return {
-        "x": f"drive_{d.unit}",
-        "y": f"drive_reaction_{REACTION_UNIT[d.control]}",
-        "stress": "peak_stress_MPa",
-        "allowable_MPa": material.yield_MPa,
-    }
-
-
-def _cases(
-    study: MechanismStudy,
-    solved: _Solved,
-    material: Material,
-    requirements: Sequence[Requirement],
-) -> dict[str, CaseResponse]:
-    """Every load case's table, plot spec (with its target band) and the user's outputs in it:
-    what the pipeline draws and tabulates for each case (pipeline/responses.py)."""
-    out = {}
-    for case, table in solved.tables.items():
-        plot = _plot_spec(study, case, material)
-        plot.update(band_spec(requirements, table, plot["x"], "y", _prefix(study, case)))
-        d = study.load_cases[case].drive
-        plot["x_label"] = f"drive of {d.part} ({d.control}, {d.unit})"
-        out[case] = CaseResponse(table, plot, tuple(outputs_in(study, case)))
-    return out
-
-
-def _info(study: MechanismStudy, solved: _Solved) -> dict[str, Any]:
-    g = solved.geometry
-    return {
-        "width_mm": solved.width_mm,
-        "width_solved": study.solve_width_from is not None,
-        "outline_area_mm2": solved.outline.area_mm2,
-        "beams": {
-            n: {
-                "points_mm": b.centreline().round(6).tolist(),
-                "thickness_mm": b.thickness().round(6).tolist(),
-                **as_made_info(solved.outline.beams.get(n)),
-            }
-            for n, b in g.beams.items()
-        },
-        "clearance": dict(solved.clearance),
-        "bodies": {n: {"ref_mm": list(b.ref_mm)} for n, b in g.bodies.items()},
-        "cases": {c: {"ok": bool(r.ok), "message": r.message} for c, r in solved.responses.items()},
-        **({"fidelity": solved.fidelity} if solved.fidelity is not None else {}),
-    }
-
-
-def _files(
-    study: MechanismStudy, solved: _Solved, requirements: Sequence[Requirement]
-) -> dict[str, bytes]:
-    # (outputs.png, every case's outputs on the axis of their unit, is the pipeline's: cases=)
-    bodies = [(b.ref_mm, b.outline_mm) for b in solved.geometry.bodies.values()]
-    drives = {c: (s.drive.control, s.drive.unit) for c, s in study.load_cases.items()}
-    title = f"{study.name}: deformed shapes"
-    shapes = mechanism_shapes_png(solved.responses, solved.outline.polygon, bodies, drives, title)
-    files = {"deformed_shapes.png": shapes}
-    if len(solved.tables) > 1:
-        for case, table in solved.tables.items():
-            files[f"response_{case}.csv"] = table_to_csv(table).encode("utf-8")
-    return files
+        Raises
+        ------
+        StudyError
+            When the design cannot be built or solved (check() reports it first).
+        """
+        x = np.asarray(x, dtype=float)
+        times, solved = [], None
+        for _ in range(max(1, int(repeat))):
+            t0 = time.perf_counter()
+            solved = self.solve(x)
+            times.append(time.perf_counter() - t0)
+        if isinstance(solved, tuple) or solved is None:
+            why = solved[1] if solved is not None else "not solved"
+            raise StudyError("geometry", f"the initial design cannot be solved: {why}")
+        solved = with_fidelity(self, solved)
+        designed = self.variables is not None
+        # "every variable in its range" of this design (a run's best design gets it from
+        # pipeline.verdict.judge_result)
+        verdicts = with_design_range(self.study, self.verdicts(solved), x if designed else None)
+        summary = dict(solved.metrics)
+        if designed:
+            evaluation = self._evaluation(x, solved, time.perf_counter())
+            for name, value in zip(self.objective_names, map(float, evaluation.f), strict=True):
+                summary.setdefault(name, value)  # a metric minimised as itself keeps its value
+        summary["verdict"] = "MET" if verdicts and all(v.met for v in verdicts) else "NOT MET"
+        message = "; ".join(f"{c}: {r.message}" for c, r in solved.responses.items() if r.message)
+        if solved.reason and solved.reason not in message:
+            message = "; ".join(m for m in (message, solved.reason) if m)
+        first = next(iter(solved.tables))
+        headline = ("verdict", "mass_g", "max_peak_stress_MPa", "width_mm", "stable")
+        return DesignResult(
+            table=solved.tables[first],
+            summary=summary,
+            converged=all(bool(r.ok) for r in solved.responses.values()),
+            message=message,
+            solve_times_s=tuple(times),
+            inputs={
+                "material": material_record(self.material),
+                "design": self.variables.values(x) if self.variables is not None else None,
+                "verdicts": [_verdict_json(v) for v in verdicts],
+                **design_info(self.study, solved),
+            },
+            plot=response_plot(self.study, solved, first, self.material, self.requirements),
+            headline=tuple(k for k in headline if k in summary),
+            files=design_files(self.study, solved),
+            cases=case_responses(self.study, solved, self.material, self.requirements),
+            verdicts=verdicts,
+        )
 
 
 # --------------------------------------------------------------------------------------------
@@ -595,84 +599,6 @@ def _files(
 def problem(study: MechanismStudy) -> MechanismProblem:
     """The design problem ``flexopt run`` optimises."""
     return MechanismProblem(study)
-
-
-class _Evaluator(MechanismProblem):
-    """The problem's machinery for ``flexopt evaluate`` (variables are optional there)."""
-
-    def __init__(self, study: MechanismStudy) -> None:  # noqa: D107
-        self.variables = _variables(study)
-        self._set_up(study)
-
-
-def evaluate(study: MechanismStudy, repeat: int = 1) -> EvaluationResult:
-    """``flexopt evaluate``: solve the initial design (the geometry with every variable at its
-    initial value) in every load case.
-
-    Raises
-    ------
-    StudyError
-        When the initial design cannot be built (check() reports it first).
-    """
-    ev = _Evaluator(study)
-    x0 = ev.variables.initial if ev.variables is not None else None
-    times = []
-    solved: Any = None
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        solved = ev.solve(x0)
-        times.append(time.perf_counter() - t0)
-    if isinstance(solved, tuple):
-        raise StudyError("geometry", f"the initial design cannot be solved: {solved[1]}")
-    solved = with_fidelity(ev, solved, sys.modules[__name__])
-    # the kind's own verdicts, with "every variable in its range" of the initial design
-    # (a run's best design gets it from pipeline.verdict.judge_detail)
-    verdicts = with_design_range(study, ev.verdicts(solved))
-    first = next(iter(solved.tables))
-    summary = dict(solved.metrics)
-    if x0 is not None:
-        evaluation = ev._evaluation(x0, solved, time.perf_counter())  # noqa: SLF001
-        for name, value in zip(ev.objective_names, map(float, evaluation.f), strict=True):
-            summary.setdefault(name, value)  # a metric minimised as itself keeps its value
-    summary["verdict"] = "MET" if verdicts and all(v.met for v in verdicts) else "NOT MET"
-    converged = all(bool(r.ok) for r in solved.responses.values())
-    message = "; ".join(f"{c}: {r.message}" for c, r in solved.responses.items() if r.message)
-    if solved.reason and solved.reason not in message:
-        message = "; ".join(m for m in (message, solved.reason) if m)
-    kwargs: dict[str, Any] = {}
-    if "verdicts" in {f.name for f in dataclasses.fields(EvaluationResult)}:
-        kwargs["verdicts"] = verdicts
-    plot = _plot_spec(study, first, ev.material)
-    plot.update(band_spec(ev.requirements, solved.tables[first], plot["x"], "y",
-                          _prefix(study, first)))  # a target band, drawn  # fmt: skip
-    return EvaluationResult(
-        table=solved.tables[first],
-        summary=summary,
-        converged=converged,
-        message=message,
-        solve_times_s=tuple(times),
-        inputs={
-            "material": material_record(ev.material),
-            "design": None if ev.variables is None else ev.variables.values(x0),
-            "verdicts": [_verdict_json(v) for v in verdicts],
-            **_info(study, solved),
-        },
-        plot={
-            **plot,  # the target band of a requirement, when the study has one
-            "x": plot["x"],
-            "left": plot["y"],
-            "right": "peak_stress_MPa",
-            "allowable_MPa": ev.material.yield_MPa,
-        },  # fmt: skip
-        headline=tuple(
-            k
-            for k in ("verdict", "mass_g", "max_peak_stress_MPa", "width_mm", "stable")
-            if k in summary
-        ),
-        files=_files(study, solved, ev.requirements),
-        cases=_cases(study, solved, ev.material, ev.requirements),
-        **kwargs,
-    )
 
 
 def design_of(study: MechanismStudy) -> tuple[DesignSpace, np.ndarray, str] | None:
@@ -693,7 +619,8 @@ def _kind() -> StudyKind:
         extra["design_space"] = design_of
     if "summary" in names:  # `flexopt list`'s line: the model's module is _mechanism_schema
         extra["summary"] = __doc__.split("\n\n")[0].removeprefix("Study kind ``mechanism``:")
-    return StudyKind("mechanism", MechanismStudy, check, evaluate, problem, **extra)  # type: ignore[arg-type]
+    # flexopt evaluate: the nominal design's MechanismProblem.result (pipeline.problems)
+    return StudyKind("mechanism", MechanismStudy, check, None, problem, **extra)  # type: ignore[arg-type]
 
 
 register(_kind())

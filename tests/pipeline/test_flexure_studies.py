@@ -19,6 +19,8 @@ from flexopt.fea.leaf_joint import length_range_mm
 from flexopt.optimise import DesignProblem
 from flexopt.pipeline.cli import main
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.problems import study_result
+from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies.flexure_pivot import FlexurePivotProblem, build_flexure
 from flexopt.pipeline.studies.leaf_spring_joint import LeafJointProblem
 from flexopt.pipeline.study import load_study, validate_study
@@ -214,6 +216,34 @@ def test_leaf_spring_joint_evaluate_summary(tmp_path):
     assert hi == pytest.approx(20.23, rel=1e-3) and lo < hi
     header = (out / "response.csv").read_text().splitlines()[0].split(",")
     assert {"torque_Nm_sliding_l28", "stiffness_Nm_per_rad_fixed_l28"} <= set(header)
+
+
+def test_leaf_spring_joint_evaluate_is_the_problems_result_of_its_nominal_joint():
+    # one path: flexopt evaluate (study_result) is the problem's result of the study's joint,
+    # the analysis of every structure and length; another design is analysed as that joint
+    raw = edited(
+        JOINT,
+        {
+            "boundary.steps": 2,
+            "boundary.check_deflection_deg": None,
+            "geometry.effective_lengths_mm": [28.0],
+            "geometry.structures": ["sliding"],
+        },
+    )
+    study = validate_study(raw)
+    kind = get_kind("leaf_spring_joint")
+    assert kind.evaluate is None
+    prob = kind.problem(study)
+    g = study.geometry
+    x = prob.nominal_design()
+    assert x.tolist() == [g.arm_mm, g.thickness_mm, g.width_mm]
+    got = study_result(study, 1)
+    assert got.plot["y"] == "torque_Nm_sliding_l28" and "left" not in got.plot
+    thicker = prob.result(x + [0.0, 0.1, 0.0], 1)
+    assert thicker.inputs["second_moment_mm4"] == pytest.approx(g.width_mm * 0.6**3 / 12)
+    # the torque at small deflection goes with t^3
+    ratio = thicker.table["torque_Nm_sliding_l28"][1] / got.table["torque_Nm_sliding_l28"][1]
+    assert ratio == pytest.approx((0.6 / 0.5) ** 3, rel=0.05)
 
 
 @pytest.mark.slow

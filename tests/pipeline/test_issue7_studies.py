@@ -15,7 +15,6 @@ from flexopt.pipeline.problems import study_result
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies.cam import CamProblem
 from flexopt.pipeline.studies.collision import extra_files as collision_files
-from flexopt.pipeline.studies.gripper import extra_files as gripper_files
 from flexopt.pipeline.study import load_study, parse_study_text, resolve_study_path, validate_study
 
 
@@ -38,7 +37,7 @@ def collision_result():
 @pytest.fixture(scope="module")
 def gripper_result():
     study = load_study("gripper")
-    return study, get_kind("gripper").evaluate(study, 1)
+    return study, study_result(study, 1)  # the nominal design's GripperProblem.result
 
 
 # ---- cam ------------------------------------------------------------------------------------
@@ -181,7 +180,7 @@ def test_gripper_requirement_is_eq14_for_the_paper_finger_and_feeds_the_beam(gri
 
 def test_gripper_writes_a_constant_force_study_that_reads_back(gripper_result):
     study, result = gripper_result
-    text = gripper_files(study, result)["constant-force.yaml"].decode()
+    text = result.files["constant-force.yaml"].decode()
     again = validate_study(yaml.safe_load(text))
     assert again.kind == "constant_force"
     assert again.target.force_N == pytest.approx(result.summary["target_force_N"])

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from flexopt.geometry.mechanism import shoulder_kt
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies.mechanism import _Evaluator
+from flexopt.pipeline.studies.mechanism import MechanismProblem
 from flexopt.pipeline.study import validate_study
 
 
@@ -67,7 +67,7 @@ def _hub(inner_x: float = 5.0, max_deg: float = 5.0, frames=(), **geometry) -> d
 
 
 def _solve(raw: dict):
-    prob = _Evaluator(validate_study(raw))
+    prob = MechanismProblem(validate_study(raw))
     solved = prob.solve(None)
     assert not isinstance(solved, tuple), solved
     return prob, solved

@@ -16,7 +16,7 @@ import pytest
 import yaml
 from flexopt.fea import mechanism as fm
 from flexopt.fea.mechanism_design import as_made_stress
-from flexopt.pipeline.studies import get_kind
+from flexopt.pipeline.problems import study_result
 from flexopt.pipeline.studies import mechanism as mk
 from flexopt.pipeline.studies._mechanism_schema import build_load_case, build_outline
 from flexopt.pipeline.study import validate_study
@@ -66,7 +66,7 @@ def test_bistable_switch_verdict_is_the_imperfect_parts_snap():
     # force the imperfection lowers); the made part follows the imperfect branch
     assert fm.first_unstable_row(perfect) is not None
     assert imperfect.ok and fm.first_unstable_row(imperfect) is None, imperfect.message
-    result = get_kind("mechanism").evaluate(study)
+    result = study_result(study)
     width = result.summary["width_mm"]
     scale = width / geometry.width_mm  # forces are linear in the width
     snap = _first_peak(imperfect.outputs["F"]) * scale
@@ -112,12 +112,12 @@ def test_met_on_the_unstable_path_is_not_met_on_the_followed_branch():
         "min": 0.98 * unstable_peak,
         "max": 1.02 * unstable_peak,
     }  # MET by the unstable path's first peak
-    result = get_kind("mechanism").evaluate(validate_study(raw))
+    result = study_result(validate_study(raw))
     v = _verdict(result, "snap_force")
     assert not v.met and v.value == pytest.approx(branch_peak, rel=1e-9)
     # with no imperfection the curve stops at the first unstable row: no peak is read past it
     raw["imperfection_mm"] = 0.0
-    stopped = get_kind("mechanism").evaluate(validate_study(raw))
+    stopped = study_result(validate_study(raw))
     row = fm.first_unstable_row(perfect)
     assert not _verdict(stopped, "snap_force").met
     assert not _verdict(stopped, "second_stable_position").met
@@ -157,9 +157,7 @@ def test_parallel_guide_as_made_was_outside_its_band():
     exported outline is ~6 % stiffer in plane stress and ~13 % as a solid, and its verdict now
     says so."""
     raw = _quick_guide()
-    beam_only = get_kind("mechanism").evaluate(
-        validate_study({**raw, "fidelity": {"enabled": False}})
-    )
+    beam_only = study_result(validate_study({**raw, "fidelity": {"enabled": False}}))
     width = beam_only.summary["width_mm"]
     assert _verdict(beam_only, "stiffness").met
     raw.pop("solve_width_from")
@@ -174,7 +172,7 @@ def test_parallel_guide_as_made_was_outside_its_band():
     solid = check["solid"][0]
     nu = study.material.nu
     assert solid["depth_mm"] == width and ps < solid["ratio"] < ps / (1.0 - nu**2)
-    result = get_kind("mechanism").evaluate(study)
+    result = study_result(study)
     v = _verdict(result, "stiffness")
     beam_mean = _verdict(beam_only, "stiffness").value
     assert v.value == pytest.approx(beam_mean * solid["ratio"], rel=1e-6)
@@ -184,7 +182,7 @@ def test_parallel_guide_as_made_was_outside_its_band():
 
 def test_parallel_guide_verdict_is_judged_on_its_3d_figure():
     study = validate_study(_quick_guide())
-    result = get_kind("mechanism").evaluate(study)
+    result = study_result(study)
     width = result.summary["width_mm"]
     fid = result.inputs["fidelity"]
     assert fid["width_mm"]["solved"] == width < fid["width_mm"]["beam_model"]
@@ -202,9 +200,7 @@ def test_parallel_guide_verdict_is_judged_on_its_3d_figure():
     # the check solves the width again; everything else of the part as made stays: the roots'
     # Kt in the stress (a guided leaf's stress does not depend on the width), the interference
     # over the stroke and the envelope at the exported width
-    beam_only = get_kind("mechanism").evaluate(
-        validate_study({**_quick_guide(), "fidelity": {"enabled": False}})
-    )
+    beam_only = study_result(validate_study({**_quick_guide(), "fidelity": {"enabled": False}}))
     stress = _verdict(result, "max_peak_stress_MPa").value
     assert stress == pytest.approx(_verdict(beam_only, "max_peak_stress_MPa").value, rel=1e-9)
     assert _verdict(result, "no_interference").met
@@ -217,7 +213,7 @@ def test_stress_is_judged_on_the_larger_of_the_beam_and_the_check():
     model's (the roots' Kt included); the verdict reads the larger figure, and the optimiser
     holds the beam's stress times ``fidelity.beam_stress_factor``."""
     study = validate_study(_raw("gripper-amplifier"))
-    result = get_kind("mechanism").evaluate(study)
+    result = study_result(study)
     ratio = result.inputs["fidelity"]["checks"]["free"]["solid"][0]["stress_ratio"]
     # the beam model's stresses, solved here: raw peak and as made (the roots' Kt)
     x0 = mk._variables(study).initial

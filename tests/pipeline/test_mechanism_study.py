@@ -15,7 +15,6 @@ from flexopt.geometry.constant_force import DESIGN_VARIABLE_NAMES
 from flexopt.pipeline.cli import main
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.problems import study_result
-from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.studies.mechanism import MechanismProblem
 from flexopt.pipeline.study import load_study, validate_study
 
@@ -104,6 +103,41 @@ def test_tied_thickness_sets_both_leaves_and_matches_12EI_per_leaf():
         g = E_PA12 / (2 * (1 + 0.39))
         k /= 1 + 12 * E_PA12 * (t**2 / 12) / (5 / 6 * g * 40.0**2)
         assert ev.metrics["start_stiffness_N_per_mm"] == pytest.approx(k, rel=1e-2)
+
+
+def test_a_study_without_variables_is_one_design_evaluated_and_not_run(tmp_path, capsys):
+    # one path for flexopt evaluate: the problem's nominal design, here of a space without
+    # variables; flexopt run refuses it before it writes anything, with the message it always had
+    raw = _guide()
+    del raw["variables"]
+    study = validate_study(raw)
+    prob = MechanismProblem(study)
+    assert prob.space.n_var == 0 and prob.nominal_design().shape == (0,)
+    fixed = study_result(study, 1)
+    assert fixed.inputs["design"] is None and fixed.summary["verdict"] in ("MET", "NOT MET")
+    assert fixed.plot["y"] == "drive_reaction_N" and "left" not in fixed.plot
+    varied = study_result(validate_study(_guide()), 1)  # the variable at its initial 1.2 mm
+    np.testing.assert_allclose(fixed.table["force_N"], varied.table["force_N"], rtol=1e-12)
+    path = tmp_path / "fixed.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    out = tmp_path / "run"
+    assert main(["run", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "variables" in err
+    assert "flexopt run needs design variables; add variables: [{path, bounds}]" in err
+    assert not out.exists()
+
+
+def test_a_study_without_variables_has_its_robustness_samples(tmp_path):
+    # the samples of the one design (main refused them with flexopt run's message)
+    from flexopt.pipeline.evaluate import evaluate_study
+
+    raw = _guide(parallel={"workers": 1})
+    del raw["variables"]
+    raw["robustness"] = {"method": "corners", "E_percent": 10, "thickness_mm": 0.1}
+    outcome = evaluate_study(validate_study(raw), out=tmp_path / "out")
+    robust = outcome.record["robustness"]
+    assert robust["n_samples"] == 5 and robust["n_failed"] == 0
 
 
 def test_a_design_that_crosses_beams_is_infeasible_with_the_reason():
@@ -237,7 +271,7 @@ def test_constant_force_mechanism_matches_the_constant_force_kind():
     cf = validate_study(raw)
     assert cf.boundary.stroke_mm == 30.0 and cf.geometry.elements == 60
     ref = study_result(cf, 1)
-    got = get_kind("mechanism").evaluate(mech, 1)
+    got = study_result(mech, 1)
     np.testing.assert_allclose(got.table["drive_mm"], ref.table["displacement_mm"], atol=1e-12)
     f_ref, f_got = ref.table["force_N"][1:], got.table["force_N"][1:]
     assert np.max(np.abs(f_got / f_ref - 1.0)) < 1e-3
