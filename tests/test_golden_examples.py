@@ -1,4 +1,5 @@
-"""Each built-in example still chooses the same design (issue 24, "golden JSON").
+"""Each built-in example still chooses the same design and gives the same answer for its
+recorded design (issue 24, "golden JSON").
 
 tests/golden/<example>.json holds the design a full ``flexopt run <example>`` chose on main
 932f7ea (tests/golden/make_golden.py wrote it from that run's best.json): its variables, its
@@ -83,3 +84,48 @@ def test_the_example_chooses_its_golden_design(golden, tmp_path, monkeypatch, ca
         + _moved(expected["metrics"], best.get("metrics") or {}, "metrics")
     )
     assert not moved, f"{golden.stem}: the same design, other numbers:\n" + "\n".join(moved)
+
+
+# -- each example's recorded design, as `flexopt evaluate` judges it ---------------------------
+
+#: tests/golden/evaluate/<example>.json (tests/golden/make_golden_evaluate.py): the verdict and
+#: scalar summary ``flexopt evaluate <example>`` gave on main da29f6e (constant-force-custom:
+#: when it was added), for every example whose evaluate takes seconds. Not here: sea-spring and
+#: sea-spring-serpentine (their 3D check needs ~2-4.6 GB and a minute; docs/sea_spring.md and
+#: the SEA tests of tests/pipeline hold their figures) and threshold-spring (a 35 s plane-stress
+#: check).
+GOLDEN_EVALUATE = sorted((Path(__file__).resolve().parent / "golden" / "evaluate").glob("*.json"))
+
+
+def test_there_are_golden_evaluate_files():
+    # Guards the test below: an empty folder would make it pass without running anything.
+    assert len(GOLDEN_EVALUATE) >= 10, "tests/golden/evaluate/*.json went missing"
+    for path in GOLDEN_EVALUATE:
+        record = json.loads(path.read_text(encoding="utf-8"))
+        assert record["example"] == path.stem and record["summary"], path
+
+
+@pytest.mark.parametrize("golden", GOLDEN_EVALUATE, ids=[p.stem for p in GOLDEN_EVALUATE])
+def test_the_example_evaluates_to_its_golden_answer(golden, tmp_path, monkeypatch, capsys):
+    expected = json.loads(golden.read_text(encoding="utf-8"))
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "eval"
+    code = main(["evaluate", expected["example"], "--out", str(out)])
+    err = capsys.readouterr().err
+    record = json.loads((out / "evaluation.json").read_text(encoding="utf-8"))
+    assert record["converged"] == expected["converged"], err[-2000:]
+    verdict = record.get("verdict") or {}
+    assert verdict.get("overall") == expected["overall"], err[-2000:]
+    assert code == 0, err[-2000:]  # evaluate reports NOT MET (cantilever-stop's, by design)
+    rows = {row["name"]: row for row in verdict.get("requirements", [])}
+    assert set(rows) == {row["name"] for row in expected["requirements"]}
+    moved = []
+    for want in expected["requirements"]:
+        got = rows[want["name"]]
+        moved += [
+            f"{want['name']}.{key}: {got.get(key)!r}, golden {want[key]!r}"
+            for key in ("quantity", "verdict", "value", "model")
+            if not _same(want[key], got.get(key))
+        ]
+    moved += _moved(expected["summary"], record["summary"], "summary")
+    assert not moved, f"{golden.stem}: another answer:\n" + "\n".join(moved)
