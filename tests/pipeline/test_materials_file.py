@@ -45,7 +45,9 @@ def test_material_beside_the_study_is_used(tmp_path):
     assert study.material.E_MPa == 1823.7
     assert study.material.name == "my-petg"
     assert "materials.yaml" in study.material.source
-    assert "not applied" in study.material.source  # the offset is named, and what is done with it
+    # the offset is named, and what is done with it: the study analyses the part as printed
+    assert "applied to every printed section" in study.material.source
+    assert study.material.thickness_offset_mm == -0.057
 
 
 def test_user_file_from_the_environment(tmp_path, monkeypatch):
