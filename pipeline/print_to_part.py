@@ -13,6 +13,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -28,7 +29,7 @@ from flexopt.optimise.calibration import (
     CSV_COLUMNS,
     CalibrationError,
     CalibrationResult,
-    fit_coupon,
+    fit_coupons,
     read_coupon_csv,
     write_materials_file,
 )
@@ -178,19 +179,25 @@ class CalibrateOutcome:
 
 
 def calibrate(
-    measured_csv: Path,
-    coupon: Path,
+    measured_csv: Path | Sequence[Path],
+    coupon: Path | Sequence[Path],
     name: str | None = None,
     materials_path: Path | None = None,
+    orientations: Sequence[str] | None = None,
 ) -> CalibrateOutcome:
-    """Fit E and the thickness offset to a measured coupon curve.
+    """Fit E and the thickness offset to measured coupon curves; with tests in two print
+    orientations, E along each one (the in-plane anisotropy) and the shared offset.
 
     Parameters
     ----------
-    measured_csv : the measured points (``thickness_mm, displacement_mm, force_N``).
-    coupon : ``coupon.json`` of ``flexopt coupon`` (or its folder).
+    measured_csv : the measured points (``thickness_mm, displacement_mm, force_N`` and an
+        optional ``orientation`` column, x or y), one CSV or several (one per orientation).
+    coupon : ``coupon.json`` of ``flexopt coupon`` (or its folder): one for every CSV, or one
+        per CSV in the same order.
     name : the material's name in the materials file; nothing is written when None.
-    materials_path : the materials file (default: ``materials.yaml`` beside the measured CSV).
+    materials_path : the materials file (default: ``materials.yaml`` beside the first CSV).
+    orientations : each CSV's print orientation (``x`` or ``y``, in the order of the CSVs),
+        for CSVs without an ``orientation`` column.
 
     Returns
     -------
@@ -200,52 +207,94 @@ def calibrate(
     Raises
     ------
     CalibrationError
-        On bad data (:mod:`optimise.calibration`), a bad coupon record or an unreadable CSV.
+        On bad data (:mod:`optimise.calibration`), a bad coupon record or an unreadable CSV; for
+        several CSVs without each one's orientation; for counts of coupons or orientations that
+        do not match the CSVs.
     """
-    spec, base = read_coupon_record(coupon)
-    try:
-        if not measured_csv.is_file():
-            raise CalibrationError(f"{measured_csv}: not a file")
-        raw = measured_csv.read_bytes()
-    except OSError as err:
-        raise CalibrationError(f"{measured_csv}: cannot be read ({err.strerror or err})") from None
-    if len(raw) > MAX_CSV_BYTES:
-        raise CalibrationError(f"{measured_csv}: larger than {MAX_CSV_BYTES >> 20} MiB")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise CalibrationError(f"{measured_csv}: not UTF-8 text") from None
-    measured = read_coupon_csv(text, str(measured_csv))
-    result = fit_coupon(measured, spec, base)
+    csvs = [measured_csv] if isinstance(measured_csv, Path) else list(measured_csv)
+    coupons = [coupon] if isinstance(coupon, Path) else list(coupon)
+    if not csvs:
+        raise CalibrationError("give at least one measured CSV")
+    if len(coupons) not in (1, len(csvs)):
+        raise CalibrationError(
+            f"{len(coupons)} coupons for {len(csvs)} measured CSVs: give one coupon for all, or "
+            "one per CSV in the same order"
+        )
+    given = list(orientations or [])
+    if given and len(given) != len(csvs):
+        raise CalibrationError(
+            f"{len(given)} orientations for {len(csvs)} measured CSVs: give one per CSV (x or y)"
+        )
+    records = [read_coupon_record(c) for c in coupons]
+    base = records[0][1]
+    tests = []
+    for i, path in enumerate(csvs):
+        spec = records[i if len(records) > 1 else 0][0]
+        measured = read_coupon_csv(_read_text(path), str(path), given[i] if given else "")
+        tests.append((measured, spec))
+    if len(tests) > 1 and not all(m.orientation for m, _ in tests):
+        unnamed = ", ".join(str(csvs[i]) for i, (m, _) in enumerate(tests) if not m.orientation)
+        raise CalibrationError(
+            f"several measured CSVs: say each one's print orientation (x or y, the strips' long "
+            f"axis along the printer's x or y axis) with an orientation column or --orientation; "
+            f"not known for {unnamed}"
+        )
+    result = fit_coupons(tests, base)
     written = None
     if name:
-        written = materials_path or measured_csv.parent / "materials.yaml"
+        written = materials_path or csvs[0].parent / "materials.yaml"
         write_materials_file(written, name, result)
     files = {
         "calibration.json": (json.dumps(result.record(), indent=2) + "\n").encode(),
-        "calibration.png": _plot(measured, result),
+        "calibration.png": _plot([m for m, _ in tests], result),
     }
     return CalibrateOutcome(result, written, files)
 
 
-def _plot(measured: Any, result: CalibrationResult) -> bytes:
+def _read_text(path: Path) -> str:
+    try:
+        if not path.is_file():
+            raise CalibrationError(f"{path}: not a file")
+        raw = path.read_bytes()
+    except OSError as err:
+        raise CalibrationError(f"{path}: cannot be read ({err.strerror or err})") from None
+    if len(raw) > MAX_CSV_BYTES:
+        raise CalibrationError(f"{path}: larger than {MAX_CSV_BYTES >> 20} MiB")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise CalibrationError(f"{path}: not UTF-8 text") from None
+
+
+def _plot(tests: Sequence[Any], result: CalibrationResult) -> bytes:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (ax, axr) = plt.subplots(2, 1, figsize=(6.4, 6.0), sharex=True, height_ratios=[3, 1])
-    for t in sorted(set(measured.thickness_mm.tolist())):
-        sel = measured.thickness_mm == t
-        d = measured.displacement_mm[sel]
-        (line,) = ax.plot(d, result.model_N[sel], "-", label=f"fit, strip {t:g} mm")
-        ax.plot(d, measured.force_N[sel], "o", ms=3, color=line.get_color(), label="measured")
-        axr.plot(d, result.residual_N[sel], "o-", ms=3, color=line.get_color())
+    start = 0
+    for measured in tests:
+        n = measured.force_N.size
+        model, residual = result.model_N[start : start + n], result.residual_N[start : start + n]
+        start += n
+        along = f", {measured.orientation}" if measured.orientation else ""
+        for t in sorted(set(measured.thickness_mm.tolist())):
+            sel = measured.thickness_mm == t
+            d = measured.displacement_mm[sel]
+            (line,) = ax.plot(d, model[sel], "-", label=f"fit, strip {t:g} mm{along}")
+            ax.plot(d, measured.force_N[sel], "o", ms=3, color=line.get_color(), label="measured")
+            axr.plot(d, residual[sel], "o-", ms=3, color=line.get_color())
     ax.set_ylabel("Force (N)")
+    if result.anisotropic:
+        moduli = ", ".join(
+            f"E_{m.orientation} = {m.E_MPa:.0f} ± {m.E_ci95_MPa:.0f}" for m in result.moduli
+        )
+        title = f"{moduli} MPa, thickness offset "
+    else:
+        title = f"E = {result.E_MPa:.0f} ± {result.E_ci95_MPa:.0f} MPa, thickness offset "
     ax.set_title(
-        f"E = {result.E_MPa:.0f} ± {result.E_ci95_MPa:.0f} MPa, thickness offset "
-        f"{result.offset_mm:+.3f} ± {result.offset_ci95_mm:.3f} mm (95 %)",
-        fontsize=9,
+        title + f"{result.offset_mm:+.3f} ± {result.offset_ci95_mm:.3f} mm (95 %)", fontsize=9
     )
     ax.legend(fontsize=7)
     axr.axhline(0.0, color="0.5", lw=0.8)

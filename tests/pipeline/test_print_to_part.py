@@ -166,3 +166,42 @@ def test_cli_coupon_and_calibrate(tmp_path, monkeypatch, capsys):
     assert "x" not in yaml.safe_load((tmp_path / "materials.yaml").read_text())
     assert main(["coupon", "unobtainium"]) == 2
     assert main(["compare", str(tmp_path / "nowhere"), "m.csv"]) == 2
+
+
+@pytest.mark.slow
+def test_cli_calibrate_two_orientations(tmp_path, monkeypatch, capsys):
+    """`flexopt calibrate X.csv Y.csv --coupon C`: a simulated printer whose E differs along its
+    x and y axes (hidden 1.08 and 0.95 x the datasheet's) and one wall offset; the CSVs name
+    their orientation one by a column, one on the command line."""
+    from flexopt.pipeline.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    base = get_material("PETG")
+    (tmp_path / "coupon.json").write_bytes(coupon_files(base)["coupon.json"])
+    spec, _ = read_coupon_record(tmp_path / "coupon.json")
+    hidden = {"x": 1.08 * base.E_MPa, "y": 0.95 * base.E_MPa}
+    rng = np.random.default_rng(6)
+    for o, E in hidden.items():
+        lines = ["thickness_mm,displacement_mm,force_N" + (",orientation" if o == "x" else "")]
+        for t in spec.thicknesses_mm:
+            c = strip_curve(spec, dataclasses.replace(base, E_MPa=E), t - 0.04, spec.stroke_mm)
+            for d, f in zip(c.displacement_mm[2::3], c.force_N[2::3], strict=True):
+                f *= 1 + 0.003 * rng.standard_normal()
+                lines.append(f"{t:g},{d:.6f},{f:.7f}" + (",x" if o == "x" else ""))
+        (tmp_path / f"{o}.csv").write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    # the second CSV's orientation is not known: refused, naming it
+    assert main(["calibrate", "x.csv", "y.csv", "--coupon", "coupon.json"]) == 2
+    assert "y.csv" in capsys.readouterr().err
+    argv = ["calibrate", "x.csv", "y.csv", "--coupon", "coupon.json", "--name", "my-petg"]
+    assert main([*argv, "--orientation", "x", "--orientation", "y"]) == 0
+    out = capsys.readouterr().out
+    assert "E along x" in out and "my-petg@x or my-petg@y" in out
+    entry = yaml.safe_load((tmp_path / "materials.yaml").read_text())["my-petg"]
+    fit = entry["calibration"]
+    for o, E in hidden.items():
+        got = fit["E_by_orientation"][o]
+        assert entry[f"E_{o}_MPa"] == got["E_MPa"]
+        assert abs(got["E_MPa"] - E) <= got["E_ci95_MPa"]
+    assert abs(entry["thickness_offset_mm"] + 0.04) <= fit["thickness_offset_ci95_mm"]
+    assert abs(fit["E_y_over_E_x"] - 0.95 / 1.08) <= fit["E_y_over_E_x_ci95"]
