@@ -103,8 +103,9 @@ def add_print_commands(commands: Any) -> None:
         description=(
             "Compare a measured curve of the printed part (two columns named like the "
             "prediction's, e.g. displacement_mm,force_N) with the run's (or evaluate folder's) "
-            "prediction: force and stiffness error in %%, RMS; writes compare.json and "
-            "compare.png into RUN_DIR."
+            "prediction: force and stiffness error in %%, RMS, and the run's requirements that "
+            "read this curve (the constant-force band) judged on the measured curve, MET or NOT "
+            "MET beside the predicted verdict; writes compare.json and compare.png into RUN_DIR."
         ),
     )
     cmp.add_argument("run_dir", type=_path, metavar="RUN_DIR")
@@ -265,8 +266,34 @@ def _compare(args: Any) -> int:
         f"RMS {c.rms_error:.4g}, max {c.max_error:.4g} over {c.x.size} points"
         + (f" ({c.dropped} outside the prediction, not compared)" if c.dropped else "")
     )
+    for line in _measured_verdict_lines(outcome):
+        print(line)
     print(f"wrote compare.json and compare.png into {args.run_dir}")
     return EXIT_OK
+
+
+def _measured_verdict_lines(outcome: Any) -> list[str]:
+    """One line per requirement judged on the measured curve, beside the run's prediction."""
+
+    def word(met: Any, value: Any, unit: str) -> str:
+        text = "MET" if met else "NOT MET"
+        if isinstance(value, int | float) and value == value:
+            text += f" ({value:.4g} {unit})".replace(" )", ")")
+        return text
+
+    lines = []
+    for v in outcome.measured_verdicts:
+        pred = outcome.predicted.get(v.name)
+        before = (
+            word(pred.get("met"), pred.get("value"), str(pred.get("unit", "")))
+            if pred
+            else "not in the run's verdict"
+        )
+        lines.append(
+            f"{v.name} ({v.bound}): predicted {before}, measured {word(v.met, v.value, v.unit)}"
+        )
+    lines += [f"not judged on the measured curve: {n}" for n in outcome.not_judged]
+    return lines
 
 
 def _retrim(args: Any) -> int:

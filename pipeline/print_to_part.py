@@ -14,7 +14,7 @@ import io
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -33,8 +33,21 @@ from flexopt.optimise.calibration import (
     read_coupon_csv,
     write_materials_file,
 )
+from flexopt.optimise.requirements import overall, to_records
+from flexopt.pipeline.errors import FlexoptError
 
-__all__ = ["COUPON_JSON", "coupon_files", "read_coupon_record", "calibrate", "CalibrateOutcome"]
+__all__ = [
+    "COUPON_JSON",
+    "CalibrateOutcome",
+    "CompareOutcome",
+    "RetrimOutcome",
+    "calibrate",
+    "compare_run",
+    "coupon_files",
+    "measured_verdicts",
+    "read_coupon_record",
+    "retrim_run",
+]
 
 #: the coupon's record in its folder: what ``flexopt calibrate --coupon`` reads
 COUPON_JSON = "coupon.json"
@@ -354,12 +367,20 @@ class CompareOutcome:
     comparison : the numbers (:class:`optimise.calibration.CurveComparison`).
     x_column, y_column : the compared columns (names with units).
     files : ``compare.json`` and ``compare.png``, for the run folder.
+    measured_verdicts : the run's requirements that read this curve (the constant-force band),
+        judged on the measured curve (:func:`measured_verdicts`).
+    predicted : the run's own verdict of each of them by name, as its folder records it
+        (``verdict`` ``MET``/``NOT MET``, ``value``, ``unit``), where it has one.
+    not_judged : one line per requirement or reason the measured curve could not be judged.
     """
 
     comparison: Any
     x_column: str
     y_column: str
     files: dict[str, bytes]
+    measured_verdicts: tuple[Any, ...] = ()
+    predicted: dict[str, dict[str, Any]] = field(default_factory=dict)
+    not_judged: tuple[str, ...] = ()
 
 
 def compare_run(run_dir: Path, measured_csv: Path) -> CompareOutcome:
@@ -396,6 +417,7 @@ def compare_run(run_dir: Path, measured_csv: Path) -> CompareOutcome:
     px, py = px[order], py[order]
     keep = np.concatenate([[True], np.diff(px) > 0])
     c = compare_curves(px[keep], py[keep], m_data[:, 0], m_data[:, 1])
+    verdicts, predicted, not_judged = measured_verdicts(run_dir, xc, yc, m_data[:, 0], m_data[:, 1])
     record = {
         "run": str(run_dir),
         "measured": str(measured_csv),
@@ -407,12 +429,76 @@ def compare_run(run_dir: Path, measured_csv: Path) -> CompareOutcome:
         "max_error": c.max_error,
         "force_error_percent": c.force_error_percent,
         "stiffness_error_percent": c.stiffness_error_percent,
+        "requirements_on_measured": [
+            {
+                **rec,
+                "predicted": predicted.get(rec["name"], {}).get("verdict"),
+                "predicted_value": predicted.get(rec["name"], {}).get("value"),
+            }
+            for rec in to_records(verdicts)
+        ],
+        "overall_on_measured": overall(verdicts) if verdicts else None,
+        "not_judged_on_measured": list(not_judged),
     }
     files = {
-        "compare.json": (json.dumps(record, indent=2) + "\n").encode(),
+        "compare.json": (json.dumps(record, indent=2, allow_nan=False) + "\n").encode(),
         "compare.png": _compare_png(px[keep], py[keep], c, xc, yc),
     }
-    return CompareOutcome(c, xc, yc, files)
+    return CompareOutcome(c, xc, yc, files, verdicts, predicted, not_judged)
+
+
+def measured_verdicts(
+    run_dir: Path, x_column: str, y_column: str, x: np.ndarray, y: np.ndarray
+) -> tuple[tuple[Any, ...], dict[str, dict[str, Any]], tuple[str, ...]]:
+    """The run's requirements that read the curve ``y_column(x_column)`` judged on the measured
+    points ``x``, ``y`` ((m,) each, the columns' units): the band verdict of the printed part.
+
+    A requirement reads the curve when it judges a response (``needs_curve``: a target band,
+    such as the constant-force kind's force band) of the quantity ``y_column`` over
+    ``x_column``; it is judged exactly as the run judged the prediction, on the measured points
+    alone (a measured curve that does not reach the band's ends is NOT MET, as a prediction
+    would be). Requirements on scalars (peak stress, a solved stiffness) are not judged: a force
+    curve does not measure them.
+
+    Returns
+    -------
+    (verdicts, predicted, not_judged): the verdicts on the measured curve; the run's own
+    verdict record of each by name (from best.json or evaluation.json); one line per
+    requirement on another curve, or why none could be judged.
+    """
+    from flexopt.pipeline.run import design_study_of
+    from flexopt.pipeline.verdict import study_requirements
+
+    try:
+        study, _, _ = design_study_of(run_dir, "best")
+        requirements = study_requirements(study)
+    except (FlexoptError, ValueError) as exc:
+        return (), {}, (f"the run's requirements could not be read: {exc}",)
+    keep = np.isfinite(x) & np.isfinite(y)
+    curves = {y_column: (np.asarray(x, float)[keep], np.asarray(y, float)[keep])}
+    verdicts, not_judged = [], []
+    for req in requirements:
+        if not req.needs_curve:
+            continue
+        if req.quantity == y_column and getattr(req, "x", x_column) == x_column:
+            verdicts.append(req.check({}, curves))
+        else:
+            on = f"{req.quantity}({getattr(req, 'x', '?')})"
+            not_judged.append(
+                f"{req.label}: reads {on}, the measured curve is {y_column}({x_column})"
+            )
+    if not verdicts and not not_judged:
+        not_judged.append(f"no requirement of the run reads the curve {y_column}({x_column})")
+    predicted: dict[str, dict[str, Any]] = {}
+    for name in ("best.json", "evaluation.json"):
+        try:
+            data = json.loads((run_dir / name).read_text(encoding="utf-8"))
+            rows = data["verdict"]["requirements"]
+            predicted = {str(r["name"]): dict(r) for r in rows if isinstance(r, dict)}
+            break
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+    return tuple(verdicts), predicted, tuple(not_judged)
 
 
 def _label(column: str) -> str:

@@ -97,7 +97,7 @@ def test_calibrate_refuses_bad_inputs(tmp_path):
 
 
 @pytest.mark.e2e
-def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
+def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path, capsys):
     """design -> "print" (a spool whose E is 10 % below the datasheet's) -> compare -> re-trim
     the width -> the second "print" meets the constant-force band the first one missed.
 
@@ -125,6 +125,16 @@ def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
     cmp = compare_run(tmp_path / "design", tmp_path / "measured.csv")
     assert cmp.comparison.force_error_percent == pytest.approx(-10.0, abs=0.3)
     assert set(cmp.files) == {"compare.json", "compare.png"}
+    # the band verdict on the measured curve: the prediction met it, the print does not
+    (measured_band,) = cmp.measured_verdicts
+    assert measured_band.name == "force band" and not measured_band.met
+    assert cmp.predicted["force band"]["verdict"] == "MET"
+    record = json.loads(cmp.files["compare.json"])
+    (row,) = record["requirements_on_measured"]
+    assert (row["name"], row["verdict"], row["predicted"]) == ("force band", "NOT MET", "MET")
+    assert record["overall_on_measured"] == "NOT MET"
+    # the worst deviation of the measured curve from 1.5 N: about 10 % of it
+    assert row["value"] == pytest.approx(0.15, abs=0.02)
     trim = retrim_run(tmp_path / "design", tmp_path / "measured.csv")  # the kind's width key
     assert trim.key == "design.B"
     assert trim.new_mm == pytest.approx(trim.old_mm / 0.9, rel=2e-3)
@@ -132,6 +142,21 @@ def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
         trim.study.with_values({"material.E_MPa": hidden_E}), out=tmp_path / "second"
     )
     assert all(v.met for v in second.verdict), [str(v) for v in second.verdict]
+    # the second print measured against the design's prediction (the curve the re-trim aims
+    # at): the band MET on the measured curve too (the console puts the words side by side)
+    from flexopt.pipeline.cli import main
+
+    f2 = second.table["force_N"][rows] * (1 + 0.001 * rng.standard_normal(rows.size))
+    lines = ["displacement_mm,force_N"] + [
+        f"{d:.5f},{f:.6f}" for d, f in zip(second.table["displacement_mm"][rows], f2, strict=True)
+    ]
+    (tmp_path / "second.csv").write_text("\n".join(lines) + "\n")
+    assert main(["compare", str(tmp_path / "design"), str(tmp_path / "second.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "force band (within ±2 % of 1.5 N" in out
+    assert "predicted MET" in out and "measured MET" in out
+    record = json.loads((tmp_path / "design" / "compare.json").read_text())
+    assert record["overall_on_measured"] == "MET"
 
 
 @pytest.mark.slow
