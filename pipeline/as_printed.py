@@ -16,9 +16,12 @@ with an offset to this module. It moves the same numbers a print-scatter sample 
 delta and nothing else changed:
 
 - in the **study**: every number under a key ending in ``thickness_mm`` outside
-  ``design_space``, ``requirements``, ``optimiser``, ``parallel`` and ``robustness``; for a
-  negative offset also the printable minimum ``min_feature_mm`` (a rule on the drawing: a design
-  drawn at the minimum and printed thinner is solved as printed, not refused as unprintable);
+  ``design_space``, ``requirements``, ``optimiser``, ``parallel`` and ``robustness``, and the
+  printable minimum ``min_feature_mm``: it is a rule on the drawing (every wall at least two
+  extrusion lines as drawn), so it moves with the print and a printable drawing stays printable
+  as printed, neither more nor less; with it the bounds of a ``design_space`` entry ending in
+  ``thickness_mm`` (a kind checks them against the minimum), while the design vector's space
+  stays the drawn one;
 - in the **design vector**: the problem's own
   :meth:`~optimise.problem.DesignProblem.scatter_design` when it has one (constant_force: t1..t10,
   T1, T6); else each variable that sets a ``*thickness_mm`` key (variables on key paths), else
@@ -104,14 +107,16 @@ def _study_data(study: Study, offset_mm: float, outline_only: bool) -> tuple[dic
             return
         for key, value in node.items():
             where = f"{path}.{key}" if path else str(key)
+            if not path and key == "design_space" and isinstance(value, dict):
+                # the bounds of a thickness checked against the printable minimum move with it
+                # (flexure_pivot); the design vector's space stays the drawn one
+                for k, v in value.items():
+                    if str(k).endswith(THICKNESS_KEYS[0]) and offset_mm != 0.0:
+                        value[k] = shift(v, f"{where}.{k}", offset_mm)
+                continue
             if not path and key in UNPERTURBED_BLOCKS:
                 continue
-            if str(key).endswith(THICKNESS_KEYS[0]) and offset_mm != 0.0:
-                node[key] = shift(value, where, offset_mm)
-            elif str(key).endswith(THICKNESS_KEYS[1:]) and offset_mm < 0.0:
-                # the printable minimum is a rule on the drawing: a part printed thinner is
-                # solved, not refused as unprintable; a thicker print leaves it (and the
-                # design-space bounds checked against it) as drawn
+            if str(key).endswith(THICKNESS_KEYS) and offset_mm != 0.0:
                 node[key] = shift(value, where, offset_mm)
             else:
                 walk(value, where)
@@ -209,6 +214,7 @@ class AsPrintedProblem(ProblemWrapper):
         changed: tuple[str, ...],
     ) -> None:
         super().__init__(printed)
+        self.space = drawn.space  # the design vector is the drawn one (its bounds as drawn)
         self.drawn = drawn
         self.offset_mm = thickness_offset_mm(study)
         self.changed = changed

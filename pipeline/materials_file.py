@@ -84,6 +84,8 @@ _KEYS = {
     "name",
 }
 _REQUIRED = ("nu", "yield_MPa")
+#: the largest thickness offset a materials file may give, mm (the study's bound too)
+MAX_OFFSET_MM = 1.0
 #: the print directions of an anisotropic material (``name@x``): the key of each one's modulus
 DIRECTIONS = {"x": "E_x_MPa", "y": "E_y_MPa"}
 
@@ -157,16 +159,16 @@ def read_materials_file(path: Path) -> dict[str, dict[str, Any]]:
             if key not in record:
                 raise StudyError(f"{name}.{key}", "required key is missing", source=where)
         directional = [k for k in DIRECTIONS.values() if k in record]
-        if "E_MPa" not in record and len(directional) < len(DIRECTIONS):
+        if directional and len(directional) < len(DIRECTIONS):
+            raise StudyError(
+                f"{name}.{directional[0]}", "give both E_x_MPa and E_y_MPa, or neither", where
+            )
+        if "E_MPa" not in record and not directional:
             raise StudyError(
                 f"{name}.E_MPa",
                 "required key is missing (or E_x_MPa and E_y_MPa, for a material calibrated in "
                 "two print orientations)",
                 source=where,
-            )
-        if directional and len(directional) < len(DIRECTIONS):
-            raise StudyError(
-                f"{name}.{directional[0]}", "give both E_x_MPa and E_y_MPa, or neither", where
             )
         optional = ("density_kg_m3", "thickness_offset_mm", "E_MPa", *DIRECTIONS.values())
         for key in ("E_MPa", "nu", "yield_MPa", *optional):
@@ -177,6 +179,13 @@ def read_materials_file(path: Path) -> dict[str, dict[str, Any]]:
                 raise StudyError(f"{name}.{key}", f"must be a number, got {value!r}", where)
             if not math.isfinite(value):
                 raise StudyError(f"{name}.{key}", "must be finite", source=where)
+            if key == "thickness_offset_mm" and not abs(value) <= MAX_OFFSET_MM:
+                raise StudyError(
+                    f"{name}.{key}",
+                    f"{value:g} mm is not a printer's wall error (at most ±{MAX_OFFSET_MM:g} mm); "
+                    "check the units (mm)",
+                    source=where,
+                )
         out[name] = dict(record)
     return out
 

@@ -12,11 +12,13 @@ from flexopt.pipeline.as_printed import (
     THICKNESS_KEYS,
     UNPERTURBED_BLOCKS,
     AsPrintedProblem,
+    printed_design,
 )
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.materials_file import ENV_VAR
 from flexopt.pipeline.problems import kind_problem, nominal_design
 from flexopt.pipeline.study import load_study, resolve_study_path, study_to_yaml, validate_study
+from flexopt.pipeline.verdict import judge_result
 
 DT = 0.05
 ABS = {"E_MPa": 1800.0, "nu": 0.35, "yield_MPa": 42.5}
@@ -110,6 +112,14 @@ def test_constant_force_calibrated_equals_drawn_thicker(tmp_path):
     record = detail.info["as printed"]
     assert record["thickness_offset_mm"] == DT and record["exported geometry"] == "as drawn"
     assert sorted(record["design variables moved"]) == sorted(f"{n}_mm" for n in names)
+    # the printable minimum is a rule on the drawing: a design drawn under it is refused although
+    # its print would be thick enough; the verdict reads the printed thinnest wall
+    (printable,) = [v for v in judge_result(study, detail, x) if v.name == "printable feature"]
+    assert printable.value == pytest.approx(min(x[moved]) + DT)
+    thin = x.copy()
+    thin[moved[0]] = study.geometry.min_feature_mm - DT / 2
+    assert "not printable" in problem.evaluate(thin).reason
+    assert plain.evaluate(printed_design(problem.drawn, thin, DT)).reason == ""
 
 
 def test_flexure_pivot_calibrated_equals_drawn_thicker(tmp_path):

@@ -85,6 +85,10 @@ def test_library_names_win_and_cannot_be_taken(tmp_path):
         ("m: {E_MPa: big, nu: 0.3, yield_MPa: 10}", r"m\.E_MPa.*number"),
         ("m: {E_MPa: 1000, nu: 0.3, yield_MPa: 10, colour: red}", r"m\.colour.*unknown key"),
         ("m: {E_MPa: .nan, nu: 0.3, yield_MPa: 10}", "finite"),
+        ("m: {nu: 0.3, yield_MPa: 10}", r"m\.E_MPa.*missing.*E_x_MPa and E_y_MPa"),
+        ("m: {E_x_MPa: 1000, nu: 0.3, yield_MPa: 10}", r"m\.E_x_MPa.*both"),
+        ("m: {E_x_MPa: 1000, E_y_MPa: big, nu: 0.3, yield_MPa: 10}", r"m\.E_y_MPa.*number"),
+        ("m: {E_MPa: 1000, nu: 0.3, yield_MPa: 10, thickness_offset_mm: 3}", "thickness_offset"),
     ],
 )
 def test_damaged_materials_file_is_one_clear_error(tmp_path, content, match):
