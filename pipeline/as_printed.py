@@ -21,7 +21,8 @@ delta and nothing else changed:
   extrusion lines as drawn), so it moves with the print and a printable drawing stays printable
   as printed, neither more nor less; with it the bounds of a ``design_space`` entry ending in
   ``thickness_mm`` (a kind checks them against the minimum), while the design vector's space
-  stays the drawn one;
+  stays the drawn one; not a key that is no wall in the bed plane (:data:`OUT_OF_PLANE_KEYS`:
+  a cam plate's thickness is its print height);
 - in the **design vector**: the problem's own
   :meth:`~optimise.problem.DesignProblem.scatter_design` when it has one (constant_force: t1..t10,
   T1, T6); else each variable that sets a ``*thickness_mm`` key (variables on key paths), else
@@ -69,6 +70,13 @@ OFFSET_SUMMARY_KEY = "thickness_offset_mm"
 THICKNESS_KEYS = ("thickness_mm", "min_feature_mm")
 #: top-level blocks the offset leaves alone (``pipeline.robustness.UNPERTURBED_BLOCKS``)
 UNPERTURBED_BLOCKS = ("design_space", "requirements", "optimiser", "parallel", "robustness")
+#: keys ending in ``thickness_mm`` that are not walls in the bed plane, by kind: a cam plate's
+#: thickness is its contact width, the print's height (set by the layers, not by the wall
+#: error the coupon measures); the offset leaves them as drawn
+OUT_OF_PLANE_KEYS: dict[str, tuple[str, ...]] = {
+    "cam": ("geometry.thickness_mm",),
+    "collision": ("cam.geometry.thickness_mm",),
+}
 #: cross-checks switched off in the study that only draws the outline (they draw nothing)
 OUTLINE_SWITCHES: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("fidelity", "enabled"), False),
@@ -89,6 +97,7 @@ def _study_data(study: Study, offset_mm: float, outline_only: bool) -> tuple[dic
     if isinstance(material, dict):
         material.pop("thickness_offset_mm", None)  # the inner study is solved as given
     changed: list[str] = []
+    skipped = OUT_OF_PLANE_KEYS.get(study.kind, ())
 
     def shift(node: Any, path: str, delta: float) -> Any:
         if _is_number(node):
@@ -115,6 +124,8 @@ def _study_data(study: Study, offset_mm: float, outline_only: bool) -> tuple[dic
                         value[k] = shift(v, f"{where}.{k}", offset_mm)
                 continue
             if not path and key in UNPERTURBED_BLOCKS:
+                continue
+            if where in skipped:
                 continue
             if str(key).endswith(THICKNESS_KEYS) and offset_mm != 0.0:
                 node[key] = shift(value, where, offset_mm)
@@ -184,6 +195,9 @@ def _annotated(
     dt = thickness_offset_mm(study)
     record = {
         "thickness_offset_mm": dt,
+        # nothing moved: the kind holds no section under a thickness key or variable (sea_window
+        # has none; the gripper's beam is in its linked constant-force study): said, not hidden
+        "applied": bool(changed or moved),
         "material": study.material.name,
         "study keys moved": list(changed),
         "design variables moved": list(moved),

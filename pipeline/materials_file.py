@@ -269,21 +269,32 @@ def thickness_offset_mm(study: Any) -> float:
     return float(value) if value else 0.0
 
 
-def as_printed_note(study: Any) -> str:
-    """One line: the offset the analysis applied, and that the drawing is unchanged."""
+def as_printed_note(study: Any, applied: bool = True) -> str:
+    """One line: the offset the analysis applied (or that it could apply it to nothing), and
+    that the drawing is unchanged."""
     dt = thickness_offset_mm(study)
+    name = study.material.name
+    if not applied:
+        return (
+            f"the measured thickness offset {dt:+.4g} mm of material {name} is not applied: no "
+            "section of this study moves with it (docs/print_to_part.md)"
+        )
     return (
         f"judged as printed: every printed section at its drawn thickness {dt:+.4g} mm (the "
-        f"measured offset of material {study.material.name}); exported geometry as drawn"
+        f"measured offset of material {name}); exported geometry as drawn"
     )
 
 
-def with_as_printed_verdicts(study: Any, verdicts: tuple[Verdict, ...]) -> tuple[Verdict, ...]:
-    """``verdicts`` with :func:`as_printed_note` in each one's ``detail`` (unchanged when the
-    study's material has no offset, or the note is there already)."""
-    if not thickness_offset_mm(study):
+def with_as_printed_verdicts(
+    study: Any, verdicts: tuple[Verdict, ...], record: Any = None
+) -> tuple[Verdict, ...]:
+    """``verdicts`` with :func:`as_printed_note` in each one's ``detail``; ``record`` is the
+    result's ``info["as printed"]`` (:mod:`pipeline.as_printed`), which says whether anything
+    moved. Unchanged when the study's material has no offset, when there is no record (a result
+    that was not analysed as printed claims nothing), or when the note is there already."""
+    if not thickness_offset_mm(study) or not isinstance(record, dict):
         return tuple(verdicts)
-    note = as_printed_note(study)
+    note = as_printed_note(study, bool(record.get("applied", True)))
     return tuple(
         v if note in v.detail else replace(v, detail=f"{v.detail}; {note}" if v.detail else note)
         for v in verdicts

@@ -387,9 +387,9 @@ def judge_result(
         given = _with_life_rows(study, given, life)
         if requirements is None and all(v.quantity != DesignRange.quantity for v in given):
             given = with_design_range(study, given, design)
-        return with_as_printed_verdicts(study, given)
+        return with_as_printed_verdicts(study, given, result.info.get("as printed"))
     verdicts = judge(study, {**result_values(result), **life}, result.table, requirements, design)
-    return with_as_printed_verdicts(study, verdicts)
+    return with_as_printed_verdicts(study, verdicts, result.info.get("as printed"))
 
 
 def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | None:

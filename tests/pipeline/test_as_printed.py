@@ -150,3 +150,22 @@ def test_a_thinner_print_moves_the_printable_minimum_and_refuses_a_vanishing_sec
     )
     with pytest.raises(StudyError, match="material.thickness_offset_mm"):
         study_result(thin)
+
+
+def test_a_study_with_nothing_to_move_says_the_offset_is_not_applied(tmp_path):
+    """sea_window has no printed section (a stiffness window): the offset moves nothing, and
+    its verdicts say it is not applied rather than "judged as printed"."""
+    from flexopt.optimise.requirements import Verdict
+    from flexopt.pipeline.materials_file import with_as_printed_verdicts
+
+    study = _calibrated(tmp_path, "cantilever")
+    v = Verdict("stress within yield", "stress_yield_ratio", 0.5, "<= 1", 0.5, 0.5, True, "")
+    (moved,) = with_as_printed_verdicts(study, (v,), {"applied": True})
+    (still,) = with_as_printed_verdicts(study, (v,), {"applied": False})
+    assert "judged as printed" in moved.detail
+    assert "is not applied" in still.detail and "+0.05 mm" in still.detail
+    assert with_as_printed_verdicts(study, (v,), None) == (v,)  # no record: nothing claimed
+    from flexopt.pipeline.as_printed import printed_study
+
+    window = _calibrated(tmp_path, "sea-window")
+    assert printed_study(window)[1] == ()
