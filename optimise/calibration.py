@@ -40,6 +40,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,6 +60,9 @@ __all__ = [
     "CalibrationResult",
     "read_coupon_csv",
     "fit_coupon",
+    "fit_coupons",
+    "DirectionalModulus",
+    "ORIENTATIONS",
     "MIN_POINTS_PER_STRIP",
     "MAX_RELATIVE_RMS",
     "E_RANGE",
@@ -79,6 +83,10 @@ E_RANGE = (0.2, 5.0)
 OFFSET_RANGE = (-0.6, 0.6)
 
 CSV_COLUMNS = ("thickness_mm", "displacement_mm", "force_N")
+#: the optional column naming each row's print orientation
+ORIENTATION_COLUMN = "orientation"
+#: print orientations of a coupon: its strips' long axis along the printer's x or y axis
+ORIENTATIONS = ("x", "y")
 
 
 class CalibrationError(OptimiseError):
@@ -95,12 +103,15 @@ class CouponMeasurement:
     displacement_mm : (n,) float, mm — tip displacement.
     force_N : (n,) float, N — tip force.
     source : str — where the points come from (a file name).
+    orientation : str — ``x`` or ``y``: the strips' long axis along the printer's x or y axis
+        (the direction a part's beam printed that way has this E along); ``""`` when not given.
     """
 
     thickness_mm: np.ndarray
     displacement_mm: np.ndarray
     force_N: np.ndarray
     source: str = ""
+    orientation: str = ""
 
     def strips(self) -> list[tuple[float, np.ndarray, np.ndarray]]:
         """``(nominal thickness, displacement (m,), force (m,))`` per strip, thinnest first."""
@@ -109,6 +120,16 @@ class CouponMeasurement:
             sel = self.thickness_mm == t
             out.append((float(t), self.displacement_mm[sel], self.force_N[sel]))
         return out
+
+
+@dataclass(frozen=True)
+class DirectionalModulus:
+    """E along one print orientation: ``orientation`` (``x``, ``y`` or ``""``), ``E_MPa`` and
+    the half-width of its 95 % interval ``E_ci95_MPa`` (MPa)."""
+
+    orientation: str
+    E_MPa: float
+    E_ci95_MPa: float
 
 
 @dataclass(frozen=True)
@@ -127,6 +148,10 @@ class CalibrationResult:
     material : the calibrated :class:`Material` (the base's nu, allowable and density, fitted E).
     coupon : the coupon the data came from.
     base : name of the base material.
+    moduli : E per print orientation when the tests name theirs (two for an anisotropic fit;
+        ``E_MPa`` is then the first one's), else empty.
+    anisotropy_ratio, anisotropy_ratio_ci95 : ``E_y / E_x`` (the second orientation's over the
+        first's) and the half-width of its 95 % interval, for two orientations; else None.
     """
 
     E_MPa: float
@@ -142,12 +167,32 @@ class CalibrationResult:
     coupon: CouponSpec
     base: str
     notes: tuple[str, ...] = field(default_factory=tuple)
+    moduli: tuple[DirectionalModulus, ...] = ()
+    anisotropy_ratio: float | None = None
+    anisotropy_ratio_ci95: float | None = None
+
+    @property
+    def anisotropic(self) -> bool:
+        """E was fitted along two print orientations."""
+        return len(self.moduli) > 1
 
     def record(self) -> dict[str, Any]:
         """The fit as plain data (for a materials file and a report), units in the keys."""
+        out: dict[str, Any] = {}
+        if self.moduli:
+            out["E_by_orientation"] = {
+                m.orientation: {"E_MPa": m.E_MPa, "E_ci95_MPa": m.E_ci95_MPa} for m in self.moduli
+            }
+        if self.anisotropy_ratio is not None:
+            first, second = (m.orientation for m in self.moduli)
+            out[f"E_{second}_over_E_{first}"] = self.anisotropy_ratio
+            out[f"E_{second}_over_E_{first}_ci95"] = self.anisotropy_ratio_ci95
+        if self.anisotropic:
+            return {**out, **self._record()}
+        return {"E_MPa": self.E_MPa, "E_ci95_MPa": self.E_ci95_MPa, **out, **self._record()}
+
+    def _record(self) -> dict[str, Any]:
         return {
-            "E_MPa": self.E_MPa,
-            "E_ci95_MPa": self.E_ci95_MPa,
             "thickness_offset_mm": self.offset_mm,
             "thickness_offset_ci95_mm": self.offset_ci95_mm,
             "rms_residual_N": self.rms_N,
@@ -162,14 +207,18 @@ class CalibrationResult:
         }
 
 
-def read_coupon_csv(text: str, source: str = "") -> CouponMeasurement:
-    """Parse a coupon CSV with the columns ``thickness_mm, displacement_mm, force_N``.
+def read_coupon_csv(text: str, source: str = "", orientation: str = "") -> CouponMeasurement:
+    """Parse a coupon CSV with the columns ``thickness_mm, displacement_mm, force_N`` and,
+    optionally, ``orientation`` (``x`` or ``y``, the same on every row: the strips' long axis
+    along the printer's x or y axis); ``orientation`` gives it for a CSV without the column.
 
     Raises
     ------
     CalibrationError
         On a missing column (the message names the columns expected and found, e.g. a ``force_kN``
-        column is refused with the unit to use), a non-number or a negative value.
+        column is refused with the unit to use), a non-number or a negative value, an orientation
+        that is not x or y, two orientations in one file, or a column that contradicts
+        ``orientation``.
     """
     where = source or "the measured CSV"
     reader = csv.DictReader(io.StringIO(text))
@@ -194,7 +243,40 @@ def read_coupon_csv(text: str, source: str = "") -> CouponMeasurement:
     if not rows:
         raise CalibrationError(f"{where}: no data rows")
     a = np.asarray(rows, dtype=float)
-    return CouponMeasurement(a[:, 0], a[:, 1], a[:, 2], source=source)
+    return CouponMeasurement(
+        a[:, 0], a[:, 1], a[:, 2], source=source, orientation=_orientation(text, where, orientation)
+    )
+
+
+def _orientation(text: str, where: str, given: str) -> str:
+    """The one print orientation of a coupon CSV (``""`` when neither column nor ``given``)."""
+    ok = " or ".join(ORIENTATIONS)
+    given = given.strip().lower()
+    if given and given not in ORIENTATIONS:
+        raise CalibrationError(f"{where}: orientation '{given[:20]}' must be {ok}")
+    reader = csv.DictReader(io.StringIO(text))
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    if ORIENTATION_COLUMN not in header:
+        return given
+    key = (reader.fieldnames or [])[header.index(ORIENTATION_COLUMN)]
+    found = {str(row.get(key) or "").strip().lower() for row in reader}
+    bad = sorted(found - set(ORIENTATIONS))
+    if bad:
+        raise CalibrationError(
+            f"{where}: column {ORIENTATION_COLUMN} has '{bad[0][:20]}'; each row's print "
+            f"orientation is {ok} (the strips' long axis along the printer's x or y axis)"
+        )
+    if len(found) > 1:
+        raise CalibrationError(
+            f"{where}: rows of orientations {' and '.join(sorted(found))} in one file; give "
+            "each orientation's test in its own CSV"
+        )
+    (value,) = found
+    if given and given != value:
+        raise CalibrationError(
+            f"{where}: its {ORIENTATION_COLUMN} column says {value}, the command line {given}"
+        )
+    return value
 
 
 def _check(measured: CouponMeasurement, spec: CouponSpec) -> None:
@@ -273,51 +355,101 @@ def fit_coupon(measured: CouponMeasurement, spec: CouponSpec, base: Material) ->
     CalibrationError
         On data that cannot be calibrated from (module docstring).
     """
-    _check(measured, spec)
-    where = measured.source or "the measured curve"
-    model = _Model(measured, spec, base)
-    F = measured.force_N
-    t_min = min(spec.thicknesses_mm)
+    return fit_coupons([(measured, spec)], base)
+
+
+def fit_coupons(
+    tests: Sequence[tuple[CouponMeasurement, CouponSpec]], base: Material
+) -> CalibrationResult:
+    """Fit one ``E`` per print orientation and one shared thickness offset to coupon tests.
+
+    Each test is a measured coupon and the coupon it is (two orientations may be two prints of
+    the same coupon, or two coupons). Tests with the same ``orientation`` share their E; the
+    offset is the printer's, the same for every orientation. With one orientation this is
+    :func:`fit_coupon`. With two (``x`` and ``y``: the strips' long axis along the printer's x
+    or y axis), the in-plane anisotropy: ``E_x`` and ``E_y`` with their 95 % intervals, and the
+    ratio ``E_y / E_x`` with its interval (linearised, from the same covariance).
+
+    Model and intervals: the module docstring, with the parameters ``(E_1, ..., E_k, dt)``:
+    ``F = E_o f_s(d; t + dt)`` for a point of orientation ``o``; ``cov = s^2 (J^T J)^-1`` with
+    ``s^2 = RSS / (n - k - 1)``.
+
+    Raises
+    ------
+    CalibrationError
+        On data that cannot be calibrated from (module docstring), each test checked on its own;
+        or tests of more than one orientation of which one has no orientation named.
+    """
+    if not tests:
+        raise CalibrationError("no measured coupon curve given")
+    labels = [m.orientation for m, _ in tests]
+    if len(set(labels)) > 1 and not all(labels):
+        raise CalibrationError(
+            "coupon tests of several orientations need every test's orientation (x or y: the "
+            "direction of the strips' long axis on the printer's bed)"
+        )
+    for measured, spec in tests:
+        _check(measured, spec)
+    rank = {o: i for i, o in enumerate(ORIENTATIONS)}
+    orientations = sorted(set(labels), key=lambda o: (rank.get(o, len(rank)), o))  # x, then y
+    where = ", ".join(dict.fromkeys(m.source or "the measured curve" for m, _ in tests))
+    models = [_Model(m, spec, base) for m, spec in tests]
+    group = np.concatenate(
+        [np.full(m.force_N.size, orientations.index(m.orientation)) for m, _ in tests]
+    )
+    F = np.concatenate([m.force_N for m, _ in tests])
+    k = len(orientations)
+    t_min = min(min(spec.thicknesses_mm) for _, spec in tests)
     lo, hi = OFFSET_RANGE[0] * t_min, OFFSET_RANGE[1] * t_min
     cache: dict[float, np.ndarray] = {}
 
     def f_of(o: float) -> np.ndarray:
+        """(n,) force per MPa of E of every point, tests in order, at offset ``o``."""
         if o not in cache:
             try:
-                cache[o] = model.f(o)
+                cache[o] = np.concatenate([model.f(o) for model in models])
             except FeaError as err:
                 raise CalibrationError(
                     f"{where}: the coupon model failed at offset {o:g} mm: {err}"
                 ) from err
         return cache[o]
 
-    # E for a given offset is linear least squares: E*(o) = <f, F> / <f, f>; it is the start.
+    onehot = np.zeros((F.size, k))
+    onehot[np.arange(F.size), group] = 1.0
+    # E of each orientation for a given offset is linear least squares: the start values
     f0 = f_of(0.0)
-    E0 = float(f0 @ F / (f0 @ f0))
+    E0 = np.array(
+        [
+            float(f0[group == g] @ F[group == g] / (f0[group == g] @ f0[group == g]))
+            for g in range(k)
+        ]
+    )
     scale_F = float(np.max(np.abs(F))) or 1.0
 
     def residual(x: np.ndarray) -> np.ndarray:
-        return (x[0] * E0 * f_of(float(x[1])) - F) / scale_F
+        E_pt = onehot @ (x[:k] * E0)
+        return (E_pt * f_of(float(x[k])) - F) / scale_F
 
     def jac(x: np.ndarray) -> np.ndarray:
-        o = float(x[1])
+        o = float(x[k])
         h = 1e-4 * t_min
         df = (f_of(o + h) - f_of(o - h)) / (2.0 * h)
-        return np.column_stack([E0 * f_of(o), x[0] * E0 * df]) / scale_F
+        E_pt = onehot @ (x[:k] * E0)
+        return np.column_stack([onehot * (f_of(o)[:, None] * E0[None, :]), E_pt * df]) / scale_F
 
     sol = least_squares(
         residual,
-        x0=np.array([1.0, 0.0]),
+        x0=np.array([*np.ones(k), 0.0]),
         jac=jac,
-        bounds=([1e-6, lo], [np.inf, hi]),
-        x_scale=np.array([1.0, t_min]),
+        bounds=([*np.full(k, 1e-6), lo], [*np.full(k, np.inf), hi]),
+        x_scale=np.array([*np.ones(k), t_min]),
         xtol=1e-12,
         ftol=1e-12,
         gtol=1e-12,
         method="trf",
     )
-    E = float(sol.x[0] * E0)
-    offset = float(sol.x[1])
+    E = sol.x[:k] * E0
+    offset = float(sol.x[k])
     if offset <= lo + 1e-6 * t_min or offset >= hi - 1e-6 * t_min:
         raise CalibrationError(
             f"{where}: the thickness offset ran to its bound ({offset:+.3f} mm); the strips' "
@@ -325,28 +457,35 @@ def fit_coupon(measured: CouponMeasurement, spec: CouponSpec, base: Material) ->
             "of each strip"
         )
     lo_E, hi_E = E_RANGE
-    if not lo_E * base.E_MPa < E < hi_E * base.E_MPa:
-        raise CalibrationError(
-            f"{where}: fitted E = {E:.4g} MPa is {E / base.E_MPa:.3g} x {base.name}'s "
-            f"{base.E_MPa:g} MPa: units wrong (force_N in N, displacement_mm in mm?) or not this "
-            "coupon / material"
-        )
-    model_F = E * f_of(offset)
+    for label, value in zip(orientations, E, strict=True):
+        if not lo_E * base.E_MPa < value < hi_E * base.E_MPa:
+            along = f" along {label}" if label else ""
+            raise CalibrationError(
+                f"{where}: fitted E{along} = {value:.4g} MPa is {value / base.E_MPa:.3g} x "
+                f"{base.name}'s {base.E_MPa:g} MPa: units wrong (force_N in N, displacement_mm "
+                "in mm?) or not this coupon / material"
+            )
+    model_F = (onehot @ E) * f_of(offset)
     r = model_F - F
     n = F.size
     rss = float(r @ r)
     rms = math.sqrt(rss / n)
-    force_range = float(np.max(F) - np.min(F))
-    if rms > MAX_RELATIVE_RMS * force_range:
-        raise CalibrationError(
-            f"{where}: the coupon model cannot follow the curve (RMS residual {rms:.3g} N is "
-            f"{100 * rms / force_range:.1f} % of the force range, limit "
-            f"{100 * MAX_RELATIVE_RMS:g} %): check the clamp, the drive and the columns"
-        )
+    for g, label in enumerate(orientations):
+        sel = group == g
+        force_range = float(np.max(F[sel]) - np.min(F[sel]))
+        rms_g = math.sqrt(float(r[sel] @ r[sel]) / int(np.count_nonzero(sel)))
+        if rms_g > MAX_RELATIVE_RMS * force_range:
+            along = f" (orientation {label})" if label else ""
+            raise CalibrationError(
+                f"{where}{along}: the coupon model cannot follow the curve (RMS residual "
+                f"{rms_g:.3g} N is {100 * rms_g / force_range:.1f} % of the force range, limit "
+                f"{100 * MAX_RELATIVE_RMS:g} %): check the clamp, the drive and the columns"
+            )
     # linearised covariance in physical units (module docstring)
     h = 1e-4 * t_min
-    J = np.column_stack([f_of(offset), E * (f_of(offset + h) - f_of(offset - h)) / (2.0 * h)])
-    dof = max(n - 2, 1)
+    df = (f_of(offset + h) - f_of(offset - h)) / (2.0 * h)
+    J = np.column_stack([onehot * f_of(offset)[:, None], (onehot @ E) * df])
+    dof = max(n - (k + 1), 1)
     s2 = rss / dof
     try:
         cov = s2 * np.linalg.inv(J.T @ J)
@@ -357,39 +496,57 @@ def fit_coupon(measured: CouponMeasurement, spec: CouponSpec, base: Material) ->
         ) from None
     q = float(student_t.ppf(0.975, dof))
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    corr = float(cov[0, 1] / (sd[0] * sd[1])) if sd[0] > 0 and sd[1] > 0 else 0.0
+    corr = float(cov[0, k] / (sd[0] * sd[k])) if sd[0] > 0 and sd[k] > 0 else 0.0
+    moduli = tuple(
+        DirectionalModulus(label, float(E[g]), q * float(sd[g]))
+        for g, label in enumerate(orientations)
+    )
+    ratio = ratio_ci = None
+    if k == 2:
+        # E_1 / E_0 and its linearised interval (gradient of the ratio through the covariance)
+        ratio = float(E[1] / E[0])
+        grad = np.zeros(k + 1)
+        grad[0], grad[1] = -E[1] / E[0] ** 2, 1.0 / E[0]
+        ratio_ci = q * math.sqrt(max(float(grad @ cov @ grad), 0.0))
+    sources = ", ".join(dict.fromkeys(m.source or "a coupon test" for m, _ in tests))
+    strips = sum(len(model.strips) for model in models)
+    what = f"E along {' and '.join(orientations)} and the offset" if k > 1 else "E"
     material = Material(
         name=f"{base.name} (calibrated)",
-        E_MPa=E,
+        E_MPa=float(E[0]),
         nu=base.nu,
         yield_MPa=base.yield_MPa,
         density_kg_m3=base.density_kg_m3,
         source=(
-            f"calibrated from {measured.source or 'a coupon test'}: E fitted by nonlinear least "
-            f"squares on {n} points of a {len(model.strips)}-strip coupon; nu, allowable and "
-            f"density from {base.name} ({base.source})"
+            f"calibrated from {sources}: {what} fitted by nonlinear least squares on {n} points "
+            f"of {strips} coupon strips; nu, allowable and density from {base.name} "
+            f"({base.source})"
         ),
     )
     return CalibrationResult(
-        E_MPa=E,
+        E_MPa=float(E[0]),
         E_ci95_MPa=q * float(sd[0]),
         offset_mm=offset,
-        offset_ci95_mm=q * float(sd[1]),
+        offset_ci95_mm=q * float(sd[k]),
         rms_N=rms,
         n_points=n,
         correlation=corr,
         residual_N=r,
         model_N=model_F,
         material=material,
-        coupon=spec,
+        coupon=tests[0][1],
         base=base.name,
+        moduli=moduli if k > 1 or orientations[0] else (),
+        anisotropy_ratio=ratio,
+        anisotropy_ratio_ci95=ratio_ci,
     )
 
 
 def write_materials_file(path: Path, name: str, result: CalibrationResult) -> None:
     """Add (or replace) material ``name`` in the YAML materials file ``path``, keeping the others.
 
-    The entry holds what a study needs (``E_MPa``, ``nu``, ``yield_MPa``, ``density_kg_m3``,
+    The entry holds what a study needs (``E_MPa``, or ``E_x_MPa`` and ``E_y_MPa`` for a fit
+    in two print orientations; ``nu``, ``yield_MPa``, ``density_kg_m3``,
     ``thickness_offset_mm``) and the fit that produced it (``calibration``).
     """
     import yaml
@@ -401,8 +558,14 @@ def write_materials_file(path: Path, name: str, result: CalibrationResult) -> No
             raise CalibrationError(f"{path}: not a materials file (a mapping of names)")
         data = loaded
     m = result.material
+    if result.anisotropic:
+        # E along each print orientation; a study names the one its beams are printed along
+        # (``material: NAME@x``), so no single E_MPa is written (pipeline/materials_file.py)
+        moduli = {f"E_{d.orientation}_MPa": float(d.E_MPa) for d in result.moduli}
+    else:
+        moduli = {"E_MPa": float(m.E_MPa)}
     data[name] = {
-        "E_MPa": float(m.E_MPa),
+        **moduli,
         "nu": float(m.nu),
         "yield_MPa": float(m.yield_MPa),
         "density_kg_m3": None if math.isnan(m.density_kg_m3) else float(m.density_kg_m3),

@@ -65,12 +65,27 @@ def add_print_commands(commands: Any) -> None:
             "Fit Young's modulus and the printer's wall-thickness offset to the measured curve of "
             "a coupon (columns thickness_mm, displacement_mm, force_N) by nonlinear least squares "
             "on the same beam solve, with 95 %% intervals; write calibration.json and "
-            "calibration.png, and with --name the material into materials.yaml."
+            "calibration.png, and with --name the material into materials.yaml. Two CSVs of "
+            "coupons printed in two orientations (an orientation column, x or y, or "
+            "--orientation per CSV) fit E along x and along y and the shared offset: the "
+            "in-plane anisotropy."
         ),
     )
-    cal.add_argument("measured", type=_path, metavar="MEASURED.csv")
+    cal.add_argument("measured", type=_path, nargs="+", metavar="MEASURED.csv")
     cal.add_argument(
-        "--coupon", type=_path, required=True, metavar="COUPON", help="coupon.json or its folder"
+        "--coupon",
+        type=_path,
+        required=True,
+        action="append",
+        metavar="COUPON",
+        help="coupon.json or its folder; once for every CSV, or once per CSV in their order",
+    )
+    cal.add_argument(
+        "--orientation",
+        action="append",
+        choices=("x", "y"),
+        help="print orientation of each CSV in their order (the strips' long axis along the "
+        "printer's x or y axis), for CSVs without an orientation column",
     )
     cal.add_argument("--name", metavar="NAME", help="name of the calibrated material to write")
     cal.add_argument(
@@ -88,8 +103,9 @@ def add_print_commands(commands: Any) -> None:
         description=(
             "Compare a measured curve of the printed part (two columns named like the "
             "prediction's, e.g. displacement_mm,force_N) with the run's (or evaluate folder's) "
-            "prediction: force and stiffness error in %%, RMS; writes compare.json and "
-            "compare.png into RUN_DIR."
+            "prediction: force and stiffness error in %%, RMS, and the run's requirements that "
+            "read this curve (the constant-force band) judged on the measured curve, MET or NOT "
+            "MET beside the predicted verdict; writes compare.json and compare.png into RUN_DIR."
         ),
     )
     cmp.add_argument("run_dir", type=_path, metavar="RUN_DIR")
@@ -191,25 +207,40 @@ def _calibrate(args: Any) -> int:
     from flexopt.pipeline.print_to_part import calibrate
 
     try:
-        outcome = calibrate(args.measured, args.coupon, args.name, args.materials)
+        outcome = calibrate(args.measured, args.coupon, args.name, args.materials, args.orientation)
     except (CalibrationError, StudyError) as exc:
         return _fail(args, exc)
     except OSError as exc:
         print(f"flexopt calibrate: error: cannot write: {exc}", file=sys.stderr)
         return EXIT_WRITE
     r = outcome.result
-    out = args.out or args.measured.parent
+    out = args.out or args.measured[0].parent
     try:
         _write(out, outcome.files)
     except (OSError, StudyError) as exc:
         print(f"flexopt calibrate: error: cannot write {out}: {exc}", file=sys.stderr)
         return EXIT_WRITE
+    if r.anisotropic:
+        moduli = ", ".join(
+            f"E along {m.orientation} = {m.E_MPa:.1f} ± {m.E_ci95_MPa:.1f} MPa" for m in r.moduli
+        )
+        first, second = (m.orientation for m in r.moduli)
+        moduli += (
+            f" (E_{second}/E_{first} = {r.anisotropy_ratio:.4f} ± {r.anisotropy_ratio_ci95:.4f})"
+        )
+    else:
+        moduli = f"E = {r.E_MPa:.1f} ± {r.E_ci95_MPa:.1f} MPa"
     print(
-        f"E = {r.E_MPa:.1f} ± {r.E_ci95_MPa:.1f} MPa, thickness offset {r.offset_mm:+.4f} ± "
-        f"{r.offset_ci95_mm:.4f} mm (95 %), RMS residual {r.rms_N:.3g} N over {r.n_points} points"
+        f"{moduli}, thickness offset {r.offset_mm:+.4f} ± {r.offset_ci95_mm:.4f} mm (95 %), "
+        f"RMS residual {r.rms_N:.3g} N over {r.n_points} points"
     )
     if outcome.materials_path is not None:
         print(f"wrote material '{args.name}' into {outcome.materials_path}")
+        if r.anisotropic:
+            print(
+                f"a study names the direction its beams are printed along: material: "
+                f"{args.name}@x or {args.name}@y"
+            )
     print(f"wrote calibration.json and calibration.png into {out}")
     return EXIT_OK
 
@@ -235,8 +266,34 @@ def _compare(args: Any) -> int:
         f"RMS {c.rms_error:.4g}, max {c.max_error:.4g} over {c.x.size} points"
         + (f" ({c.dropped} outside the prediction, not compared)" if c.dropped else "")
     )
+    for line in _measured_verdict_lines(outcome):
+        print(line)
     print(f"wrote compare.json and compare.png into {args.run_dir}")
     return EXIT_OK
+
+
+def _measured_verdict_lines(outcome: Any) -> list[str]:
+    """One line per requirement judged on the measured curve, beside the run's prediction."""
+
+    def word(met: Any, value: Any, unit: str) -> str:
+        text = "MET" if met else "NOT MET"
+        if isinstance(value, int | float) and value == value:
+            text += f" ({value:.4g} {unit})".replace(" )", ")")
+        return text
+
+    lines = []
+    for v in outcome.measured_verdicts:
+        pred = outcome.predicted.get(v.name)
+        before = (
+            word(pred.get("met"), pred.get("value"), str(pred.get("unit", "")))
+            if pred
+            else "not in the run's verdict"
+        )
+        lines.append(
+            f"{v.name} ({v.bound}): predicted {before}, measured {word(v.met, v.value, v.unit)}"
+        )
+    lines += [f"not judged on the measured curve: {n}" for n in outcome.not_judged]
+    return lines
 
 
 def _retrim(args: Any) -> int:

@@ -13,7 +13,8 @@ import csv
 import io
 import json
 import math
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,12 +29,25 @@ from flexopt.optimise.calibration import (
     CSV_COLUMNS,
     CalibrationError,
     CalibrationResult,
-    fit_coupon,
+    fit_coupons,
     read_coupon_csv,
     write_materials_file,
 )
+from flexopt.optimise.requirements import overall, to_records
+from flexopt.pipeline.errors import FlexoptError
 
-__all__ = ["COUPON_JSON", "coupon_files", "read_coupon_record", "calibrate", "CalibrateOutcome"]
+__all__ = [
+    "COUPON_JSON",
+    "CalibrateOutcome",
+    "CompareOutcome",
+    "RetrimOutcome",
+    "calibrate",
+    "compare_run",
+    "coupon_files",
+    "measured_verdicts",
+    "read_coupon_record",
+    "retrim_run",
+]
 
 #: the coupon's record in its folder: what ``flexopt calibrate --coupon`` reads
 COUPON_JSON = "coupon.json"
@@ -178,19 +192,25 @@ class CalibrateOutcome:
 
 
 def calibrate(
-    measured_csv: Path,
-    coupon: Path,
+    measured_csv: Path | Sequence[Path],
+    coupon: Path | Sequence[Path],
     name: str | None = None,
     materials_path: Path | None = None,
+    orientations: Sequence[str] | None = None,
 ) -> CalibrateOutcome:
-    """Fit E and the thickness offset to a measured coupon curve.
+    """Fit E and the thickness offset to measured coupon curves; with tests in two print
+    orientations, E along each one (the in-plane anisotropy) and the shared offset.
 
     Parameters
     ----------
-    measured_csv : the measured points (``thickness_mm, displacement_mm, force_N``).
-    coupon : ``coupon.json`` of ``flexopt coupon`` (or its folder).
+    measured_csv : the measured points (``thickness_mm, displacement_mm, force_N`` and an
+        optional ``orientation`` column, x or y), one CSV or several (one per orientation).
+    coupon : ``coupon.json`` of ``flexopt coupon`` (or its folder): one for every CSV, or one
+        per CSV in the same order.
     name : the material's name in the materials file; nothing is written when None.
-    materials_path : the materials file (default: ``materials.yaml`` beside the measured CSV).
+    materials_path : the materials file (default: ``materials.yaml`` beside the first CSV).
+    orientations : each CSV's print orientation (``x`` or ``y``, in the order of the CSVs),
+        for CSVs without an ``orientation`` column.
 
     Returns
     -------
@@ -200,52 +220,94 @@ def calibrate(
     Raises
     ------
     CalibrationError
-        On bad data (:mod:`optimise.calibration`), a bad coupon record or an unreadable CSV.
+        On bad data (:mod:`optimise.calibration`), a bad coupon record or an unreadable CSV; for
+        several CSVs without each one's orientation; for counts of coupons or orientations that
+        do not match the CSVs.
     """
-    spec, base = read_coupon_record(coupon)
-    try:
-        if not measured_csv.is_file():
-            raise CalibrationError(f"{measured_csv}: not a file")
-        raw = measured_csv.read_bytes()
-    except OSError as err:
-        raise CalibrationError(f"{measured_csv}: cannot be read ({err.strerror or err})") from None
-    if len(raw) > MAX_CSV_BYTES:
-        raise CalibrationError(f"{measured_csv}: larger than {MAX_CSV_BYTES >> 20} MiB")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise CalibrationError(f"{measured_csv}: not UTF-8 text") from None
-    measured = read_coupon_csv(text, str(measured_csv))
-    result = fit_coupon(measured, spec, base)
+    csvs = [measured_csv] if isinstance(measured_csv, Path) else list(measured_csv)
+    coupons = [coupon] if isinstance(coupon, Path) else list(coupon)
+    if not csvs:
+        raise CalibrationError("give at least one measured CSV")
+    if len(coupons) not in (1, len(csvs)):
+        raise CalibrationError(
+            f"{len(coupons)} coupons for {len(csvs)} measured CSVs: give one coupon for all, or "
+            "one per CSV in the same order"
+        )
+    given = list(orientations or [])
+    if given and len(given) != len(csvs):
+        raise CalibrationError(
+            f"{len(given)} orientations for {len(csvs)} measured CSVs: give one per CSV (x or y)"
+        )
+    records = [read_coupon_record(c) for c in coupons]
+    base = records[0][1]
+    tests = []
+    for i, path in enumerate(csvs):
+        spec = records[i if len(records) > 1 else 0][0]
+        measured = read_coupon_csv(_read_text(path), str(path), given[i] if given else "")
+        tests.append((measured, spec))
+    if len(tests) > 1 and not all(m.orientation for m, _ in tests):
+        unnamed = ", ".join(str(csvs[i]) for i, (m, _) in enumerate(tests) if not m.orientation)
+        raise CalibrationError(
+            f"several measured CSVs: say each one's print orientation (x or y, the strips' long "
+            f"axis along the printer's x or y axis) with an orientation column or --orientation; "
+            f"not known for {unnamed}"
+        )
+    result = fit_coupons(tests, base)
     written = None
     if name:
-        written = materials_path or measured_csv.parent / "materials.yaml"
+        written = materials_path or csvs[0].parent / "materials.yaml"
         write_materials_file(written, name, result)
     files = {
         "calibration.json": (json.dumps(result.record(), indent=2) + "\n").encode(),
-        "calibration.png": _plot(measured, result),
+        "calibration.png": _plot([m for m, _ in tests], result),
     }
     return CalibrateOutcome(result, written, files)
 
 
-def _plot(measured: Any, result: CalibrationResult) -> bytes:
+def _read_text(path: Path) -> str:
+    try:
+        if not path.is_file():
+            raise CalibrationError(f"{path}: not a file")
+        raw = path.read_bytes()
+    except OSError as err:
+        raise CalibrationError(f"{path}: cannot be read ({err.strerror or err})") from None
+    if len(raw) > MAX_CSV_BYTES:
+        raise CalibrationError(f"{path}: larger than {MAX_CSV_BYTES >> 20} MiB")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise CalibrationError(f"{path}: not UTF-8 text") from None
+
+
+def _plot(tests: Sequence[Any], result: CalibrationResult) -> bytes:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (ax, axr) = plt.subplots(2, 1, figsize=(6.4, 6.0), sharex=True, height_ratios=[3, 1])
-    for t in sorted(set(measured.thickness_mm.tolist())):
-        sel = measured.thickness_mm == t
-        d = measured.displacement_mm[sel]
-        (line,) = ax.plot(d, result.model_N[sel], "-", label=f"fit, strip {t:g} mm")
-        ax.plot(d, measured.force_N[sel], "o", ms=3, color=line.get_color(), label="measured")
-        axr.plot(d, result.residual_N[sel], "o-", ms=3, color=line.get_color())
+    start = 0
+    for measured in tests:
+        n = measured.force_N.size
+        model, residual = result.model_N[start : start + n], result.residual_N[start : start + n]
+        start += n
+        along = f", {measured.orientation}" if measured.orientation else ""
+        for t in sorted(set(measured.thickness_mm.tolist())):
+            sel = measured.thickness_mm == t
+            d = measured.displacement_mm[sel]
+            (line,) = ax.plot(d, model[sel], "-", label=f"fit, strip {t:g} mm{along}")
+            ax.plot(d, measured.force_N[sel], "o", ms=3, color=line.get_color(), label="measured")
+            axr.plot(d, residual[sel], "o-", ms=3, color=line.get_color())
     ax.set_ylabel("Force (N)")
+    if result.anisotropic:
+        moduli = ", ".join(
+            f"E_{m.orientation} = {m.E_MPa:.0f} ± {m.E_ci95_MPa:.0f}" for m in result.moduli
+        )
+        title = f"{moduli} MPa, thickness offset "
+    else:
+        title = f"E = {result.E_MPa:.0f} ± {result.E_ci95_MPa:.0f} MPa, thickness offset "
     ax.set_title(
-        f"E = {result.E_MPa:.0f} ± {result.E_ci95_MPa:.0f} MPa, thickness offset "
-        f"{result.offset_mm:+.3f} ± {result.offset_ci95_mm:.3f} mm (95 %)",
-        fontsize=9,
+        title + f"{result.offset_mm:+.3f} ± {result.offset_ci95_mm:.3f} mm (95 %)", fontsize=9
     )
     ax.legend(fontsize=7)
     axr.axhline(0.0, color="0.5", lw=0.8)
@@ -305,12 +367,20 @@ class CompareOutcome:
     comparison : the numbers (:class:`optimise.calibration.CurveComparison`).
     x_column, y_column : the compared columns (names with units).
     files : ``compare.json`` and ``compare.png``, for the run folder.
+    measured_verdicts : the run's requirements that read this curve (the constant-force band),
+        judged on the measured curve (:func:`measured_verdicts`).
+    predicted : the run's own verdict of each of them by name, as its folder records it
+        (``verdict`` ``MET``/``NOT MET``, ``value``, ``unit``), where it has one.
+    not_judged : one line per requirement or reason the measured curve could not be judged.
     """
 
     comparison: Any
     x_column: str
     y_column: str
     files: dict[str, bytes]
+    measured_verdicts: tuple[Any, ...] = ()
+    predicted: dict[str, dict[str, Any]] = field(default_factory=dict)
+    not_judged: tuple[str, ...] = ()
 
 
 def compare_run(run_dir: Path, measured_csv: Path) -> CompareOutcome:
@@ -347,6 +417,7 @@ def compare_run(run_dir: Path, measured_csv: Path) -> CompareOutcome:
     px, py = px[order], py[order]
     keep = np.concatenate([[True], np.diff(px) > 0])
     c = compare_curves(px[keep], py[keep], m_data[:, 0], m_data[:, 1])
+    verdicts, predicted, not_judged = measured_verdicts(run_dir, xc, yc, m_data[:, 0], m_data[:, 1])
     record = {
         "run": str(run_dir),
         "measured": str(measured_csv),
@@ -358,12 +429,76 @@ def compare_run(run_dir: Path, measured_csv: Path) -> CompareOutcome:
         "max_error": c.max_error,
         "force_error_percent": c.force_error_percent,
         "stiffness_error_percent": c.stiffness_error_percent,
+        "requirements_on_measured": [
+            {
+                **rec,
+                "predicted": predicted.get(rec["name"], {}).get("verdict"),
+                "predicted_value": predicted.get(rec["name"], {}).get("value"),
+            }
+            for rec in to_records(verdicts)
+        ],
+        "overall_on_measured": overall(verdicts) if verdicts else None,
+        "not_judged_on_measured": list(not_judged),
     }
     files = {
-        "compare.json": (json.dumps(record, indent=2) + "\n").encode(),
+        "compare.json": (json.dumps(record, indent=2, allow_nan=False) + "\n").encode(),
         "compare.png": _compare_png(px[keep], py[keep], c, xc, yc),
     }
-    return CompareOutcome(c, xc, yc, files)
+    return CompareOutcome(c, xc, yc, files, verdicts, predicted, not_judged)
+
+
+def measured_verdicts(
+    run_dir: Path, x_column: str, y_column: str, x: np.ndarray, y: np.ndarray
+) -> tuple[tuple[Any, ...], dict[str, dict[str, Any]], tuple[str, ...]]:
+    """The run's requirements that read the curve ``y_column(x_column)`` judged on the measured
+    points ``x``, ``y`` ((m,) each, the columns' units): the band verdict of the printed part.
+
+    A requirement reads the curve when it judges a response (``needs_curve``: a target band,
+    such as the constant-force kind's force band) of the quantity ``y_column`` over
+    ``x_column``; it is judged exactly as the run judged the prediction, on the measured points
+    alone (a measured curve that does not reach the band's ends is NOT MET, as a prediction
+    would be). Requirements on scalars (peak stress, a solved stiffness) are not judged: a force
+    curve does not measure them.
+
+    Returns
+    -------
+    (verdicts, predicted, not_judged): the verdicts on the measured curve; the run's own
+    verdict record of each by name (from best.json or evaluation.json); one line per
+    requirement on another curve, or why none could be judged.
+    """
+    from flexopt.pipeline.run import design_study_of
+    from flexopt.pipeline.verdict import study_requirements
+
+    try:
+        study, _, _ = design_study_of(run_dir, "best")
+        requirements = study_requirements(study)
+    except (FlexoptError, ValueError) as exc:
+        return (), {}, (f"the run's requirements could not be read: {exc}",)
+    keep = np.isfinite(x) & np.isfinite(y)
+    curves = {y_column: (np.asarray(x, float)[keep], np.asarray(y, float)[keep])}
+    verdicts, not_judged = [], []
+    for req in requirements:
+        if not req.needs_curve:
+            continue
+        if req.quantity == y_column and getattr(req, "x", x_column) == x_column:
+            verdicts.append(req.check({}, curves))
+        else:
+            on = f"{req.quantity}({getattr(req, 'x', '?')})"
+            not_judged.append(
+                f"{req.label}: reads {on}, the measured curve is {y_column}({x_column})"
+            )
+    if not verdicts and not not_judged:
+        not_judged.append(f"no requirement of the run reads the curve {y_column}({x_column})")
+    predicted: dict[str, dict[str, Any]] = {}
+    for name in ("best.json", "evaluation.json"):
+        try:
+            data = json.loads((run_dir / name).read_text(encoding="utf-8"))
+            rows = data["verdict"]["requirements"]
+            predicted = {str(r["name"]): dict(r) for r in rows if isinstance(r, dict)}
+            break
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+    return tuple(verdicts), predicted, tuple(not_judged)
 
 
 def _label(column: str) -> str:

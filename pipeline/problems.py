@@ -15,6 +15,7 @@ from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.problem import DesignProblem, DesignResult, as_design_problem
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import FlexoptError, StudyError
+from flexopt.pipeline.materials_file import thickness_offset_mm
 from flexopt.pipeline.parallel import ParallelSettings
 from flexopt.pipeline.studies import get_kind, kinds
 from flexopt.pipeline.study import ParallelSpec, Study
@@ -63,6 +64,10 @@ def kind_problem(study: Study) -> DesignProblem:
         When the kind cannot be optimised, or refuses the study while building the problem.
     """
     kind = get_kind(study.kind)
+    if kind.problem is not None and thickness_offset_mm(study):
+        from flexopt.pipeline.as_printed import as_printed_problem  # the part as made (#26)
+
+        return as_printed_problem(study, kind_problem)
     if kind.problem is None:
         raise StudyError(
             "geometry.kind",
@@ -118,6 +123,10 @@ def study_result(study: Study, repeat: int = 1, source: str = "") -> DesignResul
     """
     kind = get_kind(study.kind)
     if kind.evaluate is not None:
+        if thickness_offset_mm(study):
+            from flexopt.pipeline.as_printed import as_printed_evaluate  # the part as made (#26)
+
+            return as_printed_evaluate(study, kind.evaluate, repeat)
         return kind.evaluate(study, repeat)
     problem = kind_problem(study) if kind.problem is not None else None
     try:

@@ -93,6 +93,22 @@ class MaterialSpec(BaseModel):
     yield_MPa: float = Field(gt=0, description="allowable stress (yield or strength), MPa")
     density_kg_m3: float | None = Field(None, gt=0, description="density, kg/m^3")
     source: str = Field("user", description="where the numbers come from")
+    thickness_offset_mm: float | None = Field(
+        None,
+        ge=-1.0,
+        le=1.0,
+        description="printed minus drawn wall thickness, mm, measured by flexopt calibrate: "
+        "every printed section is analysed at its drawn thickness plus this offset "
+        "(docs/print_to_part.md)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _without_unset_offset(self, handler: Any) -> Any:
+        # a material without a measured offset dumps as before the key existed (run folders)
+        data = handler(self)
+        if isinstance(data, dict) and data.get("thickness_offset_mm") is None:
+            data.pop("thickness_offset_mm", None)
+        return data
 
     @model_validator(mode="after")
     def _plausible(self) -> MaterialSpec:

@@ -379,14 +379,17 @@ def judge_result(
     requirements : judge these instead of the study's (a robustness sample: no design-range
         row, see the module docstring).
     """
+    from flexopt.pipeline.materials_file import with_as_printed_verdicts  # says so (#26)
+
     life = life_values(study, result)
     given = tuple(result.verdicts)
     if given:
         given = _with_life_rows(study, given, life)
-        if requirements is not None or any(v.quantity == DesignRange.quantity for v in given):
-            return given
-        return with_design_range(study, given, design)
-    return judge(study, {**result_values(result), **life}, result.table, requirements, design)
+        if requirements is None and all(v.quantity != DesignRange.quantity for v in given):
+            given = with_design_range(study, given, design)
+        return with_as_printed_verdicts(study, given, result.info.get("as printed"))
+    verdicts = judge(study, {**result_values(result), **life}, result.table, requirements, design)
+    return with_as_printed_verdicts(study, verdicts, result.info.get("as printed"))
 
 
 def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | None:

@@ -221,3 +221,92 @@ def test_compare_refuses_a_curve_outside_the_prediction():
     pred = _strip(BASE.E_MPa, 10.0)
     with pytest.raises(CalibrationError, match="predicted range"):
         compare_curves(pred.displacement_mm, pred.force_N, pred.displacement_mm + 100, pred.force_N)
+
+
+def test_two_orientations_recover_the_hidden_anisotropy_within_the_interval():
+    """A simulated printer with a hidden E along x and along y (the strips' long axis on the bed)
+    and one wall offset: one coupon printed each way; E_x, E_y, the offset and E_y/E_x come back
+    within their 95 % intervals."""
+    from flexopt.optimise.calibration import fit_coupons
+
+    E_x, E_y = 1900.0, 1650.0
+    along_x = dataclasses.replace(simulated_test(0.004, seed=7, E=E_x), orientation="x")
+    along_y = dataclasses.replace(simulated_test(0.004, seed=8, E=E_y), orientation="y")
+    r = fit_coupons([(along_y, SPEC), (along_x, SPEC)], BASE)  # any order: x first in the result
+    assert r.anisotropic and [m.orientation for m in r.moduli] == ["x", "y"]
+    x, y = r.moduli
+    assert abs(x.E_MPa - E_x) <= x.E_ci95_MPa and abs(y.E_MPa - E_y) <= y.E_ci95_MPa
+    assert abs(r.offset_mm - HIDDEN_OFFSET) <= r.offset_ci95_mm
+    assert abs(r.anisotropy_ratio - E_y / E_x) <= r.anisotropy_ratio_ci95
+    # the anisotropy is resolved: 1 lies far outside the ratio's interval
+    assert abs(1.0 - r.anisotropy_ratio) > 3 * r.anisotropy_ratio_ci95
+    record = r.record()
+    assert "E_MPa" not in record and set(record["E_by_orientation"]) == {"x", "y"}
+    # noise-free: exact
+    exact = fit_coupons(
+        [
+            (dataclasses.replace(simulated_test(E=E_x), orientation="x"), SPEC),
+            (dataclasses.replace(simulated_test(E=E_y), orientation="y"), SPEC),
+        ],
+        BASE,
+    )
+    assert [m.E_MPa for m in exact.moduli] == pytest.approx([E_x, E_y], rel=1e-5)
+    assert exact.offset_mm == pytest.approx(HIDDEN_OFFSET, abs=1e-6)
+
+
+def test_anisotropic_material_file_and_the_print_direction(tmp_path):
+    from flexopt.optimise.calibration import fit_coupons
+    from flexopt.pipeline.errors import StudyError
+    from flexopt.pipeline.study import load_study, resolve_study_path
+
+    tests = [
+        (dataclasses.replace(simulated_test(0.002, seed=1, E=E), orientation=o), SPEC)
+        for o, E in (("x", 1900.0), ("y", 1650.0))
+    ]
+    r = fit_coupons(tests, BASE)
+    write_materials_file(tmp_path / "materials.yaml", "my-petg", r)
+    entry = yaml.safe_load((tmp_path / "materials.yaml").read_text())["my-petg"]
+    assert "E_MPa" not in entry
+    assert entry["E_x_MPa"] == r.moduli[0].E_MPa and entry["E_y_MPa"] == r.moduli[1].E_MPa
+    raw = yaml.safe_load(resolve_study_path("cantilever").read_text())
+    for name, E in (("my-petg@x", r.moduli[0].E_MPa), ("my-petg@Y", r.moduli[1].E_MPa)):
+        raw["material"] = name
+        (tmp_path / "study.yaml").write_text(yaml.safe_dump(raw))
+        study = load_study(tmp_path / "study.yaml")
+        assert study.material.E_MPa == E
+        assert study.material.thickness_offset_mm == pytest.approx(r.offset_mm)
+    # the part's orientation on the bed is not known: refused, with the two ways to say it
+    raw["material"] = "my-petg"
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(raw))
+    with pytest.raises(StudyError, match="my-petg@x or my-petg@y"):
+        load_study(tmp_path / "study.yaml")
+    raw["material"] = "my-petg@z"
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(raw))
+    with pytest.raises(StudyError, match="x or y"):
+        load_study(tmp_path / "study.yaml")
+
+
+@pytest.mark.parametrize(
+    "text, orientation, match",
+    [
+        ("thickness_mm,displacement_mm,force_N,orientation\n0.8,1,1,z\n", "", "x or y"),
+        (
+            "thickness_mm,displacement_mm,force_N,orientation\n0.8,1,1,x\n0.8,2,2,y\n",
+            "",
+            "one file",
+        ),
+        ("thickness_mm,displacement_mm,force_N,orientation\n0.8,1,1,x\n", "y", "command line"),
+        ("thickness_mm,displacement_mm,force_N\n0.8,1,1\n", "diagonal", "x or y"),
+    ],
+)
+def test_orientation_of_a_csv_is_checked(text, orientation, match):
+    with pytest.raises(CalibrationError, match=match):
+        read_coupon_csv(text, "m.csv", orientation)
+
+
+def test_several_orientations_need_every_one_named():
+    from flexopt.optimise.calibration import fit_coupons
+
+    named = dataclasses.replace(simulated_test(), orientation="x")
+    with pytest.raises(CalibrationError, match="every test's orientation"):
+        fit_coupons([(named, SPEC), (simulated_test(), SPEC)], BASE)

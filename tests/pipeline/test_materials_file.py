@@ -45,7 +45,9 @@ def test_material_beside_the_study_is_used(tmp_path):
     assert study.material.E_MPa == 1823.7
     assert study.material.name == "my-petg"
     assert "materials.yaml" in study.material.source
-    assert "not applied" in study.material.source  # the offset is named, and what is done with it
+    # the offset is named, and what is done with it: the study analyses the part as printed
+    assert "applied to every printed section" in study.material.source
+    assert study.material.thickness_offset_mm == -0.057
 
 
 def test_user_file_from_the_environment(tmp_path, monkeypatch):
@@ -83,6 +85,10 @@ def test_library_names_win_and_cannot_be_taken(tmp_path):
         ("m: {E_MPa: big, nu: 0.3, yield_MPa: 10}", r"m\.E_MPa.*number"),
         ("m: {E_MPa: 1000, nu: 0.3, yield_MPa: 10, colour: red}", r"m\.colour.*unknown key"),
         ("m: {E_MPa: .nan, nu: 0.3, yield_MPa: 10}", "finite"),
+        ("m: {nu: 0.3, yield_MPa: 10}", r"m\.E_MPa.*missing.*E_x_MPa and E_y_MPa"),
+        ("m: {E_x_MPa: 1000, nu: 0.3, yield_MPa: 10}", r"m\.E_x_MPa.*both"),
+        ("m: {E_x_MPa: 1000, E_y_MPa: big, nu: 0.3, yield_MPa: 10}", r"m\.E_y_MPa.*number"),
+        ("m: {E_MPa: 1000, nu: 0.3, yield_MPa: 10, thickness_offset_mm: 3}", "thickness_offset"),
     ],
 )
 def test_damaged_materials_file_is_one_clear_error(tmp_path, content, match):

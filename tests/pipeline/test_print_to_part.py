@@ -97,7 +97,7 @@ def test_calibrate_refuses_bad_inputs(tmp_path):
 
 
 @pytest.mark.e2e
-def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
+def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path, capsys):
     """design -> "print" (a spool whose E is 10 % below the datasheet's) -> compare -> re-trim
     the width -> the second "print" meets the constant-force band the first one missed.
 
@@ -125,6 +125,16 @@ def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
     cmp = compare_run(tmp_path / "design", tmp_path / "measured.csv")
     assert cmp.comparison.force_error_percent == pytest.approx(-10.0, abs=0.3)
     assert set(cmp.files) == {"compare.json", "compare.png"}
+    # the band verdict on the measured curve: the prediction met it, the print does not
+    (measured_band,) = cmp.measured_verdicts
+    assert measured_band.name == "force band" and not measured_band.met
+    assert cmp.predicted["force band"]["verdict"] == "MET"
+    record = json.loads(cmp.files["compare.json"])
+    (row,) = record["requirements_on_measured"]
+    assert (row["name"], row["verdict"], row["predicted"]) == ("force band", "NOT MET", "MET")
+    assert record["overall_on_measured"] == "NOT MET"
+    # the worst deviation of the measured curve from 1.5 N: about 10 % of it
+    assert row["value"] == pytest.approx(0.15, abs=0.02)
     trim = retrim_run(tmp_path / "design", tmp_path / "measured.csv")  # the kind's width key
     assert trim.key == "design.B"
     assert trim.new_mm == pytest.approx(trim.old_mm / 0.9, rel=2e-3)
@@ -132,6 +142,21 @@ def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path):
         trim.study.with_values({"material.E_MPa": hidden_E}), out=tmp_path / "second"
     )
     assert all(v.met for v in second.verdict), [str(v) for v in second.verdict]
+    # the second print measured against the design's prediction (the curve the re-trim aims
+    # at): the band MET on the measured curve too (the console puts the words side by side)
+    from flexopt.pipeline.cli import main
+
+    f2 = second.table["force_N"][rows] * (1 + 0.001 * rng.standard_normal(rows.size))
+    lines = ["displacement_mm,force_N"] + [
+        f"{d:.5f},{f:.6f}" for d, f in zip(second.table["displacement_mm"][rows], f2, strict=True)
+    ]
+    (tmp_path / "second.csv").write_text("\n".join(lines) + "\n")
+    assert main(["compare", str(tmp_path / "design"), str(tmp_path / "second.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "force band (within ±2 % of 1.5 N" in out
+    assert "predicted MET" in out and "measured MET" in out
+    record = json.loads((tmp_path / "design" / "compare.json").read_text())
+    assert record["overall_on_measured"] == "MET"
 
 
 @pytest.mark.slow
@@ -166,3 +191,42 @@ def test_cli_coupon_and_calibrate(tmp_path, monkeypatch, capsys):
     assert "x" not in yaml.safe_load((tmp_path / "materials.yaml").read_text())
     assert main(["coupon", "unobtainium"]) == 2
     assert main(["compare", str(tmp_path / "nowhere"), "m.csv"]) == 2
+
+
+@pytest.mark.slow
+def test_cli_calibrate_two_orientations(tmp_path, monkeypatch, capsys):
+    """`flexopt calibrate X.csv Y.csv --coupon C`: a simulated printer whose E differs along its
+    x and y axes (hidden 1.08 and 0.95 x the datasheet's) and one wall offset; the CSVs name
+    their orientation one by a column, one on the command line."""
+    from flexopt.pipeline.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    base = get_material("PETG")
+    (tmp_path / "coupon.json").write_bytes(coupon_files(base)["coupon.json"])
+    spec, _ = read_coupon_record(tmp_path / "coupon.json")
+    hidden = {"x": 1.08 * base.E_MPa, "y": 0.95 * base.E_MPa}
+    rng = np.random.default_rng(6)
+    for o, E in hidden.items():
+        lines = ["thickness_mm,displacement_mm,force_N" + (",orientation" if o == "x" else "")]
+        for t in spec.thicknesses_mm:
+            c = strip_curve(spec, dataclasses.replace(base, E_MPa=E), t - 0.04, spec.stroke_mm)
+            for d, f in zip(c.displacement_mm[2::3], c.force_N[2::3], strict=True):
+                f *= 1 + 0.003 * rng.standard_normal()
+                lines.append(f"{t:g},{d:.6f},{f:.7f}" + (",x" if o == "x" else ""))
+        (tmp_path / f"{o}.csv").write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    # the second CSV's orientation is not known: refused, naming it
+    assert main(["calibrate", "x.csv", "y.csv", "--coupon", "coupon.json"]) == 2
+    assert "y.csv" in capsys.readouterr().err
+    argv = ["calibrate", "x.csv", "y.csv", "--coupon", "coupon.json", "--name", "my-petg"]
+    assert main([*argv, "--orientation", "x", "--orientation", "y"]) == 0
+    out = capsys.readouterr().out
+    assert "E along x" in out and "my-petg@x or my-petg@y" in out
+    entry = yaml.safe_load((tmp_path / "materials.yaml").read_text())["my-petg"]
+    fit = entry["calibration"]
+    for o, E in hidden.items():
+        got = fit["E_by_orientation"][o]
+        assert entry[f"E_{o}_MPa"] == got["E_MPa"]
+        assert abs(got["E_MPa"] - E) <= got["E_ci95_MPa"]
+    assert abs(entry["thickness_offset_mm"] + 0.04) <= fit["thickness_offset_ci95_mm"]
+    assert abs(fit["E_y_over_E_x"] - 0.95 / 1.08) <= fit["E_y_over_E_x_ci95"]
