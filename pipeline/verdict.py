@@ -599,8 +599,9 @@ def _hold_details(
             if isinstance(hold, str):
                 v = replace(v, detail=hold)
             else:
-                why = f"{hold.note}; " if hold.note and not math.isfinite(v.value) else ""
-                v = replace(v, detail=f"{why}{hold.law.label}")
+                why = hold.note if hold.note and not math.isfinite(v.value) else ""
+                parts = (why, "" if why else v.detail, hold.law.label)
+                v = replace(v, detail="; ".join(p for p in parts if p))
                 if hold.law.assumed:
                     v = replace(v, bound=f"{v.bound} [ASSUMED creep law]")
         out.append(v)
