@@ -251,3 +251,39 @@ def test_a_user_material_carries_its_creep_law(tmp_path):
     study = load_study(path)
     assert study.material.creep.tau_h == 200.0
     assert study.material.creep.source == "coupon hold test"
+
+
+def test_a_run_s_best_detail_carries_the_hold():
+    """flexopt run's best design: the problem's detail has info["hold"] (best.json) and the
+    held force; the constant-force kind's force band, after the hold, is its curve x E_R/E0."""
+    from pathlib import Path
+
+    from flexopt.pipeline.problems import build_base_problem, nominal_design
+
+    root = Path(__file__).resolve().parents[2]
+    raw = yaml.safe_load((root / "pipeline/examples/constant-force.yaml").read_text("utf-8"))
+    base = validate_study(raw)
+    mat = {**base.material.model_dump(), "creep": material(max_stress_ratio=1.0)["creep"]}
+    study = validate_study({**raw, "material": mat, "hold": {"time_h": 100.0, "fraction": 0.5}})
+    problem = build_base_problem(study)
+    assert type(problem).__name__ == "HoldDetail"
+    detail = problem.detail(nominal_design(problem, study))
+    hold = detail.info["hold"]
+    r = retention_by_hand(100.0)
+    assert hold["relaxation_ratio"] == pytest.approx(r, rel=1e-12)
+    assert hold["hold_in_range"] and hold["force_retention"] == hold["relaxation_ratio"]
+    assert detail.summary["held_force_N"] == pytest.approx(hold["hold_initial_force_N"] * r)
+    held = np.asarray(detail.table["held_force_N"])
+    assert held == pytest.approx(np.asarray(detail.table["force_N"]) * r, rel=1e-14)
+
+
+def test_flexopt_evaluate_states_the_example_s_held_force(tmp_path, capsys):
+    from flexopt.pipeline.cli import main
+
+    assert main(["evaluate", "cantilever-hold", "--out", str(tmp_path / "run")]) == 0
+    out = capsys.readouterr().out
+    assert "held_force_N" in out and "[ASSUMED creep law]" in out
+    record = yaml.safe_load((tmp_path / "run" / "evaluation.json").read_text("utf-8"))
+    s = record["summary"]
+    assert s["held_force_N"] == pytest.approx(s["hold_initial_force_N"] * s["force_retention"])
+    assert s["creep_data_source"].startswith("ASSUMED")
