@@ -76,8 +76,11 @@ from scipy import integrate, special
 
 __all__ = [
     "GAS_CONSTANT_J_MOL_K",
+    "CreepFit",
     "CreepLaw",
     "crept_drive",
+    "fit_creep",
+    "fit_relaxation",
     "mittag_leffler",
     "relaxed_force",
 ]
@@ -355,3 +358,122 @@ def crept_drive(
     x0 = float(np.interp(abs(held_force), f[: last + 1], x[: last + 1]))
     x1 = float(np.interp(target, f[: last + 1], x[: last + 1]))
     return x0, x1
+
+
+@dataclass(frozen=True)
+class CreepFit:
+    """A Findley law fitted to a hold test (:func:`fit_relaxation`, :func:`fit_creep`).
+
+    Attributes
+    ----------
+    tau_h, n : the law's parameters (h, -).
+    initial : float — the fitted value at t = 0 (force of a relaxation test, unit of the
+        record; strain of a creep test).
+    rms : float — root-mean-square residual, unit of the record.
+    """
+
+    tau_h: float
+    n: float
+    initial: float
+    rms: float
+
+    def law(self, max_stress_ratio: float, source: str, **kw: object) -> CreepLaw:
+        """The :class:`CreepLaw` of this fit (the stress range and the source are the test's)."""
+        return CreepLaw(
+            tau_h=self.tau_h, n=self.n, max_stress_ratio=max_stress_ratio, source=source, **kw
+        )  # type: ignore[arg-type]
+
+
+def _check_record(time_h: Sequence[float] | np.ndarray, value: Sequence[float] | np.ndarray):
+    t = np.asarray(time_h, dtype=float).ravel()
+    y = np.asarray(value, dtype=float).ravel()
+    if t.shape != y.shape or t.size < 4:
+        raise FeaError("creep: give at least 4 (time, value) pairs of the same length")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y))) or np.any(t < 0):
+        raise FeaError("creep: the record holds a NaN, an inf or a negative time")
+    if np.count_nonzero(t > 0) < 3:
+        raise FeaError("creep: give at least 3 times after the start of the hold")
+    return t, y
+
+
+def fit_relaxation(
+    time_h: Sequence[float] | np.ndarray, force: Sequence[float] | np.ndarray
+) -> CreepFit:
+    """Fit Findley's law to a relaxation test: the force of a coupon held at a displacement,
+    ``F(t) = F0 E_n(-Gamma(1+n) (t/tau)^n)`` (least squares in ``F0``, ``log tau``, ``n``).
+
+    Parameters
+    ----------
+    time_h : (n_points,) h, from the start of the hold (the step).
+    force : (n_points,) the force (any unit, one sign).
+
+    Raises
+    ------
+    FeaError
+        For a record too short, not finite, or that does not relax.
+    """
+    from scipy import optimize
+
+    t, f = _check_record(time_h, force)
+    sign = 1.0 if np.mean(f) >= 0 else -1.0
+    f = f * sign
+    f0 = float(f[np.argmin(t)])
+    if not f0 > 0 or f[np.argmax(t)] >= f0:
+        raise FeaError("creep: the force does not fall during the hold; nothing to fit")
+    tmax = float(t.max())
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        amp, log_tau, n = p
+        z = -math.gamma(1.0 + n) * (t / math.exp(log_tau)) ** n
+        return amp * mittag_leffler(n, z) - f
+
+    best = None
+    for n0 in (0.15, 0.35, 0.6):
+        for tau0 in (tmax, 10.0 * tmax, 100.0 * tmax):
+            got = optimize.least_squares(
+                residual, [f0, math.log(tau0), n0],
+                bounds=([0.0, math.log(tmax) - 30.0, 0.01], [np.inf, math.log(tmax) + 30.0, 1.0]),
+                x_scale=[f0, 1.0, 0.1], xtol=1e-14, ftol=1e-14, gtol=1e-14,
+            )  # fmt: skip
+            if best is None or got.cost < best.cost:
+                best = got
+    amp, log_tau, n = best.x
+    rms = float(np.sqrt(np.mean(best.fun**2)))
+    return CreepFit(tau_h=math.exp(log_tau), n=float(n), initial=sign * float(amp), rms=rms)
+
+
+def fit_creep(
+    time_h: Sequence[float] | np.ndarray, strain: Sequence[float] | np.ndarray
+) -> CreepFit:
+    """Fit Findley's law to a creep test: the strain (or deflection) of a coupon under a held
+    load, ``eps(t) = eps0 + m t^n`` (linear least squares in ``eps0, m`` for each ``n``, the
+    best ``n`` by a bounded scalar search); ``tau = (eps0/m)^(1/n)``.
+
+    Parameters
+    ----------
+    time_h : (n_points,) h from the start of the hold.
+    strain : (n_points,) strain or deflection (any unit, one sign).
+
+    Raises
+    ------
+    FeaError
+        For a record too short, not finite, or that does not creep.
+    """
+    from scipy import optimize
+
+    t, e = _check_record(time_h, strain)
+    sign = 1.0 if np.mean(e) >= 0 else -1.0
+    e = e * sign
+
+    def solve(n: float) -> tuple[float, float, float]:
+        a = np.column_stack([np.ones_like(t), t**n])
+        (e0, m), *_ = np.linalg.lstsq(a, e, rcond=None)
+        return float(e0), float(m), float(np.sum((a @ np.array([e0, m]) - e) ** 2))
+
+    got = optimize.minimize_scalar(lambda n: solve(n)[2], bounds=(0.01, 1.0), method="bounded",
+                                   options={"xatol": 1e-10})  # fmt: skip
+    n = float(got.x)
+    e0, m, sq = solve(n)
+    if not (e0 > 0 and m > 0):
+        raise FeaError("creep: the record does not creep (eps0 and m must be > 0); check it")
+    return CreepFit(tau_h=(e0 / m) ** (1.0 / n), n=n, initial=sign * e0, rms=math.sqrt(sq / t.size))

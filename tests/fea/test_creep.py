@@ -13,7 +13,14 @@ import math
 
 import numpy as np
 import pytest
-from flexopt.fea.creep import CreepLaw, crept_drive, mittag_leffler, relaxed_force
+from flexopt.fea.creep import (
+    CreepLaw,
+    crept_drive,
+    fit_creep,
+    fit_relaxation,
+    mittag_leffler,
+    relaxed_force,
+)
 from flexopt.fea.errors import FeaError
 from scipy import integrate, special
 
@@ -146,3 +153,28 @@ def test_relaxed_force_and_crept_drive_of_a_linear_spring():
         crept_drive(x, f, 18.0, 1.25)
     with pytest.raises(FeaError, match="not rising"):
         crept_drive(x, np.array([0, 2, 4, 3, 5, 6, 7, 8, 9, 10, 11.0]), 4.5, 1.0)
+
+
+def test_a_relaxation_record_gives_back_its_law():
+    true = law(n=0.3, tau_h=400.0)
+    t = np.array([0.0, 0.01, 0.1, 0.5, 1, 2, 5, 10, 24, 48, 100])
+    f = 2.5 * true.relaxation_ratio(t)
+    fit = fit_relaxation(t, f)
+    assert (fit.tau_h, fit.n, fit.initial) == pytest.approx((400.0, 0.3, 2.5), rel=1e-6)
+    assert fit.rms < 1e-9
+    assert fit.law(0.3, "coupon").relaxation_ratio(50.0) == pytest.approx(
+        true.relaxation_ratio(50.0), rel=1e-6
+    )
+    with pytest.raises(FeaError, match="does not fall"):
+        fit_relaxation(t, np.full(t.size, 2.0))
+
+
+def test_a_creep_record_gives_back_its_law():
+    t = np.array([0.0, 0.1, 0.5, 1, 2, 5, 10, 20, 50])
+    eps0, m, n = 0.004, 0.0005, 0.28  # Findley: eps = eps0 + m t^n
+    fit = fit_creep(t, eps0 + m * t**n)
+    assert fit.n == pytest.approx(n, rel=1e-6)
+    assert fit.initial == pytest.approx(eps0, rel=1e-6)
+    assert fit.tau_h == pytest.approx((eps0 / m) ** (1 / n), rel=1e-5)
+    with pytest.raises(FeaError, match="at least 4"):
+        fit_creep([0, 1], [1, 2])
