@@ -637,7 +637,8 @@ def with_hold(study: Study, result: DesignResult) -> DesignResult:
     summary = {**result.summary, **hold.summary()}
     info = {**result.info, "hold": hold.record()}
     table = {**(result.table or {}), **_hold_columns(hold)}
-    head = result.headline and (*result.headline, *hold.values())
+    note = ("hold_note",) if hold.note else ()  # out of range: the CLI table says why
+    head = result.headline and (*result.headline, *hold.values(), *note)
     return replace(result, summary=summary, info=info, table=table, headline=head or ())
 
 
