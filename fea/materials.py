@@ -16,6 +16,8 @@ __all__ = [
     "FatigueData",
     "FATIGUE_DATA",
     "get_fatigue_data",
+    "CREEP_DATA",
+    "get_creep_data",
 ]
 
 
@@ -324,4 +326,35 @@ def get_fatigue_data(name: str) -> FatigueData:
     raise FeaError(
         f"no fatigue data for material '{name}'; use one of {', '.join(FATIGUE_DATA)} or build "
         "an SNCurve (flexopt.fea.fatigue) from your own S-N data"
+    )
+
+
+# Creep laws (Findley power law, flexopt.fea.creep.CreepLaw) of the built-in materials: only
+# numbers read in a source with its conditions may enter here. None could be verified for the
+# printed polymers (see docs/durability.md, "Creep: data"): the FFF PETG creep study (Polymers
+# 2025, 17(15), 2075) fits Prony series and a cubic nonlinear theory, not a power law, and its
+# coefficients could not be read here; the FFF PLA tensile creep study (Polymers 2020, 12(12),
+# 2962) optimises creep responses by response surfaces, with no creep law to transcribe. A
+# material without an entry has no creep data: a `hold:` on it is refused with the fix (give
+# `creep:` in a materials.yaml, e.g. from a hold test of a printed coupon).
+CREEP_DATA: dict[str, Any] = {}
+
+
+def get_creep_data(name: str) -> Any:
+    """The creep law (:class:`flexopt.fea.creep.CreepLaw`) of a built-in material, looked up
+    like :func:`get_material`.
+
+    Raises
+    ------
+    FeaError
+        When the material has none: the message says how to give one.
+    """
+    for key, law in CREEP_DATA.items():
+        if _key(key) == _key(name):
+            return law
+    has = f"; built-in creep laws: {', '.join(CREEP_DATA)}" if CREEP_DATA else ""
+    raise FeaError(
+        f"no creep data for {name}: give creep: {{tau_h, n, max_stress_ratio, source}} (a "
+        "Findley law J = (1 + (t/tau)^n)/E0) for a material in materials.yaml, e.g. from a hold "
+        f"test of your coupon{has}"
     )

@@ -31,7 +31,7 @@ from flexopt.pipeline.runfolder import (
 )
 from flexopt.pipeline.studies import get_kind
 from flexopt.pipeline.study import Study, study_to_yaml
-from flexopt.pipeline.verdict import judge_result, with_life
+from flexopt.pipeline.verdict import judge_result, with_hold, with_life
 
 __all__ = [
     "EVALUATE_FILES",
@@ -144,7 +144,7 @@ def solve_study(study: Study, repeat: int = 1, source: str = "") -> DesignResult
     # back afterwards (the API's caller's own numpy work keeps its threads)
     with limit_loaded_pools():
         result = study_result(study, repeat, source)
-    result = with_life(study, result)  # duty_cycle: its life
+    result = with_hold(study, with_life(study, result))  # duty_cycle: its life; hold: creep
     return replace(result, verdicts=judge_result(study, result))
 
 

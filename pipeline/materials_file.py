@@ -19,6 +19,8 @@ every study of that folder). The file is a mapping of names to records::
       thickness_offset_mm: -0.057    # optional: printed minus drawn wall thickness (calibration)
       source: calibrated from ...    # optional
       calibration: {...}             # optional: the fit that produced it
+      creep: {tau_h: 120, n: 0.25, max_stress_ratio: 0.4, source: hold test ...}  # optional:
+                                     # a Findley creep law for hold: (docs/durability.md)
 
 The resolved study carries the numbers (as for a library material), so a run folder does not
 depend on the file afterwards. ``thickness_offset_mm`` goes into the study's material: every
@@ -82,6 +84,7 @@ _KEYS = {
     "source",
     "calibration",
     "name",
+    "creep",
 }
 _REQUIRED = ("nu", "yield_MPa")
 #: the largest thickness offset a materials file may give, mm (the study's bound too)
@@ -226,6 +229,7 @@ def user_material(name: str, study_source: str | None) -> dict[str, Any] | None:
                 "yield_MPa": float(record["yield_MPa"]),
                 "density_kg_m3": record.get("density_kg_m3"),
                 "source": f"{path}: {source}",
+                **({"creep": record["creep"]} if record.get("creep") is not None else {}),
             }
             if offset is not None and float(offset) != 0.0:
                 out["thickness_offset_mm"] = float(offset)

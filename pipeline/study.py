@@ -28,6 +28,7 @@ import yaml
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import MATERIALS, Material, get_material
 from flexopt.optimise.durability import DutyCycleSpec
+from flexopt.optimise.hold import CreepSpec, HoldSpec
 from flexopt.optimise.requirements import RequirementSpec
 from flexopt.optimise.robustness import RobustnessSpec
 from flexopt.pipeline.errors import StudyError
@@ -51,6 +52,7 @@ __all__ = [
     "ParallelSpec",
     "Study",
     "check_data_limits",
+    "check_hold",
     "list_examples",
     "load_study",
     "parse_study_text",
@@ -101,13 +103,21 @@ class MaterialSpec(BaseModel):
         "every printed section is analysed at its drawn thickness plus this offset "
         "(docs/print_to_part.md)",
     )
+    creep: CreepSpec | None = Field(
+        None,
+        description="Findley creep law {tau_h, n, max_stress_ratio, source} for hold: "
+        "(docs/durability.md, Creep)",
+    )
 
     @model_serializer(mode="wrap")
-    def _without_unset_offset(self, handler: Any) -> Any:
-        # a material without a measured offset dumps as before the key existed (run folders)
+    def _without_unset_optional(self, handler: Any) -> Any:
+        # a material without a measured offset or a creep law dumps as it did before those
+        # keys existed (run folders stay the same)
         data = handler(self)
-        if isinstance(data, dict) and data.get("thickness_offset_mm") is None:
-            data.pop("thickness_offset_mm", None)
+        if isinstance(data, dict):
+            for key in ("thickness_offset_mm", "creep"):
+                if key in data and data[key] is None:
+                    del data[key]
         return data
 
     @model_validator(mode="after")
@@ -263,6 +273,10 @@ class Study(BaseModel):
     duty_cycle : DutyCycleSpec or None
         Load levels (or a drive history) the part sees in service: the fatigue life over them
         is reported and ``life_cycles`` / ``life_hours`` may be required (docs/durability.md).
+    hold : HoldSpec or None
+        The part held for a time at a displacement or a force: the force left (or the crept
+        deflection) by the material's creep law is reported and may be required
+        (docs/durability.md, Creep).
     """
 
     model_config = STUDY_CONFIG
@@ -288,11 +302,16 @@ class Study(BaseModel):
         description="service load levels {drive or fraction, cycles or share_percent} or a "
         "drive history, for the fatigue life (docs/durability.md)",
     )
+    hold: HoldSpec | None = Field(
+        None,
+        description="hold {time_h, temperature_C, at: displacement|force, level or fraction}: "
+        "the force after creep and relaxation (docs/durability.md, Creep)",
+    )
 
     #: Blocks added after studies were first written, left out of a dump when unset: a study
     #: without them dumps (evaluation.json, the run folder's study.yaml) as it did before they
     #: existed. A kind adds its own (``polyline_beam``: ``stops``); one serializer serves all.
-    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = ("duty_cycle",)
+    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = ("duty_cycle", "hold")
 
     @model_serializer(mode="wrap")
     def _without_unset_optional_blocks(self, handler: Any) -> Any:
@@ -730,6 +749,31 @@ def check_duty_cycle(study: Study) -> None:
         raise StudyError(key, str(exc).removeprefix("fatigue: ")) from None
 
 
+def check_hold(study: Study) -> None:
+    """Refuse a ``hold:`` block the study cannot use: its material has no creep law (neither
+    built in nor a ``creep:`` entry), or the hold's temperature is not the law's and the law
+    has no time-temperature shift.
+
+    Raises
+    ------
+    StudyError
+        At ``hold`` (or ``hold.temperature_C``) with the fix.
+    """
+    spec: HoldSpec | None = getattr(study, "hold", None)
+    if spec is None:
+        return
+    from flexopt.optimise.errors import OptimiseError
+    from flexopt.optimise.hold import creep_law_of
+
+    try:
+        law = creep_law_of(study.material)
+        law.reduced_time(spec.time_h, spec.temperature_C)
+    except OptimiseError as exc:
+        raise StudyError("hold", str(exc)) from None
+    except FeaError as exc:
+        raise StudyError("hold.temperature_C", str(exc).removeprefix("creep: ")) from None
+
+
 def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
     """Validate a raw mapping into the frozen study model of its geometry kind.
 
@@ -762,6 +806,7 @@ def validate_study(raw: dict[str, Any], source: str | None = None) -> Study:
         check_requirement_names(study)
         check_robustness(study)
         check_duty_cycle(study)
+        check_hold(study)
     except ValidationError as exc:
         raise validation_error_to_study_error(exc, kind.model, source) from None
     except StudyError as exc:

@@ -47,6 +47,7 @@ import numpy as np
 from flexopt.optimise.durability import LIFE_QUANTITIES, LifeResult, life_of_table
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.hold import HoldResult, creep_law_of, hold_of_table, hold_quantities
 from flexopt.optimise.problem import (
     DesignDetail,
     DesignResult,
@@ -69,6 +70,7 @@ if TYPE_CHECKING:  # annotations only: study.validate_study calls check_requirem
 
 __all__ = [
     "GENERIC_QUANTITIES",
+    "HoldDetail",
     "LifeDetail",
     "RequirementConstraints",
     "builtin_requirements",
@@ -81,6 +83,7 @@ __all__ = [
     "judge",
     "judge_detail",
     "judge_result",
+    "hold_of_result",
     "life_of_result",
     "life_values",
     "quantities_of",
@@ -88,6 +91,7 @@ __all__ = [
     "study_requirements",
     "user_requirements",
     "with_design_range",
+    "with_hold",
     "with_life",
 ]
 
@@ -191,6 +195,8 @@ def quantities_of(study: Study) -> tuple[str, ...]:
     found.discard("envelope_mm")
     if getattr(study, "duty_cycle", None) is not None:
         found.update(LIFE_QUANTITIES)
+    if getattr(study, "hold", None) is not None:
+        found.update(hold_quantities(found))
     return tuple(sorted(found | set(GENERIC_QUANTITIES)))
 
 
@@ -226,6 +232,12 @@ def check_requirement_names(study: Study) -> None:
                     "life_hours needs duty_cycle.rate_hz (cycles per second in service); give "
                     "it, or require life_cycles",
                 )
+        if spec.role == "constraint" and spec.quantity in _hold_names(study):
+            raise StudyError(
+                f"requirements[{i}].role",
+                "cannot be a constraint: the held value is computed from the response table of "
+                "the judged design; use role: check",
+            )
         if spec.role == "constraint":
             why = ""
             if spec.quantity in LIFE_QUANTITIES:
@@ -382,13 +394,19 @@ def judge_result(
     from flexopt.pipeline.materials_file import with_as_printed_verdicts  # says so (#26)
 
     life = life_values(study, result)
+    hold = hold_of_result(study, result)
     given = tuple(result.verdicts)
     if given:
         given = _with_life_rows(study, given, life)
+        given = _with_hold_rows(study, given, hold)
         if requirements is None and all(v.quantity != DesignRange.quantity for v in given):
             given = with_design_range(study, given, design)
         return with_as_printed_verdicts(study, given, result.info.get("as printed"))
-    verdicts = judge(study, {**result_values(result), **life}, result.table, requirements, design)
+    values, table = {**result_values(result), **life}, result.table
+    if hold is not None:
+        values.update(_hold_values(study, hold))
+        table = {**(table or {}), **_hold_columns(hold)}
+    verdicts = _hold_details(study, judge(study, values, table, requirements, design), hold)
     return with_as_printed_verdicts(study, verdicts, result.info.get("as printed"))
 
 
@@ -486,6 +504,158 @@ def _with_life_rows(
     return (*out, *judged.values())
 
 
+# --------------------------------------------------------------------------------------------
+# hold: creep and relaxation over a hold time (docs/durability.md, Creep)
+
+
+def _hold_names(study: Study) -> set[str]:
+    """The names a requirement on the hold judges (empty without ``hold:``)."""
+    if getattr(study, "hold", None) is None:
+        return set()
+    return set(hold_quantities(quantities_of(study)))
+
+
+def peak_stress_scale(study: Study, result: DesignResult) -> tuple[float, str]:
+    """The factor on the response table's ``peak_stress_MPa`` that gives the figure the verdict
+    judges the peak stress on (the highest-ranked figure the design has, not one a built-in row
+    judges on its own; as :func:`life_of_result`), and that figure's model; (1, "") when the
+    kind has one model."""
+    table = result.table or {}
+    if "peak_stress_MPa" not in table:
+        return 1.0, ""
+    peak = np.abs(np.asarray(table["peak_stress_MPa"], dtype=float))
+    peak = peak[np.isfinite(peak)]
+    values = result_values(result)
+    taken = {r.quantity for r in builtin_requirements(study)} - {"peak_stress_MPa"}
+    ladder = [
+        f
+        for f in figures_of(study).get("peak_stress_MPa", ())
+        if f.quantity not in taken
+        and isinstance(values.get(f.quantity), int | float)
+        and math.isfinite(float(values[f.quantity]))
+    ]
+    ladder.sort(key=lambda f: -f.rank)
+    if ladder and ladder[0].quantity != "peak_stress_MPa" and peak.size and peak.max() > 0.0:
+        return float(values[ladder[0].quantity]) / float(peak.max()), ladder[0].model
+    return 1.0, ""
+
+
+def hold_of_result(study: Study, result: DesignResult) -> HoldResult | str | None:
+    """The design of ``result`` held as the study's ``hold:`` says (None without one), or why
+    it cannot be computed (a str: no response table, a held value beyond the traced curve ...).
+
+    The driven column is the kind's plot x, the force column ``hold.column`` or the kind's
+    plotted force (``plot["y"]``, else ``plot["left"]``), the stress the ``peak_stress_MPa``
+    column (scaled as :func:`peak_stress_scale`); the strength is the material's
+    ``yield_MPa``.
+    """
+    spec = getattr(study, "hold", None)
+    if spec is None:
+        return None
+    table = result.table or {}
+    plot = result.plot or {}
+    x_col = plot.get("x")
+    f_col = spec.column or plot.get("y") or plot.get("left")
+    if not x_col or not isinstance(f_col, str):
+        return f"hold: the response has no driven and force column (plot: {dict(plot)})"
+    scale, model = peak_stress_scale(study, result)
+    try:
+        law = creep_law_of(study.material)
+        return hold_of_table(
+            spec, table, str(x_col), f_col, law, float(study.material.yield_MPa),
+            scale=scale, scale_model=model,
+        )  # fmt: skip
+    except OptimiseError as exc:
+        return str(exc)
+
+
+def _hold_values(study: Study, hold: HoldResult | str | None) -> dict[str, Any]:
+    """The hold's figures a requirement judges (None when it cannot be computed: NOT MET)."""
+    if hold is None:
+        return {}
+    if isinstance(hold, str):
+        return dict.fromkeys(_hold_names(study))
+    return hold.values()
+
+
+def _hold_columns(hold: HoldResult | str | None) -> dict[str, Any]:
+    """A displacement hold's held curve as the table column ``held_<force column>``."""
+    if isinstance(hold, HoldResult) and hold.held_curve is not None and hold.in_range:
+        return {hold.held_name: hold.held_curve}
+    return {}
+
+
+def _hold_details(
+    study: Study, verdicts: Sequence[Verdict], hold: HoldResult | str | None
+) -> tuple[Verdict, ...]:
+    """``verdicts`` with each row on a hold quantity saying its creep data (an assumed law
+    in its bound, so the verdict line shows it) and, when not computed, why."""
+    from dataclasses import replace
+
+    if hold is None:
+        return tuple(verdicts)
+    names = _hold_names(study)
+    out = []
+    for v in verdicts:
+        if v.quantity in names:
+            if isinstance(hold, str):
+                v = replace(v, detail=hold)
+            else:
+                why = hold.note if hold.note and not math.isfinite(v.value) else ""
+                parts = (why, "" if why else v.detail, hold.law.label)
+                v = replace(v, detail="; ".join(p for p in parts if p))
+                if hold.law.assumed:
+                    v = replace(v, bound=f"{v.bound} [ASSUMED creep law]")
+        out.append(v)
+    return tuple(out)
+
+
+def _with_hold_rows(
+    study: Study, given: tuple[Verdict, ...], hold: HoldResult | str | None
+) -> tuple[Verdict, ...]:
+    """A kind's own verdicts with its rows on the hold quantities judged on ``hold``."""
+    if hold is None:
+        return given
+    names = _hold_names(study)
+    values = _hold_values(study, hold)
+    reqs = [r for r in user_requirements(study) if r.quantity in names]
+    judged = {v.name: v for v in (r.check(dict(values)) for r in reqs)}
+    out = [judged.pop(v.name, v) if v.quantity in names else v for v in given]
+    return _hold_details(study, (*out, *judged.values()), hold)
+
+
+def with_hold(study: Study, result: DesignResult) -> DesignResult:
+    """``result`` with the study's ``hold:`` in its summary (the held value, the retention or
+    growth, the stress ratio, the method and the creep data), ``info["hold"]`` and the held
+    curve as a table column; ``result`` itself without one."""
+    from dataclasses import replace
+
+    hold = hold_of_result(study, result)
+    if hold is None:
+        return result
+    if isinstance(hold, str):
+        note = {**_hold_values(study, hold), "hold_note": hold}
+        return replace(result, summary={**result.summary, **note})
+    summary = {**result.summary, **hold.summary()}
+    info = {**result.info, "hold": hold.record()}
+    table = {**(result.table or {}), **_hold_columns(hold)}
+    note = ("hold_note",) if hold.note else ()  # out of range: the CLI table says why
+    head = result.headline and (*result.headline, *hold.values(), *note)
+    return replace(result, summary=summary, info=info, table=table, headline=head or ())
+
+
+class HoldDetail(ProblemWrapper):
+    """A kind's design problem whose :meth:`detail` carries the study's ``hold:``
+    (:func:`with_hold`), which a run's best.json writes. Picklable."""
+
+    def __init__(self, inner: Any, study: Study) -> None:
+        super().__init__(as_design_problem(inner))
+        self.hold_study = study
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        return with_hold(self.hold_study, self.inner.detail(x))
+
+
 def detail_values(detail: DesignDetail | None, evaluation: Evaluation) -> dict[str, Any]:
     """Scalars of a run's design: its metrics, the detail's info, the outline's bounding box
     (:func:`result_values` of the detail, or of the evaluation alone)."""
@@ -563,6 +733,8 @@ def with_requirement_constraints(study: Study, problem: Any) -> Any:
         problem = RequirementConstraints(problem, constraints)
     if getattr(study, "duty_cycle", None) is not None:
         problem = LifeDetail(problem, study)
+    if getattr(study, "hold", None) is not None:
+        problem = HoldDetail(problem, study)
     return problem
 
 
