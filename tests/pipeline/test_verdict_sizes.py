@@ -98,8 +98,9 @@ def test_envelope_of_another_kind_from_flexopt_evaluate():
     assert "envelope_depth_mm" in quantities_of(study)
     result = study_result(study)
     design = cf.design_vector(study)
+    prob = cf.ConstantForceProblem(study)
     shape = cf.outline(
-        cf.ConstantForceProblem(study)._design(design), cf.TABLE1,
+        prob._design(design), prob.frame,
         study.geometry.pad_length_mm, study.geometry.pad_thickness_mm, study.geometry.end_flexures,
     )  # fmt: skip
     x0, y0, x1, y1 = shape.bounds
