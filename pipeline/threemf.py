@@ -109,9 +109,7 @@ def threemf_bytes(
     out.write(f'  <resources>\n    <object id="1" type="model" name={quoteattr(title)}>\n')
     out.write("      <mesh>\n        <vertices>\n")
     # repr of a float is its shortest exact form: the 3MF's volume is the mesh's to the last bit
-    out.writelines(
-        f'          <vertex x="{x!r}" y="{y!r}" z="{z!r}"/>\n' for x, y, z in v.tolist()
-    )
+    out.writelines(f'          <vertex x="{x!r}" y="{y!r}" z="{z!r}"/>\n' for x, y, z in v.tolist())
     out.write("        </vertices>\n        <triangles>\n")
     out.writelines(f'          <triangle v1="{a}" v2="{b}" v3="{c}"/>\n' for a, b, c in f.tolist())
     out.write("        </triangles>\n      </mesh>\n    </object>\n  </resources>\n")

@@ -371,7 +371,7 @@ def export_design(
             raise ExportError(NO_OUTLINE.format(kind=study.kind))
         raise ExportError(f"kind '{study.kind}' gives no outline and height_mm to extrude")
     if fmt in HANDOFF_FORMATS:
-        return _export_handoff(target, design, fmt, study, problem, x, detail, evaluate)
+        return _export_handoff(target, design, fmt, study, problem, x, detail, run_dir, evaluate)
     from flexopt.geometry.solid import StepUnavailable
 
     try:
@@ -485,7 +485,8 @@ def handoff_files(
         (best.step's, the CAD script's).
     stem : ``best``, ``design-INDEX`` or ``design`` (names the files: :func:`handoff_name`).
     response_table : the file of the predicted response (named by the print sheet).
-    run_dir : the folder as the print sheet's commands name it.
+    run_dir : the folder as the print sheet's commands name it (its absolute path: the same
+        sheet from a run and from flexopt export).
 
     Returns
     -------
@@ -524,8 +525,8 @@ def handoff_files(
         )
 
     def sheet() -> bytes:
-        spec = dict(detail.plot or {})
-        xc, yc = spec.get("x"), spec.get("y")
+        spec = dict(detail.plot or {})  # the run's defaults when the kind names no columns
+        xc, yc = spec.get("x", "displacement_mm"), spec.get("y", "force_N")
         column = (detail.table or {}).get(xc) if xc else None
         values = np.asarray(column, dtype=float) if column is not None else np.array([])
         values = values[np.isfinite(values)]
@@ -542,9 +543,7 @@ def handoff_files(
             run_dir=run_dir,
             material=material,
             part=bed,
-            section_list=sections(
-                tuple(space.names), x, meanings, _thinnest_mm(detail, bed)
-            ),
+            section_list=sections(tuple(space.names), x, meanings, _thinnest_mm(detail, bed)),
             response=response,
             files={
                 "stl": f"{stem}.stl",
@@ -566,6 +565,7 @@ def _export_handoff(
     problem: Any,
     x: np.ndarray,
     detail: DesignDetail,
+    run_dir: Path,
     evaluate: bool,
 ) -> ExportOutcome:
     """Write one hand-off file of a rebuilt design (:func:`export_design` with ``fmt`` one of
@@ -583,7 +583,7 @@ def _export_handoff(
             part,
             stem,
             "response.csv" if evaluate else "best_response.csv",
-            str(target.parent),
+            str(run_dir.resolve()),
         )
         data = files[handoff_name(stem, fmt)]()
     except ValueError as exc:  # GeometryError

@@ -534,7 +534,7 @@ class RunState:
                 self.artefact("best.step", lambda: part_bytes(design, "step"), group="step")
             x_best = np.array(best.x, dtype=float)  # best_cad.py, best.3mf, print_sheet.md
             for name, make in handoff_files(
-                study, problem, x_best, detail, part, design, run_dir=str(self.run_dir)
+                study, problem, x_best, detail, part, design, run_dir=str(self.run_dir.resolve())
             ).items():
                 self.artefact(name, make)
         elif detail is not None and (detail.outline is None or not detail.height_mm):
