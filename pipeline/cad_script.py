@@ -59,13 +59,18 @@ FAST_CHECKS: dict[str, dict[str, dict[str, Any]]] = {
 NO_OUTLINE = "kind '{kind}' gives no outline and height_mm: no parametric CAD script of its part"
 
 
-def fixed_dimensions(geometry: Mapping[str, Any]) -> dict[str, float | int]:
+def fixed_dimensions(
+    geometry: Mapping[str, Any], variables: tuple[str, ...] = ()
+) -> dict[str, float | int]:
     """The numbers of a study's ``geometry:`` block (its dump), in order: the script's FIXED.
 
     Parameters
     ----------
     geometry : mapping
         ``study.model_dump(mode="json")["geometry"]``.
+    variables : tuple of str
+        The design variables' names: a geometry key of the same name is the variable's (the
+        design replaces it), so it is not listed as fixed.
 
     Returns
     -------
@@ -76,7 +81,7 @@ def fixed_dimensions(geometry: Mapping[str, Any]) -> dict[str, float | int]:
     return {
         key: value
         for key, value in geometry.items()
-        if isinstance(value, int | float) and not isinstance(value, bool)
+        if isinstance(value, int | float) and not isinstance(value, bool) and key not in variables
     }
 
 
@@ -296,8 +301,10 @@ def cad_script(
         for n, lo, hi in zip(names, space.lower, space.upper, strict=True)
     }
     geometry = study.model_dump(mode="json", exclude_none=True)["geometry"]
-    fixed = fixed_dimensions(geometry)
-    fixed_notes = {k: "mm" for k in fixed if k.endswith("_mm")}
+    fixed = fixed_dimensions(geometry, names)
+    fixed_notes = {
+        k: "mm" if k.endswith("_mm") else "not a length: a count or a model setting" for k in fixed
+    }
     poly = part.outline
     rings = [
         [(float(px), float(py)) for px, py in np.asarray(ring.coords)[:-1]]

@@ -266,7 +266,7 @@ def print_sheet(
     section_list : :func:`sections`.
     response : ``x``, ``y`` (the response table's drive and output columns), ``x_range`` (min,
         max) of the drive, ``table`` (the response file's name).
-    files : ``stl``, ``3mf``, ``cad``, ``step`` names of the part's files.
+    files : ``stl``, ``3mf``, ``cad``, ``step``, ``dxf`` names of the part's files.
     settings : PrintSettings
 
     Returns
@@ -281,11 +281,15 @@ def print_sheet(
     thinnest = section_list[0].thickness_mm if section_list else None
     lines = [f"# Print sheet — {title}", ""]
     if not is_printed_polymer(material):
+        # a steel part is cut or machined: no printer settings, only what to measure
         lines += [
-            f"**{material.name} (E {float(material.E_MPa):g} MPa) is not an FDM filament: the "
-            "print settings below do not apply; make the part from best.step or best.dxf.**",
+            f"**{material.name} (E {float(material.E_MPa):g} MPa) is not an FDM filament:** "
+            f"make the part from `{files['step']}` or the outline `{files['dxf']}` "
+            f"({w:.4g} x {h:.4g} mm, {t:.4g} mm thick, volume {volume:.5g} mm³); "
+            f"`{files['cad']}` rebuilds it with its named dimensions. No print settings apply.",
             "",
         ]
+        return "\n".join(lines + _measure(material, volume, response, run_dir, 1))
     lines += [
         "## What to print",
         f"- `{files['3mf']}` (the settings below are in it) or `{files['stl']}`: one part, "
@@ -334,14 +338,20 @@ def print_sheet(
             "between its ends: Arachne varies the line width along it). The calibrated thickness "
             "offset and a re-trim absorb what is left.",
         ]
+    return "\n".join([*lines, "", *_measure(material, volume, response, run_dir)])
+
+
+def _measure(
+    material: Any, volume: float, response: Mapping[str, Any], run_dir: str, level: int = 2
+) -> list[str]:
+    """The sheet's last section: what to measure after printing, and the commands."""
     mass = volume * float(material.density_kg_m3) * 1e-6  # mm^3 x kg/m^3 -> g
     x, y = response.get("x"), response.get("y")
     x_lo, x_hi = response.get("x_range") or (float("nan"), float("nan"))
-    lines += [
-        "",
-        "## Measure after printing",
+    lines = [
+        f"{'#' * level} Measure after {'printing' if level == 2 else 'making'}",
         "1. Before testing: the height along z and the thinnest section (calipers / micrometer, "
-        "mm) against the table above"
+        f"mm) against {'the table above' if level == 2 else 'the drawing'}"
         + (f"; the mass ({mass:.3g} g solid)." if np.isfinite(mass) else "."),
     ]
     if x and y:
@@ -357,4 +367,4 @@ def print_sheet(
     else:
         lines.append("2. The kind gives no response table to measure against.")
     lines.append("")
-    return "\n".join(lines)
+    return lines

@@ -550,6 +550,7 @@ def handoff_files(
                 "3mf": names["3mf"],
                 "cad": names["cad"],
                 "step": f"{stem}.step",
+                "dxf": f"{stem}.dxf",
             },
         )
         return text.encode("utf-8")

@@ -234,9 +234,17 @@ def test_a_metal_part_gets_no_print_settings():
         part=part,
         section_list=[],
         response={},
-        files={"stl": "best.stl", "3mf": "best.3mf", "cad": "best_cad.py", "step": "best.step"},
+        files={
+            "stl": "best.stl",
+            "3mf": "best.3mf",
+            "cad": "best_cad.py",
+            "step": "best.step",
+            "dxf": "best.dxf",
+        },
     )
     assert "is not an FDM filament" in text and "no response table" in text
+    assert "best.dxf" in text and "Measure after making" in text
+    assert "layer height" not in text and "lines" not in text  # no print settings
 
 
 # ---- the parametric CAD script -------------------------------------------------------------
