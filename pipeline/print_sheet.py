@@ -60,6 +60,9 @@ class PrintSettings:
     whole_tolerance : float, lines
         A section within this many lines of a whole number counts as whole (0.05 lines = 0.02
         mm at 0.4 mm, about a printer's extrusion scatter).
+    max_perimeters : int
+        3: a section of more than 6 lines is perimeters and 100 % infill whatever the count
+        (a thick-walled part needs no more loops).
     orientation : str
         How the part lies on the bed (as best.stl).
     """
@@ -69,10 +72,11 @@ class PrintSettings:
     layer_height_mm: float = 0.2
     infill_percent: float = 100.0
     whole_tolerance: float = 0.05
+    max_perimeters: int = 3
     orientation: str = (
-        "flat: the outline on the bed, its out-of-plane thickness along z (best.stl as written: "
-        "laid flat, turned to the bed axes); every layer is a whole section of the part, so "
-        "the flexures bend in the plane of the layers and no layer line is loaded across"
+        "flat: the outline on the bed, its out-of-plane thickness along z (as the STL is "
+        "written: laid flat, turned to the bed axes); every layer is a whole section of the "
+        "part, so the flexures bend in the plane of the layers and no layer line is loaded across"
     )
 
     def lines(self, section_mm: float) -> float:
@@ -85,9 +89,10 @@ class PrintSettings:
 
     def perimeters(self, thinnest_mm: float) -> int:
         """Perimeter loops so the thinnest section is perimeters only: half its lines (a loop
-        lays one line on each side of a wall), at least 1; thicker sections are filled by the
-        100 % infill between the loops."""
-        return max(1, int(math.floor(self.lines(thinnest_mm) / 2.0 + self.whole_tolerance)))
+        lays one line on each side of a wall), at least 1 and at most :attr:`max_perimeters`;
+        thicker sections are filled by the 100 % infill between the loops."""
+        n = int(math.floor(self.lines(thinnest_mm) / 2.0 + self.whole_tolerance))
+        return min(self.max_perimeters, max(1, n))
 
 
 @dataclass(frozen=True)

@@ -207,6 +207,7 @@ def test_walls_per_section_and_layers():
     assert s.is_whole(0.8) and s.is_whole(0.8001) and s.is_whole(1.2)
     assert not s.is_whole(1.0) and not s.is_whole(0.2)  # 2.5 lines; less than one line
     assert s.perimeters(0.8) == 1 and s.perimeters(1.6) == 2 and s.perimeters(1.0) == 1
+    assert s.perimeters(12.0) == 3  # a thick wall: perimeters and 100 % infill
     meanings = {
         "t_mm": "in-plane thickness of the beam (mm)",
         "B_mm": "out-of-plane width of the part (mm)",  # z: layers, not lines
