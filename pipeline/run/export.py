@@ -492,6 +492,8 @@ def handoff_files(
     -------
     dict of file name to callable returning bytes (``cad``, ``3mf``, ``sheet`` in that order).
     """
+    import functools
+
     from flexopt.pipeline.cad_script import cad_script
     from flexopt.pipeline.labels import variable_meanings
     from flexopt.pipeline.print_sheet import (
@@ -503,6 +505,8 @@ def handoff_files(
     from flexopt.pipeline.threemf import threemf_bytes
 
     names = {fmt: handoff_name(stem, fmt) for fmt in HANDOFF_FORMATS}
+    # once for the 3MF and the sheet: the outline's estimate takes seconds on a large outline
+    thinnest_mm = functools.cache(lambda: _thinnest_mm(detail, bed))
     material = study.material.to_material()
     title = f"{study.name}: {'best design' if stem == 'best' else stem}"
 
@@ -514,7 +518,7 @@ def handoff_files(
         from flexopt.geometry.solid import extrude
 
         mesh = extrude(bed.outline, bed.thickness_mm)
-        thinnest = _thinnest_mm(detail, bed)
+        thinnest = thinnest_mm()
         return threemf_bytes(
             mesh.vertices,
             mesh.faces,
@@ -543,7 +547,7 @@ def handoff_files(
             run_dir=run_dir,
             material=material,
             part=bed,
-            section_list=sections(tuple(space.names), x, meanings, _thinnest_mm(detail, bed)),
+            section_list=sections(tuple(space.names), x, meanings, thinnest_mm()),
             response=response,
             files={
                 "stl": f"{stem}.stl",
