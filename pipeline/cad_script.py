@@ -171,6 +171,14 @@ def outline_of(
     return rings, float(part.thickness_mm)
 
 
+def _python_text(text: str) -> str:
+    """A Python literal of ``text``: a triple-quoted block that reads as the YAML it holds, or
+    its repr when the text has a backslash or a triple quote (which the block would change)."""
+    if "\\" in text or '"""' in text or not text.endswith("\n"):
+        return repr(text)
+    return '"""\\\n' + text + '"""'
+
+
 def _dict_lines(values: Mapping[str, float], notes: Mapping[str, str]) -> str:
     lines = []
     for name, value in values.items():
@@ -213,7 +221,7 @@ FIXED = {{
 # ---- below: how the part is made (no dimensions to change) ----------------------------------
 KIND = {kind!r}
 #: The resolved study (the run folder's study.yaml); the dimensions above replace its values.
-STUDY_YAML = {study_yaml!r}
+STUDY_YAML = {study_yaml}
 #: The design and fixed dimensions this file was written with, and the outline they give (mm,
 #: design frame, exterior counter-clockwise then the holes) and its thickness along z (mm).
 EXPORTED_DESIGN = {exported_design}
@@ -318,7 +326,7 @@ def cad_script(
         design=design,
         design_lines=_dict_lines(values, notes),
         fixed_lines=_dict_lines(fixed, fixed_notes),
-        study_yaml=study_to_yaml(study),
+        study_yaml=_python_text(study_to_yaml(study)),
         exported_design=pprint.pformat(values, sort_dicts=False, width=100),
         exported_fixed=pprint.pformat(fixed, sort_dicts=False, width=100),
         outline=pprint.pformat(rings, width=100, compact=True),

@@ -265,6 +265,8 @@ def test_the_cad_script_names_the_dimensions_and_rebuilds_the_part(run_copy, cap
     assert "length of the plate (mm); range 10 … 40" in text
     ns = _script(run_dir)
     assert ns["DESIGN"] == {"a_mm": a, "web_mm": web}
+    assert 'STUDY_YAML = """\\\nname: handoff\n' in text  # the study reads as YAML
+    assert ns["STUDY_YAML"].startswith("name: handoff\n")
     assert ns["FIXED"] == {"hole_mm": 2.0, "height_mm": HEIGHT_MM}
 
     # the solid is best.step's: the same volume, the design frame (turned 31 deg as drawn)
