@@ -256,7 +256,10 @@ def build_parser() -> argparse.ArgumentParser:
             "kind draws the part: a spring's axis at the origin); --frame chooses. A sheet part "
             "(the leaf-spring joint's leaf) is laid flat as its flat profile, and its DXF is "
             "that profile. --format vtu writes the design's beam shapes per load step and its "
-            "stress field for ParaView (in the design frame). --format yaml writes the design "
+            "stress field for ParaView (in the design frame). --format cad writes a "
+            "parametric build123d script of the part (its dimensions named at the top), 3mf "
+            "the part with the print settings it assumes, sheet its one-page print sheet. "
+            "--format yaml writes the design "
             "as a study instead (the run's study "
             "with the design's values set), which flexopt evaluate solves to the numbers of "
             "best.json."
@@ -276,9 +279,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     export.add_argument(
         "--format",
-        choices=("stl", "dxf", "step", "vtu", "yaml"),
+        choices=("stl", "dxf", "step", "vtu", "cad", "3mf", "sheet", "yaml"),
         default=None,
-        help="file format (default: what --out ends in, else stl)",
+        help="file format (default: what --out ends in, else stl); cad: the parametric "
+        "build123d script (best_cad.py), 3mf: the part with its print settings (best.3mf), "
+        "sheet: the one-page print sheet (print_sheet.md)",
     )
     export.add_argument(
         "--out",
@@ -675,6 +680,8 @@ def _export(args: argparse.Namespace) -> int:
         return code
     if outcome.format == "vtu":  # no part: the mesh and results for ParaView
         print(f"wrote {outcome.path} (design {outcome.design}, VTU: shapes and stress field)")
+    elif outcome.format in HANDOFF_LINES:  # the part's hand-off files
+        print(f"wrote {outcome.path} (design {outcome.design}, {HANDOFF_LINES[outcome.format]})")
     else:
         _print_part(outcome)
     # (an evaluate folder's design is judged by its own verdict, not by the run's constraints)
@@ -682,6 +689,14 @@ def _export(args: argparse.Namespace) -> int:
         reason = f": {outcome.evaluation.reason}" if outcome.evaluation.reason else ""
         print(f"{prog}: warning: this design is not feasible{reason}", file=sys.stderr)
     return EXIT_OK
+
+
+#: What ``flexopt export --format cad|3mf|sheet`` says it wrote.
+HANDOFF_LINES = {
+    "cad": "parametric build123d script: change a dimension at its top and run it",
+    "3mf": "the part laid flat with the print settings it assumes",
+    "sheet": "print sheet: what to print, how, what to measure",
+}
 
 
 def _print_part(outcome: Any) -> None:

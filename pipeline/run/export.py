@@ -1,5 +1,5 @@
-"""``flexopt export``: one design of a run or evaluate folder as STL, DXF, STEP, VTU or a
-study."""
+"""``flexopt export``: one design of a run or evaluate folder as STL, DXF, STEP, VTU, a hand-off
+file (a parametric CAD script, a 3MF with print settings, a print sheet) or a study."""
 
 from __future__ import annotations
 
@@ -49,7 +49,21 @@ EXPORT_FORMATS = ("stl", "dxf", "step")
 VTU_FORMAT = "vtu"
 
 #: File name endings taken as a format when ``--format`` is not given.
-_SUFFIX_FORMATS = {".stl": "stl", ".dxf": "dxf", ".step": "step", ".stp": "step", ".vtu": "vtu"}
+_SUFFIX_FORMATS = {
+    ".stl": "stl",
+    ".dxf": "dxf",
+    ".step": "step",
+    ".stp": "step",
+    ".vtu": "vtu",
+    ".py": "cad",
+    ".3mf": "3mf",
+    ".md": "sheet",
+}
+#: ``flexopt export --format cad|3mf|sheet``: the hand-off files of a part (issue #26 item 5):
+#: its parametric build123d script (:mod:`pipeline.cad_script`), a 3MF laid flat with the print
+#: settings the design assumes (:mod:`pipeline.threemf`) and the one-page print sheet
+#: (:mod:`pipeline.print_sheet`). Each has its own name, after the design's (:func:`handoff_name`).
+HANDOFF_FORMATS = ("cad", "3mf", "sheet")
 
 STEP_EXTRA_FIX = "--format step needs the optional extra: pip install 'flexopt[step]'"
 #: The frame each format is written in unless ``--frame`` says otherwise (docs/usage.md): STL is
@@ -234,13 +248,14 @@ def _export_format(fmt: str | None, out: Path | None) -> str:
     implied = _SUFFIX_FORMATS.get(out.suffix.lower()) if out is not None else None
     if fmt is None:
         return implied or "stl"
-    if fmt not in (*EXPORT_FORMATS, VTU_FORMAT):
-        known = ", ".join((*EXPORT_FORMATS, VTU_FORMAT))
+    if fmt not in (*EXPORT_FORMATS, VTU_FORMAT, *HANDOFF_FORMATS):
+        known = ", ".join((*EXPORT_FORMATS, VTU_FORMAT, *HANDOFF_FORMATS))
         raise StudyError("--format", f"got {echo(fmt)}; use one of {known}")
     if implied is not None and implied != fmt:
+        ending = next((k for k, v in _SUFFIX_FORMATS.items() if v == fmt), f".{fmt}")
         raise StudyError(
             "--out",
-            f"'{out}' ends in {out.suffix} but --format is {fmt}; name the file .{fmt} or drop "  # type: ignore[union-attr]
+            f"'{out}' ends in {out.suffix} but --format is {fmt}; name the file {ending} or drop "  # type: ignore[union-attr]
             "--format",
         )
     return fmt
@@ -305,6 +320,8 @@ def export_design(
         When the file cannot be written.
     """
     fmt = _export_format(fmt, out)
+    if fmt in HANDOFF_FORMATS and frame is not None:
+        raise StudyError("--frame", f"--format {fmt} chooses its own frame; drop --frame")
     if fmt == VTU_FORMAT and frame == "bed":
         raise StudyError("--frame", "a VTU is written in the design frame only; drop --frame")
     if frame is not None and frame not in DEFAULT_FRAMES.values():
@@ -325,16 +342,18 @@ def export_design(
         problem = build_problem(study)
         x = _nominal_design(problem, study)
         design = "evaluated"
-        default = f"design.{fmt}"
+        default = handoff_name("design", fmt) if fmt in HANDOFF_FORMATS else f"design.{fmt}"
     else:
         read_run_record(run_dir)  # a folder of flexopt run, its run.json readable
         study = run_folder_study(run_dir, "RUN_DIR")
         problem = build_problem(study)
         x, _ = _design_vector(run_dir, design, problem.space, Columns.of(problem))
-        default = f"best.{fmt}" if design == "best" else f"design-{int(design)}.{fmt}"
+        stem = "best" if design == "best" else f"design-{int(design)}"
+        default = handoff_name(stem, fmt) if fmt in HANDOFF_FORMATS else f"{stem}.{fmt}"
     target = out or run_dir / default
     if target.is_dir():
-        raise StudyError("--out", f"'{target}' is a folder; give a file name ending in .{fmt}")
+        ending = next((k for k, v in _SUFFIX_FORMATS.items() if v == fmt), f".{fmt}")
+        raise StudyError("--out", f"'{target}' is a folder; give a file name ending in {ending}")
     if not target.parent.is_dir():
         raise StudyError("--out", f"folder '{target.parent}' does not exist; create it first")
     try:
@@ -346,7 +365,13 @@ def export_design(
     if fmt == VTU_FORMAT:
         return _export_vtu(target, design, x, detail, study.kind)
     if detail.outline is None or not detail.height_mm:
+        if fmt == "cad":
+            from flexopt.pipeline.cad_script import NO_OUTLINE
+
+            raise ExportError(NO_OUTLINE.format(kind=study.kind))
         raise ExportError(f"kind '{study.kind}' gives no outline and height_mm to extrude")
+    if fmt in HANDOFF_FORMATS:
+        return _export_handoff(target, design, fmt, study, problem, x, detail, run_dir, evaluate)
     from flexopt.geometry.solid import StepUnavailable
 
     try:
@@ -401,6 +426,191 @@ def _export_vtu(
     zero = (0.0, 0.0, 0.0)  # no part: no volume, size or triangles
     return ExportOutcome(
         target, design, x, detail.evaluation, 0.0, 0, zero, VTU_FORMAT, frame="design"
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Hand-off files: the parametric CAD script, the 3MF with print settings, the print sheet
+
+
+def handoff_name(stem: str, fmt: str) -> str:
+    """The file name of a hand-off file of design ``stem`` (``best``, ``design-INDEX`` or
+    ``design``): ``best_cad.py``, ``best.3mf``, ``print_sheet.md`` (``STEM_print_sheet.md``
+    for any other design)."""
+    if fmt == "cad":
+        return f"{stem}_cad.py"
+    if fmt == "3mf":
+        return f"{stem}.3mf"
+    if fmt == "sheet":
+        from flexopt.pipeline.print_sheet import PRINT_SHEET
+
+        return PRINT_SHEET if stem == "best" else f"{stem}_{PRINT_SHEET}"
+    raise ValueError(f"{fmt!r} is not a hand-off format ({', '.join(HANDOFF_FORMATS)})")
+
+
+def _thinnest_mm(detail: DesignDetail, part: FlatPart) -> float | None:
+    """The part's thinnest in-plane section, mm: the kind's ``min_feature_mm`` metric, else the
+    outline's estimate (:func:`geometry.solid.min_feature_mm`); None when neither works."""
+    metrics = detail.evaluation.metrics if detail.evaluation is not None else {}
+    value = (metrics or {}).get("min_feature_mm")
+    if isinstance(value, int | float) and not isinstance(value, bool) and np.isfinite(value):
+        return float(value)
+    from flexopt.geometry.solid import min_feature_mm
+
+    try:
+        return float(min_feature_mm(part.outline))
+    except Exception:  # an outline the estimate cannot read: the sheet says no thinnest section
+        log.info("no thinnest section of the outline", exc_info=True)
+        return None
+
+
+def handoff_files(
+    study: Study,
+    problem: Any,
+    x: np.ndarray,
+    detail: DesignDetail,
+    bed: FlatPart,
+    design_part: FlatPart,
+    stem: str = "best",
+    response_table: str = "best_response.csv",
+    run_dir: str = "RUN_DIR",
+) -> dict[str, Any]:
+    """The hand-off files of a design's part, each as a function that makes its bytes.
+
+    Parameters
+    ----------
+    study, problem : the run's study and problem; x : (n_var,) the design.
+    detail : the design's detail (its outline, metrics and response table).
+    bed : the part laid flat (best.stl's, the 3MF's); design_part : in the design frame
+        (best.step's, the CAD script's).
+    stem : ``best``, ``design-INDEX`` or ``design`` (names the files: :func:`handoff_name`).
+    response_table : the file of the predicted response (named by the print sheet).
+    run_dir : the folder as the print sheet's commands name it (its absolute path: the same
+        sheet from a run and from flexopt export).
+
+    Returns
+    -------
+    dict of file name to callable returning bytes (``cad``, ``3mf``, ``sheet`` in that order).
+    """
+    import functools
+
+    from flexopt.pipeline.cad_script import cad_script
+    from flexopt.pipeline.labels import variable_meanings
+    from flexopt.pipeline.print_sheet import (
+        print_metadata,
+        print_sheet,
+        sections,
+        slicer_config,
+    )
+    from flexopt.pipeline.threemf import threemf_bytes
+
+    names = {fmt: handoff_name(stem, fmt) for fmt in HANDOFF_FORMATS}
+    # once for the 3MF and the sheet: the outline's estimate takes seconds on a large outline
+    thinnest_mm = functools.cache(lambda: _thinnest_mm(detail, bed))
+    material = study.material.to_material()
+    title = f"{study.name}: {'best design' if stem == 'best' else stem}"
+
+    def cad() -> bytes:
+        text = cad_script(study, problem, x, design_part, stem, names["cad"])
+        return text.encode("utf-8")
+
+    def threemf() -> bytes:
+        from flexopt.geometry.solid import extrude
+
+        mesh = extrude(bed.outline, bed.thickness_mm)
+        thinnest = thinnest_mm()
+        return threemf_bytes(
+            mesh.vertices,
+            mesh.faces,
+            title,
+            print_metadata(material, bed.thickness_mm, thinnest),
+            slicer_config(material, thinnest),
+            f"{study.kind} part laid flat as {stem}.stl; the print settings it assumes",
+        )
+
+    def sheet() -> bytes:
+        spec = dict(detail.plot or {})  # the run's defaults when the kind names no columns
+        xc, yc = spec.get("x", "displacement_mm"), spec.get("y", "force_N")
+        column = (detail.table or {}).get(xc) if xc else None
+        values = np.asarray(column, dtype=float) if column is not None else np.array([])
+        values = values[np.isfinite(values)]
+        response = {
+            "x": xc if values.size else None,
+            "y": yc if yc in (detail.table or {}) else None,
+            "x_range": (float(values.min()), float(values.max())) if values.size else None,
+            "table": response_table,
+        }
+        space = problem.space
+        meanings = variable_meanings(study.kind, space.names, problem)
+        text = print_sheet(
+            title=title,
+            run_dir=run_dir,
+            material=material,
+            part=bed,
+            section_list=sections(tuple(space.names), x, meanings, thinnest_mm()),
+            response=response,
+            files={
+                "stl": f"{stem}.stl",
+                "3mf": names["3mf"],
+                "cad": names["cad"],
+                "step": f"{stem}.step",
+                "dxf": f"{stem}.dxf",
+            },
+        )
+        return text.encode("utf-8")
+
+    return {names["cad"]: cad, names["3mf"]: threemf, names["sheet"]: sheet}
+
+
+def _export_handoff(
+    target: Path,
+    design: str,
+    fmt: str,
+    study: Study,
+    problem: Any,
+    x: np.ndarray,
+    detail: DesignDetail,
+    run_dir: Path,
+    evaluate: bool,
+) -> ExportOutcome:
+    """Write one hand-off file of a rebuilt design (:func:`export_design` with ``fmt`` one of
+    :data:`HANDOFF_FORMATS`)."""
+    stem = "design" if design == "evaluated" else "best" if design == "best" else f"design-{design}"
+    try:
+        bed = part_of(detail)
+        part = part_of(detail, "design")
+        files = handoff_files(
+            study,
+            problem,
+            x,
+            detail,
+            bed,
+            part,
+            stem,
+            "response.csv" if evaluate else "best_response.csv",
+            str(run_dir.resolve()),
+        )
+        data = files[handoff_name(stem, fmt)]()
+    except ValueError as exc:  # GeometryError
+        raise ExportError(f"design {design} cannot be made a part: {exc}") from exc
+    write_atomic(target, data)
+    log.info("wrote %s (%s)", target, fmt)
+    used = part if fmt == "cad" else bed
+    w, h = used.footprint_mm
+    return ExportOutcome(
+        target,
+        design,
+        x,
+        detail.evaluation,
+        float(used.outline.area * used.thickness_mm),
+        0,
+        (w, h, used.thickness_mm),
+        fmt,
+        (w, h),
+        used.thickness_mm,
+        used.rotation_deg,
+        used.sheet,
+        used.frame,
     )
 
 

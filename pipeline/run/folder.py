@@ -47,6 +47,9 @@ RUN_FILES = (
     "best.dxf",
     "best.step",
     "best.vtu",
+    "best_cad.py",
+    "best.3mf",
+    "print_sheet.md",
     "report.md",
     "report.html",
 )

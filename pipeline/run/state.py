@@ -32,6 +32,7 @@ from flexopt.pipeline.run.evaluator import Evaluator
 from flexopt.pipeline.run.export import (
     EXPORT_FORMATS,
     export_frame,
+    handoff_files,
     part_bytes,
     part_of,
     step_available,
@@ -530,6 +531,11 @@ class RunState:
                 self._early = early
             elif step_available():  # the optional extra; without it no STEP and no note
                 self.artefact("best.step", lambda: part_bytes(design, "step"), group="step")
+            x_best = np.array(best.x, dtype=float)  # best_cad.py, best.3mf, print_sheet.md
+            for name, make in handoff_files(
+                study, problem, x_best, detail, part, design, run_dir=str(self.run_dir.resolve())
+            ).items():
+                self.artefact(name, make)
         elif detail is not None and (detail.outline is None or not detail.height_mm):
             self.notes.append(
                 "best.stl and best.dxf skipped: the kind gives no outline and height_mm"

@@ -1,0 +1,335 @@
+"""A parametric CAD script of a design's part: a build123d Python script (issue #26 item 5).
+
+``best_cad.py`` of a run folder (``design_cad.py`` of an evaluate folder, ``flexopt export
+--format cad``) is written by :func:`cad_script`. At its top it names the part's dimensions: the
+study's design variables with this design's values (``DESIGN``) and the numbers of the study's
+``geometry:`` block (``FIXED``: pads, lengths, ... that the optimiser does not move). Run, it
+rebuilds the part's solid and writes it as STEP beside itself; an engineer changes a dimension
+and runs it again.
+
+Why the outline is drawn by flexopt and not by build123d sketch operations in the script: every
+kind's outline is its own construction (a tapered beam offset from a spline through design
+points, a spiral of arms, a mechanism's joints), which the solvers and best.step share. Writing it
+again in build123d would be a second implementation that can drift from the one the design was
+solved on. So the script calls :func:`outline_of` (the kind's own geometry: the study's detail,
+without the checks that do not draw the part, :data:`SKIPPED_BLOCKS` and :data:`FAST_CHECKS`;
+~0.3 s for the constant-force part)
+and makes the solid with build123d exactly as :func:`geometry.solid.step_bytes` makes best.step:
+one planar face bounded by the outline's rings, extruded along z by the part's thickness, in
+the design frame. Without flexopt installed, the script builds the outline as exported (kept in
+the script) and refuses changed dimensions rather than ignoring them.
+
+A kind whose design gives no outline and height has no script (:data:`NO_OUTLINE`).
+"""
+
+from __future__ import annotations
+
+import pprint
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "SKIPPED_BLOCKS",
+    "FAST_CHECKS",
+    "NO_OUTLINE",
+    "fixed_dimensions",
+    "cad_script",
+    "outline_of",
+]
+
+#: Study blocks left out when the script rebuilds the outline: the robustness scatter and the
+#: fatigue duty cycle are judged after the design is drawn and never change its outline. If a
+#: study does not validate without them, the script keeps them (slower, same outline).
+SKIPPED_BLOCKS = ("robustness", "duty_cycle")
+
+#: Checks a kind's outline does not depend on, switched off when the script rebuilds it (the
+#: constant-force part's plane-stress check is 18 s of its 18.6 s detail). Only where the
+#: outline is the same with and without (tests/pipeline/test_handoff.py checks the volumes):
+#: the SEA and threshold springs export the outline their 3D check's peak converged on, and
+#: the mechanism kind's check re-solves the shared width (parallel-guide: 7.7 % thicker
+#: without it), so their checks stay on.
+FAST_CHECKS: dict[str, dict[str, dict[str, Any]]] = {
+    "constant_force": {"fidelity": {"enabled": False}},
+    "flexure_pivot": {"fidelity": {"plane_stress": False}},
+}
+
+#: The one line a kind without an outline gets instead of a script.
+NO_OUTLINE = "kind '{kind}' gives no outline and height_mm: no parametric CAD script of its part"
+
+
+def fixed_dimensions(
+    geometry: Mapping[str, Any], variables: tuple[str, ...] = ()
+) -> dict[str, float | int]:
+    """The numbers of a study's ``geometry:`` block (its dump), in order: the script's FIXED.
+
+    Parameters
+    ----------
+    geometry : mapping
+        ``study.model_dump(mode="json")["geometry"]``.
+    variables : tuple of str
+        The design variables' names: a geometry key of the same name is the variable's (the
+        design replaces it), so it is not listed as fixed.
+
+    Returns
+    -------
+    dict of str to float or int
+        Every scalar number (not a bool, not the kind, not a list or block: those stay in the
+        embedded study, changed there if at all).
+    """
+    return {
+        key: value
+        for key, value in geometry.items()
+        if isinstance(value, int | float) and not isinstance(value, bool) and key not in variables
+    }
+
+
+def _study_without(raw: dict[str, Any], blocks: tuple[str, ...]) -> dict[str, Any]:
+    return {key: value for key, value in raw.items() if key not in blocks}
+
+
+def outline_of(
+    study_yaml: str,
+    design: Mapping[str, float],
+    fixed: Mapping[str, float] | None = None,
+    base: str | None = None,
+) -> tuple[list[list[tuple[float, float]]], float]:
+    """The part's outline and thickness from a study and named dimensions (what the script runs).
+
+    Parameters
+    ----------
+    study_yaml : str
+        The resolved study (a run folder's study.yaml).
+    design : mapping of str to float
+        Every design variable of the study's design space, by name, in its own unit.
+    fixed : mapping of str to float, optional
+        Numbers of the ``geometry:`` block to replace.
+    base : str, optional
+        The folder the study's table files are relative to (the run folder).
+
+    Returns
+    -------
+    (rings, thickness_mm)
+        rings: the outline in the design frame (mm), cleaned of collinear vertices, exterior
+        first (counter-clockwise) then its holes, each a list of (x, y) without the closing
+        point; thickness_mm: the extrusion along z (mm).
+
+    Raises
+    ------
+    StudyError
+        For a changed study that does not validate (the message names the key).
+    KeyError
+        For a design variable missing from ``design`` or a name that is not one.
+    ExportError
+        When the kind gives no outline and height for the design.
+    """
+    import contextlib
+    from pathlib import Path
+
+    import yaml
+    from flexopt.pipeline.errors import StudyError
+    from flexopt.pipeline.problems import ExportError
+    from flexopt.pipeline.run.export import part_of
+    from flexopt.pipeline.run.setup import build_problem
+    from flexopt.pipeline.study import validate_study
+    from flexopt.pipeline.targets import table_root
+
+    raw = yaml.safe_load(study_yaml)
+    geometry = dict(raw.get("geometry") or {})
+    unknown = sorted(set(fixed or {}) - set(geometry))
+    if unknown:
+        raise KeyError(f"FIXED names {', '.join(unknown)}, not in the study's geometry block")
+    raw["geometry"] = {**geometry, **dict(fixed or {})}
+    fast = _study_without(raw, SKIPPED_BLOCKS)
+    for key, values in FAST_CHECKS.get(str(geometry.get("kind")), {}).items():
+        fast[key] = {**(fast.get(key) or {}), **values}
+    where = table_root(Path(base)) if base else contextlib.nullcontext()
+    with where:
+        try:
+            study = validate_study(fast)
+        except StudyError:
+            study = validate_study(raw)
+        problem = build_problem(study)
+    names = tuple(problem.space.names)
+    missing = [n for n in names if n not in design]
+    extra = sorted(set(design) - set(names))
+    if missing or extra:
+        raise KeyError(
+            f"DESIGN must name every design variable ({', '.join(names)}); missing "
+            f"{', '.join(missing) or 'none'}, not variables: {', '.join(extra) or 'none'}"
+        )
+    x = np.array([float(design[n]) for n in names], dtype=float)
+    detail = problem.detail(x)
+    if detail.outline is None or not detail.height_mm:
+        raise ExportError(NO_OUTLINE.format(kind=study.kind))
+    part = part_of(detail, "design")
+    rings = [
+        [(float(px), float(py)) for px, py in np.asarray(ring.coords)[:-1]]
+        for ring in (part.outline.exterior, *part.outline.interiors)
+    ]
+    return rings, float(part.thickness_mm)
+
+
+def _python_text(text: str) -> str:
+    """A Python literal of ``text``: a triple-quoted block that reads as the YAML it holds, or
+    its repr when the text has a backslash or a triple quote (which the block would change)."""
+    if "\\" in text or '"""' in text or not text.endswith("\n"):
+        return repr(text)
+    return '"""\\\n' + text + '"""'
+
+
+def _dict_lines(values: Mapping[str, float], notes: Mapping[str, str]) -> str:
+    lines = []
+    for name, value in values.items():
+        note = notes.get(name, "")
+        lines.append(f"    {name!r}: {value!r},{f'  # {note}' if note else ''}")
+    return "\n".join(lines)
+
+
+_TEMPLATE = '''#!/usr/bin/env python3
+"""{title}: a parametric build123d script of the part (flexopt export --format cad).
+
+Change a dimension in DESIGN or FIXED below and run it:
+
+    python {script}    # writes {step} beside this file and prints the solid's volume
+
+Units: mm (and each variable's own unit, in its comment). The outline is drawn by flexopt's
+geometry of the `{kind}` kind from these dimensions (the code that drew best.step; needs
+`pip install flexopt[step]`), and the solid is made here with build123d: the outline in the
+x-y plane of the design frame (where the kind draws the part), extruded along z from 0 by its
+out-of-plane thickness. Without flexopt, the outline as exported (OUTLINE_AS_EXPORTED) is used
+and a changed dimension is refused. This script draws the part; it does not check it: solve a
+changed design with `flexopt evaluate` of the study (`flexopt export RUN --format yaml`).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+# ---- design variables: the study's design space, the values of design {design} --------------
+DESIGN = {{
+{design_lines}
+}}
+
+# ---- fixed dimensions: the numbers of the study's geometry block (not optimised) -------------
+FIXED = {{
+{fixed_lines}
+}}
+
+# ---- below: how the part is made (no dimensions to change) ----------------------------------
+KIND = {kind!r}
+#: The resolved study (the run folder's study.yaml); the dimensions above replace its values.
+STUDY_YAML = {study_yaml}
+#: The design and fixed dimensions this file was written with, and the outline they give (mm,
+#: design frame, exterior counter-clockwise then the holes) and its thickness along z (mm).
+EXPORTED_DESIGN = {exported_design}
+EXPORTED_FIXED = {exported_fixed}
+OUTLINE_AS_EXPORTED = {outline}
+THICKNESS_AS_EXPORTED_MM = {thickness!r}
+#: The exported solid's volume (mm^3, outline area x thickness), to compare a rebuild with.
+VOLUME_AS_EXPORTED_MM3 = {volume!r}
+
+
+def outline():
+    """The outline's rings (exterior first, then holes; (x, y) mm) and its thickness (mm)."""
+    try:
+        from flexopt.pipeline.cad_script import outline_of
+    except ImportError:
+        if DESIGN != EXPORTED_DESIGN or FIXED != EXPORTED_FIXED:
+            sys.exit(
+                "changed dimensions need flexopt to draw the outline: pip install 'flexopt[step]'"
+            )
+        return OUTLINE_AS_EXPORTED, THICKNESS_AS_EXPORTED_MM
+    return outline_of(STUDY_YAML, DESIGN, FIXED, base=str(Path(__file__).resolve().parent))
+
+
+def build():
+    """The part as a build123d solid: one face bounded by the rings, extruded along z."""
+    import build123d as bd
+
+    rings, thickness_mm = outline()
+    wires = [bd.Wire.make_polygon([(x, y, 0.0) for x, y in ring], close=True) for ring in rings]
+    face = bd.Face(wires[0], wires[1:])
+    return bd.extrude(face, amount=thickness_mm)
+
+
+if __name__ == "__main__":
+    import build123d as bd
+
+    solid = build()
+    out = Path(__file__).with_suffix(".step")
+    if not bd.export_step(solid, str(out)):
+        sys.exit(f"build123d could not write {{out}}")
+    exported = VOLUME_AS_EXPORTED_MM3
+    print(f"wrote {{out}}: volume {{solid.volume:.9g}} mm^3 (as exported: {{exported:.9g}})")
+'''
+
+
+def cad_script(
+    study: Any,
+    problem: Any,
+    x: np.ndarray,
+    part: Any,
+    design: str = "best",
+    script_name: str = "best_cad.py",
+) -> str:
+    """The parametric build123d script of a design's part.
+
+    Parameters
+    ----------
+    study : Study
+        The run's resolved study (embedded as YAML; its geometry numbers become FIXED).
+    problem : DesignProblem
+        Its design space names the variables of DESIGN (bounds and meanings in comments).
+    x : (n_var,) float
+        The design's values, in the space's order and units.
+    part : geometry.solid.FlatPart
+        The part in the design frame (best.step's), kept in the script for use without flexopt.
+    design : str
+        ``best``, an evaluation index or ``evaluated`` (named in the script's docstring).
+    script_name : str
+        The file's name (the STEP it writes is named after it).
+
+    Returns
+    -------
+    str
+        The script's text (Python, runs with build123d; with flexopt for changed dimensions).
+    """
+    from flexopt.pipeline.labels import variable_meanings
+    from flexopt.pipeline.study import study_to_yaml
+
+    space = problem.space
+    names = tuple(space.names)
+    values = {n: float(v) for n, v in zip(names, np.asarray(x, dtype=float), strict=True)}
+    meanings = variable_meanings(study.kind, names, problem)
+    notes = {
+        n: f"{meanings.get(n) or n}; range {lo:.6g} … {hi:.6g}".strip()
+        for n, lo, hi in zip(names, space.lower, space.upper, strict=True)
+    }
+    geometry = study.model_dump(mode="json", exclude_none=True)["geometry"]
+    fixed = fixed_dimensions(geometry, names)
+    fixed_notes = {
+        k: "mm" if k.endswith("_mm") else "not a length: a count or a model setting" for k in fixed
+    }
+    poly = part.outline
+    rings = [
+        [(float(px), float(py)) for px, py in np.asarray(ring.coords)[:-1]]
+        for ring in (poly.exterior, *poly.interiors)
+    ]
+    return _TEMPLATE.format(
+        title=f"{study.name}: design {design}",
+        script=script_name,
+        step=script_name.removesuffix(".py") + ".step",
+        kind=study.kind,
+        design=design,
+        design_lines=_dict_lines(values, notes),
+        fixed_lines=_dict_lines(fixed, fixed_notes),
+        study_yaml=_python_text(study_to_yaml(study)),
+        exported_design=pprint.pformat(values, sort_dicts=False, width=100),
+        exported_fixed=pprint.pformat(fixed, sort_dicts=False, width=100),
+        outline=pprint.pformat(rings, width=100, compact=True),
+        thickness=float(part.thickness_mm),
+        volume=float(poly.area * part.thickness_mm),
+    )
