@@ -670,7 +670,7 @@ def requirements(study: SeaSpringStudy) -> list[Requirement]:
 #: The figures of a quantity by model (pipeline.verdict): ST as exported is the 3D correction's
 #: where made. The 3D stiffness and peak have rows of their own (:func:`_builtin.sea_spring`):
 #: the 2D rows keep the 2D figures; the life takes the 3D peak (verdict.life_of_result).
-_PEAK_3D = Figure("peak_stress_3d_MPa", "3D solid, converged peak", SOLID_3D)
+_PEAK_3D = Figure("peak_stress_3d_MPa", "3D solid", SOLID_3D)
 _ST_3D = Figure("ST_3d_mm", "3D correction", SOLID_3D)
 FIGURES = {
     "ST_mm": (Figure("ST_mm", "plane-stress fit", PLANE_STRESS), _ST_3D),
