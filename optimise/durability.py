@@ -372,6 +372,9 @@ def life_of_table(
     )
     estimate = curve.estimate and "estimate" not in curve.source.lower()
     source = curve.source + (" (estimate)" if estimate else "")
+    if spec.surface is not None and not isinstance(material, SNCurve):
+        # the data's source names its default finish; this curve is the one asked for
+        source += f"; this curve: {spec.surface} surface (Se = {curve.strength_MPa(1e6):.4g} MPa)"
     return LifeResult(
         levels=levels,
         damage_per_block=result.damage_per_block,

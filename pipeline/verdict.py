@@ -34,7 +34,8 @@ turns scalar values and a response table into verdicts. A requirement added for 
 added to :func:`builtin_requirements` / ``requirements:`` and judged here once.
 :class:`RequirementConstraints` adds the
 ``role: constraint`` items of ``requirements:`` to a kind's :class:`~optimise.DesignProblem` as
-``g <= 0`` rows.
+``g <= 0`` rows; :class:`LifeConstraints` those on the fatigue life, each computed per design
+from the response table of the same solve (the problem's ``evaluate_response``).
 """
 
 from __future__ import annotations
