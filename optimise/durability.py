@@ -38,6 +38,7 @@ __all__ = [
     "DutyLevel",
     "LevelLife",
     "LifeResult",
+    "life_constraint",
     "life_of_table",
     "signed_peak_stress",
 ]
@@ -182,6 +183,8 @@ class LifeResult:
     source : str — the S–N data's source.
     scale : float — the factor on the beam's peak stress (the verdict's highest-fidelity
         figure over the beam's), 1 when the kind has one model.
+    stress_figure : str — the stress figure the amplitudes stand for (the model and the
+        quantity: ``3D solid (peak_stress_3d_MPa)``); the table's own peak when empty.
     """
 
     levels: tuple[LevelLife, ...]
@@ -192,6 +195,7 @@ class LifeResult:
     method: str
     source: str
     scale: float
+    stress_figure: str = ""
 
     def summary(self) -> dict[str, Any]:
         """The scalars a result's summary carries (``inf`` as None: infinite life)."""
@@ -207,6 +211,7 @@ class LifeResult:
             "life_infinite": not math.isfinite(self.life_cycles),
             "life_method": self.method,
             "fatigue_data_source": self.source,
+            "life_stress_figure": self.stress_figure or "the response table's peak_stress_MPa",
         }
 
     def values(self) -> dict[str, Any]:
@@ -294,6 +299,7 @@ def life_of_table(
     stress_column: str = "peak_stress_MPa",
     scale: float = 1.0,
     scale_model: str = "",
+    stress_figure: str = "",
 ) -> LifeResult:
     """Miner's life over ``spec`` of a design whose response is ``table``.
 
@@ -306,6 +312,7 @@ def life_of_table(
     material : a built-in material's name (its ``FATIGUE_DATA``) or an :class:`SNCurve`.
     scale : factor on the peak stress (the highest-fidelity figure over the beam's, >= 0).
     scale_model : the model that factor comes from, named in ``method``.
+    stress_figure : the figure the scaled stresses stand for (model and quantity), recorded.
 
     Raises
     ------
@@ -365,6 +372,9 @@ def life_of_table(
     )
     estimate = curve.estimate and "estimate" not in curve.source.lower()
     source = curve.source + (" (estimate)" if estimate else "")
+    if spec.surface is not None and not isinstance(material, SNCurve):
+        # the data's source names its default finish; this curve is the one asked for
+        source += f"; this curve: {spec.surface} surface (Se = {curve.strength_MPa(1e6):.4g} MPa)"
     return LifeResult(
         levels=levels,
         damage_per_block=result.damage_per_block,
@@ -374,4 +384,49 @@ def life_of_table(
         method=method,
         source=source,
         scale=scale,
+        stress_figure=stress_figure,
     )
+
+
+#: The g of a life requirement whose life could not be computed (or is zero), decades: a
+#: large violation, finite so that an optimiser can still rank (as MISSING_CONSTRAINT).
+_LIFE_G_CAP = 100.0
+
+
+def life_constraint(requirement: Any, values: Mapping[str, Any]) -> float:
+    """The ``g <= 0`` row of a requirement on a life quantity, in decades.
+
+    A life spans decades (10^4 to 10^9 cycles for a tenth of the stress), so the row is the
+    distance in log10 between the value and its bound: ``log10(min) - log10(value)`` for a
+    minimum (``life_cycles``, ``life_hours``), ``log10(value) - log10(max)`` for a maximum
+    (``fatigue_damage_per_cycle_block``); a range takes the worse end. An infinite life meets
+    every minimum (``-_LIFE_G_CAP``); a life that was not computed or lies in low-cycle fatigue
+    (None, NaN) is ``+_LIFE_G_CAP``.
+
+    Parameters
+    ----------
+    requirement : a MinValue / MaxValue / Range on one of :data:`LIFE_QUANTITIES` (its
+        ``minimum`` / ``maximum`` attributes in the quantity's unit, > 0).
+    values : the life values (:meth:`LifeResult.values`).
+    """
+    raw = values.get(requirement.quantity)
+    if raw is None or isinstance(raw, bool) or math.isnan(float(raw)):
+        return _LIFE_G_CAP
+    value = float(raw)  # +inf: an infinite life
+
+    def log(v: float) -> float:
+        if v <= 0.0:
+            return -math.inf
+        return math.log10(v)
+
+    rows = []
+    lo = getattr(requirement, "minimum", None)
+    hi = getattr(requirement, "maximum", None)
+    if lo is not None and float(lo) > 0.0:
+        rows.append(log(float(lo)) - log(value))
+    if hi is not None:
+        rows.append(log(value) - log(float(hi)) if float(hi) > 0.0 else _LIFE_G_CAP)
+    if not rows:  # a minimum <= 0: met by any life
+        return -_LIFE_G_CAP
+    g = max(rows)
+    return float(min(max(g, -_LIFE_G_CAP), _LIFE_G_CAP))

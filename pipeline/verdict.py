@@ -34,7 +34,8 @@ turns scalar values and a response table into verdicts. A requirement added for 
 added to :func:`builtin_requirements` / ``requirements:`` and judged here once.
 :class:`RequirementConstraints` adds the
 ``role: constraint`` items of ``requirements:`` to a kind's :class:`~optimise.DesignProblem` as
-``g <= 0`` rows.
+``g <= 0`` rows; :class:`LifeConstraints` those on the fatigue life, each computed per design
+from the response table of the same solve (the problem's ``evaluate_response``).
 """
 
 from __future__ import annotations
@@ -44,7 +45,12 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from flexopt.optimise.durability import LIFE_QUANTITIES, LifeResult, life_of_table
+from flexopt.optimise.durability import (
+    LIFE_QUANTITIES,
+    LifeResult,
+    life_constraint,
+    life_of_table,
+)
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.hold import HoldResult, creep_law_of, hold_of_table, hold_quantities
@@ -71,6 +77,7 @@ if TYPE_CHECKING:  # annotations only: study.validate_study calls check_requirem
 __all__ = [
     "GENERIC_QUANTITIES",
     "HoldDetail",
+    "LifeConstraints",
     "LifeDetail",
     "RequirementConstraints",
     "builtin_requirements",
@@ -240,18 +247,56 @@ def check_requirement_names(study: Study) -> None:
             )
         if spec.role == "constraint":
             why = ""
-            if spec.quantity in LIFE_QUANTITIES:
-                why = "the life is computed from the response table of the judged design"
-            elif getattr(_kind(study), "problem", None) is None:
+            if getattr(_kind(study), "problem", None) is None:
                 why = f"kind {study.kind} is not optimised (flexopt evaluate only)"
             elif spec.target is not None or spec.envelope_mm is not None:
                 why = "a target curve or an envelope is judged on the best design only"
+            elif spec.quantity in LIFE_QUANTITIES:
+                why = life_constraint_refusal(study)
             if why:
                 raise StudyError(
                     f"requirements[{i}].role",
                     f"cannot be a constraint: {why}; use role: check",
                 )
     user_requirements(study)  # a target table that cannot be read is refused here too
+
+
+#: The method a kind's design problem offers for a life constraint: ``evaluate_response(x)``
+#: -> ``(Evaluation, table, x_column)``, the evaluation and the response table (each column
+#: (n_rows,), the driven column ``x_column`` and ``peak_stress_MPa``) of the same solve, or
+#: ``(Evaluation, None, "")`` when the design was not solved.
+RESPONSE_HOOK = "evaluate_response"
+
+
+def _problem_class(kind: Any) -> type | None:
+    """The class a kind's ``problem(study)`` returns, from its annotation (None: unknown)."""
+    import inspect
+    import sys
+
+    make = getattr(kind, "problem", None)
+    if make is None:
+        return None
+    try:
+        ann = inspect.signature(make).return_annotation
+    except (TypeError, ValueError):
+        return None
+    if isinstance(ann, str):
+        ann = vars(sys.modules.get(make.__module__, object())).get(ann)
+    return ann if isinstance(ann, type) and ann is not Any else None
+
+
+def life_constraint_refusal(study: Study, problem: Any = None) -> str:
+    """Why a life requirement of ``study`` cannot be an optimisation constraint ("" when it
+    can): the kind's design problem (``problem``, else the class its ``problem(study)``
+    returns) must give each evaluation's response table (:data:`RESPONSE_HOOK`); a kind whose
+    problem class cannot be known from its annotation is checked when the run builds it."""
+    owner: Any = problem if problem is not None else _problem_class(_kind(study))
+    if owner is None or callable(getattr(owner, RESPONSE_HOOK, None)):
+        return ""
+    return (
+        f"kind {study.kind} scores each design for the optimiser without its response table "
+        f"(its problem has no {RESPONSE_HOOK}), so the life of every design cannot be computed"
+    )
 
 
 def _scalars(*sources: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -431,26 +476,32 @@ def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | Non
         )
     peak = np.abs(np.asarray(table["peak_stress_MPa"], dtype=float))
     peak = peak[np.isfinite(peak)]
-    scale, model = 1.0, ""
+    scale, model, figure = 1.0, "", ""
     values = result_values(result)
-    # the figure the verdict judges the peak stress on (judge_best): the highest-ranked one the
-    # design has, not one a built-in row of its own judges (a spring's 3D row)
-    taken = {r.quantity for r in builtin_requirements(study)} - {"peak_stress_MPa"}
+    # the best figure of the peak stress the design has: the highest-ranked one, also where a
+    # built-in row judges it on its own (a spring's 3D peak): the life is judged on the best
+    # stress the run computed, not on the stress verdict's choice of row
     ladder = [
         f
         for f in figures_of(study).get("peak_stress_MPa", ())
-        if f.quantity not in taken
-        and isinstance(values.get(f.quantity), int | float)
+        if isinstance(values.get(f.quantity), int | float)
+        and not isinstance(values.get(f.quantity), bool)
         and math.isfinite(float(values[f.quantity]))
     ]
     ladder.sort(key=lambda f: -f.rank)  # stable: the first listed of a rank wins
     if ladder and ladder[0].quantity != "peak_stress_MPa" and peak.size and peak.max() > 0.0:
-        scale = float(values[ladder[0].quantity]) / float(peak.max())
-        model = ladder[0].model
+        best = ladder[0]
+        scale = float(values[best.quantity]) / float(peak.max())
+        model = best.model
+        figure = (
+            f"{best.model} ({best.quantity} = {float(values[best.quantity]):.6g} MPa, over the "
+            f"response table's peak {float(peak.max()):.6g} MPa)"
+        )
     try:
         return life_of_table(
-            spec, table, str(x_col), study.material.name, scale=scale, scale_model=model
-        )
+            spec, table, str(x_col), study.material.name, scale=scale, scale_model=model,
+            stress_figure=figure,
+        )  # fmt: skip
     except OptimiseError as exc:
         return str(exc)
 
@@ -710,6 +761,78 @@ class RequirementConstraints(ProblemWrapper):
         return replace(detail, evaluation=self._extend(detail.evaluation))
 
 
+class LifeConstraints(ProblemWrapper):
+    """A kind's design problem with the ``role: constraint`` requirements on the life as more
+    constraints, each computed per design from the response table of the same solve.
+
+    Every evaluation is the inner problem's :data:`RESPONSE_HOOK` (the evaluation and its
+    response table); the life over the study's ``duty_cycle:`` is
+    :func:`~optimise.durability.life_of_table` of that table (the stress of the model the
+    optimiser solves, unscaled: the higher-fidelity figures of :func:`life_of_result` exist
+    for the best design only), and each row is
+    :func:`~optimise.durability.life_constraint` (decades, g <= 0 when met), named
+    ``req_<name>``. The evaluation's metrics gain ``life_cycles``, ``life_hours`` (None:
+    infinite or not computed) and ``fatigue_damage_per_cycle_block``. A design whose life
+    cannot be computed (a drive beyond its traced stroke) gets the largest row.
+
+    Picklable; everything else is the inner problem's.
+    """
+
+    def __init__(self, inner: Any, study: Study, requirements: Sequence[Requirement]) -> None:
+        super().__init__(as_design_problem(inner))
+        why = life_constraint_refusal(study, self.inner)
+        if why:
+            raise StudyError("requirements", f"a life cannot be a constraint: {why}")
+        self.duty_study = study
+        self.requirements = tuple(requirements)
+        self.constraint_names = (
+            *self.inner.constraint_names,
+            *(f"req_{r.label}" for r in self.requirements),
+        )
+
+    def _extend(self, ev: Evaluation, table: Mapping[str, Any] | None, x_col: str) -> Evaluation:
+        from dataclasses import replace
+
+        study = self.duty_study
+        life: LifeResult | None = None
+        if not ev.reason and table:
+            try:
+                life = life_of_table(study.duty_cycle, table, x_col, study.material.name)  # type: ignore[arg-type]
+            except OptimiseError:
+                life = None
+        if ev.reason:
+            extra = np.full(len(self.requirements), float(np.max(ev.g, initial=1.0e12)))
+            return replace(ev, g=np.concatenate([np.asarray(ev.g, dtype=float), extra]))
+        values = life.values() if life is not None else dict.fromkeys(LIFE_QUANTITIES)
+        extra = np.array([life_constraint(r, values) for r in self.requirements], dtype=float)
+        finite = life.summary() if life is not None else {}
+        metrics = {
+            **ev.metrics,
+            "life_cycles": finite.get("life_cycles"),
+            "life_hours": finite.get("life_hours"),
+            "fatigue_damage_per_cycle_block": finite.get("fatigue_damage_per_cycle_block"),
+        }
+        return replace(
+            ev, g=np.concatenate([np.asarray(ev.g, dtype=float), extra]), metrics=metrics
+        )
+
+    def evaluate_response(self, x: np.ndarray) -> tuple[Evaluation, Mapping[str, Any] | None, str]:
+        ev, table, x_col = getattr(self.inner, RESPONSE_HOOK)(x)
+        return self._extend(ev, table, x_col), table, x_col
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        return self.evaluate_response(x)[0]
+
+    def detail(self, x: np.ndarray) -> DesignDetail:
+        from dataclasses import replace
+
+        detail = self.inner.detail(x)
+        if detail.evaluation is None:
+            return detail
+        x_col = str((detail.plot or {}).get("x") or "")
+        return replace(detail, evaluation=self._extend(detail.evaluation, detail.table, x_col))
+
+
 class LifeDetail(ProblemWrapper):
     """A kind's design problem whose :meth:`detail` carries the fatigue life over the study's
     ``duty_cycle:`` (:func:`with_life`: the summary and ``info["fatigue"]``, which a run's
@@ -724,11 +847,25 @@ class LifeDetail(ProblemWrapper):
 
 
 def with_requirement_constraints(study: Study, problem: Any) -> Any:
-    """``problem`` with the study's ``role: constraint`` scalar requirements added and, with a
-    ``duty_cycle:``, the life in its detail (:class:`LifeDetail`); or itself."""
+    """``problem`` with the study's ``role: constraint`` requirements added (those on the life
+    computed per design, :class:`LifeConstraints`; the scalar ones,
+    :class:`RequirementConstraints`) and, with a ``duty_cycle:``, the life in its detail
+    (:class:`LifeDetail`); or itself.
+
+    Raises
+    ------
+    StudyError
+        When a life constraint's kind cannot give each design's response table.
+    """
     constraints = [
         r for r in user_requirements(study) if r.role == "constraint" and not r.needs_curve
     ]
+    # the life rows first: they need the inner problem's response table (RESPONSE_HOOK), which
+    # the scalar rows' wrapper does not pass on
+    lives = [r for r in constraints if r.quantity in LIFE_QUANTITIES]
+    if lives and getattr(study, "duty_cycle", None) is not None:
+        problem = LifeConstraints(problem, study, lives)
+    constraints = [r for r in constraints if r.quantity not in LIFE_QUANTITIES]
     if constraints:
         problem = RequirementConstraints(problem, constraints)
     if getattr(study, "duty_cycle", None) is not None:

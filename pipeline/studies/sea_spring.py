@@ -358,6 +358,12 @@ class SeaSpringProblem(DesignProblem):
     def evaluate(self, x: np.ndarray) -> Evaluation:
         return self._evaluate(x)[0]
 
+    def evaluate_response(self, x: np.ndarray) -> tuple[Evaluation, dict | None, str]:
+        """The evaluation and the torque-rotation table of one solve, ``mesh.curve_steps`` rows
+        per direction as the report's (a life constraint's stresses: verdict.LifeConstraints)."""
+        ev, solved = self._evaluate(x, self.study.mesh.curve_steps)
+        return ev, (None if solved is None else curve_table(solved[2])), "rotation_deg"
+
     def _evaluate(self, x: np.ndarray, steps: int = 1, keep_model: bool = False) -> tuple:
         """(Evaluation, solved) with solved = (params, geometry, response, ST) or None."""
         t0 = time.perf_counter()
@@ -662,13 +668,13 @@ def requirements(study: SeaSpringStudy) -> list[Requirement]:
 
 
 #: The figures of a quantity by model (pipeline.verdict): ST as exported is the 3D correction's
-#: where the run made one. The 3D stiffness and peak have rows of their own
-#: (:func:`_builtin.sea_spring`), so the 2D rows keep the plane-stress figures.
+#: where made. The 3D stiffness and peak have rows of their own (:func:`_builtin.sea_spring`):
+#: the 2D rows keep the 2D figures; the life takes the 3D peak (verdict.life_of_result).
+_PEAK_3D = Figure("peak_stress_3d_MPa", "3D solid", SOLID_3D)
+_ST_3D = Figure("ST_3d_mm", "3D correction", SOLID_3D)
 FIGURES = {
-    "ST_mm": (
-        Figure("ST_mm", "plane-stress fit", PLANE_STRESS),
-        Figure("ST_3d_mm", "3D correction", SOLID_3D),
-    ),
+    "ST_mm": (Figure("ST_mm", "plane-stress fit", PLANE_STRESS), _ST_3D),
+    "peak_stress_MPa": (Figure("peak_stress_MPa", "plane stress", PLANE_STRESS), _PEAK_3D),
 }
 
 
