@@ -357,8 +357,8 @@ FORBIDDEN_IN_KINDS = {
     "plotting": {"matplotlib", "plotly"},
 }
 
-#: the most lines a kind may have
-MAX_KIND_LINES = 700
+#: the most lines a kind may have (issue 24: "the largest kind is under 700 lines")
+MAX_KIND_LINES = 699
 
 #: Offenders, to be kept empty: kind -> the forbidden packages it imports. A kind listed here may
 #: drop a package (then remove it from here: the test says so) but not add one. Emptied by #24.
@@ -417,7 +417,7 @@ def test_kinds_import_no_process_solver_or_plotting_library():
     assert not gone, "no longer imported: remove from KIND_IMPORT_OFFENDERS:\n" + "\n".join(gone)
 
 
-def test_every_kind_is_at_most_700_lines():
+def test_every_kind_is_under_700_lines():
     over, grown, done = [], [], []
     for kind, path in _kinds().items():
         lines = _line_count(path)

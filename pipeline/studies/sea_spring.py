@@ -61,8 +61,6 @@ from flexopt.fea.sea_design import (
     PUBLISHED_SPRINGS,
     correct_3d,
     detail_solves,
-    fine_geometry,
-    peak_convergence,
     screen_spring,
     solve_spring,
     spring_margins,
@@ -97,6 +95,7 @@ from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.screening import SideProcess, one_blas_thread, taguchi_stage
 from flexopt.pipeline.studies import StudyKind, _builtin, register
+from flexopt.pipeline.studies._sea_spring_peak import fine_geometry_of, peak_of
 from flexopt.pipeline.studies._sea_spring_schema import (
     SeaSpringStudy,
     check,
@@ -447,7 +446,7 @@ class SeaSpringProblem(DesignProblem):
         solves = (geom, self.material, self.theta, study.mesh, self.solve_st)
         if s3.check and s3.converge_peak:
             side = SideProcess.start()
-            side.submit("peak", _peak_job_main, self, geom.params, worse_direction(r))
+            side.submit("peak", peak_of, self, geom.params, worse_direction(r))
             side.submit("analyses", detail_solves, *solves)
         try:
             solid = self.solid_3d(geom, r, side) if s3.check else None
@@ -485,7 +484,7 @@ class SeaSpringProblem(DesignProblem):
             if "problem" not in solid.get("peak_convergence", {"problem": ""}):
                 # ... and the outline whose peak stress converged (issue 22): its arms sampled
                 # every curve_step_mm, not the optimiser's facets (on those the peak is higher)
-                part_outline = _fine_geometry(self, geom.params).outline
+                part_outline = fine_geometry_of(self, geom.params).outline
         smap = _stress_map_data(r)
         plot = {
             "x": "rotation_deg",
@@ -607,12 +606,12 @@ class SeaSpringProblem(DesignProblem):
         own = side is None and s3.converge_peak
         if own:
             side = SideProcess.start()
-            side.submit("peak", _peak_job_main, self, geom.params, sign)
+            side.submit("peak", peak_of, self, geom.params, sign)
 
         def converged_peak() -> tuple[dict[str, Any], bool]:
             c = side.get("peak") if side is not None else None
             if c is None:
-                return _peak_convergence(self, geom.params, sign), False
+                return peak_of(self, geom.params, sign), False
             return c, True
 
         try:
@@ -623,29 +622,6 @@ class SeaSpringProblem(DesignProblem):
         finally:
             if own:
                 side.close()
-
-
-def _peak_convergence(
-    prob: SeaSpringProblem, params: SpringParams | ArmSpringParams, sign: float
-) -> dict[str, Any]:
-    """:func:`fea.sea_design.peak_convergence` of a design of ``prob`` (the worse direction
-    ``sign``). Raises FeaError, GeometryError."""
-    return peak_convergence(
-        params, prob.frame, prob.material, prob.theta, sign, prob.study.mesh,
-        prob.study.solid_3d.curve_step_mm,
-    )  # fmt: skip
-
-
-def _fine_geometry(
-    prob: SeaSpringProblem, params: SpringParams | ArmSpringParams
-) -> SpringGeometry:
-    """:func:`fea.sea_design.fine_geometry`: the outline the peak converged on, exported."""
-    return fine_geometry(params, prob.frame, prob.study.solid_3d.curve_step_mm)
-
-
-def _peak_job_main(prob: SeaSpringProblem, params: Any, sign: float) -> dict[str, Any]:
-    """The side process's peak convergence (module level: the pool pickles it by name)."""
-    return _peak_convergence(prob, params, sign)
 
 
 # --------------------------------------------------------------------------------------------
