@@ -128,9 +128,9 @@ def outline_of(
     from pathlib import Path
 
     import yaml
+    from flexopt.geometry.solid import SHEET_HINT, flat_part
     from flexopt.pipeline.errors import StudyError
     from flexopt.pipeline.problems import ExportError
-    from flexopt.pipeline.run.export import part_of
     from flexopt.pipeline.run.setup import build_problem
     from flexopt.pipeline.study import validate_study
     from flexopt.pipeline.targets import table_root
@@ -163,7 +163,9 @@ def outline_of(
     detail = problem.detail(x)
     if detail.outline is None or not detail.height_mm:
         raise ExportError(NO_OUTLINE.format(kind=study.kind))
-    part = part_of(detail, "design")
+    # as pipeline.run.export.part_of lays it (that module imports this one: no cycle)
+    sheet = bool((detail.info or {}).get(SHEET_HINT))
+    part = flat_part(detail.outline, float(detail.height_mm or 0.0), sheet=sheet, frame="design")
     rings = [
         [(float(px), float(py)) for px, py in np.asarray(ring.coords)[:-1]]
         for ring in (part.outline.exterior, *part.outline.interiors)
