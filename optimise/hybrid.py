@@ -39,7 +39,7 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAConfig, GAResult, Generation, best_of, run_ga
 from flexopt.optimise.space import DesignSpace
 
-__all__ = ["HybridConfig", "HybridResult", "residuals_of", "run_hybrid", "pick_starts"]
+__all__ = ["HybridConfig", "HybridResult", "residuals_of", "run_hybrid", "pick_starts", "StallRule"]
 
 #: a failed design's objective and constraint in the scaled SLSQP problem: finite (SLSQP's line
 #: search backs off from it) and far above any evaluated design's
@@ -211,8 +211,9 @@ class _Stage:
         return u[None, :] + np.diag(steps), steps
 
 
-class _StallRule:
-    """No improvement beyond ``tolerance`` (relative) over ``patience`` iterations."""
+class StallRule:
+    """The stop rule of a start: no improvement of its best objective beyond ``tolerance``
+    (relative to it) over ``patience`` iterations in a row; ``f0`` is the start's objective."""
 
     def __init__(self, f0: float, tolerance: float, patience: int) -> None:
         self.best = f0
@@ -279,7 +280,7 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     r = residuals_of(current)
     if r is None:
         return 0, "the start carries no residuals"
-    rule = _StallRule(float(current.f[0]), config.tolerance, config.patience)
+    rule = StallRule(float(current.f[0]), config.tolerance, config.patience)
     radius = 0.1
     J = Jg = None
     frozen = np.zeros(len(u), dtype=bool)
@@ -371,7 +372,7 @@ def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
             gradients[key] = (df, dg)
         return gradients[key]
 
-    rule = _StallRule(float(start.f[0]), config.tolerance, config.patience)
+    rule = StallRule(float(start.f[0]), config.tolerance, config.patience)
     state = {"iterations": 0}
 
     def callback(u: np.ndarray) -> None:
