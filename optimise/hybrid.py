@@ -52,7 +52,9 @@ class HybridConfig:
 
     Attributes
     ----------
-    ga : the GA stage's settings (its ``n_gen`` is the stage's generations).
+    ga : the GA stage's settings; its ``n_gen`` is the stage's most generations.
+    ga_n_gen : the GA stage ends after this many generations once its best design is feasible
+        (else it goes on, to ``ga.n_gen`` at most); None: ``ga.n_gen``.
     local : ``"gauss_newton"`` (needs residuals) or ``"slsqp"``.
     starts : distinct GA designs the gradient stage starts from, best first.
     min_distance : least max-norm distance of two starts in bound-normalised units.
@@ -64,6 +66,7 @@ class HybridConfig:
     """
 
     ga: GAConfig = GAConfig()
+    ga_n_gen: int | None = None
     local: Literal["gauss_newton", "slsqp"] = "slsqp"
     starts: int = 3
     min_distance: float = 0.1
@@ -87,7 +90,7 @@ class HybridConfig:
         """The gradient stage's settings as run.json records them."""
         return {
             "local": self.local,
-            "ga_n_gen": self.ga.n_gen,
+            "ga_n_gen": self.ga_n_gen,
             "starts": self.starts,
             "min_distance": self.min_distance,
             "tolerance": self.tolerance,
@@ -228,6 +231,16 @@ class StallRule:
         else:
             self.stalled += 1
         self.best = min(self.best, f)
+        return self.verdict()
+
+    def restart(self, f: float) -> None:
+        """Progress of another kind (an infeasible start's violation fell): count again from
+        ``f``."""
+        self.best = f
+        self.stalled = 0
+
+    def verdict(self) -> str | None:
+        """The stop reason when the rule fires, else None."""
         if self.stalled >= self.patience:
             return (
                 f"no improvement beyond {self.tolerance:g} (relative) over {self.patience} "
@@ -243,37 +256,64 @@ def _gauss_newton_step(
     Jg: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
+    backoff: np.ndarray,
 ) -> np.ndarray:
-    """(n_var,) the step d minimising ``||r + J d||**2`` subject to ``g + Jg d <= max(0, g/2)``
-    and ``lower <= d <= upper`` (the trust region within the bounds), by SciPy's SLSQP.
+    """(n_var,) the step d minimising ``||r + J d||**2`` subject to ``g + Jg d <= -backoff``
+    (elastic: what cannot be met is paid for at :data:`ELASTIC_WEIGHT`) and ``lower <= d <=
+    upper`` (the trust region within the bounds), by SciPy's SLSQP.
 
-    r (n_res,), J (n_res, n_var), g (n_con,), Jg (n_con, n_var), lower and upper (n_var,). A
-    feasible design's constraints stay satisfied to first order; an infeasible one's violation
-    is asked to halve. The objective is scaled by ``||r||**2`` (SLSQP's tolerances are absolute).
+    r (n_res,), J (n_res, n_var), g (n_con,), Jg (n_con, n_var), lower, upper (n_var,), backoff
+    (n_con,) >= 0: how far inside each linearised constraint to aim (its linearisation error
+    as seen so far). An infeasible design's step aims at feasibility to first order. The
+    objective is scaled by ``||r||**2`` (SLSQP's tolerances are absolute).
     """
     from scipy.optimize import minimize
 
+    n, m = len(lower), len(g)
     scale = max(float(r @ r), 1e-300)
-    bound = np.maximum(0.0, 0.5 * g)
+
+    def objective(z: np.ndarray) -> float:
+        e = r + J @ z[:n]
+        return 0.5 * float(e @ e) / scale + ELASTIC_WEIGHT * float(np.sum(z[n:]))
+
+    def gradient(z: np.ndarray) -> np.ndarray:
+        return np.concatenate([J.T @ (r + J @ z[:n]) / scale, np.full(m, ELASTIC_WEIGHT)])
+
+    # elastic: g + Jg d <= -backoff + s with slacks s >= 0 at a high price, so a step that
+    # cannot reach feasibility in the trust region still lowers the violation as far as it can
+    A = np.hstack([-Jg, np.eye(m)])
     constraints = (
-        [{"type": "ineq", "fun": lambda d: bound - g - Jg @ d, "jac": lambda d: -Jg}]
-        if len(g)
-        else []
+        [{"type": "ineq", "fun": lambda z: -backoff - g + A @ z, "jac": lambda z: A}] if m else []
     )
     qp = minimize(
-        lambda d: 0.5 * float((r + J @ d) @ (r + J @ d)) / scale,
-        np.zeros(len(lower)),
-        jac=lambda d: (J.T @ (r + J @ d)) / scale,
-        bounds=list(zip(lower, upper, strict=True)),
+        objective,
+        np.concatenate([np.zeros(n), np.maximum(g + backoff, 0.0)]),
+        jac=gradient,
+        bounds=[*zip(lower, upper, strict=True), *([(0.0, None)] * m)],
         constraints=constraints,
         method="SLSQP",
         options={"maxiter": 200, "ftol": 1e-12},
     )
-    return np.clip(np.asarray(qp.x, dtype=float), lower, upper)
+    return np.clip(np.asarray(qp.x[:n], dtype=float), lower, upper)
+
+
+#: the price of a unit of linearised constraint violation in the Gauss-Newton step, against the
+#: objective scaled to 1/2 at the current design: feasibility comes first
+ELASTIC_WEIGHT = 1.0e3
+
+
+STATIONARY = "the trust region shrank below 1e-6 (a stationary point)"
 
 
 def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
-    """A trust-region Gauss-Newton run from ``start``; returns (iterations, why it stopped)."""
+    """A trust-region Gauss-Newton run from ``start``; returns (iterations, why it stopped).
+
+    From a feasible design a step is taken when the trial is feasible and lowers ``||r||``
+    (ratio of actual to predicted decrease > 1e-4); from an infeasible one when it lowers the
+    violation (feasibility first). A constraint the trial violates that its linearisation said
+    it would not sets that constraint's backoff to the error seen, so the next steps aim inside
+    by it; a trial inside halves it.
+    """
     config = stage.config
     u = stage.u_of(start.x)
     current = start
@@ -282,6 +322,7 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
         return 0, "the start carries no residuals"
     rule = StallRule(float(current.f[0]), config.tolerance, config.patience)
     radius = 0.1
+    backoff = np.zeros(n_con)
     J = Jg = None
     frozen = np.zeros(len(u), dtype=bool)
     for iteration in range(1, config.max_iter + 1):
@@ -300,37 +341,57 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
                 Jg[:, i] = (ev.g - current.g) / steps[i]
         lower = np.where(frozen, 0.0, np.maximum(-u, -radius))
         upper = np.where(frozen, 0.0, np.minimum(1.0 - u, radius))
-        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper)
+        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff)
         predicted = 0.5 * float(r @ r) - 0.5 * float((r + J @ d) @ (r + J @ d))
         size = float(np.max(np.abs(d))) if len(d) else 0.0
-        if size < 1e-12 or predicted <= 0.0:
-            reason = rule.update(float(current.f[0]))
+        if size < 1e-12 or (current.feasible and predicted <= 0.0):
             radius *= 0.25
+            reason = rule.update(float(current.f[0]))
             if radius < 1e-6:
-                return iteration, "the trust region shrank below 1e-6 (a stationary point)"
+                return iteration, STATIONARY
             if reason:
                 return iteration, reason
             continue
         (trial,) = stage.batch((u + d)[None, :])
         rt = residuals_of(trial)
-        keeps_feasible = trial.feasible or (
-            not current.feasible and trial.violation < current.violation
-        )
-        actual = 0.5 * float(r @ r) - 0.5 * float(rt @ rt) if rt is not None else -np.inf
-        ratio = actual / predicted
-        if rt is not None and keeps_feasible and ratio > 1e-4:
+        if rt is not None and n_con:
+            missed = trial.g > 0.0
+            error = trial.g - (current.g + Jg @ d)
+            # the last error seen where it mattered; halved where the trial kept inside, so a
+            # wild step's error does not hold every later step back
+            backoff = np.where(missed, np.maximum(error, 0.0), 0.5 * backoff)
+        if current.feasible:
+            actual = 0.5 * float(r @ r) - 0.5 * float(rt @ rt) if rt is not None else -np.inf
+            ratio = actual / predicted if predicted > 0.0 else 0.0
+        else:  # restoring: the radius follows how well the violation's model predicts it
+            model = float(np.sum(np.maximum(current.g + Jg @ d, 0.0)))
+            expected = current.violation - model
+            ratio = (current.violation - trial.violation) / expected if expected > 0 else 0.0
+        if current.feasible:
+            accept = rt is not None and trial.feasible and ratio > 1e-4
+        else:  # feasibility first
+            accept = rt is not None and (trial.feasible or trial.violation < current.violation)
+        if accept:
+            restored = trial.feasible and not current.feasible
             u, current, r, J = stage.u_of(trial.x), trial, rt, None
             if ratio > 0.75 and size >= 0.99 * radius:
                 radius = min(2.0 * radius, 0.5)
             elif ratio < 0.25:
-                radius = 0.25 * size
+                radius = max(0.25 * size, 1e-3 * radius)
+            if restored or not current.feasible:
+                rule.restart(float(current.f[0]))  # progress towards feasibility
+                continue
         else:
             radius = 0.25 * size
+            if not current.feasible:  # still restoring: only the radius's collapse ends it
+                if radius < 1e-6:
+                    return iteration, STATIONARY
+                continue
         reason = rule.update(float(current.f[0]))
         if reason:
             return iteration, reason
         if radius < 1e-6:
-            return iteration, "the trust region shrank below 1e-6 (a stationary point)"
+            return iteration, STATIONARY
     return config.max_iter, f"max_iter ({config.max_iter}) iterations"
 
 
@@ -412,6 +473,41 @@ def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
     return state["iterations"], f"SLSQP: {result.message}"
 
 
+class _GADone(Exception):
+    """Ends the GA stage early (see :attr:`HybridConfig.ga_n_gen`)."""
+
+
+def _ga_stage(
+    space: DesignSpace,
+    evaluate: Callable[[np.ndarray], Sequence[Evaluation]],
+    n_obj: int,
+    n_con: int,
+    config: HybridConfig,
+    on_generation: Callable[[Generation], None] | None,
+    initial: np.ndarray | None,
+) -> GAResult:
+    """The GA for ``config.ga_n_gen`` generations, or more until its best is feasible (a
+    gradient method from an infeasible GA design mostly spends itself restoring feasibility).
+
+    Stopped from its generation callback: pymoo draws the same populations whatever its
+    ``n_gen``, so the stage is the first generations of the GA of ``config.ga`` (and a resume
+    replays it)."""
+    generations: list[Generation] = []
+
+    def done(gen: Generation) -> None:
+        generations.append(gen)
+        if on_generation is not None:
+            on_generation(gen)
+        if config.ga_n_gen is not None and gen.index + 1 >= config.ga_n_gen and gen.best.feasible:
+            raise _GADone
+
+    try:
+        return run_ga(space, evaluate, n_obj, n_con, config.ga, done, initial)
+    except _GADone:
+        best = generations[-1].best
+        return GAResult(best, (best,), tuple(generations))
+
+
 def run_hybrid(
     space: DesignSpace,
     evaluate: Callable[[np.ndarray], Sequence[Evaluation]],
@@ -430,7 +526,7 @@ def run_hybrid(
     """
     if n_obj != 1:
         raise OptimiseError(f"the hybrid optimiser needs one objective, got {n_obj}")
-    ga = run_ga(space, evaluate, n_obj, n_con, config.ga, on_generation, initial)
+    ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial)
     n_ga = ga.generations[-1].n_evaluations if ga.generations else 0
     stage = _Stage(space, evaluate, config, ga, on_generation)
     method = _gauss_newton if config.local == "gauss_newton" else _slsqp

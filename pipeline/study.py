@@ -149,7 +149,11 @@ class HybridSpec(BaseModel):
     model_config = STUDY_CONFIG
 
     ga_n_gen: int | None = Field(
-        None, ge=1, le=100000, description="GA generations before the gradient stage (n_gen)"
+        None,
+        ge=1,
+        le=100000,
+        description="GA generations before the gradient stage, more until the GA's best is "
+        "feasible (n_gen at most; unset: n_gen)",
     )
     local: Literal["auto", "gauss_newton", "slsqp"] = Field(
         "auto",

@@ -114,8 +114,9 @@ def _hybrid_setup(
     n_gen: int,
 ) -> RunSetup:
     """The run of ``optimiser.method: hybrid``: its GA stage (``hybrid.ga_n_gen`` generations,
-    ``n_gen`` without it; ``quick_n_gen`` under ``--quick``) and its gradient stage, on the
-    problem's :meth:`~optimise.problem.DesignProblem.with_residuals` for Gauss-Newton."""
+    more until its best is feasible, ``n_gen`` at most; ``quick_n_gen`` under ``--quick``) and
+    its gradient stage; Gauss-Newton on the problem's
+    :meth:`~optimise.problem.DesignProblem.with_residuals`."""
     options = spec.hybrid or HybridSpec()
     if spec.algorithm != "ga" or len(problem.objective_names) != 1:
         raise StudyError(
@@ -136,10 +137,10 @@ def _hybrid_setup(
             )
         else:
             local = "slsqp"
-    ga_n_gen = n_gen if quick or options.ga_n_gen is None else options.ga_n_gen
     try:
         config = HybridConfig(
-            GAConfig(spec.algorithm, pop_size, ga_n_gen, spec.seed),
+            GAConfig(spec.algorithm, pop_size, n_gen, spec.seed),
+            None if quick else options.ga_n_gen,
             local,
             1 if quick else options.starts,
             options.min_distance,

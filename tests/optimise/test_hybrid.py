@@ -40,7 +40,7 @@ def constrained_bowl(X: np.ndarray) -> list[Evaluation]:
 
 
 def config(local: str, **options) -> HybridConfig:
-    return HybridConfig(GAConfig("ga", 10, 2, seed=3), local, **options)
+    return HybridConfig(GAConfig("ga", 10, 2, seed=3), local=local, **options)
 
 
 class Counting:
