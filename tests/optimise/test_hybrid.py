@@ -145,3 +145,30 @@ def test_residuals_are_read_from_the_metrics():
     failed = Evaluation.failed(np.zeros(2), 1, 1, "no")
     assert residuals_of(failed) is None
     assert residuals_of(constrained_bowl(np.zeros(2))[0]) is None
+
+
+def test_the_constant_force_problem_gives_eq8_residuals_only_when_asked():
+    from pathlib import Path
+
+    import flexopt.pipeline as pipeline
+    from flexopt.pipeline.run.setup import build_problem
+    from flexopt.pipeline.study import load_study
+
+    study = load_study(Path(pipeline.__file__).parent / "examples" / "constant-force.yaml")
+    problem = build_problem(study)
+    x = problem.nominal_design()
+    plain = problem.evaluate(x)
+    with_r = problem.with_residuals()
+    assert with_r is not None and with_r is not problem
+    ev = with_r.evaluate(x)
+    r = residuals_of(ev)
+    assert r is not None and r.shape == (study.target.samples,)
+    assert float(np.sqrt(np.mean(r**2))) == pytest.approx(ev.f[0], rel=1e-12)
+    # the same objectives, constraints and metrics; the plain problem's evaluations unchanged
+    np.testing.assert_array_equal(ev.f, plain.f)
+    np.testing.assert_array_equal(ev.g, plain.g)
+    assert residuals_of(plain) is None
+    assert {k: v for k, v in ev.metrics.items() if not k.startswith("residual_")} == plain.metrics
+    assert problem.evaluate(x).metrics == plain.metrics
+    operative = study.model_copy(update={"objective": "operative_stroke"})
+    assert build_problem(operative).with_residuals() is None
