@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from flexopt.geometry.errors import FlexoptError
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAConfig, GAResult, Generation, best_of, run_ga
@@ -148,8 +149,9 @@ def pick_starts(
     return chosen
 
 
-class _Stop(Exception):
-    """Ends one start (the stop rule, or the stage's budget) from inside SciPy's loop."""
+class _Stop(FlexoptError):
+    """Ends one start (the stop rule, or the stage's budget) from inside SciPy's loop (control
+    flow, caught in this module; under FlexoptError as every flexopt exception)."""
 
     def __init__(self, reason: str, budget: bool = False) -> None:
         super().__init__(reason)
@@ -473,7 +475,7 @@ def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
     return state["iterations"], f"SLSQP: {result.message}"
 
 
-class _GADone(Exception):
+class _GADone(FlexoptError):
     """Ends the GA stage early (see :attr:`HybridConfig.ga_n_gen`)."""
 
 
