@@ -201,6 +201,17 @@ class OptimiserSpec(BaseModel):
     )
     hybrid: HybridSpec | None = Field(None, description="options of method: hybrid")
 
+    @model_serializer(mode="wrap")
+    def _without_unset_method(self, handler: Any) -> Any:
+        # added after studies were first written: a GA study dumps (evaluation.json, the run
+        # folder's study.yaml, the study hash) as it did before they existed
+        data = handler(self)
+        if isinstance(data, dict):
+            for key in ("method", "hybrid"):
+                if key in data and data[key] is None:
+                    del data[key]
+        return data
+
 
 #: Local worker processes allowed per core: a pool larger than the cores only adds memory and
 #: start-up time (each worker holds the problem and its own BLAS), and thousands of processes

@@ -99,6 +99,9 @@ def test_a_ga_study_dumps_without_the_new_keys():
     raw = flexopt_toys.study()
     text = study_to_yaml(validate_study(raw))
     assert "method" not in text and "hybrid" not in text
+    # evaluation.json dumps the study without exclude_none: the keys stay out there too
+    dumped = validate_study(raw).model_dump(mode="json")["optimiser"]
+    assert "method" not in dumped and "hybrid" not in dumped
     setup = prepare_run(validate_study(raw))
     assert setup.hybrid is None
     text = study_to_yaml(hybrid_study())
