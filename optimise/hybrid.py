@@ -536,7 +536,11 @@ def run_hybrid(
     report: dict[str, Any] = {
         "method": "hybrid",
         "local": config.local,
-        "ga": {"n_evaluations": n_ga, "generations": len(ga.generations), "best_f": ga.best.f[0]},
+        "ga": {
+            "n_evaluations": n_ga,
+            "generations": len(ga.generations),
+            "best_f": float(ga.best.f[0]),
+        },
         "starts": [],
     }
     stop = f"every start stopped ({len(starts)} of {config.starts} distinct GA designs)"

@@ -172,3 +172,22 @@ def test_the_constant_force_problem_gives_eq8_residuals_only_when_asked():
     assert problem.evaluate(x).metrics == plain.metrics
     operative = study.model_copy(update={"objective": "operative_stroke"})
     assert build_problem(operative).with_residuals() is None
+
+
+def test_the_ga_stage_is_the_first_generations_of_the_full_ga():
+    # _ga_stage stops the GA from its callback: what it asked must be what a GA of fewer
+    # generations asks, or a resume (replay) and the documentation would be wrong
+    from flexopt.optimise.ga import run_ga
+
+    short = run_ga(SPACE, constrained_bowl, 1, 1, GAConfig("ga", 10, 3, seed=4))
+    hybrid = run_hybrid(
+        SPACE,
+        constrained_bowl,
+        1,
+        1,
+        HybridConfig(GAConfig("ga", 10, 12, seed=4), ga_n_gen=3, local="slsqp", starts=1),
+    )
+    assert hybrid.report["ga"]["generations"] == 3
+    first = [e.x for g in short.generations for e in g.evaluations]
+    again = [e.x for g in hybrid.generations[:3] for e in g.evaluations]
+    assert all(np.array_equal(p, q) for p, q in zip(first, again, strict=True))
