@@ -14,10 +14,12 @@ Two gradient methods:
 * **Gauss-Newton with a trust region** (``gauss_newton``) where the objective is a least-squares
   one: ``f[0] = sqrt(mean(r**2))`` of residuals ``r`` (n_res,) the evaluations carry (the hook
   :meth:`optimise.problem.DesignProblem.with_residuals`). Each iteration minimises the linear
-  model ``||r + J d||**2`` subject to the linearised constraints ``g + J_g d <= 0``, the bounds
-  and ``|d|_inf <= radius`` (a small QP solved by SciPy's SLSQP), evaluates the step, accepts it
-  when the objective falls (and a feasible design stays feasible) and sets the radius by the
-  ratio of the actual to the predicted decrease.
+  model ``||r + J d||**2`` subject to the linearised constraints ``g + J_g d <= -backoff``
+  (elastic: a violation it cannot remove is priced, not refused; ``backoff`` the linearisation
+  error a trial showed), the bounds and ``|d|_inf <= radius`` (a small QP solved by SciPy's
+  SLSQP), evaluates the step, accepts it when the objective falls and a feasible design stays
+  feasible (from an infeasible design: when the violation falls), and sets the radius by the
+  ratio of the actual to the predicted decrease (of the violation while infeasible).
 * **SLSQP** (``slsqp``, SciPy) on ``f[0]`` scaled by its start value, with the constraints and
   bounds, otherwise.
 
