@@ -248,6 +248,20 @@ class DesignProblem:
         variable's name; :func:`pipeline.design_study.design_values`)."""
         return None
 
+    def with_residuals(self) -> DesignProblem | None:
+        """A problem like this one whose every :class:`~optimise.Evaluation` also carries the
+        residuals of a least-squares objective, for a Gauss-Newton step
+        (``optimiser.method: hybrid``, :mod:`optimise.hybrid`); None (the default) when the
+        objective is not one.
+
+        The residuals r (n_res,) are the metrics ``residual_1`` ... ``residual_<n_res>`` (in the
+        objective's unit) with ``f[0] = sqrt(mean(r**2))``; objectives and constraints are this
+        problem's exactly. A separate problem, not extra metrics of this one: a run of another
+        method keeps its tables as they are. A wrapper of a problem answers None unless it
+        says otherwise (its objective may not be the inner one's, as a worst-case score).
+        """
+        return None
+
     def warm_up(self) -> None:
         """Compile or load the compiled kernels :meth:`evaluate` uses, once, before a pool
         forks its workers (which inherit them). The default loads the beam kernel, which most

@@ -48,6 +48,7 @@ from pydantic import (
 __all__ = [
     "STUDY_CONFIG",
     "MaterialSpec",
+    "HybridSpec",
     "OptimiserSpec",
     "ParallelSpec",
     "Study",
@@ -166,11 +167,51 @@ def material_record(material: Material) -> dict[str, Any]:
     return record
 
 
+class HybridSpec(BaseModel):
+    """The ``optimiser.hybrid:`` options of ``method: hybrid`` (optimise/hybrid.py): the GA's
+    global search for ``ga_n_gen`` generations, then a gradient method from ``starts`` distinct
+    good GA designs until the stop rule (docs/usage.md, "The hybrid optimiser")."""
+
+    model_config = STUDY_CONFIG
+
+    ga_n_gen: int | None = Field(
+        None,
+        ge=1,
+        le=100000,
+        description="GA generations before the gradient stage, more until the GA's best is "
+        "feasible (n_gen at most; unset: n_gen)",
+    )
+    local: Literal["auto", "gauss_newton", "slsqp"] = Field(
+        "auto",
+        description="gradient method: auto (Gauss-Newton where the problem gives residuals, "
+        "else SLSQP), gauss_newton or slsqp",
+    )
+    starts: int = Field(3, ge=1, le=100, description="distinct GA designs to start from")
+    min_distance: float = Field(
+        0.1, ge=0.0, le=1.0, description="least distance of two starts, in bound-normalised units"
+    )
+    tolerance: float = Field(
+        1e-3, ge=0.0, lt=1.0, description="relative improvement an iteration must beat"
+    )
+    patience: int = Field(
+        3, ge=1, le=1000, description="iterations without such an improvement that stop a start"
+    )
+    max_iter: int = Field(40, ge=1, le=10000, description="iterations per start at most")
+    fd_step: float = Field(
+        1e-4, gt=0.0, lt=0.1, description="forward-difference step, in bound-normalised units"
+    )
+    max_evaluations: int | None = Field(
+        None, ge=1, description="designs of the gradient stage at most (none: no limit)"
+    )
+
+
 class OptimiserSpec(BaseModel):
     """The ``optimiser:`` block of a study that ``flexopt run`` optimises.
 
     ``--quick`` replaces ``pop_size`` and ``n_gen`` by ``quick_pop_size`` and ``quick_n_gen`` (a
-    small smoke run for CI and first tries).
+    small smoke run for CI and first tries). ``method: hybrid`` follows the GA with a gradient
+    stage (``hybrid:`` its options); ``method`` and ``hybrid`` are left out of a dump when
+    unset, so a GA study's resolved YAML and hash are what they were before they existed.
     """
 
     model_config = STUDY_CONFIG
@@ -181,6 +222,21 @@ class OptimiserSpec(BaseModel):
     seed: int = Field(1, ge=0, description="random seed; the same seed gives the same run")
     quick_pop_size: int = Field(8, ge=2, le=10000, description="pop_size under --quick")
     quick_n_gen: int = Field(3, ge=1, le=100000, description="n_gen under --quick")
+    method: Literal["ga", "hybrid"] | None = Field(
+        None, description="ga (unset: the GA alone) or hybrid (the GA, then a gradient stage)"
+    )
+    hybrid: HybridSpec | None = Field(None, description="options of method: hybrid")
+
+    @model_serializer(mode="wrap")
+    def _without_unset_method(self, handler: Any) -> Any:
+        # added after studies were first written: a GA study dumps (evaluation.json, the run
+        # folder's study.yaml, the study hash) as it did before they existed
+        data = handler(self)
+        if isinstance(data, dict):
+            for key in ("method", "hybrid"):
+                if key in data and data[key] is None:
+                    del data[key]
+        return data
 
 
 #: Local worker processes allowed per core: a pool larger than the cores only adds memory and

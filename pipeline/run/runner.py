@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAConfig, GAResult, run_ga
+from flexopt.optimise.hybrid import run_hybrid
 from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict
 from flexopt.pipeline.backends import open_backend
@@ -281,6 +282,12 @@ def _run_in(
                 "pop_size": config.pop_size,
                 "n_gen": config.n_gen,
                 "seed": config.seed,
+                # the hybrid's settings, only for it: a GA run's run.json stays as it was
+                **(
+                    {"method": "hybrid", "hybrid": setup.hybrid.record()}
+                    if setup.hybrid is not None
+                    else {}
+                ),
             },
             "objectives": list(setup.problem.objective_names),
             "constraints": list(setup.problem.constraint_names),
@@ -381,15 +388,33 @@ def _run_in(
             # check, one large sparse factorisation) keeps the caller's threads
             serial = settings.backend == "serial"
             with limit_loaded_pools() if serial else contextlib.nullcontext():
-                result = run_ga(
-                    setup.problem.space,
-                    run.evaluator,
-                    len(setup.problem.objective_names),
-                    len(setup.problem.constraint_names),
-                    config,
-                    on_generation=run.generation_done,
-                    initial=setup.initial,
-                )
+                if setup.hybrid is None:
+                    result = run_ga(
+                        setup.problem.space,
+                        run.evaluator,
+                        len(setup.problem.objective_names),
+                        len(setup.problem.constraint_names),
+                        config,
+                        on_generation=run.generation_done,
+                        initial=setup.initial,
+                    )
+                else:  # optimiser.method: hybrid (optimise/hybrid.py), on the same evaluator
+                    result = run_hybrid(
+                        setup.problem.space,
+                        run.evaluator,
+                        len(setup.problem.objective_names),
+                        len(setup.problem.constraint_names),
+                        setup.hybrid,
+                        on_generation=run.generation_done,
+                        initial=setup.initial,
+                    )
+                    record["hybrid"] = result.report
+                    log.info(
+                        "hybrid: best from the %s stage, %s evaluations, %s",
+                        result.report["best_stage"],
+                        result.report["n_evaluations"],
+                        result.report["stop"],
+                    )
             optimised = True
         finally:
             try:

@@ -7,10 +7,11 @@ from dataclasses import dataclass
 import numpy as np
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.ga import GAConfig
+from flexopt.optimise.hybrid import HybridConfig
 from flexopt.optimise.problem import DesignProblem
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.problems import build_base_problem
-from flexopt.pipeline.study import OptimiserSpec, Study
+from flexopt.pipeline.study import HybridSpec, OptimiserSpec, Study
 
 # --------------------------------------------------------------------------------------------
 # Setting a run up (everything that can refuse the inputs, before any file is written)
@@ -28,6 +29,8 @@ class RunSetup:
     quick : whether ``--quick`` was given.
     initial : (k, n_var) designs seeded into the first population, from the problem's optional
         ``initial_designs()`` (e.g. a published optimum), or None.
+    hybrid : the settings of ``optimiser.method: hybrid`` (``config`` is then its GA stage), or
+        None for the GA alone.
     """
 
     study: Study
@@ -35,6 +38,7 @@ class RunSetup:
     config: GAConfig
     quick: bool
     initial: np.ndarray | None = None
+    hybrid: HybridConfig | None = None
 
 
 def build_problem(study: Study) -> DesignProblem:
@@ -88,11 +92,67 @@ def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> R
     pop_size, n_gen = (
         (spec.quick_pop_size, spec.quick_n_gen) if quick else (spec.pop_size, spec.n_gen)
     )
+    if spec.method == "hybrid":
+        return _hybrid_setup(study, problem, spec, quick, pop_size, n_gen)
     try:
         config = GAConfig(spec.algorithm, pop_size, n_gen, spec.seed)
     except OptimiseError as exc:
         raise StudyError("optimiser", str(exc)) from None
     return RunSetup(study, problem, config, quick, initial_designs(problem))
+
+
+#: ``--quick`` of a hybrid run: one start, at most this many iterations
+QUICK_HYBRID_ITERATIONS = 3
+
+
+def _hybrid_setup(
+    study: Study,
+    problem: DesignProblem,
+    spec: OptimiserSpec,
+    quick: bool,
+    pop_size: int,
+    n_gen: int,
+) -> RunSetup:
+    """The run of ``optimiser.method: hybrid``: its GA stage (``hybrid.ga_n_gen`` generations,
+    more until its best is feasible, ``n_gen`` at most; ``quick_n_gen`` under ``--quick``) and
+    its gradient stage; Gauss-Newton on the problem's
+    :meth:`~optimise.problem.DesignProblem.with_residuals`."""
+    options = spec.hybrid or HybridSpec()
+    if spec.algorithm != "ga" or len(problem.objective_names) != 1:
+        raise StudyError(
+            "optimiser.method",
+            f"'hybrid' optimises one objective with algorithm: ga; kind '{study.kind}' has "
+            f"{len(problem.objective_names)} ({', '.join(problem.objective_names)})",
+        )
+    local = options.local
+    if local in ("auto", "gauss_newton"):
+        with_residuals = problem.with_residuals()
+        if with_residuals is not None:
+            problem, local = with_residuals, "gauss_newton"
+        elif local == "gauss_newton":
+            raise StudyError(
+                "optimiser.hybrid.local",
+                f"gauss_newton needs a least-squares objective; kind '{study.kind}' gives no "
+                f"residuals for {problem.objective_names[0]}; use slsqp (or auto)",
+            )
+        else:
+            local = "slsqp"
+    try:
+        config = HybridConfig(
+            GAConfig(spec.algorithm, pop_size, n_gen, spec.seed),
+            None if quick else options.ga_n_gen,
+            local,
+            1 if quick else options.starts,
+            options.min_distance,
+            options.tolerance,
+            options.patience,
+            min(options.max_iter, QUICK_HYBRID_ITERATIONS) if quick else options.max_iter,
+            options.fd_step,
+            options.max_evaluations,
+        )
+    except OptimiseError as exc:
+        raise StudyError("optimiser", str(exc)) from None
+    return RunSetup(study, problem, config.ga, quick, initial_designs(problem), config)
 
 
 def initial_designs(problem: DesignProblem) -> np.ndarray | None:

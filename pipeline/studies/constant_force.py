@@ -30,6 +30,7 @@ design (the study's ``design:``, by default Table 3) for ``flexopt evaluate``.
 
 from __future__ import annotations
 
+import copy
 import logging
 import time
 from typing import Any
@@ -158,6 +159,19 @@ class ConstantForceProblem(DesignProblem):
         self.constraint_names: tuple[str, ...] = tuple(names)
 
     # ---- what the run pipeline may ask besides evaluate/detail
+
+    #: evaluations carry Eq. 8's residuals as metrics (set on the copy :meth:`with_residuals`)
+    residual_metrics = False
+
+    def with_residuals(self) -> ConstantForceProblem | None:
+        """This problem, its evaluations carrying the force residuals F(s_i) - target (N) at
+        the ``target.samples`` strokes of Eq. 8 as ``residual_1`` ...: ``rms_error_N`` is their
+        RMS (a Gauss-Newton step of ``method: hybrid``); None for ``operative_stroke``."""
+        if self.study.objective != "rms_error":
+            return None
+        other = copy.copy(self)
+        other.residual_metrics = True
+        return other
 
     def warm_up_detail(self) -> None:
         """Load what :meth:`detail` needs beyond the beam: the plane-stress check's modules and
@@ -288,6 +302,12 @@ class ConstantForceProblem(DesignProblem):
             "stable": not response.unstable,
             "unstable_rows": _unstable_rows(response),
         }
+        if self.residual_metrics:  # with_residuals(): Eq. 8's terms, rms_error_N = RMS of them
+            t = study.target
+            s = np.asarray(response.displacement_mm, dtype=float)
+            probes = s[-1] * np.arange(1, t.samples + 1) / t.samples
+            r = np.interp(probes, s, np.asarray(response.force_N, dtype=float)) - t.force_N
+            metrics.update({f"residual_{i + 1}": float(v) for i, v in enumerate(r)})
         reason = response.unstable_message if response.unstable else ""
         return Evaluation(
             np.asarray(x, dtype=float), np.array(f), np.array(g), metrics, reason, time_s

@@ -1,0 +1,581 @@
+"""The hybrid optimiser: the GA's global search, then a gradient method from several distinct good
+GA designs until a stop rule (issue 27, ``optimiser: {method: hybrid}``).
+
+The gradient stage works in bound-normalised variables ``u = (x - lower) / (upper - lower)`` in
+[0, 1]. Its derivatives are forward differences (step ``fd_step`` in u; a backward one where the
+forward step would leave the bounds): the ``n_var`` perturbed designs of one Jacobian are one
+batch of ``evaluate``, so a pool or a cluster solves them in parallel like a generation, and the
+run's cache, store, resume (replay) and tables serve them as they serve the GA's designs. The
+stage is a deterministic function of the evaluations it is given, as the GA is of its seed: a
+resumed run replays it from the store.
+
+Two gradient methods:
+
+* **Gauss-Newton with a trust region** (``gauss_newton``) where the objective is a least-squares
+  one: ``f[0] = sqrt(mean(r**2))`` of residuals ``r`` (n_res,) the evaluations carry (the hook
+  :meth:`optimise.problem.DesignProblem.with_residuals`). Each iteration minimises the linear
+  model ``||r + J d||**2`` subject to the linearised constraints ``g + J_g d <= -backoff``
+  (elastic: a violation it cannot remove is priced, not refused; ``backoff`` the linearisation
+  error a trial showed), the bounds and ``|d|_inf <= radius`` (a small QP solved by SciPy's
+  SLSQP), evaluates the step, accepts it when the objective falls and a feasible design stays
+  feasible (from an infeasible design: when the violation falls), and sets the radius by the
+  ratio of the actual to the predicted decrease (of the violation while infeasible).
+* **SLSQP** (``slsqp``, SciPy) on ``f[0]`` scaled by its start value, with the constraints and
+  bounds, otherwise.
+
+The stop rule of a start: ``patience`` iterations in a row that lower its best objective by no
+more than ``tolerance`` times it (relative), or ``max_iter`` iterations, or the whole stage's
+``max_evaluations``. :attr:`HybridResult.report` says which stage found the best design, the
+evaluations of each stage and why each start stopped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from flexopt.geometry.errors import FlexoptError
+from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.ga import GAConfig, GAResult, Generation, best_of, run_ga
+from flexopt.optimise.space import DesignSpace
+
+__all__ = ["HybridConfig", "HybridResult", "residuals_of", "run_hybrid", "pick_starts", "StallRule"]
+
+#: a failed design's objective and constraint in the scaled SLSQP problem: finite (SLSQP's line
+#: search backs off from it) and far above any evaluated design's
+_FAILED_SCALED = 1.0e3
+
+
+@dataclass(frozen=True)
+class HybridConfig:
+    """Settings of a hybrid run.
+
+    Attributes
+    ----------
+    ga : the GA stage's settings; its ``n_gen`` is the stage's most generations.
+    ga_n_gen : the GA stage ends after this many generations once its best design is feasible
+        (else it goes on, to ``ga.n_gen`` at most); None: ``ga.n_gen``.
+    local : ``"gauss_newton"`` (needs residuals) or ``"slsqp"``.
+    starts : distinct GA designs the gradient stage starts from, best first.
+    min_distance : least max-norm distance of two starts in bound-normalised units.
+    tolerance : relative improvement of a start's best objective an iteration must exceed.
+    patience : iterations in a row without such an improvement that stop a start.
+    max_iter : iterations per start at most.
+    fd_step : forward-difference step in bound-normalised units.
+    max_evaluations : designs the gradient stage may ask for at most (None: no limit).
+    """
+
+    ga: GAConfig = GAConfig()
+    ga_n_gen: int | None = None
+    local: Literal["gauss_newton", "slsqp"] = "slsqp"
+    starts: int = 3
+    min_distance: float = 0.1
+    tolerance: float = 1e-3
+    patience: int = 3
+    max_iter: int = 40
+    fd_step: float = 1e-4
+    max_evaluations: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.local not in ("gauss_newton", "slsqp"):
+            raise OptimiseError(f"local = {self.local!r}; use 'gauss_newton' or 'slsqp'")
+        if self.ga.algorithm != "ga":
+            raise OptimiseError("the hybrid optimiser optimises one objective: algorithm 'ga'")
+        if self.starts < 1 or self.patience < 1 or self.max_iter < 1:
+            raise OptimiseError("starts, patience and max_iter must be >= 1")
+        if not 0.0 < self.fd_step < 0.1:
+            raise OptimiseError(f"fd_step = {self.fd_step} must be in (0, 0.1)")
+
+    def record(self) -> dict[str, Any]:
+        """The gradient stage's settings as run.json records them."""
+        return {
+            "local": self.local,
+            "ga_n_gen": self.ga_n_gen,
+            "starts": self.starts,
+            "min_distance": self.min_distance,
+            "tolerance": self.tolerance,
+            "patience": self.patience,
+            "max_iter": self.max_iter,
+            "fd_step": self.fd_step,
+            "max_evaluations": self.max_evaluations,
+        }
+
+
+@dataclass(frozen=True)
+class HybridResult(GAResult):
+    """A :class:`~optimise.ga.GAResult` of both stages (``generations``: the GA's, then one per
+    batch of the gradient stage), with ``report``: ``best_stage`` (``"ga"`` or
+    ``"gradient"``), ``n_evaluations`` per stage, ``stop`` (why the stage ended) and one entry
+    per start (its objective at the start and the end, iterations, evaluations, why it
+    stopped)."""
+
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+def residuals_of(evaluation: Evaluation) -> np.ndarray | None:
+    """(n_res,) the residuals ``residual_1`` ... an evaluation carries (see
+    :meth:`optimise.problem.DesignProblem.with_residuals`), or None when it carries none or a
+    failed design's."""
+    if evaluation.reason:
+        return None
+    values = []
+    while (key := f"residual_{len(values) + 1}") in evaluation.metrics:
+        values.append(evaluation.metrics[key])
+    if not values:
+        return None
+    r = np.asarray(values, dtype=float)
+    return r if np.all(np.isfinite(r)) else None
+
+
+def pick_starts(
+    space: DesignSpace, evaluations: Sequence[Evaluation], n: int, min_distance: float
+) -> list[Evaluation]:
+    """Up to ``n`` good, distinct designs: evaluated ones ranked as :func:`~optimise.ga.best_of`
+    ranks them (feasible by objective, then by violation), each at least ``min_distance`` (max
+    norm, bound-normalised) from those chosen before it."""
+    evaluated = [e for e in evaluations if not e.reason]
+    ranked = sorted(
+        evaluated, key=lambda e: (not e.feasible, e.violation if not e.feasible else 0.0, e.f[0])
+    )
+    span = space.upper - space.lower
+    chosen: list[Evaluation] = []
+    for ev in ranked:
+        u = (ev.x - space.lower) / span
+        if all(np.max(np.abs(u - (c.x - space.lower) / span)) >= min_distance for c in chosen):
+            chosen.append(ev)
+            if len(chosen) == n:
+                break
+    return chosen
+
+
+class _Stop(FlexoptError):
+    """Ends one start (the stop rule, or the stage's budget) from inside SciPy's loop (control
+    flow, caught in this module; under FlexoptError as every flexopt exception)."""
+
+    def __init__(self, reason: str, budget: bool = False) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.budget = budget
+
+
+class _Stage:
+    """The gradient stage's access to ``evaluate``: every batch counted, reported as a
+    generation and checked against the budget."""
+
+    def __init__(
+        self,
+        space: DesignSpace,
+        evaluate: Callable[[np.ndarray], Sequence[Evaluation]],
+        config: HybridConfig,
+        ga: GAResult,
+        on_generation: Callable[[Generation], None] | None,
+    ) -> None:
+        self.space = space
+        self.span = space.upper - space.lower
+        self.evaluate = evaluate
+        self.config = config
+        self.on_generation = on_generation
+        self.everything: list[Evaluation] = [e for g in ga.generations for e in g.evaluations]
+        self.best = ga.best
+        self.generations: list[Generation] = list(ga.generations)
+        self.n = 0
+
+    def x_of(self, u: np.ndarray) -> np.ndarray:
+        """(n_var,) the design of normalised ``u``, inside the bounds."""
+        return self.space.clip(self.space.lower + np.clip(u, 0.0, 1.0) * self.span)
+
+    def u_of(self, x: np.ndarray) -> np.ndarray:
+        return (np.asarray(x, dtype=float) - self.space.lower) / self.span
+
+    def batch(self, U: np.ndarray) -> list[Evaluation]:
+        """Evaluate (m, n_var) normalised designs as one batch (one generation of the run)."""
+        X = np.array([self.x_of(u) for u in np.atleast_2d(U)])
+        limit = self.config.max_evaluations
+        if limit is not None and self.n + len(X) > limit:
+            raise _Stop(f"the gradient stage's max_evaluations ({limit})", budget=True)
+        evaluations = list(self.evaluate(X))
+        if len(evaluations) != len(X):
+            raise OptimiseError(f"evaluate returned {len(evaluations)} results for {len(X)}")
+        self.n += len(X)
+        self.everything.extend(evaluations)
+        self.best = best_of((self.best, *evaluations))
+        gen = Generation(
+            len(self.generations), tuple(evaluations), self.best, len(self.everything), X
+        )
+        self.generations.append(gen)
+        if self.on_generation is not None:
+            self.on_generation(gen)
+        return evaluations
+
+    def jacobian_designs(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(n_var, n_var) the forward-difference designs around ``u`` and (n_var,) their signed
+        steps (backward where the forward step would leave [0, 1])."""
+        h = self.config.fd_step
+        steps = np.where(u + h <= 1.0, h, -h)
+        return u[None, :] + np.diag(steps), steps
+
+
+class StallRule:
+    """The stop rule of a start: no improvement of its best objective beyond ``tolerance``
+    (relative to it) over ``patience`` iterations in a row; ``f0`` is the start's objective."""
+
+    def __init__(self, f0: float, tolerance: float, patience: int) -> None:
+        self.best = f0
+        self.tolerance = tolerance
+        self.patience = patience
+        self.stalled = 0
+
+    def update(self, f: float) -> str | None:
+        """Record one iteration's best objective; the stop reason when the rule fires."""
+        if f < self.best - self.tolerance * max(abs(self.best), 1e-300):
+            self.stalled = 0
+        else:
+            self.stalled += 1
+        self.best = min(self.best, f)
+        return self.verdict()
+
+    def restart(self, f: float) -> None:
+        """Progress of another kind (an infeasible start's violation fell): count again from
+        ``f``."""
+        self.best = f
+        self.stalled = 0
+
+    def verdict(self) -> str | None:
+        """The stop reason when the rule fires, else None."""
+        if self.stalled >= self.patience:
+            return (
+                f"no improvement beyond {self.tolerance:g} (relative) over {self.patience} "
+                "iterations"
+            )
+        return None
+
+
+def _gauss_newton_step(
+    r: np.ndarray,
+    J: np.ndarray,
+    g: np.ndarray,
+    Jg: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    backoff: np.ndarray,
+) -> np.ndarray:
+    """(n_var,) the step d minimising ``||r + J d||**2`` subject to ``g + Jg d <= -backoff``
+    (elastic: what cannot be met is paid for at :data:`ELASTIC_WEIGHT`) and ``lower <= d <=
+    upper`` (the trust region within the bounds), by SciPy's SLSQP.
+
+    r (n_res,), J (n_res, n_var), g (n_con,), Jg (n_con, n_var), lower, upper (n_var,), backoff
+    (n_con,) >= 0: how far inside each linearised constraint to aim (its linearisation error
+    as seen so far). An infeasible design's step aims at feasibility to first order. The
+    objective is scaled by ``||r||**2`` (SLSQP's tolerances are absolute).
+    """
+    from scipy.optimize import minimize
+
+    n, m = len(lower), len(g)
+    scale = max(float(r @ r), 1e-300)
+
+    def objective(z: np.ndarray) -> float:
+        e = r + J @ z[:n]
+        return 0.5 * float(e @ e) / scale + ELASTIC_WEIGHT * float(np.sum(z[n:]))
+
+    def gradient(z: np.ndarray) -> np.ndarray:
+        return np.concatenate([J.T @ (r + J @ z[:n]) / scale, np.full(m, ELASTIC_WEIGHT)])
+
+    # elastic: g + Jg d <= -backoff + s with slacks s >= 0 at a high price, so a step that
+    # cannot reach feasibility in the trust region still lowers the violation as far as it can
+    A = np.hstack([-Jg, np.eye(m)])
+    constraints = (
+        [{"type": "ineq", "fun": lambda z: -backoff - g + A @ z, "jac": lambda z: A}] if m else []
+    )
+    qp = minimize(
+        objective,
+        np.concatenate([np.zeros(n), np.maximum(g + backoff, 0.0)]),
+        jac=gradient,
+        bounds=[*zip(lower, upper, strict=True), *([(0.0, None)] * m)],
+        constraints=constraints,
+        method="SLSQP",
+        options={"maxiter": 200, "ftol": 1e-12},
+    )
+    return np.clip(np.asarray(qp.x[:n], dtype=float), lower, upper)
+
+
+#: the price of a unit of linearised constraint violation in the Gauss-Newton step, against the
+#: objective scaled to 1/2 at the current design: feasibility comes first
+ELASTIC_WEIGHT = 1.0e3
+
+
+STATIONARY = "the trust region shrank below 1e-6 (a stationary point)"
+
+
+def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
+    """A trust-region Gauss-Newton run from ``start``; returns (iterations, why it stopped).
+
+    From a feasible design a step is taken when the trial is feasible and lowers ``||r||``
+    (ratio of actual to predicted decrease > 1e-4); from an infeasible one when it lowers the
+    violation (feasibility first). A constraint the trial violates that its linearisation said
+    it would not sets that constraint's backoff to the error seen, so the next steps aim inside
+    by it; a trial inside halves it.
+    """
+    config = stage.config
+    u = stage.u_of(start.x)
+    current = start
+    r = residuals_of(current)
+    if r is None:
+        return 0, "the start carries no residuals"
+    rule = StallRule(float(current.f[0]), config.tolerance, config.patience)
+    radius = 0.1
+    backoff = np.zeros(n_con)
+    J = Jg = None
+    frozen = np.zeros(len(u), dtype=bool)
+    for iteration in range(1, config.max_iter + 1):
+        if J is None:  # a Jacobian at every accepted point (a rejected step reuses it)
+            U, steps = stage.jacobian_designs(u)
+            columns = stage.batch(U)
+            J = np.zeros((len(r), len(u)))
+            Jg = np.zeros((n_con, len(u)))
+            frozen[:] = False
+            for i, ev in enumerate(columns):
+                ri = residuals_of(ev)
+                if ri is None or ri.shape != r.shape:
+                    frozen[i] = True  # a perturbed design failed: this variable stays put
+                    continue
+                J[:, i] = (ri - r) / steps[i]
+                Jg[:, i] = (ev.g - current.g) / steps[i]
+        lower = np.where(frozen, 0.0, np.maximum(-u, -radius))
+        upper = np.where(frozen, 0.0, np.minimum(1.0 - u, radius))
+        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff)
+        predicted = 0.5 * float(r @ r) - 0.5 * float((r + J @ d) @ (r + J @ d))
+        size = float(np.max(np.abs(d))) if len(d) else 0.0
+        if size < 1e-12 or (current.feasible and predicted <= 0.0):
+            radius *= 0.25
+            reason = rule.update(float(current.f[0]))
+            if radius < 1e-6:
+                return iteration, STATIONARY
+            if reason:
+                return iteration, reason
+            continue
+        (trial,) = stage.batch((u + d)[None, :])
+        rt = residuals_of(trial)
+        if rt is not None and n_con:
+            missed = trial.g > 0.0
+            error = trial.g - (current.g + Jg @ d)
+            # the last error seen where it mattered; halved where the trial kept inside, so a
+            # wild step's error does not hold every later step back
+            backoff = np.where(missed, np.maximum(error, 0.0), 0.5 * backoff)
+        if current.feasible:
+            actual = 0.5 * float(r @ r) - 0.5 * float(rt @ rt) if rt is not None else -np.inf
+            ratio = actual / predicted if predicted > 0.0 else 0.0
+        else:  # restoring: the radius follows how well the violation's model predicts it
+            model = float(np.sum(np.maximum(current.g + Jg @ d, 0.0)))
+            expected = current.violation - model
+            ratio = (current.violation - trial.violation) / expected if expected > 0 else 0.0
+        if current.feasible:
+            accept = rt is not None and trial.feasible and ratio > 1e-4
+        else:  # feasibility first
+            accept = rt is not None and (trial.feasible or trial.violation < current.violation)
+        if accept:
+            restored = trial.feasible and not current.feasible
+            u, current, r, J = stage.u_of(trial.x), trial, rt, None
+            if ratio > 0.75 and size >= 0.99 * radius:
+                radius = min(2.0 * radius, 0.5)
+            elif ratio < 0.25:
+                radius = max(0.25 * size, 1e-3 * radius)
+            if restored or not current.feasible:
+                rule.restart(float(current.f[0]))  # progress towards feasibility
+                continue
+        else:
+            radius = 0.25 * size
+            if not current.feasible:  # still restoring: only the radius's collapse ends it
+                if radius < 1e-6:
+                    return iteration, STATIONARY
+                continue
+        reason = rule.update(float(current.f[0]))
+        if reason:
+            return iteration, reason
+        if radius < 1e-6:
+            return iteration, STATIONARY
+    return config.max_iter, f"max_iter ({config.max_iter}) iterations"
+
+
+def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
+    """SciPy's SLSQP from ``start``, gradients by forward differences in one batch each; returns
+    (iterations, why it stopped)."""
+    from scipy.optimize import minimize
+
+    config = stage.config
+    f0 = max(abs(float(start.f[0])), 1e-12)
+    known: dict[bytes, Evaluation] = {stage.u_of(start.x).tobytes(): start}
+
+    def value(u: np.ndarray) -> Evaluation:
+        key = np.asarray(u, dtype=float).tobytes()
+        if key not in known:
+            (known[key],) = stage.batch(np.asarray(u, dtype=float)[None, :])
+        return known[key]
+
+    def scaled(ev: Evaluation) -> tuple[float, np.ndarray]:
+        if ev.reason:
+            return _FAILED_SCALED, np.full(n_con, _FAILED_SCALED)
+        return float(ev.f[0]) / f0, np.asarray(ev.g, dtype=float)
+
+    gradients: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def gradient(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = np.asarray(u, dtype=float).tobytes()
+        if key not in gradients:
+            fu, gu = scaled(value(u))
+            U, steps = stage.jacobian_designs(np.asarray(u, dtype=float))
+            df = np.zeros(len(u))
+            dg = np.zeros((n_con, len(u)))
+            for i, ev in enumerate(stage.batch(U)):
+                if ev.reason:
+                    continue  # a perturbed design failed: no slope along this variable
+                fi, gi = scaled(ev)
+                df[i] = (fi - fu) / steps[i]
+                dg[:, i] = (gi - gu) / steps[i]
+            gradients[key] = (df, dg)
+        return gradients[key]
+
+    rule = StallRule(float(start.f[0]), config.tolerance, config.patience)
+    state = {"iterations": 0}
+
+    def callback(u: np.ndarray) -> None:
+        state["iterations"] += 1
+        ev = value(u)
+        best = min((e for e in known.values() if e.feasible), key=lambda e: e.f[0], default=ev)
+        reason = rule.update(float(best.f[0]))
+        if reason:
+            raise _Stop(reason)
+
+    constraints = (
+        [
+            {
+                "type": "ineq",
+                "fun": lambda u: -scaled(value(u))[1],
+                "jac": lambda u: -gradient(u)[1],
+            }
+        ]
+        if n_con
+        else []
+    )
+    try:
+        result = minimize(
+            lambda u: scaled(value(u))[0],
+            stage.u_of(start.x),
+            jac=lambda u: gradient(u)[0],
+            bounds=[(0.0, 1.0)] * stage.space.n_var,
+            constraints=constraints,
+            method="SLSQP",
+            callback=callback,
+            options={"maxiter": config.max_iter, "ftol": 1e-12},
+        )
+    except _Stop as stop:
+        if stop.budget:
+            raise
+        return state["iterations"], stop.reason
+    return state["iterations"], f"SLSQP: {result.message}"
+
+
+class _GADone(FlexoptError):
+    """Ends the GA stage early (see :attr:`HybridConfig.ga_n_gen`)."""
+
+
+def _ga_stage(
+    space: DesignSpace,
+    evaluate: Callable[[np.ndarray], Sequence[Evaluation]],
+    n_obj: int,
+    n_con: int,
+    config: HybridConfig,
+    on_generation: Callable[[Generation], None] | None,
+    initial: np.ndarray | None,
+) -> GAResult:
+    """The GA for ``config.ga_n_gen`` generations, or more until its best is feasible (a
+    gradient method from an infeasible GA design mostly spends itself restoring feasibility).
+
+    Stopped from its generation callback: pymoo draws the same populations whatever its
+    ``n_gen``, so the stage is the first generations of the GA of ``config.ga`` (and a resume
+    replays it)."""
+    generations: list[Generation] = []
+
+    def done(gen: Generation) -> None:
+        generations.append(gen)
+        if on_generation is not None:
+            on_generation(gen)
+        if config.ga_n_gen is not None and gen.index + 1 >= config.ga_n_gen and gen.best.feasible:
+            raise _GADone
+
+    try:
+        return run_ga(space, evaluate, n_obj, n_con, config.ga, done, initial)
+    except _GADone:
+        best = generations[-1].best
+        return GAResult(best, (best,), tuple(generations))
+
+
+def run_hybrid(
+    space: DesignSpace,
+    evaluate: Callable[[np.ndarray], Sequence[Evaluation]],
+    n_obj: int,
+    n_con: int,
+    config: HybridConfig = HybridConfig(),
+    on_generation: Callable[[Generation], None] | None = None,
+    initial: np.ndarray | None = None,
+) -> HybridResult:
+    """Minimise one objective subject to ``n_con`` constraints g <= 0 over ``space``: the GA
+    (``config.ga``), then the gradient method from ``config.starts`` distinct good GA designs.
+
+    Parameters are those of :func:`optimise.ga.run_ga`; every batch of the gradient stage is
+    passed to ``on_generation`` as one more generation. With ``config.local ==
+    "gauss_newton"`` the evaluations must carry residuals (:func:`residuals_of`).
+    """
+    if n_obj != 1:
+        raise OptimiseError(f"the hybrid optimiser needs one objective, got {n_obj}")
+    ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial)
+    n_ga = ga.generations[-1].n_evaluations if ga.generations else 0
+    stage = _Stage(space, evaluate, config, ga, on_generation)
+    method = _gauss_newton if config.local == "gauss_newton" else _slsqp
+    starts = pick_starts(space, stage.everything, config.starts, config.min_distance)
+    report: dict[str, Any] = {
+        "method": "hybrid",
+        "local": config.local,
+        "ga": {
+            "n_evaluations": n_ga,
+            "generations": len(ga.generations),
+            "best_f": float(ga.best.f[0]),
+        },
+        "starts": [],
+    }
+    stop = f"every start stopped ({len(starts)} of {config.starts} distinct GA designs)"
+    for number, start in enumerate(starts, 1):
+        n_before, best_before = stage.n, stage.best
+        try:
+            iterations, reason = method(stage, start, n_con)
+        except _Stop as exc:  # the budget: the stage ends here
+            iterations, reason = -1, exc.reason
+            stop = f"reached {exc.reason}"
+        mine = stage.everything[len(stage.everything) - (stage.n - n_before) :]
+        found = best_of((start, *mine))
+        report["starts"].append(
+            {
+                "start": number,
+                "x": [float(v) for v in start.x],
+                "f_start": float(start.f[0]),
+                "f_end": float(found.f[0]),
+                "feasible_end": found.feasible,
+                "iterations": iterations,
+                "n_evaluations": stage.n - n_before,
+                "improved_best": stage.best is not best_before,
+                "stop": reason,
+            }
+        )
+        if iterations < 0:
+            break
+    best = stage.best
+    ga_keys = {e.x.tobytes() for g in ga.generations for e in g.evaluations}
+    report.update(
+        best_stage="ga" if best.x.tobytes() in ga_keys else "gradient",
+        best_f=float(best.f[0]),
+        n_evaluations={"ga": n_ga, "gradient": stage.n},
+        stop=stop,
+    )
+    return HybridResult(best, (best,), tuple(stage.generations), report)
