@@ -1361,6 +1361,10 @@ def _robustness_section(
     header = ["requirement", "nominal margin", "share of samples MET",
               f"robust verdict (at {required:g} %)"]  # fmt: skip
     body += _table(header, rows) if rows else "<p>No requirement to judge.</p>"
+    from flexopt.pipeline.robustness import robust_tables  # robust: requirements, their cost
+
+    for title, head, cells, note in robust_tables(record):
+        body += f"<h3>{_e(title)}</h3>" + _table(head, cells) + f"<p>{_e(note)}</p>"
     band = record.get("band") or {}
     x = spec.get("x", "displacement_mm")
     y = next((c for c in band if c != x), None)
