@@ -180,7 +180,8 @@ class RobustShareSpec(BaseModel):
         None,
         ge=1,
         le=MAX_ROBUST_SAMPLES,
-        description="fresh samples the chosen design is judged on; default 4x samples, >= 100",
+        description="fresh samples the chosen design is judged on; default 10x samples, "
+        ">= 200 (590 for 95 % at 95 %)",
     )
     seed: int = Field(1, ge=0, description="seed of both samples (same seed, same prints)")
 
@@ -207,7 +208,11 @@ class RobustShareSpec(BaseModel):
         """The verdict's fresh samples."""
         if self.verdict_samples is not None:
             return int(self.verdict_samples)
-        return min(max(4 * self.n_optimiser, 100), MAX_ROBUST_SAMPLES)
+        # large enough that a design whose prints meet it a little above the share passes: the
+        # design the GA chose sits on the edge of its own samples (n of n met: a true share
+        # near n / (n + 1), 98.3 % for 59, less the optimiser's luck), and N = 590 samples
+        # demonstrate 95 % from 96.6 % met (236 samples need 97.5 %)
+        return min(max(10 * self.n_optimiser, 200), MAX_ROBUST_SAMPLES)
 
     @property
     def k_optimiser(self) -> int:

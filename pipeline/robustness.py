@@ -722,14 +722,16 @@ def run_robustness(
     sample_problem = SampleProblem(study, mode, x, held)
     settings = settings if settings is not None else parallel_settings(study)
     log.info("robustness: %d samples on %s", len(samples), settings.describe())
-    robust_record = None
-    if backend is not None:
-        evaluations = backend(sample_problem, samples)
-        robust_record = _robust_record(study, problem, mode, x, backend, history)
-    else:
-        with _backend_opener()(settings, sample_problem) as opened:
-            evaluations = opened(sample_problem, samples)
-            robust_record = _robust_record(study, problem, mode, x, opened, history)
+
+    def run_on(batch_problem: SampleProblem, rows: np.ndarray) -> Sequence[Evaluation]:
+        if backend is not None:
+            return backend(batch_problem, rows)
+        # a pool is opened for one problem (its workers hold it): one pool per design sampled
+        with _backend_opener()(settings, batch_problem) as opened:
+            return opened(batch_problem, rows)
+
+    evaluations = run_on(sample_problem, samples)
+    robust_record = _robust_record(study, problem, mode, x, run_on, history)
     result = _collect(spec, samples, perturbed, evaluations, _plot_columns(study, mode, plot or {}))
     return replace(
         result,
@@ -1144,7 +1146,8 @@ def _robust_record(
     """The ``robust_requirements`` record: each robust requirement of ``study`` judged on fresh
     samples of the design ``x``; with a run's ``history`` (its problem, its chosen evaluation,
     every evaluation), the nominal optimum judged on the same samples and the cost of
-    robustness. ``run_backend(sample_problem, rows)`` evaluates sample rows."""
+    robustness. ``run_backend(sample_problem, rows)`` evaluates sample rows (a backend opened
+    for that problem: a process pool's workers hold the problem they were started with)."""
     from flexopt.pipeline.verdict import robust_items
 
     items = robust_items(study)
