@@ -1181,6 +1181,9 @@ def _robust_record(
             "reference": "the best design this run evaluated that meets every nominal "
             "constraint, its robust rows ignored",
             "robust_optimum": _cost_figures(run_problem, best, quantities),
+            # the chosen design holds every constraint, robust rows included (else it is only
+            # the least infeasible design of the run: no robust optimum to compare)
+            "robust_feasible": bool(best.feasible),
         }
         if reference is None:
             cost["nominal_optimum"] = None
@@ -1244,9 +1247,9 @@ def robust_tables(
         ref = by_name.get(r["name"])
         if ref is not None:
             ref_text = (
-                f"{ref['met_samples']}/{ref['verdict_samples']}: "
-                f"{ref['demonstrated_share_percent']:.1f} %, "
-                f"{'MET' if ref['met'] else 'NOT MET'}"
+                f"{ref['met_samples']}/{ref['verdict_samples']} met "
+                f"({ref['point_share_percent']:.1f} %), demonstrated "
+                f"{ref['demonstrated_share_percent']:.1f} %: {'MET' if ref['met'] else 'NOT MET'}"
             )
         else:
             ref_text = "the same design" if same else "n/a"
@@ -1307,6 +1310,11 @@ def robust_tables(
             crows.append([key, _fmt(a), _fmt(b), change])
         if not nominal:
             what = "no design of this run met the nominal constraints: nothing to compare"
+        elif cost.get("robust_feasible") is False:
+            what = (
+                "no design of this run held every constraint, robust rows included: the chosen "
+                "one is the least infeasible, not a robust optimum (a longer run may find one)"
+            )
         elif same:
             what = "the nominal optimum of this run is the robust one: robustness cost nothing"
         else:

@@ -199,7 +199,7 @@ def test_run_finds_the_robust_optimum_and_judges_it_on_fresh_samples(tmp_path, c
     cost = best["robustness"]["robust_requirements"]["cost"]
     nominal = cost["nominal_optimum"]
     t_nominal = nominal["parameters"]["thickness_mm"]
-    assert T_NOM - 1e-9 <= t_nominal < t and not cost["same_design"]
+    assert T_NOM - 1e-9 <= t_nominal < t and not cost["same_design"] and cost["robust_feasible"]
     ratio = cost["robust_optimum"]["metrics"]["mass_g"] / nominal["metrics"]["mass_g"]
     assert math.isclose(ratio, t / t_nominal, rel_tol=1e-9)
     assert nominal["robust"][0]["met_samples"] == int(
@@ -227,3 +227,23 @@ def test_evaluate_judges_the_robust_requirement_on_the_design(tmp_path):
     assert "590 of 590 fresh samples met" in row["detail"]
     record = outcome.record["robustness"]["robust_requirements"]["requirements"][0]
     assert record["optimiser"] is None  # role: check: the GA does not hold it
+
+
+def test_a_run_without_a_robust_design_says_there_is_no_robust_optimum():
+    from flexopt.pipeline.robustness import robust_tables
+
+    figures = {"parameters": {"thickness_mm": 1.6}, "objectives": {"mass_g": 0.5}, "metrics": {}}
+    record = {
+        "robust_requirements": {
+            "requirements": [],
+            "cost": {
+                "robust_optimum": figures,
+                "nominal_optimum": figures,
+                "same_design": True,
+                "robust_feasible": False,
+            },
+        }
+    }
+    (_, _, _, note), (title, _, rows, what) = robust_tables(record)
+    assert title == "What robustness cost" and rows == [["mass_g", "0.5", "0.5", "+0 (+0.0 %)"]]
+    assert "least infeasible, not a robust optimum" in what and "cost nothing" not in what
