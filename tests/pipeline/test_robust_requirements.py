@@ -247,3 +247,20 @@ def test_a_run_without_a_robust_design_says_there_is_no_robust_optimum():
     (_, _, _, note), (title, _, rows, what) = robust_tables(record)
     assert title == "What robustness cost" and rows == [["mass_g", "0.5", "0.5", "+0 (+0.0 %)"]]
     assert "least infeasible, not a robust optimum" in what and "cost nothing" not in what
+
+
+def test_robust_evaluations_round_trip_through_the_runs_store(tmp_path):
+    """What resume restores is what the GA saw: the robust rows and their metrics, exactly."""
+    from flexopt.pipeline.checkpoint import EvaluationStore
+    from flexopt.pipeline.run import prepare_run
+
+    raw = cantilever({"share_percent": 90, "samples": 40}, fail_below_mm=1.95)
+    setup = prepare_run(validate_study(raw))
+    evaluations = [setup.problem.evaluate(np.array([t])) for t in (1.7, 2.0, 2.4)]
+    assert evaluations[1].metrics["robust_failure"]  # a failed sample, named
+    store = EvaluationStore(tmp_path / "evaluations.jsonl")
+    for ev in evaluations:
+        store.append(ev)
+    store.close()
+    for a, b in zip(evaluations, store.load(), strict=True):
+        assert a.g.tobytes() == b.g.tobytes() and a.metrics == b.metrics
