@@ -43,6 +43,17 @@ study's nominal design in ``flexopt evaluate``): the perturbed study's problem g
 ``detail`` of the shifted design vector, judged as ``flexopt run`` judges its best design.
 ``study``: a kind that is only evaluated: the kind's ``evaluate`` of the perturbed study, judged
 as ``flexopt evaluate`` judges it.
+
+Robust requirements
+-------------------
+A ``requirements:`` item with ``robust:`` (:mod:`optimise.robust_requirements`) is held by the
+GA on fixed draws of the same scatter (:class:`RobustConstraints`, the run's problem: one
+``robust_<name>`` row per constraint, the k-th smallest per-draw row), and judged for the
+verdict on fresh draws by :func:`run_robustness` (``robust_verdicts``, ``robust_record``): one
+row ``<name> (robust)`` per item, MET when the demonstrated share reaches the required one; a
+run's record adds what robustness cost against its nominal optimum (:func:`nominal_optimum`),
+judged on the same draws. The draws are prints like the samples above: the study perturbed,
+the design vector moved, a quantity the problem solves per design held.
 """
 
 from __future__ import annotations
