@@ -52,8 +52,16 @@ from typing import Any, Literal
 import numpy as np
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.names import NAME_MAX_CHARS, check_name
+from flexopt.optimise.robust_requirements import RobustShareSpec
 from flexopt.optimise.targets import TargetCurve, TargetSpec, column_unit_factor
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 __all__ = [
     "AllowableStress",
@@ -984,6 +992,10 @@ class RequirementSpec(BaseModel):
 
     ``role: constraint`` makes it also a constraint of the optimisation (kinds that optimise);
     ``check`` (default) only judges the result.
+    ``robust: {share_percent: 95}`` also requires it of 95 % of the prints under the study's
+    ``robustness:`` scatter (:mod:`optimise.robust_requirements`): a constraint on the
+    optimiser's samples with ``role: constraint``, and a row of the verdict judged on fresh
+    samples.
     """
 
     model_config = _SPEC_CONFIG
@@ -1029,6 +1041,20 @@ class RequirementSpec(BaseModel):
     tolerance_percent: float | None = Field(
         None, gt=0, lt=1000, description="target: band half-width in percent (2 = ±2 %)"
     )
+    robust: RobustShareSpec | None = Field(
+        None,
+        description="met in a share of the prints under the study's robustness: scatter "
+        "({share_percent: 95}); docs/robustness.md",
+    )
+
+    @model_serializer(mode="wrap")
+    def _without_unset_robust(self, handler: Any) -> Any:
+        # robust: came after requirements were first written: an item without it dumps
+        # (evaluation.json, a run folder's study.yaml) as it did before it existed
+        data = handler(self)
+        if isinstance(data, dict) and data.get("robust", 0) is None:
+            del data["robust"]
+        return data
 
     @field_validator("name")
     @classmethod

@@ -234,6 +234,9 @@ def evaluate_study(
     verdicts = result.verdicts
     with limit_loaded_pools():  # its scatter samples: small solves too (solve_study)
         robust = run_robustness(study, plot=result.plot)  # before the folder: it may refuse
+    if robust is not None and robust.robust_verdicts:  # robust: requirements, fresh samples
+        verdicts = robust.with_robust_rows(verdicts)
+        result = replace(result, verdicts=verdicts)
     run_dir = make_run_dir(out or new_run_dir_path(runs_root, study.name, "evaluate", started))
     record = {
         "verdict": verdict_record(verdicts),  # first: what the design meets, and what not

@@ -1364,6 +1364,10 @@ def _robustness_section(
     header = ["requirement", "nominal margin", "share of samples MET",
               f"robust verdict (at {required:g} %)"]  # fmt: skip
     body += _table(header, rows) if rows else "<p>No requirement to judge.</p>"
+    from flexopt.pipeline.robustness import robust_tables  # robust: requirements, their cost
+
+    for title, head, cells, note in robust_tables(record):
+        body += f"<h3>{_e(title)}</h3>" + _table(head, cells) + f"<p>{_e(note)}</p>"
     band = record.get("band") or {}
     spec = plot_spec(spec)
     x = spec["x"]

@@ -43,6 +43,17 @@ study's nominal design in ``flexopt evaluate``): the perturbed study's problem g
 ``detail`` of the shifted design vector, judged as ``flexopt run`` judges its best design.
 ``study``: a kind that is only evaluated: the kind's ``evaluate`` of the perturbed study, judged
 as ``flexopt evaluate`` judges it.
+
+Robust requirements
+-------------------
+A ``requirements:`` item with ``robust:`` (:mod:`optimise.robust_requirements`) is held by the
+GA on fixed draws of the same scatter (:class:`RobustConstraints`, the run's problem: one
+``robust_<name>`` row per constraint, the k-th smallest per-draw row), and judged for the
+verdict on fresh draws by :func:`run_robustness` (``robust_verdicts``, ``robust_record``): one
+row ``<name> (robust)`` per item, MET when the demonstrated share reaches the required one; a
+run's record adds what robustness cost against its nominal optimum (:func:`nominal_optimum`),
+judged on the same draws. The draws are prints like the samples above: the study perturbed,
+the design vector moved, a quantity the problem solves per design held.
 """
 
 from __future__ import annotations
@@ -56,7 +67,15 @@ from typing import Any, Literal
 import numpy as np
 from flexopt.optimise.evaluation import INFEASIBLE_VALUE, Evaluation
 from flexopt.optimise.problem import DesignProblem, ProblemWrapper, as_design_problem
-from flexopt.optimise.requirements import Verdict
+from flexopt.optimise.requirements import MISSING_CONSTRAINT, Verdict
+from flexopt.optimise.robust_requirements import (
+    GA_STREAM,
+    VERDICT_STREAM,
+    RobustShareSpec,
+    demonstrated_share,
+    kth_constraint,
+    scatter_draws,
+)
 from flexopt.optimise.robustness import (
     SAMPLE_COLUMNS,
     RobustnessSpec,
@@ -71,6 +90,7 @@ from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.study import Study, check_robustness, validate_study
 
 __all__ = [
+    "RobustConstraints",
     "RobustnessResult",
     "SampleProblem",
     "WorstCaseProblem",
@@ -81,6 +101,10 @@ __all__ = [
     "robustness_markdown",
     "run_robustness",
     "scatter_design",
+    "nominal_optimum",
+    "robust_verdict_rows",
+    "with_robust_constraints",
+    "with_robust_rows",
     "with_worst_case",
 ]
 
@@ -163,6 +187,10 @@ def _perturbed_data(
 
     walk(data, "")
     data.pop("robustness", None)
+    for item in data.get("requirements") or []:
+        # a print is judged on the plain requirement: the share is over the prints
+        if isinstance(item, dict):
+            item.pop("robust", None)
     for keys, value in SAMPLE_SWITCHES:
         node = data
         for key in keys[:-1]:
@@ -346,6 +374,14 @@ class RobustnessResult:
     units: tuple[str, ...] = field(default=())
     target: float | None = None
     tolerance: float | None = None
+    #: the verdict rows of the robust requirements (:func:`robust_rows`), judged on fresh samples
+    robust_verdicts: tuple[Verdict, ...] = ()
+    #: their record (``robust_requirements`` of :meth:`record`), None without robust requirements
+    robust_record: dict[str, Any] | None = None
+
+    def with_robust_rows(self, verdicts: Sequence[Verdict]) -> tuple[Verdict, ...]:
+        """``verdicts`` with each robust requirement's row after its nominal row."""
+        return with_robust_rows(verdicts, self.robust_verdicts)
 
     @property
     def n_samples(self) -> int:
@@ -409,6 +445,7 @@ class RobustnessResult:
                 }
                 for c in band_cols
             },
+            **({"robust_requirements": self.robust_record} if self.robust_record else {}),
         }
 
     def lines(self) -> list[str]:
@@ -462,6 +499,13 @@ def robustness_lines(record: Mapping[str, Any] | None) -> list[str]:
         )
     if not reqs:
         out.append("  (no requirement to judge)")
+    for r in (record.get("robust_requirements") or {}).get("requirements") or []:
+        out.append(
+            f"  {r['name']} (robust): {r['met_samples']}/{r['verdict_samples']} fresh samples "
+            f"met, demonstrated {r['demonstrated_share_percent']:.1f} % (need "
+            f"{r['share_percent_required']:g} % at {r['confidence_percent']:g} % confidence)  "
+            + ("MET" if r["met"] else "NOT MET")
+        )
     return out
 
 
@@ -517,6 +561,7 @@ def robustness_markdown(record: Mapping[str, Any], plot_file: str | None = None)
             f"{record['n_failed']} sample(s) could not be solved or built (they meet what their "
             f"verdicts say, a missing value meets nothing), e.g.: {record.get('failure')}",
         ]
+    lines += robust_markdown(record)
     if plot_file:
         lines += ["", f"![the response with its band over the samples]({plot_file})"]
     return "\n".join(lines) + "\n"
@@ -634,6 +679,7 @@ def run_robustness(
     settings: Any = None,
     plot: Mapping[str, Any] | None = None,
     backend: Any = None,
+    history: tuple[Any, Evaluation, Sequence[Evaluation]] | None = None,
 ) -> RobustnessResult | None:
     """Evaluate the study's design at every sample of its ``robustness:`` block.
 
@@ -650,6 +696,12 @@ def run_robustness(
         The nominal response's plot dict (its ``x`` and ``y``): the band's columns.
     backend : BatchBackend, optional
         Run the samples here instead of opening the backend ``settings`` describe.
+    history : (problem, chosen evaluation, every evaluation), optional
+        A run's: the robust requirements' record then compares the chosen design with the
+        run's nominal optimum (:func:`nominal_optimum`) and judges both on the same samples.
+
+    The study's ``robust:`` requirements are judged on their fresh samples on the same backend
+    (``robust_verdicts`` and ``robust_record`` of the result; docs/robustness.md).
 
     Raises
     ------
@@ -684,13 +736,23 @@ def run_robustness(
     sample_problem = SampleProblem(study, mode, x, held)
     settings = settings if settings is not None else parallel_settings(study)
     log.info("robustness: %d samples on %s", len(samples), settings.describe())
-    if backend is not None:
-        evaluations = backend(sample_problem, samples)
-    else:
-        with _backend_opener()(settings, sample_problem) as opened:
-            evaluations = opened(sample_problem, samples)
+
+    def run_on(batch_problem: SampleProblem, rows: np.ndarray) -> Sequence[Evaluation]:
+        if backend is not None:
+            return backend(batch_problem, rows)
+        # a pool is opened for one problem (its workers hold it): one pool per design sampled
+        with _backend_opener()(settings, batch_problem) as opened:
+            return opened(batch_problem, rows)
+
+    evaluations = run_on(sample_problem, samples)
+    robust_record = _robust_record(study, problem, mode, x, run_on, history)
     result = _collect(spec, samples, perturbed, evaluations, _plot_columns(plot or {}))
-    return replace(result, **_target_of(plot or {}))
+    return replace(
+        result,
+        **_target_of(plot or {}),
+        robust_verdicts=robust_verdict_rows(robust_record),
+        robust_record=robust_record,
+    )
 
 
 def _target_of(plot: Mapping[str, Any]) -> dict[str, float | None]:
@@ -787,3 +849,507 @@ def _collect(
         y=columns[1],
         units=units,
     )
+
+
+# --------------------------------------------------------------------------------------------
+# Robust requirements (optimise.robust_requirements): the optimiser's constraint on fixed
+# samples, the verdict on fresh ones, and what robustness cost
+
+
+def _sample_words(row: np.ndarray) -> str:
+    e, dt, dw = (float(v) for v in row)
+    return f"E x{e:.4g}, thickness {dt:+.3g} mm, width {dw:+.3g} mm"
+
+
+def _scalar_metrics(metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """The scalar metrics a requirement's constraint reads (numpy scalars as Python ones)."""
+    out: dict[str, Any] = {}
+    for key, value in metrics.items():
+        if isinstance(value, np.generic):
+            value = value.item()
+        if value is None or isinstance(value, bool | int | float):
+            out[str(key)] = value
+    return out
+
+
+def _failed(ev: Evaluation) -> bool:
+    """A design that could not be built or solved (not one that only misses a constraint)."""
+    return bool(ev.reason) and bool(np.any(np.asarray(ev.f, dtype=float) >= INFEASIBLE_VALUE))
+
+
+class RobustConstraints(ProblemWrapper):
+    """A design problem holding its ``robust:`` constraints on fixed scatter samples.
+
+    Each robust requirement with ``role: constraint`` adds one row ``robust_<name>``: the
+    :func:`~optimise.robust_requirements.kth_constraint` of its per-sample rows over the
+    ``spec.n_optimiser`` draws of ``default_rng([seed, 0])`` (the same draws for every design:
+    common random numbers), with ``k = spec.k_optimiser``. Every design is evaluated at the
+    nominal (the inner problem, whose objectives, constraints and metrics it keeps) and then at
+    each draw, one after the other in the worker that evaluates the design, through the same
+    runner, store and resume as any evaluation (the wrapper is the run's problem). A draw that
+    cannot be built or solved fails every requirement; ``metrics`` count them
+    (``robust_failed_samples``) and name the first (``robust_failure``), and carry the share of
+    draws that meet each requirement (``robust_<name>_share_percent``).
+
+    Picklable: the draws' problems are built once per process, on first use.
+    """
+
+    def __init__(
+        self, inner: Any, study: Study, items: Sequence[tuple[Any, RobustShareSpec]]
+    ) -> None:
+        super().__init__(as_design_problem(inner))
+        spec: RobustnessSpec = study.robustness  # type: ignore[attr-defined]
+        self.sampled_study = study
+        self.items = tuple(items)
+        longest: dict[int, int] = {}
+        for _, rs in self.items:
+            longest[rs.seed] = max(longest.get(rs.seed, 0), rs.n_optimiser)
+        self.draws = {
+            seed: scatter_draws(
+                spec.E_percent, spec.thickness_mm, spec.width_mm, n, seed, GA_STREAM
+            )
+            for seed, n in longest.items()
+        }
+        self.n_nominal = len(self.inner.constraint_names)
+        self.constraint_names = (
+            *self.inner.constraint_names,
+            *(f"robust_{req.label}" for req, _ in self.items),
+        )
+        self._problems: dict[tuple[int, int], Any] = {}
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {**self.__dict__, "_problems": {}}  # rebuilt in each worker
+
+    def _problem(self, seed: int, row: int) -> Any:
+        """The problem of one draw, or why it cannot be built (a str)."""
+        if (seed, row) not in self._problems:
+            from flexopt.pipeline.problems import build_base_problem
+
+            e, dt, dw = (float(v) for v in self.draws[seed][row])
+            try:
+                self._problems[seed, row] = build_base_problem(
+                    perturb_study(self.sampled_study, e, dt, dw)[0]
+                )
+            except StudyError as exc:
+                self._problems[seed, row] = f"the sample cannot be built: {exc.path}: {exc.problem}"
+        return self._problems[seed, row]
+
+    def _extend(self, x: np.ndarray, nominal: Evaluation) -> Evaluation:
+        from flexopt.pipeline.parallel import evaluate_one
+
+        x = np.asarray(x, dtype=float)
+        g_nominal = np.asarray(nominal.g, dtype=float)
+        if _failed(nominal):  # the nominal design itself failed: so does every row
+            extra = np.full(len(self.items), float(np.max(g_nominal, initial=1.0e12)))
+            return replace(nominal, g=np.concatenate([g_nominal, extra]))
+        held = held_state(self.inner, nominal)
+        rows: dict[int, np.ndarray] = {}
+        n_failed, first, time_s = 0, "", float(nominal.time_s)
+        for seed, draws in self.draws.items():
+            g = np.full((len(draws), len(self.items)), MISSING_CONSTRAINT)
+            for row, (_, dt, dw) in enumerate(draws):
+                problem = self._problem(seed, row)
+                reason = problem if isinstance(problem, str) else ""
+                if not reason:
+                    hold_solved(problem, held, dt, dw)
+                    ev = evaluate_one(problem, scatter_design(problem, x, dt, dw))
+                    time_s += float(ev.time_s)
+                    if _failed(ev):
+                        reason = ev.reason
+                    else:
+                        metrics = _scalar_metrics(ev.metrics)
+                        g[row] = [req.constraint(metrics) for req, _ in self.items]
+                if reason:
+                    n_failed += 1
+                    first = first or f"sample {row} ({_sample_words(draws[row])}): {reason}"
+            rows[seed] = g
+        extra = np.empty(len(self.items))
+        metrics = dict(nominal.metrics)
+        for j, (req, rs) in enumerate(self.items):
+            g = rows[rs.seed][: rs.n_optimiser, j]
+            extra[j] = kth_constraint(g, rs.k_optimiser)
+            metrics[f"robust_{req.label}_share_percent"] = 100.0 * float(np.mean(g <= 0.0))
+        metrics["robust_failed_samples"] = n_failed
+        metrics["robust_failure"] = first
+        return replace(
+            nominal, g=np.concatenate([g_nominal, extra]), metrics=metrics, time_s=time_s
+        )
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        return self._extend(x, self.inner.evaluate(x))
+
+    def detail(self, x: np.ndarray) -> Any:
+        detail = self.inner.detail(x)
+        nominal = detail.evaluation if detail.evaluation is not None else self.inner.evaluate(x)
+        return replace(detail, evaluation=self._extend(x, nominal))
+
+
+def with_robust_constraints(study: Study, problem: Any) -> Any:
+    """``problem`` holding the study's ``robust:`` requirements of ``role: constraint``
+    (:class:`RobustConstraints`), or itself when there is none."""
+    from flexopt.pipeline.verdict import robust_items
+
+    items = [(req, rs) for req, rs in robust_items(study) if req.role == "constraint"]
+    if not items:
+        return problem
+    return RobustConstraints(problem, study, items)
+
+
+def nominal_constraints(problem: Any) -> int | None:
+    """How many of ``problem``'s constraint rows are the nominal design's (the rows before the
+    robust ones), or None when no :class:`RobustConstraints` is in its chain of wrappers."""
+    while problem is not None:
+        if isinstance(problem, RobustConstraints):
+            return problem.n_nominal
+        problem = problem.__dict__.get("inner") if hasattr(problem, "__dict__") else None
+    return None
+
+
+def nominal_optimum(problem: Any, solved: Sequence[Evaluation]) -> Evaluation | None:
+    """The best design of a run that meets every nominal constraint, its robust rows ignored
+    (the first objective, the lowest), or None (no robust constraint, or none such)."""
+    n = nominal_constraints(problem)
+    if n is None:
+        return None
+    ok = [
+        ev
+        for ev in solved
+        if not ev.reason
+        and np.all(np.isfinite(ev.f))
+        and bool(np.all(np.asarray(ev.g, dtype=float)[:n] <= 0.0))
+    ]
+    return min(ok, key=lambda ev: float(ev.f[0])) if ok else None
+
+
+def _cost_figures(problem: Any, ev: Evaluation, quantities: Sequence[str]) -> dict[str, Any]:
+    """What a design costs: its variables, objectives and the metrics robustness moves."""
+    metrics = _scalar_metrics(ev.metrics)
+    wanted = ["mass_g", "volume_mm3", *quantities]
+    wanted += [m for m in metrics if "stress" in m and m.endswith("_MPa")]
+    wanted += [m for m in metrics if m.startswith("robust_") and m.endswith("_share_percent")]
+    return {
+        "parameters": dict(zip(problem.space.names, map(float, ev.x), strict=True)),
+        "objectives": dict(zip(problem.objective_names, map(float, ev.f), strict=True)),
+        "metrics": {m: metrics[m] for m in dict.fromkeys(wanted) if metrics.get(m) is not None},
+    }
+
+
+def _verdict_draws(
+    study: Study, items: Sequence[tuple[Any, RobustShareSpec]]
+) -> dict[int, np.ndarray]:
+    """``{seed: (n, 3) draws}`` of the verdict's stream, the longest each seed's items need."""
+    spec: RobustnessSpec = study.robustness  # type: ignore[attr-defined]
+    longest: dict[int, int] = {}
+    for _, rs in items:
+        longest[rs.seed] = max(longest.get(rs.seed, 0), rs.n_verdict)
+    return {
+        seed: scatter_draws(
+            spec.E_percent, spec.thickness_mm, spec.width_mm, n, seed, VERDICT_STREAM
+        )
+        for seed, n in longest.items()
+    }
+
+
+def _shares(
+    items: Sequence[tuple[Any, RobustShareSpec]],
+    draws: Mapping[int, np.ndarray],
+    evaluations: Mapping[int, Sequence[Evaluation]],
+) -> list[dict[str, Any]]:
+    """Each robust requirement judged on its draws' evaluations: met count, demonstrated share,
+    worst margin, the failed samples."""
+    out = []
+    for req, rs in items:
+        n = rs.n_verdict
+        met, margins, failures = 0, [], []
+        for row, ev in enumerate(evaluations[rs.seed][:n]):
+            outcome = ev.metrics.get("robustness") if ev.metrics else None
+            verdict = None
+            if outcome is not None:
+                verdict = next((v for v in outcome.verdicts if v.name == req.label), None)
+            if verdict is None:
+                why = ev.reason or "the requirement was not judged"
+                failures.append(f"sample {row} ({_sample_words(draws[rs.seed][row])}): {why}")
+                margins.append(math.nan)
+                continue
+            met += bool(verdict.met)
+            margins.append(float(verdict.margin))
+        shown = demonstrated_share(met, n, rs.confidence_percent)
+        finite = [m for m in margins if math.isfinite(m)]
+        out.append(
+            {
+                "name": req.label,
+                "quantity": req.quantity,
+                "unit": req.unit,
+                "role": req.role,
+                "share_percent_required": rs.share_percent,
+                "confidence_percent": rs.confidence_percent,
+                "seed": rs.seed,
+                "verdict_samples": n,
+                "met_samples": met,
+                "point_share_percent": 100.0 * met / n,
+                "demonstrated_share_percent": shown,
+                "met": bool(shown >= rs.share_percent - 1e-9),
+                "worst_margin": min(finite) if len(finite) == n else None,
+                "n_failed": len(failures),
+                "failure": failures[0] if failures else "",
+                "optimiser": (
+                    {
+                        "samples": rs.n_optimiser,
+                        "required": rs.k_optimiser,
+                        "demonstrates_percent": demonstrated_share(
+                            rs.k_optimiser, rs.n_optimiser, rs.confidence_percent
+                        ),
+                    }
+                    if req.role == "constraint"
+                    else None
+                ),
+            }
+        )
+    return out
+
+
+def robust_verdict_rows(record: Mapping[str, Any] | None) -> tuple[Verdict, ...]:
+    """The verdict rows of a ``robust_requirements`` record: one per robust requirement, MET
+    when the share its fresh samples demonstrate reaches the required share."""
+    rows = []
+    for r in (record or {}).get("requirements") or []:
+        p, c, n = r["share_percent_required"], r["confidence_percent"], r["verdict_samples"]
+        shown = float(r["demonstrated_share_percent"])
+        detail = f"{r['met_samples']} of {n} fresh samples met ({r['point_share_percent']:.1f} %)"
+        if r.get("optimiser"):
+            o = r["optimiser"]
+            detail += f"; the optimiser held {o['required']} of its {o['samples']} samples"
+        if r.get("n_failed"):
+            detail += f"; {r['n_failed']} sample(s) failed, e.g. {r['failure']}"
+        rows.append(
+            Verdict(
+                name=f"{r['name']} (robust)",
+                quantity="share_of_prints_percent",
+                value=shown,
+                bound=f">= {p:g} % of prints ({c:g} % confidence, {n} samples)",
+                margin=shown - p,
+                margin_rel=(shown - p) / p,
+                met=bool(r["met"]),
+                unit="%",
+                role=r.get("role", "check"),
+                detail=detail,
+            )
+        )
+    return tuple(rows)
+
+
+def with_robust_rows(verdicts: Sequence[Verdict], robust: Sequence[Verdict]) -> tuple[Verdict, ...]:
+    """``verdicts`` with each robust row right after the row of its requirement (at the end
+    when that row is missing)."""
+    out = list(verdicts)
+    for row in robust:
+        base = row.name.removesuffix(" (robust)")
+        at = next((i for i, v in enumerate(out) if v.name == base), None)
+        out.insert(len(out) if at is None else at + 1, row)
+    return tuple(out)
+
+
+def _robust_record(
+    study: Study,
+    problem: Any,
+    mode: Literal["design", "study"],
+    x: np.ndarray | None,
+    run_backend: Any,
+    history: tuple[Any, Evaluation, Sequence[Evaluation]] | None,
+) -> dict[str, Any] | None:
+    """The ``robust_requirements`` record: each robust requirement of ``study`` judged on fresh
+    samples of the design ``x``; with a run's ``history`` (its problem, its chosen evaluation,
+    every evaluation), the nominal optimum judged on the same samples and the cost of
+    robustness. ``run_backend(sample_problem, rows)`` evaluates sample rows (a backend opened
+    for that problem: a process pool's workers hold the problem they were started with)."""
+    from flexopt.pipeline.verdict import robust_items
+
+    items = robust_items(study)
+    if not items:
+        return None
+    draws = _verdict_draws(study, items)
+    seeds = list(draws)
+    rows = np.vstack([draws[s] for s in seeds])
+
+    def judged(sample_problem: SampleProblem) -> list[dict[str, Any]]:
+        evaluations = list(run_backend(sample_problem, rows))
+        by_seed, start = {}, 0
+        for s in seeds:
+            by_seed[s] = evaluations[start : start + len(draws[s])]
+            start += len(draws[s])
+        return _shares(items, draws, by_seed)
+
+    held: dict[str, float] = {}
+    if mode == "design" and problem is not None and problem.held_scatter:
+        held = held_state(problem, problem.evaluate(x))
+    record: dict[str, Any] = {
+        "sampling": "uniform within the ± band of robustness:, fresh draws "
+        "(default_rng([seed, 1])); the optimiser's were default_rng([seed, 0])",
+        "requirements": judged(SampleProblem(study, mode, x, held)),
+    }
+    if history is not None:
+        run_problem, best, solved = history
+        reference = nominal_optimum(run_problem, solved)
+        quantities = [req.quantity for req, _ in items]
+        cost: dict[str, Any] = {
+            "reference": "the best design this run evaluated that meets every nominal "
+            "constraint, its robust rows ignored",
+            "robust_optimum": _cost_figures(run_problem, best, quantities),
+            # the chosen design holds every constraint, robust rows included (else it is only
+            # the least infeasible design of the run: no robust optimum to compare)
+            "robust_feasible": bool(best.feasible),
+        }
+        if reference is None:
+            cost["nominal_optimum"] = None
+        else:
+            cost["nominal_optimum"] = _cost_figures(run_problem, reference, quantities)
+            same = np.array_equal(np.asarray(reference.x), np.asarray(best.x))
+            cost["same_design"] = bool(same)
+            if not same and problem is not None:
+                held_ref: dict[str, float] = {}
+                if problem.held_scatter:
+                    held_ref = held_state(problem, problem.evaluate(reference.x))
+                shares = judged(SampleProblem(study, "design", reference.x, held_ref))
+                cost["nominal_optimum"]["robust"] = [
+                    {
+                        k: s[k]
+                        for k in (
+                            "name",
+                            "met_samples",
+                            "verdict_samples",
+                            "point_share_percent",
+                            "demonstrated_share_percent",
+                            "met",
+                        )
+                    }  # fmt: skip
+                    for s in shares
+                ]
+        record["cost"] = cost
+    return record
+
+
+def _fmt(value: Any, unit: str = "") -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    text = f"{value:.4g}" if isinstance(value, int | float) else str(value)
+    return f"{text} {unit}" if unit else text
+
+
+def robust_tables(
+    record: Mapping[str, Any] | None,
+) -> list[tuple[str, list[str], list[list[str]], str]]:
+    """The robust requirements of a robustness record as tables, ``(title, header, rows,
+    note)`` each: the verdict on fresh samples, and what robustness cost against the nominal
+    optimum (for report.md and report.html alike)."""
+    rr = (record or {}).get("robust_requirements")
+    if not rr:
+        return []
+    cost = rr.get("cost") or {}
+    nominal = cost.get("nominal_optimum") or {}
+    by_name = {r["name"]: r for r in nominal.get("robust") or []}
+    same = cost.get("same_design")
+    rows = []
+    for r in rr.get("requirements") or []:
+        o = r.get("optimiser")
+        held = (
+            f"{o['required']} of {o['samples']} (demonstrates {o['demonstrates_percent']:.1f} %)"
+            if o
+            else "not a constraint"
+        )
+        ref = by_name.get(r["name"])
+        if ref is not None:
+            ref_text = (
+                f"{ref['met_samples']}/{ref['verdict_samples']} met "
+                f"({ref['point_share_percent']:.1f} %), demonstrated "
+                f"{ref['demonstrated_share_percent']:.1f} %: {'MET' if ref['met'] else 'NOT MET'}"
+            )
+        else:
+            ref_text = "the same design" if same else "n/a"
+        rows.append(
+            [
+                r["name"],
+                f"{r['share_percent_required']:g} % at {r['confidence_percent']:g} % confidence",
+                held,
+                f"{r['met_samples']}/{r['verdict_samples']} ({r['point_share_percent']:.1f} %)",
+                f"{r['demonstrated_share_percent']:.1f} %",
+                "MET" if r["met"] else "NOT MET",
+                ref_text,
+            ]
+        )
+    failed = [r for r in rr.get("requirements") or [] if r.get("n_failed")]
+    note = (
+        "A requirement is MET robustly when the share of prints its fresh samples demonstrate "
+        "(the one-sided Clopper-Pearson lower bound at the stated confidence) reaches the "
+        "required share; the optimiser held it on fixed samples of its own (common to every "
+        "design), which cannot be the evidence for the design they chose."
+    )
+    if failed:
+        note += " " + "; ".join(
+            f"{r['name']}: {r['n_failed']} sample(s) failed (counted as not met), e.g. "
+            f"{r['failure']}"
+            for r in failed
+        )
+    out = [
+        (
+            "Robust requirements",
+            [
+                "requirement",
+                "required",
+                "optimiser held (of its samples)",
+                "fresh samples met",
+                "demonstrated share",
+                "verdict",
+                "nominal optimum",
+            ],
+            rows,
+            note,
+        )  # fmt: skip
+    ]
+    if cost:
+        robust = cost.get("robust_optimum") or {}
+        names: list[tuple[str, str]] = []
+        for group in ("objectives", "metrics"):
+            for key in {**(nominal.get(group) or {}), **(robust.get(group) or {})}:
+                if all(key != k for _, k in names):  # an objective that is also a metric: once
+                    names.append((group, key))
+        crows = []
+        for group, key in names:
+            a = (nominal.get(group) or {}).get(key)
+            b = (robust.get(group) or {}).get(key)
+            change = "n/a"
+            if isinstance(a, int | float) and isinstance(b, int | float):
+                change = f"{b - a:+.4g}" + (f" ({(b - a) / abs(a) * 100:+.1f} %)" if a else "")
+            crows.append([key, _fmt(a), _fmt(b), change])
+        if not nominal:
+            what = "no design of this run met the nominal constraints: nothing to compare"
+        elif cost.get("robust_feasible") is False:
+            what = (
+                "no design of this run held every constraint, robust rows included: the chosen "
+                "one is the least infeasible, not a robust optimum (a longer run may find one)"
+            )
+        elif same:
+            what = "the nominal optimum of this run is the robust one: robustness cost nothing"
+        else:
+            what = f"nominal optimum: {cost.get('reference')}"
+        out.append(
+            (
+                "What robustness cost",
+                ["figure", "nominal optimum", "robust optimum", "change"],
+                crows,
+                what,
+            )  # fmt: skip
+        )
+    return out
+
+
+def robust_markdown(record: Mapping[str, Any] | None) -> list[str]:
+    """report.md lines of :func:`robust_tables` (empty without robust requirements)."""
+    lines: list[str] = []
+    for title, header, rows, note in robust_tables(record):
+        lines += ["", f"### {title}", "", "| " + " | ".join(header) + " |"]
+        lines.append("|" + "---|" * len(header))
+        lines += ["| " + " | ".join(row) + " |" for row in rows]
+        lines += ["", note]
+    return lines

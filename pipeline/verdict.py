@@ -69,6 +69,7 @@ from flexopt.optimise.requirements import (
     curves_from_table,
     judge_best,
 )
+from flexopt.optimise.robust_requirements import RobustShareSpec
 from flexopt.pipeline.errors import StudyError
 
 if TYPE_CHECKING:  # annotations only: study.validate_study calls check_requirement_names
@@ -95,6 +96,7 @@ __all__ = [
     "life_values",
     "quantities_of",
     "result_values",
+    "robust_items",
     "study_requirements",
     "user_requirements",
     "with_design_range",
@@ -173,6 +175,43 @@ def user_requirements(study: Study) -> tuple[Requirement, ...]:
     return tuple(out)
 
 
+def robust_items(study: Study) -> tuple[tuple[Requirement, RobustShareSpec], ...]:
+    """The ``requirements:`` items with ``robust:``, as ``(requirement, robust spec)`` pairs in
+    the order of the list (empty when there is none; docs/robustness.md)."""
+    specs: Sequence[RequirementSpec] = getattr(study, "requirements", None) or ()
+    if not any(spec.robust is not None for spec in specs):
+        return ()
+    reqs = user_requirements(study)
+    return tuple(
+        (req, spec.robust) for req, spec in zip(reqs, specs, strict=True) if spec.robust is not None
+    )
+
+
+def check_robust_item(study: Study, i: int, spec: RequirementSpec) -> None:
+    """Refuse a ``robust:`` requirement the study cannot judge: no ``robustness:`` block (the
+    scatter its share is of), or a constraint beside ``robustness.objective: worst`` (every
+    sample held already; one of the two).
+
+    Raises
+    ------
+    StudyError
+        At ``requirements[i].robust``.
+    """
+    scatter = getattr(study, "robustness", None)
+    if scatter is None:
+        raise StudyError(
+            f"requirements[{i}].robust",
+            "needs the study's robustness: block, the scatter its share is of (E_percent, "
+            "thickness_mm, width_mm; docs/robustness.md)",
+        )
+    if spec.role == "constraint" and scatter.objective == "worst":
+        raise StudyError(
+            f"requirements[{i}].robust",
+            "robustness.objective: worst already holds every sample; a robust constraint holds "
+            "a share of them: use one (objective: nominal, or role: check)",
+        )
+
+
 def figures_of(study: Study) -> dict[str, tuple[Figure, ...]]:
     """``{quantity: figures}`` the kind of ``study`` reports (empty when it has one model)."""
     figures = getattr(_kind(study), "figures", None)
@@ -245,6 +284,8 @@ def check_requirement_names(study: Study) -> None:
                 "cannot be a constraint: the held value is computed from the response table of "
                 "the judged design; use role: check",
             )
+        if spec.robust is not None:
+            check_robust_item(study, i, spec)
         if spec.role == "constraint":
             why = ""
             if getattr(_kind(study), "problem", None) is None:

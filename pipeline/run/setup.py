@@ -44,17 +44,19 @@ class RunSetup:
 def build_problem(study: Study) -> DesignProblem:
     """The kind's design problem for ``study``, as ``flexopt run`` optimises it: the kind's own
     problem with the study's ``role: constraint`` requirements as g rows
-    (:func:`pipeline.problems.build_base_problem`), scored by its worst scatter sample when
-    ``robustness.objective`` is ``worst``.
+    (:func:`pipeline.problems.build_base_problem`), its ``robust:`` constraints held on fixed
+    scatter samples, scored by its worst scatter sample when ``robustness.objective`` is
+    ``worst``.
 
     Raises
     ------
     StudyError
         When the kind cannot be optimised, or refuses the study while building the problem.
     """
-    from flexopt.pipeline.robustness import with_worst_case
+    from flexopt.pipeline.robustness import with_robust_constraints, with_worst_case
 
-    return with_worst_case(study, build_base_problem(study))
+    # robust: requirements of role constraint held on fixed scatter samples (docs/robustness.md)
+    return with_worst_case(study, with_robust_constraints(study, build_base_problem(study)))
 
 
 def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> RunSetup:

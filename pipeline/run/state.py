@@ -412,6 +412,9 @@ class RunState:
             log.info("the best design's detail: traceback", exc_info=True)
             self.notes.append(note + " (no response, plots of it, STL)")
         self.verdicts = self.judge(best, detail)
+        robust = self.robustness(best, detail)
+        if robust is not None:  # robust: requirements, judged on fresh scatter samples
+            self.verdicts = robust.with_robust_rows(self.verdicts)
         if detail is not None:
             detail = replace(detail, verdicts=self.verdicts)
         part = self._flat_part(detail)
@@ -428,7 +431,6 @@ class RunState:
             # beside them (and in evaluations.csv)
             best_json["metrics"] = made
             best_json["optimiser_metrics"] = best.metrics
-        robust = self.robustness(best, detail)
         if robust is not None:  # the chosen design under the study's scatter (docs/robustness.md)
             best_json["robustness"] = robust.record()
             self.record["robustness"] = {
@@ -588,6 +590,7 @@ class RunState:
                 np.array(best.x, dtype=float),
                 ParallelSettings(**spec),
                 plot=detail.plot if detail is not None else None,
+                history=(self.problem, best, tuple(self.evaluator.solved)),
             )
         except Exception as exc:
             note = f"robustness not evaluated: {_one_line(f'{type(exc).__name__}: {exc}')}"
