@@ -95,7 +95,7 @@ from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.screening import SideProcess, one_blas_thread, taguchi_stage
 from flexopt.pipeline.studies import StudyKind, _builtin, register
-from flexopt.pipeline.studies._sea_spring_peak import fine_geometry_of, peak_of
+from flexopt.pipeline.studies import _sea_spring_peak as peak
 from flexopt.pipeline.studies._sea_spring_schema import (
     SeaSpringStudy,
     check,
@@ -446,7 +446,7 @@ class SeaSpringProblem(DesignProblem):
         solves = (geom, self.material, self.theta, study.mesh, self.solve_st)
         if s3.check and s3.converge_peak:
             side = SideProcess.start()
-            side.submit("peak", peak_of, self, geom.params, worse_direction(r))
+            side.submit("peak", peak.peak_job, self, geom.params, worse_direction(r))
             side.submit("analyses", detail_solves, *solves)
         try:
             solid = self.solid_3d(geom, r, side) if s3.check else None
@@ -484,7 +484,7 @@ class SeaSpringProblem(DesignProblem):
             if "problem" not in solid.get("peak_convergence", {"problem": ""}):
                 # ... and the outline whose peak stress converged (issue 22): its arms sampled
                 # every curve_step_mm, not the optimiser's facets (on those the peak is higher)
-                part_outline = fine_geometry_of(self, geom.params).outline
+                part_outline = peak.fine_geometry_of(self, geom.params).outline
         smap = _stress_map_data(r)
         plot = {
             "x": "rotation_deg",
@@ -606,12 +606,12 @@ class SeaSpringProblem(DesignProblem):
         own = side is None and s3.converge_peak
         if own:
             side = SideProcess.start()
-            side.submit("peak", peak_of, self, geom.params, sign)
+            side.submit("peak", peak.peak_job, self, geom.params, sign)
 
         def converged_peak() -> tuple[dict[str, Any], bool]:
             c = side.get("peak") if side is not None else None
             if c is None:
-                return peak_of(self, geom.params, sign), False
+                return peak.peak_of(self, geom.params, sign), False
             return c, True
 
         try:

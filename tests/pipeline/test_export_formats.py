@@ -364,10 +364,10 @@ def _part_as_exported(name: str):
     d = prob.detail(x)
     converge = getattr(getattr(full, "solid_3d", None), "converge_peak", False)
     if kind == "sea_spring" and full.solid_3d.check and converge:
-        import flexopt.pipeline.studies.sea_spring as ss
+        import flexopt.pipeline.studies._sea_spring_peak as peak
 
         _, geom, _, _ = prob.solve(x, 1)
-        d = replace(d, outline=ss._fine_geometry(prob, geom.params).outline)
+        d = replace(d, outline=peak.fine_geometry_of(prob, geom.params).outline)
     elif kind == "threshold_spring" and full.fidelity.enabled and full.solid_3d.check and converge:
         from flexopt.geometry.arm_spring import build_arm_spring
 

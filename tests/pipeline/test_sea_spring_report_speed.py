@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import flexopt.pipeline.studies._sea_spring_peak as peak
 import flexopt.pipeline.studies.sea_spring as ss
 import numpy as np
 import pytest
@@ -84,7 +85,7 @@ def test_second_process_work_equals_this_process_work(monkeypatch):
 
     # fork (the CLI's choice on Linux) carries the stand-in into the side process
     monkeypatch.setattr(fork, "pool_context", lambda: multiprocessing.get_context("fork"))
-    monkeypatch.setattr(ss, "_peak_convergence", fake_convergence)
+    monkeypatch.setattr(peak, "peak_of", fake_convergence)
     # one 3D check (correct: false): its ratio is all the peak needs
     study = {**STUDY, "solid_3d": {"converge_peak": True, "correct": False, "layers": 1}}
     prob, x = _solved(study)
@@ -114,7 +115,7 @@ def test_without_a_second_process_the_work_is_done_here(monkeypatch):
         raise AssertionError("daemonic processes are not allowed to have children")
 
     monkeypatch.setattr(fork, "pool_context", refuse)
-    monkeypatch.setattr(ss, "_peak_convergence", lambda prob, params, sign: {
+    monkeypatch.setattr(peak, "peak_of", lambda prob, params, sign: {
         "converged": False, "status": "not converged", "last_two_MPa": [1.0, 2.0],
         "peaks_MPa": [1.0, 2.0], "local_edge_mm": [1.0, 0.5], "peak_xy_mm": [0.0, 0.0],
         "corner": None, "time_s": 0.0})  # fmt: skip
