@@ -58,6 +58,7 @@ __all__ = [
     "ContactSettings",
     "ContactResponse",
     "BeamContact",
+    "contact_rows",
     "overlaps",
     "solve_with_stops",
 ]
@@ -473,45 +474,70 @@ class BeamContact:
         for k in np.flatnonzero(beam.converged):
             force[k], gap[k], touch[k], point[k] = self.state(beam.shapes_mm[k])
         driven = beam.displacement_mm if drive.control == "displacement" else beam.force_N
-        closing = np.full(ns, np.nan)
-        for j in range(ns):
-            g = gap[:, j]
-            for k in range(1, rows):
-                if g[k - 1] >= 0.0 and g[k] < 0.0:  # NaN rows never match
-                    # Once closed the gap stays near zero (the penetration), so interpolating to
-                    # row k would place the closing late: extrapolate the open rows' trend
-                    # (the last two), kept inside the bracket [row k - 1, row k].
-                    lo, hi = driven[k - 1], driven[k]
-                    w = g[k - 1] / (g[k - 1] - g[k])
-                    closing[j] = lo + w * (hi - lo)
-                    if k >= 2 and g[k - 2] > g[k - 1]:
-                        ext = lo + g[k - 1] * (lo - driven[k - 2]) / (g[k - 2] - g[k - 1])
-                        closing[j] = min(max(ext, min(lo, hi)), max(lo, hi))
-                    break
-        pen = np.where(np.isnan(gap), 0.0, np.maximum(-gap, 0.0)).max(axis=1, initial=0.0)
-        bad = np.flatnonzero(pen > self.tolerance_mm)
-        message = ""
-        if bad.size:
-            message = (
-                f"penetration {pen.max():.3g} mm exceeds the tolerance {self.tolerance_mm:.3g} mm "
-                f"in {bad.size} row(s) (first: row {bad[0]}): raise ContactSettings.penalty_factor"
-            )
-        return ContactResponse(
-            names=self.names,
-            force_N=np.hypot(force[..., 0], force[..., 1]),
-            force_vector_N=force,
-            gap_mm=gap,
-            in_contact=touch,
-            rows_in_contact=touch.any(axis=1),
-            point_mm=point,
-            initial_gap_mm=gap[0].copy(),
-            closing_value=closing,
-            max_penetration_mm=pen,
-            penetration_ok=bad.size == 0,
-            penalty_N_per_mm=self.k_elements.copy(),
-            message=message,
-            extra={"tolerance_mm": self.tolerance_mm},
+        return contact_rows(
+            self.names, force, gap, touch, point, driven, self.tolerance_mm, self.k_elements
         )
+
+
+def contact_rows(
+    names: tuple[str, ...],
+    force: np.ndarray,
+    gap: np.ndarray,
+    touch: np.ndarray,
+    point: np.ndarray,
+    driven: np.ndarray,
+    tolerance_mm: float,
+    penalty: np.ndarray,
+) -> ContactResponse:
+    """The :class:`ContactResponse` of a traced path from its per-row contact state.
+
+    ``force`` (rows, n_stops, 2) N, ``gap`` (rows, n_stops) mm, ``touch`` (rows, n_stops) bool,
+    ``point`` (rows, n_stops, 2) mm (NaN rows: not converged), as :meth:`BeamContact.state`
+    gives them row by row (summed over the beams of a mechanism); ``driven`` (rows,) the driven
+    value of each row (mm, rad, N or N mm); ``tolerance_mm`` the penetration tolerance (mm);
+    ``penalty`` (n_elements,) N/mm the penalty stiffness used. Adds the closing value of each
+    stop, the penetration check and its message (shared by the beam and the mechanism engine).
+    """
+    rows, ns = gap.shape
+    closing = np.full(ns, np.nan)
+    for j in range(ns):
+        g = gap[:, j]
+        for k in range(1, rows):
+            if g[k - 1] >= 0.0 and g[k] < 0.0:  # NaN rows never match
+                # Once closed the gap stays near zero (the penetration), so interpolating to
+                # row k would place the closing late: extrapolate the open rows' trend
+                # (the last two), kept inside the bracket [row k - 1, row k].
+                lo, hi = driven[k - 1], driven[k]
+                w = g[k - 1] / (g[k - 1] - g[k])
+                closing[j] = lo + w * (hi - lo)
+                if k >= 2 and g[k - 2] > g[k - 1]:
+                    ext = lo + g[k - 1] * (lo - driven[k - 2]) / (g[k - 2] - g[k - 1])
+                    closing[j] = min(max(ext, min(lo, hi)), max(lo, hi))
+                break
+    pen = np.where(np.isnan(gap), 0.0, np.maximum(-gap, 0.0)).max(axis=1, initial=0.0)
+    bad = np.flatnonzero(pen > tolerance_mm)
+    message = ""
+    if bad.size:
+        message = (
+            f"penetration {pen.max():.3g} mm exceeds the tolerance {tolerance_mm:.3g} mm "
+            f"in {bad.size} row(s) (first: row {bad[0]}): raise ContactSettings.penalty_factor"
+        )
+    return ContactResponse(
+        names=tuple(names),
+        force_N=np.hypot(force[..., 0], force[..., 1]),
+        force_vector_N=force,
+        gap_mm=gap,
+        in_contact=touch,
+        rows_in_contact=touch.any(axis=1),
+        point_mm=point,
+        initial_gap_mm=gap[0].copy(),
+        closing_value=closing,
+        max_penetration_mm=pen,
+        penetration_ok=bad.size == 0,
+        penalty_N_per_mm=np.asarray(penalty, dtype=float).copy(),
+        message=message,
+        extra={"tolerance_mm": tolerance_mm},
+    )
 
 
 def overlaps(contact: BeamContact) -> list[tuple[int, float]]:
