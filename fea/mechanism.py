@@ -26,6 +26,10 @@ whose increment turns away from the prediction or that crosses from a stable to 
 state is retried smaller), so a buckling-type mechanism starts on the branch its geometry
 selects. Stability is the inertia of the KKT matrix (see :func:`solve_mechanism`).
 
+Rigid stops (``Mechanism.stops``): frictionless penalty contact of every beam with rigid outlines
+fixed to the ground, the pair search, penalty energy and exact Hessian of :mod:`fea.stops` added
+to every assembly (``r`` and ``H`` above); see :func:`solve_mechanism` and docs/contact.md.
+
 Failure to converge is data (``converged``, ``ok``, ``message``), never raised; bad input (unknown
 parts, free rigid-body motions, redundant constraints) raises :class:`fea.errors.FeaError` before
 any solve. Units: mm, N, N·mm, rad, MPa, g.
@@ -287,7 +291,10 @@ class MechanismSettings:
         the reference loop (the contact terms are Python; the beams' element kernel still
         assembles).
     contact : fea.stops.ContactSettings — penalty of the stops (``Mechanism.stops``):
-        k = penalty_factor x EI / h^3 per element, the penetration tolerance and its raises.
+        k = penalty_factor x EI / h^3 per element with h the beam's mean element length
+        (``element_length="mean"``: the beams as made have graded meshes, whose tiny root
+        elements would make a local EI / h^3 a penalty Newton cannot converge with), the
+        penetration tolerance and its raises.
     """
 
     default_elements: int = 30
@@ -304,7 +311,7 @@ class MechanismSettings:
     min_critical_substep: float = 1e-3
     check_stability: bool = True
     kernel: Literal["auto", "numba", "numpy"] = "auto"
-    contact: ContactSettings = ContactSettings()
+    contact: ContactSettings = ContactSettings(element_length="mean")
 
 
 @dataclass(frozen=True)
