@@ -176,3 +176,22 @@ def test_requirement_names_know_the_stops():
         validate_study(raw)
     assert info.value.path == "requirements[0].quantity"
     assert "stop_block_force_N" in str(info.value)
+
+
+def test_first_contact_of_a_rotation_drive_is_in_degrees():
+    """The end section turned (clockwise: the tip bends down) onto the pin: the first contact
+    is reported in the drive's unit (deg), between the last open and the first closed row."""
+    raw = copy.deepcopy(CANTILEVER)
+    raw["load_cases"]["push"]["drive"] = {
+        "part": "leaf.end", "control": "rotation", "max_deg": -1.0, "steps": 10,
+        "transverse": "free",
+    }  # fmt: skip
+    raw["outputs"] = {"tip_moment_Nmm": {"quantity": "reaction"}}
+    result = solve_study(_study(raw))
+    t, s = result.table, result.summary
+    touching = t["stop_pin_in_contact"]
+    assert touching[-1] and not touching[0]
+    k = int(np.argmax(touching))
+    lo, hi = sorted((t["drive_deg"][k - 1], t["drive_deg"][k]))
+    assert lo <= s["first_contact_deg"] <= hi
+    assert s["stop_pin_max_force_N"] > 0.0
