@@ -26,6 +26,10 @@ whose increment turns away from the prediction or that crosses from a stable to 
 state is retried smaller), so a buckling-type mechanism starts on the branch its geometry
 selects. Stability is the inertia of the KKT matrix (see :func:`solve_mechanism`).
 
+Rigid stops (``Mechanism.stops``): frictionless penalty contact of every beam with rigid outlines
+fixed to the ground, the pair search, penalty energy and exact Hessian of :mod:`fea.stops` added
+to every assembly (``r`` and ``H`` above); see :func:`solve_mechanism` and docs/contact.md.
+
 Failure to converge is data (``converged``, ``ok``, ``message``), never raised; bad input (unknown
 parts, free rigid-body motions, redundant constraints) raises :class:`fea.errors.FeaError` before
 any solve. Units: mm, N, N·mm, rad, MPa, g.
@@ -35,7 +39,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 from types import ModuleType
 from typing import Literal, NamedTuple
@@ -52,6 +56,8 @@ from flexopt.fea.constrained_beams import (
 )
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
+from flexopt.fea.stops import BeamContact, ContactResponse, ContactSettings, RigidStop, overlaps
+from flexopt.fea.stops import contact_rows as _contact_rows
 from flexopt.geometry.profile import BeamProfile
 from scipy.sparse.linalg import splu
 
@@ -231,12 +237,18 @@ class Mechanism:
     bodies : tuple of MechBody
     joints : tuple of MechJoint
     material : fea.materials.Material — E_MPa, nu, yield_MPa, density_kg_m3.
+    stops : tuple of fea.stops.RigidStop — rigid outlines fixed to the ground (points, open
+        polylines, polygons; mm, the mechanism's coordinates): every beam (its centreline swept
+        by t/2) is kept clear of them by frictionless penalty contact inside Newton
+        (:mod:`fea.stops`; the penalty is ``MechanismSettings.contact``). Bodies do not touch
+        them (not modelled). Empty: the solve is the one without contact, exactly.
     """
 
     beams: tuple[MechBeam, ...]
     bodies: tuple[MechBody, ...]
     joints: tuple[MechJoint, ...]
     material: Material
+    stops: tuple[RigidStop, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -275,7 +287,14 @@ class MechanismSettings:
         loop in Python). "auto" follows FLEXOPT_BEAM_KERNEL (numba | numpy; default numba) like
         ``BeamSettings.kernel``. Same decisions, answers equal to round-off
         (tests/fea/test_mechanism_kernels.py); where the bordering cannot take a system the
-        compiled path runs the reference for that sub-step.
+        compiled path runs the reference for that sub-step. A mechanism with stops always runs
+        the reference loop (the contact terms are Python; the beams' element kernel still
+        assembles).
+    contact : fea.stops.ContactSettings — penalty of the stops (``Mechanism.stops``):
+        k = penalty_factor x EI / h^3 per element with h the beam's mean element length
+        (``element_length="mean"``: the beams as made have graded meshes, whose tiny root
+        elements would make a local EI / h^3 a penalty Newton cannot converge with), the
+        penetration tolerance and its raises.
     """
 
     default_elements: int = 30
@@ -292,6 +311,7 @@ class MechanismSettings:
     min_critical_substep: float = 1e-3
     check_stability: bool = True
     kernel: Literal["auto", "numba", "numpy"] = "auto"
+    contact: ContactSettings = ContactSettings(element_length="mean")
 
 
 @dataclass(frozen=True)
@@ -326,6 +346,12 @@ class MechanismResponse:
         positions (where ``shapes_mm`` and ``critical_mode`` are given).
     critical_body_mode : (n_bodies, 3) float, or None — the same mode's body motion (U, V per
         unit amplitude, theta in rad per mm of amplitude).
+    contact : fea.stops.ContactResponse, or None — with stops (``Mechanism.stops``): per row
+        and stop the resultant force the stop exerts on all beams (N), the smallest gap of any
+        beam (mm), in contact, the contact point; the drive value at which each gap closes
+        (``closing_value``, in the drive's unit: mm, rad, N or N·mm); the penetration check.
+        ``extra["force_by_beam_N"]`` (rows, n_beams, n_stops) N is each beam's share. None
+        without stops.
     """
 
     case: str
@@ -345,6 +371,7 @@ class MechanismResponse:
     critical_mode: tuple[np.ndarray, ...] | None = None
     critical_body_mode: np.ndarray | None = None
     reference_nodes_mm: tuple[np.ndarray, ...] = ()
+    contact: ContactResponse | None = None
 
 
 # ==================================================================================== model
@@ -512,6 +539,17 @@ class _Model:
             self._band_src.append(src)
         self._k_rows = np.concatenate(rows)
         self._k_cols = np.concatenate(cols)
+        #: the contact terms of each beam against the stops (None without stops: the old path)
+        self.contacts: list[BeamContact] | None = None
+        if mech.stops:
+            self.contacts = [BeamContact(m, mech.stops, settings.contact) for m in self.models]
+            for b, c in zip(beams, self.contacts, strict=True):
+                for i, depth in overlaps(c):
+                    raise FeaError(
+                        f"stop {c.names[i]!r} overlaps beam {b.name!r} undeformed by "
+                        f"{depth:.4g} mm; move it clear (the gap is measured from the beam's "
+                        "surface, t/2 from the centreline)"
+                    )
 
         self.rows = _Rows()
         self.groups: list[_Group] = []
@@ -716,13 +754,18 @@ class _Model:
         frame = np.eye(2)
         for i, m in enumerate(self.models):
             a, b = self.offsets[i], self.offsets[i + 1]
-            ri, ab = m.assemble(z[a:b], frame)
+            contact = None if self.contacts is None else self.contacts[i]
+            ri, ab = m.assemble(z[a:b], frame, contact)
             r[a:b] = ri
             vals.append(ab[BAND:][self._band_src[i]])
         K = sp.coo_matrix(
             (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
         )
         return r, K
+
+    def contact_active(self) -> tuple:
+        """The contact pairs acting in the last :meth:`assemble`, per beam (() without stops)."""
+        return () if self.contacts is None else tuple(c.active for c in self.contacts)
 
     def hessian(self, K: sp.spmatrix, lam: np.ndarray, ro: np.ndarray) -> sp.csr_matrix:
         """Hessian of the Lagrangian, H = K - sum_i lam_i d2g_i/dz2 (N, N)."""
@@ -892,7 +935,9 @@ class _Solver:
         self.st = model.settings
         kernel = resolve_constrained_kernel(self.st.kernel)
         if kernel == "numba" and (
-            _kernels() is None or any(m.kernel != "numba" for m in model.models)
+            _kernels() is None
+            or any(m.kernel != "numba" for m in model.models)
+            or model.contacts is not None  # the contact terms are Python: the reference loop
         ):
             kernel = "numpy"
         #: "numba" (compiled, fea/_mechanism_kernels.py) or "numpy" (the reference)
@@ -1003,6 +1048,8 @@ class _Solver:
                 dz, dlam = dz / big, dlam / big
             z = z + dz
             lam = lam + dlam
+            if md.contacts is not None:
+                z, lam, dz = self._backtrack(z, lam, dz, dlam, norm, f, p)
             if z_pred is None:
                 z_pred = z  # the linearised predictor (first Newton iterate from the last state)
             if np.abs(dz).max() <= st.dtol * md.length:
@@ -1017,6 +1064,26 @@ class _Solver:
             st.max_iterations,
             (f"Newton did not converge in {st.max_iterations} iterations"),
         )
+
+    def _backtrack(self, z, lam, dz, dlam, norm, f, p):
+        """Halve a Newton correction that changed the set of acting contact pairs while it
+        raises the equilibrium residual above ``norm`` (N), at most 8 times (as
+        :meth:`fea.beam.BeamModel._backtrack`: a pair that switches off between two iterates
+        drops the stop's force, and the next full correction falls deep into the stop; plain
+        Newton can then cycle on and off). Returns ``(z, lam, dz)``."""
+        md = self.model
+        active = md.contact_active()  # of the assembly at the state before the correction
+        r, _ = md.assemble(z)
+        if md.contact_active() == active:
+            return z, lam, dz
+        for _ in range(8):
+            _, G, _ = md.constraints(z, p)
+            if float(np.linalg.norm(r - f - G.T @ lam)) <= norm:
+                break
+            dz, dlam = 0.5 * dz, 0.5 * dlam
+            z, lam = z - dz, lam - dlam
+            r, _ = md.assemble(z)
+        return z, lam, dz
 
     def is_stable(self, s: _State, drop_row: int = -1) -> bool:
         """Constrained stability: Z^T H Z positive definite on the null space of G (see module)."""
@@ -1078,13 +1145,44 @@ def solve_mechanism(
     -------
     MechanismResponse — failure to converge is data (``converged``, ``ok``, ``message``).
 
+    Stops (``mech.stops``): frictionless penalty contact of every beam with the rigid stops
+    (:class:`fea.stops.BeamContact` per beam, its forces and exact tangent added to every
+    assembly; the reference loop runs, with a correction that changes the acting pairs halved
+    while it raises the residual). ``response.contact`` holds the stops' forces, gaps and
+    closing drive values. A path that penetrates a stop deeper than
+    ``settings.contact.penetration_tol`` x the thinnest beam is traced again with a 10x
+    stiffer penalty (at most ``max_raises`` times; ``contact.extra`` says the factor and the
+    raises; still beyond it: ``contact.penetration_ok`` False with its message). Without stops
+    the solve is the one it always was (same code, same numbers).
+
     Raises
     ------
     FeaError
         Bad input: unknown parts, duplicate names, joined ends apart, redundant constraints, a
-        free rigid-body motion (the part named), bad outputs.
+        free rigid-body motion (the part named), bad outputs, a stop overlapping a beam.
     """
     st = settings or MechanismSettings()
+    if not mech.stops:
+        return _trace(mech, case, outputs, st)
+    contact = st.contact
+    for raises in range(int(contact.max_raises) + 1):
+        st = replace(st, contact=contact)
+        response = _trace(mech, case, outputs, st)
+        if response.contact.penetration_ok or raises == contact.max_raises:
+            break
+        # deeper than the tolerance: the same path with a 10x stiffer penalty
+        contact = replace(contact, penalty_factor=10.0 * contact.penalty_factor)
+    response.contact.extra.update(penalty_factor=contact.penalty_factor, raises=raises)
+    if not response.contact.penetration_ok:
+        note = f"contact: {response.contact.message}"
+        response = replace(response, message=f"{response.message}; {note}".lstrip("; "))
+    return response
+
+
+def _trace(
+    mech: Mechanism, case: LoadCase, outputs: Sequence[MechOutput], st: MechanismSettings
+) -> MechanismResponse:
+    """:func:`solve_mechanism` with the settings ``st`` (one penalty; no raises)."""
     md = _Model(mech, case, st)
     md.check_rank()
     readers = _output_readers(md, outputs)
@@ -1221,7 +1319,41 @@ def solve_mechanism(
         critical_mode=mode,
         critical_body_mode=body_mode,
         reference_nodes_mm=tuple(m.reference_nodes_mm.copy() for m in md.models),
+        contact=None if md.contacts is None else _contact(md, shapes, targets, converged),
     )
+
+
+def _contact(
+    md: _Model, shapes: list[np.ndarray], drive: np.ndarray, converged: np.ndarray
+) -> ContactResponse:
+    """The stops' forces, gaps and contact points at every converged row, over all beams:
+    per stop the resultant of its forces on the beams (N), the smallest gap (mm), the
+    force-weighted contact point (mm); ``shapes`` per beam (rows, nodes, 2) mm, ``drive``
+    (rows,) the drive values."""
+    assert md.contacts is not None
+    rows, nb, ns = drive.shape[0], len(md.contacts), len(md.mech.stops)
+    force = np.full((rows, ns, 2), np.nan)
+    by_beam = np.full((rows, nb, ns), np.nan)
+    gap = np.full((rows, ns), np.nan)
+    touch = np.zeros((rows, ns), dtype=bool)
+    point = np.full((rows, ns, 2), np.nan)
+    for k in np.flatnonzero(converged):
+        f_sum, g_min, w_sum, p_sum = np.zeros((ns, 2)), np.full(ns, np.inf), np.zeros(ns), 0.0
+        for i, c in enumerate(md.contacts):
+            f, g, t, pt = c.state(shapes[i][k])
+            w = np.hypot(f[:, 0], f[:, 1]) * t
+            by_beam[k, i] = np.hypot(f[:, 0], f[:, 1])
+            f_sum, g_min, w_sum = f_sum + f, np.minimum(g_min, g), w_sum + w
+            p_sum = p_sum + np.where(t[:, None], pt, 0.0) * w[:, None]
+        force[k], gap[k], touch[k] = f_sum, g_min, w_sum > 0.0
+        point[k] = np.where(
+            touch[k][:, None], p_sum / np.where(touch[k], w_sum, 1.0)[:, None], np.nan
+        )
+    tolerance = min(c.tolerance_mm for c in md.contacts)
+    penalty = np.concatenate([c.k_elements for c in md.contacts])
+    out = _contact_rows(md.contacts[0].names, force, gap, touch, point, drive, tolerance, penalty)
+    out.extra["force_by_beam_N"] = by_beam
+    return out
 
 
 def _critical_mode(
@@ -1326,7 +1458,7 @@ def imperfect_mechanism(
             rel = np.asarray(b.outline_mm, dtype=float) - ref
             outline = rel @ np.array([[c, s], [-s, c]]) + new_ref
         bodies.append(MechBody(b.name, new_ref, outline))
-    return Mechanism(tuple(beams), tuple(bodies), mech.joints, mech.material)
+    return Mechanism(tuple(beams), tuple(bodies), mech.joints, mech.material, mech.stops)
 
 
 def _output_readers(md: _Model, outputs: Sequence[MechOutput]) -> dict:

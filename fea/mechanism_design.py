@@ -213,6 +213,7 @@ def solve_printed_path(
     outputs: Sequence[MechOutput],
     imperfection_mm: float,
     unit: str,
+    settings: Any = None,
 ) -> MechanismResponse:
     """The case solved along the path the printed part follows (issue 22, item 3).
 
@@ -223,10 +224,11 @@ def solve_printed_path(
     response is the case's. The part as exported keeps the drawn shape. Rows that are still
     unstable are cut by :func:`stable_part`. The response's message says which path it is,
     with drive values in ``unit`` (the drive's: ``deg`` for a rotation, the solver's rad shown
-    in deg).
+    in deg). ``settings``: the :class:`fea.mechanism.MechanismSettings` of both solves (None:
+    the defaults; a study with stops passes its contact penalty there).
     """
     fm = _solver()
-    response = fm.solve_mechanism(mech, load_case, outputs)
+    response = fm.solve_mechanism(mech, load_case, outputs, settings)
     row = fm.first_unstable_row(response)
     amplitude = float(imperfection_mm)
 
@@ -241,7 +243,7 @@ def solve_printed_path(
             "buckling mode (imperfection_mm), the branch a printed part follows"
         )
         response = fm.solve_mechanism(
-            fm.imperfect_mechanism(mech, response, amplitude), load_case, outputs
+            fm.imperfect_mechanism(mech, response, amplitude), load_case, outputs, settings
         )
         row = fm.first_unstable_row(response)
     if row is not None:

@@ -48,6 +48,7 @@ across slots. See docs/contact.md.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Literal
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, EndDrive
@@ -58,6 +59,7 @@ __all__ = [
     "ContactSettings",
     "ContactResponse",
     "BeamContact",
+    "contact_rows",
     "overlaps",
     "solve_with_stops",
 ]
@@ -157,11 +159,18 @@ class ContactSettings:
         :func:`solve_with_stops` traces it again with the penalty 10x stiffer, at most this many
         times; a path still beyond it is flagged (``ContactResponse.penetration_ok``), not
         rejected.
+    element_length : the h of ``EI / h^3``: "local" (each element's own length) or "mean"
+        (the beam's length over its elements, for every element). A graded mesh (a mechanism's
+        beams as made: elements of ~0.03 mm in a root's fillet flare, 3 mm at mid-span) makes
+        the local ``EI / h^3`` there ~1e6 times the mid-span value, a penalty that round-off
+        defeats and Newton cannot converge with; "mean" keeps the penalty of a uniform mesh of
+        the same beam (the mechanism engine's choice).
     """
 
     penalty_factor: float = 1e3
     penetration_tol: float = 1e-3
     max_raises: int = 2
+    element_length: Literal["local", "mean"] = "local"
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.penalty_factor) and self.penalty_factor > 0.0):
@@ -170,6 +179,8 @@ class ContactSettings:
             raise FeaError(f"penetration_tol = {self.penetration_tol} must be > 0")
         if int(self.max_raises) < 0:
             raise FeaError(f"max_raises = {self.max_raises} must be >= 0")
+        if self.element_length not in ("local", "mean"):
+            raise FeaError(f"element_length = {self.element_length!r}: use 'local' or 'mean'")
 
 
 @dataclass(frozen=True)
@@ -266,7 +277,11 @@ class BeamContact:
         self._r_nodes = 0.5 * t_nodes  # (n_nodes,) disk radius, mm
         t_mid = t_nodes[1::2]
         ei = model.material.E_MPa * prof.width_mm * t_mid**3 / 12.0  # (E,) N mm^2
-        self.k_elements = settings.penalty_factor * ei / h**3  # (E,) N/mm
+        if settings.element_length == "mean":
+            h_k = np.full_like(h, float(h.sum()) / h.size)
+        else:
+            h_k = h
+        self.k_elements = settings.penalty_factor * ei / h_k**3  # (E,) N/mm
         # a node takes the mean of its elements' stiffness
         kn = np.zeros(model.n_nodes)
         cnt = np.zeros(model.n_nodes)
@@ -473,45 +488,70 @@ class BeamContact:
         for k in np.flatnonzero(beam.converged):
             force[k], gap[k], touch[k], point[k] = self.state(beam.shapes_mm[k])
         driven = beam.displacement_mm if drive.control == "displacement" else beam.force_N
-        closing = np.full(ns, np.nan)
-        for j in range(ns):
-            g = gap[:, j]
-            for k in range(1, rows):
-                if g[k - 1] >= 0.0 and g[k] < 0.0:  # NaN rows never match
-                    # Once closed the gap stays near zero (the penetration), so interpolating to
-                    # row k would place the closing late: extrapolate the open rows' trend
-                    # (the last two), kept inside the bracket [row k - 1, row k].
-                    lo, hi = driven[k - 1], driven[k]
-                    w = g[k - 1] / (g[k - 1] - g[k])
-                    closing[j] = lo + w * (hi - lo)
-                    if k >= 2 and g[k - 2] > g[k - 1]:
-                        ext = lo + g[k - 1] * (lo - driven[k - 2]) / (g[k - 2] - g[k - 1])
-                        closing[j] = min(max(ext, min(lo, hi)), max(lo, hi))
-                    break
-        pen = np.where(np.isnan(gap), 0.0, np.maximum(-gap, 0.0)).max(axis=1, initial=0.0)
-        bad = np.flatnonzero(pen > self.tolerance_mm)
-        message = ""
-        if bad.size:
-            message = (
-                f"penetration {pen.max():.3g} mm exceeds the tolerance {self.tolerance_mm:.3g} mm "
-                f"in {bad.size} row(s) (first: row {bad[0]}): raise ContactSettings.penalty_factor"
-            )
-        return ContactResponse(
-            names=self.names,
-            force_N=np.hypot(force[..., 0], force[..., 1]),
-            force_vector_N=force,
-            gap_mm=gap,
-            in_contact=touch,
-            rows_in_contact=touch.any(axis=1),
-            point_mm=point,
-            initial_gap_mm=gap[0].copy(),
-            closing_value=closing,
-            max_penetration_mm=pen,
-            penetration_ok=bad.size == 0,
-            penalty_N_per_mm=self.k_elements.copy(),
-            message=message,
-            extra={"tolerance_mm": self.tolerance_mm},
+        return contact_rows(
+            self.names, force, gap, touch, point, driven, self.tolerance_mm, self.k_elements
         )
+
+
+def contact_rows(
+    names: tuple[str, ...],
+    force: np.ndarray,
+    gap: np.ndarray,
+    touch: np.ndarray,
+    point: np.ndarray,
+    driven: np.ndarray,
+    tolerance_mm: float,
+    penalty: np.ndarray,
+) -> ContactResponse:
+    """The :class:`ContactResponse` of a traced path from its per-row contact state.
+
+    ``force`` (rows, n_stops, 2) N, ``gap`` (rows, n_stops) mm, ``touch`` (rows, n_stops) bool,
+    ``point`` (rows, n_stops, 2) mm (NaN rows: not converged), as :meth:`BeamContact.state`
+    gives them row by row (summed over the beams of a mechanism); ``driven`` (rows,) the driven
+    value of each row (mm, rad, N or N mm); ``tolerance_mm`` the penetration tolerance (mm);
+    ``penalty`` (n_elements,) N/mm the penalty stiffness used. Adds the closing value of each
+    stop, the penetration check and its message (shared by the beam and the mechanism engine).
+    """
+    rows, ns = gap.shape
+    closing = np.full(ns, np.nan)
+    for j in range(ns):
+        g = gap[:, j]
+        for k in range(1, rows):
+            if g[k - 1] >= 0.0 and g[k] < 0.0:  # NaN rows never match
+                # Once closed the gap stays near zero (the penetration), so interpolating to
+                # row k would place the closing late: extrapolate the open rows' trend
+                # (the last two), kept inside the bracket [row k - 1, row k].
+                lo, hi = driven[k - 1], driven[k]
+                w = g[k - 1] / (g[k - 1] - g[k])
+                closing[j] = lo + w * (hi - lo)
+                if k >= 2 and g[k - 2] > g[k - 1]:
+                    ext = lo + g[k - 1] * (lo - driven[k - 2]) / (g[k - 2] - g[k - 1])
+                    closing[j] = min(max(ext, min(lo, hi)), max(lo, hi))
+                break
+    pen = np.where(np.isnan(gap), 0.0, np.maximum(-gap, 0.0)).max(axis=1, initial=0.0)
+    bad = np.flatnonzero(pen > tolerance_mm)
+    message = ""
+    if bad.size:
+        message = (
+            f"penetration {pen.max():.3g} mm exceeds the tolerance {tolerance_mm:.3g} mm "
+            f"in {bad.size} row(s) (first: row {bad[0]}): raise ContactSettings.penalty_factor"
+        )
+    return ContactResponse(
+        names=tuple(names),
+        force_N=np.hypot(force[..., 0], force[..., 1]),
+        force_vector_N=force,
+        gap_mm=gap,
+        in_contact=touch,
+        rows_in_contact=touch.any(axis=1),
+        point_mm=point,
+        initial_gap_mm=gap[0].copy(),
+        closing_value=closing,
+        max_penetration_mm=pen,
+        penetration_ok=bad.size == 0,
+        penalty_N_per_mm=np.asarray(penalty, dtype=float).copy(),
+        message=message,
+        extra={"tolerance_mm": tolerance_mm},
+    )
 
 
 def overlaps(contact: BeamContact) -> list[tuple[int, float]]:

@@ -123,6 +123,13 @@ def with_fidelity(problem: SolvedBy, solved: Solved) -> Solved:
         return solved
     if not study.fidelity.enabled:
         return dataclasses.replace(solved, fidelity={"skipped": "fidelity.enabled is false"})
+    if getattr(study, "stops", None) is not None:
+        why = (
+            "the study has stops: the check of the exported outline solves it without contact, "
+            "so its figures beyond a stop would be those of a part passing through it; the beam "
+            "model's figures (with contact) are judged"
+        )
+        return dataclasses.replace(solved, fidelity={"skipped": why})
     width = solved.width_mm
     checks = {case: _check(study, solved, width, case) for case in study.load_cases}
     width_case = _width_case(problem)

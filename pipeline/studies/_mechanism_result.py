@@ -25,6 +25,7 @@ from flexopt.pipeline.studies._mechanism_schema import (
     case_prefix,
     outputs_in,
 )
+from flexopt.pipeline.studies._mechanism_stops import contact_png
 
 __all__ = [
     "Solved",
@@ -93,7 +94,9 @@ def case_responses(
         plot = response_plot(study, solved, case, material, requirements)
         d = study.load_cases[case].drive
         plot["x_label"] = f"drive of {d.part} ({d.control}, {d.unit})"
-        out[case] = CaseResponse(table, plot, tuple(outputs_in(study, case)))
+        # with stops, each stop's force is drawn and tabulated with the outputs
+        forces = [f"stop_{o.name}_force_N" for o in (study.stops.outlines if study.stops else ())]
+        out[case] = CaseResponse(table, plot, (*outputs_in(study, case), *forces))
     return out
 
 
@@ -129,6 +132,9 @@ def design_files(study: MechanismStudy, solved: Solved) -> dict[str, bytes]:
     title = f"{study.name}: deformed shapes"
     shapes = mechanism_shapes_png(solved.responses, solved.outline.polygon, bodies, drives, title)
     files = {"deformed_shapes.png": shapes}
+    contact = contact_png(study, solved.responses)  # with stops (None without)
+    if contact is not None:
+        files["contact_shapes.png"] = contact
     if len(solved.tables) > 1:
         for case, table in solved.tables.items():
             files[f"response_{case}.csv"] = table_to_csv(table).encode("utf-8")

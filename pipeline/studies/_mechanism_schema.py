@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from flexopt.fea.materials import Material
@@ -28,6 +28,7 @@ from flexopt.geometry.mechanism import (
 from flexopt.optimise.names import check_name
 from flexopt.optimise.requirements import RequirementSpec, unit_of
 from flexopt.optimise.variables import VariableSpec
+from flexopt.pipeline.studies._stops import StopsSpec
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
 from pydantic import BaseModel, Field, field_validator, model_validator
 
@@ -421,6 +422,15 @@ class MechanismStudy(Study):
                                               quick_n_gen=1),
         description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
     )  # fmt: skip
+    stops: StopsSpec | None = Field(
+        None,
+        description="rigid stops fixed to the ground that the beams meet (frictionless penalty "
+        "contact): {outlines: [{name, points_mm, closed}], penalty_factor} (or the list of "
+        "outlines), mm in the study's coordinates",
+    )
+
+    # a study without stops dumps as it did before the block existed (Study's serializer)
+    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = (*Study.OPTIONAL_BLOCKS, "stops")
 
     @field_validator("load_cases", "outputs")
     @classmethod

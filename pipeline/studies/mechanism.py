@@ -37,6 +37,7 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
+import flexopt.pipeline.studies._mechanism_stops as stops
 import numpy as np
 from flexopt.fea import mechanism_design as design
 from flexopt.fea.errors import FeaError
@@ -114,7 +115,7 @@ def metric_names(study: MechanismStudy) -> tuple[str, ...]:
         names |= {f"{p}max_peak_stress_MPa"}
         for o in outputs_in(study, case):
             names |= {f"{p}{s}_{o}" for s in STATS}
-    return tuple(sorted(names))
+    return tuple(sorted(names | stops.metric_names(study)))
 
 
 def column_names(study: MechanismStudy) -> tuple[str, ...]:
@@ -124,7 +125,7 @@ def column_names(study: MechanismStudy) -> tuple[str, ...]:
         p = _prefix(study, case)
         names |= {f"{p}drive_{spec.drive.unit}", f"{p}peak_stress_MPa"}
         names |= {f"{p}{o}" for o in outputs_in(study, case)}
-    return tuple(sorted(names))
+    return tuple(sorted(names | stops.column_names(study)))
 
 
 def quantities(study: MechanismStudy) -> tuple[str, ...]:
@@ -192,7 +193,7 @@ def check(study: MechanismStudy) -> None:
         try:
             _fea().check_mechanism(mech, build_load_case(study, case))
         except FeaError as exc:
-            raise fea_refusal(case, str(exc)) from None
+            raise stops.refusal(study, str(exc)) or fea_refusal(case, str(exc)) from None
 
 
 def _geometry_of(study: MechanismStudy, x: np.ndarray | None) -> MechanismGeometry:
@@ -210,8 +211,10 @@ def _mechanism(
     width_mm: float | None = None,
     made: Mapping[str, AsMadeBeam] | None = None,
 ):
-    """The solver's mechanism (:func:`build_mechanism`; ``made``: the beams as made)."""
-    return build_mechanism(geometry, study.material.to_material(), width_mm, made)
+    """The solver's mechanism (:func:`build_mechanism`; ``made``: the beams as made) with the
+    study's stops."""
+    mech = build_mechanism(geometry, study.material.to_material(), width_mm, made)
+    return stops.with_stops(mech, study)
 
 
 # --------------------------------------------------------------------------------------------
@@ -228,7 +231,8 @@ def _case_table(
     """The case's response as columns (forces scaled by ``scale`` = width / reference width);
     with ``made`` the stresses are the beams' as made."""
     control = study.load_cases[case].drive.control
-    return design.case_table(control, output_columns(study, case), response, scale, made)
+    table = design.case_table(control, output_columns(study, case), response, scale, made)
+    return {**table, **stops.columns(study, case, response, scale)}
 
 
 def _solve_printed_path(study: MechanismStudy, mech: Any, case: str) -> Any:
@@ -236,7 +240,10 @@ def _solve_printed_path(study: MechanismStudy, mech: Any, case: str) -> Any:
     :func:`fea.mechanism_design.solve_printed_path`)."""
     load_case, outputs = build_load_case(study, case), build_outputs(study, case)
     unit = study.load_cases[case].drive.unit
-    return design.solve_printed_path(mech, load_case, outputs, study.imperfection_mm, unit)
+    settings = stops.settings(study)  # None without stops: the solver's defaults
+    return design.solve_printed_path(
+        mech, load_case, outputs, study.imperfection_mm, unit, settings
+    )
 
 
 def _as_the_optimiser_judges(study: MechanismStudy, solved: Solved) -> Solved:
@@ -348,6 +355,7 @@ class MechanismProblem(DesignProblem):
         self.study = study
         self.material = study.material.to_material()
         self.requirements = _requirements(study) + _solved_size_requirements(study)
+        self.requirements += stops.requirements(study)
         self.labels = {r.label: r for r in self.requirements}
         objectives = list(study.objectives) or self._default_objectives()
         self.objectives = tuple(o.key for o in objectives)
@@ -460,7 +468,9 @@ class MechanismProblem(DesignProblem):
         controls = {c: s.drive.control for c, s in study.load_cases.items()}
         grounds = geometry.ground_outlines_mm
         clearance = design.interference(mech, outline, grounds, responses, controls)
+        clearance = stops.stop_interference(study, mech, clearance, responses)
         metrics = _part_metrics(study, geometry, outline, tables, width, self.material, clearance)
+        metrics.update(stops.metrics(study, responses, tables))
         return Solved(
             geometry, shapes, outline, width, responses, tables, metrics,
             _curves_table(study, tables), reason, clearance,
@@ -473,7 +483,8 @@ class MechanismProblem(DesignProblem):
     def judge(self, solved: Solved) -> tuple[Verdict, ...]:
         """The requirements and the interference judged on ``solved``'s figures."""
         judged = scoring.judge(self.requirements, solved.metrics, solved.curves_table)
-        return (*judged, scoring.interference_verdict(solved.metrics, solved.clearance))
+        clear = scoring.interference_verdict(solved.metrics, solved.clearance)
+        return (*judged, stops.interference_verdict(self.study, clear))
 
     def _evaluation(self, x: np.ndarray, solved: Solved, t0: float) -> Evaluation:
         verdicts = self.verdicts(solved)
@@ -572,6 +583,7 @@ class MechanismProblem(DesignProblem):
             message = "; ".join(m for m in (message, solved.reason) if m)
         first = next(iter(solved.tables))
         headline = ("verdict", "mass_g", "max_peak_stress_MPa", "width_mm", "stable")
+        headline += stops.headline(self.study)
         return DesignResult(
             table=solved.tables[first],
             summary=summary,
