@@ -504,6 +504,7 @@ class SeaSpringProblem(DesignProblem):
                 "points_mm": smap["points_mm"],
                 "triangles": smap["triangles"],
                 "values": smap["von_mises_MPa"],
+                "displacement_mm": smap["displacement_mm"],
                 "label": "von Mises stress at +theta_T, counter-clockwise (MPa)",
                 "limit": target.allowable_stress_MPa,
             }
