@@ -296,15 +296,19 @@ def test_stress_deformed_png_of_a_run_and_an_evaluation(tmp_path: Path) -> None:
 
 
 def test_sea_spring_quick_field_has_the_peak_stress_of_the_evaluation(tmp_path: Path) -> None:
-    """A real plane-stress field: the evaluate folder has no design.vtu (the kind's evaluation
-    carries no field), its export rebuilds the design with it. The kind rounds the nodal von
+    """A real plane-stress field: the evaluate folder's design.vtu and stress_deformed.png, and
+    the export, which rebuilds the design with it, the same file. The kind rounds the nodal von
     Mises values to 0.01 MPa (fea/spring_analysis.stress_map_data), hence the tolerance. The
     field's displacement is the solve's: the hub's rigid rotation, the pads held."""
     ev = tmp_path / "ev"
     assert main(["evaluate", "sea-spring-quick", "--out", str(ev)]) == 0
-    assert not (ev / "design.vtu").exists()
-    assert main(["export", str(ev), "--format", "vtu"]) == 0
-    mesh = _read(ev / "design.vtu")
+    assert (ev / "stress_deformed.png").is_file()
+    evaluated = _read(ev / "design.vtu")
+    assert main(["export", str(ev), "--format", "vtu", "--out", str(tmp_path / "x.vtu")]) == 0
+    mesh = _read(tmp_path / "x.vtu")
+    np.testing.assert_array_equal(mesh.points, evaluated.points)
+    for name in (VON_MISES, DISPLACEMENT):
+        np.testing.assert_array_equal(mesh.point_data[name], evaluated.point_data[name])
     summary = json.loads((ev / "evaluation.json").read_text())["summary"]
     assert len(mesh.cells_dict["triangle"]) > 1000 and "line" not in mesh.cells_dict
     assert np.max(mesh.point_data[VON_MISES]) == pytest.approx(summary["peak_stress_MPa"], abs=0.01)
