@@ -673,12 +673,14 @@ def _stress_fig(fmap: Mapping[str, Any], whose: str = "best") -> Any:
             height=560,
             scene={
                 "aspectmode": "manual",
+                # true proportions; seen from above in an orthographic view, where the
+                # aspect ratio (not the eye's distance) sets how large the part is drawn
                 "aspectratio": {
-                    "x": float(size[0] / size.max()),
-                    "y": float(size[1] / size.max()),
+                    "x": float(2.2 * size[0] / size.max()),
+                    "y": float(2.2 * size[1] / size.max()),
                     "z": 0.05,
                 },
-                "camera": {"eye": {"x": 0.0, "y": 0.0, "z": 1.6}, "up": {"x": 0, "y": 1, "z": 0},
+                "camera": {"eye": {"x": 0.0, "y": 0.0, "z": 2.0}, "up": {"x": 0, "y": 1, "z": 0},
                            "projection": {"type": "orthographic"}},
                 "xaxis": _axis("x (mm)"),
                 "yaxis": _axis("y (mm)"),
