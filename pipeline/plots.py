@@ -704,8 +704,10 @@ def plot_field_deformed(
         Triangulation(q[:, 0], q[:, 1], t), v, shading="gouraud", cmap="viridis", vmin=0.0,
         vmax=vmax, zorder=2,
     )  # fmt: skip
-    bar_label = label if limit is None else f"{label}; allowable {limit:g} MPa (red line)"
-    bar = fig.colorbar(cs, ax=ax, label=bar_label)
+    # two lines: a kind's label names its state and can be long
+    bar_label = label if limit is None else f"{label}\nallowable {limit:g} MPa (red line)"
+    bar = fig.colorbar(cs, ax=ax)
+    bar.set_label(bar_label, fontsize="small")
     if limit is not None:
         bar.ax.axhline(limit, color="red", lw=2)
     i = int(np.nanargmax(v))
