@@ -691,10 +691,10 @@ def _stress_fig(fmap: Mapping[str, Any], whose: str = "best") -> Any:
     return fig
 
 
-def _stress_block(detail: DesignDetail | None, figures: _Figures, whose: str) -> str:
-    """The stress field on the deformed part where the design's field carries its displacement
-    (the same field as stress_deformed.png), else nothing."""
-    fmap = getattr(detail, "field_map", None) or {}
+def _stress_block(fmap: Mapping[str, Any] | None, figures: _Figures, whose: str) -> str:
+    """The stress field on the deformed part where the design's field (a ``field_map``)
+    carries its displacement (the same field as stress_deformed.png), else nothing."""
+    fmap = fmap or {}
     if fmap.get("displacement_mm") is None:
         return ""
     try:
@@ -1028,6 +1028,9 @@ class EvaluateHtmlData:
     robustness: Mapping[str, Any] | None = None
     #: the kind's files (``response_<case>.csv`` of each load case: every case is drawn)
     files: Mapping[str, bytes] = field(default_factory=dict)
+    #: the evaluation's stress field (``DesignResult.field_map``), drawn on the deformed part
+    #: even when the part is not rebuilt
+    field_map: Mapping[str, Any] | None = None
 
 
 def render_evaluate_html(data: EvaluateHtmlData) -> str:
@@ -1092,7 +1095,7 @@ def render_evaluate_html(data: EvaluateHtmlData) -> str:
         _section(
             "part-3d",
             "The part in 3D",
-            _part_section(data.part, figures, "evaluated", data.part_note, stl=None),
+            _part_section(data.part, figures, "evaluated", data.part_note, None, data.field_map),
         )
     )
     return _page(data.study_name, parts)
@@ -1165,6 +1168,7 @@ def evaluate_html(
                 part,
                 why or None,
                 files=dict(getattr(result, "files", None) or {}),
+                field_map=getattr(result, "field_map", None),
             )
         )
     except Exception as exc:
@@ -1180,9 +1184,12 @@ def _part_section(
     whose: str,
     why: str | None = None,
     stl: str | None = "best.stl",
+    field_map: Mapping[str, Any] | None = None,
 ) -> str:
     """The rotatable 3D view of a design's part (its outline extruded), or why there is none;
-    ``stl`` the file of the run folder that holds it (None: ``flexopt export`` writes it)."""
+    ``stl`` the file of the run folder that holds it (None: ``flexopt export`` writes it). Below
+    it the stress on the deformed part (:func:`_stress_block`) of ``field_map``, by default the
+    detail's."""
     mesh = None
     why = why or "the study kind gives no outline and height for this design"
     if detail is not None:
@@ -1190,7 +1197,7 @@ def _part_section(
             mesh = _part_mesh(detail)
         except Exception as exc:  # a part that cannot be extruded must not cost the page
             why = f"the part could not be built: {type(exc).__name__}: {exc}"
-    stress = _stress_block(detail, figures, whose)
+    stress = _stress_block(field_map or getattr(detail, "field_map", None), figures, whose)
     if mesh is None:
         return f"<p>No 3D view: {_e(why)}.</p>" + stress
     v, _ = mesh

@@ -326,3 +326,17 @@ def test_sea_spring_quick_field_has_the_peak_stress_of_the_evaluation(tmp_path: 
     assert hub.sum() > 50 and held.sum() > 20
     umax = mesh.field_data[f"plane stress {DISPLACEMENT}: max |u| (mm)"][0]
     assert umax == pytest.approx(np.max(np.hypot(u[:, 0], u[:, 1])), rel=1e-12)
+
+
+def test_an_evaluation_without_its_part_still_shows_its_stress() -> None:
+    """report.html of an evaluation whose part is not rebuilt (too slow, as the 86 s
+    threshold-spring) draws the evaluation's own field on the deformed part."""
+    from flexopt.pipeline.report_html import EvaluateHtmlData, render_evaluate_html
+
+    d = np.linspace(0.0, 1.0, 3)
+    data = EvaluateHtmlData(
+        "vtu", KIND, {"d_mm": d, "f_N": d}, {"x": "d_mm", "y": "f_N"},
+        part_note="too slow to rebuild", field_map=toy_field(20.0, displacement=True),
+    )  # fmt: skip
+    html = render_evaluate_html(data)
+    assert "No 3D view: too slow to rebuild" in html and 'id="fig-stress-deformed"' in html
