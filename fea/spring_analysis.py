@@ -332,7 +332,15 @@ def slot_gaps_mm(model: Any, states: dict[str, np.ndarray], outline: Any) -> dic
 
 
 def stress_map_data(r: SpringResponse) -> dict[str, Any]:
-    """Vertex-averaged von Mises at the last row on the undeformed mesh (for a PNG)."""
+    """The stress map's data at the last row: vertex-averaged von Mises and the displacement
+    of the same solve (the state ``r.u``), on the undeformed mesh.
+
+    Returns
+    -------
+    dict, empty when the model was not kept: ``points_mm`` (n, 2) mm, the mesh's vertices;
+    ``triangles`` (m, 3) int; ``von_mises_MPa`` (n,) MPa; ``displacement_mm`` (n, 2) mm, the
+    vertices' displacement (points + displacement is the deformed part), all as lists.
+    """
     model = r.model
     if model is None or r.u is None:
         return {}
@@ -342,10 +350,15 @@ def stress_map_data(r: SpringResponse) -> dict[str, Any]:
     n = model.mesh.n_points
     total = np.bincount(t.ravel(), weights=vc.ravel(), minlength=n)
     count = np.bincount(t.ravel(), minlength=n)
+    # the vertices' DOFs (nodal_dofs, in the mesh's vertex order): the P2 mid-side nodes are
+    # not points of the drawn mesh
+    nodal = model.basis.nodal_dofs
+    u = np.column_stack([r.u[nodal[0]], r.u[nodal[1]]])
     return {
         "points_mm": np.round(model.mesh.points, 4).tolist(),
         "triangles": model.mesh.triangles.tolist(),
         "von_mises_MPa": np.round(total / np.maximum(count, 1), 2).tolist(),
+        "displacement_mm": u.tolist(),
     }
 
 

@@ -88,8 +88,10 @@ class DesignResult:
     info : dict — anything else worth reporting (derived geometry, checks, notes).
     field_map : dict, optional — a scalar field on a triangle mesh to draw (a stress map):
         ``points_mm`` (n, 2) mm, ``triangles`` (m, 3) int, ``values`` (n,), ``label`` (name and
-        unit of the values), optional ``limit`` (an allowable in the same unit). Drawn as
-        ``stress_map.png``; not written into best.json (it is large).
+        unit of the values), optional ``limit`` (an allowable in the same unit), optional
+        ``displacement_mm`` (n, 2) mm, the nodes' displacement in the solve whose field it is.
+        Drawn as ``stress_map.png`` (and, with the displacement, ``stress_deformed.png`` on the
+        deformed part); not written into best.json (it is large).
     files : dict of str to bytes — more files of the kind (``taguchi.png``, ``sweeps.png``), by
         plain file name; ``flexopt run`` / ``flexopt evaluate`` write them into the folder.
     verdicts : tuple of Verdict — the design's verdicts. A kind that judges itself fills them;

@@ -117,6 +117,31 @@ def _design_vtu(result: DesignResult) -> bytes | None:
         return None
 
 
+#: The stress field on the deformed part, where the evaluation carries a field with its
+#: displacement (:func:`pipeline.plots.plot_field_deformed`; the run folder's name too).
+STRESS_DEFORMED = "stress_deformed.png"
+
+
+def _stress_deformed(result: DesignResult, title: str) -> bytes | None:
+    """stress_deformed.png of an evaluation whose ``field_map`` has ``displacement_mm`` (None
+    without, or, with a warning, when it cannot be drawn)."""
+    fmap = result.field_map or {}
+    if fmap.get("displacement_mm") is None:
+        return None
+    from flexopt.pipeline.plots import plot_field_deformed
+
+    try:
+        limit = fmap.get("limit")
+        return plot_field_deformed(
+            fmap["points_mm"], fmap["triangles"], fmap["values"], fmap["displacement_mm"],
+            label=fmap.get("label", "von Mises stress (MPa)"),
+            limit=None if limit is None else float(limit), title=title,
+        )  # fmt: skip
+    except Exception as exc:
+        log.warning("%s not written: %s: %s", STRESS_DEFORMED, type(exc).__name__, exc)
+        return None
+
+
 def solve_study(study: Study, repeat: int = 1, source: str = "") -> DesignResult:
     """Solve the design ``study`` describes ``repeat`` times
     (:func:`pipeline.problems.study_result`) and judge the last solve.
@@ -288,6 +313,9 @@ def evaluate_study(
     vtu = _design_vtu(result)
     if vtu is not None:
         extra[DESIGN_VTU] = vtu
+    png = _stress_deformed(result, study.name)
+    if png is not None:
+        extra[STRESS_DEFORMED] = png
     for name, data in extra.items():
         write_atomic(run_dir / name, data)
     record["files"] = [*EVALUATE_FILES, *extra]

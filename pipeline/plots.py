@@ -22,6 +22,8 @@ __all__ = [
     "curve_figure",
     "plot_curve",
     "plot_field",
+    "plot_field_deformed",
+    "deformation_scale",
     "plot_front",
     "plot_taguchi",
     "plot_response",
@@ -616,6 +618,109 @@ def plot_field(
     ax.set_ylabel("y (mm)")
     if title:
         ax.set_title(title)
+    return _png(fig)
+
+
+#: Below this share of the part's size the largest displacement is magnified to be seen.
+SMALL_DISPLACEMENT = 0.02
+#: ... to about this share of the part's size (a round factor: 1, 2, 5 times a power of 10).
+SHOWN_DISPLACEMENT = 0.1
+
+
+def deformation_scale(points_mm: np.ndarray, displacement_mm: np.ndarray) -> float:
+    """The factor a deformed mesh is drawn at: 1 (true scale) unless the largest displacement
+    is under :data:`SMALL_DISPLACEMENT` of the part's size, then a round factor that makes it
+    about :data:`SHOWN_DISPLACEMENT` of it.
+
+    Parameters
+    ----------
+    points_mm : (n, 2) float, mm — the undeformed nodes.
+    displacement_mm : (n, 2) float, mm — their displacement.
+    """
+    p = np.asarray(points_mm, dtype=float).reshape(-1, 2)
+    u = np.asarray(displacement_mm, dtype=float).reshape(-1, 2)
+    size = float(np.max(np.ptp(p, axis=0))) if len(p) else 0.0
+    umax = float(np.nanmax(np.hypot(u[:, 0], u[:, 1]))) if len(u) else 0.0
+    if not (size > 0 and np.isfinite(umax) and umax > 0) or umax >= SMALL_DISPLACEMENT * size:
+        return 1.0
+    raw = SHOWN_DISPLACEMENT * size / umax
+    power = 10.0 ** np.floor(np.log10(raw))
+    return float(max(m for m in (1.0, 2.0, 5.0) if m * power <= raw) * power)
+
+
+def boundary_edges(triangles: np.ndarray) -> np.ndarray:
+    """(k, 2) int: the edges of a triangle mesh (m, 3) that belong to one triangle only (its
+    outline, holes included)."""
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    return unique[count == 1]
+
+
+def plot_field_deformed(
+    points_mm: np.ndarray,
+    triangles: np.ndarray,
+    values: np.ndarray,
+    displacement_mm: np.ndarray,
+    label: str = "von Mises stress (MPa)",
+    limit: float | None = None,
+    title: str = "",
+) -> bytes:
+    """``stress_deformed.png``: a stress field's contours on the deformed mesh, the undeformed
+    outline in grey behind it; true scale unless the displacement is too small to see
+    (:func:`deformation_scale`), the scale in the title either way.
+
+    Parameters
+    ----------
+    points_mm : (n, 2) float, mm — undeformed mesh nodes.
+    triangles : (m, 3) int — node indices.
+    values : (n,) float, MPa — the von Mises stress at the nodes (the unit in ``label``).
+    displacement_mm : (n, 2) float, mm — the nodes' displacement in the same solve.
+    limit : float, optional, MPa — the allowable: named in the colour bar's label and drawn on
+        the bar as a red line; the colour scale reaches at least it.
+
+    Returns
+    -------
+    bytes
+        The PNG file.
+    """
+    from matplotlib.collections import LineCollection
+    from matplotlib.tri import Triangulation
+
+    p = np.asarray(points_mm, dtype=float).reshape(-1, 2)
+    u = np.asarray(displacement_mm, dtype=float).reshape(-1, 2)
+    v = np.asarray(values, dtype=float).reshape(-1)
+    t = np.asarray(triangles, dtype=int).reshape(-1, 3)
+    scale = deformation_scale(p, u)
+    q = p + scale * u
+    fig = _new_figure(figsize=(6.8, 5.6), layout="constrained")
+    ax = fig.subplots()
+    edges = boundary_edges(t)
+    ax.add_collection(
+        LineCollection(p[edges], colors="0.6", linewidths=0.8, label="undeformed", zorder=1)
+    )
+    vmax = max(float(np.nanmax(v)), limit or 0.0)
+    cs = ax.tripcolor(
+        Triangulation(q[:, 0], q[:, 1], t), v, shading="gouraud", cmap="viridis", vmin=0.0,
+        vmax=vmax, zorder=2,
+    )  # fmt: skip
+    # two lines: a kind's label names its state and can be long
+    bar_label = label if limit is None else f"{label}\nallowable {limit:g} MPa (red line)"
+    bar = fig.colorbar(cs, ax=ax)
+    bar.set_label(bar_label, fontsize="small")
+    if limit is not None:
+        bar.ax.axhline(limit, color="red", lw=2)
+    i = int(np.nanargmax(v))
+    ax.plot(q[i, 0], q[i, 1], "x", color="red", ms=9, label=f"peak {v[i]:.4g}", zorder=3)
+    ax.legend(loc="upper right", fontsize="small")
+    ax.autoscale_view()
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    umax = float(np.nanmax(np.hypot(u[:, 0], u[:, 1]))) if len(u) else 0.0
+    how = "true scale" if scale == 1.0 else f"displacement magnified {scale:g}×"
+    head = f"{title}\n" if title else ""
+    ax.set_title(f"{head}deformed part, {how} (max |u| {umax:.3g} mm)", fontsize="medium")
     return _png(fig)
 
 

@@ -35,6 +35,7 @@ _PLOTS = (
     ("deformed_shapes.png", "Deformed shapes in every load case"),
     ("shapes.png", "Deformed shapes"),
     ("stress_map.png", "Stress map of the best design"),
+    ("stress_deformed.png", "Von Mises stress on the deformed part of the best design"),
     ("front.png", "Pareto front"),
     ("taguchi.png", "Taguchi stage: main effects and contributions"),
     ("convergence.png", "Convergence"),

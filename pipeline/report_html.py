@@ -614,6 +614,101 @@ def _part_fig(vertices: np.ndarray, faces: np.ndarray, whose: str = "best") -> A
     return fig
 
 
+def _stress_fig(fmap: Mapping[str, Any], whose: str = "best") -> Any:
+    """The von Mises field of ``fmap`` (a DesignDetail's ``field_map`` with
+    ``displacement_mm``) on the deformed part, as a plotly mesh seen from above, the undeformed
+    outline in grey; the scale as stress_deformed.png draws it
+    (:func:`pipeline.plots.deformation_scale`)."""
+    import plotly.graph_objects as go
+    from flexopt.pipeline.plots import boundary_edges, deformation_scale
+
+    p = np.asarray(fmap["points_mm"], dtype=float).reshape(-1, 2)
+    u = np.asarray(fmap["displacement_mm"], dtype=float).reshape(-1, 2)
+    v = np.asarray(fmap["values"], dtype=float).reshape(-1)
+    t = np.asarray(fmap["triangles"], dtype=int).reshape(-1, 3)
+    label = str(fmap.get("label", "von Mises stress (MPa)"))
+    limit = _float(fmap.get("limit"))
+    scale = deformation_scale(p, u)
+    q = p + scale * u
+    edges = boundary_edges(t)
+    # the outline as one polyline with gaps (None) between its edges
+    ex = np.column_stack([p[edges[:, 0], 0], p[edges[:, 1], 0], np.full(len(edges), np.nan)])
+    ey = np.column_stack([p[edges[:, 0], 1], p[edges[:, 1], 1], np.full(len(edges), np.nan)])
+    bar = label if limit is None else f"{label}<br>allowable {limit:g} MPa"
+    fig = go.Figure(
+        [
+            go.Scatter3d(
+                x=_plain(ex.ravel().round(4)),
+                y=_plain(ey.ravel().round(4)),
+                z=[0.0] * ex.size,
+                mode="lines",
+                line={"color": "#9e9e9e", "width": 2},
+                name="undeformed",
+                hoverinfo="skip",
+            ),
+            go.Mesh3d(
+                x=q[:, 0].round(4).tolist(),
+                y=q[:, 1].round(4).tolist(),
+                z=[0.0] * len(q),
+                i=t[:, 0].tolist(),
+                j=t[:, 1].tolist(),
+                k=t[:, 2].tolist(),
+                intensity=v.round(3).tolist(),
+                colorscale="Viridis",
+                cmin=0.0,
+                cmax=max(float(np.nanmax(v)), limit or 0.0),
+                colorbar={"title": {"text": bar}},
+                name="von Mises (MPa)",
+                hovertemplate="x %{x} mm<br>y %{y} mm<br>%{intensity:.4g} MPa<extra></extra>",
+            ),
+        ]
+    )
+    umax = float(np.nanmax(np.hypot(u[:, 0], u[:, 1]))) if len(u) else 0.0
+    how = "true scale" if scale == 1.0 else f"displacement magnified {scale:g}×"
+    size = np.maximum(q.max(axis=0) - q.min(axis=0), 1e-9)
+    fig.update_layout(
+        _layout(
+            f"Von Mises stress of the {whose} design on the deformed part, {how} "
+            f"(max |u| {umax:.3g} mm)",
+            height=560,
+            scene={
+                "aspectmode": "manual",
+                # true proportions; seen from above in an orthographic view, where the
+                # aspect ratio (not the eye's distance) sets how large the part is drawn
+                "aspectratio": {
+                    "x": float(2.2 * size[0] / size.max()),
+                    "y": float(2.2 * size[1] / size.max()),
+                    "z": 0.05,
+                },
+                "camera": {"eye": {"x": 0.0, "y": 0.0, "z": 2.0}, "up": {"x": 0, "y": 1, "z": 0},
+                           "projection": {"type": "orthographic"}},
+                "xaxis": _axis("x (mm)"),
+                "yaxis": _axis("y (mm)"),
+                "zaxis": {**_axis(""), "visible": False},
+            },
+        )
+    )  # fmt: skip
+    return fig
+
+
+def _stress_block(fmap: Mapping[str, Any] | None, figures: _Figures, whose: str) -> str:
+    """The stress field on the deformed part where the design's field (a ``field_map``)
+    carries its displacement (the same field as stress_deformed.png), else nothing."""
+    fmap = fmap or {}
+    if fmap.get("displacement_mm") is None:
+        return ""
+    try:
+        fig = _stress_fig(fmap, whose)
+    except Exception as exc:  # a field that cannot be drawn must not cost the page
+        return f"<p>No stress view: {_e(type(exc).__name__)}: {_e(exc)}.</p>"
+    return (
+        "<h3>Stress on the deformed part</h3><p class='note'>The plane-stress von Mises field "
+        f"({_e(fmap.get('label', 'von Mises stress (MPa)'))}) on the part deformed by the same "
+        "solve, seen from above; the grey line is the undeformed outline "
+        "(also stress_deformed.png).</p>" + figures.embed(fig, "stress-deformed")
+    )
+
+
 # --------------------------------------------------------------------------------------------
 # The page
 
@@ -933,6 +1028,9 @@ class EvaluateHtmlData:
     robustness: Mapping[str, Any] | None = None
     #: the kind's files (``response_<case>.csv`` of each load case: every case is drawn)
     files: Mapping[str, bytes] = field(default_factory=dict)
+    #: the evaluation's stress field (``DesignResult.field_map``), drawn on the deformed part
+    #: even when the part is not rebuilt
+    field_map: Mapping[str, Any] | None = None
 
 
 def render_evaluate_html(data: EvaluateHtmlData) -> str:
@@ -997,7 +1095,7 @@ def render_evaluate_html(data: EvaluateHtmlData) -> str:
         _section(
             "part-3d",
             "The part in 3D",
-            _part_section(data.part, figures, "evaluated", data.part_note, stl=None),
+            _part_section(data.part, figures, "evaluated", data.part_note, None, data.field_map),
         )
     )
     return _page(data.study_name, parts)
@@ -1070,6 +1168,7 @@ def evaluate_html(
                 part,
                 why or None,
                 files=dict(getattr(result, "files", None) or {}),
+                field_map=getattr(result, "field_map", None),
             )
         )
     except Exception as exc:
@@ -1085,9 +1184,12 @@ def _part_section(
     whose: str,
     why: str | None = None,
     stl: str | None = "best.stl",
+    field_map: Mapping[str, Any] | None = None,
 ) -> str:
     """The rotatable 3D view of a design's part (its outline extruded), or why there is none;
-    ``stl`` the file of the run folder that holds it (None: ``flexopt export`` writes it)."""
+    ``stl`` the file of the run folder that holds it (None: ``flexopt export`` writes it). Below
+    it the stress on the deformed part (:func:`_stress_block`) of ``field_map``, by default the
+    detail's."""
     mesh = None
     why = why or "the study kind gives no outline and height for this design"
     if detail is not None:
@@ -1095,8 +1197,9 @@ def _part_section(
             mesh = _part_mesh(detail)
         except Exception as exc:  # a part that cannot be extruded must not cost the page
             why = f"the part could not be built: {type(exc).__name__}: {exc}"
+    stress = _stress_block(field_map or getattr(detail, "field_map", None), figures, whose)
     if mesh is None:
-        return f"<p>No 3D view: {_e(why)}.</p>"
+        return f"<p>No 3D view: {_e(why)}.</p>" + stress
     v, _ = mesh
     size = v.max(axis=0) - v.min(axis=0)
     return (
@@ -1109,6 +1212,7 @@ def _part_section(
             "it as STL, DXF or STEP).</p>"
         )
         + figures.embed(_part_fig(*mesh, whose), "part-3d")
+        + stress
     )
 
 

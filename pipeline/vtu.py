@@ -12,7 +12,9 @@ What the file holds (one unstructured grid, coordinates in mm, z = 0 in the plan
   ``displacement_mm`` (ParaView's Warp By Vector picks it up). points + ``displacement_mm`` of
   step k are the kind's deformed centreline of row k.
 - the plane-stress model's triangles (``field_map``) as ``triangle`` cells with point data
-  ``von_mises_MPa`` at the state the kind's label names (the end of the design range).
+  ``von_mises_MPa`` at the state the kind's label names (the end of the design range) and, where
+  the field carries it (``displacement_mm``), the displacement of that same solve as
+  ``displacement_mm`` (points + displacement_mm is the deformed part of that state).
 - cell data ``model``: 0 on the beam's lines, 1 on the plane-stress triangles.
 - field data (``<FieldData>`` of the grid, numbers only: VTK's ASCII string arrays cannot be
   read back by meshio, so each array's *name* carries the text): the units, the drive of every
@@ -22,9 +24,11 @@ What the file holds (one unstructured grid, coordinates in mm, z = 0 in the plan
 
 The gaps, said in the file rather than filled with invented numbers: the beam model gives its
 peak stress per load step (the ``peak_stress_MPa`` column), not a stress per node, so the beam's
-points carry ``von_mises_MPa`` = NaN; the plane-stress result carries no displacement, so the
-triangles' points carry ``displacement_mm`` = NaN; the beam's thickness and width are not in the
-result, so the lines are bare centrelines.
+points carry ``von_mises_MPa`` = NaN; a field without ``displacement_mm`` (a plugin's) leaves
+the triangles' points at ``displacement_mm`` = NaN; a field has one state, so the beam's
+per-step displacement arrays are NaN on the triangles (the plain ``displacement_mm`` holds the
+field's state there); the beam's thickness and width are not in the result, so the lines are
+bare centrelines.
 """
 
 from __future__ import annotations
@@ -53,6 +57,10 @@ GAP_BEAM_STRESS = (
 GAP_FIELD_DISPLACEMENT = (
     "gap: the plane-stress result has no displacement; displacement_mm is NaN on the triangles' "
     "points (the triangles are the undeformed part)"
+)
+GAP_FIELD_STEPS = (
+    "gap: the plane-stress field is one state (its label says which); the beam's per-step "
+    "displacement arrays are NaN on the triangles' points, displacement_mm holds that state"
 )
 GAP_SECTION = "gap: beam thickness and width not in the result; lines are bare centrelines"
 
@@ -89,7 +97,8 @@ def vtu_mesh(result: Any) -> Any:
     ----------
     result : DesignResult
         ``shapes_mm`` (n_rows, n_nodes, 2) mm, optional; ``field_map`` with ``points_mm``
-        (m, 2) mm, ``triangles`` (t, 3) int, ``values`` (m,) MPa, optional; ``table`` of
+        (m, 2) mm, ``triangles`` (t, 3) int, ``values`` (m,) MPa, ``displacement_mm`` (m, 2) mm
+        (optional), optional; ``table`` of
         (n_rows,) columns; ``plot['x']`` the drive column.
     """
     import meshio
@@ -140,17 +149,30 @@ def vtu_mesh(result: Any) -> Any:
         cells.append(("triangle", tri + n_beam))
         model.append(np.full(len(tri), MODELS["plane_stress"], dtype=np.int32))
         nan3 = np.full((len(xy), 3), np.nan)
+        u = fmap.get("displacement_mm")
+        u = None if u is None else np.asarray(u, dtype=float).reshape(-1, 2)
+        if u is not None and len(u) != len(xy):
+            u = None  # not the mesh's: said as a gap rather than misdrawn
         for name in point_data:
-            if name != VON_MISES:
+            if name not in (VON_MISES, DISPLACEMENT):
                 point_data[name].append(nan3)
         point_data.setdefault(VON_MISES, []).append(vm)
+        if u is not None or DISPLACEMENT in point_data:  # a field alone without u: no array
+            disp = nan3 if u is None else np.column_stack([u, np.zeros(len(u))])
+            point_data.setdefault(DISPLACEMENT, []).append(disp)
         label = str(fmap.get("label", "von Mises stress (MPa)"))
         field_data[f"plane stress {VON_MISES}: {label}; peak"] = np.array([float(np.max(vm))])
         limit = fmap.get("limit")
         if limit is not None:
             field_data[f"plane stress {VON_MISES}: allowable (MPa)"] = np.array([float(limit)])
-        if shapes is not None:
+        if u is None and shapes is not None:
             field_data[GAP_FIELD_DISPLACEMENT] = np.zeros(1)
+        elif u is not None:
+            field_data[f"plane stress {DISPLACEMENT}: max |u| (mm)"] = np.array(
+                [float(np.max(np.hypot(u[:, 0], u[:, 1])))]
+            )
+        if shapes is not None:
+            field_data[GAP_FIELD_STEPS] = np.zeros(1)
     field_data[f"{MODEL}: 0 beam centreline (lines), 1 plane stress (triangles)"] = np.zeros(1)
     return meshio.Mesh(
         np.vstack(points),

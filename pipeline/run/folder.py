@@ -42,6 +42,7 @@ RUN_FILES = (
     "convergence.png",
     "shapes.png",
     "stress_map.png",
+    "stress_deformed.png",
     "front.png",
     "best.stl",
     "best.dxf",

@@ -511,6 +511,20 @@ class RunState:
                 ),
                 group="png",
             )
+            if fmap.get("displacement_mm") is not None:  # the same field on the deformed part
+                self.artefact(
+                    "stress_deformed.png",
+                    lambda: plots.plot_field_deformed(
+                        fmap["points_mm"],
+                        fmap["triangles"],
+                        fmap["values"],
+                        fmap["displacement_mm"],
+                        label=fmap.get("label", "von Mises stress (MPa)"),
+                        limit=float_or_none(fmap.get("limit")),
+                        title=title,
+                    ),
+                    group="png",
+                )
         for name, data in (getattr(detail, "files", None) or {}).items():
             if cases and name == "outputs.png":
                 continue  # the pipeline draws every case's outputs (_case_plots)

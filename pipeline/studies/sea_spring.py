@@ -485,7 +485,7 @@ class SeaSpringProblem(DesignProblem):
                 # ... and the outline whose peak stress converged (issue 22): its arms sampled
                 # every curve_step_mm, not the optimiser's facets (on those the peak is higher)
                 part_outline = peak.fine_geometry_of(self, geom.params).outline
-        smap = _stress_map_data(r)
+        field_map = self._field_map(r)
         plot = {
             "x": "rotation_deg",
             "y": "torque_Nm",
@@ -498,15 +498,6 @@ class SeaSpringProblem(DesignProblem):
             "x_label": "hub rotation (deg)",
             "y_label": "torque on the hub (N m)",
         }
-        field_map = None
-        if smap:
-            field_map = {
-                "points_mm": smap["points_mm"],
-                "triangles": smap["triangles"],
-                "values": smap["von_mises_MPa"],
-                "label": "von Mises stress at +theta_T, counter-clockwise (MPa)",
-                "limit": target.allowable_stress_MPa,
-            }
         return DesignResult(
             evaluation=evaluation,
             table=curve_table(r),
@@ -517,6 +508,21 @@ class SeaSpringProblem(DesignProblem):
             field_map=field_map,
             files=files,
         )
+
+    def _field_map(self, r: SpringResponse) -> dict[str, Any] | None:
+        """The von Mises map and displacement of the last state of ``r`` (the model kept), the
+        DesignResult's ``field_map``; None without the model."""
+        smap = _stress_map_data(r)
+        if not smap:
+            return None
+        return {
+            "points_mm": smap["points_mm"],
+            "triangles": smap["triangles"],
+            "values": smap["von_mises_MPa"],
+            "displacement_mm": smap["displacement_mm"],
+            "label": "von Mises stress at +theta_T, counter-clockwise (MPa)",
+            "limit": self.study.target.allowable_stress_MPa,
+        }
 
     def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
         """``flexopt evaluate``: the torque curve of the design ``x`` (n_var,) (the study's
@@ -585,6 +591,7 @@ class SeaSpringProblem(DesignProblem):
                 "target_label": f"target K θ, K = {self.k_target:g} N·m/rad",
             },
             headline=tuple(summary),
+            field_map=self._field_map(r),  # stress_deformed.png and design.vtu of evaluate
         )
 
     @no_numpy_hugepages  # the 3D model's arrays (pipeline/_hugepages.py)

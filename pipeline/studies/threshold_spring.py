@@ -331,6 +331,7 @@ class ThresholdSpringProblem(DesignProblem):
                     "points_mm": smap["points_mm"],
                     "triangles": smap["triangles"],
                     "values": smap["von_mises_MPa"],
+                    "displacement_mm": smap["displacement_mm"],
                     "label": "von Mises stress at the end of the design range (MPa)",
                     "limit": self.allowable_MPa,
                 }
@@ -520,6 +521,7 @@ class ThresholdSpringProblem(DesignProblem):
             plot=plot,
             headline=tuple(k for k in summary if summary[k] is not None),
             files=files,
+            field_map=d.field_map,  # stress_deformed.png and design.vtu of the evaluate folder
         )
 
 

@@ -23,7 +23,7 @@ from flexopt.geometry.sea_spring import (
 from flexopt.optimise import DesignProblem
 from flexopt.optimise.sea_cost import levels_to_values
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.plots import plot_field
+from flexopt.pipeline.plots import plot_field, plot_field_deformed
 from flexopt.pipeline.study import list_examples, load_study, validate_study
 
 EXAMPLES = Path(pipeline.__file__).parent / "examples"
@@ -176,6 +176,16 @@ def test_stress_map_png_is_drawn():
     assert len(data["von_mises_MPa"]) == len(data["points_mm"])
     png = plot_field(data["points_mm"], data["triangles"], data["von_mises_MPa"], limit=800.0)
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    # the displacement of the same solve at the vertices: the hub turned by 0.05 rad about
+    # the centre (the nonlinear rigid rotation), the pads held
+    p, u = np.asarray(data["points_mm"]), np.asarray(data["displacement_mm"])
+    c, s = np.cos(0.05), np.sin(0.05)
+    rigid = p @ np.array([[c, -s], [s, c]]).T - p
+    assert u.shape == p.shape
+    assert np.sum(np.hypot(*(u - rigid).T) < 1e-4) > 20  # points rounded to 1e-4 mm
+    assert np.sum(np.hypot(*u.T) == 0) > 10
+    png = plot_field_deformed(p, data["triangles"], data["von_mises_MPa"], u, limit=800.0)
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.mark.slow
@@ -200,9 +210,14 @@ def test_quick_example_runs_end_to_end(tmp_path):
     best = json.loads((out / "best.json").read_text())
     info = best["info"]
     assert info["outer_diameter_mm"] <= 72.0 + 1e-6
-    assert {"best.stl", "force_displacement.png", "stress_map.png", "report.md"} <= set(
-        record["files"]
-    )
+    assert {
+        "best.stl",
+        "force_displacement.png",
+        "stress_map.png",
+        "stress_deformed.png",
+        "report.md",
+        "best.vtu",
+    } <= set(record["files"])
     assert "stress_map" not in info  # drawn as stress_map.png, not stored in best.json
     assert trimesh.load(out / "best.stl").is_watertight
 

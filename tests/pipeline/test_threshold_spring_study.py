@@ -183,6 +183,11 @@ def test_evaluate_writes_plots_and_a_watertight_stl(evaluated):
     assert result.files["curve.png"][:8] == b"\x89PNG\r\n\x1a\n"
     for name in ("shape.png", "stress_map.png"):
         assert result.files[name][:8] == b"\x89PNG\r\n\x1a\n"
+    # the field with its displacement (stress_deformed.png and design.vtu of the folder)
+    fmap = result.field_map
+    u = np.asarray(fmap["displacement_mm"])
+    assert u.shape == np.shape(fmap["points_mm"]) and np.all(np.isfinite(u))
+    assert 0 < np.max(np.hypot(u[:, 0], u[:, 1])) < 10.0  # mm: the arms moved, not torn off
     mesh = trimesh.load(io.BytesIO(result.files["spring.stl"]), file_type="stl")
     assert mesh.is_watertight
     st = result.summary["ST_mm"]

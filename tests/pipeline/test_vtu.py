@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
 from flexopt.pipeline.cli import main
+from flexopt.pipeline.plots import deformation_scale
 from flexopt.pipeline.run import prepare_run, run_study
 from flexopt.pipeline.studies import StudyKind, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
@@ -24,6 +25,7 @@ from flexopt.pipeline.vtu import (
     DISPLACEMENT,
     GAP_BEAM_STRESS,
     GAP_FIELD_DISPLACEMENT,
+    GAP_FIELD_STEPS,
     MODEL,
     MODELS,
     UNITS,
@@ -45,6 +47,7 @@ class VtuGeometry(BaseModel):
     a_mm: float = 20.0  # the design (flexopt evaluate's nominal design)
     shapes: bool = True  # the detail has beam shapes
     field: bool = True  # ... and a plane-stress field
+    field_u: bool = False  # ... that carries its displacement
 
 
 class VtuStudy(Study):
@@ -59,16 +62,25 @@ def toy_shapes(a: float) -> np.ndarray:
     return np.stack([np.column_stack([x + 0.1 * d * x / a, d * (x / a) ** 2]) for d in drive])
 
 
-def toy_field(a: float) -> dict:
-    """A square of side a in two triangles, von Mises 0, a, 2a, 3a (MPa) at its corners."""
+def toy_field(a: float, displacement: bool = False) -> dict:
+    """A square of side a in two triangles, von Mises 0, a, 2a, 3a (MPa) at its corners; with
+    ``displacement``, the corners' displacement (4, 2) mm of a shear by a / 10."""
     points = np.array([[0.0, 0.0], [a, 0.0], [a, a], [0.0, a]])
-    return {
+    out = {
         "points_mm": points,
         "triangles": np.array([[0, 1, 2], [0, 2, 3]]),
         "values": np.array([0.0, a, 2 * a, 3 * a]),
         "label": "von Mises stress (MPa)",
         "limit": 100.0,
     }
+    if displacement:
+        out["displacement_mm"] = toy_field_u(a)
+    return out
+
+
+def toy_field_u(a: float) -> np.ndarray:
+    """(4, 2) mm: the toy field's displacement, a shear: u_x = y / 10, u_y = 0."""
+    return np.array([[0.0, 0.0], [0.0, 0.0], [a / 10, 0.0], [a / 10, 0.0]])
 
 
 class VtuProblem:
@@ -91,7 +103,7 @@ class VtuProblem:
             table=table,
             plot={"x": "displacement_mm", "y": "force_N"},
             shapes_mm=toy_shapes(a) if self.geometry.shapes else None,
-            field_map=toy_field(a) if self.geometry.field else None,
+            field_map=toy_field(a, self.geometry.field_u) if self.geometry.field else None,
             outline=box(0.0, 0.0, a, 5.0),
             height_mm=3.0,
             info={"field_peak_MPa": 3 * a},
@@ -203,6 +215,7 @@ def test_a_kind_without_shapes_gets_no_vtu(tmp_path: Path, capsys: pytest.Captur
     assert not (run.run_dir / "best.vtu").exists()
     record = json.loads((run.run_dir / "run.json").read_text())
     assert "best.vtu" not in record["files"] and not any("vtu" in n for n in record["notes"])
+    assert not (run.run_dir / "stress_deformed.png").exists()
     assert main(["export", str(run.run_dir), "--format", "vtu"]) == 1
     assert "no beam shapes and no stress field" in capsys.readouterr().err
     assert not (run.run_dir / "best.vtu").exists()
@@ -218,21 +231,112 @@ def test_evaluate_folder_has_design_vtu(tmp_path: Path) -> None:
     assert "design.vtu" in record["files"]
     mesh = _read(tmp_path / "ev" / "design.vtu")
     assert "triangle" not in mesh.cells_dict and GAP_FIELD_DISPLACEMENT not in mesh.field_data
+    assert "stress_deformed.png" not in record["files"]  # no field: no stress on the part
     assert len(mesh.cells_dict["line"]) == N_NODES - 1
     last = mesh.points[:, :2] + mesh.point_data[DISPLACEMENT][:, :2]
     np.testing.assert_allclose(last, toy_shapes(20.0)[-1], rtol=0, atol=1e-12)
 
 
+def test_a_field_with_its_displacement(tmp_path: Path) -> None:
+    """A field that carries its displacement: finite ``displacement_mm`` on the triangles,
+    equal to the field's; the beam's per-step arrays NaN there (said as a gap)."""
+    a = 20.0
+    data = vtu_bytes(VtuProblem(_study(field_u=True)).detail(np.array([a])))
+    assert data is not None
+    (tmp_path / "d.vtu").write_bytes(data)
+    mesh = _read(tmp_path / "d.vtu")
+    u = mesh.point_data[DISPLACEMENT][N_NODES:]
+    np.testing.assert_array_equal(u[:, :2], toy_field_u(a))
+    assert np.all(u[:, 2] == 0)
+    assert np.all(np.isnan(mesh.point_data[step_name(0, "displacement_mm", 0.0)][N_NODES:]))
+    assert GAP_FIELD_DISPLACEMENT not in mesh.field_data and GAP_FIELD_STEPS in mesh.field_data
+    assert mesh.field_data[f"plane stress {DISPLACEMENT}: max |u| (mm)"][0] == a / 10
+    # without the beam: the field's displacement alone, no gap to say
+    data = vtu_bytes(VtuProblem(_study(shapes=False, field_u=True)).detail(np.array([a])))
+    assert data is not None
+    (tmp_path / "f.vtu").write_bytes(data)
+    mesh = _read(tmp_path / "f.vtu")
+    np.testing.assert_array_equal(mesh.point_data[DISPLACEMENT][:, :2], toy_field_u(a))
+    assert not any(k.startswith("gap") for k in mesh.field_data)
+
+
+def test_deformation_scale_true_unless_tiny() -> None:
+    p = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 50.0]])
+    assert deformation_scale(p, np.full((3, 2), 3.0)) == 1.0  # 4.2 mm of 100: seen as it is
+    assert deformation_scale(p, np.zeros((3, 2))) == 1.0
+    u = np.zeros((3, 2))
+    u[1, 1] = 0.01  # 0.01 mm of 100 mm: magnified to about 10 mm, by a round factor
+    assert deformation_scale(p, u) == 1000.0
+
+
+@pytest.mark.usefixtures("no_step")
+def test_stress_deformed_png_of_a_run_and_an_evaluation(tmp_path: Path) -> None:
+    """stress_deformed.png and the report's stress view where the field carries its
+    displacement; a field without it gets the undeformed stress_map.png only."""
+    run_dir = run_study(prepare_run(_study(field_u=True)), out=tmp_path / "run").run_dir
+    files = json.loads((run_dir / "run.json").read_text())["files"]
+    assert "stress_deformed.png" in files and "stress_map.png" in files
+    assert (run_dir / "stress_deformed.png").read_bytes().startswith(b"\x89PNG")
+    assert 'id="fig-stress-deformed"' in (run_dir / "report.html").read_text(encoding="utf-8")
+    run_dir = run_study(prepare_run(_study()), out=tmp_path / "run2").run_dir
+    assert (run_dir / "stress_map.png").is_file()
+    assert not (run_dir / "stress_deformed.png").exists()
+    assert "fig-stress-deformed" not in (run_dir / "report.html").read_text(encoding="utf-8")
+
+    path = tmp_path / "vtu.yaml"
+    path.write_text(
+        f"name: vtu\ngeometry: {{kind: {KIND}, field_u: true}}\nmaterial: PLA\n", encoding="utf-8"
+    )
+    assert main(["evaluate", str(path), "--out", str(tmp_path / "ev")]) == 0
+    record = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
+    assert "stress_deformed.png" in record["files"]
+    assert (tmp_path / "ev" / "stress_deformed.png").read_bytes().startswith(b"\x89PNG")
+    html = (tmp_path / "ev" / "report.html").read_text(encoding="utf-8")
+    assert 'id="fig-stress-deformed"' in html
+
+
 def test_sea_spring_quick_field_has_the_peak_stress_of_the_evaluation(tmp_path: Path) -> None:
-    """A real plane-stress field: the evaluate folder has no design.vtu (the kind's evaluation
-    carries no field), its export rebuilds the design with it. The kind rounds the nodal von
-    Mises values to 0.01 MPa (fea/spring_analysis.stress_map_data), hence the tolerance."""
+    """A real plane-stress field: the evaluate folder's design.vtu and stress_deformed.png, and
+    the export, which rebuilds the design with it, the same file. The kind rounds the nodal von
+    Mises values to 0.01 MPa (fea/spring_analysis.stress_map_data), hence the tolerance. The
+    field's displacement is the solve's: the hub's rigid rotation, the pads held."""
     ev = tmp_path / "ev"
     assert main(["evaluate", "sea-spring-quick", "--out", str(ev)]) == 0
-    assert not (ev / "design.vtu").exists()
-    assert main(["export", str(ev), "--format", "vtu"]) == 0
-    mesh = _read(ev / "design.vtu")
+    assert (ev / "stress_deformed.png").is_file()
+    evaluated = _read(ev / "design.vtu")
+    assert main(["export", str(ev), "--format", "vtu", "--out", str(tmp_path / "x.vtu")]) == 0
+    mesh = _read(tmp_path / "x.vtu")
+    np.testing.assert_array_equal(mesh.points, evaluated.points)
+    for name in (VON_MISES, DISPLACEMENT):
+        np.testing.assert_array_equal(mesh.point_data[name], evaluated.point_data[name])
     summary = json.loads((ev / "evaluation.json").read_text())["summary"]
     assert len(mesh.cells_dict["triangle"]) > 1000 and "line" not in mesh.cells_dict
     assert np.max(mesh.point_data[VON_MISES]) == pytest.approx(summary["peak_stress_MPa"], abs=0.01)
-    assert GAP_FIELD_DISPLACEMENT not in mesh.field_data  # no beam: nothing else to say
+    assert GAP_FIELD_DISPLACEMENT not in mesh.field_data  # it carries its displacement
+    # ... the solve's: the hub turned rigidly by the last row's rotation about the centre, the
+    # pads held (the points are rounded to 1e-4 mm, hence the tolerance)
+    rows = (ev / "response.csv").read_text().splitlines()
+    col = rows[0].split(",").index("rotation_deg")
+    theta = np.radians(float(rows[-1].split(",")[col]))
+    p, u = mesh.points[:, :2], mesh.point_data[DISPLACEMENT]
+    assert np.all(np.isfinite(u)) and np.all(u[:, 2] == 0)
+    rot = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    hub = np.hypot(*(u[:, :2] - (p @ rot.T - p)).T) < 1e-4
+    held = np.hypot(u[:, 0], u[:, 1]) == 0
+    assert hub.sum() > 50 and held.sum() > 20
+    umax = mesh.field_data[f"plane stress {DISPLACEMENT}: max |u| (mm)"][0]
+    assert umax == pytest.approx(np.max(np.hypot(u[:, 0], u[:, 1])), rel=1e-12)
+
+
+def test_an_evaluation_without_its_part_still_shows_its_stress() -> None:
+    """report.html of an evaluation whose part is not rebuilt (too slow, as the 86 s
+    threshold-spring) draws the evaluation's own field on the deformed part."""
+    from flexopt.pipeline.report_html import EvaluateHtmlData, render_evaluate_html
+
+    d = np.linspace(0.0, 1.0, 3)
+    data = EvaluateHtmlData(
+        "vtu", KIND, {"d_mm": d, "f_N": d}, {"x": "d_mm", "y": "f_N"},
+        part_note="too slow to rebuild", field_map=toy_field(20.0, displacement=True),
+    )  # fmt: skip
+    html = render_evaluate_html(data)
+    assert "No 3D view: too slow to rebuild" in html and 'id="fig-stress-deformed"' in html
