@@ -89,11 +89,11 @@ def test_the_example_chooses_its_golden_design(golden, tmp_path, monkeypatch, ca
 # -- each example's recorded design, as `flexopt evaluate` judges it ---------------------------
 
 #: tests/golden/evaluate/<example>.json (tests/golden/make_golden_evaluate.py): the verdict and
-#: scalar summary ``flexopt evaluate <example>`` gave on main da29f6e (constant-force-custom:
+#: scalar summary ``flexopt evaluate <example>`` gave on main da29f6e (an example added since:
 #: when it was added), for every example whose evaluate takes seconds. Not here: sea-spring and
-#: sea-spring-serpentine (their 3D check needs ~2-4.6 GB and a minute; docs/sea_spring.md and
-#: the SEA tests of tests/pipeline hold their figures) and threshold-spring (a 35 s plane-stress
-#: check).
+#: sea-spring-serpentine and sea-spring-life (their 3D check needs ~2-4.6 GB and a minute;
+#: docs/sea_spring.md, docs/durability.md and the SEA tests of tests/pipeline hold their figures),
+#: threshold-spring (a 35 s plane-stress check) and constant-force-robust-ga (590 scatter samples).
 GOLDEN_EVALUATE = sorted((Path(__file__).resolve().parent / "golden" / "evaluate").glob("*.json"))
 
 
