@@ -4,6 +4,7 @@ evaluate`` (stresses and motions stay), and ``flexopt retrim`` writes the scaled
 
 from __future__ import annotations
 
+import csv
 import re
 
 import numpy as np
@@ -11,12 +12,17 @@ import pytest
 import yaml
 from flexopt.pipeline.studies import get_kind
 
-#: (example, the kind's width key, the measured curve's two columns)
+#: the SEA spring with ST a design variable, and rows enough for a measured curve (>= 5 rows
+#: at positive angles: optimise.calibration.compare_curves)
+SEARCH = {"thickness": "search", "mesh.curve_steps": 5}
+#: (example, changes to it, the kind's width key, the measured curve's two columns)
 CASES = [
-    ("cantilever", "geometry.width_mm", ("displacement_mm", "force_N")),
-    ("cantilever-stop", "geometry.width_mm", ("displacement_mm", "force_N")),
-    ("flexure-pivot", "geometry.width_mm", ("rotation_deg", "torque_Nmm")),
-    ("leaf-spring-joint", "geometry.width_mm", ("deflection_deg", "torque_Nm_sliding_l28")),
+    ("cantilever", {}, "geometry.width_mm", ("displacement_mm", "force_N")),
+    ("cantilever-stop", {}, "geometry.width_mm", ("displacement_mm", "force_N")),
+    ("flexure-pivot", {}, "geometry.width_mm", ("rotation_deg", "torque_Nmm")),
+    ("leaf-spring-joint", {}, "geometry.width_mm", ("deflection_deg", "torque_Nm_sliding_l28")),
+    # ST a variable, no 3D check: plane stress only (its torque is proportional to ST)
+    ("sea-spring-quick", SEARCH, "design.ST", ("rotation_deg", "torque_Nm")),
 ]
 FORCE_LIKE = re.compile(r"force|torque|moment|stiffness")
 
@@ -30,13 +36,29 @@ def value_at(study, key):
     return float(node)
 
 
-@pytest.mark.parametrize(("example", "key", "curve"), CASES, ids=[c[0] for c in CASES])
-def test_doubling_the_width_doubles_every_force(tmp_path, example, key, curve):
+def measured_csv(tmp_path, curve, factor):
+    """measured.csv: the evaluate folder's (tmp_path/base) curve ``curve`` (x, y column names),
+    y times ``factor``, without its unloaded row (x = 0: no force error to take)."""
+    with open(tmp_path / "base" / "response.csv", newline="") as f:
+        rows = [(float(r[curve[0]]), float(r[curve[1]])) for r in csv.DictReader(f)]
+    lines = [",".join(curve)] + [f"{x!r},{factor * y!r}" for x, y in rows if x != 0]
+    (tmp_path / "measured.csv").write_text("\n".join(lines) + "\n")
+
+
+def width_key_of(study):
+    key = get_kind(study.kind).width_key
+    return key(study) if callable(key) else key
+
+
+@pytest.mark.parametrize(("example", "changes", "key", "curve"), CASES, ids=[c[0] for c in CASES])
+def test_doubling_the_width_doubles_every_force(tmp_path, example, changes, key, curve):
     import flexopt
     from flexopt.pipeline.cli import main
+    from flexopt.pipeline.study import load_study, resolve_study_path
 
-    base = flexopt.evaluate(example, out=tmp_path / "base")
-    assert get_kind(base.study.kind).width_key == key
+    study = load_study(resolve_study_path(example))
+    base = flexopt.evaluate(study.with_values(changes), out=tmp_path / "base")
+    assert width_key_of(base.study) == key
     width = value_at(base.study, key)
     wide = flexopt.evaluate(base.study.with_values({key: 2 * width}), out=tmp_path / "wide")
     names = [n for n in base.table if FORCE_LIKE.search(n)]
@@ -56,13 +78,33 @@ def test_doubling_the_width_doubles_every_force(tmp_path, example, key, curve):
             )
 
     # a "print" 20 % weaker than predicted: re-trim by the kind's key, width / 0.8
-    x = np.asarray(base.table[curve[0]], dtype=float)[1:]
-    y = 0.8 * np.asarray(base.table[curve[1]], dtype=float)[1:]
-    lines = [",".join(curve)] + [f"{a:.9g},{b:.9g}" for a, b in zip(x, y, strict=True)]
-    (tmp_path / "measured.csv").write_text("\n".join(lines) + "\n")
+    measured_csv(tmp_path, curve, 0.8)
     assert main(["retrim", str(tmp_path / "base"), str(tmp_path / "measured.csv")]) == 0
     written = yaml.safe_load((tmp_path / "base" / "retrimmed.yaml").read_text())
     node = written
     for part in key.split("."):
         node = node[part]
     assert float(node) == pytest.approx(width / 0.8, rel=1e-6)
+
+
+def test_no_width_key_where_the_thickness_is_solved_or_judged_in_3d(tmp_path):
+    """sea_spring declares ``design.ST`` only with ``thickness: search`` and no 3D check;
+    threshold_spring (ST solved from the torque target), gripper, cam and mechanism none
+    (docs/print_to_part.md, section 4); retrim then asks for ``--key``."""
+    from flexopt.optimise.calibration import CalibrationError
+    from flexopt.pipeline.print_to_part import retrim_run
+    from flexopt.pipeline.study import load_study, resolve_study_path
+
+    quick = load_study(resolve_study_path("sea-spring-quick"))
+    assert width_key_of(quick) is None  # thickness: solve
+    assert width_key_of(quick.with_values({"thickness": "search"})) == "design.ST"
+    assert width_key_of(quick.with_values({"thickness": "search", "solid_3d.check": True})) is None
+    for example in ("threshold-spring", "gripper", "threshold-cam", "parallel-guide"):
+        assert width_key_of(load_study(resolve_study_path(example))) is None, example
+    # an evaluate folder of a kind without one: retrim names --key
+    import flexopt
+
+    flexopt.evaluate(quick.with_values({"mesh.curve_steps": 5}), out=tmp_path / "base")
+    measured_csv(tmp_path, ("rotation_deg", "torque_Nm"), 1.0)
+    with pytest.raises(CalibrationError, match="--key"):
+        retrim_run(tmp_path / "base", tmp_path / "measured.csv")
