@@ -42,7 +42,15 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAConfig, GAResult, Generation, best_of, run_ga
 from flexopt.optimise.space import DesignSpace
 
-__all__ = ["HybridConfig", "HybridResult", "residuals_of", "run_hybrid", "pick_starts", "StallRule"]
+__all__ = [
+    "GradientStep",
+    "HybridConfig",
+    "HybridResult",
+    "residuals_of",
+    "run_hybrid",
+    "pick_starts",
+    "StallRule",
+]
 
 #: a failed design's objective and constraint in the scaled SLSQP problem: finite (SLSQP's line
 #: search backs off from it) and far above any evaluated design's
@@ -113,6 +121,13 @@ class HybridResult(GAResult):
     stopped)."""
 
     report: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class GradientStep(Generation):
+    """One batch of the gradient stage, passed to ``on_generation`` like a generation (its
+    ``index`` counts on from the GA stage's): a run shows it as a gradient step, not as a
+    generation beyond the GA's ``n_gen``."""
 
 
 def residuals_of(evaluation: Evaluation) -> np.ndarray | None:
@@ -202,7 +217,7 @@ class _Stage:
         self.n += len(X)
         self.everything.extend(evaluations)
         self.best = best_of((self.best, *evaluations))
-        gen = Generation(
+        gen = GradientStep(
             len(self.generations), tuple(evaluations), self.best, len(self.everything), X
         )
         self.generations.append(gen)

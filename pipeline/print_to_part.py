@@ -568,10 +568,13 @@ def retrim_run(run_dir: Path, measured_csv: Path, key: str | None = None) -> Ret
         from flexopt.pipeline.studies import get_kind
 
         key = get_kind(study.kind).width_key
+        if callable(key):  # a width exact for some of the kind's studies only
+            key = key(study)
         if key is None:
             raise CalibrationError(
-                f"the {study.kind} kind declares no out-of-plane width that scales every force; "
-                "give the study key to scale with --key"
+                f"the {study.kind} kind declares no out-of-plane width that scales every force "
+                "of this study (docs/print_to_part.md, section 4); give the study key to scale "
+                "with --key"
             )
     node: Any = study_data(study)
     for part in key.split("."):

@@ -30,6 +30,7 @@ class RunProgress:
         self.task: Any = None
         self.run_dir: Path | None = None
         self.step = 0.0
+        self.shown = 0  # the generation of the last line printed
 
     def start(self, run_dir: Path, config: GAConfig) -> None:
         self.run_dir = run_dir
@@ -56,15 +57,25 @@ class RunProgress:
         """One design solved: creep forward within the generation (never past its end)."""
         if self.progress is not None:
             task = self.progress.tasks[0]
+            if task.completed >= task.total:  # the hybrid's gradient stage: the GA's bar is full
+                return
             ceiling = math.floor(task.completed) + 1.0 - 1e-9
             self.progress.update(self.task, completed=min(task.completed + self.step, ceiling))
 
     def generation(self, report: GenerationReport) -> None:
         if self.progress is not None:
-            self.progress.update(self.task, completed=report.generation)
-        if self.lines:
+            if report.stage == "gradient":  # past the GA stage: its bar full, the step named
+                task = self.progress.tasks[0]
+                self.progress.update(
+                    self.task, completed=task.total, description=f"gradient step {report.step}"
+                )
+            else:
+                self.progress.update(self.task, completed=report.generation)
+        # a hybrid run's end repeats its last report (GenerationReport.last): one line of it
+        if self.lines and report.generation != self.shown:
             self._say(format_generation(report))
-        if report.generation == report.n_gen:
+        self.shown = report.generation
+        if report.last:
             self.stop()
             if self.lines:
                 self._say("writing the best design's response, plots, STL and report")
@@ -95,7 +106,9 @@ def _where(run_dir: Path) -> str:
 
 
 def format_generation(report: GenerationReport) -> str:
-    """``gen 3/30  best 0.0123  feasible 85%  12.3 eval/s``."""
+    """``gen 3/30  best 0.0123  feasible 85%  12.3 eval/s``; a step of the hybrid optimiser's
+    gradient stage: ``gradient step 4 (evaluations 57)  best ...``, with the designs
+    evaluated so far in the run."""
     from flexopt.pipeline.labels import objective_view
 
     best = report.best
@@ -105,7 +118,12 @@ def format_generation(report: GenerationReport) -> str:
         sense, _, value = objective_view(name, float(v), best.metrics)
         shown.append(f"{value:.4g}" + (" (max)" if sense == "maximise" else ""))
     value = ", ".join(shown) if best.feasible else "none feasible"
+    where = (
+        f"gradient step {report.step} (evaluations {report.n_evaluations})"
+        if getattr(report, "stage", "ga") == "gradient"
+        else f"gen {report.generation}/{report.n_gen}"
+    )
     return (
-        f"gen {report.generation}/{report.n_gen}  best {value}  "
+        f"{where}  best {value}  "
         f"feasible {100 * report.feasible_fraction:.0f}%  {report.evaluations_per_s:.3g} eval/s"
     )

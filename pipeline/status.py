@@ -34,7 +34,7 @@ class RunStatus:
     study, kind : the study's name and kind.
     status : running, finished, interrupted, failed, or stopped (run.json says running but its
         process is gone: killed; resume it).
-    generation, n_gen : generations done and in all.
+    generation, n_gen : generations done and in all (a hybrid run: of its GA stage).
     n_evaluations : designs evaluated so far (the store, which is ahead of the tables mid-run).
     n_feasible : feasible designs among them.
     n_failed : designs that could not be evaluated.
@@ -64,6 +64,7 @@ class RunStatus:
     error: str = ""
     notes: tuple[str, ...] = ()
     best_metrics: dict[str, Any] | None = None  # the best design's metrics (a maximised X)
+    gradient_steps: int = 0  # a hybrid run: batches of its gradient stage so far
 
     @property
     def feasible_share(self) -> float:
@@ -112,6 +113,9 @@ def run_status(run_dir: Path) -> RunStatus:
     n_gen = int(optimiser.get("n_gen", 0))
     pop_size = int(optimiser.get("pop_size", 0))
     generation = int(record.get("generations_done", 0))
+    # a hybrid run counts its gradient stage's batches as generations: shown apart
+    gradient_steps = int(record.get("gradient_steps") or 0)
+    generation -= gradient_steps
     objectives = list(record.get("objectives", []))
 
     def size(key: str) -> int | None:
@@ -144,7 +148,7 @@ def run_status(run_dir: Path) -> RunStatus:
     if rate is None and n_solved and optimise_wall:
         rate = n_solved / optimise_wall
     eta = None
-    if status == "running" and rate:
+    if status == "running" and rate and not gradient_steps:
         asked = n_evaluations + int(record.get("n_cache_hits", 0))
         # designs still to come; repeats (served by the cache) so far say how many are new
         new_share = (
@@ -172,6 +176,7 @@ def run_status(run_dir: Path) -> RunStatus:
         error=str(record.get("error") or ""),
         notes=tuple(store.notes),
         best_metrics=dict(top.metrics) if top is not None and top.metrics else None,
+        gradient_steps=gradient_steps,
     )
 
 
@@ -201,6 +206,11 @@ def format_status(status: RunStatus) -> str:
         f"study        {status.study} ({status.kind})",
         f"status       {status.status}",
         f"generation   {status.generation}/{status.n_gen}",
+        *(
+            [f"gradient     step {status.gradient_steps} (evaluations {status.n_evaluations})"]
+            if status.gradient_steps
+            else []
+        ),
         f"evaluations  {status.n_evaluations} ({status.n_failed} failed)",
         f"feasible     {100 * status.feasible_share:.0f}%",
         f"best so far  {best}",

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAResult, Generation
+from flexopt.optimise.hybrid import GradientStep
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import Verdict, verdict_record
 from flexopt.pipeline import plots
@@ -69,6 +70,12 @@ class GenerationReport:
     evaluations_per_s : designs solved per second of this generation.
     wall_s : s since the optimisation started.
     objective_names : the objectives of ``best.f`` (``negative_X``: X maximised).
+    stage : ``"ga"`` (a generation of the GA, also the hybrid optimiser's GA stage) or
+        ``"gradient"`` (one batch of the hybrid's gradient stage: ``generation`` counts on past
+        the GA's ``n_gen``, ``step`` is its number in the stage, 1-based; 0 in the GA).
+    last : the optimisation ends with this report: a GA run's generation ``n_gen``; a hybrid
+        run, whose end no generation foretells, repeats its last report once with ``last``
+        when its gradient stage has ended (nothing new solved).
     """
 
     generation: int
@@ -80,6 +87,9 @@ class GenerationReport:
     evaluations_per_s: float
     wall_s: float
     objective_names: tuple[str, ...] = ()
+    stage: str = "ga"
+    step: int = 0
+    last: bool = False
 
 
 class RunState:
@@ -110,6 +120,8 @@ class RunState:
         self.where: dict[bytes, tuple[int, int]] = {}  # design -> (generation, index) solved
         self.history: list[dict[str, Any]] = []
         self.generations: list[Generation] = []
+        self.gradient_steps = 0  # batches of the hybrid's gradient stage so far
+        self.last_report: GenerationReport | None = None
         self.t0 = time.perf_counter()
         self.t_last = self.t0
         self.notes: list[str] = []
@@ -152,6 +164,8 @@ class RunState:
         gen_wall = now - self.t_last
         self.t_last = now
         self.generations.append(gen)
+        gradient = isinstance(gen, GradientStep)
+        self.gradient_steps += gradient
         report = GenerationReport(
             generation=number,
             n_gen=self.setup.config.n_gen,
@@ -162,7 +176,11 @@ class RunState:
             evaluations_per_s=n_new / gen_wall if gen_wall > 0 else 0.0,
             wall_s=now - self.t0,
             objective_names=tuple(self.problem.objective_names),
+            stage="gradient" if gradient else "ga",
+            step=self.gradient_steps if gradient else 0,
+            last=self.setup.hybrid is None and number == self.setup.config.n_gen,
         )
+        self.last_report = report
         entry: dict[str, Any] = {
             "generation": number,
             "n_evaluations": report.n_evaluations,
@@ -187,6 +205,12 @@ class RunState:
             n_solved=self.evaluator.n_backend,
             optimise_wall_s=report.wall_s,
         )
+        if self.setup.hybrid is not None:  # flexopt status: which stage, and how far
+            self.record.update(
+                stage=report.stage,
+                ga_generations=number - self.gradient_steps,
+                gradient_steps=self.gradient_steps,
+            )
         # The generation's files are formatted here and written (each atomically, fsynced) by
         # one writer thread while the workers solve the next generation: their fsyncs (four per
         # generation, 5-15 ms each on the development machine) no longer hold the workers idle.
@@ -207,9 +231,10 @@ class RunState:
         ]
         self.write_later(files)
         log.info(
-            "generation %d/%d: %d evaluations, best %s, %.0f%% feasible, %.3g eval/s",
-            number,
-            report.n_gen,
+            "gradient step %d: %d evaluations, best %s, %.0f%% feasible, %.3g eval/s"
+            if gradient
+            else "generation %d/%d: %d evaluations, best %s, %.0f%% feasible, %.3g eval/s",
+            *((report.step,) if gradient else (number, report.n_gen)),
             report.n_evaluations,
             gen.best.f.tolist(),
             100 * report.feasible_fraction,
@@ -387,6 +412,10 @@ class RunState:
             return ()
 
     def finish(self, result: GAResult, early: EarlyStep | None = None) -> DesignDetail | None:
+        if self.setup.hybrid is not None and self.last_report is not None:
+            # the hybrid's gradient stage has ended: the end a GA run's generation n_gen marks
+            if self.on_generation is not None:
+                self.on_generation(replace(self.last_report, last=True))
         # best.step's child: the one the run started (``early``, it imported build123d at low
         # priority while the workers solved), else forked now: it imports build123d (~3 s)
         # while the best design's detail is solved, once a core is idle (see EarlyStep)

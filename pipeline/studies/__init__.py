@@ -130,9 +130,10 @@ class StudyKind:
     summary : str, optional
         One line: what the kind designs (``flexopt list``). Default: the first line of the
         docstring of the module that defines ``model``, without its ``Study kind ``x``:`` lead.
-    width_key : str, optional
+    width_key : str or callable(study) -> str or None, optional
         The study key of the part's out-of-plane width (mm), when every force of the design is
-        proportional to it: ``flexopt retrim``'s default ``--key`` (docs/print_to_part.md).
+        proportional to it: ``flexopt retrim``'s default ``--key`` (docs/print_to_part.md). A
+        callable gives it per study (None: not exact for this study, e.g. a solved thickness).
     """
 
     name: str
@@ -145,7 +146,7 @@ class StudyKind:
     summary: str = ""
     figures: Mapping[str, Sequence[Figure]] | Callable[[Study], Mapping] | None = None
     design_space: Callable[[Study], tuple[Any, np.ndarray | None]] | None = None
-    width_key: str | None = None
+    width_key: str | Callable[[Study], str | None] | None = None
 
 
 _KINDS: dict[str, StudyKind] = {}

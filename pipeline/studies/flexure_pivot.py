@@ -693,5 +693,7 @@ register(
         quantities=_builtin.FLEXURE_PIVOT,
         figures=FIGURES,
         design_space=design_of,
+        # beams and the plane-stress check: every torque (and the closed forms) scale with it
+        width_key="geometry.width_mm",
     )
 )

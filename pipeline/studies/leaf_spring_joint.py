@@ -583,5 +583,7 @@ register(
         # flexopt evaluate analyses lengths and structures, not one design: only a run's
         # design has the design-range row (pipeline.verdict)
         design_space=lambda study: (design_space(study), None),
+        # the leaves' I scales with it: every torque and stiffness of every structure
+        width_key="geometry.width_mm",
     )
 )

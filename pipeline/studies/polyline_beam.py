@@ -531,5 +531,7 @@ register(
         evaluate,
         requirements=requirements,
         quantities=quantities,
+        # A and I of every section scale with it: every force and moment at a given motion
+        width_key="geometry.width_mm",
     )
 )  # type: ignore[arg-type]

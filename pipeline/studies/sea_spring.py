@@ -679,5 +679,10 @@ register(
         summary=__doc__.split("\n\n")[0].removeprefix("Study kind ``sea_spring``:"),
         figures=FIGURES,
         design_space=design_of,
+        # thickness: search without the 3D check: the plane-stress torque is proportional to ST;
+        # solved from the target, or judged on a 3D solid, ST is no exact width (print_to_part.md)
+        width_key=lambda study: (
+            "design.ST" if study.thickness == "search" and not study.solid_3d.check else None
+        ),
     )
 )
