@@ -106,6 +106,21 @@ def _critical_location(result: Any, levels: Sequence[Mapping[str, Any]]) -> dict
     return out
 
 
+def _stress_model(study: Any, scale: Any, figure: Any) -> str:
+    """Which model's stress the life used: the figure the beam's peak was scaled to (``plane
+    stress``, ``3D solid``), else the model of the response table's own ``peak_stress_MPa``
+    (``beam``), as the kind names its figures (:func:`pipeline.verdict.figures_of`)."""
+    from flexopt.pipeline.verdict import figures_of
+
+    ladder = figures_of(study).get("peak_stress_MPa", ())
+    if _finite(scale) not in (None, 1.0):
+        for f in sorted(ladder, key=lambda f: -f.rank):
+            if str(figure or "").startswith(f.model):
+                return f.model
+    own = [f.model for f in ladder if f.quantity == "peak_stress_MPa"]
+    return own[0] if own else f"the {study.kind} kind's own solve"
+
+
 def _fatigue(study: Any, result: Any) -> dict[str, Any]:
     summary = getattr(result, "summary", None) or {}
     info = getattr(result, "info", None) or {}
@@ -136,6 +151,7 @@ def _fatigue(study: Any, result: Any) -> dict[str, Any]:
         "life_infinite": fat.get("life_infinite"),
         "life_in_range": fat.get("life_in_range"),
         "rate_hz": spec.rate_hz,
+        "stress_model": _stress_model(study, fat.get("scale"), fat.get("life_stress_figure")),
         "stress_figure": fat.get("life_stress_figure"),
         "stress_scale": fat.get("scale"),
         "critical_location": _critical_location(result, levels),
@@ -319,7 +335,8 @@ def _blocks(record: Mapping[str, Any]) -> list[tuple[str, Any]]:
                  or fat.get("life_infinite") else "– (no rate_hz)"],
                 ["rate", f"{_fmt(fat.get('rate_hz'))} Hz" if fat.get("rate_hz") else "–"],
                 ["within the stress-life range (N ≥ 10^3)", _fmt(fat.get("life_in_range"))],
-                ["stress figure", fat.get("stress_figure") or "–"],
+                ["stress figure", f"{fat.get('stress_model')}: "
+                 f"{fat.get('stress_figure') or 'the response table'}"],
                 ["critical location", location],
                 ["mean-stress correction", fat.get("correction")],
                 ["S-N curve", curve],

@@ -174,7 +174,9 @@ def test_report_md_of_a_run_detail():
     )
     assert row in section
     assert f"| life, cycles | {shown(fat['life_cycles'])} |" in section
-    assert "plane stress" in section  # the stress figure the life used
+    # the stress figure the life used: the beam's peak scaled to the plane-stress check's
+    assert fat["stress_model"] == "plane stress"
+    assert "| stress figure | plane stress: plane stress (plane_stress_peak_stress_MPa" in section
     plain, _ = report(validate_study(raw))
     assert "## Durability" not in plain
 
