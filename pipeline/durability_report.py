@@ -293,7 +293,9 @@ def _blocks(record: Mapping[str, Any]) -> list[tuple[str, Any]]:
         else:
             rows = [
                 [lv["level"], lv["drive_min"], lv["drive_max"], lv["amplitude_MPa"],
-                 lv["mean_MPa"], lv["cycles"], lv["cycles_to_failure"], lv["damage"]]
+                 lv["mean_MPa"], lv["cycles"],
+                 "infinite" if lv["cycles_to_failure"] is None else lv["cycles_to_failure"],
+                 lv["damage"]]
                 for lv in fat["levels"]
             ]  # fmt: skip
             out.append(("table", (["level", "drive min", "drive max", "amplitude (MPa)",

@@ -195,3 +195,14 @@ def test_a_run_writes_best_json_durability_as_report_md(tmp_path):
     assert note in md_section((tmp_path / "run" / "report.md").read_text(encoding="utf-8"))
     text = (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
     assert html.escape(note, quote=True) in text and '<a href="#durability">' in text
+
+
+def test_a_level_below_the_endurance_limit_reads_infinite():
+    """A level that does not damage (N = inf, None in JSON) reads ``infinite``, not a dash."""
+    level = {"level": 1, "drive_min": 0.0, "drive_max": 1.0, "amplitude_MPa": 1.0,
+             "mean_MPa": 1.0, "cycles": 5.0, "cycles_to_failure": None, "damage": 0.0}  # fmt: skip
+    record = {"fatigue": {"levels": [level], "miner_sum": 0.0, "life_cycles": None,
+                          "life_hours": None, "life_infinite": True, "rate_hz": 1.0}}  # fmt: skip
+    md = "\n".join(durability_markdown(record))
+    assert "| 1 | 0 | 1 | 1 | 1 | 5 | infinite | 0 |" in md
+    assert "| life, cycles | infinite (every level below the endurance limit) |" in md
