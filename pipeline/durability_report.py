@@ -270,9 +270,21 @@ def durability_record(study: Any, result: Any) -> dict[str, Any]:
 
 
 def _fmt(value: Any) -> str:
-    from flexopt.pipeline.report import format_value
-
-    return format_value(value)
+    """One cell as report.md's ``format_value`` writes it (6 significant digits, yes/no, ``–``
+    for None); repeated here because pipeline.report imports this module."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if value is None:
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return f"{value:.6g}" if math.isfinite(value) else str(value)
+    if isinstance(value, list | tuple | np.ndarray):
+        return "[" + ", ".join(_fmt(v) for v in np.asarray(value, dtype=object).ravel()) + "]"
+    return " ".join(str(value).split()).replace("|", "\\|")
 
 
 def _life(cycles: Any, infinite: Any = None) -> str:
