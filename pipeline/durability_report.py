@@ -256,12 +256,16 @@ def durability_record(study: Any, result: Any) -> dict[str, Any]:
     out: dict[str, Any] = {}
     if study is None or result is None:
         return out
-    if getattr(study, "duty_cycle", None) is not None:
-        out["fatigue"] = _fatigue(study, result)
-    if getattr(study, "hold", None) is not None:
-        out["hold"] = _hold(result)
-    if getattr(study, "stops", None) is not None:
-        out["contact"] = _contact(study, result)
+    blocks = (("duty_cycle", "fatigue", lambda: _fatigue(study, result)),
+              ("hold", "hold", lambda: _hold(result)),
+              ("stops", "contact", lambda: _contact(study, result)))  # fmt: skip
+    for key, name, make in blocks:
+        if getattr(study, key, None) is None:
+            continue
+        try:
+            out[name] = make()
+        except Exception as exc:  # a report must not cost the run: say why, keep the rest
+            out[name] = {"note": f"not reported: {type(exc).__name__}: {exc}"}
     return out
 
 
@@ -389,7 +393,9 @@ def _blocks(record: Mapping[str, Any]) -> list[tuple[str, Any]]:
             if hold.get("note"):
                 out.append(("p", str(hold["note"])))
     contact = record.get("contact")
-    if contact is not None:
+    if contact is not None and "stops" not in contact:
+        out += [("h", "Contact (stops)"), ("p", f"Contact: {contact.get('note')}")]
+    elif contact is not None:
         out.append(("h", "Contact (stops)"))
         col = contact["first_contact_column"]
         unit = "mm" if col.endswith("_mm") else "N"

@@ -204,3 +204,16 @@ def test_a_level_below_the_endurance_limit_reads_infinite():
     md = "\n".join(durability_markdown(record))
     assert "| 1 | 0 | 1 | 1 | 1 | 5 | infinite | 0 |" in md
     assert "| life, cycles | infinite (every level below the endurance limit) |" in md
+
+
+def test_a_block_that_cannot_be_reported_says_why():
+    """A record that fails is a note (the run's report goes on), not an exception."""
+    study = validate_study(cantilever(duty_cycle=TWO_LEVELS))
+
+    class Broken:  # a result whose info is not a mapping
+        summary: dict = {}
+        info = property(lambda self: 1 / 0)
+
+    record = durability_record(study, Broken())
+    assert record["fatigue"]["note"].startswith("not reported: ZeroDivisionError")
+    assert "not reported: ZeroDivisionError" in "\n".join(durability_markdown(record))
