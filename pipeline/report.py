@@ -415,6 +415,10 @@ def render_report(data: ReportData) -> str:
             ],
         )
     lines += _load_cases(data.detail)
+    if data.detail is not None:  # the study's duty_cycle, hold and stops: life, creep, contact
+        from flexopt.pipeline.durability_report import durability_markdown, durability_record
+
+        lines += durability_markdown(durability_record(study, data.detail))
 
     plots = [(name, caption) for name, caption in _PLOTS if name in data.files]
     if plots:

@@ -100,6 +100,9 @@ class HtmlData:
     record: Mapping[str, Any] = field(default_factory=dict)
     #: best.json's robustness record (with its band); else run.json's, without the band
     robustness: Mapping[str, Any] | None = None
+    #: the best design's fatigue, creep hold and contact (pipeline.durability_report); empty:
+    #: no durability section
+    durability: Mapping[str, Any] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------------------------
@@ -818,7 +821,7 @@ def render_html(data: HtmlData) -> str:
     parts: list[str] = []
 
     robust = data.robustness or data.record.get("robustness")
-    ids = _with_robustness(SECTIONS, robust)
+    ids = _with_durability(_with_robustness(SECTIONS, robust), data.durability)
     nav = " ".join(f'<a href="#{s}">{_e(s.replace("-", " "))}</a>' for s in ids)
     parts.append(
         f"<h1>{_e(data.study_name)} — flexopt run</h1>"
@@ -939,6 +942,8 @@ def render_html(data: HtmlData) -> str:
             _response_section(data.detail, figures, "best design", verdicts),
         )
     )
+    if data.durability:
+        parts.append(_durability_section(data.durability))
     if robust:
         table = data.detail.table if data.detail else {}
         spec = data.detail.plot if data.detail else {}
@@ -1031,6 +1036,8 @@ class EvaluateHtmlData:
     #: the evaluation's stress field (``DesignResult.field_map``), drawn on the deformed part
     #: even when the part is not rebuilt
     field_map: Mapping[str, Any] | None = None
+    #: the design's fatigue, creep hold and contact (pipeline.durability_report); empty: none
+    durability: Mapping[str, Any] = field(default_factory=dict)
 
 
 def render_evaluate_html(data: EvaluateHtmlData) -> str:
@@ -1041,7 +1048,7 @@ def render_evaluate_html(data: EvaluateHtmlData) -> str:
     verdicts = list(data.verdicts)
     word = overall(verdicts)
     robust = data.robustness or record.get("robustness")
-    ids = _with_robustness(EVALUATE_SECTIONS, robust)
+    ids = _with_durability(_with_robustness(EVALUATE_SECTIONS, robust), data.durability)
     nav = " ".join(f'<a href="#{s}">{_e(s.replace("-", " "))}</a>' for s in ids)
     solve = _float(record.get("solve_time_s"))
     converged = record.get("converged")
@@ -1089,6 +1096,8 @@ def render_evaluate_html(data: EvaluateHtmlData) -> str:
             _response_section(detail, figures, "this design", verdicts),
         )
     )
+    if data.durability:
+        parts.append(_durability_section(data.durability))
     if robust:
         parts.append(_robustness_section(robust, data.table, data.plot, figures, "this design"))
     parts.append(
@@ -1148,6 +1157,8 @@ def evaluate_html(
     whole evaluation took, s (the part is rebuilt only when that is within the budget)."""
     import logging
 
+    from flexopt.pipeline.durability_report import durability_record
+
     try:
         if getattr(result, "outline", None) is not None and getattr(result, "height_mm", None):
             part, why = result, ""  # the one result per design carries its part: not solved again
@@ -1169,6 +1180,7 @@ def evaluate_html(
                 why or None,
                 files=dict(getattr(result, "files", None) or {}),
                 field_map=getattr(result, "field_map", None),
+                durability=durability_record(study, result),
             )
         )
     except Exception as exc:
@@ -1524,3 +1536,30 @@ def _robustness_section(
         )
     )
     return _section(ROBUSTNESS_SECTION, "Robustness", body + figures.embed(fig, "robustness"))
+
+
+# --------------------------------------------------------------------------------------------
+# Durability: fatigue, creep hold and contact (pipeline.durability_report)
+
+#: The element id of the durability section (only when the study has a duty_cycle, hold or stops).
+DURABILITY_SECTION = "durability"
+
+
+def _with_durability(sections: Sequence[str], record: Mapping[str, Any]) -> tuple[str, ...]:
+    """The section ids with ``durability`` after the response, when there is a record."""
+    ids = tuple(sections)
+    if not record or "response" not in ids:
+        return ids
+    at = ids.index("response") + 1
+    return (*ids[:at], DURABILITY_SECTION, *ids[at:])
+
+
+def _durability_section(record: Mapping[str, Any]) -> str:
+    from flexopt.pipeline.durability_report import durability_html
+
+    intro = (
+        "<p class='note'>Fatigue, creep and contact of the design under the study's "
+        "duty_cycle, hold and stops (docs/durability.md); the same records are in "
+        "best.json's <code>durability</code> and the API's <code>durability</code>.</p>"
+    )
+    return _section(DURABILITY_SECTION, "Durability", intro + durability_html(record))

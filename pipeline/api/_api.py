@@ -176,6 +176,7 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         inputs the solver refuses. A solve that does not converge is a result
         (``converged=False``), not an error.
     """
+    from flexopt.pipeline.durability_report import durability_record
     from flexopt.pipeline.evaluate import (
         MAX_REPEAT,
         case_plot_args,
@@ -212,6 +213,7 @@ def evaluate(study: StudyLike, repeat: int = 1, out: str | os.PathLike | None = 
         run_dir=run_dir,
         plot_args=plot_args,
         cases={name: readonly_table(c.table) for name, c in result.cases.items()},
+        durability=durability_record(study, result),
     )
 
 
@@ -406,6 +408,7 @@ def _design(
     if not all(v is None or (isinstance(v, int) and not isinstance(v, bool)) for v in place):
         raise StudyError(_OPTION, f"{where}: generation or index is not a whole number; {fix}")
     info = data.get("info", {})
+    durability = data.get("durability", {})
     return BestDesign(
         x=_frozen(np.array(x, dtype=float)),
         variables=dict(zip(names, map(float, x), strict=True)),
@@ -420,6 +423,7 @@ def _design(
         if verdicts is not None
         else _verdicts(data.get("verdict"), where, fix),
         info=dict(info) if isinstance(info, dict) else {},
+        durability=dict(durability) if isinstance(durability, dict) else {},
     )
 
 

@@ -87,6 +87,15 @@ class Result:
         The evaluate folder, when ``out`` was given.
     cases : dict of str to dict of str to (n_rows,) ndarray
         Each load case's own table by case name (empty for a kind without load cases).
+    durability : dict
+        The design under the study's ``duty_cycle:``, ``hold:`` and ``stops:``
+        (:func:`pipeline.durability_report.durability_record`): ``fatigue`` (the levels with
+        amplitude, mean, cycles and damage, Miner's sum, the life in cycles and hours, the
+        stress figure, the S-N data and its source), ``hold`` (the creep law, its source, the
+        held value, the retention, the stress ratio against the law's limit) and ``contact``
+        (per stop the largest force, first contact and smallest gap; the penetration and the
+        penalty); only the blocks the study has, empty without any. What report.md,
+        report.html and best.json show (docs/api.md).
     """
 
     study: Study
@@ -99,6 +108,7 @@ class Result:
     run_dir: Path | None = None
     plot_args: dict[str, Any] = field(default_factory=dict)
     cases: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    durability: dict[str, Any] = field(default_factory=dict)
 
     @property
     def met(self) -> bool:
@@ -166,6 +176,9 @@ class BestDesign:
         other rows of a Pareto front).
     info : dict
         What the kind reports beyond the metrics (the part's footprint, ...); best design only.
+    durability : dict
+        best.json's ``durability``: the best design's fatigue, creep hold and contact, as
+        :attr:`Result.durability` (empty without a ``duty_cycle:``, ``hold:`` or ``stops:``).
     """
 
     x: np.ndarray
@@ -179,6 +192,7 @@ class BestDesign:
     index: int | None = None
     verdict: tuple[Verdict, ...] = ()
     info: dict[str, Any] = field(default_factory=dict)
+    durability: dict[str, Any] = field(default_factory=dict)
 
     @property
     def met(self) -> bool:

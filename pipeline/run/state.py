@@ -23,6 +23,7 @@ from flexopt.pipeline.checkpoint import (
     EvaluationStore,
     checkpoint_text,
 )
+from flexopt.pipeline.durability_report import durability_record
 from flexopt.pipeline.fork import ForkedMakes
 from flexopt.pipeline.parallel import BatchBackend, ParallelSettings, design_key, evaluate_batch
 from flexopt.pipeline.parallel import one_line as _one_line
@@ -467,6 +468,10 @@ class RunState:
             }
         if detail is not None and detail.info:
             best_json["info"] = detail.info
+        # the study's duty_cycle, hold and stops: one record, as report.md / report.html show it
+        durability = durability_record(study, detail) if detail is not None else {}
+        if durability:
+            best_json["durability"] = durability
         if len(result.front) > 1:
             best_json["front"] = [self.best_record(ev) for ev in result.front]
         write_atomic(self.run_dir / "best.json", to_json(best_json))
@@ -597,7 +602,7 @@ class RunState:
         self.artefact("report.html", lambda: render_html(HtmlData(
             study.name, study.kind, problem, tuple(self.evaluator.solved), best,
             tuple(result.front), detail, self.verdicts, self.record,
-            best_json.get("robustness"))))  # fmt: skip
+            best_json.get("robustness"), durability)))  # fmt: skip
         self.collect_groups()
         return detail
 
