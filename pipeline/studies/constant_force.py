@@ -510,6 +510,8 @@ class ConstantForceProblem(DesignProblem):
                 "peak_stress_MPa",
                 "rms_error_N",
             ),
+            outline=shape,  # the part as exported: report.html's 3D view draws it, no re-solve
+            height_mm=design.B,
         )
 
 

@@ -729,3 +729,21 @@ def test_every_load_case_of_a_mechanism_is_a_response_of_the_page(tmp_path):
     assert [c for c, _ in cases] == ["a", "b"] and len(cases[1][1]["ratio"]) == 3
     one = DesignDetail(detail.evaluation, free, {})
     assert case_tables(one) == [(None, free)]
+
+
+def test_evaluate_report_draws_the_results_own_part_without_a_second_solve(monkeypatch):
+    # issue 24, one result per design: the constant-force result carries its outline and height,
+    # so report.html's 3D view takes the part from it and never rebuilds the design
+    import flexopt.pipeline.report_html as rh
+    from flexopt.pipeline.problems import study_result
+    from flexopt.pipeline.study import load_study
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the design was rebuilt for the 3D view")
+
+    monkeypatch.setattr(rh, "evaluate_part", refuse)
+    study = load_study("constant-force").with_values({"fidelity.enabled": False})
+    result = study_result(study)
+    assert result.outline is not None and result.height_mm == pytest.approx(study.design["B"])
+    page = rh.evaluate_html(study, result, {"solve_time_s": 1e9})  # over any re-solve budget
+    assert page is not None and 'id="part-3d"' in page and "No 3D view" not in page
