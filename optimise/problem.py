@@ -164,6 +164,10 @@ class DesignProblem:
         problem solves per design (not variables) that a robustness sample holds at the
         nominal design's value and the scatter that moves them (:meth:`held_state`,
         :meth:`hold_solved`); empty when it solves none.
+    life_refusal : str — why a fatigue life cannot be computed for each design ("", the
+        default: it can, from :meth:`detail`'s response table, its driven column the plot's x
+        and its ``peak_stress_MPa``; :class:`pipeline.verdict.LifeConstraints`). A kind whose
+        response has no such column names the reason, and a life constraint is refused with it.
     """
 
     space: DesignSpace
@@ -173,6 +177,7 @@ class DesignProblem:
     variables: Any = None
     variable_meanings: Mapping[str, str] | None = None
     held_scatter: Mapping[str, str] = MappingProxyType({})
+    life_refusal: str = ""
 
     def evaluate(self, x: np.ndarray) -> Evaluation:
         """Evaluate one design vector (n_var,). Never raises for a bad design: a design that

@@ -34,8 +34,10 @@ turns scalar values and a response table into verdicts. A requirement added for 
 added to :func:`builtin_requirements` / ``requirements:`` and judged here once.
 :class:`RequirementConstraints` adds the
 ``role: constraint`` items of ``requirements:`` to a kind's :class:`~optimise.DesignProblem` as
-``g <= 0`` rows; :class:`LifeConstraints` those on the fatigue life, each computed per design
-from the response table of the same solve (the problem's ``evaluate_response``).
+``g <= 0`` rows; :class:`LifeConstraints` those on the fatigue life, each computed per design:
+from the response table of the same solve where the kind's problem has ``evaluate_response``
+(sea_spring), else, in every other kind, from the design's :meth:`~optimise.DesignProblem.detail`
+on the best stress figure it has (:func:`life_of_result`, what the verdict judges).
 """
 
 from __future__ import annotations
@@ -302,11 +304,17 @@ def check_requirement_names(study: Study) -> None:
     user_requirements(study)  # a target table that cannot be read is refused here too
 
 
-#: The method a kind's design problem offers for a life constraint: ``evaluate_response(x)``
+#: The method a kind's design problem may offer for a life constraint: ``evaluate_response(x)``
 #: -> ``(Evaluation, table, x_column)``, the evaluation and the response table (each column
 #: (n_rows,), the driven column ``x_column`` and ``peak_stress_MPa``) of the same solve, or
-#: ``(Evaluation, None, "")`` when the design was not solved.
+#: ``(Evaluation, None, "")`` when the design was not solved. A problem without it has its life
+#: computed from its :meth:`~optimise.DesignProblem.detail` (:class:`LifeConstraints`).
 RESPONSE_HOOK = "evaluate_response"
+#: A design problem's attribute saying why its designs have no life ("" or absent: they have):
+#: a kind whose response has no peak stress per row of a driven column (a cam's contact
+#: pressure, a leaf joint's stress per stiffness setting) names it here and the life constraint
+#: is refused at load time with that reason (:attr:`optimise.DesignProblem.life_refusal`).
+LIFE_REFUSAL = "life_refusal"
 
 
 def _problem_class(kind: Any) -> type | None:
@@ -329,15 +337,14 @@ def _problem_class(kind: Any) -> type | None:
 def life_constraint_refusal(study: Study, problem: Any = None) -> str:
     """Why a life requirement of ``study`` cannot be an optimisation constraint ("" when it
     can): the kind's design problem (``problem``, else the class its ``problem(study)``
-    returns) must give each evaluation's response table (:data:`RESPONSE_HOOK`); a kind whose
-    problem class cannot be known from its annotation is checked when the run builds it."""
+    returns) says so in :data:`LIFE_REFUSAL` (its response has no peak stress per row of a
+    driven column); a kind whose problem class cannot be known from its annotation is checked
+    when the run builds it."""
     owner: Any = problem if problem is not None else _problem_class(_kind(study))
-    if owner is None or callable(getattr(owner, RESPONSE_HOOK, None)):
+    why = str(getattr(owner, LIFE_REFUSAL, "") or "") if owner is not None else ""
+    if not why:
         return ""
-    return (
-        f"kind {study.kind} scores each design for the optimiser without its response table "
-        f"(its problem has no {RESPONSE_HOOK}), so the life of every design cannot be computed"
-    )
+    return f"kind {study.kind} cannot give the life of every design: {why}"
 
 
 def _scalars(*sources: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -804,17 +811,28 @@ class RequirementConstraints(ProblemWrapper):
 
 class LifeConstraints(ProblemWrapper):
     """A kind's design problem with the ``role: constraint`` requirements on the life as more
-    constraints, each computed per design from the response table of the same solve.
+    constraints, each computed per design.
 
-    Every evaluation is the inner problem's :data:`RESPONSE_HOOK` (the evaluation and its
-    response table); the life over the study's ``duty_cycle:`` is
-    :func:`~optimise.durability.life_of_table` of that table (the stress of the model the
-    optimiser solves, unscaled: the higher-fidelity figures of :func:`life_of_result` exist
-    for the best design only), and each row is
-    :func:`~optimise.durability.life_constraint` (decades, g <= 0 when met), named
+    Two ways to the life of one design ``x``, one for every kind:
+
+    - the inner problem has :data:`RESPONSE_HOOK` (sea_spring): the evaluation and its
+      response table of one solve; the life over the study's ``duty_cycle:`` is
+      :func:`~optimise.durability.life_of_table` of that table (the stress of the model the
+      optimiser solves, unscaled);
+    - else (every other kind, the generic way): the inner problem's :meth:`evaluate` scores
+      the design exactly as a run without a life constraint does, and the design's
+      :meth:`detail` (the report's response table and its higher-fidelity stress figures, the
+      same solve ``flexopt evaluate`` shows) gives the life by :func:`life_of_result`: on the
+      best figure of the peak stress the design has, what the verdict of the best design
+      judges. A design the evaluation already rejects is not detailed (it gets the largest
+      row). Costs one detail per design (the kind's checks included: a plane-stress or 3D
+      check the study turns on runs for every design).
+
+    Each row is :func:`~optimise.durability.life_constraint` (decades, g <= 0 when met), named
     ``req_<name>``. The evaluation's metrics gain ``life_cycles``, ``life_hours`` (None:
     infinite or not computed) and ``fatigue_damage_per_cycle_block``. A design whose life
-    cannot be computed (a drive beyond its traced stroke) gets the largest row.
+    cannot be computed (a drive beyond its traced stroke, a detail that failed) gets the
+    largest row.
 
     Picklable; everything else is the inner problem's.
     """
@@ -826,21 +844,36 @@ class LifeConstraints(ProblemWrapper):
             raise StudyError("requirements", f"a life cannot be a constraint: {why}")
         self.duty_study = study
         self.requirements = tuple(requirements)
+        self.by_detail = not callable(getattr(self.inner, RESPONSE_HOOK, None))
         self.constraint_names = (
             *self.inner.constraint_names,
             *(f"req_{r.label}" for r in self.requirements),
         )
 
-    def _extend(self, ev: Evaluation, table: Mapping[str, Any] | None, x_col: str) -> Evaluation:
+    def _table_life(self, table: Mapping[str, Any] | None, x_col: str) -> LifeResult | None:
+        study = self.duty_study
+        if not table:
+            return None
+        try:
+            return life_of_table(study.duty_cycle, table, x_col, study.material.name)  # type: ignore[arg-type]
+        except OptimiseError:
+            return None
+
+    def _detail_life(self, x: np.ndarray) -> tuple[LifeResult | None, DesignResult | None]:
+        """The life of ``x`` (n_var,) from the inner problem's detail (None: not computed)."""
+        import logging
+
+        try:
+            detail = self.inner.detail(np.asarray(x, dtype=float))
+        except Exception as exc:  # the GA's contract: one design never ends the run
+            logging.getLogger(__name__).warning("life of %s: detail raised %r", x, exc)
+            return None, None
+        life = life_of_result(self.duty_study, detail)
+        return (life if isinstance(life, LifeResult) else None), detail
+
+    def _extend(self, ev: Evaluation, life: LifeResult | None) -> Evaluation:
         from dataclasses import replace
 
-        study = self.duty_study
-        life: LifeResult | None = None
-        if not ev.reason and table:
-            try:
-                life = life_of_table(study.duty_cycle, table, x_col, study.material.name)  # type: ignore[arg-type]
-            except OptimiseError:
-                life = None
         if ev.reason:
             extra = np.full(len(self.requirements), float(np.max(ev.g, initial=1.0e12)))
             return replace(ev, g=np.concatenate([np.asarray(ev.g, dtype=float), extra]))
@@ -858,8 +891,17 @@ class LifeConstraints(ProblemWrapper):
         )
 
     def evaluate_response(self, x: np.ndarray) -> tuple[Evaluation, Mapping[str, Any] | None, str]:
-        ev, table, x_col = getattr(self.inner, RESPONSE_HOOK)(x)
-        return self._extend(ev, table, x_col), table, x_col
+        if not self.by_detail:
+            ev, table, x_col = getattr(self.inner, RESPONSE_HOOK)(x)
+            life = None if ev.reason else self._table_life(table, x_col)
+            return self._extend(ev, life), table, x_col
+        ev = self.inner.evaluate(x)
+        if ev.reason:
+            return self._extend(ev, None), None, ""
+        life, detail = self._detail_life(x)
+        if detail is None:
+            return self._extend(ev, None), None, ""
+        return self._extend(ev, life), detail.table, str((detail.plot or {}).get("x") or "")
 
     def evaluate(self, x: np.ndarray) -> Evaluation:
         return self.evaluate_response(x)[0]
@@ -870,8 +912,12 @@ class LifeConstraints(ProblemWrapper):
         detail = self.inner.detail(x)
         if detail.evaluation is None:
             return detail
-        x_col = str((detail.plot or {}).get("x") or "")
-        return replace(detail, evaluation=self._extend(detail.evaluation, detail.table, x_col))
+        if self.by_detail:
+            found = life_of_result(self.duty_study, detail)
+            life = found if isinstance(found, LifeResult) else None
+        else:
+            life = self._table_life(detail.table, str((detail.plot or {}).get("x") or ""))
+        return replace(detail, evaluation=self._extend(detail.evaluation, life))
 
 
 class LifeDetail(ProblemWrapper):

@@ -222,6 +222,8 @@ class CamProblem(DesignProblem):
     diameter limit when given.
     """
 
+    life_refusal = "a rigid cam's response has contact pressure, no peak stress of a flexure"
+
     def __init__(self, study: CamStudy) -> None:
         self.study = study
         bounds = dict(study.design_space) or {

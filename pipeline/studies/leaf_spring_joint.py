@@ -400,6 +400,7 @@ class LeafJointProblem(DesignProblem):
 
     objective_names = ("stress_ratio",)
     constraint_names = ("min_length", "hub", "stress")
+    life_refusal = "its response has a stress per stiffness setting, no one peak_stress_MPa"
 
     def warm_up(self) -> None:
         """Load the compiled beam and constrained-beam kernels (a pool calls this before it
