@@ -45,6 +45,7 @@ from flexopt.fea.materials import Material
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.mechanism import AsMadeBeam, MechanismOutline
 from flexopt.optimise import mechanism_objectives as scoring
+from flexopt.optimise.durability import LIFE_QUANTITIES
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.mechanism_objectives import STATS
@@ -129,8 +130,9 @@ def column_names(study: MechanismStudy) -> tuple[str, ...]:
 
 
 def quantities(study: MechanismStudy) -> tuple[str, ...]:
-    """The names a ``requirements:`` item may judge."""
-    return tuple(sorted(set(metric_names(study)) | set(column_names(study))))
+    """The names a ``requirements:`` item may judge (the life's with a ``duty_cycle:``)."""
+    life = LIFE_QUANTITIES if study.duty_cycle is not None else ()
+    return tuple(sorted(set(metric_names(study)) | set(column_names(study)) | set(life)))
 
 
 def _requirements(study: MechanismStudy) -> list[Requirement]:

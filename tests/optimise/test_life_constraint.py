@@ -132,11 +132,11 @@ def test_the_constraint_moves_the_optimum_to_the_hand_basquin_thickness():
     assert 0.98 * h_star() <= held <= h_star() * (1 + 1e-12)
 
 
-def test_a_kind_whose_evaluations_carry_no_response_refuses_the_life_constraint():
-    raw = yaml.safe_load((ROOT / "pipeline/examples/constant-force.yaml").read_text("utf-8"))
+def test_a_kind_whose_response_has_no_peak_stress_refuses_the_life_constraint():
+    raw = yaml.safe_load((ROOT / "pipeline/examples/threshold-cam.yaml").read_text("utf-8"))
     raw["duty_cycle"] = [{"fraction": 1.0, "cycles": 1}]
     raw["requirements"] = [{"quantity": "life_cycles", "min": 1e5, "role": "constraint"}]
-    with pytest.raises(StudyError, match=r"requirements\[0\].role.*without its response table"):
+    with pytest.raises(StudyError, match=r"requirements\[0\].role.*cannot give the life"):
         validate_study(raw)
     raw["requirements"][0]["role"] = "check"  # a check of the best design stays possible
     validate_study(raw)
