@@ -370,12 +370,33 @@ class CreepFit:
     initial : float — the fitted value at t = 0 (force of a relaxation test, unit of the
         record; strain of a creep test).
     rms : float — root-mean-square residual, unit of the record.
+    tau_h_ci95 : (low, high) h — 95 % interval of tau (linearised, on log tau).
+    n_ci95 : float — half-width of n's 95 % interval.
+    initial_ci95 : float — half-width of the initial value's 95 % interval, unit of the record.
+    n_points : int — points fitted.
     """
 
     tau_h: float
     n: float
     initial: float
     rms: float
+    tau_h_ci95: tuple[float, float] = (math.nan, math.nan)
+    n_ci95: float = math.nan
+    initial_ci95: float = math.nan
+    n_points: int = 0
+
+    def record(self) -> dict[str, float | list[float] | int]:
+        """The fit as JSON-ready numbers (the 95 % intervals with their parameters)."""
+        return {
+            "tau_h": self.tau_h,
+            "tau_h_ci95": [self.tau_h_ci95[0], self.tau_h_ci95[1]],
+            "n": self.n,
+            "n_ci95": self.n_ci95,
+            "initial": self.initial,
+            "initial_ci95": self.initial_ci95,
+            "rms": self.rms,
+            "n_points": self.n_points,
+        }
 
     def law(self, max_stress_ratio: float, source: str, **kw: object) -> CreepLaw:
         """The :class:`CreepLaw` of this fit (the stress range and the source are the test's)."""
@@ -394,6 +415,51 @@ def _check_record(time_h: Sequence[float] | np.ndarray, value: Sequence[float] |
     if np.count_nonzero(t > 0) < 3:
         raise FeaError("creep: give at least 3 times after the start of the hold")
     return t, y
+
+
+def _intervals(
+    model, p: np.ndarray, t: np.ndarray, y: np.ndarray
+) -> tuple[tuple[float, float], float, float]:
+    """95 % intervals of a three-parameter fit ``p = (initial, log tau, n)`` of ``model(p, t)``
+    to ``y`` (each (n_points,)): the linearised least-squares covariance
+    ``s^2 (J^T J)^-1`` with ``s^2`` the residual variance on ``n_points - 3`` degrees of
+    freedom and Student's t; tau's interval is exp of log tau's (asymmetric, > 0). Returns
+    ((tau low, tau high) h, n half-width, initial half-width); NaN where the Jacobian is
+    singular (a record that cannot tell the parameters apart)."""
+    from scipy import stats
+
+    dof = t.size - 3
+    nan = ((math.nan, math.nan), math.nan, math.nan)
+    if dof <= 0:
+        return nan
+    r0 = model(p, t) - y
+    jac = np.empty((t.size, 3))
+    for k in range(3):
+        h = 1e-6 * max(abs(p[k]), 1e-3)
+        dp = np.zeros(3)
+        dp[k] = h
+        jac[:, k] = (model(p + dp, t) - model(p - dp, t)) / (2.0 * h)
+    s2 = float(r0 @ r0) / dof
+    try:
+        cov = s2 * np.linalg.inv(jac.T @ jac)
+    except np.linalg.LinAlgError:
+        return nan
+    half = float(stats.t.ppf(0.975, dof)) * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    tau = (math.exp(p[1] - half[1]), math.exp(p[1] + half[1]))
+    return tau, float(half[2]), float(half[0])
+
+
+def _relaxation_model(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``F0 E_n(-Gamma(1+n) (t/tau)^n)`` of ``p = (F0, log tau, n)`` at ``t`` (h)."""
+    amp, log_tau, n = p
+    z = -math.gamma(1.0 + n) * (t / math.exp(log_tau)) ** n
+    return amp * np.asarray(mittag_leffler(n, z), dtype=float)
+
+
+def _creep_model(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``eps0 (1 + (t/tau)^n)`` of ``p = (eps0, log tau, n)`` at ``t`` (h)."""
+    e0, log_tau, n = p
+    return e0 * (1.0 + (t / math.exp(log_tau)) ** n)
 
 
 def fit_relaxation(
@@ -439,7 +505,11 @@ def fit_relaxation(
                 best = got
     amp, log_tau, n = best.x
     rms = float(np.sqrt(np.mean(best.fun**2)))
-    return CreepFit(tau_h=math.exp(log_tau), n=float(n), initial=sign * float(amp), rms=rms)
+    tau_ci, n_ci, amp_ci = _intervals(_relaxation_model, np.asarray(best.x, dtype=float), t, f)
+    return CreepFit(
+        tau_h=math.exp(log_tau), n=float(n), initial=sign * float(amp), rms=rms,
+        tau_h_ci95=tau_ci, n_ci95=n_ci, initial_ci95=amp_ci, n_points=int(t.size),
+    )  # fmt: skip
 
 
 def fit_creep(
@@ -476,4 +546,10 @@ def fit_creep(
     e0, m, sq = solve(n)
     if not (e0 > 0 and m > 0):
         raise FeaError("creep: the record does not creep (eps0 and m must be > 0); check it")
-    return CreepFit(tau_h=(e0 / m) ** (1.0 / n), n=n, initial=sign * e0, rms=math.sqrt(sq / t.size))
+    tau = (e0 / m) ** (1.0 / n)
+    p = np.array([e0, math.log(tau), n])
+    tau_ci, n_ci, e0_ci = _intervals(_creep_model, p, t, e)
+    return CreepFit(
+        tau_h=tau, n=n, initial=sign * e0, rms=math.sqrt(sq / t.size),
+        tau_h_ci95=tau_ci, n_ci95=n_ci, initial_ci95=e0_ci, n_points=int(t.size),
+    )  # fmt: skip

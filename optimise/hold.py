@@ -78,6 +78,10 @@ class CreepSpec(BaseModel):
     assumed: bool = Field(
         False, description="true: an assumed, illustrative law (said in every verdict)"
     )
+    fit: dict[str, Any] | None = Field(
+        None,
+        description="the hold test and its fit (flexopt calibrate): data, intervals, residual",
+    )
 
     @model_validator(mode="after")
     def _law(self) -> CreepSpec:
@@ -89,7 +93,7 @@ class CreepSpec(BaseModel):
 
     def to_law(self) -> CreepLaw:
         """The :class:`~flexopt.fea.creep.CreepLaw` of this entry."""
-        return CreepLaw(**self.model_dump())
+        return CreepLaw(**self.model_dump(exclude={"fit"}))
 
 
 class HoldSpec(BaseModel):

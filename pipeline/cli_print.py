@@ -68,17 +68,34 @@ def add_print_commands(commands: Any) -> None:
             "calibration.png, and with --name the material into materials.yaml. Two CSVs of "
             "coupons printed in two orientations (an orientation column, x or y, or "
             "--orientation per CSV) fit E along x and along y and the shared offset: the "
-            "in-plane anisotropy."
+            "in-plane anisotropy. A hold test of the coupon (columns time_h and force_N: "
+            "relaxation at a held displacement; or time_h and displacement_mm: creep under a "
+            "held force) fits a Findley creep law instead (tau, n with 95 %% intervals, "
+            "--stress-ratio required, no --coupon), written into --name's creep: block."
         ),
     )
     cal.add_argument("measured", type=_path, nargs="+", metavar="MEASURED.csv")
     cal.add_argument(
         "--coupon",
         type=_path,
-        required=True,
         action="append",
         metavar="COUPON",
-        help="coupon.json or its folder; once for every CSV, or once per CSV in their order",
+        help="coupon.json or its folder; once for every CSV, or once per CSV in their order "
+        "(a coupon curve; not for a hold test)",
+    )
+    cal.add_argument(
+        "--stress-ratio",
+        type=float,
+        metavar="R",
+        help="hold test: the coupon's peak stress over the material's strength during the hold, "
+        "(0, 1]; the creep law's limit",
+    )
+    cal.add_argument(
+        "--temperature",
+        type=float,
+        default=23.0,
+        metavar="C",
+        help="hold test: its temperature in C (default 23), the law's reference",
     )
     cal.add_argument(
         "--orientation",
@@ -204,8 +221,15 @@ def _coupon(args: Any) -> int:
 def _calibrate(args: Any) -> int:
     from flexopt.optimise.calibration import CalibrationError
     from flexopt.pipeline.errors import StudyError
+    from flexopt.pipeline.hold_calibration import is_hold_csv
     from flexopt.pipeline.print_to_part import calibrate
 
+    if any(is_hold_csv(p) for p in args.measured):
+        return _calibrate_hold(args)
+    if not args.coupon:
+        return _fail(
+            args, CalibrationError("give --coupon COUPON (the coupon.json of flexopt coupon)")
+        )
     try:
         outcome = calibrate(args.measured, args.coupon, args.name, args.materials, args.orientation)
     except (CalibrationError, StudyError) as exc:
@@ -242,6 +266,50 @@ def _calibrate(args: Any) -> int:
                 f"{args.name}@x or {args.name}@y"
             )
     print(f"wrote calibration.json and calibration.png into {out}")
+    return EXIT_OK
+
+
+def _calibrate_hold(args: Any) -> int:
+    """``flexopt calibrate HOLD.csv --stress-ratio R [--name NAME]``: the creep law of a hold
+    test (:mod:`pipeline.hold_calibration`)."""
+    from flexopt.optimise.calibration import CalibrationError
+    from flexopt.pipeline.hold_calibration import calibrate_hold
+
+    if len(args.measured) != 1 or args.coupon:
+        why = "one hold record at a time" if len(args.measured) != 1 else "no --coupon"
+        return _fail(args, CalibrationError(f"a hold test (time_h column) takes {why}"))
+    if args.stress_ratio is None:
+        return _fail(
+            args,
+            CalibrationError(
+                "a hold test needs --stress-ratio R: the coupon's peak stress over the "
+                "material's strength during the hold (the creep law's limit)"
+            ),
+        )
+    try:
+        outcome = calibrate_hold(
+            args.measured[0], args.stress_ratio, args.name, args.materials, args.temperature
+        )
+    except CalibrationError as exc:
+        return _fail(args, exc)
+    except OSError as exc:
+        print(f"flexopt calibrate: error: cannot write: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    out = args.out or args.measured[0].parent
+    try:
+        _write(out, outcome.files)
+    except OSError as exc:
+        print(f"flexopt calibrate: error: cannot write {out}: {exc}", file=sys.stderr)
+        return EXIT_WRITE
+    f = outcome.fit
+    print(
+        f"{outcome.test} test: Findley tau = {f.tau_h:.4g} h (95 %: {f.tau_h_ci95[0]:.4g} .. "
+        f"{f.tau_h_ci95[1]:.4g}), n = {f.n:.4f} ± {f.n_ci95:.4f}, RMS residual {f.rms:.3g} over "
+        f"{f.n_points} points; valid up to stress ratio {args.stress_ratio:g}"
+    )
+    if outcome.materials_path is not None:
+        print(f"wrote the creep law of '{args.name}' into {outcome.materials_path}")
+    print(f"wrote creep_fit.json into {out}")
     return EXIT_OK
 
 
