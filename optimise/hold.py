@@ -32,7 +32,7 @@ from flexopt.fea.creep import CreepLaw, crept_drive, relaxed_force
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import get_creep_data
 from flexopt.optimise.errors import OptimiseError
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
 __all__ = [
     "HOLD_SCALARS",
@@ -83,6 +83,15 @@ class CreepSpec(BaseModel):
         description="the hold test and its fit (flexopt calibrate): data, intervals, residual",
     )
 
+    @model_serializer(mode="wrap")
+    def _without_unset_fit(self, handler: Any) -> Any:
+        # a law without a recorded fit dumps as it did before ``fit`` existed (run folders
+        # stay the same)
+        data = handler(self)
+        if isinstance(data, dict) and data.get("fit", 0) is None:
+            del data["fit"]
+        return data
+
     @model_validator(mode="after")
     def _law(self) -> CreepSpec:
         try:
@@ -93,7 +102,7 @@ class CreepSpec(BaseModel):
 
     def to_law(self) -> CreepLaw:
         """The :class:`~flexopt.fea.creep.CreepLaw` of this entry."""
-        return CreepLaw(**self.model_dump(exclude={"fit"}))
+        return CreepLaw(**{k: v for k, v in self.model_dump().items() if k != "fit"})
 
 
 class HoldSpec(BaseModel):
