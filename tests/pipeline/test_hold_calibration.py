@@ -39,7 +39,8 @@ def record(path, test: str = "relaxation", noise: float = 0.002, seed: int = 5) 
         col, values = "force_N", F0_N * retention(TIMES_H) * jitter
     else:
         col, values = "displacement_mm", D0_MM * (1.0 + (TIMES_H / TAU_H) ** N) * jitter
-    lines = [f"time_h,{col}"] + [f"{float(t)!r},{float(v)!r}" for t, v in zip(TIMES_H, values, strict=True)]
+    pairs = zip(TIMES_H.tolist(), values.tolist(), strict=True)
+    lines = [f"time_h,{col}"] + [f"{t!r},{v!r}" for t, v in pairs]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
