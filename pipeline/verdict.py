@@ -906,6 +906,13 @@ class LifeConstraints(ProblemWrapper):
     def evaluate(self, x: np.ndarray) -> Evaluation:
         return self.evaluate_response(x)[0]
 
+    def warm_up(self) -> None:
+        # every evaluation runs a detail in the generic way: load what it needs before a pool
+        # forks its workers, so that each worker does not load it again
+        self.inner.warm_up()
+        if self.by_detail:
+            self.inner.warm_up_detail()
+
     def detail(self, x: np.ndarray) -> DesignDetail:
         from dataclasses import replace
 
