@@ -39,6 +39,7 @@ Units: mm, N, MPa, N/mm^3 (penalty pressure stiffness).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
@@ -107,20 +108,25 @@ class ContactSettings:
     """The penalty and the activation, each with its reason."""
 
     # eps = penalty_factor * E / h: a contact pressure p penetrates p h / (alpha E), i.e.
-    # p / (alpha E) of an element size. At 100 the 700 MPa of a steel spring's windings
-    # (E = 190 GPa) penetrates 4e-5 of an element (0.01 um at h = 0.25 mm) and the force error is
-    # about that fraction of the structure's compliance against the contact's; the tangent's
-    # condition number grows by ~alpha, which the direct solvers carry easily.
-    penalty_factor: float = 100.0
+    # p / (alpha E) of an element size, and the answer's error is O(1 / alpha). At 1 the
+    # 2500 MPa where a steel spring's windings first touch (E = 190 GPa, h = 0.2 mm) penetrate
+    # 2.6 um, 0.1 % of the 2 mm slot, and the overload torque is within 0.05 % of alpha = 10's
+    # (docs/plane_stress.md, Contact). Larger alpha converges the same answer but a node-to-
+    # segment contact at a corner then costs Newton 5-10 times the iterations (the penalty
+    # tangent is stiffer than the windings by alpha times their aspect ratio).
+    penalty_factor: float = 1.0
     # A slave whose projection falls this fraction of a segment beyond its ends still counts
     # on it: at a convex corner of the master polyline the projection misses both segments by
     # a little; without the slack such a slave would slip through.
     projection_slack: float = 0.02
+    # Step halvings of the line search when contact is active and a full Newton step raises the
+    # residual (ContactPlaneStressModel._newton_update): 6 reach 1/64 of the step.
+    max_halvings: int = 6
 
 
 @dataclass
 class ContactSurfaces:
-    """The contact points, segments and candidate pairs of a mesh (built once per model).
+    """The contact points, segments and declared pairings of a mesh (built once per model).
 
     Attributes
     ----------
@@ -129,7 +135,10 @@ class ContactSurfaces:
     weight_mm : (n_pts,) float, mm — length each point carries (Simpson weights on P2).
     h_mm : (n_pts,) float, mm — boundary edge length at the point (the penalty's mesh scale).
     seg : (n_seg, 2) int — point indices of each boundary segment, material on its left.
-    cand : (n_cand, 3) int — slave point, segment start, segment end of each candidate pair.
+    loop : (n_pts,) int — the boundary loop of each point; arc_mm (n_pts,) mm its position
+        along it; loop_mm (n_loops,) mm each loop's length.
+    ways : list of (slave mask (n_pts,), master mask (n_seg,), reach mm, cos of the facing
+        angle, least separation along the boundary mm): one per pass of each declaration.
     """
 
     dofs: np.ndarray
@@ -137,25 +146,47 @@ class ContactSurfaces:
     weight_mm: np.ndarray
     h_mm: np.ndarray
     seg: np.ndarray
-    cand: np.ndarray
-    extra: dict = field(default_factory=dict)
+    loop: np.ndarray
+    arc_mm: np.ndarray
+    loop_mm: np.ndarray
+    ways: list = field(default_factory=list)
 
 
 def _outward(t: np.ndarray) -> np.ndarray:
     """Outward unit normals (k, 2) of segments with direction t (k, 2), material on the left."""
     n = np.column_stack([t[:, 1], -t[:, 0]])
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def _loops(seg: np.ndarray, X: np.ndarray, n_pts: int) -> tuple:
+    """Loop index and arc position (mm) of every point, and the loops' lengths (mm)."""
+    nxt = np.full(n_pts, -1)
+    nxt[seg[:, 0]] = seg[:, 1]
+    loop = np.full(n_pts, -1)
+    arc = np.zeros(n_pts)
+    lengths = []
+    for start in range(n_pts):
+        if loop[start] >= 0 or nxt[start] < 0:
+            continue
+        k, i, s = len(lengths), start, 0.0
+        while loop[i] < 0:
+            loop[i], arc[i] = k, s
+            j = nxt[i]
+            s += float(np.hypot(*(X[j] - X[i])))
+            i = j
+        lengths.append(s)
+    return loop, arc, np.asarray(lengths)
 
 
 def build_surfaces(
     model: PlaneStressModel, surfaces: SelfContact | ContactPair | list
 ) -> ContactSurfaces:
-    """The boundary polyline of ``model``'s mesh and the candidate (slave, segment) pairs.
+    """The boundary polyline of ``model``'s mesh and the declared pairings.
 
     Raises
     ------
     FeaError
-        A pair side selects no boundary node, or no candidate pair is found.
+        A bad declaration, or a pair side that selects no boundary node.
     """
     mesh = model.mesh
     basis = model.basis
@@ -168,15 +199,14 @@ def build_surfaces(
     vid[verts] = np.arange(verts.size)
     dofs = [nodal[:, verts].T]
     X = [mesh.points[verts]]
-    weight = np.zeros(verts.size)
     hsum = np.zeros(verts.size)
     hcnt = np.zeros(verts.size)
     a, b = vid[edges[:, 0]], vid[edges[:, 1]]
     for end in (a, b):
-        np.add.at(weight, end, L / 6.0 if p2 else L / 2.0)
         np.add.at(hsum, end, L)
         np.add.at(hcnt, end, 1.0)
     h = [hsum / np.maximum(hcnt, 1.0)]
+    mid = None
     if p2:
         # The mid-side node of each boundary edge: scikit-fem's facet DOFs, facet found by its
         # (sorted) vertex pair.
@@ -188,39 +218,63 @@ def build_surfaces(
         mid = verts.size + np.arange(edges.shape[0])
         dofs.append(np.asarray(basis.facet_dofs)[:, f].T)
         X.append(0.5 * (mesh.points[edges[:, 0]] + mesh.points[edges[:, 1]]))
-        weight = np.concatenate([weight, 2.0 * L / 3.0])
         h.append(L)
         seg = np.concatenate([np.column_stack([a, mid]), np.column_stack([mid, b])])
     else:
         seg = np.column_stack([a, b])
-    surf = ContactSurfaces(
-        dofs=np.vstack(dofs).astype(np.int64),
-        X=np.vstack(X),
-        weight_mm=weight,
-        h_mm=np.concatenate(h),
-        seg=seg.astype(np.int64),
-        cand=np.zeros((0, 3), dtype=np.int64),
-    )
+    Xa = np.vstack(X)
+    loop, arc, loop_mm = _loops(seg, Xa, Xa.shape[0])
+    tol = model.settings.select_tol_mm
     items = surfaces if isinstance(surfaces, list | tuple) else [surfaces]
-    cands = [_candidates(model, surf, item) for item in items]
-    cand = np.unique(np.vstack(cands), axis=0) if cands else np.zeros((0, 3), dtype=np.int64)
-    if cand.shape[0] == 0:
-        raise FeaError(
-            "contact: no boundary node faces another part of the boundary within reach; "
-            "nothing can touch (check reach_mm and the declared sides)"
-        )
-    surf.cand = cand
-    # A slave's length is that of its boundary edges on the contact side (both ends slaves):
-    # the end node of a side must not carry the edge round the corner, or a uniform pressure
-    # would not give the element's consistent nodal forces (the corner would press twice).
-    slave = np.zeros(surf.X.shape[0], dtype=bool)
-    slave[cand[:, 0]] = True
-    counted = slave[a] & slave[b]
+    ways = []
+    side = np.zeros(Xa.shape[0], dtype=bool)  # the points of some contact side
+    for item in items:
+        if isinstance(item, SelfContact):
+            if not (item.reach_mm > 0 and 90.0 <= item.facing_deg <= 180.0):
+                raise FeaError(
+                    f"self-contact: reach_mm = {item.reach_mm} must be > 0 and facing_deg = "
+                    f"{item.facing_deg} in [90, 180]"
+                )
+            on = _near(item.region, Xa, tol)
+            cos_max = math.cos(math.radians(item.facing_deg))
+            # a node and a segment of one wall are closer than this along the boundary: the
+            # two sides of a slot are at least about its width times pi / 2 apart (round end)
+            ways.append((on, on[seg[:, 0]] & on[seg[:, 1]], item.reach_mm, cos_max,
+                         3.0 * item.reach_mm))  # fmt: skip
+            side |= on
+        elif isinstance(item, ContactPair):
+            if not item.reach_mm > 0:
+                raise FeaError(f"contact pair: reach_mm = {item.reach_mm} must be > 0")
+            for s_geom, m_geom, name in ((item.side_a, item.side_b, "side_a"),
+                                         (item.side_b, item.side_a, "side_b")):  # fmt: skip
+                s_on, m_on = _near(s_geom, Xa, tol), _near(m_geom, Xa, tol)
+                if not s_on.any():
+                    raise FeaError(f"contact pair: {name} selects no boundary node")
+                ways.append((s_on, m_on[seg[:, 0]] & m_on[seg[:, 1]], item.reach_mm, 0.0, 0.0))
+                side |= s_on
+        else:
+            raise FeaError(f"contact surfaces must be SelfContact or ContactPair, got {item!r}")
+    # A point's length is that of its boundary edges on a contact side (both ends on it): the
+    # end node of a side must not carry the edge round the corner, or a uniform pressure would
+    # not give the element's consistent nodal forces (the corner would press twice).
+    counted = side[a] & side[b]
     w = np.zeros(verts.size)
     for end in (a, b):
         np.add.at(w, end[counted], (L / 6.0 if p2 else L / 2.0)[counted])
-    surf.weight_mm[: verts.size] = np.where(w > 0, w, surf.weight_mm[: verts.size])
-    return surf
+    weight = [np.where(w > 0, w, 0.5 * hsum / np.maximum(hcnt, 1.0))]
+    if p2:
+        weight.append(2.0 * L / 3.0)
+    return ContactSurfaces(
+        dofs=np.vstack(dofs).astype(np.int64),
+        X=Xa,
+        weight_mm=np.concatenate(weight),
+        h_mm=np.concatenate(h),
+        seg=seg.astype(np.int64),
+        loop=loop,
+        arc_mm=arc,
+        loop_mm=loop_mm,
+        ways=ways,
+    )
 
 
 def _near(geom: BaseGeometry | None, X: np.ndarray, tol: float) -> np.ndarray:
@@ -229,61 +283,51 @@ def _near(geom: BaseGeometry | None, X: np.ndarray, tol: float) -> np.ndarray:
     return shapely.distance(geom, shapely.points(X)) <= tol
 
 
-def _candidates(
-    model: PlaneStressModel, surf: ContactSurfaces, item: SelfContact | ContactPair
-) -> np.ndarray:
-    """(k, 3) int candidate (slave, p, q) of one declaration, in the undeformed part."""
-    tol = model.settings.select_tol_mm
-    X, seg = surf.X, surf.seg
-    t = X[seg[:, 1]] - X[seg[:, 0]]
+def candidates(surf: ContactSurfaces, x: np.ndarray) -> np.ndarray:
+    """(k, 3) int (slave, p, q) pairs that may touch in the configuration x (n_pts, 2) mm.
+
+    Searched anew in every state (the sides of a slot slide along each other by more than a
+    segment): a slave point and a master segment within ``reach`` of each other now, facing
+    (outward normals more than the facing angle apart now), apart along the boundary (self
+    contact), and the slave in front of the segment's line in the undeformed part (so a node
+    is never paired with the far wall of its own member, which faces it from behind).
+    """
+    seg, X = surf.seg, surf.X
+    t = x[seg[:, 1]] - x[seg[:, 0]]
+    L = np.linalg.norm(t, axis=1)
     n_seg = _outward(t)
-    # A point's outward normal: the mean of its segments' (a point is the end of two).
-    n_pt = np.zeros_like(X)
+    n_pt = np.zeros_like(x)
     np.add.at(n_pt, seg[:, 0], n_seg)
     np.add.at(n_pt, seg[:, 1], n_seg)
     n_pt /= np.maximum(np.linalg.norm(n_pt, axis=1, keepdims=True), 1e-300)
-    if isinstance(item, SelfContact):
-        if not (item.reach_mm > 0 and 90.0 <= item.facing_deg <= 180.0):
-            raise FeaError(
-                f"self-contact: reach_mm = {item.reach_mm} must be > 0 and facing_deg = "
-                f"{item.facing_deg} in [90, 180]"
-            )
-        on = _near(item.region, X, tol)
-        ways = [(on, on[seg[:, 0]] & on[seg[:, 1]])]
-        reach, cos_max = item.reach_mm, math.cos(math.radians(item.facing_deg))
-    elif isinstance(item, ContactPair):
-        if not item.reach_mm > 0:
-            raise FeaError(f"contact pair: reach_mm = {item.reach_mm} must be > 0")
-        ways = []
-        for s_geom, m_geom, name in ((item.side_a, item.side_b, "side_a"),
-                                     (item.side_b, item.side_a, "side_b")):  # fmt: skip
-            s_on, m_on = _near(s_geom, X, tol), _near(m_geom, X, tol)
-            if not s_on.any():
-                raise FeaError(f"contact pair: {name} selects no boundary node")
-            ways.append((s_on, m_on[seg[:, 0]] & m_on[seg[:, 1]]))
-        reach, cos_max = item.reach_mm, 0.0  # declared sides: facing in any sense
-    else:
-        raise FeaError(f"contact surfaces must be SelfContact or ContactPair, got {item!r}")
+    T = X[seg[:, 1]] - X[seg[:, 0]]
+    N_seg = _outward(T)
+    mid = 0.5 * (x[seg[:, 0]] + x[seg[:, 1]])
+    tree = cKDTree(x)
     out = []
-    tree = cKDTree(X)
-    L = np.linalg.norm(t, axis=1)
-    mid = 0.5 * (X[seg[:, 0]] + X[seg[:, 1]])
-    for slaves, masters in ways:
+    for slaves, masters, reach, cos_max, min_arc in surf.ways:
         js = np.flatnonzero(masters)
         near = tree.query_ball_point(mid[js], 0.5 * L[js] + reach)
         cnt = np.fromiter(map(len, near), dtype=np.intp, count=len(near))
+        if cnt.sum() == 0:
+            continue
         j = np.repeat(js, cnt)
-        s = np.concatenate([np.asarray(x, dtype=np.intp) for x in near]) if cnt.sum() else j
+        s = np.fromiter(itertools.chain.from_iterable(near), dtype=np.intp, count=cnt.sum())
         keep = slaves[s] & (s != seg[j, 0]) & (s != seg[j, 1])
+        if min_arc > 0:
+            p = seg[j, 0]
+            same = surf.loop[s] == surf.loop[p]
+            da = np.abs(surf.arc_mm[s] - surf.arc_mm[p])
+            da = np.minimum(da, surf.loop_mm[np.maximum(surf.loop[s], 0)] - da)
+            keep &= ~same | (da >= min_arc)
         s, j = s[keep], j[keep]
-        d = X[s] - X[seg[j, 0]]
-        xi = np.einsum("ij,ij->i", d, t[j]) / L[j] ** 2
-        gap = np.einsum("ij,ij->i", d, n_seg[j])
-        dist = np.linalg.norm(d - np.clip(xi, 0.0, 1.0)[:, None] * t[j], axis=1)
         facing = np.einsum("ij,ij->i", n_pt[s], n_seg[j]) < cos_max
-        ok = (dist <= reach) & (gap > 1e-9 * np.maximum(L[j], 1.0)) & facing
+        front = np.einsum("ij,ij->i", X[s] - X[seg[j, 0]], N_seg[j]) > 0.0
+        ok = facing & front
         out.append(np.column_stack([s[ok], seg[j[ok], 0], seg[j[ok], 1]]))
-    return np.vstack(out).astype(np.int64) if out else np.zeros((0, 3), dtype=np.int64)
+    if not out:
+        return np.zeros((0, 3), dtype=np.int64)
+    return np.vstack(out).astype(np.int64)
 
 
 # The map from the (s, p, q) coordinates (6) to (t, d) = (x_q - x_p, x_s - x_p) (4).
@@ -434,7 +478,13 @@ class ContactPlaneStressModel(PlaneStressModel):
         """Contact force (and tangent) at the displacement u (N,) mm."""
         s = self.surfaces
         x = s.X + u[s.dofs]
-        cs, cp, cq = s.cand.T
+        cand = candidates(s, x)
+        n = self.n_dofs
+        if cand.shape[0] == 0:
+            empty = np.zeros(0)
+            none = np.zeros(0, dtype=np.int64)
+            return ContactState(none, empty, empty, empty, math.inf, np.full(2, np.nan))
+        cs, cp, cq = cand.T
         t = x[cq] - x[cp]
         d = x[cs] - x[cp]
         L2 = np.einsum("ij,ij->i", t, t)
@@ -452,7 +502,6 @@ class ContactPlaneStressModel(PlaneStressModel):
         min_gap = float(open_g[i_min]) if i_min >= 0 else math.inf
         where = s.X[cs[first[i_min]]] if i_min >= 0 else np.full(2, np.nan)
         act = first[on & (g1 < 0.0)]
-        n = self.n_dofs
         if act.size == 0:
             empty = np.zeros(0)
             return ContactState(np.zeros(0, dtype=np.int64), empty, empty, empty, min_gap, where)
@@ -492,6 +541,35 @@ class ContactPlaneStressModel(PlaneStressModel):
             return st
         return replace(st, f=st.f + c.f, K=None if st.K is None else (st.K + c.K).tocsr())
 
+    def _newton_update(self, u: np.ndarray, du: np.ndarray, res: float) -> np.ndarray:
+        # Penalty contact makes the energy only once differentiable where a node touches: a
+        # full Newton step can push a node through a wall and back out, cycling. When contact
+        # is active at either end of the step and the full step raises the residual, the step
+        # is halved (up to max_halvings times) and the lowest residual taken: a backtracking
+        # line search on the residual norm. Without contact the plain full step, unchanged.
+        u1 = u + du
+        r1 = self._residual_norm(u1)
+        if r1 <= res or not (self._in_contact(u) or self._in_contact(u1)):
+            return u1
+        best_r, best_a, a = r1, 1.0, 1.0
+        for _ in range(self.contact_settings.max_halvings):
+            a *= 0.5
+            ra = self._residual_norm(u + a * du)
+            if ra < best_r:
+                best_r, best_a = ra, a
+            if ra <= res:
+                break
+        self.counters["contact_line_search"] = self.counters.get("contact_line_search", 0) + 1
+        return u + best_a * du
+
+    def _residual_norm(self, u: np.ndarray) -> float:
+        f = self._state_nonlinear(u, tangent=False).f
+        r = float(np.linalg.norm(self.PT @ f))
+        return r if np.isfinite(r) else math.inf
+
+    def _in_contact(self, u: np.ndarray) -> bool:
+        return self.contact_state(u, tangent=False).slave.size > 0
+
     def _measure(self, u: np.ndarray, st: Any, kinematics: str) -> dict:
         self._log.append(self.contact_state(u, tangent=False))
         return super()._measure(u, st, kinematics)
@@ -527,5 +605,4 @@ class ContactPlaneStressModel(PlaneStressModel):
         table["pressure_xy_mm"] = self.surfaces.X[last.slave]
         table["pressure_MPa"] = last.pressure_MPa
         table["penalty_factor"] = self.contact_settings.penalty_factor
-        table["candidates"] = int(self.surfaces.cand.shape[0])
         return replace(res, extra={**res.extra, "contact": table})
