@@ -66,7 +66,9 @@ __all__ = [
     "ContactSettings",
     "ContactSurfaces",
     "SelfContact",
+    "free_gap_mm",
     "gap_terms",
+    "nearest",
 ]
 
 
@@ -330,6 +332,54 @@ def candidates(surf: ContactSurfaces, x: np.ndarray) -> np.ndarray:
     return np.vstack(out).astype(np.int64)
 
 
+def nearest(surf: ContactSurfaces, x: np.ndarray, slack: float = 0.02) -> tuple:
+    """Each slave's nearest candidate segment in the configuration x (n_pts, 2) mm.
+
+    Returns
+    -------
+    cand : (k, 3) int — :func:`candidates`; first : (m,) int — the row of cand each slave
+    keeps (nearest by distance to the segment); on : (m,) bool — its projection falls on the
+    segment (within ``slack`` of its length); gap : (m,) mm — signed gap to it; min_gap : float,
+    mm — the smallest gap of those on their segment (inf: none); where : (2,) mm — that
+    slave's undeformed position.
+    """
+    cand = candidates(surf, x)
+    if cand.shape[0] == 0:
+        none = np.zeros(0, dtype=np.int64)
+        return cand, none, none.astype(bool), np.zeros(0), math.inf, np.full(2, np.nan)
+    cs, cp, cq = cand.T
+    t = x[cq] - x[cp]
+    d = x[cs] - x[cp]
+    L2 = np.einsum("ij,ij->i", t, t)
+    xi = np.einsum("ij,ij->i", d, t) / L2
+    dist = np.linalg.norm(d - np.clip(xi, 0.0, 1.0)[:, None] * t, axis=1)
+    g_all = (d[:, 0] * t[:, 1] - d[:, 1] * t[:, 0]) / np.sqrt(L2)
+    # each slave's nearest candidate segment (the first of equally near ones)
+    order = np.lexsort((dist, cs))
+    first = order[np.concatenate([[True], cs[order][1:] != cs[order][:-1]])]
+    g1 = g_all[first]
+    on = (xi[first] >= -slack) & (xi[first] <= 1.0 + slack)
+    open_g = np.where(on, g1, np.inf)
+    i_min = int(np.argmin(open_g))
+    min_gap = float(open_g[i_min])
+    where = surf.X[cs[first[i_min]]] if math.isfinite(min_gap) else np.full(2, np.nan)
+    return cand, first, on, g1, min_gap, where
+
+
+def free_gap_mm(
+    model: PlaneStressModel, u: np.ndarray, surfaces: SelfContact | ContactPair | None = None
+) -> tuple[float, np.ndarray]:
+    """The signed gap across the contact surfaces of a plain model's state, no contact solved.
+
+    model : PlaneStressModel (with or without contact); u : (N,) mm its displacement;
+    surfaces : default ``SelfContact()``. Returns the smallest gap (mm; < 0: the boundary
+    passes through itself, which a model without contact allows) and where (undeformed, mm).
+    """
+    surf = build_surfaces(model, SelfContact() if surfaces is None else surfaces)
+    out = nearest(surf, surf.X + u[surf.dofs])
+    return out[4], out[5]
+
+
 # The map from the (s, p, q) coordinates (6) to (t, d) = (x_q - x_p, x_s - x_p) (4).
 _M = np.array(
     [
@@ -478,29 +528,13 @@ class ContactPlaneStressModel(PlaneStressModel):
         """Contact force (and tangent) at the displacement u (N,) mm."""
         s = self.surfaces
         x = s.X + u[s.dofs]
-        cand = candidates(s, x)
         n = self.n_dofs
-        if cand.shape[0] == 0:
+        cand, first, on, g1, min_gap, where = nearest(s, x, self.contact_settings.projection_slack)
+        if first.size == 0:
             empty = np.zeros(0)
             none = np.zeros(0, dtype=np.int64)
             return ContactState(none, empty, empty, empty, math.inf, np.full(2, np.nan))
         cs, cp, cq = cand.T
-        t = x[cq] - x[cp]
-        d = x[cs] - x[cp]
-        L2 = np.einsum("ij,ij->i", t, t)
-        xi = np.einsum("ij,ij->i", d, t) / L2
-        dist = np.linalg.norm(d - np.clip(xi, 0.0, 1.0)[:, None] * t, axis=1)
-        g_all = (d[:, 0] * t[:, 1] - d[:, 1] * t[:, 0]) / np.sqrt(L2)
-        # each slave's nearest candidate segment (the first of equally near ones)
-        order = np.lexsort((dist, cs))
-        first = order[np.concatenate([[True], cs[order][1:] != cs[order][:-1]])]
-        g1 = g_all[first]
-        slack = self.contact_settings.projection_slack
-        on = (xi[first] >= -slack) & (xi[first] <= 1.0 + slack)
-        open_g = np.where(on, g1, np.inf)
-        i_min = int(np.argmin(open_g)) if open_g.size else -1
-        min_gap = float(open_g[i_min]) if i_min >= 0 else math.inf
-        where = s.X[cs[first[i_min]]] if i_min >= 0 else np.full(2, np.nan)
         act = first[on & (g1 < 0.0)]
         if act.size == 0:
             empty = np.zeros(0)
