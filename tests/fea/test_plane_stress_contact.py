@@ -171,11 +171,11 @@ def test_contact_refuses_a_pair_side_off_the_boundary():
 
 
 def _free_gap(model, u: np.ndarray, reach: float = 3.0) -> float:
-    """The narrowest gap (mm) between boundary FE nodes and boundary segments of the deformed
-    outline that lie more than 3 reach apart along the boundary, as plain geometry: the
-    distance from each node to each segment (clamped projection), measured here without the
-    contact module's pairing (a node's distance to a segment behind it is left out by the
-    sign of the undeformed offset)."""
+    """The narrowest gap (mm) between the mesh's boundary vertices and the boundary segments
+    (vertex to vertex) of the deformed outline that lie more than 3 reach apart along the
+    boundary, as plain geometry: the distance from each node to each segment within reach of
+    it in the deformed part (clamped projection), measured here without the contact module
+    (a segment behind the node in the undeformed part is left out)."""
     mesh = model.mesh
     edges = np.asarray(mesh.boundary_edges)
     # boundary loops by walking the edges (material on the left)
@@ -203,16 +203,18 @@ def _free_gap(model, u: np.ndarray, reach: float = 3.0) -> float:
             P0, P1 = X[b_idx], X[np.roll(b_idx, -1)]
             x0, x1 = P0 + ux[b_idx], P1 + ux[np.roll(b_idx, -1)]
             for i, s_arc in zip(a_idx, a_arc, strict=True):
-                near = np.linalg.norm(P0 - X[i], axis=1) < reach + 1.0
+                # near in the deformed part: the walls slide past each other by millimetres
+                near = np.linalg.norm(x0 - X[i] - ux[i], axis=1) < reach + 1.0
                 if a_idx is b_idx:
                     da = np.abs(b_arc - s_arc)
                     near &= np.minimum(da, a_len - da) > 3 * reach
                 if not near.any():
                     continue
                 T = P1[near] - P0[near]
-                # in front of the segment in the undeformed part (outward normal side)
-                front = (X[i] - P0[near]) @ np.array([[0.0, -1.0], [1.0, 0.0]])
-                front = np.einsum("ij,ij->i", front, T) > 0
+                # in front of the segment in the undeformed part: on the side of its outward
+                # normal (T_y, -T_x), the material being on the left of T
+                v = X[i] - P0[near]
+                front = v[:, 0] * T[:, 1] - v[:, 1] * T[:, 0] > 0
                 t = x1[near] - x0[near]
                 d = X[i] + ux[i] - x0[near]
                 s = np.clip(np.einsum("ij,ij->i", d, t) / np.einsum("ij,ij->i", t, t), 0, 1)
@@ -262,3 +264,85 @@ def test_sea_spring_first_contact_where_the_free_gap_closes():
     k_before = (res.torque_Nmm[10] - res.torque_Nmm[9]) / (rows[10] - rows[9])
     k_after = (res.torque_Nmm[11] - res.torque_Nmm[10]) / (rows[11] - rows[10])
     assert k_after > 1.5 * k_before
+
+
+def test_first_contact_is_where_the_open_rows_gap_line_closes():
+    from flexopt.pipeline.studies._sea_spring_contact import first_contact
+
+    rows = np.array([0.0, 1.0, 2.0, 3.0])
+    gap = np.array([3.0, 2.0, 0.5, -0.001])  # rows 1, 2: gap = 2 - 1.5 (theta - 1)
+    torque = np.array([0.0, 10.0, 20.0, 35.0])
+    fc = first_contact(-rows, -torque, gap, gap < 0)  # a clockwise curve: magnitudes
+    assert fc["row"] == 3
+    assert fc["angle_deg"] == pytest.approx(1.0 + 2.0 / 1.5, rel=1e-12)
+    assert fc["torque_Nm"] == pytest.approx(10.0 + 10.0 * (2.0 / 1.5), rel=1e-12)
+    none = first_contact(rows, torque, gap + 1.0, np.zeros(4, dtype=bool))
+    assert none["angle_deg"] is None and none["row"] is None
+
+
+def _example(name: str):
+    """A shipped example study as a dict."""
+    from importlib import resources
+
+    import yaml
+
+    folder = resources.files("flexopt.pipeline") / "examples"
+    return yaml.safe_load((folder / f"{name}.yaml").read_text())
+
+
+@pytest.mark.slow
+def test_serpentine_whose_windings_pass_through_each_other_is_not_met(tmp_path):
+    """The paper's serpentine (sea-spring-serpentine's design, no 3D check): its windings pass
+    through each other at +-11 deg in the model without contact; without a contact: block
+    the verdict says so (NOT MET with the reason)."""
+    import yaml
+    from flexopt.pipeline.studies.sea_spring import SeaSpringProblem
+    from flexopt.pipeline.study import load_study
+    from flexopt.pipeline.verdict import judge_result, overall
+
+    data = _example("sea-spring-serpentine")
+    data.update(solid_3d={"check": False}, taguchi={"enabled": False})
+    path = tmp_path / "serpentine.yaml"
+    path.write_text(yaml.safe_dump(data))
+    study = load_study(path)
+    prob = SeaSpringProblem(study)
+    res = prob.result(prob.nominal_design())
+    rows = {v.quantity: v for v in judge_result(study, res)}
+    clear = rows["slots_clear_in_working_range"]
+    assert not clear.met and overall(tuple(rows.values())) == "NOT MET"
+    assert "pass" in clear.detail and "contact:" in clear.detail
+
+
+@pytest.mark.slow
+def test_sea_spring_contact_block_reports_the_overload(tmp_path):
+    """sea-spring-quick with contact: {overload_deg: 12, steps: 2}: the slots stay open (the
+    free gap at 11 deg is ~0.9 mm), so no first contact, the working-range row MET, and the
+    overload record in the summary, overload.csv and the Durability section."""
+    import yaml
+    from flexopt.pipeline.durability_report import durability_markdown, durability_record
+    from flexopt.pipeline.studies.sea_spring import SeaSpringProblem
+    from flexopt.pipeline.study import load_study
+    from flexopt.pipeline.verdict import judge_result
+
+    data = _example("sea-spring-quick")
+    data["contact"] = {"overload_deg": 12.0, "steps": 2}
+    path = tmp_path / "quick.yaml"
+    path.write_text(yaml.safe_dump(data))
+    study = load_study(path)
+    prob = SeaSpringProblem(study)
+    res = prob.result(prob.nominal_design())
+    s = res.summary
+    assert s["slots_clear_in_working_range"] is True
+    assert s["first_contact_ccw_deg"] is None and s["first_contact_cw_deg"] is None
+    rec = res.info["slot_contact"]["directions"]["ccw"]
+    assert rec["rows"]["rotation_deg"] == pytest.approx([0.0, 6.0, 12.0])
+    assert not any(rec["rows"]["in_contact"])
+    assert s["overload_ccw_torque_Nm"] == rec["overload_torque_Nm"]
+    # past theta_T = 11.04 deg: above the design torque, which the secant stiffness carries there
+    assert rec["overload_torque_Nm"] > s["stiffness_ccw_Nm_per_rad"] * math.radians(11.04)
+    assert b"direction,rotation_deg,torque_Nm" in res.files["overload.csv"]
+    rows = {v.quantity: v for v in judge_result(study, res)}
+    assert rows["slots_clear_in_working_range"].met
+    record = durability_record(study, res)
+    assert [r["direction"] for r in record["contact"]["slots"]] == ["ccw", "cw"]
+    assert "### Contact (slots)" in durability_markdown(record)
