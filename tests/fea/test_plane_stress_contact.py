@@ -296,9 +296,10 @@ def test_serpentine_whose_windings_pass_through_each_other_is_not_met(tmp_path):
     through each other at +-11 deg in the model without contact; without a contact: block
     the verdict says so (NOT MET with the reason)."""
     import yaml
+    from flexopt.optimise.requirements import overall
     from flexopt.pipeline.studies.sea_spring import SeaSpringProblem
     from flexopt.pipeline.study import load_study
-    from flexopt.pipeline.verdict import judge_result, overall
+    from flexopt.pipeline.verdict import judge_result
 
     data = _example("sea-spring-serpentine")
     data.update(solid_3d={"check": False}, taguchi={"enabled": False})
