@@ -42,6 +42,7 @@ YAML (every key optional but ``name``, ``geometry.kind`` and ``material``)::
     mesh: {max_edge_mm: 3.0, elements_through: 1.0, curve_steps: 4}
     optimiser: {algorithm: nsga2, pop_size: 24, n_gen: 16}
     design: {RP: 2, sweep: 479.8, ...}  # what flexopt evaluate analyses
+    contact: null                   # or {overload_deg: 36}: slot contact (docs/durability.md)
 
 The study file's models and their reading (design space, target, the ``design:``) are
 pipeline/studies/_sea_spring_schema.py.
