@@ -66,6 +66,8 @@ __all__ = [
     "ContactSettings",
     "ContactSurfaces",
     "SelfContact",
+    "build_surfaces",
+    "candidates",
     "free_gap_mm",
     "gap_terms",
     "nearest",

@@ -6,7 +6,7 @@ SeaSpringProblem`), in ``flexopt evaluate`` and a run's best design (never in th
 
 * **The working range without contact.** The kind's plane-stress model has no contact: past
   first contact its windings pass through each other. The signed gap across the slots
-  (:func:`fea.plane_stress_contact.free_gap_mm`, node to segment on the deformed outline) at
+  (:func:`fea.plane_stress_contact.nearest`, node to segment on the deformed outline) at
   +-theta_T says whether they do inside the working range. If they do and the study has no
   ``contact:`` block, the verdict gets a NOT MET row saying so (the stiffness and stress rows
   are of a part that passes through itself); a spring whose slots stay open keeps its verdict
@@ -36,7 +36,8 @@ from flexopt.fea.plane_stress_contact import (
     ContactPlaneStressModel,
     ContactSettings,
     SelfContact,
-    free_gap_mm,
+    build_surfaces,
+    nearest,
 )
 from flexopt.optimise.problem import DesignResult
 from flexopt.optimise.requirements import Flag, MaxValue, Requirement
@@ -110,11 +111,9 @@ def working_gaps(r: Any, reach_mm: float) -> dict[str, float]:
     model = getattr(r, "model", None)
     if model is None or r.u is None:
         return {}
-    surf = SelfContact(reach_mm=reach_mm)
-    out = {"ccw": free_gap_mm(model, r.u, surf)[0]}
-    if r.reverse_u is not None:
-        out["cw"] = free_gap_mm(model, r.reverse_u, surf)[0]
-    return out
+    surf = build_surfaces(model, SelfContact(reach_mm=reach_mm))  # once for both states
+    states = {"ccw": r.u, "cw": r.reverse_u}
+    return {k: nearest(surf, surf.X + u[surf.dofs])[4] for k, u in states.items() if u is not None}
 
 
 def overload(prob: Any, geom: Any, r: Any, st_mm: float) -> dict[str, Any]:
