@@ -15,11 +15,13 @@ Formulation (docs/plane_stress.md, "Contact"):
   *slave* point with a length weight ``w`` (P2: Simpson's 1/6, 2/3, 1/6 of each edge; P1: half
   of each edge), so a uniform pressure gives exactly the element's consistent nodal forces.
 * **Pairs.** :class:`SelfContact`: every boundary node against every boundary segment within
-  ``reach_mm`` of it in the undeformed part that faces it (outward normals more than
-  ``facing_deg`` apart) and lies in front of it: the two sides of every slot, found from the
-  mesh. :class:`ContactPair`: the nodes of one declared side against the segments of the other,
-  both ways. Candidates are fixed when the model is built (sliding along a side stays within
-  them while it is less than ``reach_mm``).
+  ``reach_mm`` of it in the current configuration that faces it (outward normals more than
+  ``facing_deg`` apart), lies more than ``3 reach_mm`` away along the boundary (not the same
+  wall) and has the node in front of it in the undeformed part (not the far wall of the node's
+  own member): the two sides of every slot, found from the mesh. :class:`ContactPair`: the
+  nodes of one declared side against the segments of the other, both ways. The pairs are
+  searched again in every state (:func:`candidates`): the sides of a slot slide past each
+  other by more than a segment.
 * **Gap.** For a slave point s and a master segment p -> q in the current configuration,
   ``g = (x_s - x_p) . n`` with ``n`` the segment's outward unit normal; each slave takes its
   nearest candidate segment (distance to the segment). Contact is active where ``g < 0`` and
@@ -33,6 +35,9 @@ Formulation (docs/plane_stress.md, "Contact"):
 * **Tangent.** The exact Hessian of W: ``k (grad g grad g^T + g hess g)``, with the derivatives
   of the gap with respect to the six coordinates of s, p, q in closed form (:func:`gap_terms`),
   so Newton keeps its quadratic rate inside an active set.
+* **Line search.** W is only once differentiable where a node touches; when contact is active
+  and a full Newton step raises the residual, the step is halved (up to
+  :attr:`ContactSettings.max_halvings` times) and the lowest residual kept.
 
 Units: mm, N, MPa, N/mm^3 (penalty pressure stiffness).
 """
