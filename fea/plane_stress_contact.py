@@ -83,9 +83,10 @@ __all__ = [
 class SelfContact:
     """The boundary against itself where it faces itself across a narrow gap (slots).
 
-    reach_mm : float, mm — a node and a segment farther apart than this in the undeformed part
-        are never paired (larger than the widest slot that may close; the sliding along a side
-        stays below it).
+    reach_mm : float, mm — a node and a segment farther apart than this in the current state are
+        not paired (larger than an element, so a closing wall is found before it touches); a
+        node and a segment less than 3 reach_mm apart along the boundary are never paired (the
+        same wall).
     facing_deg : float, degrees — the outward normals of a node and a segment must be more than
         this apart (180: exactly opposite) to pair them; 120 keeps the two walls of a slot and
         its rounded end and leaves out neighbours along one wall.
@@ -493,7 +494,7 @@ class ContactPlaneStressModel(PlaneStressModel):
     mesh, material, thickness_mm, clamp, drive, settings, stress_ignore
         As :class:`PlaneStressModel`.
     surfaces : SelfContact, ContactPair or a list of them
-        Where contact may happen (candidates fixed at build, in the undeformed part).
+        Where contact may happen (pairs searched in every state, :func:`candidates`).
     contact : ContactSettings
 
     The contact acts in the ``"nonlinear"`` kinematics (the linear solve, used for the linear

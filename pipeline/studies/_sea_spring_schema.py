@@ -160,7 +160,7 @@ class SlotContactSpec(BaseModel):
         1.0, gt=0, description="contact pressure per mm of penetration = factor x E / h"
     )
     reach_mm: float = Field(
-        3.0, gt=0, description="slot sides farther apart than this never pair (undeformed), mm"
+        3.0, gt=0, description="slot sides farther apart than this (loaded) do not pair, mm"
     )
     max_stress_MPa: float | None = Field(
         None, gt=0, description="if set, a check: the windings' peak stress with contact up "
