@@ -1381,7 +1381,7 @@ class PlaneStressModel:
                 return _Increment.failed(it, f"Newton diverging (residual {res:.3g} N, growing)")
             refused = self.counters["cholesky_failures"]
             try:
-                u = u + self.P @ self._reduced_solve(st.K, -r)
+                u = self._newton_update(u, self.P @ self._reduced_solve(st.K, -r), res)
             except RuntimeError as exc:
                 return _Increment.failed(it, f"singular tangent ({exc})")
             if guess is not None and self.counters["cholesky_failures"] > refused:
@@ -1393,6 +1393,12 @@ class PlaneStressModel:
             f"no convergence in {cfg.max_newton_iter} Newton iterations "
             f"(residual {res:.3g} N vs force scale {scale:.3g} N)",
         )
+
+    def _newton_update(self, u: np.ndarray, du: np.ndarray, res: float) -> np.ndarray:
+        """The next Newton iterate from u (N,) mm along the full step du (N,) mm, where the
+        residual norm is res (N); a subclass may shorten the step (fea/plane_stress_contact.py
+        searches along it when contact is active)."""
+        return u + du
 
     def _measure(self, u: np.ndarray, st: _State, kinematics: str) -> dict:
         b_f = np.array([st.f[self.drive_dofs_x].sum(), st.f[self.drive_dofs_y].sum()])

@@ -227,6 +227,29 @@ def _contact(study: Any, result: Any) -> dict[str, Any]:
     }
 
 
+def _slot_contact(result: Any) -> dict[str, Any]:
+    """A SEA spring's self-contact across its slots (``contact:``; its kind's
+    ``info["slot_contact"]``, pipeline/studies/_sea_spring_contact.py): one row per direction."""
+    rec = (getattr(result, "info", None) or {}).get("slot_contact")
+    if not rec:
+        return {"note": "no overload curve (the design was not solved with contact)"}
+    values = {**(getattr(result, "info", None) or {}), **(getattr(result, "summary", None) or {})}
+    keys = ("first_contact_deg", "first_contact_torque_Nm", "peak_stress_at_first_contact_MPa",
+            "overload_deg", "overload_torque_Nm", "overload_peak_stress_MPa",
+            "max_contact_force_N", "min_gap_mm", "rows_in_contact", "converged")  # fmt: skip
+    return {
+        "slots": [
+            {"direction": name, **{k: d.get(k) for k in keys}}
+            for name, d in rec["directions"].items()
+        ],  # fmt: skip
+        "working_range_gap_mm": rec.get("working_range_gap_mm"),
+        "slots_clear_in_working_range": values.get("slots_clear_in_working_range"),
+        "penalty_factor": rec.get("penalty_factor"),
+        "method": rec.get("method"),
+        "message": values.get("slots_clear_in_working_range_message") or "",
+    }
+
+
 def durability_record(study: Any, result: Any) -> dict[str, Any]:
     """The durability of ``result`` under the study's blocks, JSON-ready.
 
@@ -258,7 +281,8 @@ def durability_record(study: Any, result: Any) -> dict[str, Any]:
         return out
     blocks = (("duty_cycle", "fatigue", lambda: _fatigue(study, result)),
               ("hold", "hold", lambda: _hold(result)),
-              ("stops", "contact", lambda: _contact(study, result)))  # fmt: skip
+              ("stops", "contact", lambda: _contact(study, result)),
+              ("contact", "contact", lambda: _slot_contact(result)))  # fmt: skip
     for key, name, make in blocks:
         if getattr(study, key, None) is None:
             continue
@@ -393,7 +417,9 @@ def _blocks(record: Mapping[str, Any]) -> list[tuple[str, Any]]:
             if hold.get("note"):
                 out.append(("p", str(hold["note"])))
     contact = record.get("contact")
-    if contact is not None and "stops" not in contact:
+    if contact is not None and "slots" in contact:
+        out += _slot_blocks(contact)
+    elif contact is not None and "stops" not in contact:
         out += [("h", "Contact (stops)"), ("p", f"Contact: {contact.get('note')}")]
     elif contact is not None:
         out.append(("h", "Contact (stops)"))
@@ -423,6 +449,31 @@ def _blocks(record: Mapping[str, Any]) -> list[tuple[str, Any]]:
         out.append(("table", (["", ""], rows)))
         if contact.get("message"):
             out.append(("p", str(contact["message"])))
+    return out
+
+
+def _slot_blocks(contact: Mapping[str, Any]) -> list[tuple[str, Any]]:
+    """The SEA spring's contact across its slots: first contact and overload per direction."""
+    rows = [[s["direction"], s.get("first_contact_deg"), s.get("first_contact_torque_Nm"),
+             s.get("peak_stress_at_first_contact_MPa"), s.get("overload_deg"),
+             s.get("overload_torque_Nm"), s.get("overload_peak_stress_MPa"),
+             s.get("max_contact_force_N"), s.get("rows_in_contact")]
+            for s in contact["slots"]]  # fmt: skip
+    out: list[tuple[str, Any]] = [("h", "Contact (slots)")]
+    out.append(("table", (["direction", "first contact (deg)", "torque there (N m)",
+                           "peak stress there (MPa)", "overload (deg)", "torque (N m)",
+                           "peak stress with contact (MPa)", "largest contact force (N)",
+                           "rows in contact"], rows)))  # fmt: skip
+    out.append(("table", (["", ""], [
+        ["slots clear in the working range", _fmt(contact.get("slots_clear_in_working_range"))],
+        ["gap at +-theta_T without contact, mm",
+         ", ".join(f"{k} {_fmt(v)}" for k, v in (contact.get("working_range_gap_mm") or {}).items())
+         or "–"],
+        ["penalty factor (eps = factor x E / h)", _fmt(contact.get("penalty_factor"))],
+        ["method", contact.get("method")],
+    ])))  # fmt: skip
+    if contact.get("message"):
+        out.append(("p", str(contact["message"])))
     return out
 
 

@@ -30,6 +30,7 @@ from pydantic import BaseModel, Field, model_validator
 __all__ = [
     "SeaSpringGeometry",
     "SeaSpringStudy",
+    "SlotContactSpec",
     "SpringTarget",
     "TaguchiSpec",
     "WindowSpec",
@@ -145,6 +146,28 @@ class TaguchiSpec(BaseModel):
     seed: int = Field(1, ge=0, description="seed of the extra runs")
 
 
+class SlotContactSpec(BaseModel):
+    """The ``contact:`` block: self-contact across the slots, and the overload curve beyond
+    first contact (fea/plane_stress_contact.py; docs/durability.md, Contact across the slots)."""
+
+    model_config = STUDY_CONFIG
+
+    overload_deg: float = Field(
+        gt=0, le=90, description="largest hub rotation of the overload curve, each way, degrees"
+    )
+    steps: int = Field(12, ge=2, le=200, description="rows of the overload curve each way")
+    penalty_factor: float = Field(
+        1.0, gt=0, description="contact pressure per mm of penetration = factor x E / h"
+    )
+    reach_mm: float = Field(
+        3.0, gt=0, description="slot sides farther apart than this (loaded) do not pair, mm"
+    )
+    max_stress_MPa: float | None = Field(
+        None, gt=0, description="if set, a check: the windings' peak stress with contact up "
+        "to overload_deg at most this, MPa (null: reported only)",
+    )  # fmt: skip
+
+
 class SeaSpringStudy(Study):
     """A whole ``sea_spring`` study file."""
 
@@ -171,6 +194,9 @@ class SeaSpringStudy(Study):
         "name; RP: its number of sets (arms) when geometry.n_sets is null",
     )
     mesh: MeshSpec = Field(default_factory=MeshSpec, description="FE discretisation")
+    contact: SlotContactSpec | None = Field(
+        None, description="self-contact across the slots and the overload curve past it"
+    )
     solid_3d: Solid3DSpec = Field(
         default_factory=Solid3DSpec,
         description="the chosen design as a 3D solid: check, thickness correction, converged "

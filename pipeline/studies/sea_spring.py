@@ -42,6 +42,7 @@ YAML (every key optional but ``name``, ``geometry.kind`` and ``material``)::
     mesh: {max_edge_mm: 3.0, elements_through: 1.0, curve_steps: 4}
     optimiser: {algorithm: nsga2, pop_size: 24, n_gen: 16}
     design: {RP: 2, sweep: 479.8, ...}  # what flexopt evaluate analyses
+    contact: null                   # or {overload_deg: 36}: slot contact (docs/durability.md)
 
 The study file's models and their reading (design space, target, the ``design:``) are
 pipeline/studies/_sea_spring_schema.py.
@@ -95,6 +96,7 @@ from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.screening import SideProcess, one_blas_thread, taguchi_stage
 from flexopt.pipeline.studies import StudyKind, _builtin, register
+from flexopt.pipeline.studies import _sea_spring_contact as slot_contact
 from flexopt.pipeline.studies import _sea_spring_peak as peak
 from flexopt.pipeline.studies._sea_spring_schema import (
     SeaSpringStudy,
@@ -498,7 +500,7 @@ class SeaSpringProblem(DesignProblem):
             "x_label": "hub rotation (deg)",
             "y_label": "torque on the hub (N m)",
         }
-        return DesignResult(
+        return slot_contact.finish(self, geom, r, height_mm, DesignResult(
             evaluation=evaluation,
             table=curve_table(r),
             plot=plot,
@@ -507,7 +509,7 @@ class SeaSpringProblem(DesignProblem):
             info=info,
             field_map=field_map,
             files=files,
-        )
+        ))  # fmt: skip
 
     def _field_map(self, r: SpringResponse) -> dict[str, Any] | None:
         """The von Mises map and displacement of the last state of ``r`` (the model kept), the
@@ -564,7 +566,7 @@ class SeaSpringProblem(DesignProblem):
         # the part as exported: the outline extruded by ST (the 3D-corrected one where made)
         depth = diagnostics.get("solid_3d", {}).get("ST_after_mm", st)
         summary.update(envelope_values(geom.outline, depth))
-        return DesignResult(
+        return slot_contact.finish(prob, geom, r, depth, DesignResult(
             table=table,
             summary=summary,
             converged=r.ok,
@@ -592,7 +594,7 @@ class SeaSpringProblem(DesignProblem):
             },
             headline=tuple(summary),
             field_map=self._field_map(r),  # stress_deformed.png and design.vtu of evaluate
-        )
+        ))  # fmt: skip
 
     @no_numpy_hugepages  # the 3D model's arrays (pipeline/_hugepages.py)
     def solid_3d(
@@ -646,7 +648,7 @@ def requirements(study: SeaSpringStudy) -> list[Requirement]:
         *_builtin.sea_spring(study),
         Range("ST_mm", "plate thickness ST in its range", "constraint", lo, hi),
         MinFeature("min_feature_mm", "printable feature", "constraint",
-                   study.geometry.min_feature_mm),
+                   study.geometry.min_feature_mm), *slot_contact.requirements(study),
     ]  # fmt: skip
 
 
