@@ -307,6 +307,54 @@ def test_the_cad_script_without_flexopt_builds_the_part_as_exported(toy_run, mon
         ns["build"]()
 
 
+def test_the_unedited_script_builds_the_exported_outline_without_drawing_it(run_copy, monkeypatch):
+    """Unedited, the script builds the outline kept in it (no solve: the threshold spring's and
+    a mechanism's outlines take minutes to draw); a changed dimension, a changed study or
+    ``--redraw`` draw it again through flexopt."""
+    pytest.importorskip("build123d", reason="the CAD script needs the step extra")
+    import flexopt.pipeline.cad_script as cad
+
+    run_dir = run_copy
+    a, web = _best(run_dir)
+    ns = _script(run_dir)
+    drawn = []
+    real = cad.outline_of
+
+    def counted(*args, **kwargs):
+        drawn.append(args[1])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cad, "outline_of", counted)
+    rings, thickness = ns["outline"]()
+    assert drawn == [] and ns["as_exported"]()
+    assert rings == ns["OUTLINE_AS_EXPORTED"] and thickness == HEIGHT_MM
+    assert Polygon(rings[0], rings[1:]).area == pytest.approx(
+        toy_outline(a, web, 2.0).area, rel=1e-12
+    )
+    # --redraw: the same outline, drawn by the kind
+    again, _ = ns["outline"](redraw=True)
+    assert len(drawn) == 1
+    assert (
+        Polygon(again[0], again[1:]).symmetric_difference(Polygon(rings[0], rings[1:])).area < 1e-9
+    )
+    # a fixed dimension back at its recorded value is unedited; another value is drawn
+    ns["FIXED"]["hole_mm"] = 2.0
+    ns["outline"]()
+    assert len(drawn) == 1
+    ns["FIXED"]["hole_mm"] = 3.0
+    changed, _ = ns["outline"]()
+    assert len(drawn) == 2 and Polygon(changed[0], changed[1:]).area == pytest.approx(
+        toy_outline(a, web, 3.0).area, rel=1e-9
+    )
+    ns["FIXED"]["hole_mm"] = 2.0
+    # an edit of the embedded study (a number only it holds) is a change too
+    module = ns["outline"].__globals__
+    module["STUDY_YAML"] = module["STUDY_YAML"].replace("name: handoff", "name: handoff-b")
+    assert not ns["as_exported"]()
+    ns["outline"]()
+    assert len(drawn) == 3
+
+
 # ---- flexopt export --format cad|3mf|sheet -------------------------------------------------
 
 
@@ -418,3 +466,53 @@ def test_the_script_outline_is_the_exported_one(name):
     drawn = Polygon(rings[0], rings[1:])
     assert thickness == part.thickness_mm
     assert drawn.symmetric_difference(part.outline).area <= 1e-9 * part.outline.area
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
+def test_a_mechanism_script_rebuilds_best_step_in_seconds_without_a_solve(tmp_path):
+    """A mechanism's outline comes from a solve (its fidelity check re-solves the width); the
+    unedited script builds best.step's solid from the outline it keeps, run by Python with
+    flexopt's outline drawing switched off (it would exit), in seconds."""
+    pytest.importorskip("build123d", reason="the CAD script needs the step extra")
+    import time
+
+    import build123d as bd
+    from flexopt.pipeline.cad_script import cad_script
+    from flexopt.pipeline.problems import nominal_design
+    from flexopt.pipeline.run import build_problem, part_bytes, part_of
+    from flexopt.pipeline.study import load_study
+
+    study = load_study("parallel-guide-stop")
+    assert study.kind == "mechanism"
+    problem = build_problem(study)
+    x = nominal_design(problem, study)
+    part = part_of(problem.detail(x), "design")
+    (tmp_path / "best.step").write_bytes(part_bytes(part, "step"))
+    (tmp_path / "best_cad.py").write_text(cad_script(study, problem, x, part))
+    blocked = (
+        "import runpy, sys, flexopt.pipeline.cad_script as c\n"
+        "def refuse(*a, **k):\n    sys.exit('the script drew the outline again')\n"
+        "c.outline_of = refuse\n"
+        "runpy.run_path('best_cad.py', run_name='__main__')\n"
+    )
+    t0 = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-c", blocked], cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    elapsed = time.perf_counter() - t0
+    assert done.returncode == 0, done.stderr
+    assert elapsed < 20.0, elapsed  # ~2 s alone (Python, flexopt and build123d imports)
+    exported = bd.import_step(str(tmp_path / "best.step")).volume
+    rebuilt = bd.import_step(str(tmp_path / "best_cad.step")).volume
+    assert rebuilt == pytest.approx(exported, rel=1e-9)
+    assert exported == pytest.approx(part.outline.area * part.thickness_mm, rel=1e-6)
+    # a changed dimension reaches the refusal: the outline is drawn again, not the old one kept
+    text = (tmp_path / "best_cad.py").read_text()
+    (tmp_path / "best_cad.py").write_text(
+        text.replace("'pad_length_mm': 6.0,", "'pad_length_mm': 7.0,", 1)
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", blocked], cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode != 0 and "drew the outline again" in done.stderr
