@@ -204,10 +204,11 @@ Change a dimension in DESIGN or FIXED below and run it:
 
     python {script}           # writes {step} beside this file and prints the solid's volume
     python {script} --redraw  # the same, the outline drawn again by flexopt even if unedited
+    freecadcmd {script}       # FreeCAD (or Macro > Execute): {step} and a .FCStd document
 
-Units: mm (and each variable's own unit, in its comment). The solid is made here with
-build123d: the outline in the x-y plane of the design frame (where the kind draws the part),
-extruded along z from 0 by its out-of-plane thickness.
+Units: mm (and each variable's own unit, in its comment). build123d (or FreeCAD's Part, when
+FreeCAD runs this file as a macro) makes the solid: the outline in the x-y plane of the design
+frame (where the kind draws the part), extruded along z from 0 by its out-of-plane thickness.
 
 Where the outline comes from: while DESIGN, FIXED and STUDY_YAML are as recorded
 (EXPORTED_DESIGN, EXPORTED_FIXED, STUDY_SHA256_AS_EXPORTED), from OUTLINE_AS_EXPORTED, the
@@ -215,8 +216,8 @@ outline of the exported part kept in this file: no solve, flexopt not needed. On
 differs from its recorded value, flexopt's geometry of the `{kind}` kind draws it again from
 the dimensions (the code that drew best.step; needs `pip install flexopt[step]`), which takes
 as long as the kind's detail: a solve where the outline comes from one (the SEA and threshold
-springs' plate thickness, a mechanism's solved width: minutes). Without flexopt a changed
-dimension is refused. This script draws the part; it does not check it: solve a changed design
+springs' plate thickness, a mechanism's solved width: minutes). Without flexopt (FreeCAD's own
+Python has none unless it is installed there) a changed dimension is refused. This script draws the part; it does not check it: solve a changed design
 with `flexopt evaluate` of the study (`flexopt export RUN --format yaml`).
 """
 
@@ -285,7 +286,49 @@ def build(redraw=False):
     return bd.extrude(face, amount=thickness_mm)
 
 
-if __name__ == "__main__":
+def build_freecad():
+    """The part as a FreeCAD document (FreeCAD's Python: ``freecadcmd {script}`` or Macro >
+    Macros... > Execute): a spreadsheet ``Dimensions`` listing DESIGN, FIXED and the thickness
+    (a record: the dimensions are changed above, in this file), the outline as a face
+    (``Outline``) and the part (``Part``), the face extruded along z by the thickness."""
+    import FreeCAD as App
+    import Part
+
+    try:
+        rings, thickness_mm = outline()
+    except SystemExit as exc:  # FreeCAD's window stays open: an error, not an exit
+        raise RuntimeError(str(exc)) from None
+    doc = App.newDocument(Path(__file__).stem)
+    sheet = doc.addObject("Spreadsheet::Sheet", "Dimensions")
+    rows = [("dimension", "value", "")]
+    rows += [(name, repr(float(value)), "design variable") for name, value in DESIGN.items()]
+    rows += [(name, repr(float(value)), "fixed") for name, value in FIXED.items()]
+    rows += [("thickness_mm", repr(float(thickness_mm)), "extrusion along z")]
+    for i, row in enumerate(rows, start=1):
+        for column, text in zip("ABC", row):
+            sheet.set(f"{{column}}{{i}}", text)
+    wires = [Part.makePolygon([App.Vector(x, y, 0.0) for x, y in [*r, r[0]]]) for r in rings]
+    base = doc.addObject("Part::Feature", "Outline")
+    base.Shape = Part.makeFace(wires, "Part::FaceMakerBullseye")  # the first ring's holes
+    part = doc.addObject("Part::Feature", "Part")
+    part.Shape = base.Shape.extrude(App.Vector(0.0, 0.0, thickness_mm))
+    doc.recompute()
+    return doc, part
+
+
+def main_freecad():
+    """Run by FreeCAD: the document saved as .FCStd and the part as STEP beside this file."""
+    doc, part = build_freecad()
+    out = Path(__file__).with_suffix(".step")
+    part.Shape.exportStep(str(out))
+    doc.saveAs(str(Path(__file__).with_suffix(".FCStd")))
+    exported = VOLUME_AS_EXPORTED_MM3
+    print(f"wrote {{out}}: volume {{part.Shape.Volume:.9g}} mm^3 (as exported: {{exported:.9g}})")
+
+
+if "FreeCAD" in sys.modules and "build123d" not in sys.modules:  # run by FreeCAD (a macro)
+    main_freecad()
+elif __name__ == "__main__":
     import build123d as bd
 
     solid = build(redraw="--redraw" in sys.argv[1:])

@@ -355,6 +355,74 @@ def test_the_unedited_script_builds_the_exported_outline_without_drawing_it(run_
     assert len(drawn) == 3
 
 
+#: FreeCAD's own document reader, run by freecadcmd: the spreadsheet's rows and the part's volume
+READ_FCSTD = """\
+import FreeCAD as App
+doc = App.openDocument({path!r})
+sheet = doc.getObject("Dimensions")
+i = 1
+while sheet.getContents(f"A{{i}}"):
+    print("ROW", *(sheet.getContents(f"{{c}}{{i}}") for c in "ABC"))
+    i += 1
+print("VOLUME", repr(doc.getObject("Part").Shape.Volume), doc.getObject("Part").Shape.isValid())
+"""
+
+
+def test_freecad_runs_the_script_as_a_macro(run_copy, tmp_path):
+    """``freecadcmd best_cad.py``: FreeCAD's Python (no flexopt, no build123d) builds the part
+    from the outline the script keeps, writes best_cad.step of best.step's volume and a .FCStd
+    whose spreadsheet names every dimension; a changed dimension is refused there."""
+    import shutil
+
+    freecad = shutil.which("freecadcmd")
+    if freecad is None:
+        pytest.skip("FreeCAD is not installed (apt-get install freecad-python3)")
+    pytest.importorskip("build123d", reason="best.step is read back with build123d")
+    import build123d as bd
+
+    run_dir = run_copy
+    a, web = _best(run_dir)
+    assert main(["export", str(run_dir), "--format", "step"]) == 0
+    folder = tmp_path / "fc"
+    folder.mkdir()
+    shutil.copy(run_dir / "best_cad.py", folder / "best_cad.py")
+    done = subprocess.run(
+        [freecad, "best_cad.py"], cwd=folder, capture_output=True, text=True, timeout=300
+    )
+    assert "wrote" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]
+    rebuilt = bd.import_step(str(folder / "best_cad.step")).volume
+    exported = bd.import_step(str(run_dir / "best.step")).volume
+    assert rebuilt == pytest.approx(exported, rel=1e-9)
+    assert rebuilt == pytest.approx(toy_outline(a, web, 2.0).area * HEIGHT_MM, rel=1e-9)
+    # the document: every dimension by name, and the part as a valid solid
+    (folder / "read_doc.py").write_text(READ_FCSTD.format(path=str(folder / "best_cad.FCStd")))
+    read = subprocess.run(
+        [freecad, "read_doc.py"], cwd=folder, capture_output=True, text=True, timeout=300
+    )
+    rows = [line.split()[1:] for line in read.stdout.splitlines() if line.startswith("ROW ")]
+    named = {r[0]: (float(r[1]), " ".join(r[2:])) for r in rows[1:]}
+    want = {
+        "a_mm": (a, "design variable"),
+        "web_mm": (web, "design variable"),
+        "hole_mm": (2.0, "fixed"),
+        "height_mm": (HEIGHT_MM, "fixed"),
+        "thickness_mm": (HEIGHT_MM, "extrusion along z"),
+    }
+    assert list(named) == list(want)
+    for name, (value, group) in want.items():  # the sheet keeps 16 significant digits
+        assert named[name] == (pytest.approx(value, rel=1e-15), group), name
+    (volume,) = [line.split() for line in read.stdout.splitlines() if line.startswith("VOLUME ")]
+    assert float(volume[1]) == pytest.approx(exported, rel=1e-9) and volume[2] == "True"
+    # a changed dimension: FreeCAD's Python has no flexopt to draw it, so no part is written
+    text = (folder / "best_cad.py").read_text()
+    (folder / "edited.py").write_text(text.replace("'hole_mm': 2.0,", "'hole_mm': 3.0,", 1))
+    done = subprocess.run(
+        [freecad, "edited.py"], cwd=folder, capture_output=True, text=True, timeout=300
+    )
+    assert "changed dimensions need flexopt" in done.stdout + done.stderr
+    assert not (folder / "edited.step").exists()
+
+
 # ---- flexopt export --format cad|3mf|sheet -------------------------------------------------
 
 
@@ -475,7 +543,7 @@ def test_a_mechanism_script_rebuilds_best_step_in_seconds_without_a_solve(tmp_pa
     unedited script builds best.step's solid from the outline it keeps, run by Python with
     flexopt's outline drawing switched off (it would exit), in seconds."""
     pytest.importorskip("build123d", reason="the CAD script needs the step extra")
-    import time
+    import resource
 
     import build123d as bd
     from flexopt.pipeline.cad_script import cad_script
@@ -496,13 +564,15 @@ def test_a_mechanism_script_rebuilds_best_step_in_seconds_without_a_solve(tmp_pa
         "c.outline_of = refuse\n"
         "runpy.run_path('best_cad.py', run_name='__main__')\n"
     )
-    t0 = time.perf_counter()
+    # the child's CPU time, not the wall clock: the machine may be loaded
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     done = subprocess.run(
-        [sys.executable, "-c", blocked], cwd=tmp_path, capture_output=True, text=True, timeout=120
+        [sys.executable, "-c", blocked], cwd=tmp_path, capture_output=True, text=True, timeout=300
     )
-    elapsed = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     assert done.returncode == 0, done.stderr
-    assert elapsed < 20.0, elapsed  # ~2 s alone (Python, flexopt and build123d imports)
+    assert cpu_s < 10.0, cpu_s  # ~4 s: Python, flexopt's and build123d's imports, the STEP
     exported = bd.import_step(str(tmp_path / "best.step")).volume
     rebuilt = bd.import_step(str(tmp_path / "best_cad.step")).volume
     assert rebuilt == pytest.approx(exported, rel=1e-9)
