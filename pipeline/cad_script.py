@@ -217,8 +217,9 @@ differs from its recorded value, flexopt's geometry of the `{kind}` kind draws i
 the dimensions (the code that drew best.step; needs `pip install flexopt[step]`), which takes
 as long as the kind's detail: a solve where the outline comes from one (the SEA and threshold
 springs' plate thickness, a mechanism's solved width: minutes). Without flexopt (FreeCAD's own
-Python has none unless it is installed there) a changed dimension is refused. This script draws the part; it does not check it: solve a changed design
-with `flexopt evaluate` of the study (`flexopt export RUN --format yaml`).
+Python has none unless it is installed there) a changed dimension is refused. This script
+draws the part; it does not check it: solve a changed design with `flexopt evaluate` of the
+study (`flexopt export RUN --format yaml`).
 """
 
 from __future__ import annotations
