@@ -611,7 +611,11 @@ class CurveComparison:
 
 
 def compare_curves(
-    pred_x: np.ndarray, pred_y: np.ndarray, meas_x: np.ndarray, meas_y: np.ndarray
+    pred_x: np.ndarray,
+    pred_y: np.ndarray,
+    meas_x: np.ndarray,
+    meas_y: np.ndarray,
+    columns: tuple[str, str] | None = None,
 ) -> CurveComparison:
     """Compare a measured curve with a predicted one (:class:`CurveComparison`).
 
@@ -620,12 +624,15 @@ def compare_curves(
     pred_x, pred_y : (n,) float — the prediction (e.g. ``displacement_mm``, ``force_N`` of
         best_response.csv), ``pred_x`` increasing.
     meas_x, meas_y : (m,) float — the measured points, same units.
+    columns : (x, y) names with units (``displacement_mm``, ``force_N``; ``angle_deg``,
+        ``torque_Nm``), named in a refusal; None: the refusal names no unit.
 
     Raises
     ------
     CalibrationError
-        When fewer than ``MIN_POINTS_PER_STRIP`` measured points fall inside the predicted range, or
-        the prediction's abscissa is not increasing.
+        When fewer than ``MIN_POINTS_PER_STRIP`` measured points away from the unloaded state
+        (x != 0: a drive may run to negative x) fall inside the predicted range, or the
+        prediction's abscissa is not increasing.
     """
     px, py = np.asarray(pred_x, float), np.asarray(pred_y, float)
     mx, my = np.asarray(meas_x, float), np.asarray(meas_y, float)
@@ -634,11 +641,14 @@ def compare_curves(
     if mx.shape != my.shape:
         raise CalibrationError("measured x and y must have the same length")
     inside = (mx >= px[0]) & (mx <= px[-1]) & np.isfinite(mx) & np.isfinite(my)
-    if np.count_nonzero(inside & (mx > 0)) < MIN_POINTS_PER_STRIP:
+    # the unloaded point (x = 0) tells no error; every other one does, on either side of it
+    loaded = int(np.count_nonzero(inside & (mx != 0)))
+    if loaded < MIN_POINTS_PER_STRIP:
+        units = f"{columns[0]}, {columns[1]}" if columns else "its columns' units"
         raise CalibrationError(
-            f"only {int(np.count_nonzero(inside & (mx > 0)))} measured point(s) lie in the "
-            f"predicted range {px[0]:g}..{px[-1]:g}; record at least {MIN_POINTS_PER_STRIP} over "
-            "the stroke (same units as the prediction: mm and N)"
+            f"only {loaded} measured point(s) away from x = 0 lie in the predicted range "
+            f"{px[0]:g}..{px[-1]:g}; record at least {MIN_POINTS_PER_STRIP} over the stroke "
+            f"(same units as the prediction: {units})"
         )
     x, y = mx[inside], my[inside]
     p = CubicSpline(px, py)(x)

@@ -28,6 +28,12 @@ delta and nothing else changed:
   T1, T6); else each variable that sets a ``*thickness_mm`` key (variables on key paths), else
   each variable whose name contains ``thickness``.
 
+A kind whose problem solves another study with its material (:data:`LINKED_KINDS`: the
+gripper, whose beam is the constant-force study it resolves) is not moved here: its problem is
+built from the calibrated study as it is, its linked study inherits the material with the offset
+and is analysed as printed by this module in turn (the gripper's width ``B`` is then rescaled to
+the target from the printed beam's plateau, so the drawing holds the force as printed).
+
 The result records what moved (``info["as printed"]``) and the offset (``summary
 ["thickness_offset_mm"]``); every verdict's ``detail`` says the design was judged as printed
 (:func:`pipeline.verdict.judge_result`, :func:`pipeline.materials_file.with_as_printed_verdicts`).
@@ -51,6 +57,7 @@ from flexopt.pipeline.study import Study, validate_study
 
 __all__ = [
     "AS_PRINTED_INFO",
+    "LINKED_KINDS",
     "OFFSET_SUMMARY_KEY",
     "AsPrintedProblem",
     "as_printed_evaluate",
@@ -77,6 +84,11 @@ OUT_OF_PLANE_KEYS: dict[str, tuple[str, ...]] = {
     "cam": ("geometry.thickness_mm",),
     "collision": ("cam.geometry.thickness_mm",),
 }
+#: kinds whose problem solves another study with the study's material (the gripper: the
+#: constant-force study it resolves, ``constant_force.study``): the offset travels with the
+#: material into that study, which this module analyses as printed; moving the outer study too
+#: would apply the offset twice
+LINKED_KINDS = ("gripper",)
 #: cross-checks switched off in the study that only draws the outline (they draw nothing)
 OUTLINE_SWITCHES: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("fidelity", "enabled"), False),
@@ -196,7 +208,7 @@ def _annotated(
     record = {
         "thickness_offset_mm": dt,
         # nothing moved: the kind holds no section under a thickness key or variable (sea_window
-        # has none; the gripper's beam is in its linked constant-force study): said, not hidden
+        # has none): said, not hidden
         "applied": bool(changed or moved),
         "material": study.material.name,
         "study keys moved": list(changed),
@@ -287,15 +299,22 @@ class AsPrintedProblem(ProblemWrapper):
         return self.drawn.study_values(x)
 
 
-def as_printed_problem(study: Study, build: Callable[[Study], DesignProblem]) -> AsPrintedProblem:
+def as_printed_problem(study: Study, build: Callable[[Study], DesignProblem]) -> DesignProblem:
     """The problem of ``study`` analysed as printed; ``build`` makes a kind's problem of a study
-    (:func:`pipeline.problems.kind_problem`).
+    (:func:`pipeline.problems.kind_problem`). A :data:`LINKED_KINDS` study's problem is the
+    kind's own, built from the calibrated study: its linked study carries the offset.
 
     Raises
     ------
     StudyError
         When the printed study is invalid (:func:`printed_study`) or the kind refuses it.
     """
+    if study.kind in LINKED_KINDS:
+        from flexopt.pipeline.studies import get_kind  # the kind registry imports pipeline
+
+        kind = get_kind(study.kind)
+        assert kind.problem is not None  # only kinds with a problem are listed
+        return kind.problem(study)  # not build(): it would hand the study back here
     printed, changed = printed_study(study)
     drawn, _ = printed_study(study, outline_only=True)
     return AsPrintedProblem(study, build(printed), build(drawn), changed)

@@ -16,14 +16,22 @@ without the checks that do not draw the part, :data:`SKIPPED_BLOCKS` and :data:`
 ~0.3 s for the constant-force part)
 and makes the solid with build123d exactly as :func:`geometry.solid.step_bytes` makes best.step:
 one planar face bounded by the outline's rings, extruded along z by the part's thickness, in
-the design frame. Without flexopt installed, the script builds the outline as exported (kept in
-the script) and refuses changed dimensions rather than ignoring them.
+the design frame.
+
+The outline as exported is kept in the script (``OUTLINE_AS_EXPORTED``) with the dimensions and
+the study it was drawn from (``EXPORTED_DESIGN``, ``EXPORTED_FIXED``, the study text's SHA-256):
+while they are unchanged the script builds that outline and solves nothing (a second; the
+threshold spring's and a mechanism's outlines come from a solve: 9.6 min and 1.3 min here), and
+only a changed dimension (or ``--redraw``) calls :func:`outline_of`. Without flexopt installed,
+the unchanged script still builds the part, and a changed dimension is refused rather than
+ignored.
 
 A kind whose design gives no outline and height has no script (:data:`NO_OUTLINE`).
 """
 
 from __future__ import annotations
 
+import hashlib
 import pprint
 from collections.abc import Mapping
 from typing import Any
@@ -194,15 +202,24 @@ _TEMPLATE = '''#!/usr/bin/env python3
 
 Change a dimension in DESIGN or FIXED below and run it:
 
-    python {script}    # writes {step} beside this file and prints the solid's volume
+    python {script}           # writes {step} beside this file and prints the solid's volume
+    python {script} --redraw  # the same, the outline drawn again by flexopt even if unedited
+    freecadcmd {script}       # FreeCAD (or Macro > Execute): {step} and a .FCStd document
 
-Units: mm (and each variable's own unit, in its comment). The outline is drawn by flexopt's
-geometry of the `{kind}` kind from these dimensions (the code that drew best.step; needs
-`pip install flexopt[step]`), and the solid is made here with build123d: the outline in the
-x-y plane of the design frame (where the kind draws the part), extruded along z from 0 by its
-out-of-plane thickness. Without flexopt, the outline as exported (OUTLINE_AS_EXPORTED) is used
-and a changed dimension is refused. This script draws the part; it does not check it: solve a
-changed design with `flexopt evaluate` of the study (`flexopt export RUN --format yaml`).
+Units: mm (and each variable's own unit, in its comment). build123d (or FreeCAD's Part, when
+FreeCAD runs this file as a macro) makes the solid: the outline in the x-y plane of the design
+frame (where the kind draws the part), extruded along z from 0 by its out-of-plane thickness.
+
+Where the outline comes from: while DESIGN, FIXED and STUDY_YAML are as recorded
+(EXPORTED_DESIGN, EXPORTED_FIXED, STUDY_SHA256_AS_EXPORTED), from OUTLINE_AS_EXPORTED, the
+outline of the exported part kept in this file: no solve, flexopt not needed. Once a dimension
+differs from its recorded value, flexopt's geometry of the `{kind}` kind draws it again from
+the dimensions (the code that drew best.step; needs `pip install flexopt[step]`), which takes
+as long as the kind's detail: a solve where the outline comes from one (the SEA and threshold
+springs' plate thickness, a mechanism's solved width: minutes). Without flexopt (FreeCAD's own
+Python has none unless it is installed there) a changed dimension is refused. This script
+draws the part; it does not check it: solve a changed design with `flexopt evaluate` of the
+study (`flexopt export RUN --format yaml`).
 """
 
 from __future__ import annotations
@@ -228,39 +245,94 @@ STUDY_YAML = {study_yaml}
 #: design frame, exterior counter-clockwise then the holes) and its thickness along z (mm).
 EXPORTED_DESIGN = {exported_design}
 EXPORTED_FIXED = {exported_fixed}
+STUDY_SHA256_AS_EXPORTED = {study_sha256!r}
 OUTLINE_AS_EXPORTED = {outline}
 THICKNESS_AS_EXPORTED_MM = {thickness!r}
 #: The exported solid's volume (mm^3, outline area x thickness), to compare a rebuild with.
 VOLUME_AS_EXPORTED_MM3 = {volume!r}
 
 
-def outline():
-    """The outline's rings (exterior first, then holes; (x, y) mm) and its thickness (mm)."""
+def as_exported():
+    """Whether every dimension and the study are the recorded ones (the exported part)."""
+    import hashlib
+
+    study = hashlib.sha256(STUDY_YAML.encode("utf-8")).hexdigest()
+    same = DESIGN == EXPORTED_DESIGN and FIXED == EXPORTED_FIXED
+    return same and study == STUDY_SHA256_AS_EXPORTED
+
+
+def outline(redraw=False):
+    """The outline's rings (exterior first, then holes; (x, y) mm) and its thickness (mm): the
+    exported one while nothing is changed (unless ``redraw``), else drawn by flexopt."""
+    if as_exported() and not redraw:
+        return OUTLINE_AS_EXPORTED, THICKNESS_AS_EXPORTED_MM
     try:
         from flexopt.pipeline.cad_script import outline_of
     except ImportError:
-        if DESIGN != EXPORTED_DESIGN or FIXED != EXPORTED_FIXED:
+        if not as_exported():
             sys.exit(
                 "changed dimensions need flexopt to draw the outline: pip install 'flexopt[step]'"
             )
-        return OUTLINE_AS_EXPORTED, THICKNESS_AS_EXPORTED_MM
+        sys.exit("--redraw needs flexopt to draw the outline: pip install 'flexopt[step]'")
     return outline_of(STUDY_YAML, DESIGN, FIXED, base=str(Path(__file__).resolve().parent))
 
 
-def build():
+def build(redraw=False):
     """The part as a build123d solid: one face bounded by the rings, extruded along z."""
     import build123d as bd
 
-    rings, thickness_mm = outline()
+    rings, thickness_mm = outline(redraw)
     wires = [bd.Wire.make_polygon([(x, y, 0.0) for x, y in ring], close=True) for ring in rings]
     face = bd.Face(wires[0], wires[1:])
     return bd.extrude(face, amount=thickness_mm)
 
 
-if __name__ == "__main__":
+def build_freecad():
+    """The part as a FreeCAD document (FreeCAD's Python: ``freecadcmd {script}`` or Macro >
+    Macros... > Execute): a spreadsheet ``Dimensions`` listing DESIGN, FIXED and the thickness
+    (a record: the dimensions are changed above, in this file), the outline as a face
+    (``Outline``) and the part (``Part``), the face extruded along z by the thickness."""
+    import FreeCAD as App
+    import Part
+
+    try:
+        rings, thickness_mm = outline()
+    except SystemExit as exc:  # FreeCAD's window stays open: an error, not an exit
+        raise RuntimeError(str(exc)) from None
+    doc = App.newDocument(Path(__file__).stem)
+    sheet = doc.addObject("Spreadsheet::Sheet", "Dimensions")
+    rows = [("dimension", "value", "")]
+    rows += [(name, repr(float(value)), "design variable") for name, value in DESIGN.items()]
+    rows += [(name, repr(float(value)), "fixed") for name, value in FIXED.items()]
+    rows += [("thickness_mm", repr(float(thickness_mm)), "extrusion along z")]
+    for i, row in enumerate(rows, start=1):
+        for column, text in zip("ABC", row):
+            sheet.set(f"{{column}}{{i}}", text)
+    wires = [Part.makePolygon([App.Vector(x, y, 0.0) for x, y in [*r, r[0]]]) for r in rings]
+    base = doc.addObject("Part::Feature", "Outline")
+    base.Shape = Part.makeFace(wires, "Part::FaceMakerBullseye")  # the first ring's holes
+    part = doc.addObject("Part::Feature", "Part")
+    part.Shape = base.Shape.extrude(App.Vector(0.0, 0.0, thickness_mm))
+    doc.recompute()
+    return doc, part
+
+
+def main_freecad():
+    """Run by FreeCAD: the document saved as .FCStd and the part as STEP beside this file."""
+    doc, part = build_freecad()
+    out = Path(__file__).with_suffix(".step")
+    part.Shape.exportStep(str(out))
+    doc.saveAs(str(Path(__file__).with_suffix(".FCStd")))
+    exported = VOLUME_AS_EXPORTED_MM3
+    print(f"wrote {{out}}: volume {{part.Shape.Volume:.9g}} mm^3 (as exported: {{exported:.9g}})")
+
+
+if "FreeCAD" in sys.modules and "build123d" not in sys.modules:  # run by FreeCAD (a macro)
+    main_freecad()
+elif __name__ == "__main__":
     import build123d as bd
 
-    solid = build()
+    solid = build(redraw="--redraw" in sys.argv[1:])
     out = Path(__file__).with_suffix(".step")
     if not bd.export_step(solid, str(out)):
         sys.exit(f"build123d could not write {{out}}")
@@ -320,6 +392,7 @@ def cad_script(
         [(float(px), float(py)) for px, py in np.asarray(ring.coords)[:-1]]
         for ring in (poly.exterior, *poly.interiors)
     ]
+    study_yaml = study_to_yaml(study)
     return _TEMPLATE.format(
         title=f"{study.name}: design {design}",
         script=script_name,
@@ -328,7 +401,8 @@ def cad_script(
         design=design,
         design_lines=_dict_lines(values, notes),
         fixed_lines=_dict_lines(fixed, fixed_notes),
-        study_yaml=_python_text(study_to_yaml(study)),
+        study_yaml=_python_text(study_yaml),
+        study_sha256=hashlib.sha256(study_yaml.encode("utf-8")).hexdigest(),
         exported_design=pprint.pformat(values, sort_dicts=False, width=100),
         exported_fixed=pprint.pformat(fixed, sort_dicts=False, width=100),
         outline=pprint.pformat(rings, width=100, compact=True),

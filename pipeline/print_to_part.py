@@ -416,7 +416,7 @@ def compare_run(run_dir: Path, measured_csv: Path) -> CompareOutcome:
     order = np.argsort(px, kind="stable")
     px, py = px[order], py[order]
     keep = np.concatenate([[True], np.diff(px) > 0])
-    c = compare_curves(px[keep], py[keep], m_data[:, 0], m_data[:, 1])
+    c = compare_curves(px[keep], py[keep], m_data[:, 0], m_data[:, 1], (xc, yc))
     verdicts, predicted, not_judged = measured_verdicts(run_dir, xc, yc, m_data[:, 0], m_data[:, 1])
     record = {
         "run": str(run_dir),

@@ -49,7 +49,7 @@ from flexopt.fea.statics import (
 from flexopt.optimise.joint_objectives import plateau_mean_N
 from flexopt.optimise.problem import DesignResult, ProblemWrapper
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import StudyKind, _builtin, get_kind, kinds, register
+from flexopt.pipeline.studies import StudyKind, _builtin, kinds, register
 from flexopt.pipeline.study import (
     STUDY_CONFIG,
     OptimiserSpec,
@@ -388,9 +388,11 @@ class GripperProblem(ProblemWrapper):
         self.gripper = study
         self.grip = requirement(study)
         self.resolved, self.changes = resolved_constant_force_study(study, self.grip)
-        kind = get_kind("constant_force")
-        assert kind.problem is not None
-        super().__init__(kind.problem(self.resolved))
+        from flexopt.pipeline.problems import kind_problem
+
+        # kind_problem: a calibrated material's thickness offset, which the resolved study
+        # inherits, is applied to the beam there (pipeline.as_printed)
+        super().__init__(kind_problem(self.resolved))
 
     def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
         """``flexopt evaluate``: the requirement by statics beside the response of the beam
@@ -450,6 +452,10 @@ def _with_requirement(
             "stress_yield_ratio": float(np.max(stress)) / study.material.yield_MPa,
         }
     )
+    # the beam analysed as printed (a calibrated material's offset, pipeline.as_printed) says so
+    printed = {k: v for k, v in beam.info.items() if k == "as printed"}
+    if printed:
+        summary["thickness_offset_mm"] = beam.summary["thickness_offset_mm"]
     header = f"Constant-force study resolved by the gripper study '{study.name}'"
     return DesignResult(
         table=table,
@@ -464,6 +470,7 @@ def _with_requirement(
             "constant_force_summary": beam.summary,
         },
         diagnostics=dict(beam.diagnostics),
+        info=printed,
         plot={
             "x": "displacement_mm",
             "y": "force_N",

@@ -82,6 +82,7 @@ from flexopt.pipeline.studies._mechanism_schema import (
     output_columns,
     outputs_in,
 )
+from flexopt.pipeline.studies._mechanism_width import width_key
 from flexopt.pipeline.study import material_record
 from flexopt.pipeline.verdict import envelope_values, with_design_range
 from pydantic import ValidationError
@@ -633,6 +634,8 @@ def _kind() -> StudyKind:
         extra["design_space"] = design_of
     if "summary" in names:  # `flexopt list`'s line: the model's module is _mechanism_schema
         extra["summary"] = __doc__.split("\n\n")[0].removeprefix("Study kind ``mechanism``:")
+    if "width_key" in names:  # flexopt retrim's default --key, where it is exact
+        extra["width_key"] = width_key
     # flexopt evaluate: the nominal design's MechanismProblem.result (pipeline.problems)
     return StudyKind("mechanism", MechanismStudy, check, None, problem, **extra)  # type: ignore[arg-type]
 

@@ -223,6 +223,38 @@ def test_compare_refuses_a_curve_outside_the_prediction():
         compare_curves(pred.displacement_mm, pred.force_N, pred.displacement_mm + 100, pred.force_N)
 
 
+def test_compare_counts_the_loaded_points_on_either_side_and_names_the_curves_units():
+    """A drive to negative x (a mechanism pushed down, a spring turned clockwise) is compared
+    like a positive one; the unloaded point x = 0 does not count toward the minimum; the
+    refusal names the columns' units, not "mm and N" for a torque curve."""
+    from flexopt.optimise.calibration import MIN_POINTS_PER_STRIP, compare_curves
+
+    pred = _strip(BASE.E_MPa, 10.0)
+    meas = _strip(1.1 * BASE.E_MPa, 10.0)
+    # the same part driven the other way: x -> -x, y -> -y (prediction increasing in x)
+    px, py = -pred.displacement_mm[::-1], -pred.force_N[::-1]
+    mx, my = -meas.displacement_mm, -meas.force_N
+    assert mx[0] == 0.0 and np.all(mx[1:] < 0)
+    c = compare_curves(px, py, mx, my)
+    assert c.force_error_percent == pytest.approx(10.0, rel=1e-6)
+    assert c.stiffness_error_percent == pytest.approx(10.0, rel=1e-6)
+    # exactly the minimum of loaded points, with the unloaded one beside them: compared
+    n = MIN_POINTS_PER_STRIP
+    assert compare_curves(px, py, mx[: n + 1], my[: n + 1]).x.size == n + 1
+    # one fewer loaded point: refused, whichever side; x = 0 is not counted
+    for sign in (1.0, -1.0):
+        with pytest.raises(CalibrationError, match=f"only {n - 1} measured point"):
+            compare_curves(
+                pred.displacement_mm * sign if sign > 0 else px,
+                pred.force_N * sign if sign > 0 else py,
+                sign * meas.displacement_mm[:n],
+                sign * meas.force_N[:n],
+            )
+    with pytest.raises(CalibrationError) as refused:
+        compare_curves(px, py, mx[:2], my[:2], ("angle_deg", "torque_Nm"))
+    assert "angle_deg, torque_Nm" in str(refused.value) and "mm and N" not in str(refused.value)
+
+
 def test_two_orientations_recover_the_hidden_anisotropy_within_the_interval():
     """A simulated printer with a hidden E along x and along y (the strips' long axis on the bed)
     and one wall offset: one coupon printed each way; E_x, E_y, the offset and E_y/E_x come back

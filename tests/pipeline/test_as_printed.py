@@ -169,3 +169,62 @@ def test_a_study_with_nothing_to_move_says_the_offset_is_not_applied(tmp_path):
 
     window = _calibrated(tmp_path, "sea-window")
     assert printed_study(window)[1] == ()
+
+
+def test_gripper_calibrated_equals_its_beam_drawn_thicker(tmp_path):
+    """The gripper's beam is the constant-force study it resolves: the calibrated material's
+    offset travels into that study, whose width B is rescaled to the grip force from the
+    printed beam. Reference: the plain material and a constant-force study written with every
+    printed thickness dt thicker."""
+    import flexopt
+
+    base = yaml.safe_load(resolve_study_path("constant-force").read_text())
+    names = ("T1", "T6", *(f"t{j}" for j in range(1, 11)))
+    thicker = yaml.safe_load(resolve_study_path("constant-force").read_text())
+    for name in names:
+        thicker["design"][name] += DT
+    thicker["geometry"]["pad_thickness_mm"] += DT
+    thicker["geometry"]["min_feature_mm"] += DT  # the printable minimum moves with the print
+    (tmp_path / "cf-drawn.yaml").write_text(yaml.safe_dump(base))
+    (tmp_path / "cf-thicker.yaml").write_text(yaml.safe_dump(thicker))
+    link = yaml.safe_load(resolve_study_path("gripper").read_text())["constant_force"]
+    study = _calibrated(
+        tmp_path, "gripper", constant_force={**link, "study": str(tmp_path / "cf-drawn.yaml")}
+    )
+    reference = validate_study(
+        {
+            **study.model_dump(mode="json", exclude_none=True),
+            "material": "ABS",
+            "constant_force": {**link, "study": str(tmp_path / "cf-thicker.yaml")},
+        }
+    )
+    assert reference.material.E_MPa == ABS["E_MPa"] and reference.material.nu == ABS["nu"]
+    got, want = flexopt.evaluate(study), flexopt.evaluate(reference)
+    assert set(got.table) == set(want.table)
+    for column in got.table:
+        np.testing.assert_array_equal(got.table[column], want.table[column], err_msg=column)
+    # the width B the gripper resolves is the printed beam's (it holds the force as printed)
+    assert got.summary["beam_width_mm"] == want.summary["beam_width_mm"]
+    plain = flexopt.evaluate(study.with_values({"material.thickness_offset_mm": None}))
+    assert got.summary["beam_width_mm"] < plain.summary["beam_width_mm"]  # thicker: narrower
+    # the drawing: the resolved study's design is the drawn one, with the printed B
+    from flexopt.pipeline.problems import study_result
+
+    detail = study_result(study)
+    design = detail.inputs["constant_force_study"]["design"]
+    assert [design[n] for n in names] == [base["design"][n] for n in names]
+    assert design["B"] == got.summary["beam_width_mm"]
+    # the result and every verdict say it was judged as printed
+    assert got.summary["thickness_offset_mm"] == DT
+    record = detail.info["as printed"]
+    assert record["applied"] and "geometry.pad_thickness_mm" in record["study keys moved"]
+    assert sorted(record["design variables moved"]) == sorted(f"{n}_mm" for n in names)
+    assert got.verdict and all("judged as printed" in v.detail for v in got.verdict)
+    # the design vector and the exported outline are the drawing's: the resolved study's design
+    # with the uncalibrated material
+    problem = kind_problem(study)
+    x = nominal_design(problem, study)
+    drawn_study = validate_study({**detail.inputs["constant_force_study"], "material": "ABS"})
+    drawn = kind_problem(drawn_study)
+    np.testing.assert_array_equal(x, nominal_design(drawn, drawn_study))
+    assert problem.detail(x).outline.equals(drawn.detail(x).outline)

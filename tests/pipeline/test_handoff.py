@@ -307,6 +307,122 @@ def test_the_cad_script_without_flexopt_builds_the_part_as_exported(toy_run, mon
         ns["build"]()
 
 
+def test_the_unedited_script_builds_the_exported_outline_without_drawing_it(run_copy, monkeypatch):
+    """Unedited, the script builds the outline kept in it (no solve: the threshold spring's and
+    a mechanism's outlines take minutes to draw); a changed dimension, a changed study or
+    ``--redraw`` draw it again through flexopt."""
+    pytest.importorskip("build123d", reason="the CAD script needs the step extra")
+    import flexopt.pipeline.cad_script as cad
+
+    run_dir = run_copy
+    a, web = _best(run_dir)
+    ns = _script(run_dir)
+    drawn = []
+    real = cad.outline_of
+
+    def counted(*args, **kwargs):
+        drawn.append(args[1])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cad, "outline_of", counted)
+    rings, thickness = ns["outline"]()
+    assert drawn == [] and ns["as_exported"]()
+    assert rings == ns["OUTLINE_AS_EXPORTED"] and thickness == HEIGHT_MM
+    assert Polygon(rings[0], rings[1:]).area == pytest.approx(
+        toy_outline(a, web, 2.0).area, rel=1e-12
+    )
+    # --redraw: the same outline, drawn by the kind
+    again, _ = ns["outline"](redraw=True)
+    assert len(drawn) == 1
+    assert (
+        Polygon(again[0], again[1:]).symmetric_difference(Polygon(rings[0], rings[1:])).area < 1e-9
+    )
+    # a fixed dimension back at its recorded value is unedited; another value is drawn
+    ns["FIXED"]["hole_mm"] = 2.0
+    ns["outline"]()
+    assert len(drawn) == 1
+    ns["FIXED"]["hole_mm"] = 3.0
+    changed, _ = ns["outline"]()
+    assert len(drawn) == 2 and Polygon(changed[0], changed[1:]).area == pytest.approx(
+        toy_outline(a, web, 3.0).area, rel=1e-9
+    )
+    ns["FIXED"]["hole_mm"] = 2.0
+    # an edit of the embedded study (a number only it holds) is a change too
+    module = ns["outline"].__globals__
+    module["STUDY_YAML"] = module["STUDY_YAML"].replace("name: handoff", "name: handoff-b")
+    assert not ns["as_exported"]()
+    ns["outline"]()
+    assert len(drawn) == 3
+
+
+#: FreeCAD's own document reader, run by freecadcmd: the spreadsheet's rows and the part's volume
+READ_FCSTD = """\
+import FreeCAD as App
+doc = App.openDocument({path!r})
+sheet = doc.getObject("Dimensions")
+i = 1
+while sheet.getContents(f"A{{i}}"):
+    print("ROW", *(sheet.getContents(f"{{c}}{{i}}") for c in "ABC"))
+    i += 1
+print("VOLUME", repr(doc.getObject("Part").Shape.Volume), doc.getObject("Part").Shape.isValid())
+"""
+
+
+def test_freecad_runs_the_script_as_a_macro(run_copy, tmp_path):
+    """``freecadcmd best_cad.py``: FreeCAD's Python (no flexopt, no build123d) builds the part
+    from the outline the script keeps, writes best_cad.step of best.step's volume and a .FCStd
+    whose spreadsheet names every dimension; a changed dimension is refused there."""
+    import shutil
+
+    freecad = shutil.which("freecadcmd")
+    if freecad is None:
+        pytest.skip("FreeCAD is not installed (apt-get install freecad-python3)")
+    pytest.importorskip("build123d", reason="best.step is read back with build123d")
+    import build123d as bd
+
+    run_dir = run_copy
+    a, web = _best(run_dir)
+    assert main(["export", str(run_dir), "--format", "step"]) == 0
+    folder = tmp_path / "fc"
+    folder.mkdir()
+    shutil.copy(run_dir / "best_cad.py", folder / "best_cad.py")
+    done = subprocess.run(
+        [freecad, "best_cad.py"], cwd=folder, capture_output=True, text=True, timeout=300
+    )
+    assert "wrote" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]
+    rebuilt = bd.import_step(str(folder / "best_cad.step")).volume
+    exported = bd.import_step(str(run_dir / "best.step")).volume
+    assert rebuilt == pytest.approx(exported, rel=1e-9)
+    assert rebuilt == pytest.approx(toy_outline(a, web, 2.0).area * HEIGHT_MM, rel=1e-9)
+    # the document: every dimension by name, and the part as a valid solid
+    (folder / "read_doc.py").write_text(READ_FCSTD.format(path=str(folder / "best_cad.FCStd")))
+    read = subprocess.run(
+        [freecad, "read_doc.py"], cwd=folder, capture_output=True, text=True, timeout=300
+    )
+    rows = [line.split()[1:] for line in read.stdout.splitlines() if line.startswith("ROW ")]
+    named = {r[0]: (float(r[1]), " ".join(r[2:])) for r in rows[1:]}
+    want = {
+        "a_mm": (a, "design variable"),
+        "web_mm": (web, "design variable"),
+        "hole_mm": (2.0, "fixed"),
+        "height_mm": (HEIGHT_MM, "fixed"),
+        "thickness_mm": (HEIGHT_MM, "extrusion along z"),
+    }
+    assert list(named) == list(want)
+    for name, (value, group) in want.items():  # the sheet keeps 16 significant digits
+        assert named[name] == (pytest.approx(value, rel=1e-15), group), name
+    (volume,) = [line.split() for line in read.stdout.splitlines() if line.startswith("VOLUME ")]
+    assert float(volume[1]) == pytest.approx(exported, rel=1e-9) and volume[2] == "True"
+    # a changed dimension: FreeCAD's Python has no flexopt to draw it, so no part is written
+    text = (folder / "best_cad.py").read_text()
+    (folder / "edited.py").write_text(text.replace("'hole_mm': 2.0,", "'hole_mm': 3.0,", 1))
+    done = subprocess.run(
+        [freecad, "edited.py"], cwd=folder, capture_output=True, text=True, timeout=300
+    )
+    assert "changed dimensions need flexopt" in done.stdout + done.stderr
+    assert not (folder / "edited.step").exists()
+
+
 # ---- flexopt export --format cad|3mf|sheet -------------------------------------------------
 
 
@@ -418,3 +534,55 @@ def test_the_script_outline_is_the_exported_one(name):
     drawn = Polygon(rings[0], rings[1:])
     assert thickness == part.thickness_mm
     assert drawn.symmetric_difference(part.outline).area <= 1e-9 * part.outline.area
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
+def test_a_mechanism_script_rebuilds_best_step_in_seconds_without_a_solve(tmp_path):
+    """A mechanism's outline comes from a solve (its fidelity check re-solves the width); the
+    unedited script builds best.step's solid from the outline it keeps, run by Python with
+    flexopt's outline drawing switched off (it would exit), in seconds."""
+    pytest.importorskip("build123d", reason="the CAD script needs the step extra")
+    import resource
+
+    import build123d as bd
+    from flexopt.pipeline.cad_script import cad_script
+    from flexopt.pipeline.problems import nominal_design
+    from flexopt.pipeline.run import build_problem, part_bytes, part_of
+    from flexopt.pipeline.study import load_study
+
+    study = load_study("parallel-guide-stop")
+    assert study.kind == "mechanism"
+    problem = build_problem(study)
+    x = nominal_design(problem, study)
+    part = part_of(problem.detail(x), "design")
+    (tmp_path / "best.step").write_bytes(part_bytes(part, "step"))
+    (tmp_path / "best_cad.py").write_text(cad_script(study, problem, x, part))
+    blocked = (
+        "import runpy, sys, flexopt.pipeline.cad_script as c\n"
+        "def refuse(*a, **k):\n    sys.exit('the script drew the outline again')\n"
+        "c.outline_of = refuse\n"
+        "runpy.run_path('best_cad.py', run_name='__main__')\n"
+    )
+    # the child's CPU time, not the wall clock: the machine may be loaded
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done = subprocess.run(
+        [sys.executable, "-c", blocked], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    assert done.returncode == 0, done.stderr
+    assert cpu_s < 10.0, cpu_s  # ~4 s: Python, flexopt's and build123d's imports, the STEP
+    exported = bd.import_step(str(tmp_path / "best.step")).volume
+    rebuilt = bd.import_step(str(tmp_path / "best_cad.step")).volume
+    assert rebuilt == pytest.approx(exported, rel=1e-9)
+    assert exported == pytest.approx(part.outline.area * part.thickness_mm, rel=1e-6)
+    # a changed dimension reaches the refusal: the outline is drawn again, not the old one kept
+    text = (tmp_path / "best_cad.py").read_text()
+    (tmp_path / "best_cad.py").write_text(
+        text.replace("'pad_length_mm': 6.0,", "'pad_length_mm': 7.0,", 1)
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", blocked], cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode != 0 and "drew the outline again" in done.stderr

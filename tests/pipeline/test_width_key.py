@@ -23,6 +23,15 @@ CASES = [
     ("leaf-spring-joint", {}, "geometry.width_mm", ("deflection_deg", "torque_Nm_sliding_l28")),
     # ST a variable, no 3D check: plane stress only (its torque is proportional to ST)
     ("sea-spring-quick", SEARCH, "design.ST", ("rotation_deg", "torque_Nm")),
+    # mechanism: a written width, no 3D check judging (stops skip the check; solid: never keeps
+    # plane stress); the guide is driven to -6 mm (the measured curve on the negative side)
+    ("parallel-guide-stop", {}, "geometry.width_mm", ("drive_mm", "force_N")),
+    (
+        "constant-force-mechanism",
+        {"fidelity.solid": "never"},
+        "geometry.width_mm",
+        ("drive_mm", "force_N"),
+    ),
 ]
 FORCE_LIKE = re.compile(r"force|torque|moment|stiffness")
 
@@ -89,8 +98,9 @@ def test_doubling_the_width_doubles_every_force(tmp_path, example, changes, key,
 
 def test_no_width_key_where_the_thickness_is_solved_or_judged_in_3d(tmp_path):
     """sea_spring declares ``design.ST`` only with ``thickness: search`` and no 3D check;
-    threshold_spring (ST solved from the torque target), gripper, cam and mechanism none
-    (docs/print_to_part.md, section 4); retrim then asks for ``--key``."""
+    threshold_spring (ST solved from the torque target), gripper and cam none; mechanism only
+    with a written width that reaches every beam and no 3D check judging (docs/print_to_part.md,
+    section 4); retrim then asks for ``--key``."""
     from flexopt.optimise.calibration import CalibrationError
     from flexopt.pipeline.print_to_part import retrim_run
     from flexopt.pipeline.study import load_study, resolve_study_path
@@ -99,8 +109,25 @@ def test_no_width_key_where_the_thickness_is_solved_or_judged_in_3d(tmp_path):
     assert width_key_of(quick) is None  # thickness: solve
     assert width_key_of(quick.with_values({"thickness": "search"})) == "design.ST"
     assert width_key_of(quick.with_values({"thickness": "search", "solid_3d.check": True})) is None
-    for example in ("threshold-spring", "gripper", "threshold-cam", "parallel-guide"):
+    for example in ("threshold-spring", "gripper", "threshold-cam"):
         assert width_key_of(load_study(resolve_study_path(example))) is None, example
+    # mechanism: a solved width (parallel-guide, bistable-switch), the 3D check that may judge
+    # (solid: auto, the default: constant-force-mechanism, gripper-amplifier), a beam's own width
+    for example in ("parallel-guide", "bistable-switch"):
+        mech = load_study(resolve_study_path(example))
+        assert mech.solve_width_from is not None and width_key_of(mech) is None, example
+        unsolved = mech.with_values({"solve_width_from": None, "fidelity.solid": "never"})
+        assert width_key_of(unsolved) == "geometry.width_mm", example
+    for example in ("constant-force-mechanism", "gripper-amplifier"):
+        mech = load_study(resolve_study_path(example))
+        assert mech.fidelity.solid == "auto" and width_key_of(mech) is None, example
+        for off in ({"fidelity.solid": "never"}, {"fidelity.enabled": False}):
+            assert width_key_of(mech.with_values(off)) == "geometry.width_mm", (example, off)
+        assert width_key_of(mech.with_values({"fidelity.solid": "always"})) is None
+    guide = load_study(resolve_study_path("parallel-guide-stop"))
+    assert width_key_of(guide) == "geometry.width_mm"  # stops: the check is skipped
+    own = guide.with_values({"geometry.beams.upper.width_mm": 5.0})
+    assert width_key_of(own) is None
     # an evaluate folder of a kind without one: retrim names --key
     import flexopt
 
