@@ -56,8 +56,14 @@ from flexopt.fea.constrained_beams import (
 )
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
-from flexopt.fea.stops import BeamContact, ContactResponse, ContactSettings, RigidStop, overlaps
-from flexopt.fea.stops import contact_rows as _contact_rows
+from flexopt.fea.stops import (
+    BeamContact,
+    ContactResponse,
+    ContactSettings,
+    RigidStop,
+    contact_over_beams,
+    overlaps,
+)
 from flexopt.geometry.profile import BeamProfile
 from scipy.sparse.linalg import splu
 
@@ -1326,34 +1332,11 @@ def _trace(
 def _contact(
     md: _Model, shapes: list[np.ndarray], drive: np.ndarray, converged: np.ndarray
 ) -> ContactResponse:
-    """The stops' forces, gaps and contact points at every converged row, over all beams:
-    per stop the resultant of its forces on the beams (N), the smallest gap (mm), the
-    force-weighted contact point (mm); ``shapes`` per beam (rows, nodes, 2) mm, ``drive``
+    """The stops' forces, gaps and contact points at every converged row, over all beams
+    (:func:`fea.stops.contact_over_beams`); ``shapes`` per beam (rows, nodes, 2) mm, ``drive``
     (rows,) the drive values."""
     assert md.contacts is not None
-    rows, nb, ns = drive.shape[0], len(md.contacts), len(md.mech.stops)
-    force = np.full((rows, ns, 2), np.nan)
-    by_beam = np.full((rows, nb, ns), np.nan)
-    gap = np.full((rows, ns), np.nan)
-    touch = np.zeros((rows, ns), dtype=bool)
-    point = np.full((rows, ns, 2), np.nan)
-    for k in np.flatnonzero(converged):
-        f_sum, g_min, w_sum, p_sum = np.zeros((ns, 2)), np.full(ns, np.inf), np.zeros(ns), 0.0
-        for i, c in enumerate(md.contacts):
-            f, g, t, pt = c.state(shapes[i][k])
-            w = np.hypot(f[:, 0], f[:, 1]) * t
-            by_beam[k, i] = np.hypot(f[:, 0], f[:, 1])
-            f_sum, g_min, w_sum = f_sum + f, np.minimum(g_min, g), w_sum + w
-            p_sum = p_sum + np.where(t[:, None], pt, 0.0) * w[:, None]
-        force[k], gap[k], touch[k] = f_sum, g_min, w_sum > 0.0
-        point[k] = np.where(
-            touch[k][:, None], p_sum / np.where(touch[k], w_sum, 1.0)[:, None], np.nan
-        )
-    tolerance = min(c.tolerance_mm for c in md.contacts)
-    penalty = np.concatenate([c.k_elements for c in md.contacts])
-    out = _contact_rows(md.contacts[0].names, force, gap, touch, point, drive, tolerance, penalty)
-    out.extra["force_by_beam_N"] = by_beam
-    return out
+    return contact_over_beams(md.contacts, shapes, drive, converged)
 
 
 def _critical_mode(

@@ -60,6 +60,7 @@ __all__ = [
     "ContactResponse",
     "BeamContact",
     "contact_rows",
+    "contact_over_beams",
     "overlaps",
     "solve_with_stops",
 ]
@@ -552,6 +553,46 @@ def contact_rows(
         message=message,
         extra={"tolerance_mm": tolerance_mm},
     )
+
+
+def contact_over_beams(
+    contacts: list[BeamContact] | tuple[BeamContact, ...],
+    shapes: list[np.ndarray] | tuple[np.ndarray, ...],
+    driven: np.ndarray,
+    converged: np.ndarray,
+) -> ContactResponse:
+    """The :class:`ContactResponse` of several beams against the same stops (a mechanism, a
+    flexure pivot's members): per stop and converged row the resultant of its forces on all the
+    beams (N), the smallest gap over the beams (mm) and the force-weighted contact point (mm).
+
+    ``contacts`` one :class:`BeamContact` per beam (same stops, same order); ``shapes`` per
+    beam (rows, n_nodes_i, 2) mm, the deformed nodes; ``driven`` (rows,) the driven value of
+    each row (mm, rad, N or N mm); ``converged`` (rows,) bool. ``extra["force_by_beam_N"]``
+    (rows, n_beams, n_stops) N is each beam's share.
+    """
+    rows, nb, ns = driven.shape[0], len(contacts), len(contacts[0].stops)
+    force = np.full((rows, ns, 2), np.nan)
+    by_beam = np.full((rows, nb, ns), np.nan)
+    gap = np.full((rows, ns), np.nan)
+    touch = np.zeros((rows, ns), dtype=bool)
+    point = np.full((rows, ns, 2), np.nan)
+    for k in np.flatnonzero(converged):
+        f_sum, g_min, w_sum, p_sum = np.zeros((ns, 2)), np.full(ns, np.inf), np.zeros(ns), 0.0
+        for i, c in enumerate(contacts):
+            f, g, t, pt = c.state(shapes[i][k])
+            w = np.hypot(f[:, 0], f[:, 1]) * t
+            by_beam[k, i] = np.hypot(f[:, 0], f[:, 1])
+            f_sum, g_min, w_sum = f_sum + f, np.minimum(g_min, g), w_sum + w
+            p_sum = p_sum + np.where(t[:, None], pt, 0.0) * w[:, None]
+        force[k], gap[k], touch[k] = f_sum, g_min, w_sum > 0.0
+        point[k] = np.where(
+            touch[k][:, None], p_sum / np.where(touch[k], w_sum, 1.0)[:, None], np.nan
+        )
+    tolerance = min(c.tolerance_mm for c in contacts)
+    penalty = np.concatenate([c.k_elements for c in contacts])
+    out = contact_rows(contacts[0].names, force, gap, touch, point, driven, tolerance, penalty)
+    out.extra["force_by_beam_N"] = by_beam
+    return out
 
 
 def overlaps(contact: BeamContact) -> list[tuple[int, float]]:
