@@ -38,6 +38,10 @@ element). Every converged row is checked: its largest penetration must stay belo
 it again with a 10x stiffer penalty (``max_raises`` times at most) and flags one still beyond it
 (``ContactResponse.penetration_ok``, ``message``).
 
+A stop's point or corner exactly on the undeformed centreline overlaps the beam by t/2: it is
+refused by name like any other overlap (:func:`overlaps`; the distance's kink there has no
+normal, handled in ``_phi``).
+
 Limits: frictionless; rigid stops that do not move; node-to-segment pairs (a face is resolved at
 the beam's nodes, a vertex anywhere along the beam); a thin wall (open polyline) must not be
 crossed by the centreline inside one increment (the penetration would exceed t/2 there). Not
@@ -660,11 +664,17 @@ def _phi(v, xe, xi, r0, r1):
     n, dn, ddn = _p2(xi)
     c = v - n @ xe
     d = float(np.hypot(*c))
-    nv = c / d
     x1 = dn @ xe
     x2 = ddn @ xe
     dr = r1 - r0
     phi = d - (r0 + dr * xi)
+    if d == 0.0:
+        # v on the centreline itself (a stop's corner placed exactly on the undeformed beam):
+        # the distance has a kink there, no normal; the gap -r is all the overlap check
+        # needs. The left normal stands in for n, and phi_xixi = inf stops the taper's Newton.
+        nv = np.array([-x1[1], x1[0]]) / max(float(np.hypot(*x1)), 1e-300)
+        return phi, -float(nv @ x1) - dr, np.inf, nv, d, x1
+    nv = c / d
     phi_xi = -float(nv @ x1) - dr
     phi_xixi = float(x1 @ x1 - (nv @ x1) ** 2) / d - float(nv @ x2)
     return phi, phi_xi, phi_xixi, nv, d, x1
@@ -720,8 +730,13 @@ def _vertex_derivatives(v, xe, xi, r0, r1) -> tuple[np.ndarray, np.ndarray]:
     phi, _, phi_xixi, nv, d, x1 = _phi(v, xe, xi, r0, r1)
     grad = -np.kron(n, nv)  # d phi / d x_a = -N_a n
     proj = np.eye(2) - np.outer(nv, nv)
+    if d == 0.0:
+        # v on the centreline: the gap is not differentiable there (see _phi); its gradient
+        # along the stand-in normal, no curvature term (a pair t/2 deep, far beyond the
+        # penetration tolerance: the path is flagged, and at the start refused by overlaps)
+        return grad, np.zeros((6, 6))
     hess = np.kron(np.outer(n, n), proj) / d
-    if 0.0 < xi < 1.0 and phi_xixi > 0.0:
+    if 0.0 < xi < 1.0 and np.isfinite(phi_xixi) and phi_xixi > 0.0:
         # d phi_xi / d x_a = N_a (I - n n^T) x' / d - N_a' n
         cross = np.kron(n, proj @ x1 / d) - np.kron(dn, nv)
         hess = hess - np.outer(cross, cross) / phi_xixi
