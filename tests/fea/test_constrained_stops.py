@@ -219,3 +219,27 @@ def test_cantilever_pressed_on_a_flat_stop_at_large_deflection_is_the_elastica()
         np.testing.assert_allclose(c.point_mm[k, 0], corner, atol=1e-12)
     assert s_c - corner[0] > 0.5  # the contact slid along the beam: large deflection
     assert drive[-1] / L == 0.4 and c.penetration_ok
+
+
+# ---------------------------------------------------------------------------- the leaf joint
+
+
+def test_sliding_leaf_joint_on_a_stop_is_the_propped_cantilever():
+    """fea.leaf_joint.sliding_response with a pin over the leaf's middle: in small deflection
+    the leaf is a cantilever whose tip is moved l_j sin(theta) across it, tip slope free, so the
+    arm's force and the pin's are the propped cantilever's (to O(theta^2), 4e-6 here)."""
+    from flexopt.fea.leaf_joint import sliding_response
+    from flexopt.geometry.leaf_joint import LeafJoint
+
+    joint = LeafJoint(arm_mm=150.0, effective_length_mm=L, thickness_mm=T, width_mm=B,
+                      n_leaves=2, structure="sliding", clamp_mm=10.0, overhang_mm=30.0)  # fmt: skip
+    g0, a = 0.02, L / 2
+    pin = RigidStop.point((a, T / 2 + g0), "pin")  # above: the leaf bends up (+y) for theta > 0
+    res = sliding_response(joint, MAT, 2e-3, steps=8, n_elements=20, stops=(pin,))
+    assert res.ok, res.message
+    exact = np.array([propped(150.0 * np.sin(th), a, g0) for th in res.deflection_rad])
+    np.testing.assert_allclose(res.leaf_force_N, exact[:, 0], rtol=1e-4, atol=1e-12)
+    np.testing.assert_allclose(res.contact.force_N[:, 0], exact[:, 1], rtol=1e-4, atol=1e-12)
+    closing = np.arcsin(exact[0, 2] / 150.0)  # the deflection at which the pin closes, rad
+    assert res.contact.closing_value[0] == pytest.approx(closing, rel=1e-3)
+    assert res.contact.in_contact[-1, 0] and not res.contact.in_contact[1, 0]
