@@ -497,10 +497,19 @@ def joint_response(
     steps: int = 20,
     n_elements: int = 40,
     deflections_rad: np.ndarray | None = None,
+    **stops: Any,
 ) -> JointResponse:
-    """The response of ``joint.structure``: :func:`sliding_response` or :func:`fixed_response`."""
-    fn = sliding_response if joint.structure == "sliding" else fixed_response
-    return fn(joint, material, max_rad, steps, n_elements, deflections_rad)
+    """The response of ``joint.structure``: :func:`sliding_response` or :func:`fixed_response`.
+    ``stops``: ``stops=`` and ``contact=`` of :func:`sliding_response` (rigid stops), if any;
+    the fixed structure has none (its leaf is traced once and scaled to each loaded length, which
+    a stop at a fixed place would not follow): FeaError."""
+    if joint.structure == "sliding":
+        return sliding_response(
+            joint, material, max_rad, steps, n_elements, deflections_rad, **stops
+        )
+    if stops.get("stops"):
+        raise FeaError("rigid stops are modelled for the sliding structure only, not 'fixed'")
+    return fixed_response(joint, material, max_rad, steps, n_elements, deflections_rad)
 
 
 def joint_elastic_limit(
@@ -509,6 +518,7 @@ def joint_elastic_limit(
     allowable_MPa: float,
     n_elements: int = 40,
     steps: int = 15,
+    **stops: Any,
 ) -> tuple[float | None, JointResponse]:
     """The deflection at which the leaf stress reaches ``allowable_MPa``, rad, and the trace.
 
@@ -522,7 +532,7 @@ def joint_elastic_limit(
     top = min(1.5 * estimate, math.radians(85.0))
     if joint.structure == "sliding":
         top = min(top, 0.999 * joint.max_sliding_deflection_rad())
-    resp = joint_response(joint, material, top, steps, n_elements)
+    resp = joint_response(joint, material, top, steps, n_elements, **stops)
     ok = resp.converged
     return elastic_limit_rad(resp.deflection_rad[ok], resp.peak_stress_MPa[ok], allowable_MPa), resp
 
@@ -548,13 +558,15 @@ def curve_summary(
     material: Material,
     allowable_MPa: float,
     n_elements: int,
+    **stops: Any,
 ) -> dict[str, Any]:
     """Scalars of one torque-deflection curve: small-deflection stiffness (closed form and FE),
-    the elastic limit (traced on its own, whatever range ``resp`` covers) with the torque and
-    stiffness there, and the state at the last converged row of ``resp``."""
+    the elastic limit (traced on its own, whatever range ``resp`` covers, with the same
+    ``stops`` as ``resp``) with the torque and stiffness there, and the state at the last
+    converged row of ``resp``."""
     a = resp.deflection_rad
     ok = resp.converged
-    limit, trace = joint_elastic_limit(joint, material, allowable_MPa, n_elements)
+    limit, trace = joint_elastic_limit(joint, material, allowable_MPa, n_elements, **stops)
     out: dict[str, Any] = {
         "linear_stiffness_Nm_per_rad": resp.linear_stiffness_Nmm_per_rad / 1000.0,
         "fe_initial_stiffness_Nm_per_rad": float(resp.stiffness_Nmm_per_rad[0]) / 1000.0,

@@ -201,8 +201,8 @@ def _hold(result: Any) -> dict[str, Any]:
 def _contact(study: Any, result: Any) -> dict[str, Any]:
     summary = getattr(result, "summary", None) or {}
     names = [str(s.name) for s in study.stops.outlines]
-    # the driven value's unit: a beam's force or displacement, a flexure pivot's rotation
-    units = ("force_N", "rotation_deg")
+    # the driven value's unit: a beam's force or displacement, a pivot's or leaf joint's angle
+    units = ("force_N", "rotation_deg", "deflection_deg")
     unit = next((u for u in units if f"first_contact_{u}" in summary), "displacement_mm")
     stops = [
         {

@@ -44,6 +44,7 @@ __all__ = [
     "PLANE_STRESS_NOTE",
     "check",
     "columns",
+    "contact_figures",
     "headline",
     "overlap",
     "quantities",
@@ -159,6 +160,14 @@ def summary(study: Any, response: Any) -> dict[str, Any]:
     contact = getattr(response, "contact", None)
     if study.stops is None or contact is None:
         return {}
+    return contact_figures(response, "rotation_deg")
+
+
+def contact_figures(response: Any, unit: str) -> dict[str, Any]:
+    """The stop figures (see the module) of a response with ``converged`` (rows,) and
+    ``contact`` (fea.stops.ContactResponse, closing values in rad), the first contact named
+    ``first_contact_<unit>`` in deg (a pivot's rotation, a leaf joint's deflection)."""
+    contact = response.contact
     ok = np.asarray(response.converged, dtype=bool)
     closing = np.degrees(np.asarray(contact.closing_value, dtype=float))
     out: dict[str, Any] = {}
@@ -166,14 +175,13 @@ def summary(study: Any, response: Any) -> dict[str, Any]:
         force = np.asarray(contact.force_N[ok, j], dtype=float)
         gap = np.asarray(contact.gap_mm[ok, j], dtype=float)
         first = float(closing[j])
-        out[f"{name}_first_contact_rotation_deg"] = first if math.isfinite(first) else None
+        out[f"{name}_first_contact_{unit}"] = first if math.isfinite(first) else None
         out[f"{name}_max_contact_force_N"] = float(force.max()) if force.size else None
         out[f"{name}_min_gap_mm"] = float(np.nanmin(gap)) if np.isfinite(gap).any() else None
     finite = closing[np.isfinite(closing)]
     # the first stop to close along the rotation: the smallest |angle| (rows run away from 0)
-    out["first_contact_rotation_deg"] = (
-        float(finite[np.argmin(np.abs(finite))]) if finite.size else None
-    )
+    first_any = float(finite[np.argmin(np.abs(finite))]) if finite.size else None
+    out[f"first_contact_{unit}"] = first_any
     forces = np.asarray(contact.force_N, dtype=float)[ok]
     out["max_contact_force_N"] = float(np.nanmax(forces)) if np.isfinite(forces).any() else 0.0
     pen = np.asarray(contact.max_penetration_mm, dtype=float)[ok]
