@@ -44,7 +44,16 @@ from flexopt.pipeline.studies._pivot_stops import PENETRATION_ROW, contact_figur
 from flexopt.pipeline.studies._stops import PenetrationWithin
 from pydantic import Field
 
-__all__ = ["FIELD", "check", "columns", "quantities", "requirements", "solve_args", "summary"]
+__all__ = [
+    "FIELD",
+    "check",
+    "columns",
+    "overlap",
+    "quantities",
+    "requirements",
+    "solve_args",
+    "summary",
+]
 
 #: the study's ``stops:`` field (pipeline.studies.leaf_spring_joint.LeafSpringJointStudy)
 FIELD: Any = Field(
@@ -96,21 +105,33 @@ def check(study: Any, joints: Mapping[int, Any]) -> None:
             "traced once and scaled to each loaded length, which a fixed stop would not "
             "follow); remove 'fixed' from geometry.structures and target.structure",
         )
-    material = study.material.to_material()
     for i, joint in joints.items():
-        stops = _stops(study, joint)
-        model = BeamModel(
-            joint.leaf_profile(),
-            material,
-            settings=BeamSettings(n_elements=study.geometry.elements),
-        )
-        for j, depth in overlaps(BeamContact(model, stops)):
+        found = _overlap(study, joint)
+        if found is not None:
             raise StudyError(
-                f"stops.outlines[{j}]",
-                f"stop '{stops[j].name}' overlaps the undeformed leaf by {depth:.4g} mm at "
-                f"geometry.effective_lengths_mm[{i}] = {joint.effective_length_mm:g} mm (the "
-                "leaf's surface is t/2 from its centreline); move it clear",
+                f"stops.outlines[{found[0]}]",
+                f"{found[1]} at geometry.effective_lengths_mm[{i}] = "
+                f"{joint.effective_length_mm:g} mm (the leaf's surface is t/2 from its "
+                "centreline); move it clear",
             )
+
+
+def _overlap(study: Any, joint: Any) -> tuple[int, str] | None:
+    stops = _stops(study, joint)
+    if not stops:
+        return None
+    settings = BeamSettings(n_elements=study.geometry.elements)
+    model = BeamModel(joint.leaf_profile(), study.material.to_material(), settings=settings)
+    for j, depth in overlaps(BeamContact(model, stops)):
+        return j, f"stop '{stops[j].name}' overlaps the undeformed leaf by {depth:.4g} mm"
+    return None
+
+
+def overlap(study: Any, joint: Any) -> str:
+    """Why ``joint``'s undeformed leaf overlaps a stop ("" when clear or without stops): a
+    design mode's joint at its softest setting, which the GA's solve does not trace."""
+    found = _overlap(study, joint)
+    return "" if found is None else f"{found[1]} at l = {joint.effective_length_mm:.4g} mm"
 
 
 def columns(study: Any, curve: str, response: Any) -> dict[str, np.ndarray]:

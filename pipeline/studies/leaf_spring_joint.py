@@ -492,6 +492,8 @@ class LeafJointProblem(DesignProblem):
             return Evaluation.failed(
                 x, 1, 3, f"beam model: {resp.message}", time.perf_counter() - t0, metrics
             )
+        if why := leaf_stops.overlap(self.study, self.joint(x, l_max)):  # the soft setting's
+            return Evaluation.failed(x, 1, 3, why, time.perf_counter() - t0, metrics)
         sigma = float(np.max(resp.peak_stress_MPa))
         ratio, g = leaf_joint_objective(sigma, self.allowable_MPa, g_len, g_hub)
         metrics |= {
