@@ -37,6 +37,17 @@ reference (numpy) builds scipy sparse matrices and solves with SuperLU. Same dec
 equal to round-off (tests/fea/test_constrained_kernels.py); where the bordering cannot take a
 system (a beam no local constraint holds) the compiled path runs the reference for that sub-step.
 
+Rigid stops (``stops=``, issue 25): frictionless penalty contact of every beam with rigid
+outlines fixed to the ground, the pair search, penalty energy and exact Hessian of
+:mod:`fea.stops` (one :class:`~fea.stops.BeamContact` per beam) added to every assembly, so the
+contact forces enter ``r`` and their tangent ``K`` above; ``C`` is unchanged (the stops are not
+constraints). The reference loop runs (the contact terms are Python), and a correction that
+changes the set of acting pairs is halved while it raises the residual (as in fea.mechanism).
+A path that penetrates a stop deeper than ``ContactSettings.penetration_tol`` x the thinnest
+section is traced again with a 10x stiffer penalty (at most ``max_raises`` times);
+``ConstrainedResponse.contact`` holds the forces, gaps and the path parameter at which each
+stop closes. Without stops nothing of this runs (same code, same numbers).
+
 Failure to converge is data (``converged`` flags, ``ok``, ``message``), never raised.
 """
 
@@ -44,7 +55,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 from types import ModuleType
 from typing import Literal
@@ -53,6 +64,14 @@ import numpy as np
 import scipy.sparse as sp
 from flexopt.fea.beam import BeamModel, resolve_kernel
 from flexopt.fea.errors import FeaError
+from flexopt.fea.stops import (
+    BeamContact,
+    ContactResponse,
+    ContactSettings,
+    RigidStop,
+    contact_over_beams,
+    overlaps,
+)
 from scipy.linalg.lapack import dsytrf
 from scipy.sparse.linalg import splu
 from threadpoolctl import threadpool_limits
@@ -165,6 +184,12 @@ class ConstrainedResponse:
     ok : bool — every row converged.
     message : str — why not, when not ok.
     offsets : (B + 1,) int — beam i owns z[offsets[i]:offsets[i + 1]]; extra unknowns follow.
+    contact : fea.stops.ContactResponse, or None — with stops: per row and stop the resultant
+        force on the beams (N), the smallest gap (mm), in contact, the contact point (mm) and
+        the path parameter at which each gap closes (``closing_value``, in p's unit);
+        ``extra["force_by_beam_N"]`` each beam's share, ``extra["penalty_factor"]`` and
+        ``extra["raises"]`` the penalty used. The stops' forces are in ``internal`` at the
+        nodes they push on (a reaction read at such a node includes them). None without stops.
     """
 
     params: np.ndarray
@@ -180,6 +205,7 @@ class ConstrainedResponse:
     message: str = ""
     offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=int))
     stable: np.ndarray | None = None
+    contact: ContactResponse | None = None
 
     @property
     def unstable(self) -> bool:
@@ -231,11 +257,18 @@ class ConstrainedBeams:
         derivative with respect to z, non-zero for loads that follow the deformation (a
         follower force). Default none.
     settings : ConstrainedSettings
+    stops : sequence of fea.stops.RigidStop, optional
+        Rigid outlines fixed to the ground that every beam meets (frictionless penalty contact,
+        see the module). Default none: the solver without contact, exactly.
+    contact : fea.stops.ContactSettings, optional
+        The penalty of the stops (default ``ContactSettings()``: factor 1e3 on each element's
+        own ``EI / h^3``).
 
     Raises
     ------
     FeaError
-        When the constraint function returns arrays of the wrong shape.
+        When the constraint function returns arrays of the wrong shape; when a stop overlaps an
+        undeformed beam deeper than the penetration tolerance (the stop and the beam named).
     """
 
     def __init__(
@@ -245,6 +278,8 @@ class ConstrainedBeams:
         constraints: ConstraintFunction,
         loads: LoadFunction | None = None,
         settings: ConstrainedSettings = ConstrainedSettings(),
+        stops: Sequence[RigidStop] = (),
+        contact: ContactSettings | None = None,
     ) -> None:
         if not beams:
             raise FeaError("ConstrainedBeams needs at least one beam")
@@ -276,6 +311,20 @@ class ConstrainedBeams:
         self.kernel = resolve_constrained_kernel(settings.kernel)
         if any(b.kernel != "numba" for b in self.beams):
             self.kernel = "numpy"
+        self.stops = tuple(stops)
+        self.contact_settings = contact if contact is not None else ContactSettings()
+        #: the contact terms of each beam against the stops (None without stops)
+        self.contacts: list[BeamContact] | None = None
+        if self.stops:
+            self.kernel = "numpy"  # the contact terms are Python: the reference loop runs
+            self.contacts = self._contacts(self.contact_settings)
+            for i, c in enumerate(self.contacts):
+                for j, depth in overlaps(c):
+                    raise FeaError(
+                        f"stop {c.names[j]!r} overlaps the undeformed beam {i} by {depth:.4g} "
+                        "mm; move it clear (the gap is measured from the beam's surface, t/2 "
+                        "from the centreline)"
+                    )
         if self.kernel == "numba":
             self._setup_compiled()
 
@@ -296,6 +345,13 @@ class ConstrainedBeams:
         self._fpar = np.array(
             [st.rtol, st.ctol, st.dtol, st.max_rotation_step, self._length, self._force_floor]
         )
+
+    def _contacts(self, settings: ContactSettings) -> list[BeamContact]:
+        return [BeamContact(b, self.stops, settings) for b in self.beams]
+
+    def _active(self) -> tuple:
+        """The contact pairs acting in the last assembly, per beam (() without stops)."""
+        return () if self.contacts is None else tuple(c.active for c in self.contacts)
 
     # ---- helpers for building constraints --------------------------------------------------
 
@@ -332,7 +388,8 @@ class ConstrainedBeams:
         vals = []
         for i, beam in enumerate(self.beams):
             a, b = self.offsets[i], self.offsets[i + 1]
-            ri, ab = beam.assemble(z[a:b], self._frame)
+            contact = None if self.contacts is None else self.contacts[i]
+            ri, ab = beam.assemble(z[a:b], self._frame, contact)
             r[a:b] = ri
             vals.append(ab[BAND:][self._band_src[i]])
         K = sp.coo_matrix(
@@ -379,10 +436,14 @@ class ConstrainedBeams:
             big = np.abs(dz[self._rot]).max(initial=0.0) / st.max_rotation_step
             if big > 1.0:
                 dz, dlam = dz / big, dlam / big
+            active = self._active()  # of the assembly at the state before the correction
+            norm = float(np.linalg.norm(res))
             z = z + dz
             lam = lam + dlam
             r, K = self._assemble(z)
             f, Kf = self._loads(p, z)
+            if self.contacts is not None and self._active() != active:
+                z, lam, r, K, f, Kf = self._backtrack(z, lam, dz, dlam, norm, C, p, r, K, f, Kf)
             if not np.all(np.isfinite(r)):
                 return False, z0, lam0, r, it, "the internal force became NaN or inf"
             res = r - f - C.T @ lam
@@ -402,6 +463,20 @@ class ConstrainedBeams:
             st.max_iterations,
             (f"Newton did not converge in {st.max_iterations} iterations"),
         )
+
+    def _backtrack(self, z, lam, dz, dlam, norm, C, p, r, K, f, Kf):
+        """Halve a Newton correction that changed the set of acting contact pairs while it
+        raises the equilibrium residual above ``norm`` (N), at most 8 times (as
+        fea.mechanism's: a pair that switches off between two iterates drops the stop's force,
+        and the next full correction falls deep into the stop; plain Newton can then cycle)."""
+        for _ in range(8):
+            if np.all(np.isfinite(r)) and float(np.linalg.norm(r - f - C.T @ lam)) <= norm:
+                break
+            dz, dlam = 0.5 * dz, 0.5 * dlam
+            z, lam = z - dz, lam - dlam
+            r, K = self._assemble(z)
+            f, Kf = self._loads(p, z)
+        return z, lam, r, K, f, Kf
 
     def _newton_compiled(
         self, z0: np.ndarray, lam0: np.ndarray, p: float
@@ -482,6 +557,36 @@ class ConstrainedBeams:
     # ---- tracing -----------------------------------------------------------------------------
 
     def solve(
+        self,
+        params: Sequence[float] | np.ndarray,
+        start: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> ConstrainedResponse:
+        """Trace equilibria at ``params`` (rows): :meth:`trace`, and with stops their contact
+        response (``ConstrainedResponse.contact``), the path traced again with a 10x stiffer
+        penalty where it penetrates a stop deeper than the tolerance (at most
+        ``ContactSettings.max_raises`` times; still beyond it: ``contact.penetration_ok``
+        False and its message appended to ``message``)."""
+        if self.contacts is None:
+            return self.trace(params, start)
+        settings = self.contact_settings
+        for raises in range(int(settings.max_raises) + 1):
+            if raises:
+                settings = replace(settings, penalty_factor=10.0 * settings.penalty_factor)
+                self.contacts = self._contacts(settings)
+            res = self.trace(params, start)
+            contact = contact_over_beams(
+                self.contacts, res.shapes_mm, res.params, np.asarray(res.converged)
+            )
+            if contact.penetration_ok or raises == settings.max_raises:
+                break
+        self.contacts = self._contacts(self.contact_settings)  # the next solve starts afresh
+        contact.extra.update(penalty_factor=settings.penalty_factor, raises=raises)
+        message = res.message
+        if not contact.penetration_ok:
+            message = f"{message}; contact: {contact.message}".lstrip("; ")
+        return replace(res, contact=contact, message=message)
+
+    def trace(
         self,
         params: Sequence[float] | np.ndarray,
         start: tuple[np.ndarray, np.ndarray] | None = None,

@@ -165,6 +165,7 @@ def pivot_at_range(
     n_elements: int,
     beam_model: bool,
     trace_centre_shift: bool,
+    **stops: Any,
 ) -> PivotAtRange:
     """The figures of ``flex`` at ``range_rad`` the optimiser judges it on.
 
@@ -178,6 +179,7 @@ def pivot_at_range(
         forms (notch hinges).
     trace_centre_shift : bool — for a closed-form type, also trace the beam model for the
         centre shift (a beam type always has it).
+    stops : ``stops=`` and ``contact=`` of :func:`fea.pivot.beam_pivot` (rigid stops), if any.
 
     Returns
     -------
@@ -188,7 +190,7 @@ def pivot_at_range(
     if not beam_model:
         shift = math.nan
         if trace_centre_shift:
-            res = beam_pivot(flex, material, range_rad, steps, n_elements=n_elements)
+            res = beam_pivot(flex, material, range_rad, steps, n_elements=n_elements, **stops)
             shift = float(res.centre_shift_mm[-1]) if res.ok else math.inf
         return PivotAtRange(
             "closed form",
@@ -197,7 +199,7 @@ def pivot_at_range(
             float(cf.stress_MPa(range_rad)),
             shift,
         )
-    res = beam_pivot(flex, material, range_rad, steps, n_elements=n_elements)
+    res = beam_pivot(flex, material, range_rad, steps, n_elements=n_elements, **stops)
     if not res.ok:
         return PivotAtRange("beam", cf, failure=f"beam model: {res.message}")
     if res.stable is not None and not res.stable[res.converged].all():

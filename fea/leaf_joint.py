@@ -42,6 +42,7 @@ from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedResponse
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.fea.pivot import tangent_stiffness
+from flexopt.fea.stops import ContactResponse, ContactSettings, RigidStop
 from flexopt.geometry.leaf_joint import LeafJoint
 
 __all__ = [
@@ -81,6 +82,9 @@ class JointResponse:
         stiffness of both structures.
     solve_time_s : float, s.
     extra : dict.
+    contact : fea.stops.ContactResponse or None — sliding structure with rigid stops
+        (``sliding_response(stops=)``): the stops' forces on the leaf (N), gaps (mm) and the
+        deflection (rad) at which each closes; None without stops.
     """
 
     structure: str
@@ -100,6 +104,7 @@ class JointResponse:
     linear_stiffness_Nmm_per_rad: float
     solve_time_s: float
     extra: dict = field(default_factory=dict)
+    contact: ContactResponse | None = None
 
 
 def linear_joint_stiffness_Nmm(joint: LeafJoint, E_MPa: float) -> float:
@@ -158,6 +163,8 @@ def sliding_response(
     steps: int = 20,
     n_elements: int = 40,
     deflections_rad: np.ndarray | None = None,
+    stops: tuple[RigidStop, ...] = (),
+    contact: ContactSettings | None = None,
 ) -> JointResponse:
     """Structure (a): the leaf tip slides in a slot along the arm (force normal to the arm).
 
@@ -171,6 +178,9 @@ def sliding_response(
     deflections_rad : (rows,) float, rad, optional — explicit rows (0 first, increasing) instead
         of max_rad and steps; the stiffness is differentiated on them (second order, uneven rows
         allowed), so two close rows give an accurate stiffness there.
+    stops, contact : rigid stops fixed to the ground (the leaf's frame, joint.leaf_profile) that
+        the leaf meets, and their penalty (:class:`fea.constrained_beams.ConstrainedBeams`;
+        frictionless, inside Newton); the arm does not touch them.
 
     Returns
     -------
@@ -191,7 +201,7 @@ def sliding_response(
         d[row] = lj * math.sin(theta)  # (B0 + u - O) . n = 0 with B0 - O = l_j e_x
         return C, d
 
-    system = ConstrainedBeams([model], 0, constraints)
+    system = ConstrainedBeams([model], 0, constraints, stops=tuple(stops), contact=contact)
     # Past s_mp sin(theta) = l the arm's line no longer comes within l of the support: only a
     # leaf that stretches could follow (the extensible beam would, at absurd force). Those rows
     # are not solved.
@@ -232,6 +242,7 @@ def sliding_response(
         res,
         t0,
         {"newton_iterations": int(res.iterations.sum())},
+        res.contact,
     )
 
 
@@ -424,6 +435,18 @@ def _pad(res: ConstrainedResponse, rows: int) -> ConstrainedResponse:
         converged=grow(res.converged, False),
         stable=None if res.stable is None else grow(res.stable, False),
         ok=False,
+        contact=None
+        if res.contact is None
+        else replace(
+            res.contact,
+            force_N=grow(res.contact.force_N),
+            force_vector_N=grow(res.contact.force_vector_N),
+            gap_mm=grow(res.contact.gap_mm),
+            in_contact=grow(res.contact.in_contact, False),
+            rows_in_contact=grow(res.contact.rows_in_contact, False),
+            point_mm=grow(res.contact.point_mm),
+            max_penetration_mm=grow(res.contact.max_penetration_mm, 0.0),
+        ),
     )
 
 
@@ -443,6 +466,7 @@ def _response(
     res: ConstrainedResponse,
     t0: float,
     extra: dict,
+    contact: ContactResponse | None = None,
 ) -> JointResponse:
     return JointResponse(
         structure=structure,
@@ -462,6 +486,7 @@ def _response(
         linear_stiffness_Nmm_per_rad=linear_joint_stiffness_Nmm(joint, material.E_MPa),
         solve_time_s=time.perf_counter() - t0,
         extra=extra,
+        contact=contact,
     )
 
 
@@ -472,10 +497,19 @@ def joint_response(
     steps: int = 20,
     n_elements: int = 40,
     deflections_rad: np.ndarray | None = None,
+    **stops: Any,
 ) -> JointResponse:
-    """The response of ``joint.structure``: :func:`sliding_response` or :func:`fixed_response`."""
-    fn = sliding_response if joint.structure == "sliding" else fixed_response
-    return fn(joint, material, max_rad, steps, n_elements, deflections_rad)
+    """The response of ``joint.structure``: :func:`sliding_response` or :func:`fixed_response`.
+    ``stops``: ``stops=`` and ``contact=`` of :func:`sliding_response` (rigid stops), if any;
+    the fixed structure has none (its leaf is traced once and scaled to each loaded length, which
+    a stop at a fixed place would not follow): FeaError."""
+    if joint.structure == "sliding":
+        return sliding_response(
+            joint, material, max_rad, steps, n_elements, deflections_rad, **stops
+        )
+    if stops.get("stops"):
+        raise FeaError("rigid stops are modelled for the sliding structure only, not 'fixed'")
+    return fixed_response(joint, material, max_rad, steps, n_elements, deflections_rad)
 
 
 def joint_elastic_limit(
@@ -484,6 +518,7 @@ def joint_elastic_limit(
     allowable_MPa: float,
     n_elements: int = 40,
     steps: int = 15,
+    **stops: Any,
 ) -> tuple[float | None, JointResponse]:
     """The deflection at which the leaf stress reaches ``allowable_MPa``, rad, and the trace.
 
@@ -497,7 +532,7 @@ def joint_elastic_limit(
     top = min(1.5 * estimate, math.radians(85.0))
     if joint.structure == "sliding":
         top = min(top, 0.999 * joint.max_sliding_deflection_rad())
-    resp = joint_response(joint, material, top, steps, n_elements)
+    resp = joint_response(joint, material, top, steps, n_elements, **stops)
     ok = resp.converged
     return elastic_limit_rad(resp.deflection_rad[ok], resp.peak_stress_MPa[ok], allowable_MPa), resp
 
@@ -523,13 +558,15 @@ def curve_summary(
     material: Material,
     allowable_MPa: float,
     n_elements: int,
+    **stops: Any,
 ) -> dict[str, Any]:
     """Scalars of one torque-deflection curve: small-deflection stiffness (closed form and FE),
-    the elastic limit (traced on its own, whatever range ``resp`` covers) with the torque and
-    stiffness there, and the state at the last converged row of ``resp``."""
+    the elastic limit (traced on its own, whatever range ``resp`` covers, with the same
+    ``stops`` as ``resp``) with the torque and stiffness there, and the state at the last
+    converged row of ``resp``."""
     a = resp.deflection_rad
     ok = resp.converged
-    limit, trace = joint_elastic_limit(joint, material, allowable_MPa, n_elements)
+    limit, trace = joint_elastic_limit(joint, material, allowable_MPa, n_elements, **stops)
     out: dict[str, Any] = {
         "linear_stiffness_Nm_per_rad": resp.linear_stiffness_Nmm_per_rad / 1000.0,
         "fe_initial_stiffness_Nm_per_rad": float(resp.stiffness_Nmm_per_rad[0]) / 1000.0,

@@ -56,8 +56,15 @@ from flexopt.fea.constrained_beams import (
 )
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
-from flexopt.fea.stops import BeamContact, ContactResponse, ContactSettings, RigidStop, overlaps
-from flexopt.fea.stops import contact_rows as _contact_rows
+from flexopt.fea.stops import (
+    BeamContact,
+    BeamPairContact,
+    ContactResponse,
+    ContactSettings,
+    RigidStop,
+    contact_over_beams,
+    overlaps,
+)
 from flexopt.geometry.profile import BeamProfile
 from scipy.sparse.linalg import splu
 
@@ -242,6 +249,11 @@ class Mechanism:
         by t/2) is kept clear of them by frictionless penalty contact inside Newton
         (:mod:`fea.stops`; the penalty is ``MechanismSettings.contact``). Bodies do not touch
         them (not modelled). Empty: the solve is the one without contact, exactly.
+    beam_contacts : tuple of (beam name, beam name) — pairs of beams that may touch each other:
+        frictionless penalty contact between them inside Newton (:class:`fea.stops.BeamPairContact`,
+        node-to-curve both ways, the penalty of ``MechanismSettings.contact``), its force and gap
+        in ``MechanismResponse.beam_contact``. Beams of no declared pair pass through each other
+        (the kind's interference check says NOT MET). Empty: no beam-beam contact.
     """
 
     beams: tuple[MechBeam, ...]
@@ -249,6 +261,7 @@ class Mechanism:
     joints: tuple[MechJoint, ...]
     material: Material
     stops: tuple[RigidStop, ...] = ()
+    beam_contacts: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -352,6 +365,10 @@ class MechanismResponse:
         (``closing_value``, in the drive's unit: mm, rad, N or N·mm); the penetration check.
         ``extra["force_by_beam_N"]`` (rows, n_beams, n_stops) N is each beam's share. None
         without stops.
+    beam_contact : dict or None — with ``Mechanism.beam_contacts``: per pair ``"a/b"`` a dict of
+        (rows,) arrays ``force_N`` (the magnitude of the contact's resultant force on beam a,
+        N; b carries the opposite), ``gap_mm`` (the smallest gap between the two surfaces, mm;
+        negative: penetration), ``in_contact`` (bool); NaN where not converged. None without.
     """
 
     case: str
@@ -372,6 +389,7 @@ class MechanismResponse:
     critical_body_mode: np.ndarray | None = None
     reference_nodes_mm: tuple[np.ndarray, ...] = ()
     contact: ContactResponse | None = None
+    beam_contact: dict[str, dict[str, np.ndarray]] | None = None
 
 
 # ==================================================================================== model
@@ -550,6 +568,23 @@ class _Model:
                         f"{depth:.4g} mm; move it clear (the gap is measured from the beam's "
                         "surface, t/2 from the centreline)"
                     )
+        #: declared beam-beam contact pairs: (index of a, index of b, the pair's terms)
+        self.pairs: list[tuple[int, int, BeamPairContact]] = []
+        for a_name, b_name in mech.beam_contacts:
+            ia, ib = (self._beam_of_pair(nm, a_name, b_name) for nm in (a_name, b_name))
+            if ia == ib:
+                raise FeaError(f"beam contact [{a_name}, {b_name}]: a beam with itself")
+            pair = BeamPairContact(self.models[ia], self.models[ib], settings.contact)
+            pair.name = f"{a_name}/{b_name}"
+            _, gap0, _ = pair.state(
+                self.models[ia].reference_nodes_mm, self.models[ib].reference_nodes_mm
+            )
+            if gap0 < -pair.tolerance_mm:
+                raise FeaError(
+                    f"beam contact [{a_name}, {b_name}]: the beams overlap undeformed by "
+                    f"{-gap0:.4g} mm (joined, or crossing); declare only beams that are apart"
+                )
+            self.pairs.append((ia, ib, pair))
 
         self.rows = _Rows()
         self.groups: list[_Group] = []
@@ -758,14 +793,47 @@ class _Model:
             ri, ab = m.assemble(z[a:b], frame, contact)
             r[a:b] = ri
             vals.append(ab[BAND:][self._band_src[i]])
+        if not self.pairs:
+            K = sp.coo_matrix(
+                (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
+            )
+            return r, K
+        rows, cols = [self._k_rows], [self._k_cols]
+        for ia, ib, pair in self.pairs:
+            offs = (int(self.offsets[ia]), int(self.offsets[ib]))
+            xa, xb = (self.node_positions(z, i) for i in (ia, ib))
+            for p in pair.pairs(xa, xb):
+                dofs, k, g = pair.dofs(p, offs), p[6], p[3]
+                np.add.at(r, dofs, k * g * p[4])  # d(1/2 k g^2)/dz, N
+                kt = k * (np.outer(p[4], p[4]) + g * p[5])
+                rows.append(np.repeat(dofs, dofs.size))
+                cols.append(np.tile(dofs, dofs.size))
+                vals.append(kt.ravel())
         K = sp.coo_matrix(
-            (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(self.n, self.n),
         )
         return r, K
 
+    def node_positions(self, z: np.ndarray, i: int) -> np.ndarray:
+        """(n_nodes, 2) mm: the deformed nodes of beam ``i`` at state ``z``."""
+        q = z[self.offsets[i] : self.offsets[i + 1]].reshape(-1, 3)
+        return self.models[i].reference_nodes_mm + q[:, :2]
+
+    def _beam_of_pair(self, name: str, a: str, b: str) -> int:
+        if name not in self.beam_index:
+            raise FeaError(f"beam contact [{a}, {b}]: {name!r} is not a beam of the mechanism")
+        return self.beam_index[name]
+
+    @property
+    def has_contact(self) -> bool:
+        """Stops or declared beam pairs: Python contact terms (the reference loop runs)."""
+        return self.contacts is not None or bool(self.pairs)
+
     def contact_active(self) -> tuple:
         """The contact pairs acting in the last :meth:`assemble`, per beam (() without stops)."""
-        return () if self.contacts is None else tuple(c.active for c in self.contacts)
+        stops = () if self.contacts is None else tuple(c.active for c in self.contacts)
+        return stops + tuple(p.active for _, _, p in self.pairs)
 
     def hessian(self, K: sp.spmatrix, lam: np.ndarray, ro: np.ndarray) -> sp.csr_matrix:
         """Hessian of the Lagrangian, H = K - sum_i lam_i d2g_i/dz2 (N, N)."""
@@ -937,7 +1005,7 @@ class _Solver:
         if kernel == "numba" and (
             _kernels() is None
             or any(m.kernel != "numba" for m in model.models)
-            or model.contacts is not None  # the contact terms are Python: the reference loop
+            or model.has_contact  # the contact terms are Python: the reference loop
         ):
             kernel = "numpy"
         #: "numba" (compiled, fea/_mechanism_kernels.py) or "numpy" (the reference)
@@ -1048,7 +1116,7 @@ class _Solver:
                 dz, dlam = dz / big, dlam / big
             z = z + dz
             lam = lam + dlam
-            if md.contacts is not None:
+            if md.has_contact:
                 z, lam, dz = self._backtrack(z, lam, dz, dlam, norm, f, p)
             if z_pred is None:
                 z_pred = z  # the linearised predictor (first Newton iterate from the last state)
@@ -1320,40 +1388,33 @@ def _trace(
         critical_body_mode=body_mode,
         reference_nodes_mm=tuple(m.reference_nodes_mm.copy() for m in md.models),
         contact=None if md.contacts is None else _contact(md, shapes, targets, converged),
+        beam_contact=_beam_contact(md, shapes, converged) if md.pairs else None,
     )
+
+
+def _beam_contact(
+    md: _Model, shapes: list[np.ndarray], converged: np.ndarray
+) -> dict[str, dict[str, np.ndarray]]:
+    """Per declared pair the force on beam a (N), the smallest gap (mm) and in contact at every
+    converged row (``shapes`` per beam (rows, nodes, 2) mm)."""
+    out = {}
+    rows = converged.shape[0]
+    for ia, ib, pair in md.pairs:
+        force, gap = np.full(rows, np.nan), np.full(rows, np.nan)
+        for k in np.flatnonzero(converged):
+            force[k], gap[k], _ = pair.state(shapes[ia][k], shapes[ib][k])
+        out[pair.name] = {"force_N": force, "gap_mm": gap, "in_contact": force > 0.0}
+    return out
 
 
 def _contact(
     md: _Model, shapes: list[np.ndarray], drive: np.ndarray, converged: np.ndarray
 ) -> ContactResponse:
-    """The stops' forces, gaps and contact points at every converged row, over all beams:
-    per stop the resultant of its forces on the beams (N), the smallest gap (mm), the
-    force-weighted contact point (mm); ``shapes`` per beam (rows, nodes, 2) mm, ``drive``
+    """The stops' forces, gaps and contact points at every converged row, over all beams
+    (:func:`fea.stops.contact_over_beams`); ``shapes`` per beam (rows, nodes, 2) mm, ``drive``
     (rows,) the drive values."""
     assert md.contacts is not None
-    rows, nb, ns = drive.shape[0], len(md.contacts), len(md.mech.stops)
-    force = np.full((rows, ns, 2), np.nan)
-    by_beam = np.full((rows, nb, ns), np.nan)
-    gap = np.full((rows, ns), np.nan)
-    touch = np.zeros((rows, ns), dtype=bool)
-    point = np.full((rows, ns, 2), np.nan)
-    for k in np.flatnonzero(converged):
-        f_sum, g_min, w_sum, p_sum = np.zeros((ns, 2)), np.full(ns, np.inf), np.zeros(ns), 0.0
-        for i, c in enumerate(md.contacts):
-            f, g, t, pt = c.state(shapes[i][k])
-            w = np.hypot(f[:, 0], f[:, 1]) * t
-            by_beam[k, i] = np.hypot(f[:, 0], f[:, 1])
-            f_sum, g_min, w_sum = f_sum + f, np.minimum(g_min, g), w_sum + w
-            p_sum = p_sum + np.where(t[:, None], pt, 0.0) * w[:, None]
-        force[k], gap[k], touch[k] = f_sum, g_min, w_sum > 0.0
-        point[k] = np.where(
-            touch[k][:, None], p_sum / np.where(touch[k], w_sum, 1.0)[:, None], np.nan
-        )
-    tolerance = min(c.tolerance_mm for c in md.contacts)
-    penalty = np.concatenate([c.k_elements for c in md.contacts])
-    out = _contact_rows(md.contacts[0].names, force, gap, touch, point, drive, tolerance, penalty)
-    out.extra["force_by_beam_N"] = by_beam
-    return out
+    return contact_over_beams(md.contacts, shapes, drive, converged)
 
 
 def _critical_mode(
@@ -1458,7 +1519,7 @@ def imperfect_mechanism(
             rel = np.asarray(b.outline_mm, dtype=float) - ref
             outline = rel @ np.array([[c, s], [-s, c]]) + new_ref
         bodies.append(MechBody(b.name, new_ref, outline))
-    return Mechanism(tuple(beams), tuple(bodies), mech.joints, mech.material, mech.stops)
+    return replace(mech, beams=tuple(beams), bodies=tuple(bodies))
 
 
 def _output_readers(md: _Model, outputs: Sequence[MechOutput]) -> dict:

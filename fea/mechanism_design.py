@@ -414,6 +414,9 @@ def interference(
                     joined.add(f"body {to}")
                 discs = shapely.buffer(shapely.points(pts[:, k]), radius, quad_segs=8)
                 free = shapely.difference(free, discs)
+            # a declared contact pair touches by design (modelled): overlap is still checked
+            joined |= {f"beam {b if a == name else a}" for a, b in mech.beam_contacts
+                       if name in (a, b)}  # fmt: skip
             parts.append((f"beam {name}", free, joined))
         for k_body, body in enumerate(mech.bodies):
             if body.outline_mm is None:

@@ -31,6 +31,7 @@ from flexopt.fea.beam import BeamModel, BeamSettings
 from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedSettings
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
+from flexopt.fea.stops import ContactResponse, ContactSettings, RigidStop
 from flexopt.geometry.flexures import Flexure
 
 __all__ = [
@@ -75,6 +76,9 @@ class PivotResponse:
     stable : (rows,) bool or None — beam: the row is a stable equilibrium with the block's
         rotation held (:attr:`fea.constrained_beams.ConstrainedResponse.stable`: False past a
         bifurcation, e.g. a pivot whose members buckle); None for plane stress (not checked).
+    contact : fea.stops.ContactResponse or None — beam model with stops (``beam_pivot(stops=)``):
+        the stops' forces on the members (N), gaps (mm) and the rotation (rad) at which each
+        closes; None without stops.
     """
 
     rotation_rad: np.ndarray
@@ -93,6 +97,7 @@ class PivotResponse:
     solve_time_s: float
     extra: dict = field(default_factory=dict)
     stable: np.ndarray | None = None
+    contact: ContactResponse | None = None
 
 
 def tangent_stiffness(angle_rad: np.ndarray, torque_Nmm: np.ndarray) -> np.ndarray:
@@ -114,7 +119,11 @@ def _rotation(theta: float) -> np.ndarray:
 
 
 def _pivot_system(
-    flexure: Flexure, material: Material, n_elements: int
+    flexure: Flexure,
+    material: Material,
+    n_elements: int,
+    stops: tuple[RigidStop, ...] = (),
+    contact: ContactSettings | None = None,
 ) -> tuple[ConstrainedBeams, list[np.ndarray]]:
     """The beams clamped to the ground, tied to a moving block turned about the nominal centre."""
     profiles = flexure.beams()
@@ -144,7 +153,9 @@ def _pivot_system(
             row += 1
         return C, d
 
-    system = ConstrainedBeams(models, 2, constraints, settings=ConstrainedSettings())
+    system = ConstrainedBeams(
+        models, 2, constraints, settings=ConstrainedSettings(), stops=stops, contact=contact
+    )
     return system, arms
 
 
@@ -165,6 +176,8 @@ def beam_pivot(
     max_rad: float,
     steps: int = 10,
     n_elements: int = 40,
+    stops: tuple[RigidStop, ...] = (),
+    contact: ContactSettings | None = None,
 ) -> PivotResponse:
     """Turn the moving block by ``max_rad`` under a pure moment, traced with the beam model.
 
@@ -176,6 +189,8 @@ def beam_pivot(
     steps : int — rows after row 0, at k max_rad / steps.
     n_elements : int — elements per member (at least one per profile segment). 40 keeps the
         sampled stress within 0.6 % at 1.5 rad (the axial-strain sampling at element ends).
+    stops, contact : rigid stops fixed to the ground that the members meet, and their penalty
+        (:class:`fea.constrained_beams.ConstrainedBeams`); the moving block does not touch them.
 
     Returns
     -------
@@ -186,7 +201,7 @@ def beam_pivot(
     if not np.isfinite(max_rad) or max_rad == 0.0:
         raise FeaError(f"max_rad = {max_rad!r} must be a non-zero angle in radians")
     t0 = time.perf_counter()
-    system, arms = _pivot_system(flexure, material, n_elements)
+    system, arms = _pivot_system(flexure, material, n_elements, tuple(stops), contact)
     small = system.solve([0.0, np.sign(max_rad) * SMALL_ANGLE_RAD])
     k0 = _block_torque(small, arms, 1) / small.params[1] if small.ok else float("nan")
     angles = max_rad * np.arange(steps + 1) / steps
@@ -217,6 +232,7 @@ def beam_pivot(
         message=res.message,
         model="beam",
         stable=res.stable,
+        contact=res.contact,
         solve_time_s=time.perf_counter() - t0,
         extra={
             "members": len(arms),

@@ -38,6 +38,10 @@ element). Every converged row is checked: its largest penetration must stay belo
 it again with a 10x stiffer penalty (``max_raises`` times at most) and flags one still beyond it
 (``ContactResponse.penetration_ok``, ``message``).
 
+A stop's point or corner exactly on the undeformed centreline overlaps the beam by t/2: it is
+refused by name like any other overlap (:func:`overlaps`; the distance's kink there has no
+normal, handled in ``_phi``).
+
 Limits: frictionless; rigid stops that do not move; node-to-segment pairs (a face is resolved at
 the beam's nodes, a vertex anywhere along the beam); a thin wall (open polyline) must not be
 crossed by the centreline inside one increment (the penetration would exceed t/2 there). Not
@@ -60,6 +64,8 @@ __all__ = [
     "ContactResponse",
     "BeamContact",
     "contact_rows",
+    "contact_over_beams",
+    "BeamPairContact",
     "overlaps",
     "solve_with_stops",
 ]
@@ -554,6 +560,46 @@ def contact_rows(
     )
 
 
+def contact_over_beams(
+    contacts: list[BeamContact] | tuple[BeamContact, ...],
+    shapes: list[np.ndarray] | tuple[np.ndarray, ...],
+    driven: np.ndarray,
+    converged: np.ndarray,
+) -> ContactResponse:
+    """The :class:`ContactResponse` of several beams against the same stops (a mechanism, a
+    flexure pivot's members): per stop and converged row the resultant of its forces on all the
+    beams (N), the smallest gap over the beams (mm) and the force-weighted contact point (mm).
+
+    ``contacts`` one :class:`BeamContact` per beam (same stops, same order); ``shapes`` per
+    beam (rows, n_nodes_i, 2) mm, the deformed nodes; ``driven`` (rows,) the driven value of
+    each row (mm, rad, N or N mm); ``converged`` (rows,) bool. ``extra["force_by_beam_N"]``
+    (rows, n_beams, n_stops) N is each beam's share.
+    """
+    rows, nb, ns = driven.shape[0], len(contacts), len(contacts[0].stops)
+    force = np.full((rows, ns, 2), np.nan)
+    by_beam = np.full((rows, nb, ns), np.nan)
+    gap = np.full((rows, ns), np.nan)
+    touch = np.zeros((rows, ns), dtype=bool)
+    point = np.full((rows, ns, 2), np.nan)
+    for k in np.flatnonzero(converged):
+        f_sum, g_min, w_sum, p_sum = np.zeros((ns, 2)), np.full(ns, np.inf), np.zeros(ns), 0.0
+        for i, c in enumerate(contacts):
+            f, g, t, pt = c.state(shapes[i][k])
+            w = np.hypot(f[:, 0], f[:, 1]) * t
+            by_beam[k, i] = np.hypot(f[:, 0], f[:, 1])
+            f_sum, g_min, w_sum = f_sum + f, np.minimum(g_min, g), w_sum + w
+            p_sum = p_sum + np.where(t[:, None], pt, 0.0) * w[:, None]
+        force[k], gap[k], touch[k] = f_sum, g_min, w_sum > 0.0
+        point[k] = np.where(
+            touch[k][:, None], p_sum / np.where(touch[k], w_sum, 1.0)[:, None], np.nan
+        )
+    tolerance = min(c.tolerance_mm for c in contacts)
+    penalty = np.concatenate([c.k_elements for c in contacts])
+    out = contact_rows(contacts[0].names, force, gap, touch, point, driven, tolerance, penalty)
+    out.extra["force_by_beam_N"] = by_beam
+    return out
+
+
 def overlaps(contact: BeamContact) -> list[tuple[int, float]]:
     """The stops of ``contact`` that overlap its undeformed beam deeper than the penetration
     tolerance, as ``(index of the stop, overlap depth in mm > 0)``; empty when all are clear
@@ -619,11 +665,17 @@ def _phi(v, xe, xi, r0, r1):
     n, dn, ddn = _p2(xi)
     c = v - n @ xe
     d = float(np.hypot(*c))
-    nv = c / d
     x1 = dn @ xe
     x2 = ddn @ xe
     dr = r1 - r0
     phi = d - (r0 + dr * xi)
+    if d == 0.0:
+        # v on the centreline itself (a stop's corner placed exactly on the undeformed beam):
+        # the distance has a kink there, no normal; the gap -r is all the overlap check
+        # needs. The left normal stands in for n, and phi_xixi = inf stops the taper's Newton.
+        nv = np.array([-x1[1], x1[0]]) / max(float(np.hypot(*x1)), 1e-300)
+        return phi, -float(nv @ x1) - dr, np.inf, nv, d, x1
+    nv = c / d
     phi_xi = -float(nv @ x1) - dr
     phi_xixi = float(x1 @ x1 - (nv @ x1) ** 2) / d - float(nv @ x2)
     return phi, phi_xi, phi_xixi, nv, d, x1
@@ -679,9 +731,140 @@ def _vertex_derivatives(v, xe, xi, r0, r1) -> tuple[np.ndarray, np.ndarray]:
     phi, _, phi_xixi, nv, d, x1 = _phi(v, xe, xi, r0, r1)
     grad = -np.kron(n, nv)  # d phi / d x_a = -N_a n
     proj = np.eye(2) - np.outer(nv, nv)
+    if d == 0.0:
+        # v on the centreline: the gap is not differentiable there (see _phi); its gradient
+        # along the stand-in normal, no curvature term (a pair t/2 deep, far beyond the
+        # penetration tolerance: the path is flagged, and at the start refused by overlaps)
+        return grad, np.zeros((6, 6))
     hess = np.kron(np.outer(n, n), proj) / d
-    if 0.0 < xi < 1.0 and phi_xixi > 0.0:
+    if 0.0 < xi < 1.0 and np.isfinite(phi_xixi) and phi_xixi > 0.0:
         # d phi_xi / d x_a = N_a (I - n n^T) x' / d - N_a' n
         cross = np.kron(n, proj @ x1 / d) - np.kron(dn, nv)
         hess = hess - np.outer(cross, cross) / phi_xixi
+    return grad, hess
+
+
+# -- contact between two beams (a declared pair of a mechanism) ----------------------------------
+
+
+class BeamPairContact:
+    """Frictionless penalty contact between two beams ``a`` and ``b`` (a pair a mechanism study
+    declares), node-to-curve both ways: every mesh node of one beam against the P2 centreline of
+    the other, the gap ``g = min_xi |x_n - x_o(xi)| - r_n - r_o(xi)`` (the two disks of radius
+    t/2 swept along the centrelines). Its derivatives with respect to both the node (2 DOFs)
+    and the other beam's element (6 DOFs) are exact, the Hessian that of a minimum function as
+    for a stop's vertex (``_pair_derivatives``), so the penalty energy ``1/2 k g^2`` of every
+    pair with ``g < 0`` adds a symmetric, consistent tangent coupling the two beams.
+
+    A node keeps the side of the other beam it is on in the undeformed state (a Newton iterate
+    that carries it across is pushed back, not through). The penalty of a pair is
+    ``min(k of the node, smallest k of the other beam's elements)`` with ``k =
+    penalty_factor x EI / h^3`` as for the stops (:class:`ContactSettings`): constant per node,
+    so the force does not jump as the contact slides along the other beam. Where both
+    directions act on one spot (a node against a curve's end) the pair is enforced twice as
+    stiffly there, which moves the force by O(F/k) only.
+
+    Parameters
+    ----------
+    model_a, model_b : the two beams (fea.beam.BeamModel).
+    settings : ContactSettings.
+    name : label of the pair in the outputs.
+    """
+
+    def __init__(
+        self, model_a: BeamModel, model_b: BeamModel, settings: ContactSettings, name: str = ""
+    ) -> None:
+        self.name = name
+        self.sides = (BeamContact(model_a, (), settings), BeamContact(model_b, (), settings))
+        self.tolerance_mm = min(c.tolerance_mm for c in self.sides)
+        self._k = [
+            np.minimum(self.sides[i]._k_nodes, float(self.sides[1 - i].k_elements.min()))
+            for i in (0, 1)
+        ]
+        x0 = [c.model.reference_nodes_mm for c in self.sides]
+        # each node's side of the other beam, undeformed (0: beyond the other beam's ends)
+        self._side0 = [
+            np.array([self.sides[1 - i]._closest(v, x0[1 - i])[3] for v in x0[i]]) for i in (0, 1)
+        ]
+        #: the pairs acting in the last :meth:`pairs` call with ``active_only``
+        self.active: frozenset = frozenset()
+
+    def pairs(self, xa: np.ndarray, xb: np.ndarray, active_only: bool = True) -> list[tuple]:
+        """The node-curve pairs at node positions ``xa`` (n_a, 2) and ``xb`` (n_b, 2) mm, as
+        ``(beam of the node (0 = a, 1 = b), node, element of the other beam, gap mm, grad (8,),
+        hess (8, 8) or None, k N/mm)``; grad and hess with respect to (node x, y, the other's
+        element nodes' x, y). With ``active_only`` only those with ``g < 0`` (with their
+        derivatives); otherwise also the closest pair of each node within reach (derivatives
+        None, for the gap output)."""
+        xs = (xa, xb)
+        out = []
+        for i in (0, 1):
+            other, x_n, x_o = self.sides[1 - i], xs[i], xs[1 - i]
+            r_n = self.sides[i]._r_nodes
+            reach = 2.0 * other._h_max + other._r_max
+            for n in range(x_n.shape[0]):
+                v = x_n[n]
+                dmin = float(np.sqrt(((x_o - v) ** 2).sum(axis=1).min()))
+                if dmin - r_n[n] > reach:
+                    continue
+                phi, xi, e, side = other._closest(v, x_o)
+                side0 = self._side0[i][n]
+                m = 1.0 if side0 == 0.0 else side0 * side
+                nodes = 2 * e + np.arange(3)
+                r0, r1 = other._r_nodes[nodes[0]], other._r_nodes[nodes[2]]
+                r_o = r0 + (r1 - r0) * xi
+                gap = phi - r_n[n] if m > 0.0 else -(phi + r_o) - r_o - r_n[n]
+                if active_only and gap >= 0.0:
+                    continue
+                grad = hess = None
+                if gap < 0.0 or active_only:
+                    grad, hess = _pair_derivatives(v, x_o[nodes], xi, r0, r1)
+                    grad, hess = m * grad, m * hess
+                out.append((i, n, e, gap, grad, hess, float(self._k[i][n])))
+        if active_only:
+            self.active = frozenset((p[0], p[1], p[2]) for p in out)
+        return out
+
+    def dofs(self, pair: tuple, offsets: tuple[int, int]) -> np.ndarray:
+        """(8,) global DOF indices (x, y of the node, then of the other beam's element nodes)
+        of ``pair`` when beam a's DOFs start at ``offsets[0]`` and b's at ``offsets[1]`` (the
+        beams' DOFs node by node (u, v, phi))."""
+        i, n, e = pair[0], pair[1], pair[2]
+        nodes = [(i, n)] + [(1 - i, 2 * e + k) for k in range(3)]
+        return np.array([offsets[b] + 3 * node + f for b, node in nodes for f in (0, 1)])
+
+    def state(self, xa: np.ndarray, xb: np.ndarray) -> tuple[float, float, np.ndarray]:
+        """At node positions ``xa``, ``xb`` (mm): the resultant force (N) the pair's contact
+        exerts on beam a (its magnitude; b gets the opposite), the smallest gap (mm; inf when no
+        node is within reach) and that force as (2,) N."""
+        force = np.zeros(2)
+        gap = np.inf
+        for p in self.pairs(xa, xb, active_only=False):
+            gap = min(gap, p[3])
+            if p[3] < 0.0:
+                f = -p[6] * p[3] * p[4]  # -k g grad g on (node, element nodes), N
+                on_node, on_element = f[:2], f[2:].reshape(3, 2).sum(axis=0)
+                force += on_node if p[0] == 0 else on_element
+        return float(np.hypot(*force)), gap, force
+
+
+def _pair_derivatives(v, xe, xi, r0, r1) -> tuple[np.ndarray, np.ndarray]:
+    """Gradient (8,) and Hessian (8, 8) of ``g = min_xi |v - x(xi)| - r(xi)`` (the radius of the
+    node's own disk is a constant) with respect to (v, the element's nodes ``xe`` (3, 2)), at
+    the closest point ``xi``: with ``c = v - sum N_a x_a`` = ``sum w_k z_k`` (w = (1, -N)),
+    ``grad = w (x) n``, ``hess = w w^T (x) P / d - q q^T / phi_xixi`` (P = I - n n^T; q the
+    mixed derivative of phi_xi, inside the element only), the vertex-curve pair's of a moving
+    vertex."""
+    n, dn, _ = _p2(xi)
+    _, _, phi_xixi, nv, d, x1 = _phi(v, xe, xi, r0, r1)
+    w = np.concatenate([[1.0], -n])
+    grad = np.kron(w, nv)
+    if d == 0.0:  # on the centreline: no normal (see _phi); no curvature term
+        return grad, np.zeros((8, 8))
+    proj = np.eye(2) - np.outer(nv, nv)
+    hess = np.kron(np.outer(w, w), proj) / d
+    if 0.0 < xi < 1.0 and np.isfinite(phi_xixi) and phi_xixi > 0.0:
+        px = proj @ x1 / d
+        q = np.concatenate([-px, np.kron(n, px) - np.kron(dn, nv)])
+        hess = hess - np.outer(q, q) / phi_xixi
     return grad, hess

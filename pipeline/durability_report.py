@@ -201,7 +201,9 @@ def _hold(result: Any) -> dict[str, Any]:
 def _contact(study: Any, result: Any) -> dict[str, Any]:
     summary = getattr(result, "summary", None) or {}
     names = [str(s.name) for s in study.stops.outlines]
-    unit = "force_N" if "first_contact_force_N" in summary else "displacement_mm"
+    # the driven value's unit: a beam's force or displacement, a pivot's or leaf joint's angle
+    units = ("force_N", "rotation_deg", "deflection_deg")
+    unit = next((u for u in units if f"first_contact_{u}" in summary), "displacement_mm")
     stops = [
         {
             "stop": name,
@@ -424,7 +426,7 @@ def _blocks(record: Mapping[str, Any]) -> list[tuple[str, Any]]:
     elif contact is not None:
         out.append(("h", "Contact (stops)"))
         col = contact["first_contact_column"]
-        unit = "mm" if col.endswith("_mm") else "N"
+        unit = col.rsplit("_", 1)[-1]  # mm, N or deg (a pivot's rotation)
         rows = [
             [s["stop"], s.get("max_contact_force_N"), s.get(col), s.get("min_gap_mm")]
             for s in contact["stops"]

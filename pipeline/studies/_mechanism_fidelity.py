@@ -130,6 +130,12 @@ def with_fidelity(problem: SolvedBy, solved: Solved) -> Solved:
             "model's figures (with contact) are judged"
         )
         return dataclasses.replace(solved, fidelity={"skipped": why})
+    if getattr(study, "contact", None):
+        why = (
+            "the study has beam contact: the check of the exported outline solves it without "
+            "contact; the beam model's figures (with contact) are judged"
+        )
+        return dataclasses.replace(solved, fidelity={"skipped": why})
     width = solved.width_mm
     checks = {case: _check(study, solved, width, case) for case in study.load_cases}
     width_case = _width_case(problem)

@@ -429,8 +429,14 @@ class MechanismStudy(Study):
         "outlines), mm in the study's coordinates",
     )
 
+    contact: tuple[tuple[str, str], ...] | None = Field(
+        None,
+        description="pairs of beams that may touch each other, [[beam, beam], ...]: "
+        "frictionless penalty contact between them (any other meeting is interference)",
+    )
+
     # a study without stops dumps as it did before the block existed (Study's serializer)
-    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = (*Study.OPTIONAL_BLOCKS, "stops")
+    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = (*Study.OPTIONAL_BLOCKS, "stops", "contact")
 
     @field_validator("load_cases", "outputs")
     @classmethod

@@ -17,8 +17,16 @@ with them inside Newton), and what the kind reports of it:
   interference); a body meeting a stop is (bodies do not touch stops in the engine);
 * ``contact_shapes.png``: the beams' deformed shapes (solid where in contact) with the stops.
 
-A study without ``stops:`` gets none of it and runs exactly as before. The kind is
-pipeline/studies/mechanism.py; docs/mechanism.md ("Stops") and docs/contact.md.
+Beam-beam contact (``contact: [[beam_a, beam_b], ...]``, :attr:`fea.mechanism.Mechanism.
+beam_contacts`): per declared pair and load case the columns ``contact_<a>_<b>_force_N`` (the
+force between the two beams, N, scaled like a stop's), ``contact_<a>_<b>_gap_mm``,
+``contact_<a>_<b>_in_contact``, the metrics ``<case>contact_<a>_<b>_max_force_N`` and the pairs'
+penetration in ``max_penetration_mm`` (the same built-in row); a declared pair touching is
+modelled contact, not interference (its overlap is still checked), any other meeting stays
+interference. The penalty is the ``stops:`` block's (default without it).
+
+A study without ``stops:`` or ``contact:`` gets none of it and runs exactly as before. The kind
+is pipeline/studies/mechanism.py; docs/mechanism.md ("Stops") and docs/contact.md.
 """
 
 from __future__ import annotations
@@ -64,26 +72,44 @@ def _stops(study: MechanismStudy) -> tuple[RigidStop, ...]:
     )
 
 
+def _pairs(study: MechanismStudy) -> tuple[tuple[str, str], ...]:
+    return tuple((str(a), str(b)) for a, b in (study.contact or ()))
+
+
+def _contact(study: MechanismStudy) -> bool:
+    """The study declares stops or beam-beam contact."""
+    return study.stops is not None or bool(_pairs(study))
+
+
 def with_stops(mech: Any, study: MechanismStudy) -> Any:
-    """The solver's mechanism with the study's stops (``mech`` itself without stops)."""
-    stops = _stops(study)
-    return dataclasses.replace(mech, stops=stops) if stops else mech
+    """The solver's mechanism with the study's stops and declared beam pairs (``mech`` itself
+    without either)."""
+    stops, pairs = _stops(study), _pairs(study)
+    if stops:
+        mech = dataclasses.replace(mech, stops=stops)
+    return dataclasses.replace(mech, beam_contacts=pairs) if pairs else mech
 
 
 def settings(study: MechanismStudy) -> Any:
     """The :class:`fea.mechanism.MechanismSettings` with the study's penalty factor; None
     without stops (the solver's defaults: the old path)."""
-    if study.stops is None:
+    if not _contact(study):
         return None
     from flexopt.fea.mechanism import MechanismSettings  # the engine, with the first solve
 
-    contact = ContactSettings(penalty_factor=study.stops.penalty_factor, element_length="mean")
+    factor = ContactSettings().penalty_factor if study.stops is None else study.stops.penalty_factor
+    contact = ContactSettings(penalty_factor=factor, element_length="mean")
     return MechanismSettings(contact=contact)
 
 
 def refusal(study: MechanismStudy, message: str) -> StudyError | None:
     """The engine's refusal of a stop overlapping a beam as a StudyError at
-    ``stops.outlines[i]`` (None when ``message`` is about something else)."""
+    ``stops.outlines[i]``, of a declared beam pair at ``contact[i]`` (None when ``message`` is
+    about something else)."""
+    pairs = _pairs(study)
+    for i, (a, b) in enumerate(pairs):
+        if message.startswith(f"beam contact [{a}, {b}]"):
+            return StudyError(f"contact[{i}]", message)
     if study.stops is None or not message.startswith("stop '"):
         return None
     name = message.split("'", 2)[1]
@@ -101,23 +127,30 @@ def _unit(study: MechanismStudy, case: str) -> str:
 
 
 def column_names(study: MechanismStudy) -> set[str]:
-    """Every case's stop columns, prefixed by the case (empty without stops)."""
-    if study.stops is None:
-        return set()
+    """Every case's stop and beam-pair columns, prefixed by the case (empty without)."""
     out = set()
+    names = [f"stop_{o.name}" for o in (study.stops.outlines if study.stops else ())]
+    names += [f"contact_{a}_{b}" for a, b in _pairs(study)]
     for case in study.load_cases:
         p = case_prefix(study, case)
-        for o in study.stops.outlines:
-            out |= {f"{p}stop_{o.name}_{s}" for s in ("force_N", "gap_mm", "in_contact")}
+        for n in names:
+            out |= {f"{p}{n}_{s}" for s in ("force_N", "gap_mm", "in_contact")}
     return out
 
 
 def metric_names(study: MechanismStudy) -> set[str]:
-    """The stop metrics a design reports (empty without stops)."""
+    """The stop and beam-pair metrics a design reports (empty without)."""
+    pairs = {
+        f"{case_prefix(study, case)}contact_{a}_{b}_max_force_N"
+        for case in study.load_cases
+        for a, b in _pairs(study)
+    }
+    if pairs:
+        pairs.add("max_penetration_mm")
     if study.stops is None:
-        return set()
+        return pairs
     out = {"max_stop_force_N", "max_penetration_mm", "contact_penalty_factor"}
-    out |= {"contact_penalty_raises"}
+    out |= {"contact_penalty_raises"} | pairs
     for case in study.load_cases:
         p, unit = case_prefix(study, case), _unit(study, case)
         out |= {f"{p}first_contact_{unit}", f"{p}contact_rows"}
@@ -150,17 +183,57 @@ def columns(study: MechanismStudy, case: str, response: Any, scale: float) -> di
     """The case's stop columns (each (rows,)): force (N, times the width ``scale`` where forces
     scale), gap (mm), in contact; NaN from the first unstable row on like the case's other
     columns (:func:`fea.mechanism_design.stable_part`). Empty without stops."""
+    f = _force_scale(study, case, scale)
+    out = _pair_columns(study, response, f)
     contact = getattr(response, "contact", None)
     if study.stops is None or contact is None:
-        return {}
-    f = _force_scale(study, case, scale)
+        return out
     values: dict[str, Any] = {}
     for j, name in enumerate(contact.names):
         values[f"stop_{name}_force_N"] = np.asarray(contact.force_N[:, j], dtype=float) * f
         values[f"stop_{name}_gap_mm"] = np.asarray(contact.gap_mm[:, j], dtype=float)
-    out = dict(stable_part(values, response))
+    out.update(stable_part(values, response))
     for j, name in enumerate(contact.names):
         out[f"stop_{name}_in_contact"] = np.asarray(contact.in_contact[:, j], dtype=bool)
+    return out
+
+
+def _pair_columns(study: MechanismStudy, response: Any, scale: float) -> dict[str, Any]:
+    """The declared beam pairs' columns of one case (force N times ``scale``, gap mm, in
+    contact), NaN from the first unstable row on (empty without pairs)."""
+    found = getattr(response, "beam_contact", None)
+    if not found:
+        return {}
+    values: dict[str, Any] = {}
+    for a, b in _pairs(study):
+        c = found[f"{a}/{b}"]
+        values[f"contact_{a}_{b}_force_N"] = np.asarray(c["force_N"], dtype=float) * scale
+        values[f"contact_{a}_{b}_gap_mm"] = np.asarray(c["gap_mm"], dtype=float)
+    out = dict(stable_part(values, response))
+    for a, b in _pairs(study):
+        out[f"contact_{a}_{b}_in_contact"] = np.asarray(found[f"{a}/{b}"]["in_contact"], bool)
+    return out
+
+
+def _pair_metrics(
+    study: MechanismStudy, responses: Mapping[str, Any], tables: Mapping[str, Mapping[str, Any]]
+) -> dict[str, Any]:
+    """Per case and declared pair the largest force (N), and the pairs' largest penetration
+    (mm) as ``max_penetration_mm`` (empty without pairs)."""
+    pairs = _pairs(study)
+    if not pairs:
+        return {}
+    out: dict[str, Any] = {}
+    pen = [0.0]
+    for case in responses:
+        p, table = case_prefix(study, case), tables[case]
+        for a, b in pairs:
+            force = np.asarray(table[f"contact_{a}_{b}_force_N"], dtype=float)
+            ok = np.isfinite(force)
+            out[f"{p}contact_{a}_{b}_max_force_N"] = float(force[ok].max()) if ok.any() else None
+            gap = np.asarray(table[f"contact_{a}_{b}_gap_mm"], dtype=float)
+            pen += [float(-g) for g in gap[np.isfinite(gap)] if g < 0.0]
+    out["max_penetration_mm"] = max(pen)
     return out
 
 
@@ -169,11 +242,12 @@ def metrics(
 ) -> dict[str, Any]:
     """The stop metrics of a design (see the module) from its ``responses`` (the first contact,
     the penetration, the penalty) and its case ``tables`` (the forces, as scaled). Empty
-    without stops."""
+    without stops; with declared beam pairs their figures (:func:`_pair_metrics`)."""
+    pairs = _pair_metrics(study, responses, tables)
     if study.stops is None:
-        return {}
+        return pairs
     out: dict[str, Any] = {}
-    forces, pen, factor, raises = [], [0.0], None, 0
+    forces, pen, factor, raises = [], [pairs.get("max_penetration_mm", 0.0)], None, 0
     for case, resp in responses.items():
         contact = getattr(resp, "contact", None)
         if contact is None:
@@ -206,14 +280,14 @@ def metrics(
     out["max_penetration_mm"] = max(pen)
     out["contact_penalty_factor"] = factor
     out["contact_penalty_raises"] = raises
-    return out
+    return {**pairs, **out}
 
 
 def requirements(study: MechanismStudy) -> list[Requirement]:
     """The built-in "contact penetration within tolerance" (``max_penetration_mm`` at most
     ``ContactSettings.penetration_tol`` x the thinnest beam, the engine's tolerance); none
-    without stops."""
-    if study.stops is None:
+    without stops (or declared beam pairs)."""
+    if not _contact(study):
         return []
     thinnest = min(float(np.min(b.thickness())) for b in study.geometry.beams.values())
     tolerance = ContactSettings().penetration_tol * thinnest
@@ -290,10 +364,14 @@ def stop_interference(
 
 def interference_verdict(study: MechanismStudy, verdict: Verdict) -> Verdict:
     """The built-in no-interference row, its bound saying which contact is modelled."""
-    if study.stops is None:
+    if not _contact(study):
         return verdict
+    declared = "the declared stops" if study.stops is not None else ""
+    if _pairs(study):
+        pairs = ", ".join(f"{a}-{b}" for a, b in _pairs(study))
+        declared = f"{declared} and the beam pairs {pairs}".removeprefix(" and ")
     bound = (
-        "0 mm² at every row (contact modelled between the beams and the declared stops only; "
+        f"0 mm² at every row (contact modelled between the beams and {declared} only; "
         "any other meeting is interference)"
     )
     return dataclasses.replace(verdict, bound=bound)

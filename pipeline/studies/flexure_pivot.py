@@ -32,8 +32,9 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
+import flexopt.pipeline.studies._pivot_stops as pivot_stops
 import numpy as np
 from flexopt.fea.closed_forms import pivot_closed_form
 from flexopt.fea.flexure_design import (
@@ -59,7 +60,9 @@ from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, Figure
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import StudyKind, _builtin, register
+from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.studies._pivot_schema import PivotDesign, PivotFidelity, PivotType
+from flexopt.pipeline.studies._stops import StopsSpec
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from flexopt.pipeline.verdict import envelope_values
 from pydantic import BaseModel, Field, model_validator
@@ -81,9 +84,6 @@ __all__ = [
     "problem",
 ]
 
-PivotType = Literal[
-    "leaf", "variable_leaf", "circular_notch", "elliptical_notch", "corner_filleted", "cross_axis"
-]
 VARIABLES = ("type_index", "length_mm", "thickness_mm", "shape")
 
 
@@ -172,31 +172,6 @@ class PivotDesignSpace(BaseModel):
     shape: tuple[float, float] = Field((0.0, 1.0), description="[lower, upper] in [0, 1]")
 
 
-class PivotFidelity(BaseModel):
-    """The ``fidelity:`` block: how the best design is checked in the report."""
-
-    model_config = STUDY_CONFIG
-
-    steps: int = Field(10, ge=2, le=200, description="rows of the beam sweep in the report")
-    ga_steps: int = Field(3, ge=1, le=50, description="rows of the beam solve of each GA design")
-    plane_stress: bool = Field(True, description="check the best planar design by plane stress")
-    plane_stress_steps: int = Field(3, ge=1, le=50, description="nonlinear plane-stress rows")
-    web_elements: float = Field(
-        4.0, ge=1.0, le=16.0, description="plane-stress elements through the thinnest section"
-    )
-
-
-class PivotDesign(BaseModel):
-    """The ``design:`` block: one design for ``flexopt evaluate``."""
-
-    model_config = STUDY_CONFIG
-
-    type: PivotType = Field(description="pivot type")
-    length_mm: float = Field(gt=0, description="compliant length, mm (see the table)")
-    thickness_mm: float = Field(gt=0, description="thinnest section, mm")
-    shape: float = Field(0.5, ge=0, le=1, description="type-specific shape in [0, 1]")
-
-
 class FlexurePivotStudy(Study):
     """A whole ``flexure_pivot`` study file."""
 
@@ -215,6 +190,9 @@ class FlexurePivotStudy(Study):
     design: PivotDesign | None = Field(
         None, description="the design flexopt evaluate traces (default: the best closed-form seed)"
     )
+    stops: StopsSpec | None = pivot_stops.FIELD  # rigid stops (pipeline/studies/_pivot_stops.py)
+    # a study without stops dumps as it did before the block existed (Study's serializer)
+    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = (*Study.OPTIONAL_BLOCKS, "stops")
 
     @model_validator(mode="before")
     @classmethod
@@ -305,7 +283,7 @@ def check(study: FlexurePivotStudy) -> None:
     """Build the design space, the material and the study's design once, so every refusal names
     its key path before a run folder exists."""
     design_space(study)
-    material = study.material.to_material()
+    material, f = study.material.to_material(), None
     if study.design is not None:
         d = study.design
         if d.type not in study.geometry.candidates:
@@ -325,6 +303,7 @@ def check(study: FlexurePivotStudy) -> None:
                 f"{d.thickness_mm:g} mm is thinner than geometry.min_feature_mm = "
                 f"{study.geometry.min_feature_mm:g}",
             )
+    pivot_stops.check(study, f)  # with stops: no notch candidates, clear of the design
     if not material.E_MPa > 0:  # pragma: no cover - the material model guarantees it
         raise StudyError("material.E_MPa", "must be > 0")
 
@@ -373,9 +352,8 @@ class FlexurePivotProblem(DesignProblem):
         return kind, build_flexure(kind, x[1], x[2], x[3], self.study.geometry)
 
     def _beam(self, flexure: Flexure, steps: int) -> PivotResponse:
-        return beam_pivot(
-            flexure, self.material, self.rom_rad, steps, n_elements=self.study.geometry.elements
-        )
+        n, stops = self.study.geometry.elements, pivot_stops.solve_args(self.study)
+        return beam_pivot(flexure, self.material, self.rom_rad, steps, n_elements=n, **stops)
 
     def _fail(self, x: np.ndarray, reason: str, t0: float) -> Evaluation:
         return Evaluation.failed(x, 1, len(self.constraint_names), reason, time.perf_counter() - t0)
@@ -391,6 +369,8 @@ class FlexurePivotProblem(DesignProblem):
         except GeometryError as exc:
             return self._fail(x, f"cannot build: {exc}", t0)
         study = self.study
+        if why := pivot_stops.overlap(study, flex):  # a stop across a member: no such pivot
+            return self._fail(x, why, t0)
         at = pivot_at_range(
             flex,
             self.material,
@@ -399,6 +379,7 @@ class FlexurePivotProblem(DesignProblem):
             study.geometry.elements,
             kind in BEAM_TYPES,
             study.target.max_centre_shift_mm is not None,
+            **pivot_stops.solve_args(study),
         )
         if at.failure:
             return self._fail(x, at.failure, t0)
@@ -455,7 +436,7 @@ class FlexurePivotProblem(DesignProblem):
         cf = pivot_closed_form(flex, self.material.E_MPa)
         steps = study.fidelity.steps
         res = self._beam(flex, steps)
-        table = pivot_table(res, cf)
+        table = {**pivot_table(res, cf), **pivot_stops.columns(study, res)}
         info: dict[str, Any] = {
             "type": kind,
             "parameters": {k: v for k, v in flex.params().items() if v is not None},
@@ -485,6 +466,8 @@ class FlexurePivotProblem(DesignProblem):
             "envelope_mm": list(flex.envelope_mm()),
             "beam": {"ok": res.ok, "message": res.message, **res.extra},
         }
+        if study.stops is not None:  # first contact, forces, penetration (_pivot_stops)
+            info["contact"] = pivot_stops.summary(study, res)
         notes = []
         outline = flex.outline()
         if flex.is_planar:
@@ -494,7 +477,9 @@ class FlexurePivotProblem(DesignProblem):
                 info["outline_min_feature_mm"] = min_feature_mm(outline)
             except (GeometryError, ValueError) as exc:  # pragma: no cover - defensive
                 notes.append(f"min feature check failed: {exc}")
-            if study.fidelity.plane_stress:
+            if study.fidelity.plane_stress and study.stops is not None:
+                notes.append(pivot_stops.PLANE_STRESS_NOTE)  # that solve has no contact
+            elif study.fidelity.plane_stress:
                 info["plane_stress"] = plane_stress_check(
                     flex,
                     self.material,
@@ -575,6 +560,7 @@ class FlexurePivotProblem(DesignProblem):
         for key in ("stiffness_Nmm_per_rad", "centre_shift_mm", "envelope_length_mm",
                     "envelope_height_mm"):  # fmt: skip
             summary.setdefault(key, ev.metrics.get(key))  # the names flexopt run judges too
+        summary.update(detail.info.get("contact", {}))  # with stops: first contact, forces ...
         # the part as exported (its planar outline extruded), as flexopt run measures it
         summary.update(envelope_values(detail.outline, detail.height_mm))
         ps = detail.info.get("plane_stress")
@@ -617,6 +603,7 @@ class FlexurePivotProblem(DesignProblem):
                 "peak_stress_MPa",
                 "safety_factor",
                 "centre_shift_at_range_mm",
+                *pivot_stops.headline(prob.study),
             ),
         )
 
@@ -689,8 +676,8 @@ register(
         check,  # type: ignore[arg-type]
         None,  # flexopt evaluate: the nominal design's FlexurePivotProblem.result
         problem,  # type: ignore[arg-type],
-        requirements=_builtin.flexure_pivot,
-        quantities=_builtin.FLEXURE_PIVOT,
+        requirements=pivot_stops.requirements,
+        quantities=pivot_stops.quantities,
         figures=FIGURES,
         design_space=design_of,
         # beams and the plane-stress check: every torque (and the closed forms) scale with it

@@ -29,8 +29,9 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import replace
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
+import flexopt.pipeline.studies._leaf_stops as leaf_stops
 import numpy as np
 from flexopt.fea.errors import FeaError
 from flexopt.fea.leaf_joint import (
@@ -52,7 +53,8 @@ from flexopt.optimise.joint_objectives import (
 from flexopt.optimise.problem import DesignProblem, DesignResult
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import StudyKind, _builtin, register
+from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.studies._stops import StopsSpec
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from pydantic import BaseModel, Field, model_validator
 
@@ -189,6 +191,9 @@ class LeafSpringJointStudy(Study):
         default_factory=lambda: OptimiserSpec(pop_size=30, n_gen=20, quick_pop_size=8),
         description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
     )
+    stops: StopsSpec | None = leaf_stops.FIELD  # rigid stops (pipeline/studies/_leaf_stops.py)
+    # a study without stops dumps as it did before the block existed (Study's serializer)
+    OPTIONAL_BLOCKS: ClassVar[tuple[str, ...]] = (*Study.OPTIONAL_BLOCKS, "stops")
 
     @model_validator(mode="before")
     @classmethod
@@ -258,12 +263,14 @@ def design_space(study: LeafSpringJointStudy) -> DesignSpace:
 def check(study: LeafSpringJointStudy) -> None:
     """Build every analysed joint and the design space once (errors name the key path)."""
     design_space(study)
+    joints = {}
     for i, l in enumerate(study.geometry.effective_lengths_mm):
         for s in study.geometry.structures:
             try:
-                _joint(study, l, s)
+                joints[i] = _joint(study, l, s)
             except GeometryError as exc:
                 raise StudyError(f"geometry.effective_lengths_mm[{i}]", str(exc)) from exc
+    leaf_stops.check(study, joints)  # with stops: sliding only, clear of every leaf
 
 
 # --------------------------------------------------------------------------------------------
@@ -307,8 +314,9 @@ def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> D
                     joint = _joint(study, l, s, **design)
                 except GeometryError as exc:
                     raise StudyError("geometry", f"the joint cannot be built: {exc}") from exc
+                stops = leaf_stops.solve_args(study, joint)
                 resp = joint_response(
-                    joint, material, float(angles[-1]), study.boundary.steps, g.elements
+                    joint, material, float(angles[-1]), study.boundary.steps, g.elements, **stops
                 )
                 curves[f"{s}_l{l:g}"] = (joint, resp)
         times.append(time.perf_counter() - t0)
@@ -318,6 +326,7 @@ def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> D
         table[f"stiffness_Nm_per_rad_{name}"] = r.stiffness_Nmm_per_rad / 1000.0
         table[f"stress_MPa_{name}"] = r.peak_stress_MPa
         table[f"loaded_length_mm_{name}"] = r.loaded_length_mm
+        table.update(leaf_stops.columns(study, name, r))
     table["converged"] = np.all([r.converged for _, r in curves.values()], axis=0)
     peak = max(float(np.nanmax(r.peak_stress_MPa)) for _, r in curves.values())
     summary: dict[str, Any] = {
@@ -325,11 +334,13 @@ def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> D
         "max_peak_stress_MPa": peak,
         "peak_stress_MPa": peak,  # the name flexopt run reports (and the verdict judges)
         "stress_yield_ratio": peak / material.yield_MPa,
+        **leaf_stops.summary(study, {name: r for name, (_, r) in curves.items()}),
     }
     ranges: dict[str, list[float]] = {s: [] for s in g.structures}
     check = study.boundary.check_deflection_deg
     for name, (joint, r) in curves.items():
-        cs = curve_summary(joint, r, material, allowable, g.elements)
+        stops = leaf_stops.solve_args(study, joint)
+        cs = curve_summary(joint, r, material, allowable, g.elements, **stops)
         summary.update({f"{name}_{key}": value for key, value in cs.items()})
         # the joint's stiffness from rest to the elastic limit (or the last row)
         ranges[r.structure].append(cs["linear_stiffness_Nm_per_rad"])
@@ -340,7 +351,7 @@ def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> D
             # stiffness there is a central difference, not a one-sided one over a long step
             c = math.radians(check)
             rows = np.concatenate([np.linspace(0.0, c - 1e-3, 11), [c, c + 1e-3]])
-            far = joint_response(joint, material, c, 10, g.elements, deflections_rad=rows)
+            far = joint_response(joint, material, c, 10, g.elements, rows, **stops)
             key = f"{name}_at_{check:g}deg"
             if far.converged[-2]:
                 summary[f"{key}_torque_Nm"] = float(far.torque_Nmm[-2]) / 1e3
@@ -473,15 +484,17 @@ class LeafJointProblem(DesignProblem):
                 time.perf_counter() - t0,
             )
         try:
-            resp = joint_response(
-                self.joint(x, l_min), self.material, self.max_rad, 4, self.study.geometry.elements
-            )
+            joint, elements = self.joint(x, l_min), self.study.geometry.elements
+            stops = leaf_stops.solve_args(self.study, joint)
+            resp = joint_response(joint, self.material, self.max_rad, 4, elements, **stops)
         except (FeaError, GeometryError) as exc:
             return Evaluation.failed(x, 1, 3, f"cannot build: {exc}", time.perf_counter() - t0)
         if not resp.ok:
             return Evaluation.failed(
                 x, 1, 3, f"beam model: {resp.message}", time.perf_counter() - t0, metrics
             )
+        if why := leaf_stops.overlap(self.study, self.joint(x, l_max)):  # the soft setting's
+            return Evaluation.failed(x, 1, 3, why, time.perf_counter() - t0, metrics)
         sigma = float(np.max(resp.peak_stress_MPa))
         ratio, g = leaf_joint_objective(sigma, self.allowable_MPa, g_len, g_hub)
         metrics |= {
@@ -497,8 +510,15 @@ class LeafJointProblem(DesignProblem):
         l_min, l_max = self.lengths(x)
         steps = self.study.boundary.steps
         elements = self.study.geometry.elements
-        stiff = joint_response(self.joint(x, l_min), self.material, self.max_rad, steps, elements)
-        soft = joint_response(self.joint(x, l_max), self.material, self.max_rad, steps, elements)
+        at_min, at_max = (
+            leaf_stops.solve_args(self.study, self.joint(x, v)) for v in (l_min, l_max)
+        )
+        stiff = joint_response(
+            self.joint(x, l_min), self.material, self.max_rad, steps, elements, **at_min
+        )
+        soft = joint_response(
+            self.joint(x, l_max), self.material, self.max_rad, steps, elements, **at_max
+        )
         table = {
             "deflection_deg": np.degrees(stiff.deflection_rad),
             "torque_Nm_lmin": stiff.torque_Nmm / 1e3,
@@ -508,6 +528,8 @@ class LeafJointProblem(DesignProblem):
             "stiffness_Nm_per_rad_lmax": soft.stiffness_Nmm_per_rad / 1e3,
             "stress_MPa_lmax": soft.peak_stress_MPa,
             "converged": stiff.converged & soft.converged,
+            **leaf_stops.columns(self.study, "lmin", stiff),
+            **leaf_stops.columns(self.study, "lmax", soft),
         }
         needed = float(np.nanmax(stiff.loaded_length_mm)) - l_min
         info: dict[str, Any] = {
@@ -530,11 +552,12 @@ class LeafJointProblem(DesignProblem):
                 float(stiff.stiffness_Nmm_per_rad[0]) / 1e3,
             ],
             "stiff_setting": curve_summary(
-                self.joint(x, l_min), stiff, self.material, self.allowable_MPa, elements
+                self.joint(x, l_min), stiff, self.material, self.allowable_MPa, elements, **at_min
             ),
             "soft_setting": curve_summary(
-                self.joint(x, l_max), soft, self.material, self.allowable_MPa, elements
+                self.joint(x, l_max), soft, self.material, self.allowable_MPa, elements, **at_max
             ),
+            **leaf_stops.summary(self.study, {"lmin": stiff, "lmax": soft}),
             "allowable_stress_MPa": self.allowable_MPa,
             "safety_factor": evaluation.metrics.get("safety_factor"),
         }
@@ -579,8 +602,8 @@ register(
         check,  # type: ignore[arg-type]
         None,  # flexopt evaluate: the nominal design's LeafJointProblem.result
         problem,  # type: ignore[arg-type],
-        requirements=_builtin.leaf_spring_joint,
-        quantities=_builtin.LEAF_SPRING_JOINT,
+        requirements=leaf_stops.requirements,
+        quantities=leaf_stops.quantities,
         # flexopt evaluate analyses lengths and structures, not one design: only a run's
         # design has the design-range row (pipeline.verdict)
         design_space=lambda study: (design_space(study), None),

@@ -411,3 +411,28 @@ def test_large_deflection_over_a_ledge_corner_against_the_elastica():
     assert np.all(sol.y[4] >= V[0] - 1e-9)
     # clear at the start, in contact at the end, within the penetration tolerance
     assert c.rows_in_contact[-1] and not c.rows_in_contact[0] and c.penetration_ok
+
+
+@pytest.mark.parametrize(
+    "stop",
+    [
+        RigidStop.point((50.0, 0.0), "pin"),  # on a vertex node
+        RigidStop.point((52.5, 0.0), "pin"),  # between two nodes
+        RigidStop.segment((52.5, 0.0), (52.5, -5.0), "pin"),  # a wall's end
+        RigidStop.point((0.0, 0.0), "pin"),  # the clamped end
+    ],
+)
+def test_a_stop_corner_exactly_on_the_centreline_is_refused_by_name(stop):
+    """A point or corner at distance 0 from the undeformed centreline (no normal there: it used
+    to divide by zero and give a NaN gap the overlap check let through) overlaps the beam by
+    t/2, and the solve refuses it by name."""
+    import warnings
+
+    m = model()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no division by zero on the way
+        contact = BeamContact(m, [stop])
+        _, gap, _, _ = contact.state(m.reference_nodes_mm)
+        assert gap[0] == pytest.approx(-T / 2, abs=1e-12)
+        with pytest.raises(FeaError, match="stop 'pin' overlaps the undeformed beam by 0.25 mm"):
+            solve_with_stops(m, DRIVE, [stop])
