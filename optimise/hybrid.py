@@ -38,7 +38,6 @@ evaluations of each stage and why each start stopped.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -203,9 +202,9 @@ class _Stage:
     ) -> None:
         self.space = space
         self.jacobian = jacobian if config.exact_jacobian else None
-        #: Jacobians taken: "exact" (the problem's), "finite_differences" (a batch of columns),
-        #: and the exact ones' wall time in this process (s)
-        self.jacobians = {"exact": 0, "finite_differences": 0, "exact_wall_s": 0.0}
+        #: Jacobians taken: "exact" (the problem's), "finite_differences" (a batch of columns);
+        #: counts only, so a resumed run's report equals the uninterrupted one's
+        self.jacobians = {"exact": 0, "finite_differences": 0}
         self.span = space.upper - space.lower
         self.evaluate = evaluate
         self.config = config
@@ -252,9 +251,7 @@ class _Stage:
         design: nothing is evaluated, stored or counted as an evaluation."""
         if self.jacobian is None:
             return None
-        t0 = time.perf_counter()
         jac = self.jacobian(np.asarray(ev.x, dtype=float))
-        self.jacobians["exact_wall_s"] += time.perf_counter() - t0
         n_var = len(self.span)
         if jac is None or np.shape(jac.g) != (n_con, n_var) or np.shape(jac.f)[1:] != (n_var,):
             return None
