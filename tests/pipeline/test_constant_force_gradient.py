@@ -183,20 +183,23 @@ def test_residuals_and_rms_against_central_differences_of_evaluate(problem, exac
     # over its largest entry
     jac = err[:n].max(axis=0) * span / np.abs(fd[:n] * span).max()
     names = problem.space.names
-    full = np.array(steps) == 1.0
+    resolved = np.array(steps) >= 1.0 / 3.0  # >= 0.1 mm of vertex motion for a_j
+    assert resolved.sum() >= 21  # on this design a8 and a9 only get 0.05 mm
     bad = {
         names[k]: (per_var_r[k], per_var_f[k])
         for k in range(23)
-        if full[k] and max(per_var_r[k], per_var_f[k]) > TOL
+        if resolved[k] and max(per_var_r[k], per_var_f[k]) > TOL
     }
     assert not bad, bad
     assert jac.max() <= TOL, dict(zip(names, jac, strict=True))
 
 
-#: FD step ladder (fractions of :func:`_step`): the largest that keeps the mesh is taken; a
-#: vertex motion under 0.3 mm leaves the solve's noise above 1e-6 of a_j's columns (measured:
-#: the error falls as 1/h, 2.4e-5 at 0.01 mm, 8e-6 at 0.03 mm, 1e-6 at 0.1 mm), so the
-#: per-variable bound is asserted at the full step, the Jacobian's at every step
+#: FD step ladder (fractions of :func:`_step`): the largest that keeps the mesh is taken (on the
+#: example's design no a_j keeps it at 0.3 mm: each moves a segment's length across a rounding
+#: of its element count within 0.6 mm). Below ~0.1 mm of vertex motion the solve's noise
+#: exceeds 1e-6 of an a_j column (measured: the error falls as 1/h, 2.4e-5 at 0.01 mm, 8e-6 at
+#: 0.03 mm, 6.7e-6 for a8 at 0.05 mm, <= 4.4e-7 at >= 0.1 mm), so the per-variable bound is
+#: asserted where the step is >= 0.1 mm, the Jacobian's (bound-normalised) at every step
 LADDER = np.array([1.0, 2.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0, 1.0 / 10.0])
 
 
