@@ -38,6 +38,7 @@ evaluations of each stage and why each start stopped.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -59,6 +60,8 @@ __all__ = [
     "pick_starts",
     "StallRule",
 ]
+
+log = logging.getLogger(__name__)
 
 #: a failed design's objective and constraint in the scaled SLSQP problem: finite (SLSQP's line
 #: search backs off from it) and far above any evaluated design's
@@ -251,7 +254,11 @@ class _Stage:
         design: nothing is evaluated, stored or counted as an evaluation."""
         if self.jacobian is None:
             return None
-        jac = self.jacobian(np.asarray(ev.x, dtype=float))
+        try:
+            jac = self.jacobian(np.asarray(ev.x, dtype=float))
+        except Exception:  # an aid, not a requirement: forward differences instead
+            log.exception("hybrid: the problem's Jacobian raised; forward differences instead")
+            return None
         n_var = len(self.span)
         if jac is None or np.shape(jac.g) != (n_con, n_var) or np.shape(jac.f)[1:] != (n_var,):
             return None

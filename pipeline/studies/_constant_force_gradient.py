@@ -35,6 +35,7 @@ design that cannot be built or whose path did not converge.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from typing import Any
@@ -49,6 +50,8 @@ from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.design_jacobian import DesignJacobian
 
 __all__ = ["interpolation_matrix", "jacobian", "study_sensitivities"]
+
+log = logging.getLogger(__name__)
 
 
 def interpolation_matrix(stroke_mm: np.ndarray, probes_mm: np.ndarray) -> np.ndarray:
@@ -101,16 +104,28 @@ def study_sensitivities(
     probes = stroke[-1] * np.arange(1, t.samples + 1) / t.samples
     W = interpolation_matrix(stroke, probes)
     rows = np.union1d(np.flatnonzero(np.any(W != 0.0, axis=0)), _stress_rows(response, rho))
-    sens = beam_sensitivities(
-        model,
-        path,
-        response,
-        ("thickness", "width", "moves"),
-        ks_rho_per_MPa=rho,
-        vertex_moves=maps.points[moving],
-        move_names=tuple(maps.names[k] for k in moving),
-        rows=rows,
-    )
+    sens = None
+    # the semi-analytic vertex moves need the mesh (elements per segment, rounded from the
+    # lengths) to stay the same over +-2 steps: a design that close to a switch of the rounding
+    # gets a smaller step, and at the switch itself no derivative (the response jumps there)
+    for scale in COORDINATE_STEPS:
+        try:
+            sens = beam_sensitivities(
+                model,
+                path,
+                response,
+                ("thickness", "width", "moves"),
+                ks_rho_per_MPa=rho,
+                coordinate_step_mm=scale * model.profile.length_mm,
+                vertex_moves=maps.points[moving],
+                move_names=tuple(maps.names[k] for k in moving),
+                rows=rows,
+            )
+            break
+        except FeaError:
+            continue
+    if sens is None:
+        return None
     # chain: d/dx = d/dt (n_rows, 12) @ dt/dx (12, 23) + d/db dB/dx + d/dmove (one per a_j)
     n_pts = model.profile.n_points
     chain = np.zeros((len(sens.variables), len(x)))
@@ -153,6 +168,11 @@ def study_sensitivities(
     }
 
 
+#: the vertex moves' difference steps tried in turn, as fractions of the beam's length (the first
+#: is beam_sensitivities' default; a smaller one only where the larger changes the mesh, at
+#: the cost of round-off: ~1e-5 of a_j's column at 1e-7, ~1e-3 at 1e-8)
+COORDINATE_STEPS = (1e-6, 1e-7, 1e-8)
+
 #: rows whose largest stress lies more than (KS_ROW_CUT + ln(values per row)) / rho below the
 #: path's peak are left out of the KS: a row's KS exceeds its max by at most ln(n) / rho, so its
 #: weight in the path's KS is below exp(-KS_ROW_CUT) = 2e-9, and the ~60 rows together change
@@ -183,7 +203,11 @@ def jacobian(
         "stress_ratio_minus_1",
     ):
         return None
-    out = study_sensitivities(problem, x, beam, drive)
+    try:
+        out = study_sensitivities(problem, x, beam, drive)
+    except Exception:  # a Jacobian is an aid: its failure must not end the run (FD instead)
+        log.exception("constant_force: the Jacobian at %s raised; forward differences instead", x)
+        return None
     if out is None:
         return None
     scale = study.fidelity.beam_stress_factor / problem.allowable_MPa

@@ -85,3 +85,14 @@ def test_slsqp_with_the_exact_gradient_finds_the_constrained_optimum():
     assert last.f[0] == pytest.approx(0.12, abs=1e-9) and last.g[0] <= 1e-12
     assert set(evaluate.batches[2:]) == {1}
     assert result.report["jacobians"]["finite_differences"] == 0
+
+
+def test_a_jacobian_that_raises_falls_back_to_finite_differences():
+    def broken(x):
+        raise RuntimeError("cannot differentiate here")
+
+    cfg = config("gauss_newton", starts=1, max_iter=100)
+    result = run_hybrid(SPACE, rosenbrock, 1, 1, cfg, jacobian=broken)
+    np.testing.assert_allclose(result.best.x, [1.0, 1.0], atol=1e-3)
+    assert result.report["jacobians"]["exact"] == 0
+    assert result.report["jacobians"]["finite_differences"] > 0

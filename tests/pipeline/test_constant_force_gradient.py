@@ -266,3 +266,29 @@ def test_the_hook_answers_none_for_what_it_cannot_differentiate(problem):
     x = problem.nominal_design()
     x[0] = x[1] + 0.01  # a1 > a2: the centreline folds back
     assert problem.jacobian(x) is None
+
+
+def test_a_design_at_a_switch_of_the_mesh(problem):
+    """a1 placed where segment 1's element count rounds differently (found by bisection): at
+    the switch every difference step of the vertex move straddles it and the hook answers None;
+    near it the hook takes a smaller step. It never raises (a run would end)."""
+    x = problem.nominal_design()
+
+    def counts(a1):
+        v = x.copy()
+        v[0] = a1
+        return _elements_per_segment(problem, v)
+
+    lo, hi = problem.space.lower[0], problem.space.upper[0]
+    assert not np.array_equal(counts(lo), counts(hi))  # a switch lies in between
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if np.array_equal(counts(mid), counts(lo)) else (lo, mid)
+    # at the switch (1e-15 of a1): every step straddles it, no Jacobian (FD instead)
+    x[0] = lo
+    assert problem.jacobian(x) is None
+    # 3e-5 mm of vertex motion (p1 moves 10.8 mm per unit a1) from it: the default step
+    # (1.3e-4 mm) straddles it, the next (1.3e-5 mm) does not
+    x[0] = lo - 3e-5 / 10.8
+    jac = problem.jacobian(x)
+    assert jac is not None and np.all(np.isfinite(jac.residuals))
