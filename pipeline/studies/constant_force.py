@@ -66,7 +66,7 @@ from flexopt.optimise.curve_objectives import (
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.studies import StudyKind, _builtin, _constant_force_gradient, register
+from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies._constant_force_schema import (
     FRACTIONS,
     ConstantForceBoundary,
@@ -174,8 +174,11 @@ class ConstantForceProblem(DesignProblem):
         return other
 
     def jacobian(self, x: np.ndarray) -> Any:
-        """Exact derivatives at ``x`` (23,): :mod:`._constant_force_gradient`."""
-        return _constant_force_gradient.jacobian(self, x, self._beam, self._drive)
+        """Exact derivatives at ``x`` (23,): :mod:`._constant_force_gradient` (imported here:
+        ~0.1 s that a run without a gradient stage or report does not pay at start-up)."""
+        from flexopt.pipeline.studies._constant_force_gradient import jacobian
+
+        return jacobian(self, x, self._beam, self._drive)
 
     def warm_up_detail(self) -> None:
         """Load what :meth:`detail` needs beyond the beam: the plane-stress check's modules and
