@@ -16,6 +16,13 @@ and its workers; the load average at start and end.
 
     nice python benchmarks/hybrid.py                       # 3 seeds, both studies
     nice python benchmarks/hybrid.py --seeds 1 2 3 4 5 --studies constant-force
+    nice python benchmarks/hybrid.py --studies constant-force --methods hybrid hybrid-fd
+
+Methods: ``ga`` (the example's GA), ``hybrid`` (with the problem's exact Jacobian where it has
+one, :meth:`DesignProblem.jacobian`: constant-force), ``hybrid-fd`` (the same hybrid with
+forward-difference Jacobians, ``HybridConfig.exact_jacobian = False``). A hybrid line also shows
+the Jacobians taken (exact / finite-difference) and the exact ones' wall and CPU time (they run
+in this process).
 
 The issue's targets: constant-force MET at RMS <= 0.004 N in <= 5 s wall (the GA: 0.01075 N,
 13.8 s, when the issue was written); parallel-guide <= 19.5 MPa (the GA: 21.65 MPa then).
@@ -24,6 +31,7 @@ The issue's targets: constant-force MET at RMS <= 0.004 N in <= 5 s wall (the GA
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import os
@@ -65,11 +73,35 @@ def one_run(name: str, method: str, seed: int, options: dict[str, Any], out: Pat
 
     study = load_study(ROOT / "pipeline" / "examples" / f"{name}.yaml")
     update: dict[str, Any] = {"seed": seed}
-    if method == "hybrid":
+    if method in ("hybrid", "hybrid-fd"):
         update.update(method="hybrid", hybrid=HybridSpec(**options))
     study = study.model_copy(update={"optimiser": study.optimiser.model_copy(update=update)})
     cpu0, t0 = cpu_s(), time.perf_counter()
-    outcome = run_study(prepare_run(study), out=out)
+    setup = prepare_run(study)
+    if method == "hybrid-fd":  # the same run, its Jacobians by forward differences
+        setup = dataclasses.replace(
+            setup, hybrid=dataclasses.replace(setup.hybrid, exact_jacobian=False)
+        )
+    timing = {"wall": 0.0, "cpu": 0.0}
+    # the exact Jacobians run in this process (the optimiser's, and the report's one): timed by
+    # a wrapper on the problem's class (not the instance, which the workers unpickle), put back
+    # after the run
+    cls = type(setup.problem)
+    exact = cls.jacobian
+
+    def timed(self: Any, x: Any) -> Any:
+        w, c = time.perf_counter(), time.process_time()
+        try:
+            return exact(self, x)
+        finally:
+            timing["wall"] += time.perf_counter() - w
+            timing["cpu"] += time.process_time() - c
+
+    cls.jacobian = timed
+    try:
+        outcome = run_study(setup, out=out)
+    finally:
+        cls.jacobian = exact
     wall, cpu = time.perf_counter() - t0, cpu_s() - cpu0
     target = RECORDED.get(name)
     reached = None
@@ -94,13 +126,15 @@ def one_run(name: str, method: str, seed: int, options: dict[str, Any], out: Pat
         "wall": wall,
         "cpu": cpu,
         "hybrid": record.get("hybrid"),
+        "jacobian_wall": timing["wall"],
+        "jacobian_cpu": timing["cpu"],
     }
 
 
 def line(r: dict) -> str:
     reached = "-" if r["reached"] is None else str(r["reached"])
     text = (
-        f"  {r['study']:15s} {r['method']:6s} seed {r['seed']:2d}  n {r['n']:5d}  "
+        f"  {r['study']:15s} {r['method']:9s} seed {r['seed']:2d}  n {r['n']:5d}  "
         f"best {r['f']:9.5g}{'' if r['feasible'] else ' (infeasible)'}  reach {reached:>5s}  "
         f"{r['verdict']:8s} opt {r['opt_wall']:5.1f} s  wall {r['wall']:5.1f} s  "
         f"CPU {r['cpu']:5.1f} s"
@@ -112,6 +146,13 @@ def line(r: dict) -> str:
             f"\n      best from {h['best_stage']}, evaluations {h['n_evaluations']}, "
             f"starts: {stops}"
         )
+        jac = h.get("jacobians")
+        if jac:
+            text += (
+                f"\n      Jacobians: {jac['exact']} exact ({r['jacobian_wall']:.2f} s wall, "
+                f"{r['jacobian_cpu']:.2f} s CPU), {jac['finite_differences']} by finite "
+                "differences"
+            )
     return text
 
 
@@ -153,7 +194,7 @@ def main() -> None:
                 return statistics.median(r[key] for r in rs)
 
             print(
-                f"  {name:15s} {method:6s} n {med('n'):7.0f}  best {med('f'):9.5g}  reach "
+                f"  {name:15s} {method:9s} n {med('n'):7.0f}  best {med('f'):9.5g}  reach "
                 f"{statistics.median(reached) if reached else float('nan'):6.0f} "
                 f"({len(reached)}/{len(rs)})  MET {met}/{len(rs)}  opt {med('opt_wall'):5.1f} s  "
                 f"wall {med('wall'):5.1f} s  CPU {med('cpu'):5.1f} s"

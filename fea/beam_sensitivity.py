@@ -71,7 +71,8 @@ class BeamSensitivity:
     Attributes
     ----------
     variables : (n_var,) str — "t[i]" (vertex thickness i, mm), "b" (width, mm), "x[i]", "y[i]"
-        (centreline vertex i, mm), in the order of the last axis of every derivative.
+        (centreline vertex i, mm) or the names of ``vertex_moves`` (a move's parameter), in the
+        order of the last axis of every derivative.
     values : response name -> (n_rows,) — the responses at the polished states (units as in
         BeamResponse: mm, N, N mm, rad), plus "ks_stress_MPa" (the smooth peak stress, KS over
         the signed outer-fibre stresses of every sampling point, +- both) and "peak_stress_MPa"
@@ -426,6 +427,16 @@ def _segment_of_elements(model: BeamModel) -> np.ndarray:
     return np.clip(seg, 0, model.profile.n_points - 2)
 
 
+#: central-difference stencils of dR/dx|_q: (offset in steps, weight per step) pairs. The residual
+#: is far more curved in a vertex coordinate than the response (the axial term EA (l/l0 - 1) of
+#: a stiff, short element): on paper 003's beam the second-order stencil at 1.3e-4 mm was 1.4e-4
+#: off a row's dF/da (O(h^2), 3.6e-5 at 1e-3 mm); the fourth-order one is not, at no extra solve
+_STENCILS = {
+    2: ((1.0, 0.5), (-1.0, -0.5)),
+    4: ((1.0, 8.0 / 12.0), (-1.0, -8.0 / 12.0), (2.0, -1.0 / 12.0), (-2.0, 1.0 / 12.0)),
+}
+
+
 class _CoordinateBatch:
     """The explicit derivatives by the centreline coordinates, at fixed DOFs, for all of them at
     once: central differences between models with one vertex moved by +-``step``.
@@ -437,37 +448,51 @@ class _CoordinateBatch:
     stress evaluation over the batch instead of two full assemblies per coordinate.
     """
 
-    def __init__(self, model: BeamModel, step: float, counts: dict) -> None:
+    def __init__(
+        self,
+        model: BeamModel,
+        step: float,
+        counts: dict,
+        moves: np.ndarray | None = None,
+        names: tuple[str, ...] | None = None,
+        stencil: int = 4,
+    ) -> None:
         prof = model.profile
         seg = _segment_of_elements(model)
         keys = ("dN", "w", "theta0", "cos_theta0", "sin_theta0", "EA", "kGA", "EI", "dN_samples")
         tables: dict[str, list[np.ndarray]] = {k: [] for k in (*keys, "ratio")}
         e_idx, col, sign = [], [], []
-        self.names: list[str] = []
-        for i in range(prof.n_points):
-            els = np.flatnonzero((seg == i - 1) | (seg == i))
-            for k, axis in enumerate("xy"):
-                for sgn in (1.0, -1.0):
-                    pts = np.array(prof.points_mm)
-                    pts[i, k] += sgn * step
-                    p2 = BeamProfile(pts, prof.thickness_mm, prof.width_mm, prof.curvature_per_mm)
-                    pm = BeamModel(p2, model.material, model.start, model.settings)
-                    counts["model_builds"] += 1
-                    if pm.n_elements != model.n_elements or np.any(_segment_of_elements(pm) != seg):
-                        raise FeaError(
-                            f"coordinate step {step:g} mm changes the mesh at vertex {i}; "
-                            "pass a smaller coordinate_step_mm"
-                        )
-                    own = pm.tables
-                    for key in keys:
-                        tables[key].append(getattr(own, key)[els])
-                    tables["ratio"].append(
-                        (pm.tables.EI_samples / pm.tables.section_modulus_samples)[els]
+        if moves is None:  # every coordinate on its own: x[i], y[i]
+            moves = np.zeros((2 * prof.n_points, prof.n_points, 2))
+            for i in range(prof.n_points):
+                moves[2 * i, i, 0] = moves[2 * i + 1, i, 1] = 1.0
+            names = tuple(f"{axis}[{i}]" for i in range(prof.n_points) for axis in "xy")
+        self.names: list[str] = list(names or ())
+        for m, move in enumerate(moves):
+            # the vertices the move carries, and the elements on the segments either side of them
+            moved = np.flatnonzero(np.any(move != 0.0, axis=1))
+            els = np.flatnonzero(np.isin(seg, moved - 1) | np.isin(seg, moved))
+            # the parameter's step, so that the largest vertex moves by ``step`` mm
+            h = step / max(float(np.abs(move).max()), 1e-300)
+            for sgn, weight in _STENCILS[stencil]:
+                pts = np.array(prof.points_mm) + sgn * h * move
+                p2 = BeamProfile(pts, prof.thickness_mm, prof.width_mm, prof.curvature_per_mm)
+                pm = BeamModel(p2, model.material, model.start, model.settings)
+                counts["model_builds"] += 1
+                if pm.n_elements != model.n_elements or np.any(_segment_of_elements(pm) != seg):
+                    raise FeaError(
+                        f"coordinate step {step:g} mm changes the mesh (move {self.names[m]}); "
+                        "pass a smaller coordinate_step_mm"
                     )
-                    e_idx.append(els)
-                    col.append(np.full(els.size, len(self.names)))
-                    sign.append(np.full(els.size, sgn / (2.0 * step)))
-                self.names.append(f"{axis}[{i}]")
+                own = pm.tables
+                for key in keys:
+                    tables[key].append(getattr(own, key)[els])
+                tables["ratio"].append(
+                    (pm.tables.EI_samples / pm.tables.section_modulus_samples)[els]
+                )
+                e_idx.append(els)
+                col.append(np.full(els.size, m))
+                sign.append(np.full(els.size, weight / h))
         self.t = {k: np.concatenate(v) for k, v in tables.items()}
         self.e = np.concatenate(e_idx)
         self.col = np.concatenate(col)
@@ -525,6 +550,10 @@ def beam_sensitivities(
     variables: tuple[str, ...] = ("thickness", "width"),
     ks_rho_per_MPa: float | None = None,
     coordinate_step_mm: float | None = None,
+    vertex_moves: np.ndarray | None = None,
+    move_names: tuple[str, ...] | None = None,
+    rows: np.ndarray | None = None,
+    coordinate_stencil: int = 4,
 ) -> BeamSensitivity:
     """Derivatives of every converged row of ``response`` (``model.solve(drive)``).
 
@@ -532,21 +561,39 @@ def beam_sensitivities(
     ----------
     model, drive, response : the model, the drive and the path it traced (either kernel).
     variables : any of "thickness" (every vertex thickness t_i, mm), "width" (b, mm) and
-        "coordinates" (x_i, y_i of every centreline vertex, mm; arcs keep their curvature).
+        "coordinates" (x_i, y_i of every centreline vertex, mm; arcs keep their curvature) or
+        "moves" (the directional derivatives along ``vertex_moves``).
     ks_rho_per_MPa : KS parameter rho (1/MPa) of the smooth peak stress; default
         ``KS_RHO_YIELD / yield_MPa`` (100 / yield): KS exceeds the max by at most
         ln(n_samp) / rho, about 5 % of the yield stress for 180 sampling points, and much less
         when one point dominates.
     coordinate_step_mm : the central-difference step of dR/dx|_q for "coordinates" (no solve is
-        differenced, only the residual at fixed q); default 1e-6 of the beam length.
+        differenced, only the residual at fixed q); default 1e-6 of the beam length. For
+        "moves", the largest vertex of a move moves by this much.
+    vertex_moves : (n_moves, n_points, 2) mm per unit of the move's parameter — with "moves":
+        each row is the velocity of every centreline vertex along one design parameter (e.g. a
+        generator's variable that slides a vertex along a line); its derivative is d(.)/d(param),
+        one variable per move instead of 2 per vertex, and only the elements next to the moved
+        vertices are evaluated.
+    move_names : (n_moves,) names of the moves (default "move[k]").
+    coordinate_stencil : 4 (default) or 2: the order of the central difference of dR/dx|_q
+        (4: four model builds per coordinate or move, 2: two; see :data:`_STENCILS`).
+    rows : (k,) int, the rows to differentiate (default every converged row); the others are
+        NaN. Each row costs two assemblies and factorisations and its back-substitutions, so a
+        response that reads a few rows (samples of the curve, the rows near the peak stress)
+        asks for those only.
 
     Returns
     -------
     BeamSensitivity
     """
+    if coordinate_stencil not in _STENCILS:
+        raise FeaError(f"coordinate_stencil = {coordinate_stencil!r}; use 2 or 4")
     for v in variables:
-        if v not in ("thickness", "width", "coordinates"):
-            raise FeaError(f"variable {v!r}; use 'thickness', 'width' or 'coordinates'")
+        if v not in ("thickness", "width", "coordinates", "moves"):
+            raise FeaError(f"variable {v!r}; use 'thickness', 'width', 'coordinates' or 'moves'")
+    if ("coordinates" in variables) and ("moves" in variables):
+        raise FeaError("'coordinates' and 'moves' both move the vertices: use one of them")
     twin = _Twin(model)
     m = twin.model
     prof = m.profile
@@ -571,9 +618,20 @@ def beam_sensitivities(
         "lu_rows": 0,
     }
     coords = None
-    if "coordinates" in variables:
+    if "coordinates" in variables or "moves" in variables:
         step = 1e-6 * prof.length_mm if coordinate_step_mm is None else coordinate_step_mm
-        coords = _CoordinateBatch(m, step, counts)
+        if "moves" in variables:
+            moves = np.asarray(vertex_moves, dtype=float)
+            if moves.ndim != 3 or moves.shape[1:] != (prof.n_points, 2):
+                raise FeaError(
+                    f"vertex_moves must be (n_moves, {prof.n_points}, 2), got {moves.shape}"
+                )
+            labels = move_names or tuple(f"move[{k}]" for k in range(len(moves)))
+            if len(labels) != len(moves):
+                raise FeaError(f"{len(labels)} move_names for {len(moves)} vertex_moves")
+            coords = _CoordinateBatch(m, step, counts, moves, tuple(labels), coordinate_stencil)
+        else:
+            coords = _CoordinateBatch(m, step, counts, stencil=coordinate_stencil)
         names += coords.names
     n_var = len(names)
 
@@ -588,6 +646,8 @@ def beam_sensitivities(
     mismatch = 0.0
 
     done = np.flatnonzero(response.converged)
+    if rows is not None:
+        done = np.intersect1d(done, np.asarray(rows, dtype=int))
     starts = np.zeros((n_rows, n))
     starts[done] = _initial_states(
         twin,

@@ -9,6 +9,13 @@ run's cache, store, resume (replay) and tables serve them as they serve the GA's
 stage is a deterministic function of the evaluations it is given, as the GA is of its seed: a
 resumed run replays it from the store.
 
+Where the problem differentiates its responses exactly (:meth:`optimise.problem.DesignProblem.
+jacobian`, passed as ``run_hybrid(..., jacobian=)``; the constant-force study), a Jacobian is one
+call of it at the current design instead of ``n_var`` perturbed designs: nothing is evaluated
+for it (the designs the stage steps to are, as before), and it is a deterministic function of
+the design, so a resumed run computes the same one again. ``HybridResult.report["jacobians"]``
+counts the exact and the finite-difference Jacobians.
+
 Two gradient methods:
 
 * **Gauss-Newton with a trust region** (``gauss_newton``) where the objective is a least-squares
@@ -31,12 +38,14 @@ evaluations of each stage and why each start stopped.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 from flexopt.geometry.errors import FlexoptError
+from flexopt.optimise.design_jacobian import DesignJacobian
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAConfig, GAResult, Generation, best_of, run_ga
@@ -51,6 +60,8 @@ __all__ = [
     "pick_starts",
     "StallRule",
 ]
+
+log = logging.getLogger(__name__)
 
 #: a failed design's objective and constraint in the scaled SLSQP problem: finite (SLSQP's line
 #: search backs off from it) and far above any evaluated design's
@@ -74,6 +85,8 @@ class HybridConfig:
     max_iter : iterations per start at most.
     fd_step : forward-difference step in bound-normalised units.
     max_evaluations : designs the gradient stage may ask for at most (None: no limit).
+    exact_jacobian : use the problem's exact derivatives where :func:`run_hybrid` is given them
+        (``jacobian``); False: forward differences always (to compare the two).
     """
 
     ga: GAConfig = GAConfig()
@@ -86,6 +99,7 @@ class HybridConfig:
     max_iter: int = 40
     fd_step: float = 1e-4
     max_evaluations: int | None = None
+    exact_jacobian: bool = True
 
     def __post_init__(self) -> None:
         if self.local not in ("gauss_newton", "slsqp"):
@@ -187,8 +201,13 @@ class _Stage:
         config: HybridConfig,
         ga: GAResult,
         on_generation: Callable[[Generation], None] | None,
+        jacobian: Callable[[np.ndarray], DesignJacobian | None] | None = None,
     ) -> None:
         self.space = space
+        self.jacobian = jacobian if config.exact_jacobian else None
+        #: Jacobians taken: "exact" (the problem's), "finite_differences" (a batch of columns);
+        #: counts only, so a resumed run's report equals the uninterrupted one's
+        self.jacobians = {"exact": 0, "finite_differences": 0}
         self.span = space.upper - space.lower
         self.evaluate = evaluate
         self.config = config
@@ -225,10 +244,37 @@ class _Stage:
             self.on_generation(gen)
         return evaluations
 
+    def exact(
+        self, ev: Evaluation, n_res: int | None, n_con: int
+    ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray] | None:
+        """The problem's exact derivatives at the evaluated design ``ev`` in normalised units
+        (d/du = d/dx (upper - lower)): residuals (n_res, n_var) (None when ``n_res`` is None),
+        constraints (n_con, n_var), objective (n_var,); None when there is no hook, it answers
+        None or its shapes do not fit (the caller then takes finite differences). Not a new
+        design: nothing is evaluated, stored or counted as an evaluation."""
+        if self.jacobian is None:
+            return None
+        try:
+            jac = self.jacobian(np.asarray(ev.x, dtype=float))
+        except Exception:  # an aid, not a requirement: forward differences instead
+            log.exception("hybrid: the problem's Jacobian raised; forward differences instead")
+            return None
+        n_var = len(self.span)
+        if jac is None or np.shape(jac.g) != (n_con, n_var) or np.shape(jac.f)[1:] != (n_var,):
+            return None
+        J = None
+        if n_res is not None:
+            if jac.residuals is None or np.shape(jac.residuals) != (n_res, n_var):
+                return None
+            J = np.asarray(jac.residuals, dtype=float) * self.span
+        self.jacobians["exact"] += 1
+        return J, np.asarray(jac.g, dtype=float) * self.span, np.asarray(jac.f[0]) * self.span
+
     def jacobian_designs(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(n_var, n_var) the forward-difference designs around ``u`` and (n_var,) their signed
         steps (backward where the forward step would leave [0, 1])."""
         h = self.config.fd_step
+        self.jacobians["finite_differences"] += 1
         steps = np.where(u + h <= 1.0, h, -h)
         return u[None, :] + np.diag(steps), steps
 
@@ -345,6 +391,10 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     J = Jg = None
     frozen = np.zeros(len(u), dtype=bool)
     for iteration in range(1, config.max_iter + 1):
+        exact = stage.exact(current, len(r), n_con) if J is None else None
+        if exact is not None:  # the problem's derivatives: no perturbed designs
+            J, Jg, _ = exact
+            frozen[:] = False
         if J is None:  # a Jacobian at every accepted point (a rejected step reuses it)
             U, steps = stage.jacobian_designs(u)
             columns = stage.batch(U)
@@ -438,6 +488,10 @@ def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
 
     def gradient(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         key = np.asarray(u, dtype=float).tobytes()
+        if key not in gradients and not value(u).reason:
+            exact = stage.exact(value(u), None, n_con)
+            if exact is not None:  # the problem's derivatives, at the objective's scale
+                gradients[key] = (exact[2] / f0, exact[1])
         if key not in gradients:
             fu, gu = scaled(value(u))
             U, steps = stage.jacobian_designs(np.asarray(u, dtype=float))
@@ -535,6 +589,7 @@ def run_hybrid(
     config: HybridConfig = HybridConfig(),
     on_generation: Callable[[Generation], None] | None = None,
     initial: np.ndarray | None = None,
+    jacobian: Callable[[np.ndarray], DesignJacobian | None] | None = None,
 ) -> HybridResult:
     """Minimise one objective subject to ``n_con`` constraints g <= 0 over ``space``: the GA
     (``config.ga``), then the gradient method from ``config.starts`` distinct good GA designs.
@@ -542,12 +597,15 @@ def run_hybrid(
     Parameters are those of :func:`optimise.ga.run_ga`; every batch of the gradient stage is
     passed to ``on_generation`` as one more generation. With ``config.local ==
     "gauss_newton"`` the evaluations must carry residuals (:func:`residuals_of`).
+    ``jacobian(x)`` (the problem's :meth:`~optimise.problem.DesignProblem.jacobian`), where
+    given and ``config.exact_jacobian``, replaces the forward-difference columns wherever it
+    answers; every design the stage steps to is still evaluated by ``evaluate``.
     """
     if n_obj != 1:
         raise OptimiseError(f"the hybrid optimiser needs one objective, got {n_obj}")
     ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial)
     n_ga = ga.generations[-1].n_evaluations if ga.generations else 0
-    stage = _Stage(space, evaluate, config, ga, on_generation)
+    stage = _Stage(space, evaluate, config, ga, on_generation, jacobian)
     method = _gauss_newton if config.local == "gauss_newton" else _slsqp
     starts = pick_starts(space, stage.everything, config.starts, config.min_distance)
     report: dict[str, Any] = {
@@ -591,6 +649,7 @@ def run_hybrid(
         best_stage="ga" if best.x.tobytes() in ga_keys else "gradient",
         best_f=float(best.f[0]),
         n_evaluations={"ga": n_ga, "gradient": stage.n},
+        jacobians=dict(stage.jacobians),
         stop=stop,
     )
     return HybridResult(best, (best,), tuple(stage.generations), report)

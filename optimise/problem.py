@@ -23,6 +23,7 @@ from types import MappingProxyType
 from typing import Any
 
 import numpy as np
+from flexopt.optimise.design_jacobian import DesignJacobian
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.requirements import Verdict
 from flexopt.optimise.space import DesignSpace
@@ -267,6 +268,13 @@ class DesignProblem:
         method keeps its tables as they are. A wrapper of a problem answers None unless it
         says otherwise (its objective may not be the inner one's, as a worst-case score).
         """
+        return None
+
+    def jacobian(self, x: np.ndarray) -> DesignJacobian | None:
+        """Exact derivatives of the design ``x`` (n_var,)'s objectives, constraints and
+        residuals (:class:`~optimise.design_jacobian.DesignJacobian`), or None (the default, and
+        for a design or a problem the kind cannot differentiate): the hybrid optimiser then takes
+        finite differences. A wrapper answers None unless it says otherwise."""
         return None
 
     def warm_up(self) -> None:

@@ -414,6 +414,9 @@ def render_report(data: ReportData) -> str:
                 for ev in data.front[:MAX_TABLE_ROWS]
             ],
         )
+    from flexopt.pipeline.sensitivity_report import sensitivity_markdown
+
+    lines += sensitivity_markdown(problem, best)  # d f / d x at the best, x range
     lines += _load_cases(data.detail)
     if data.detail is not None:  # the study's duty_cycle, hold and stops: life, creep, contact
         from flexopt.pipeline.durability_report import durability_markdown, durability_record

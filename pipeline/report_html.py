@@ -35,6 +35,7 @@ from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict, overall, verdict_rows
 from flexopt.pipeline import labels
 from flexopt.pipeline.plot_targets import plot_spec
+from flexopt.pipeline.sensitivity_report import sensitivity_html
 
 __all__ = [
     "EVALUATE_SECTIONS",
@@ -915,7 +916,8 @@ def render_html(data: HtmlData) -> str:
             f"<p class='note'>Spearman rank correlation ρ over {_e(basis)}: +1 the objective grows "
             "with the variable, −1 it falls, 0 no monotonic relation. It is a screening measure, "
             "not a variance decomposition: a variable can matter non-monotonically with ρ ≈ 0.</p>"
-            + figures.embed(_sensitivity_fig(data, rho, basis), "sensitivity"),
+            + figures.embed(_sensitivity_fig(data, rho, basis), "sensitivity")
+            + sensitivity_html(data.problem, data.best, figures.embed),
         )
     )
 

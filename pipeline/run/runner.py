@@ -407,6 +407,7 @@ def _run_in(
                         setup.hybrid,
                         on_generation=run.generation_done,
                         initial=setup.initial,
+                        jacobian=setup.problem.jacobian,  # exact derivatives where it has them
                     )
                     record["hybrid"] = result.report
                     log.info(

@@ -173,6 +173,13 @@ class ConstantForceProblem(DesignProblem):
         other.residual_metrics = True
         return other
 
+    def jacobian(self, x: np.ndarray) -> Any:
+        """Exact derivatives at ``x`` (23,): :mod:`._constant_force_gradient` (imported here:
+        ~0.1 s that a run without a gradient stage or report does not pay at start-up)."""
+        from flexopt.pipeline.studies._constant_force_gradient import jacobian
+
+        return jacobian(self, x, self._beam, self._drive)
+
     def warm_up_detail(self) -> None:
         """Load what :meth:`detail` needs beyond the beam: the plane-stress check's modules and
         compiled kernels (a run calls this in a thread while its workers solve, so the report

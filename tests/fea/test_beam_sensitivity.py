@@ -174,12 +174,12 @@ def test_tapered_cantilever_under_force_control():
 def test_centreline_coordinates_of_a_kinked_cantilever():
     """d/dx_i, d/dy_i of a cantilever with a kink at its middle vertex (semi-analytic: dR/dx at
     fixed DOFs by a central difference of the residual, no solve differenced)."""
-    profile = _tapered(points=((0.0, 0.0), (50.0, 4.0), (100.0, 0.0)))
+    profile = _tapered(points=((0.0, 0.0), (50.0, 4.0), (100.0, 0.0)))  # 3 vertices
     model = BeamModel(profile, MAT, settings=TIGHT)
     response = model.solve(CANTILEVER)
     assert response.ok
     sens = beam_sensitivities(model, CANTILEVER, response, ("coordinates",))
-    assert sens.counts["model_builds"] == 12
+    assert sens.counts["model_builds"] == 24  # 6 coordinates x the 4 points of the stencil
     keys = ("force_N", "transverse_displacement_mm", "end_rotation_rad", "ks_stress_MPa")
     for name in ("y[1]", "x[1]", "y[2]"):
         v = sens.variables.index(name)
@@ -368,3 +368,25 @@ def test_ks_aggregate_bounds_the_max():
             d[j] = h
             fd = (ks_aggregate(sigma + d, rho)[0] - ks_aggregate(sigma - d, rho)[0]) / (2 * h)
             assert w[j] == pytest.approx(fd, rel=1e-6, abs=1e-8)
+
+
+def test_vertex_moves_are_the_coordinates_projected():
+    """A move (vertex velocities) is the directional derivative: the same as the coordinates'
+    derivatives dotted with it, and only the moved vertex's neighbour elements are evaluated."""
+    profile = _tapered(points=((0.0, 0.0), (50.0, 4.0), (100.0, 0.0)))
+    model = BeamModel(profile, MAT, settings=TIGHT)
+    response = model.solve(CANTILEVER)
+    coords = beam_sensitivities(model, CANTILEVER, response, ("coordinates",))
+    moves = np.zeros((2, 3, 2))
+    moves[0, 1] = (3.0, -4.0)  # vertex 1 along (3, -4) mm per unit
+    moves[1, 2] = (0.0, 2.0)  # vertex 2 up, 2 mm per unit
+    sens = beam_sensitivities(
+        model, CANTILEVER, response, ("moves",), vertex_moves=moves, move_names=("m1", "m2")
+    )
+    assert sens.variables == ("m1", "m2") and sens.counts["model_builds"] == 8
+    for k in ("force_N", "end_rotation_rad", "ks_stress_MPa"):
+        d = coords.derivatives[k]
+        expected = np.stack([3.0 * d[:, 2] - 4.0 * d[:, 3], 2.0 * d[:, 5]], axis=1)
+        np.testing.assert_allclose(
+            sens.derivatives[k], expected, rtol=0, atol=1e-8 * np.abs(expected).max()
+        )

@@ -1,0 +1,294 @@
+"""Exact derivatives of the constant-force study's responses (pipeline/studies/
+_constant_force_gradient.py, geometry/constant_force_map.py) against central finite differences
+of the whole study response.
+
+Every reference is computed here: the study's own ``evaluate`` (its Eq. 8 residuals and its
+stress constraint) re-run for perturbed design vectors, or, for the KS aggregate, the
+aggregate over every row and fibre of the study's solve built in this file. The study's beam is
+solved at a tight Newton tolerance (rtol = 1e-11; the only change) so that the differences are
+not the solver's noise. Stencil: fourth-order central, ``(8 (f(h) - f(-h)) - (f(2h) -
+f(-2h))) / 12 h``. Relative error = |exact - FD| over the largest |FD| of that response group
+for that variable (a pointwise ratio is meaningless where a derivative crosses zero).
+The residual probes lie at 3..30 mm, all after the beam's buckling onset at ~0.03 mm: the
+rows the solver's branch guards chose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from flexopt.fea.beam import BeamModel
+from flexopt.fea.beam_sensitivity import beam_sensitivities, ks_aggregate
+from flexopt.geometry.constant_force import beam_profile, design_from_vector
+from flexopt.geometry.constant_force_map import profile_derivatives
+from flexopt.pipeline.studies import _constant_force_gradient as gradient
+from flexopt.pipeline.studies.constant_force import ConstantForceProblem
+from flexopt.pipeline.study import load_study
+
+ROOT = Path(__file__).resolve().parents[2]
+TOL = 1e-6
+
+
+class TightProblem(ConstantForceProblem):
+    """The example's problem, its beam solved to rtol = 1e-11 (everything else the study's)."""
+
+    def _beam(self, design):
+        model = super()._beam(design)
+        return BeamModel(
+            model.profile, model.material, "clamped", replace(model.settings, rtol=1e-11)
+        )
+
+
+@pytest.fixture(scope="module")
+def problem():
+    study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
+    # the example's design has t4 = 0.8 mm, at min_feature_mm: a lower limit, so that the
+    # differences on either side are solved rather than refused as unprintable
+    geometry = study.geometry.model_copy(update={"min_feature_mm": 0.5})
+    return TightProblem(study.model_copy(update={"geometry": geometry}))
+
+
+def _fd(fun, h):
+    return (8.0 * (fun(h) - fun(-h)) - (fun(2 * h) - fun(-2 * h))) / (12.0 * h)
+
+
+def _step(problem, k):
+    """FD step of variable k: 0.3 mm of vertex motion for a_j (its interval is ~40 mm long;
+    the force moves ~1e-3 N per mm of it, so a smaller step leaves the solve's noise: at 0.01 mm
+    the differences were up to 1e-5 off, at 0.1 mm 1e-6; a smaller one is taken where the
+    designs would change the mesh, :func:`_same_mesh`), 1e-2 relative for a thickness or the
+    width."""
+    if k < 10:
+        move = profile_derivatives(problem.frame).points[k]
+        return 3e-1 / float(np.abs(move).max())
+    return 1e-2 * problem.nominal_design()[k]
+
+
+def _elements_per_segment(problem, x):
+    """(n_seg,) the elements of each segment, by fea.beam's rule (rounded from its length)."""
+    model = problem._beam(design_from_vector(x))
+    seg = model.profile.segment_lengths_mm
+    return np.maximum(1, np.rint(model.settings.n_elements * seg / seg.sum())).astype(int)
+
+
+def _same_mesh(problem, x, k, h):
+    """The FD designs x +- h, +- 2h e_k have x's elements per segment (the element count of a
+    segment is rounded from its length: a difference across a change of it measures the mesh)."""
+    ref = _elements_per_segment(problem, x)
+    for step in (-2 * h, -h, h, 2 * h):
+        v = x.copy()
+        v[k] += step
+        if not np.array_equal(_elements_per_segment(problem, v), ref):
+            return False
+    return True
+
+
+def _residuals(problem, x):
+    ev = problem.with_residuals().evaluate(x)
+    assert not ev.reason, ev.reason
+    n = problem.study.target.samples
+    return np.array([ev.metrics[f"residual_{i + 1}"] for i in range(n)])
+
+
+def test_the_profile_map_is_the_generator_s_derivative(problem):
+    """beam_profile is linear in x: its central difference equals the map for every variable."""
+    x = problem.nominal_design()
+    maps = profile_derivatives(problem.frame, problem.study.geometry.end_flexures)
+    for k in range(23):
+        h = 1e-3
+
+        def prof(step, k=k):
+            v = x.copy()
+            v[k] += step
+            p = beam_profile(design_from_vector(v), problem.frame, "centred")
+            return p.points_mm, p.thickness_mm, p.width_mm
+
+        (pp, tp, bp), (pm, tm, bm) = prof(h), prof(-h)
+        np.testing.assert_allclose((pp - pm) / (2 * h), maps.points[k], atol=1e-9)
+        np.testing.assert_allclose((tp - tm) / (2 * h), maps.thickness[k], atol=1e-9)
+        assert abs((bp - bm) / (2 * h) - maps.width[k]) < 1e-9
+    assert list(maps.moving) == list(range(10))
+
+
+def test_interpolation_matrix_is_np_interp():
+    s = np.linspace(0.0, 30.0, 61)
+    probes = 30.0 * np.arange(1, 11) / 10 - 0.7  # off the rows too
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        f = rng.normal(size=61)
+        np.testing.assert_allclose(
+            gradient.interpolation_matrix(s, probes) @ f, np.interp(probes, s, f), atol=1e-14
+        )
+
+
+@pytest.fixture(scope="module")
+def exact(problem):
+    x = problem.nominal_design()
+    out = gradient.study_sensitivities(problem, x, problem._beam, problem._drive)
+    assert out is not None
+    return x, out
+
+
+def test_residuals_are_the_study_s_own(problem, exact):
+    """The derivatives belong to the residuals the study's evaluate reports (same rows)."""
+    x, out = exact
+    r = _residuals(problem, x)
+    np.testing.assert_allclose(out["residuals_N"], r, rtol=0, atol=1e-9)
+    assert out["rms_error_N"] == pytest.approx(np.sqrt(np.mean(r**2)), rel=1e-8)
+
+
+def test_residuals_and_rms_against_central_differences_of_evaluate(problem, exact):
+    """d(residual_i)/dx_k and d(rms_error_N)/dx_k for all 23 variables (a1..a10 through the
+    vertex moves, t1..t10, T1, T6, B) against FD of the study's evaluate."""
+    x, out = exact
+    n = len(out["residuals_N"])
+    span = problem.space.upper - problem.space.lower
+    fds, steps = [], []
+    for k in range(23):
+        # the largest step of the ladder whose designs keep the mesh
+        h = next(
+            (h for h in _step(problem, k) * LADDER if _same_mesh(problem, x, k, h)),
+            None,
+        )
+        assert h is not None, problem.space.names[k]
+
+        def fun(step, k=k):
+            v = x.copy()
+            v[k] += step
+            return _residuals(problem, v)
+
+        def half_mean_square(step, k=k):
+            r = fun(step)
+            return 0.5 * np.mean(r**2)
+
+        # the RMS is curved on the scale of the RMS itself (0.006 N; a 1e-2 step of t moves a
+        # residual by 0.005 N: its difference was 4e-3 off at the residuals' step); mean(r^2) / 2
+        # = rms^2 / 2 is smooth on the scale of r, and
+        # d(rms^2 / 2) = rms d rms. Its fifth derivative (10 r2 r3 + ..., r_i the i-th
+        # derivative of a residual) is not small where F ~ t^3: a third of the step
+        fds.append(np.append(_fd(fun, h), _fd(half_mean_square, h / 3)))
+        steps.append(h / _step(problem, k))
+    fd = np.array(fds).T  # (n + 1, 23)
+    analytic = np.vstack([out["d_residuals"], out["rms_error_N"] * out["d_rms"]])
+    err = np.abs(analytic - fd)
+    # per variable: over the largest |FD| of the residuals for that variable; d(rms^2 / 2) =
+    # r . dr / n sums terms of both signs, so its error is over its bound |r|_2 |dr|_2 / n
+    per_var_r = err[:n].max(axis=0) / np.abs(fd[:n]).max(axis=0)
+    r_norm = np.linalg.norm(out["residuals_N"])
+    per_var_f = err[n] / (r_norm * np.linalg.norm(fd[:n], axis=0) / n)
+    # the Jacobian as the optimiser uses it (bound-normalised: d/du = d/dx (upper - lower)):
+    # over its largest entry
+    jac = err[:n].max(axis=0) * span / np.abs(fd[:n] * span).max()
+    names = problem.space.names
+    resolved = np.array(steps) >= 1.0 / 3.0  # >= 0.1 mm of vertex motion for a_j
+    assert resolved.sum() >= 21  # on this design a8 and a9 only get 0.05 mm
+    bad = {
+        names[k]: (per_var_r[k], per_var_f[k])
+        for k in range(23)
+        if resolved[k] and max(per_var_r[k], per_var_f[k]) > TOL
+    }
+    assert not bad, bad
+    assert jac.max() <= TOL, dict(zip(names, jac, strict=True))
+
+
+#: FD step ladder (fractions of :func:`_step`): the largest that keeps the mesh is taken (on the
+#: example's design no a_j keeps it at 0.3 mm: each moves a segment's length across a rounding
+#: of its element count within 0.6 mm). Below ~0.1 mm of vertex motion the solve's noise
+#: exceeds 1e-6 of an a_j column (measured: the error falls as 1/h, 2.4e-5 at 0.01 mm, 8e-6 at
+#: 0.03 mm, 6.7e-6 for a8 at 0.05 mm, <= 4.4e-7 at >= 0.1 mm), so the per-variable bound is
+#: asserted where the step is >= 0.1 mm, the Jacobian's (bound-normalised) at every step
+LADDER = np.array([1.0, 2.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0, 1.0 / 10.0])
+
+
+def _path_ks(problem, x, rho):
+    """KS over every row and fibre of the study's solve of x, computed from scratch."""
+    model = problem._beam(design_from_vector(x))
+    drive = problem._drive(problem.study.boundary.stroke_mm, problem.study.boundary.rows)
+    response = model.solve(drive)
+    states = beam_sensitivities(model, drive, response, variables=())
+    fibre = states.fibre_stress_MPa.reshape(-1)
+    return ks_aggregate(np.concatenate([fibre, -fibre]), rho)[0]
+
+
+@pytest.mark.parametrize("k", [0, 4, 9, 10, 15, 19, 20, 21, 22])
+def test_ks_stress_against_central_differences(problem, exact, k):
+    """d(KS over the whole path)/dx_k (the stress constraint's smooth aggregate). The KS is
+    smooth on the scale 1/rho: a smaller step (1e-3 relative, 1e-3 mm of vertex motion)."""
+    x, out = exact
+    rho = out["rho"]
+    h = _step(problem, k) / 10
+
+    def fun(step):
+        v = x.copy()
+        v[k] += step
+        return _path_ks(problem, v, rho)
+
+    assert _path_ks(problem, x, rho) == pytest.approx(out["ks_stress_MPa"], rel=1e-12)
+    fd = _fd(fun, h)
+    scale = np.abs(out["d_ks"]).max()  # the gradient's size: a near-zero component tests nothing
+    assert abs(out["d_ks"][k] - fd) <= TOL * scale, (out["d_ks"][k], fd)
+
+
+@pytest.mark.parametrize("k", [2, 11, 14, 20])
+def test_the_peak_stress_gradient_where_the_max_is_smooth(problem, exact, k):
+    """The max's derivative (its active point's) against FD of evaluate's stress constraint,
+    where one point holds the max (the last row's; checked); and KS lies within its bound."""
+    x, out = exact
+    jac = problem.jacobian(x)
+    scale = problem.study.fidelity.beam_stress_factor / problem.allowable_MPa
+    h = _step(problem, k) / 10
+
+    def fun(step):
+        v = x.copy()
+        v[k] += step
+        return problem.evaluate(v).g[0]
+
+    fd = _fd(fun, h)
+    grad = jac.info["peak_stress_gradient"]
+    assert abs(grad[k] - fd) <= TOL * np.abs(grad).max(), (grad[k], fd)
+    n = 12 * problem.study.geometry.elements * (problem.study.boundary.rows + 1)
+    assert (
+        out["peak_stress_MPa"]
+        <= out["ks_stress_MPa"]
+        <= out["peak_stress_MPa"] + np.log(n) / out["rho"]
+    )
+    np.testing.assert_allclose(jac.g[0], scale * out["d_ks"], rtol=1e-12)
+
+
+def test_the_hook_answers_none_for_what_it_cannot_differentiate(problem):
+    """The operative_stroke objective (a window of the band: piecewise) and a design that
+    cannot be built get no Jacobian: the optimiser falls back to finite differences."""
+    study = problem.study.model_copy(update={"objective": "operative_stroke"})
+    assert ConstantForceProblem(study).jacobian(problem.nominal_design()) is None
+    x = problem.nominal_design()
+    x[0] = x[1] + 0.01  # a1 > a2: the centreline folds back
+    assert problem.jacobian(x) is None
+
+
+def test_a_design_at_a_switch_of_the_mesh(problem):
+    """a1 placed where segment 1's element count rounds differently (found by bisection): at
+    the switch every difference step of the vertex move straddles it and the hook answers None;
+    near it the hook takes a smaller step. It never raises (a run would end)."""
+    x = problem.nominal_design()
+
+    def counts(a1):
+        v = x.copy()
+        v[0] = a1
+        return _elements_per_segment(problem, v)
+
+    lo, hi = problem.space.lower[0], problem.space.upper[0]
+    assert not np.array_equal(counts(lo), counts(hi))  # a switch lies in between
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if np.array_equal(counts(mid), counts(lo)) else (lo, mid)
+    # at the switch (1e-15 of a1): every step straddles it, no Jacobian (FD instead)
+    x[0] = lo
+    assert problem.jacobian(x) is None
+    # 3e-5 mm of vertex motion (p1 moves 10.8 mm per unit a1) from it: the default step
+    # (1.3e-4 mm) straddles it, the next (1.3e-5 mm) does not
+    x[0] = lo - 3e-5 / 10.8
+    jac = problem.jacobian(x)
+    assert jac is not None and np.all(np.isfinite(jac.residuals))
