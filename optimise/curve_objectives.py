@@ -42,6 +42,7 @@ from flexopt.fea.scaling import at_thickness
 from flexopt.geometry.cam import CamProfile
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.curve_metrics import CurveMetrics
+from flexopt.optimise.evaluation import INFEASIBLE_VALUE
 from flexopt.optimise.targets import TargetCurve, ThresholdTarget, curve_error, measure_key
 from flexopt.optimise.thickness_fit import fit_thickness
 
@@ -49,6 +50,9 @@ __all__ = [
     "force_band_objective",
     "force_band_constraints",
     "force_band_metrics",
+    "BAND_SHARE",
+    "BAND_ROW",
+    "force_band_ratio",
     "compared_over",
     "check_rows",
     "plane_stress_peak_figures",
@@ -107,6 +111,53 @@ def force_band_constraints(
     if min_operative_stroke_mm > 0:
         g.append(min_operative_stroke_mm - m.operative_stroke_mm)
     return g
+
+
+#: the name of the band's constraint row (objective ``rms_error``): see :func:`force_band_ratio`
+BAND_ROW = "force_band_ratio_minus_1"
+
+#: the share of the band's half-width the optimiser holds the beam's force to. The verdict
+#: judges the band on the plane-stress force (the beam's times the ratio the fidelity check
+#: measures at its strokes), which differs from the beam's by ~0.1 % of the force on this
+#: study's designs (relative_difference -0.0008 ... -0.0012 on the recorded design: 0.0015 N,
+#: 5 % of the 0.03 N half-width): holding the beam to 90 % leaves twice that.
+BAND_SHARE = 0.9
+
+
+def force_band_ratio(
+    displacement_mm: np.ndarray,
+    force_N: np.ndarray,
+    target_N: float,
+    tolerance_rel: float,
+    first_mm: float,
+    share: float = BAND_SHARE,
+) -> float:
+    """The band's constraint row (``g <= 0``): the worst ``|F - target|`` over the rows from
+    ``first_mm`` to the end of the drive, over ``share`` x the band's half-width
+    ``tolerance_rel * target_N``, minus 1.
+
+    Why a constraint and not more residuals: Eq. 8's RMS error samples the force at ``samples``
+    strokes (3, 6, ..., 30 mm on the paper's study) and is kept as the objective (the paper's);
+    the requirement the verdict judges is the band at every row from the first (0.5 mm) on, which
+    those samples do not see near the start of the drive. A gradient stage finds and exploits
+    that gap; this row holds every judged row, in the GA and (linearised) in the gradient stage.
+    The worst row is piecewise smooth in the design (the active row can switch), which a
+    linearisation from forward differences follows like the peak-stress row.
+
+    Parameters
+    ----------
+    displacement_mm, force_N : (rows,) the traced rows (mm, N), row 0 the unloaded state.
+    target_N : target force (N); tolerance_rel : the band's half-width as a fraction of it.
+    first_mm : the first stroke the band holds from (mm; the verdict's: the first row).
+    share : the share of the half-width held (see :data:`BAND_SHARE`).
+    """
+    s = np.asarray(displacement_mm, dtype=float)
+    f = np.asarray(force_N, dtype=float)
+    judged = s >= first_mm - 1e-9 * max(1.0, abs(first_mm))
+    if not np.any(judged) or not np.all(np.isfinite(f[judged])):
+        return INFEASIBLE_VALUE  # no row to judge, or a non-finite force: as a failed design
+    worst = float(np.max(np.abs(f[judged] - target_N)))
+    return worst / (share * tolerance_rel * abs(target_N)) - 1.0
 
 
 def force_band_metrics(m: CurveMetrics) -> dict[str, Any]:

@@ -195,7 +195,7 @@ def test_bad_designs_come_back_as_data_not_exceptions(monkeypatch):
     monkeypatch.setattr(cf.BeamModel, "solve", boom)
     ev = prob.evaluate(TABLE3)
     assert ev.reason == "raised RuntimeError: solver exploded"
-    assert ev.f.shape == (1,) and ev.g.shape == (1,)
+    assert ev.f.shape == (1,) and ev.g.shape == (2,)  # the peak stress and the band rows
 
 
 def test_problem_pickles_and_round_trips():
@@ -212,9 +212,31 @@ def test_problem_pickles_and_round_trips():
 
 def test_min_operative_stroke_adds_a_constraint():
     prob = cf.problem(study_with(target={"min_operative_stroke_mm": 18.0}))
-    assert prob.constraint_names == ("stress_ratio_minus_1", "operative_stroke_shortfall_mm")
+    assert prob.constraint_names == (
+        "stress_ratio_minus_1",
+        "operative_stroke_shortfall_mm",
+        "force_band_ratio_minus_1",
+    )
     ev = prob.evaluate(TABLE3)
     assert ev.g[1] == pytest.approx(18.0)  # Table 3 holds no stroke at 1.5 N +- 2 %
+
+
+def test_the_band_row_holds_every_judged_row():
+    """rms_error: the last constraint row is the worst |F - 1.5 N| over the rows from the first
+    (0.5 mm) to 30 mm over 90 % of the 0.03 N half-width, minus 1, computed here from the traced
+    rows; operative_stroke has no band requirement and no row."""
+    prob = cf.problem(study_with(fidelity={"enabled": False}))
+    assert prob.constraint_names == ("stress_ratio_minus_1", "force_band_ratio_minus_1")
+    x = prob.nominal_design()
+    ev = prob.evaluate(x)
+    _, response, reason = prob._solve(x)
+    assert not reason
+    s, f = np.asarray(response.displacement_mm), np.asarray(response.force_N)
+    assert s[0] == 0.0 and s[1] == pytest.approx(0.5)
+    worst = np.max(np.abs(f[1:] - 1.5))  # row 0 (unloaded, 0 N) is not judged
+    assert ev.g[1] == pytest.approx(worst / (0.9 * 0.03) - 1.0, rel=1e-12)
+    other = cf.problem(study_with(objective="operative_stroke"))
+    assert other.constraint_names == ("stress_ratio_minus_1",)
 
 
 def test_quick_ga_run_on_the_shipped_study():
