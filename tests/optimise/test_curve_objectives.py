@@ -85,17 +85,17 @@ def test_threshold_constraint_rows():
 
 def test_force_band_ratio_is_the_worst_judged_row_over_the_held_share():
     """By hand on FORCE (0.3 N/mm to 1.5 N at 5 mm, then flat): judged from 1 mm the worst row
-    is 1 mm at 0.3 N, 1.2 N off; from 5 mm every row is on target (-1); a band of 0.03 N held
-    at 90 % is 0.027 N."""
-    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 1.0) == pytest.approx(1.2 / 0.027 - 1.0)
-    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 5.0) == pytest.approx(-1.0)
+    is 1 mm at 0.3 N, 1.2 N off; from 5 mm every row is on target; the band of 0.03 N held at
+    90 % is 0.027 N; the row is the excess over it as a fraction of 1.5 N."""
+    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 1.0) == pytest.approx((1.2 - 0.027) / 1.5)
+    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 5.0) == pytest.approx(-0.027 / 1.5)
     assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 4.0, share=1.0) == pytest.approx(
-        0.3 / 0.03 - 1.0
+        (0.3 - 0.03) / 1.5
     )
     bumped = FORCE.copy()
     bumped[-1] = 1.53  # 0.03 N over at the last row: on the band's edge, beyond 90 % of it
     assert force_band_ratio(STROKE, bumped, 1.5, 0.02, 5.0, share=1.0) == pytest.approx(0.0)
-    assert force_band_ratio(STROKE, bumped, 1.5, 0.02, 5.0) == pytest.approx(1 / 0.9 - 1)
+    assert force_band_ratio(STROKE, bumped, 1.5, 0.02, 5.0) == pytest.approx(0.003 / 1.5)
     nan = FORCE.copy()
     nan[10] = np.nan
     assert force_band_ratio(STROKE, nan, 1.5, 0.02, 5.0) > 1e9  # as a failed design
