@@ -175,18 +175,18 @@ class HybridSpec(BaseModel):
     model_config = STUDY_CONFIG
 
     ga_n_gen: int | None = Field(
-        None,
+        5,
         ge=1,
         le=100000,
         description="GA generations before the gradient stage, more until the GA's best is "
-        "feasible (n_gen at most; unset: n_gen)",
+        "feasible (n_gen at most; null: n_gen)",
     )
     local: Literal["auto", "gauss_newton", "slsqp"] = Field(
         "auto",
         description="gradient method: auto (Gauss-Newton where the problem gives residuals, "
         "else SLSQP), gauss_newton or slsqp",
     )
-    starts: int = Field(3, ge=1, le=100, description="distinct GA designs to start from")
+    starts: int = Field(2, ge=1, le=100, description="distinct GA designs to start from")
     min_distance: float = Field(
         0.1, ge=0.0, le=1.0, description="least distance of two starts, in bound-normalised units"
     )
@@ -194,7 +194,7 @@ class HybridSpec(BaseModel):
         1e-3, ge=0.0, lt=1.0, description="relative improvement an iteration must beat"
     )
     patience: int = Field(
-        3, ge=1, le=1000, description="iterations without such an improvement that stop a start"
+        6, ge=1, le=1000, description="iterations without such an improvement that stop a start"
     )
     max_iter: int = Field(40, ge=1, le=10000, description="iterations per start at most")
     fd_step: float = Field(
@@ -223,7 +223,9 @@ class OptimiserSpec(BaseModel):
     quick_pop_size: int = Field(8, ge=2, le=10000, description="pop_size under --quick")
     quick_n_gen: int = Field(3, ge=1, le=100000, description="n_gen under --quick")
     method: Literal["ga", "hybrid"] | None = Field(
-        None, description="ga (unset: the GA alone) or hybrid (the GA, then a gradient stage)"
+        None,
+        description="ga (the GA alone) or hybrid (the GA, then a gradient stage); unset: hybrid "
+        "where the kind's objective is a least squares (constant_force), else the GA",
     )
     hybrid: HybridSpec | None = Field(None, description="options of method: hybrid")
 

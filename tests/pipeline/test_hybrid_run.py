@@ -106,3 +106,22 @@ def test_a_ga_study_dumps_without_the_new_keys():
     assert setup.hybrid is None
     text = study_to_yaml(hybrid_study())
     assert "method: hybrid" in text and "starts: 2" in text
+
+
+def test_the_hybrid_is_the_default_where_the_problem_gives_residuals():
+    """Without ``method``: the hybrid (Gauss-Newton, the defaults ga_n_gen 5, starts 2) where the
+    kind's objective is a least squares (constant-force, rms_error), the GA alone elsewhere (the
+    toy, constant-force's operative_stroke); ``method: ga`` keeps the GA alone."""
+    from flexopt.pipeline.study import load_study
+
+    study = load_study("constant-force")
+    assert study.optimiser.method is None
+    setup = prepare_run(study)
+    assert setup.hybrid is not None and setup.hybrid.local == "gauss_newton"
+    assert (setup.hybrid.ga_n_gen, setup.hybrid.starts) == (5, 2)
+    assert setup.config.n_gen == study.optimiser.n_gen  # the GA stage's most generations
+    ga = study.model_copy(update={"optimiser": study.optimiser.model_copy(update={"method": "ga"})})
+    assert prepare_run(ga).hybrid is None
+    stroke = study.model_copy(update={"objective": "operative_stroke"})
+    assert prepare_run(stroke).hybrid is None  # no residuals: the GA
+    assert prepare_run(validate_study(flexopt_toys.study())).hybrid is None
