@@ -22,9 +22,9 @@ def band_names(study: Any) -> list[str]:
 
 
 def band_rows(study: Any, response: Any) -> list[float]:
-    """The band's constraint values (``g <= 0``, fractions of the target force) of a traced ``response`` (a
-    :class:`fea.beam.BeamResponse`: ``displacement_mm``, ``force_N`` (rows,), mm and N), in
-    the order of :func:`band_names`."""
+    """The band's constraint values (``g <= 0``, fractions of the target force) of a traced
+    ``response`` (a :class:`fea.beam.BeamResponse`: ``displacement_mm``, ``force_N`` (rows,),
+    mm and N), in the order of :func:`band_names`."""
     if not band_names(study):
         return []
     t, b = study.target, study.boundary
