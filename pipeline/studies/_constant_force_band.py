@@ -1,7 +1,8 @@
 """The force band as a constraint row of the ``constant_force`` kind (issue 27): with objective
 ``rms_error`` the optimiser holds the beam's force within :data:`~optimise.curve_objectives.
 BAND_SHARE` of the band at every row the verdict judges (from the first row, 0.5 mm on the
-paper's study, to the end of the drive), which Eq. 8's samples (3, 6, ..., 30 mm) do not see.
+paper's study, to the end of the drive), which Eq. 8's samples (3, 6, ..., 30 mm) do not see;
+a design whose RMS error is above 0.008 N only keeps its worst row within 3 x it (BAND_REACH).
 The arithmetic is :func:`optimise.curve_objectives.force_band_ratio`; docs/constant_force.md,
 "The band as a constraint", says why and what it changed.
 """
@@ -21,10 +22,11 @@ def band_names(study: Any) -> list[str]:
     return [BAND_ROW] if study.objective == "rms_error" else []
 
 
-def band_rows(study: Any, response: Any) -> list[float]:
+def band_rows(study: Any, response: Any, rms_error_N: float) -> list[float]:
     """The band's constraint values (``g <= 0``, fractions of the target force) of a traced
     ``response`` (a :class:`fea.beam.BeamResponse`: ``displacement_mm``, ``force_N`` (rows,),
-    mm and N), in the order of :func:`band_names`."""
+    mm and N) whose RMS error (Eq. 8) is ``rms_error_N`` (N), in the order of
+    :func:`band_names`."""
     if not band_names(study):
         return []
     t, b = study.target, study.boundary
@@ -36,5 +38,6 @@ def band_rows(study: Any, response: Any) -> list[float]:
             t.force_N,
             t.tolerance_percent / 100.0,
             first_mm,
+            rms_error_N=rms_error_N,
         )
     ]

@@ -297,7 +297,7 @@ class ConstantForceProblem(DesignProblem):
             self.allowable_MPa,
             study.fidelity.beam_stress_factor,
             study.target.min_operative_stroke_mm,
-        ) + band_rows(study, response)
+        ) + band_rows(study, response, m.rms_error_N)
         metrics: dict[str, Any] = {
             **force_band_metrics(m),
             "min_feature_mm": design_min_feature_mm(design),

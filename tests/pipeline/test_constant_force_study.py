@@ -223,8 +223,8 @@ def test_min_operative_stroke_adds_a_constraint():
 
 def test_the_band_row_holds_every_judged_row():
     """rms_error: the last constraint row is the worst |F - 1.5 N| over the rows from the first
-    (0.5 mm) to 30 mm less 90 % of the 0.03 N half-width, over 1.5 N, computed here from the
-    traced rows; operative_stroke has no band requirement and no row."""
+    (0.5 mm) to 30 mm less 80 % of the 0.03 N half-width (or 3 x the RMS error when larger),
+    over 1.5 N, computed here from the traced rows; operative_stroke has no band requirement and no row."""
     prob = cf.problem(study_with(fidelity={"enabled": False}))
     assert prob.constraint_names == ("stress_ratio_minus_1", "force_band_excess")
     x = prob.nominal_design()
@@ -234,7 +234,8 @@ def test_the_band_row_holds_every_judged_row():
     s, f = np.asarray(response.displacement_mm), np.asarray(response.force_N)
     assert s[0] == 0.0 and s[1] == pytest.approx(0.5)
     worst = np.max(np.abs(f[1:] - 1.5))  # row 0 (unloaded, 0 N) is not judged
-    assert ev.g[1] == pytest.approx((worst - 0.9 * 0.03) / 1.5, rel=1e-12)
+    allowed = max(0.8 * 0.03, 3.0 * ev.f[0])  # the band, or 3 x the RMS error when larger
+    assert ev.g[1] == pytest.approx((worst - allowed) / 1.5, rel=1e-12)
     other = cf.problem(study_with(objective="operative_stroke"))
     assert other.constraint_names == ("stress_ratio_minus_1",)
 
