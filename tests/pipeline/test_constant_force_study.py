@@ -224,7 +224,8 @@ def test_min_operative_stroke_adds_a_constraint():
 def test_the_band_row_holds_every_judged_row():
     """rms_error: the last constraint row is the worst |F - 1.5 N| over the rows from the first
     (0.5 mm) to 30 mm less 80 % of the 0.03 N half-width (or 3 x the RMS error when larger),
-    over 1.5 N, computed here from the traced rows; operative_stroke has no band requirement and no row."""
+    over 1.5 N, computed here from the traced rows; operative_stroke has no band requirement and
+    no row."""
     prob = cf.problem(study_with(fidelity={"enabled": False}))
     assert prob.constraint_names == ("stress_ratio_minus_1", "force_band_excess")
     x = prob.nominal_design()
