@@ -223,9 +223,7 @@ class OptimiserSpec(BaseModel):
     quick_pop_size: int = Field(8, ge=2, le=10000, description="pop_size under --quick")
     quick_n_gen: int = Field(3, ge=1, le=100000, description="n_gen under --quick")
     method: Literal["ga", "hybrid"] | None = Field(
-        None,
-        description="ga (the GA alone) or hybrid (the GA, then a gradient stage); unset: hybrid "
-        "where the kind's objective is a least squares (constant_force), else the GA",
+        None, description="ga (unset: the GA alone) or hybrid (the GA, then a gradient stage)"
     )
     hybrid: HybridSpec | None = Field(None, description="options of method: hybrid")
 

@@ -94,26 +94,13 @@ def prepare_run(study: Study, quick: bool = False, seed: int | None = None) -> R
     pop_size, n_gen = (
         (spec.quick_pop_size, spec.quick_n_gen) if quick else (spec.pop_size, spec.n_gen)
     )
-    if spec.method == "hybrid" or (spec.method is None and hybrid_by_default(spec, problem)):
+    if spec.method == "hybrid":
         return _hybrid_setup(study, problem, spec, quick, pop_size, n_gen)
     try:
         config = GAConfig(spec.algorithm, pop_size, n_gen, spec.seed)
     except OptimiseError as exc:
         raise StudyError("optimiser", str(exc)) from None
     return RunSetup(study, problem, config, quick, initial_designs(problem))
-
-
-def hybrid_by_default(spec: OptimiserSpec, problem: DesignProblem) -> bool:
-    """Whether a study without ``optimiser.method`` runs the hybrid optimiser: where the
-    problem's one objective is a least squares (``with_residuals()``, the constant-force study's
-    Eq. 8) and ``algorithm: ga``. Measured (docs/benchmarks.md, benchmarks/hybrid.py): the GA,
-    then Gauss-Newton ends lower in a third of the GA's evaluations. Elsewhere (SLSQP on a
-    scalar objective) the GA alone stays the default: ``method: hybrid`` asks for it."""
-    return (
-        spec.algorithm == "ga"
-        and len(problem.objective_names) == 1
-        and problem.with_residuals() is not None
-    )
 
 
 #: ``--quick`` of a hybrid run: one start, at most this many iterations
