@@ -3,8 +3,8 @@
 
 For each study (default: ``constant-force`` and ``parallel-guide``) and seed, the study with
 ``optimiser.method: ga`` (the GA alone) and the same study with ``optimiser: {method: hybrid,
-hybrid: ...}`` (the options below, per study; constant-force's are the defaults, so its hybrid
-run is the example's default run, ``optimiser.method`` unset) are run through
+hybrid: ...}`` (the options below, per study; constant-force's are the hybrid's defaults; its
+band row exists under ``method: hybrid`` only) are run through
 :func:`pipeline.run.run_study` (the runner, store, verdict and report of ``flexopt run``,
 default workers: one per core) into a temporary folder, interleaved seed by seed so load changes
 hit both alike. Printed per run and as medians over the seeds: the evaluations, the best
@@ -44,7 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: the hybrid's options per study: a short GA, then the gradient method from its best designs
 HYBRID_OPTIONS: dict[str, dict[str, Any]] = {
-    "constant-force": {},  # the defaults (ga_n_gen 5, starts 2): the example's default run
+    "constant-force": {},  # the hybrid's defaults (ga_n_gen 5, starts 2, patience 6)
     "parallel-guide": {"ga_n_gen": 2, "starts": 2},
 }
 
