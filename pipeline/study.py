@@ -175,18 +175,18 @@ class HybridSpec(BaseModel):
     model_config = STUDY_CONFIG
 
     ga_n_gen: int | None = Field(
-        None,
+        5,
         ge=1,
         le=100000,
         description="GA generations before the gradient stage, more until the GA's best is "
-        "feasible (n_gen at most; unset: n_gen)",
+        "feasible (n_gen at most; null: n_gen)",
     )
     local: Literal["auto", "gauss_newton", "slsqp"] = Field(
         "auto",
         description="gradient method: auto (Gauss-Newton where the problem gives residuals, "
         "else SLSQP), gauss_newton or slsqp",
     )
-    starts: int = Field(3, ge=1, le=100, description="distinct GA designs to start from")
+    starts: int = Field(2, ge=1, le=100, description="distinct GA designs to start from")
     min_distance: float = Field(
         0.1, ge=0.0, le=1.0, description="least distance of two starts, in bound-normalised units"
     )
@@ -194,7 +194,7 @@ class HybridSpec(BaseModel):
         1e-3, ge=0.0, lt=1.0, description="relative improvement an iteration must beat"
     )
     patience: int = Field(
-        3, ge=1, le=1000, description="iterations without such an improvement that stop a start"
+        6, ge=1, le=1000, description="iterations without such an improvement that stop a start"
     )
     max_iter: int = Field(40, ge=1, le=10000, description="iterations per start at most")
     fd_step: float = Field(

@@ -67,6 +67,7 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import StudyKind, _builtin, register
+from flexopt.pipeline.studies._constant_force_band import band_names, band_rows
 from flexopt.pipeline.studies._constant_force_schema import (
     FRACTIONS,
     ConstantForceBoundary,
@@ -156,6 +157,7 @@ class ConstantForceProblem(DesignProblem):
         names = ["stress_ratio_minus_1"]
         if study.target.min_operative_stroke_mm > 0:
             names.append("operative_stroke_shortfall_mm")
+        names += band_names(study)  # the force band at every judged row (issue 27)
         self.constraint_names: tuple[str, ...] = tuple(names)
 
     # ---- what the run pipeline may ask besides evaluate/detail
@@ -302,7 +304,7 @@ class ConstantForceProblem(DesignProblem):
             self.allowable_MPa,
             study.fidelity.beam_stress_factor,
             study.target.min_operative_stroke_mm,
-        )
+        ) + band_rows(study, response, m.rms_error_N)
         metrics: dict[str, Any] = {
             **force_band_metrics(m),
             "min_feature_mm": design_min_feature_mm(design),

@@ -12,6 +12,7 @@ from flexopt.optimise.curve_objectives import (
     force_band_constraints,
     force_band_metrics,
     force_band_objective,
+    force_band_ratio,
     plane_stress_force_column,
     plane_stress_peak_figures,
     threshold_constraints,
@@ -80,3 +81,36 @@ def test_plane_stress_figures_need_every_checked_stroke_converged():
 def test_threshold_constraint_rows():
     g = threshold_constraints(0.07, 0.05, 30.0, 40.0, 25.0, (2.0, 20.0), np.array([-1.0, 0.5]))
     assert g == pytest.approx([0.02, -0.25, 5.0, -23.0, -1.0, 0.5])
+
+
+def test_force_band_ratio_is_the_worst_judged_row_over_the_held_share():
+    """By hand on FORCE (0.3 N/mm to 1.5 N at 5 mm, then flat): judged from 1 mm the worst row
+    is 1 mm at 0.3 N, 1.2 N off; from 5 mm every row is on target; the band of 0.03 N held at
+    80 % is 0.024 N; the row is the excess over it as a fraction of 1.5 N."""
+    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 1.0) == pytest.approx((1.2 - 0.024) / 1.5)
+    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 5.0) == pytest.approx(-0.024 / 1.5)
+    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 4.0, share=1.0) == pytest.approx(
+        (0.3 - 0.03) / 1.5
+    )
+    bumped = FORCE.copy()
+    bumped[-1] = 1.53  # 0.03 N over at the last row: on the band's edge, beyond 80 % of it
+    assert force_band_ratio(STROKE, bumped, 1.5, 0.02, 5.0, share=1.0) == pytest.approx(0.0)
+    assert force_band_ratio(STROKE, bumped, 1.5, 0.02, 5.0) == pytest.approx(0.006 / 1.5)
+    nan = FORCE.copy()
+    nan[10] = np.nan
+    assert force_band_ratio(STROKE, nan, 1.5, 0.02, 5.0) > 1e9  # as a failed design
+    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 31.0) > 1e9  # no row to judge
+
+
+def test_force_band_ratio_lets_a_far_design_be_off_by_reach_times_its_rms():
+    """Above 0.024 N / 3 = 0.008 N of RMS error the worst row may be 3 x the RMS error off: an
+    RMS error of 0.1 N allows 0.3 N, so the 1 mm row (1.2 N off) exceeds it by 0.9 N, and the
+    4 mm row (0.3 N off) sits on it; below 0.008 N the band alone."""
+    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 1.0, rms_error_N=0.1) == pytest.approx(
+        0.9 / 1.5
+    )
+    assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 4.0, rms_error_N=0.1) == pytest.approx(0.0)
+    for rms in (0.0, 0.005, 0.008):
+        assert force_band_ratio(STROKE, FORCE, 1.5, 0.02, 4.0, rms_error_N=rms) == pytest.approx(
+            (0.3 - 0.024) / 1.5
+        )

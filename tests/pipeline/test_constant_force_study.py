@@ -217,6 +217,38 @@ def test_min_operative_stroke_adds_a_constraint():
     assert ev.g[1] == pytest.approx(18.0)  # Table 3 holds no stroke at 1.5 N +- 2 %
 
 
+def test_the_band_row_holds_every_judged_row():
+    """rms_error under ``method: hybrid``: the last constraint row is the worst |F - 1.5 N| over
+    the rows from the first (0.5 mm) to 30 mm less 80 % of the 0.03 N half-width (or 3 x the RMS
+    error when larger), over 1.5 N, computed here from the traced rows; operative_stroke has no
+    band requirement and no row."""
+    hybrid = {"method": "hybrid"}
+    prob = cf.problem(study_with(fidelity={"enabled": False}, optimiser=hybrid))
+    assert prob.constraint_names == ("stress_ratio_minus_1", "force_band_excess")
+    x = prob.nominal_design()
+    ev = prob.evaluate(x)
+    _, response, reason = prob._solve(x)
+    assert not reason
+    s, f = np.asarray(response.displacement_mm), np.asarray(response.force_N)
+    assert s[0] == 0.0 and s[1] == pytest.approx(0.5)
+    worst = np.max(np.abs(f[1:] - 1.5))  # row 0 (unloaded, 0 N) is not judged
+    allowed = max(0.8 * 0.03, 3.0 * ev.f[0])  # the band, or 3 x the RMS error when larger
+    assert ev.g[1] == pytest.approx((worst - allowed) / 1.5, rel=1e-12)
+    other = cf.problem(study_with(objective="operative_stroke", optimiser=hybrid))
+    assert other.constraint_names == ("stress_ratio_minus_1",)
+
+
+def test_the_ga_alone_has_no_band_row():
+    """The default (no ``optimiser.method``) and ``method: ga``: main's problem, the peak stress
+    row alone, so the GA's runs and every ``flexopt evaluate`` (no ``force_band_excess`` in its
+    summary: the evaluate goldens) are unchanged by the hybrid's band row."""
+    for study in (load_study("constant-force"), study_with(optimiser={"method": "ga"})):
+        assert study.optimiser.method != "hybrid"
+        prob = cf.problem(study)
+        assert prob.constraint_names == ("stress_ratio_minus_1",)
+        assert prob.evaluate(TABLE3).g.shape == (1,)
+
+
 def test_quick_ga_run_on_the_shipped_study():
     study = load_study("constant-force")
     prob = cf.problem(study)

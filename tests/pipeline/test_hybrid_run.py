@@ -106,3 +106,26 @@ def test_a_ga_study_dumps_without_the_new_keys():
     assert setup.hybrid is None
     text = study_to_yaml(hybrid_study())
     assert "method: hybrid" in text and "starts: 2" in text
+
+
+def test_the_ga_is_the_default_and_method_hybrid_selects_the_hybrid():
+    """Without ``method`` constant-force runs the GA alone (as on main: the hybrid's design
+    exceeds 42.5 MPa at the clamp on a refined beam, docs/constant_force.md) with main's problem
+    (no band row); ``method: hybrid`` runs the GA then Gauss-Newton (the defaults ga_n_gen 5,
+    starts 2, patience 6) with the band row ``force_band_excess``."""
+    from flexopt.pipeline.study import load_study
+
+    study = load_study("constant-force")
+    assert study.optimiser.method is None
+    setup = prepare_run(study)
+    assert setup.hybrid is None
+    assert setup.problem.constraint_names == ("stress_ratio_minus_1",)
+    hybrid = study.model_copy(
+        update={"optimiser": study.optimiser.model_copy(update={"method": "hybrid"})}
+    )
+    setup = prepare_run(hybrid)
+    assert setup.hybrid is not None and setup.hybrid.local == "gauss_newton"
+    assert (setup.hybrid.ga_n_gen, setup.hybrid.starts, setup.hybrid.patience) == (5, 2, 6)
+    assert setup.config.n_gen == study.optimiser.n_gen  # the GA stage's most generations
+    assert setup.problem.constraint_names == ("stress_ratio_minus_1", "force_band_excess")
+    assert prepare_run(validate_study(flexopt_toys.study())).hybrid is None
