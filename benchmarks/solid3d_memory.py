@@ -2,19 +2,22 @@
 
 What the report's 3D check holds at its peak: ``Solid3DModel(...)`` on the design's plane mesh,
 ``model.solve(ST)`` (the first thickness: CHOLMOD's, or QDLDL's, factorisation) and a re-check
-at 0.98 ST (PCG preconditioned with that factor), as ``SeaSpringProblem.solid_3d`` makes them.
+at 0.98 ST (PCG preconditioned with that factor; with ``solver = "multigrid"`` both by
+multigrid-preconditioned CG, no factor), as ``SeaSpringProblem.solid_3d`` makes them.
 Run from the repository root::
 
-    python benchmarks/solid3d_memory.py [study] [--run RUN_FOLDER] [--repeat 3] [--solver auto]
+    python benchmarks/solid3d_memory.py [study] [--run RUN_FOLDER] [--repeat 3]
+        [--solvers multigrid cholmod] [--keep]
 
 The design is the study's ``design:`` (default ``sea-spring``, ST from the target as the run
 solves it) or the best design of a finished run folder (``--run``; nothing is written there).
 Each measurement is a fresh process (one BLAS thread, numpy's huge pages off as in the report)
-with ``Solid3DSettings.lean_factorisation`` True (the default: the parts and the reduced
-triangle's pattern dropped while the factor is made, made again after) or False (kept); the
-two alternate, ``--repeat`` times each. Printed: medians of the peak RSS (``ru_maxrss``) of the
-process, wall and CPU time of the build, first solve and re-check, the answers of both (which
-must be equal bit for bit) and the load average before and after (the times move with it on a
+with each ``--solvers`` entry as ``Solid3DSettings.solver``, ``lean_factorisation`` True (the
+default: the parts and the reduced triangle's pattern dropped while the factor is made or the
+multigrid solver runs, made again after; ``--keep``: False); the solvers alternate, ``--repeat``
+times each. Printed: medians of the peak RSS (``ru_maxrss``) of the process, wall and CPU time
+of the build, first solve and re-check, each solver's answers with their relative difference
+to the last solver's, and the load average before and after (the times move with it on a
 shared machine).
 """
 
@@ -82,13 +85,18 @@ def main() -> None:
     ap.add_argument("study", nargs="?", default="sea-spring")
     ap.add_argument("--run", help="a finished run folder: its best design (read only)")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--solver", default="auto", choices=("auto", "cholmod", "qdldl"))
+    ap.add_argument("--solvers", nargs="+", default=["multigrid", "cholmod"],
+                    choices=("auto", "cholmod", "qdldl", "multigrid"),
+                    help="Solid3DSettings.solver of each; the last is the reference")  # fmt: skip
+    ap.add_argument("--keep", action="store_true",
+                    help="lean_factorisation False (the arrays kept throughout)")  # fmt: skip
     ap.add_argument("--case", help=argparse.SUPPRESS)  # a pickled case (re-use between runs)
     ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         child(*args.child)
         return
+    lean = "keep" if args.keep else "lean"
     with tempfile.TemporaryDirectory() as tmp:
         if args.case:
             case_file = Path(args.case)
@@ -99,37 +107,41 @@ def main() -> None:
             case_file.write_bytes(pickle.dumps(case))
             print(f"{args.run or args.study}: ST = {case['st_mm']:.4f} mm "
                   f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
-        rows: dict[str, list[dict]] = {"lean": [], "keep": []}
+        rows: dict[str, list[dict]] = {m: [] for m in args.solvers}
         load0 = os.getloadavg()
         for k in range(args.repeat):
-            for mode in ("lean", "keep") if k % 2 == 0 else ("keep", "lean"):
+            # the order alternates, so a load that changes with time favours neither
+            for solver in args.solvers if k % 2 == 0 else args.solvers[::-1]:
                 out = subprocess.run(
-                    [sys.executable, __file__, "--child", str(case_file), mode, args.solver],
+                    [sys.executable, __file__, "--child", str(case_file), lean, solver],
                     check=True, capture_output=True, text=True, cwd=ROOT,
                 ).stdout  # fmt: skip
-                rows[mode].append(json.loads(out.strip().splitlines()[-1]))
+                rows[solver].append(json.loads(out.strip().splitlines()[-1]))
         load1 = os.getloadavg()
     print(f"load average before {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}, "
           f"after {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f} (2 cores)")  # fmt: skip
-    print(f"medians of {args.repeat} fresh processes each, one BLAS thread, s (wall / CPU):")
+    print(f"medians of {args.repeat} fresh processes each ({lean}), one BLAS thread, "
+          "s (wall / CPU):")  # fmt: skip
     keys = ("build", "solve", "recheck")
-    print(f"{'mode':6s}" + "".join(f"{k:>16s}" for k in keys) + "   peak RSS GB")
-    for mode, rs in rows.items():
+    print(f"{'solver':10s}" + "".join(f"{k:>16s}" for k in keys) + "   peak RSS GB")
+    for solver, rs in rows.items():
         cells = "".join(
             f"{statistics.median(r[k + '_wall'] for r in rs):8.2f} /"
             f"{statistics.median(r[k + '_cpu'] for r in rs):6.2f}"
             for k in keys
         )
         peaks = sorted(r["peak_rss_GB"] for r in rs)
-        print(f"{mode:6s}{cells}   {statistics.median(peaks):.2f} "
+        print(f"{solver:10s}{cells}   {statistics.median(peaks):.2f} "
               f"({' '.join(f'{p:.2f}' for p in peaks)})")  # fmt: skip
-    a, b = rows["lean"][0], rows["keep"][0]
-    for key in ("stiffness", "peak_stress_MPa", "peak_nodal_stress_MPa", "recheck_stiffness",
-                "recheck_peak_nodal_MPa"):  # fmt: skip
-        print(f"{key}: lean {a[key]:.12g}, keep {b[key]:.12g}, "
-              f"relative difference {abs(a[key] / b[key] - 1):.1e}")  # fmt: skip
-    print(f"DOFs {a['n_dofs']}, solver {a['solver']}, re-check PCG iterations "
-          f"{a['recheck_iterations']}")  # fmt: skip
+    ref = rows[args.solvers[-1]][0]
+    for solver, rs in rows.items():
+        a = rs[0]
+        print(f"{solver}: {a['solver']}, DOFs {a['n_dofs']}, re-check iterations "
+              f"{a['recheck_iterations']}")  # fmt: skip
+        for key in ("stiffness", "peak_stress_MPa", "peak_nodal_stress_MPa",
+                    "recheck_stiffness", "recheck_peak_nodal_MPa"):  # fmt: skip
+            print(f"  {key}: {a[key]:.12g} (against {args.solvers[-1]}: "
+                  f"{abs(a[key] / ref[key] - 1):.1e})")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -102,15 +102,23 @@ class Solid3DSettings:
     symmetric: bool = True
     # Distance under which a node counts as on a clamp / drive geometry, mm (the plane model's).
     select_tol_mm: float = 1e-6
-    # "auto": CHOLMOD's supernodal Cholesky (through cvxopt) when it imports, else QDLDL's
-    # LDLᵀ, else SuperLU; see SparseSolver for the measured difference. "multigrid":
-    # conjugate gradients preconditioned by a two-grid cycle (symmetric Gauss-Seidel on the
-    # P2 unknowns, the P1 subspace of the same mesh solved directly; Solid3DModel), no factor
-    # of the whole: the SEA spring's check in ~1/2 the memory of CHOLMOD's and ~1/4 of
-    # QDLDL's, its answers those of the direct solve to ~1e-9, ~5x CHOLMOD's time
-    # (docs/solid3d.md, "Memory"). It needs the compiled assembly and unknowns that are a
-    # selection of DOFs (not a Translate with transverse = "free"); otherwise "auto" runs.
+    # "multigrid": conjugate gradients preconditioned by a two-grid cycle (symmetric
+    # Gauss-Seidel on the P2 unknowns, the P1 subspace of the same mesh solved directly;
+    # Solid3DModel._solve_multigrid), no factor of the whole: the SEA spring's check at
+    # 1.04 GB peak against CHOLMOD's 2.03 GB and QDLDL's 4.65 GB, its answers those of the
+    # direct solve to ~1e-10, at ~3.5x CHOLMOD's CPU time (about QDLDL's) (docs/solid3d.md,
+    # "Memory"). It needs the compiled assembly and unknowns that are a selection of DOFs
+    # (not a Translate with transverse = "free"); elsewhere the direct solvers run. "cholmod":
+    # CHOLMOD's supernodal Cholesky (through cvxopt, the `cholmod` extra); "qdldl": QDLDL's
+    # LDLᵀ; "superlu": SciPy's LU (see SparseSolver for the measured difference). "auto":
+    # multigrid from multigrid_from_dofs DOFs on, below that CHOLMOD when it imports, else
+    # QDLDL, else SuperLU.
     solver: Literal["auto", "cholmod", "qdldl", "superlu", "multigrid"] = "auto"
+    # Where "auto" turns to multigrid: a direct factor of a P2 model this large is ~0.5 GB
+    # and grows faster than the model (the SEA spring's 408k DOFs: 1.04 GB, the check's peak
+    # 2.0 GB), while the multigrid solver's memory is ~2.5 kB per DOF; below it the factor
+    # is small and ~3x faster.
+    multigrid_from_dofs: int = 200_000
     # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
     # (20 000 blocks use ~150 MB each) independently of the mesh size. Solid3DModel's
     # assembly uses blocks of 2 000 at most (its batched products run ~10x faster in cache).
@@ -1016,9 +1024,12 @@ class Solid3DModel:
         self._build_times = {"mesh": t1 - t0, "assemble": time.perf_counter() - t1}
         self._factor: SparseSolver | None = None
         self._q: np.ndarray | None = None
-        # solver = "multigrid" where it can run (compiled kernels, unknowns a DOF selection)
-        self._multigrid = (settings.solver == "multigrid" and kernels is not None
-                           and self._lower is not None)  # fmt: skip
+        # multigrid where it is asked for (or "auto" on a large model) and can run: compiled
+        # kernels, unknowns a DOF selection
+        wanted = settings.solver == "multigrid" or (
+            settings.solver == "auto" and self.n_dofs >= settings.multigrid_from_dofs
+        )
+        self._multigrid = wanted and kernels is not None and self._lower is not None
         self._coarse_P: sp.csr_matrix | None = None
         self._coarse_name = ""  # the coarse grid's direct solver
 
