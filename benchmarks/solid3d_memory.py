@@ -7,7 +7,7 @@ multigrid-preconditioned CG, no factor), as ``SeaSpringProblem.solid_3d`` makes 
 Run from the repository root::
 
     python benchmarks/solid3d_memory.py [study] [--run RUN_FOLDER] [--repeat 3]
-        [--solvers multigrid cholmod] [--keep]
+        [--solvers multigrid cholmod] [--keep] [--stages]
 
 The design is the study's ``design:`` (default ``sea-spring``, ST from the target as the run
 solves it) or the best design of a finished run folder (``--run``; nothing is written there).
@@ -18,7 +18,9 @@ multigrid solver runs, made again after; ``--keep``: False); the solvers alterna
 times each. Printed: medians of the peak RSS (``ru_maxrss``) of the process, wall and CPU time
 of the build, first solve and re-check, each solver's answers with their relative difference
 to the last solver's, and the load average before and after (the times move with it on a
-shared machine).
+shared machine). ``--stages``: instead, one process per solver printing the resident set after
+each stage of the check and its peak during it (Linux's /proc/self/status, the peak reset
+between stages).
 """
 
 from __future__ import annotations
@@ -80,6 +82,54 @@ def child(case_file: str, lean: str, solver: str) -> None:
     print(json.dumps(out))
 
 
+def _status_GB() -> tuple[float, float]:
+    """(resident, peak resident since the last reset) of this process, GB (kB / 2^20)."""
+    d = {}
+    for line in Path("/proc/self/status").read_text().splitlines():
+        k, _, v = line.partition(":")
+        if k in ("VmRSS", "VmHWM"):
+            d[k] = int(v.split()[0]) / 2**20
+    return d["VmRSS"], d["VmHWM"]
+
+
+def _mark(name: str) -> None:
+    """Print the resident set and its peak since the last mark, then reset the peak (Linux:
+    writing 5 to /proc/self/clear_refs)."""
+    rss, peak = _status_GB()
+    print(f"  {name:58s} {rss:5.2f} / {peak:5.2f} GB", flush=True)
+    Path("/proc/self/clear_refs").write_text("5")
+
+
+def child_stages(case_file: str, solver: str) -> None:
+    """The resident set after each stage of the check and its peak during the stage."""
+    import flexopt.fea.solid3d as s3
+    from flexopt.pipeline._hugepages import without_numpy_hugepages
+
+    case = pickle.loads(Path(case_file).read_bytes())
+    model_cls = s3.Solid3DModel
+    inner = model_cls._solve_multigrid
+
+    def marked(self, vals, b, lean):  # the multigrid solve between two marks
+        _mark("K(t) formed, its values gathered, K (and the parts) let go")
+        out = inner(self, vals, b, lean)
+        _mark("multigrid: whole matrix, P1 factor, CG")
+        return out
+
+    model_cls._solve_multigrid = marked
+    print(f"{solver}: stage, resident / peak during the stage")
+    _mark("start (interpreter, libraries, case)")
+    with without_numpy_hugepages():
+        model = model_cls(case["mesh"], case["material"], case["clamp"], case["drive"],
+                          s3.Solid3DSettings(layers=case["layers"], solver=solver),
+                          stress_ignore=case["ignore"])  # fmt: skip
+        _mark("model built (mesh, P2 tables, pattern, parts, lower triangle)")
+        r = model.solve(case["st_mm"])
+        _mark("first thickness: (parts made again,) reactions, stress")
+        model.solve(0.98 * case["st_mm"])
+        _mark("re-check at 0.98 ST (every stage)")
+    print(f"  {r.solver}, {r.iterations} iterations, stiffness {r.stiffness:.6f} N·mm/rad")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("study", nargs="?", default="sea-spring")
@@ -90,11 +140,17 @@ def main() -> None:
                     help="Solid3DSettings.solver of each; the last is the reference")  # fmt: skip
     ap.add_argument("--keep", action="store_true",
                     help="lean_factorisation False (the arrays kept throughout)")  # fmt: skip
+    ap.add_argument("--stages", action="store_true",
+                    help="instead: the memory stage by stage, a process per solver")  # fmt: skip
     ap.add_argument("--case", help=argparse.SUPPRESS)  # a pickled case (re-use between runs)
     ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    ap.add_argument("--child-stages", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         child(*args.child)
+        return
+    if args.child_stages:
+        child_stages(*args.child_stages)
         return
     lean = "keep" if args.keep else "lean"
     with tempfile.TemporaryDirectory() as tmp:
@@ -107,6 +163,11 @@ def main() -> None:
             case_file.write_bytes(pickle.dumps(case))
             print(f"{args.run or args.study}: ST = {case['st_mm']:.4f} mm "
                   f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
+        if args.stages:
+            for solver in args.solvers:
+                subprocess.run([sys.executable, __file__, "--child-stages", str(case_file),
+                                solver], check=True, cwd=ROOT)  # fmt: skip
+            return
         rows: dict[str, list[dict]] = {m: [] for m in args.solvers}
         load0 = os.getloadavg()
         for k in range(args.repeat):

@@ -31,7 +31,9 @@ Physics
     constants. The linear 3D/2D ratio of a design carries to the geometrically nonlinear 2D
     answer: the ratio is a property of the cross-sections (measured 1.022 at 1 and 11 degrees
     on the SEA spring, issue 15), so this check is linear. Solved by a sparse Cholesky
-    factorisation (CHOLMOD through cvxopt; SuperLU when cvxopt does not import).
+    factorisation (CHOLMOD through cvxopt; QDLDL, else SuperLU, when cvxopt does not import)
+    or, from ``Solid3DSettings.multigrid_from_dofs`` DOFs on, by conjugate gradients with a
+    two-grid preconditioner (P2 smoothed, its P1 subspace factorised): half the memory.
 Several thicknesses (:class:`Solid3DModel`)
     The layers scale with the thickness, so one assembly serves every thickness (the
     stiffness is a sum of three parts weighted by t, 1 and 1/t); a thickness after the first
@@ -930,7 +932,8 @@ class Solid3DModel:
     stresses follow from the 1 mm model's basis gradients with their z components divided by
     t (any reference thickness in place of 1 mm). Every node keeps its (x, y), so the
     supports select the same DOFs at every thickness. The first :meth:`solve` factorises K
-    (``settings.solver``: CHOLMOD, else QDLDL without cvxopt, else SuperLU); with
+    (``settings.solver``: CHOLMOD, else QDLDL without cvxopt, else SuperLU; or every
+    thickness by multigrid, :meth:`_solve_multigrid`, from the previous answer); with
     ``settings.later_solves = "pcg"`` a later thickness is solved by conjugate gradients
     preconditioned with that factor, to ``pcg_rtol``; with "direct" it is factorised anew.
     :func:`solve_solid3d` is the reference (a model built at its thickness, factorised); the
@@ -947,7 +950,10 @@ class Solid3DModel:
     Memory: the factor of the first thickness is kept (CHOLMOD: 1.04 GB for the SEA spring's
     375k free DOFs) while the model lives. The peak is the first factorisation (2.0 GB there):
     K is not held through it, and with ``lean_factorisation`` neither are the parts nor the
-    reduced triangle's pattern (made again after); docs/solid3d.md, "Memory".
+    reduced triangle's pattern (made again after). The multigrid solver (``solver =
+    "multigrid"``, or "auto" from ``multigrid_from_dofs`` on) keeps no factor of the whole:
+    the matrix in compressed rows (0.33 GB there) and the P1 factor (~0.03 GB) while it
+    solves, 1.04 GB peak; docs/solid3d.md, "Memory".
     """
 
     def __init__(
