@@ -126,7 +126,7 @@ def child_stages(case_file: str, solver: str) -> None:
         r = model.solve(case["st_mm"])
         _mark("first thickness: (parts made again,) reactions, stress")
         model.solve(0.98 * case["st_mm"])
-        _mark("re-check at 0.98 ST (every stage)")
+        _mark("re-check at 0.98 ST: (parts made again,) reactions, stress")
     print(f"  {r.solver}, {r.iterations} iterations, stiffness {r.stiffness:.6f} N·mm/rad")
 
 

@@ -952,7 +952,7 @@ class Solid3DModel:
     K is not held through it, and with ``lean_factorisation`` neither are the parts nor the
     reduced triangle's pattern (made again after). The multigrid solver (``solver =
     "multigrid"``, or "auto" from ``multigrid_from_dofs`` on) keeps no factor of the whole:
-    the matrix in compressed rows (0.33 GB there) and the P1 factor (~0.03 GB) while it
+    the matrix in compressed rows (0.33 GB there) and the P1 factor (< 0.1 GB) while it
     solves, 1.04 GB peak; docs/solid3d.md, "Memory".
     """
 
@@ -1234,7 +1234,7 @@ class Solid3DModel:
 
         The cycle: a symmetric Gauss-Seidel sweep (forward, then backward) on the P2 unknowns,
         the residual's P1 part solved directly (:meth:`_coarse_prolongation`; ~56k unknowns
-        on the SEA spring's 375k, a factor of a few tens of MB), another symmetric sweep: a
+        on the SEA spring's 375k, its factor < 0.1 GB), another symmetric sweep: a
         symmetric positive definite preconditioner. The whole matrix is held once, in
         compressed rows (both triangles, int32 columns: 0.33 GB there), and never factorised.
         A later thickness starts from the previous one's answer.
