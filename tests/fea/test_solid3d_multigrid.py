@@ -117,3 +117,31 @@ def test_multigrid_where_it_cannot_run_uses_a_direct_solver():
     ref = solve_solid3d(mesh, STEEL, 19.2, clamp, drive, Solid3DSettings(layers=2))
     assert not r.solver.startswith("multigrid")
     assert r.stiffness == ref.stiffness
+
+
+def test_multigrid_without_cvxopt_factorises_the_coarse_grid_with_qdldl(monkeypatch):
+    """A plain install (no `cholmod` extra): the P1 grid goes to QDLDL and the answer is the
+    direct QDLDL solve's."""
+    pytest.importorskip("qdldl")
+    import sys
+
+    monkeypatch.setitem(sys.modules, "cvxopt", None)  # `import cvxopt` raises ImportError
+    mesh, clamp, drive = _strip()
+    m = solve_solid3d(mesh, STEEL, 19.2, clamp, drive,
+                      Solid3DSettings(layers=2, solver="multigrid"))  # fmt: skip
+    d = solve_solid3d(mesh, STEEL, 19.2, clamp, drive, Solid3DSettings(layers=2))
+    assert m.solver == "multigrid (pcg, P1 coarse: qdldl)" and d.solver == "qdldl"
+    np.testing.assert_allclose(_answers(m), _answers(d), rtol=1e-8,
+                               atol=1e-6 * np.linalg.norm(d.reaction_N))  # fmt: skip
+
+
+def test_auto_takes_multigrid_from_multigrid_from_dofs_on():
+    """The "auto" solver switches by the model's size (by default at 200k DOFs, below the SEA
+    spring's 408k): the same model below and above a lowered threshold."""
+    mesh, clamp, drive = _strip()
+    below = solve_solid3d(mesh, STEEL, 19.2, clamp, drive, Solid3DSettings(layers=2))
+    above = solve_solid3d(mesh, STEEL, 19.2, clamp, drive,
+                          Solid3DSettings(layers=2, multigrid_from_dofs=below.n_dofs))  # fmt: skip
+    assert not below.solver.startswith("multigrid")
+    assert above.solver.startswith("multigrid")
+    assert above.stiffness == pytest.approx(below.stiffness, rel=1e-8)
