@@ -141,12 +141,13 @@ class Solid3DSettings:
     # More iterations than this means the factorised thickness is too far off: factorise anew.
     pcg_max_iterations: int = 40
     # solver = "multigrid": CG stops at |K q - b| <= multigrid_rtol |b| (true residual). At
-    # 1e-10 the SEA spring's stiffness and peak stresses agree with CHOLMOD's to < 1e-9
-    # (tests/fea/test_solid3d_multigrid.py checks 1e-7 on a small model; the 3D check's
-    # requirement is 1e-4); each decade costs ~6 of the ~70 iterations.
+    # 1e-10 the SEA spring's stiffness and peak stresses agree with CHOLMOD's to <= 3e-9
+    # (tests/fea/test_solid3d_multigrid.py checks 1e-8 on a small model; the 3D check's
+    # requirement is 1e-4); each decade costs ~8 of the ~60 iterations (76 at 1e-12).
     multigrid_rtol: float = 1e-10
     # More iterations than this is an error (a model the two-grid cycle does not suit: a
-    # direct solver is named), not a silent answer: the SEA spring needs ~70.
+    # direct solver is named), not a silent answer: the SEA spring needs ~60 (~30 from the
+    # previous thickness's answer).
     multigrid_max_iterations: int = 400
     # "compiled": the P2 tables from the vertex coordinates, the node-block pattern and the
     # stiffness parts row by row, and the reduced lower triangle in compressed-column order,
@@ -1119,7 +1120,8 @@ class Solid3DModel:
         first = self._factor is None
         # "multigrid" where it cannot run: the direct solvers, as "auto" chooses them
         direct = "auto" if st.solver == "multigrid" else st.solver
-        times = dict(self._build_times) if first else {"mesh": 0.0}
+        # the build's times go with the first solve (multigrid keeps no factor: by the answer)
+        times = dict(self._build_times) if self._q is None else {"mesh": 0.0}
         K = self.stiffness_matrix(thickness_mm)
         t1 = time.perf_counter()
         times["assemble"] = times.get("assemble", 0.0) + (t1 - t0)
@@ -1136,9 +1138,11 @@ class Solid3DModel:
             lean = st.lean_factorisation
             if lean:  # made again below, bit for bit, from the mesh
                 self._parts = self._indices = self._indptr = None
-            q, iterations = self._solve_multigrid(vals, b, lean)
-            if lean:
-                self._assemble_compiled()
+            try:
+                q, iterations = self._solve_multigrid(vals, b, lean)
+            finally:  # also after an error: the model stays usable (e.g. with another solver)
+                if lean:
+                    self._assemble_compiled()
             K = self.stiffness_matrix(thickness_mm)
         elif not first and st.later_solves == "pcg":
             assert self._factor is not None and self._q is not None
@@ -1271,8 +1275,8 @@ class Solid3DModel:
         if not ok:
             raise FeaError(
                 f"the multigrid solver did not reach a residual of {st.multigrid_rtol:g} in "
-                f"{st.multigrid_max_iterations} iterations; use Solid3DSettings(solver='auto') "
-                "(a direct factorisation)"
+                f"{st.multigrid_max_iterations} iterations; use Solid3DSettings(solver="
+                "'cholmod') or 'qdldl' (a direct factorisation)"
             )
         return q, iterations
 
