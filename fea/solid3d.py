@@ -32,8 +32,10 @@ Physics
     answer: the ratio is a property of the cross-sections (measured 1.022 at 1 and 11 degrees
     on the SEA spring, issue 15), so this check is linear. Solved by a sparse Cholesky
     factorisation (CHOLMOD through cvxopt; QDLDL, else SuperLU, when cvxopt does not import)
-    or, from ``Solid3DSettings.multigrid_from_dofs`` DOFs on, by conjugate gradients with a
-    two-grid preconditioner (P2 smoothed, its P1 subspace factorised): half the memory.
+    or by conjugate gradients with a two-grid preconditioner (P2 smoothed, its P1 subspace
+    factorised): half CHOLMOD's memory at ~3x its time, and less memory and time than QDLDL.
+    ``solver = "auto"`` takes multigrid from ``Solid3DSettings.multigrid_from_dofs`` DOFs on
+    when CHOLMOD does not import (a plain install), CHOLMOD wherever it does.
 Several thicknesses (:class:`Solid3DModel`)
     The layers scale with the thickness, so one assembly serves every thickness (the
     stiffness is a sum of three parts weighted by t, 1 and 1/t); a thickness after the first
@@ -76,6 +78,7 @@ __all__ = [
     "solve_solid3d",
     "Solid3DModel",
     "check_solid3d",
+    "cholmod_available",
     "compare_with_plane_stress",
     "converge_peak_stress",
     "band_reachable",
@@ -113,13 +116,15 @@ class Solid3DSettings:
     # (not a Translate with transverse = "free"); elsewhere the direct solvers run. "cholmod":
     # CHOLMOD's supernodal Cholesky (through cvxopt, the `cholmod` extra); "qdldl": QDLDL's
     # LDLᵀ; "superlu": SciPy's LU (see SparseSolver for the measured difference). "auto":
-    # multigrid from multigrid_from_dofs DOFs on, below that CHOLMOD when it imports, else
-    # QDLDL, else SuperLU.
+    # CHOLMOD whenever it imports (cholmod_available(): the fast route, 2.0 GB on the SEA
+    # spring's check); without it multigrid from multigrid_from_dofs DOFs on (there both less
+    # memory and less time than QDLDL: 1.04 GB and 28.5 s CPU against 4.65 GB and 35.8 s),
+    # below that QDLDL, else SuperLU.
     solver: Literal["auto", "cholmod", "qdldl", "superlu", "multigrid"] = "auto"
-    # Where "auto" turns to multigrid: a direct factor of a P2 model this large is ~0.5 GB
-    # and grows faster than the model (the SEA spring's 408k DOFs: 1.04 GB, the check's peak
-    # 2.0 GB), while the multigrid solver's memory is ~2.5 kB per DOF; below it the factor
-    # is small and ~3x faster.
+    # Where "auto" without CHOLMOD turns to multigrid: a direct factor of a P2 model this
+    # large is ~0.5 GB and grows faster than the model (the SEA spring's 408k DOFs: CHOLMOD's
+    # 1.04 GB, QDLDL's check peaks at 4.65 GB), while the multigrid solver's memory is
+    # ~2.5 kB per DOF; below it the factor is small and a direct solve the quicker.
     multigrid_from_dofs: int = 200_000
     # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
     # (20 000 blocks use ~150 MB each) independently of the mesh size. Solid3DModel's
@@ -358,6 +363,16 @@ def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
         cols = np.broadcast_to(ldof[:, None, :], (m, 3 * nloc, 3 * nloc)).ravel()
         K = K + sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(ndof, ndof))
     return K
+
+
+def cholmod_available() -> bool:
+    """True when CHOLMOD imports (cvxopt, the ``cholmod`` extra): what ``solver = "auto"``
+    takes then, and what ``solver = "cholmod"`` needs."""
+    try:
+        from cvxopt import cholmod  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _gathered(vals) -> np.ndarray:
@@ -934,7 +949,8 @@ class Solid3DModel:
     t (any reference thickness in place of 1 mm). Every node keeps its (x, y), so the
     supports select the same DOFs at every thickness. The first :meth:`solve` factorises K
     (``settings.solver``: CHOLMOD, else QDLDL without cvxopt, else SuperLU; or every
-    thickness by multigrid, :meth:`_solve_multigrid`, from the previous answer); with
+    thickness by multigrid, :meth:`_solve_multigrid`, from the previous answer: "multigrid",
+    or "auto" from ``multigrid_from_dofs`` on when CHOLMOD does not import); with
     ``settings.later_solves = "pcg"`` a later thickness is solved by conjugate gradients
     preconditioned with that factor, to ``pcg_rtol``; with "direct" it is factorised anew.
     :func:`solve_solid3d` is the reference (a model built at its thickness, factorised); the
@@ -952,7 +968,8 @@ class Solid3DModel:
     375k free DOFs) while the model lives. The peak is the first factorisation (2.0 GB there):
     K is not held through it, and with ``lean_factorisation`` neither are the parts nor the
     reduced triangle's pattern (made again after). The multigrid solver (``solver =
-    "multigrid"``, or "auto" from ``multigrid_from_dofs`` on) keeps no factor of the whole:
+    "multigrid"``, or "auto" from ``multigrid_from_dofs`` on without CHOLMOD) keeps no factor
+    of the whole:
     the matrix in compressed rows (0.33 GB there) and the P1 factor (< 0.1 GB) while it
     solves, 1.04 GB peak; docs/solid3d.md, "Memory".
     """
@@ -1031,10 +1048,12 @@ class Solid3DModel:
         self._build_times = {"mesh": t1 - t0, "assemble": time.perf_counter() - t1}
         self._factor: SparseSolver | None = None
         self._q: np.ndarray | None = None
-        # multigrid where it is asked for (or "auto" on a large model) and can run: compiled
-        # kernels, unknowns a DOF selection
+        # multigrid where it is asked for (or "auto" on a large model without CHOLMOD, whose
+        # factor would be ~3x faster) and can run: compiled kernels, unknowns a DOF selection
         wanted = settings.solver == "multigrid" or (
-            settings.solver == "auto" and self.n_dofs >= settings.multigrid_from_dofs
+            settings.solver == "auto"
+            and self.n_dofs >= settings.multigrid_from_dofs
+            and not cholmod_available()
         )
         self._multigrid = wanted and kernels is not None and self._lower is not None
         self._coarse_P: sp.csr_matrix | None = None
