@@ -2,20 +2,25 @@
 
 What the report's 3D check holds at its peak: ``Solid3DModel(...)`` on the design's plane mesh,
 ``model.solve(ST)`` (the first thickness: CHOLMOD's, or QDLDL's, factorisation) and a re-check
-at 0.98 ST (PCG preconditioned with that factor), as ``SeaSpringProblem.solid_3d`` makes them.
+at 0.98 ST (PCG preconditioned with that factor; with ``solver = "multigrid"`` both by
+multigrid-preconditioned CG, no factor), as ``SeaSpringProblem.solid_3d`` makes them.
 Run from the repository root::
 
-    python benchmarks/solid3d_memory.py [study] [--run RUN_FOLDER] [--repeat 3] [--solver auto]
+    python benchmarks/solid3d_memory.py [study] [--run RUN_FOLDER] [--repeat 3]
+        [--solvers multigrid cholmod] [--keep] [--stages]
 
 The design is the study's ``design:`` (default ``sea-spring``, ST from the target as the run
 solves it) or the best design of a finished run folder (``--run``; nothing is written there).
 Each measurement is a fresh process (one BLAS thread, numpy's huge pages off as in the report)
-with ``Solid3DSettings.lean_factorisation`` True (the default: the parts and the reduced
-triangle's pattern dropped while the factor is made, made again after) or False (kept); the
-two alternate, ``--repeat`` times each. Printed: medians of the peak RSS (``ru_maxrss``) of the
-process, wall and CPU time of the build, first solve and re-check, the answers of both (which
-must be equal bit for bit) and the load average before and after (the times move with it on a
-shared machine).
+with each ``--solvers`` entry as ``Solid3DSettings.solver``, ``lean_factorisation`` True (the
+default: the parts and the reduced triangle's pattern dropped while the factor is made or the
+multigrid solver runs, made again after; ``--keep``: False); the solvers alternate, ``--repeat``
+times each. Printed: medians of the peak RSS (``ru_maxrss``) of the process, wall and CPU time
+of the build, first solve and re-check, each solver's answers with their relative difference
+to the last solver's, and the load average before and after (the times move with it on a
+shared machine). ``--stages``: instead, one process per solver printing the resident set after
+each stage of the check and its peak during it (Linux's /proc/self/status, the peak reset
+between stages).
 """
 
 from __future__ import annotations
@@ -77,18 +82,77 @@ def child(case_file: str, lean: str, solver: str) -> None:
     print(json.dumps(out))
 
 
+def _status_GB() -> tuple[float, float]:
+    """(resident, peak resident since the last reset) of this process, GB (kB / 2^20)."""
+    d = {}
+    for line in Path("/proc/self/status").read_text().splitlines():
+        k, _, v = line.partition(":")
+        if k in ("VmRSS", "VmHWM"):
+            d[k] = int(v.split()[0]) / 2**20
+    return d["VmRSS"], d["VmHWM"]
+
+
+def _mark(name: str) -> None:
+    """Print the resident set and its peak since the last mark, then reset the peak (Linux:
+    writing 5 to /proc/self/clear_refs)."""
+    rss, peak = _status_GB()
+    print(f"  {name:58s} {rss:5.2f} / {peak:5.2f} GB", flush=True)
+    Path("/proc/self/clear_refs").write_text("5")
+
+
+def child_stages(case_file: str, solver: str) -> None:
+    """The resident set after each stage of the check and its peak during the stage."""
+    import flexopt.fea.solid3d as s3
+    from flexopt.pipeline._hugepages import without_numpy_hugepages
+
+    case = pickle.loads(Path(case_file).read_bytes())
+    model_cls = s3.Solid3DModel
+    inner = model_cls._solve_multigrid
+
+    def marked(self, vals, b, lean):  # the multigrid solve between two marks
+        _mark("K(t) formed, its values gathered, K (and the parts) let go")
+        out = inner(self, vals, b, lean)
+        _mark("multigrid: whole matrix, P1 factor, CG")
+        return out
+
+    model_cls._solve_multigrid = marked
+    print(f"{solver}: stage, resident / peak during the stage")
+    _mark("start (interpreter, libraries, case)")
+    with without_numpy_hugepages():
+        model = model_cls(case["mesh"], case["material"], case["clamp"], case["drive"],
+                          s3.Solid3DSettings(layers=case["layers"], solver=solver),
+                          stress_ignore=case["ignore"])  # fmt: skip
+        _mark("model built (mesh, P2 tables, pattern, parts, lower triangle)")
+        r = model.solve(case["st_mm"])
+        _mark("first thickness: (parts made again,) reactions, stress")
+        model.solve(0.98 * case["st_mm"])
+        _mark("re-check at 0.98 ST: (parts made again,) reactions, stress")
+    print(f"  {r.solver}, {r.iterations} iterations, stiffness {r.stiffness:.6f} N·mm/rad")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("study", nargs="?", default="sea-spring")
     ap.add_argument("--run", help="a finished run folder: its best design (read only)")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--solver", default="auto", choices=("auto", "cholmod", "qdldl"))
+    ap.add_argument("--solvers", nargs="+", default=["multigrid", "cholmod"],
+                    choices=("auto", "cholmod", "qdldl", "multigrid"),
+                    help="Solid3DSettings.solver of each; the last is the reference")  # fmt: skip
+    ap.add_argument("--keep", action="store_true",
+                    help="lean_factorisation False (the arrays kept throughout)")  # fmt: skip
+    ap.add_argument("--stages", action="store_true",
+                    help="instead: the memory stage by stage, a process per solver")  # fmt: skip
     ap.add_argument("--case", help=argparse.SUPPRESS)  # a pickled case (re-use between runs)
     ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    ap.add_argument("--child-stages", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         child(*args.child)
         return
+    if args.child_stages:
+        child_stages(*args.child_stages)
+        return
+    lean = "keep" if args.keep else "lean"
     with tempfile.TemporaryDirectory() as tmp:
         if args.case:
             case_file = Path(args.case)
@@ -99,37 +163,46 @@ def main() -> None:
             case_file.write_bytes(pickle.dumps(case))
             print(f"{args.run or args.study}: ST = {case['st_mm']:.4f} mm "
                   f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
-        rows: dict[str, list[dict]] = {"lean": [], "keep": []}
+        if args.stages:
+            for solver in args.solvers:
+                subprocess.run([sys.executable, __file__, "--child-stages", str(case_file),
+                                solver], check=True, cwd=ROOT)  # fmt: skip
+            return
+        rows: dict[str, list[dict]] = {m: [] for m in args.solvers}
         load0 = os.getloadavg()
         for k in range(args.repeat):
-            for mode in ("lean", "keep") if k % 2 == 0 else ("keep", "lean"):
+            # the order alternates, so a load that changes with time favours neither
+            for solver in args.solvers if k % 2 == 0 else args.solvers[::-1]:
                 out = subprocess.run(
-                    [sys.executable, __file__, "--child", str(case_file), mode, args.solver],
+                    [sys.executable, __file__, "--child", str(case_file), lean, solver],
                     check=True, capture_output=True, text=True, cwd=ROOT,
                 ).stdout  # fmt: skip
-                rows[mode].append(json.loads(out.strip().splitlines()[-1]))
+                rows[solver].append(json.loads(out.strip().splitlines()[-1]))
         load1 = os.getloadavg()
     print(f"load average before {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}, "
           f"after {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f} (2 cores)")  # fmt: skip
-    print(f"medians of {args.repeat} fresh processes each, one BLAS thread, s (wall / CPU):")
+    print(f"medians of {args.repeat} fresh processes each ({lean}), one BLAS thread, "
+          "s (wall / CPU):")  # fmt: skip
     keys = ("build", "solve", "recheck")
-    print(f"{'mode':6s}" + "".join(f"{k:>16s}" for k in keys) + "   peak RSS GB")
-    for mode, rs in rows.items():
+    print(f"{'solver':10s}" + "".join(f"{k:>16s}" for k in keys) + "   peak RSS GB")
+    for solver, rs in rows.items():
         cells = "".join(
             f"{statistics.median(r[k + '_wall'] for r in rs):8.2f} /"
             f"{statistics.median(r[k + '_cpu'] for r in rs):6.2f}"
             for k in keys
         )
         peaks = sorted(r["peak_rss_GB"] for r in rs)
-        print(f"{mode:6s}{cells}   {statistics.median(peaks):.2f} "
+        print(f"{solver:10s}{cells}   {statistics.median(peaks):.2f} "
               f"({' '.join(f'{p:.2f}' for p in peaks)})")  # fmt: skip
-    a, b = rows["lean"][0], rows["keep"][0]
-    for key in ("stiffness", "peak_stress_MPa", "peak_nodal_stress_MPa", "recheck_stiffness",
-                "recheck_peak_nodal_MPa"):  # fmt: skip
-        print(f"{key}: lean {a[key]:.12g}, keep {b[key]:.12g}, "
-              f"relative difference {abs(a[key] / b[key] - 1):.1e}")  # fmt: skip
-    print(f"DOFs {a['n_dofs']}, solver {a['solver']}, re-check PCG iterations "
-          f"{a['recheck_iterations']}")  # fmt: skip
+    ref = rows[args.solvers[-1]][0]
+    for solver, rs in rows.items():
+        a = rs[0]
+        print(f"{solver}: {a['solver']}, DOFs {a['n_dofs']}, re-check iterations "
+              f"{a['recheck_iterations']}")  # fmt: skip
+        for key in ("stiffness", "peak_stress_MPa", "peak_nodal_stress_MPa",
+                    "recheck_stiffness", "recheck_peak_nodal_MPa"):  # fmt: skip
+            print(f"  {key}: {a[key]:.12g} (against {args.solvers[-1]}: "
+                  f"{abs(a[key] / ref[key] - 1):.1e})")  # fmt: skip
 
 
 if __name__ == "__main__":

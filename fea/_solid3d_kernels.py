@@ -316,3 +316,69 @@ def stiffness_blocks(parts: np.ndarray, s: float) -> np.ndarray:
         B[k, 2, 0] = P[7]
         B[k, 2, 1] = P[8]
     return B
+
+
+@njit(cache=True)
+def full_from_lower(colptr: np.ndarray, rows: np.ndarray, vals: np.ndarray):
+    """A symmetric matrix in compressed rows (both triangles) from its lower triangle in
+    compressed columns (:func:`reduced_lower_fill`'s order): the multigrid solver's matrix.
+
+    Column j of the lower triangle is row j's entries from the diagonal on; its entries
+    below the diagonal, (i, j), are also (j, i) of row i. Walking the columns in order fills
+    every row with its columns ascending, so no sort is needed.
+
+    Parameters
+    ----------
+    colptr : (n + 1,) int64; rows : (nnz,) int32 or int64, rows >= their column, sorted in
+    each column; vals : (nnz,) float, N/mm.
+
+    Returns
+    -------
+    indptr (n + 1,) int64, indices (2 nnz - n,) int32, data (2 nnz - n,) float, N/mm.
+    """
+    n = colptr.size - 1
+    count = np.zeros(n + 1, np.int64)
+    for j in range(n):
+        count[j + 1] += colptr[j + 1] - colptr[j]
+        for p in range(colptr[j], colptr[j + 1]):
+            if rows[p] > j:
+                count[rows[p] + 1] += 1
+    for i in range(n):
+        count[i + 1] += count[i]
+    indices = np.empty(count[n], np.int32)
+    data = np.empty(count[n])
+    pos = count[:n].copy()
+    for j in range(n):
+        for p in range(colptr[j], colptr[j + 1]):
+            i = rows[p]
+            indices[pos[j]] = i
+            data[pos[j]] = vals[p]
+            pos[j] += 1
+            if i > j:
+                indices[pos[i]] = j
+                data[pos[i]] = vals[p]
+                pos[i] += 1
+    return count, indices, data
+
+
+@njit(cache=True)
+def symmetric_gauss_seidel(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                           diagonal: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:  # fmt: skip
+    """One forward and one backward Gauss-Seidel sweep on ``A x = b``, ``x`` updated in place.
+
+    A in compressed rows (indptr (n + 1,), indices (nnz,), data (nnz,) N/mm), ``diagonal``
+    (n,) its diagonal, N/mm; b (n,) N; x (n,) mm. A forward sweep followed by a backward one
+    is a symmetric smoother: the multigrid preconditioner stays symmetric, as conjugate
+    gradients needs.
+    """
+    n = b.size
+    for i in range(n):
+        acc = b[i]
+        for k in range(indptr[i], indptr[i + 1]):
+            acc -= data[k] * x[indices[k]]
+        x[i] += acc / diagonal[i]
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for k in range(indptr[i], indptr[i + 1]):
+            acc -= data[k] * x[indices[k]]
+        x[i] += acc / diagonal[i]

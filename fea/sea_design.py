@@ -308,6 +308,7 @@ class Solid3DOptions(Protocol):
     """What :func:`correct_3d` reads of a study's ``solid_3d:`` block."""
 
     layers: int  # P2 tetrahedra layers through half the thickness
+    solver: str  # fea.solid3d.Solid3DSettings.solver: "auto", "multigrid", "cholmod", ...
     correct: bool  # correct ST by the 3D/2D ratio
     max_fraction_of_tolerance: float  # a ratio off 1 by less than this of the band: no change
     max_checks: int  # 3D checks at most
@@ -438,7 +439,7 @@ def correct_3d(
     try:
         m = mesh_polygon(geom.fe_outline, mesh.max_edge_mm, refine=regions)
         drive = Rotate(geom.hub_region, (0.0, 0.0), theta_rad, 1)
-        settings = Solid3DSettings(layers=s3.layers)
+        settings = Solid3DSettings(layers=s3.layers, solver=s3.solver)
         model = Solid3DModel(m, material, clamp, drive, settings, stress_ignore=ignore)
         corr = correct_thickness_3d(
             check,

@@ -31,7 +31,11 @@ Physics
     constants. The linear 3D/2D ratio of a design carries to the geometrically nonlinear 2D
     answer: the ratio is a property of the cross-sections (measured 1.022 at 1 and 11 degrees
     on the SEA spring, issue 15), so this check is linear. Solved by a sparse Cholesky
-    factorisation (CHOLMOD through cvxopt; SuperLU when cvxopt does not import).
+    factorisation (CHOLMOD through cvxopt; QDLDL, else SuperLU, when cvxopt does not import)
+    or by conjugate gradients with a two-grid preconditioner (P2 smoothed, its P1 subspace
+    factorised): half CHOLMOD's memory at ~3x its time, and less memory and time than QDLDL.
+    ``solver = "auto"`` takes multigrid from ``Solid3DSettings.multigrid_from_dofs`` DOFs on
+    when CHOLMOD does not import (a plain install), CHOLMOD wherever it does.
 Several thicknesses (:class:`Solid3DModel`)
     The layers scale with the thickness, so one assembly serves every thickness (the
     stiffness is a sum of three parts weighted by t, 1 and 1/t); a thickness after the first
@@ -74,6 +78,7 @@ __all__ = [
     "solve_solid3d",
     "Solid3DModel",
     "check_solid3d",
+    "cholmod_available",
     "compare_with_plane_stress",
     "converge_peak_stress",
     "band_reachable",
@@ -102,9 +107,25 @@ class Solid3DSettings:
     symmetric: bool = True
     # Distance under which a node counts as on a clamp / drive geometry, mm (the plane model's).
     select_tol_mm: float = 1e-6
-    # "auto": CHOLMOD's supernodal Cholesky (through cvxopt) when it imports, else QDLDL's
-    # LDLᵀ, else SuperLU; see SparseSolver for the measured difference.
-    solver: Literal["auto", "cholmod", "qdldl", "superlu"] = "auto"
+    # "multigrid": conjugate gradients preconditioned by a two-grid cycle (symmetric
+    # Gauss-Seidel on the P2 unknowns, the P1 subspace of the same mesh solved directly;
+    # Solid3DModel._solve_multigrid), no factor of the whole: the SEA spring's check at
+    # 1.04 GB peak against CHOLMOD's 2.03 GB and QDLDL's 4.65 GB, its answers those of the
+    # direct solve to ~1e-10, at ~3.5x CHOLMOD's CPU time (about QDLDL's) (docs/solid3d.md,
+    # "Memory"). It needs the compiled assembly and unknowns that are a selection of DOFs
+    # (not a Translate with transverse = "free"); elsewhere the direct solvers run. "cholmod":
+    # CHOLMOD's supernodal Cholesky (through cvxopt, the `cholmod` extra); "qdldl": QDLDL's
+    # LDLᵀ; "superlu": SciPy's LU (see SparseSolver for the measured difference). "auto":
+    # CHOLMOD whenever it imports (cholmod_available(): the fast route, 2.0 GB on the SEA
+    # spring's check); without it multigrid from multigrid_from_dofs DOFs on (there both less
+    # memory and less time than QDLDL: 1.04 GB and 28.5 s CPU against 4.65 GB and 35.8 s),
+    # below that QDLDL, else SuperLU.
+    solver: Literal["auto", "cholmod", "qdldl", "superlu", "multigrid"] = "auto"
+    # Where "auto" without CHOLMOD turns to multigrid: a direct factor of a P2 model this
+    # large is ~0.5 GB and grows faster than the model (the SEA spring's 408k DOFs: CHOLMOD's
+    # 1.04 GB, QDLDL's check peaks at 4.65 GB), while the multigrid solver's memory is
+    # ~2.5 kB per DOF; below it the factor is small and a direct solve the quicker.
+    multigrid_from_dofs: int = 200_000
     # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
     # (20 000 blocks use ~150 MB each) independently of the mesh size. Solid3DModel's
     # assembly uses blocks of 2 000 at most (its batched products run ~10x faster in cache).
@@ -124,6 +145,15 @@ class Solid3DSettings:
     pcg_rtol: float = 1e-12
     # More iterations than this means the factorised thickness is too far off: factorise anew.
     pcg_max_iterations: int = 40
+    # solver = "multigrid": CG stops at |K q - b| <= multigrid_rtol |b| (true residual). At
+    # 1e-10 the SEA spring's stiffness and peak stresses agree with CHOLMOD's to <= 3e-9
+    # (tests/fea/test_solid3d_multigrid.py checks 1e-8 on a small model; the 3D check's
+    # requirement is 1e-4); each decade costs ~8 of the ~60 iterations (76 at 1e-12).
+    multigrid_rtol: float = 1e-10
+    # More iterations than this is an error (a model the two-grid cycle does not suit: a
+    # direct solver is named), not a silent answer: the SEA spring needs ~60 (~30 from the
+    # previous thickness's answer).
+    multigrid_max_iterations: int = 400
     # "compiled": the P2 tables from the vertex coordinates, the node-block pattern and the
     # stiffness parts row by row, and the reduced lower triangle in compressed-column order,
     # in numba kernels (fea/_solid3d_kernels.py): the SEA spring's 405k-DOF build and first
@@ -333,6 +363,16 @@ def _stiffness(sbasis, lam: float, mu: float, block: int) -> sp.csr_matrix:
         cols = np.broadcast_to(ldof[:, None, :], (m, 3 * nloc, 3 * nloc)).ravel()
         K = K + sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(ndof, ndof))
     return K
+
+
+def cholmod_available() -> bool:
+    """True when CHOLMOD imports (cvxopt, the ``cholmod`` extra): what ``solver = "auto"``
+    takes then, and what ``solver = "cholmod"`` needs."""
+    try:
+        from cvxopt import cholmod  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _gathered(vals) -> np.ndarray:
@@ -908,7 +948,9 @@ class Solid3DModel:
     stresses follow from the 1 mm model's basis gradients with their z components divided by
     t (any reference thickness in place of 1 mm). Every node keeps its (x, y), so the
     supports select the same DOFs at every thickness. The first :meth:`solve` factorises K
-    (``settings.solver``: CHOLMOD, else QDLDL without cvxopt, else SuperLU); with
+    (``settings.solver``: CHOLMOD, else QDLDL without cvxopt, else SuperLU; or every
+    thickness by multigrid, :meth:`_solve_multigrid`, from the previous answer: "multigrid",
+    or "auto" from ``multigrid_from_dofs`` on when CHOLMOD does not import); with
     ``settings.later_solves = "pcg"`` a later thickness is solved by conjugate gradients
     preconditioned with that factor, to ``pcg_rtol``; with "direct" it is factorised anew.
     :func:`solve_solid3d` is the reference (a model built at its thickness, factorised); the
@@ -925,7 +967,11 @@ class Solid3DModel:
     Memory: the factor of the first thickness is kept (CHOLMOD: 1.04 GB for the SEA spring's
     375k free DOFs) while the model lives. The peak is the first factorisation (2.0 GB there):
     K is not held through it, and with ``lean_factorisation`` neither are the parts nor the
-    reduced triangle's pattern (made again after); docs/solid3d.md, "Memory".
+    reduced triangle's pattern (made again after). The multigrid solver (``solver =
+    "multigrid"``, or "auto" from ``multigrid_from_dofs`` on without CHOLMOD) keeps no factor
+    of the whole:
+    the matrix in compressed rows (0.33 GB there) and the P1 factor (< 0.1 GB) while it
+    solves, 1.04 GB peak; docs/solid3d.md, "Memory".
     """
 
     def __init__(
@@ -1002,6 +1048,16 @@ class Solid3DModel:
         self._build_times = {"mesh": t1 - t0, "assemble": time.perf_counter() - t1}
         self._factor: SparseSolver | None = None
         self._q: np.ndarray | None = None
+        # multigrid where it is asked for (or "auto" on a large model without CHOLMOD, whose
+        # factor would be ~3x faster) and can run: compiled kernels, unknowns a DOF selection
+        wanted = settings.solver == "multigrid" or (
+            settings.solver == "auto"
+            and self.n_dofs >= settings.multigrid_from_dofs
+            and not cholmod_available()
+        )
+        self._multigrid = wanted and kernels is not None and self._lower is not None
+        self._coarse_P: sp.csr_matrix | None = None
+        self._coarse_name = ""  # the coarse grid's direct solver
 
     def _assemble_compiled(self) -> None:
         """The compiled path's pattern, parts and reduced lower triangle, made again from the
@@ -1081,7 +1137,10 @@ class Solid3DModel:
             raise FeaError(f"thickness_mm = {thickness_mm} must be > 0 mm")
         st = self.settings
         first = self._factor is None
-        times = dict(self._build_times) if first else {"mesh": 0.0}
+        # "multigrid" where it cannot run: the direct solvers, as "auto" chooses them
+        direct = "auto" if st.solver == "multigrid" else st.solver
+        # the build's times go with the first solve (multigrid keeps no factor: by the answer)
+        times = dict(self._build_times) if self._q is None else {"mesh": 0.0}
         K = self.stiffness_matrix(thickness_mm)
         t1 = time.perf_counter()
         times["assemble"] = times.get("assemble", 0.0) + (t1 - t0)
@@ -1090,7 +1149,21 @@ class Solid3DModel:
         b = -(P.T @ (K @ sup.ubar))
         iterations = 0
         q = None
-        if not first and st.later_solves == "pcg":
+        if self._multigrid:
+            # K's blocks (245 MB on the SEA spring) are not held beside the solver's matrix:
+            # formed again for the reactions, as on the direct path
+            vals = [K.data.ravel()[self._lower[0]]]  # handed over (see _gathered)
+            K = None
+            lean = st.lean_factorisation
+            if lean:  # made again below, bit for bit, from the mesh
+                self._parts = self._indices = self._indptr = None
+            try:
+                q, iterations = self._solve_multigrid(vals, b, lean)
+            finally:  # also after an error: the model stays usable (e.g. with another solver)
+                if lean:
+                    self._assemble_compiled()
+            K = self.stiffness_matrix(thickness_mm)
+        elif not first and st.later_solves == "pcg":
             assert self._factor is not None and self._q is not None
             q, iterations, ok = _pcg(
                 lambda x: P.T @ (K @ (P @ x)), b, self._factor.solve, self._q,
@@ -1114,16 +1187,16 @@ class Solid3DModel:
                     self._parts = self._lower = self._indices = self._indptr = None
                 if self._kernels is not None:  # compressed columns
                     self._factor = SparseSolver(
-                        None, st.solver, columns=(vals, rows, third, P.shape[1])
+                        None, direct, columns=(vals, rows, third, P.shape[1])
                     )
                 else:  # triplets
-                    self._factor = SparseSolver(None, st.solver, (vals, rows, third, P.shape[1]))
+                    self._factor = SparseSolver(None, direct, (vals, rows, third, P.shape[1]))
                 del rows, third
                 if lean:
                     self._assemble_compiled()
                 K = self.stiffness_matrix(thickness_mm)
             else:
-                self._factor = SparseSolver((P.T @ K.tocsr() @ P).tocsr(), st.solver)
+                self._factor = SparseSolver((P.T @ K.tocsr() @ P).tocsr(), direct)
             q = self._factor.solve(b)
         self._q = q
         u = sup.ubar + P @ q
@@ -1134,9 +1207,97 @@ class Solid3DModel:
         peaks = self.peak_stresses(u, float(thickness_mm))
         times["stress"] = time.perf_counter() - t2
         times["total"] = sum(times.values())
-        solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"
+        if self._multigrid:
+            solver = f"multigrid (pcg, P1 coarse: {self._coarse_name})"
+        else:
+            solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"
         return _result(sup, rx, peaks, self.n_dofs, self._t.shape[0], self._n_layers, st,
                        solver, times, iterations)  # fmt: skip
+
+    def _coarse_prolongation(self) -> sp.csr_matrix:
+        """The P1 functions of the tetrahedral mesh as P2 vectors on the unknowns, (nfree,
+        ncoarse): a vertex node takes its vertex's value, an edge node the mean of its two
+        ends' (the P2 interpolation of a linear function is exact, so the coarse space is
+        the P1 subspace of the P2 one and P^T K P is the P1 stiffness with the same supports).
+        Coarse unknowns: the free DOFs of the vertices, in order. Made once per model."""
+        if self._coarse_P is None:
+            tm = self._tmesh
+            nv = tm.p.shape[1]
+            t = np.ascontiguousarray(tm.t.T, dtype=np.int64)
+            ends = self._kernels._EDGES
+            a, b = t[:, ends[:, 0]], t[:, ends[:, 1]]
+            # the edges in p2_tables' order: edge node nv + k joins ends[k]
+            uniq = np.unique((np.minimum(a, b) * nv + np.maximum(a, b)).ravel())
+            del a, b, t
+            lo, hi = np.divmod(uniq, nv)
+            free = self._sup.free
+            node, comp = np.divmod(free, 3)
+            coarse = np.full(3 * nv, -1, dtype=np.int64)  # vertex DOF -> coarse unknown
+            vfree = free[free < 3 * nv]
+            coarse[vfree] = np.arange(vfree.size)
+            vert = np.flatnonzero(node < nv)
+            edge = np.flatnonzero(node >= nv)
+            e = node[edge] - nv
+            rows = [vert, edge, edge]
+            cols = [coarse[free[vert]], coarse[3 * lo[e] + comp[edge]],
+                    coarse[3 * hi[e] + comp[edge]]]  # fmt: skip
+            w = [np.ones(vert.size), np.full(edge.size, 0.5), np.full(edge.size, 0.5)]
+            r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
+            keep = c >= 0  # a held end contributes nothing (its coarse value is 0)
+            self._coarse_P = sp.csr_matrix((w[keep], (r[keep], c[keep])),
+                                           shape=(free.size, vfree.size))  # fmt: skip
+        return self._coarse_P
+
+    def _solve_multigrid(self, vals: list, b: np.ndarray, lean: bool) -> tuple[np.ndarray, int]:
+        """q (nfree,) mm with K q = b (nfree,) N by conjugate gradients preconditioned with a
+        two-grid cycle; ``vals``: a one-element list holding the reduced lower triangle's
+        values (nnz,) N/mm in ``self._lower``'s order (emptied, so that they go once the
+        whole matrix is made); ``lean``: the lower triangle's pattern is dropped too (the
+        caller makes it again). Returns (q, iterations).
+
+        The cycle: a symmetric Gauss-Seidel sweep (forward, then backward) on the P2 unknowns,
+        the residual's P1 part solved directly (:meth:`_coarse_prolongation`; ~56k unknowns
+        on the SEA spring's 375k, its factor < 0.1 GB), another symmetric sweep: a
+        symmetric positive definite preconditioner. The whole matrix is held once, in
+        compressed rows (both triangles, int32 columns: 0.33 GB there), and never factorised.
+        A later thickness starts from the previous one's answer.
+        """
+        st, kern = self.settings, self._kernels
+        _, rows, colptr = self._lower
+        indptr, indices, data = kern.full_from_lower(colptr, rows, vals.pop())
+        n = colptr.size - 1
+        del rows, colptr
+        if lean:
+            self._lower = None
+        A = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
+        diagonal = A.diagonal()
+        Pc = self._coarse_prolongation()
+        # P^T A P by slices of rows: the product A P of the whole (~15 M entries on the SEA
+        # spring) is never formed at once
+        Ac = sp.csr_matrix((Pc.shape[1], Pc.shape[1]))
+        for s in range(0, n, 32_768):
+            Ac = Ac + Pc[s : s + 32_768].T @ (A[s : s + 32_768] @ Pc)
+        coarse = SparseSolver(Ac.tocsc(), "auto")
+        del Ac
+        self._coarse_name = coarse.name
+
+        def cycle(r: np.ndarray) -> np.ndarray:
+            x = np.zeros_like(r)
+            kern.symmetric_gauss_seidel(indptr, indices, data, diagonal, r, x)
+            x += Pc @ coarse.solve(Pc.T @ (r - A @ x))
+            kern.symmetric_gauss_seidel(indptr, indices, data, diagonal, r, x)
+            return x
+
+        x0 = self._q if self._q is not None else np.zeros(n)
+        q, iterations, ok = _pcg(lambda x: A @ x, b, cycle, x0, st.multigrid_rtol,
+                                 st.multigrid_max_iterations)  # fmt: skip
+        if not ok:
+            raise FeaError(
+                f"the multigrid solver did not reach a residual of {st.multigrid_rtol:g} in "
+                f"{st.multigrid_max_iterations} iterations; use Solid3DSettings(solver="
+                "'cholmod') or 'qdldl' (a direct factorisation)"
+            )
+        return q, iterations
 
     @property
     def kernels(self) -> ModuleType | None:

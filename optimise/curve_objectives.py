@@ -563,6 +563,7 @@ class SpringCheckSpec:
     max_edge_mm, elements_through, steps : the plane-stress mesh (mm, P2 triangles across an
         arm) and the load steps of the nonlinear solves.
     layers : int — P2 tetrahedra through half the thickness.
+    solver : str — the 3D solve, :attr:`fea.solid3d.Solid3DSettings.solver` ("auto", ...).
     correct, converge_peak : bool — refit ST to the 3D curve; converge the peak stress.
     curve_step_mm : float, mm — arm sampling of the outline the peak convergence meshes.
     """
@@ -582,6 +583,7 @@ class SpringCheckSpec:
     correct: bool
     converge_peak: bool
     curve_step_mm: float
+    solver: str = "auto"
 
 
 def threshold_solid_3d(
@@ -690,7 +692,7 @@ def threshold_check_3d(
     c = compare_with_plane_stress(
         mesh, spec.material, st_mm, Clamp(geom.pad_region),
         Rotate(geom.hub_region, (0.0, 0.0), spec.range_rad, 1),
-        Solid3DSettings(layers=spec.layers),
+        Solid3DSettings(layers=spec.layers, solver=spec.solver),
         stress_ignore=geom.hub_region.union(geom.pad_region).buffer(0.05),
     )  # fmt: skip
     ratio = c["stiffness_ratio"]

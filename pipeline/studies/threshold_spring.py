@@ -425,7 +425,7 @@ class ThresholdSpringProblem(DesignProblem):
             self.material, self.range_rad, self.curve, self.measure, self.window,
             self.study.tolerance, self.allowable_MPa, self.error_name, fs.max_edge_mm,
             fs.elements_through, fs.steps, s3.layers, s3.correct, s3.converge_peak,
-            s3.curve_step_mm,
+            s3.curve_step_mm, s3.solver,
         )  # fmt: skip
 
     def solid_3d(self, geom: Any, ps: dict[str, Any]) -> dict[str, Any]:
