@@ -22,7 +22,14 @@ The chain, each link exact:
      KS_RHO_YIELD / yield_MPa`` (100 / yield; 2.35 /MPa for ABS): ``max <= KS <= max + ln(n) /
      rho``. The KS of the rows' KS values is the KS of all values (same rho), so it is
      aggregated from the per-row ones. The derivative of the max itself (the active point's,
-     exact where the max is unique) is given too (``info["peak_stress_gradient"]``).
+     exact where the max is unique) is given too (``info["peak_stress_gradient"]``);
+   * the band row ``force_band_excess`` (``method: hybrid`` only; :mod:`._constant_force_band`,
+     :func:`optimise.curve_objectives.force_band_ratio`) ``g = (max_k |F_k - target| -
+     max(share tol target, reach rms)) / target`` over the judged rows k: a max, piecewise
+     smooth, so its derivative is the active pieces', like the peak stress's: the worst judged
+     row k (a traced row, no interpolation; differentiated besides the rows above) and the
+     larger allowance, ``dg = (sign(F_k - target) dF_k - [reach d rms if reach rms > share tol
+     target]) / target``; exact where the worst row and the larger allowance are unique.
 
 Rows after the beam's buckling onset (the branch guards' rows) are smooth in the design and are
 differentiated like any other; the onset itself (the first rows, ~0.03 mm) is not a probe.
@@ -47,6 +54,12 @@ from flexopt.fea.errors import FeaError
 from flexopt.geometry.constant_force import design_from_vector
 from flexopt.geometry.constant_force_map import profile_derivatives
 from flexopt.geometry.errors import GeometryError
+from flexopt.optimise.curve_objectives import (
+    BAND_REACH,
+    BAND_ROW,
+    BAND_SHARE,
+    force_band_ratio,
+)
 from flexopt.optimise.design_jacobian import DesignJacobian
 
 __all__ = ["interpolation_matrix", "jacobian", "study_sensitivities"]
@@ -68,12 +81,15 @@ def study_sensitivities(
     beam: Callable[[Any], BeamModel],
     drive: Callable[[float, int], EndDrive],
     ks_rho_per_MPa: float | None = None,
+    band: bool = False,
 ) -> dict[str, Any] | None:
     """The study's responses at ``x`` (23,) and their derivatives by x, or None when the design
     cannot be built or its path did not converge.
 
     ``problem`` is the :class:`ConstantForceProblem`; ``beam(design)`` and ``drive(max_mm,
-    steps)`` are its own builders (so the model is the one ``evaluate`` solves).
+    steps)`` are its own builders (so the model is the one ``evaluate`` solves). ``band``: the
+    band row's value and derivative too (its worst judged row is differentiated besides; the
+    other responses are the same with or without it).
 
     Returns
     -------
@@ -82,7 +98,10 @@ def study_sensitivities(
         "d_rms" (23,); "ks_stress_MPa" (KS over every row and fibre) and "d_ks" (23,) MPa per
         unit; "peak_stress_MPa" (the max) and "d_peak" (23,) (the active point's derivative);
         "force_N" (rows,) and "d_force" (rows, 23) of the path; "rho" (1/MPa); "sensitivity"
-        (the :class:`fea.beam_sensitivity.BeamSensitivity`); "time_s".
+        (the :class:`fea.beam_sensitivity.BeamSensitivity`); "time_s". With ``band``:
+        "band_excess" (the row's value, a fraction of the target force) and "d_band" (23,) per
+        unit, "band_row" (the worst judged row), "band_reach_active" (3 x the RMS error is the
+        larger allowance).
     """
     t0 = time.perf_counter()
     study = problem.study
@@ -104,6 +123,10 @@ def study_sensitivities(
     probes = stroke[-1] * np.arange(1, t.samples + 1) / t.samples
     W = interpolation_matrix(stroke, probes)
     rows = np.union1d(np.flatnonzero(np.any(W != 0.0, axis=0)), _stress_rows(response, rho))
+    worst = _band_row(study, response) if band else None
+    # the band's worst row is differentiated besides; the KS stays over ``rows`` (the same KS
+    # with or without the band row)
+    solved = rows if worst is None else np.union1d(rows, [worst])
     sens = None
     # the semi-analytic vertex moves need the mesh (elements per segment, rounded from the
     # lengths) to stay the same over +-2 steps: a design that close to a switch of the rounding
@@ -119,7 +142,7 @@ def study_sensitivities(
                 coordinate_step_mm=scale * model.profile.length_mm,
                 vertex_moves=maps.points[moving],
                 move_names=tuple(maps.names[k] for k in moving),
-                rows=rows,
+                rows=solved,
             )
             break
         except FeaError:
@@ -149,6 +172,9 @@ def study_sensitivities(
     row, samp, side = np.unravel_index(int(np.argmax(np.abs(fibre))), fibre.shape)
     sign = np.sign(fibre[row, samp, side])
     d_peak = sign * sens.d_fibre_stress[row, samp, side] @ chain
+    extra: dict[str, Any] = {}
+    if worst is not None:
+        extra = _band_sensitivity(study, response, worst, force, d_force, rms, d_rms)
     return {
         "residuals_N": r,
         "d_residuals": dr,
@@ -165,6 +191,55 @@ def study_sensitivities(
         "rows": rows,
         "sensitivity": sens,
         "time_s": time.perf_counter() - t0,
+        **extra,
+    }
+
+
+def _band_row(study: Any, response: Any) -> int:
+    """The band row's active row: the judged row (from the first, ``stroke / rows`` mm: the
+    verdict's, as :func:`._constant_force_band.band_rows` passes it) farthest from the target
+    force, by the traced forces ``evaluate`` judges (the first of equals, as ``np.max`` finds
+    the value)."""
+    s = np.asarray(response.displacement_mm, dtype=float)
+    f = np.asarray(response.force_N, dtype=float)
+    first_mm = study.boundary.stroke_mm / study.boundary.rows
+    judged = np.flatnonzero(s >= first_mm - 1e-9 * max(1.0, abs(first_mm)))
+    return int(judged[np.argmax(np.abs(f[judged] - study.target.force_N))])
+
+
+def _band_sensitivity(
+    study: Any,
+    response: Any,
+    k: int,
+    force: np.ndarray,
+    d_force: np.ndarray,
+    rms: float,
+    d_rms: np.ndarray,
+) -> dict[str, Any]:
+    """The band row's value and its derivative (23,) at the active pieces: the worst judged row
+    ``k`` (``force`` (rows,) N and ``d_force`` (rows, 23) N per unit of the polished rows) and
+    the larger allowance (the held share of the band, fixed, or ``BAND_REACH`` x the RMS error
+    ``rms`` N with derivative ``d_rms`` (23,))."""
+    t = study.target
+    target = abs(t.force_N)
+    tol = t.tolerance_percent / 100.0
+    reach_active = BAND_REACH * rms > BAND_SHARE * tol * target
+    d_band = np.sign(force[k] - t.force_N) * d_force[k]
+    if reach_active:
+        d_band = d_band - BAND_REACH * d_rms
+    value = force_band_ratio(
+        response.displacement_mm,
+        response.force_N,
+        t.force_N,
+        tol,
+        study.boundary.stroke_mm / study.boundary.rows,
+        rms_error_N=rms,
+    )
+    return {
+        "band_excess": float(value),
+        "d_band": d_band / target,
+        "band_row": int(k),
+        "band_reach_active": bool(reach_active),
     }
 
 
@@ -195,16 +270,19 @@ def jacobian(
     beam: Callable[[Any], BeamModel],
     drive: Callable[[float, int], EndDrive],
 ) -> DesignJacobian | None:
-    """:meth:`ConstantForceProblem.jacobian`: the residuals', the objective's and the stress
-    constraint's derivatives at ``x`` (23,); None for what is not differentiated (see the
-    module's docstring)."""
+    """:meth:`ConstantForceProblem.jacobian`: the residuals', the objective's, the stress
+    constraint's and (``method: hybrid``) the band row's derivatives at ``x`` (23,); None for
+    what is not differentiated (see the module's docstring)."""
     study = problem.study
-    if study.objective != "rms_error" or tuple(problem.constraint_names) != (
-        "stress_ratio_minus_1",
+    names = tuple(problem.constraint_names)
+    if study.objective != "rms_error" or names not in (
+        ("stress_ratio_minus_1",),
+        ("stress_ratio_minus_1", BAND_ROW),
     ):
         return None
+    band = names[-1] == BAND_ROW
     try:
-        out = study_sensitivities(problem, x, beam, drive)
+        out = study_sensitivities(problem, x, beam, drive, band=band)
     except Exception:  # a Jacobian is an aid: its failure must not end the run (FD instead)
         log.exception("constant_force: the Jacobian at %s raised; forward differences instead", x)
         return None
@@ -212,14 +290,23 @@ def jacobian(
         return None
     scale = study.fidelity.beam_stress_factor / problem.allowable_MPa
     counts = out["sensitivity"].counts
+    g = [scale * out["d_ks"]]
+    g_values = [out["peak_stress_MPa"] * scale - 1.0]
+    band_info: dict[str, Any] = {}
+    if band:
+        if not np.all(np.isfinite(out["d_band"])):  # the worst row not differentiated
+            return None
+        g.append(out["d_band"])
+        g_values.append(out["band_excess"])
+        band_info = {"band_row": out["band_row"], "band_reach_active": out["band_reach_active"]}
     return DesignJacobian(
         x=np.asarray(x, dtype=float).copy(),
         f=out["d_rms"][None, :],
-        g=scale * out["d_ks"][None, :],
+        g=np.stack(g),
         residuals=out["d_residuals"],
         values={
             "f": np.array([out["rms_error_N"]]),
-            "g": np.array([out["peak_stress_MPa"] * scale - 1.0]),
+            "g": np.array(g_values),
             "residuals": out["residuals_N"],
         },
         info={
@@ -230,5 +317,6 @@ def jacobian(
             "peak_stress_gradient": scale * out["d_peak"],
             "time_s": out["time_s"],
             "back_substitutions": counts.get("back_substitutions", 0),
+            **band_info,
         },
     )

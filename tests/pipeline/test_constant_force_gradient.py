@@ -10,7 +10,8 @@ not the solver's noise. Stencil: fourth-order central, ``(8 (f(h) - f(-h)) - (f(
 f(-2h))) / 12 h``. Relative error = |exact - FD| over the largest |FD| of that response group
 for that variable (a pointwise ratio is meaningless where a derivative crosses zero).
 The residual probes lie at 3..30 mm, all after the beam's buckling onset at ~0.03 mm: the
-rows the solver's branch guards chose.
+rows the solver's branch guards chose. The band row of ``method: hybrid`` (``force_band_excess``)
+is checked against FD of evaluate's own row, and a quick hybrid run takes exact Jacobians.
 """
 
 from __future__ import annotations
@@ -259,10 +260,14 @@ def test_the_peak_stress_gradient_where_the_max_is_smooth(problem, exact, k):
 
 
 def test_the_hook_answers_none_for_what_it_cannot_differentiate(problem):
-    """The operative_stroke objective (a window of the band: piecewise) and a design that
-    cannot be built get no Jacobian: the optimiser falls back to finite differences."""
+    """The operative_stroke objective (a window of the band: piecewise), also under ``method:
+    hybrid`` (no band row then), and a design that cannot be built get no Jacobian: the
+    optimiser falls back to finite differences."""
     study = problem.study.model_copy(update={"objective": "operative_stroke"})
     assert ConstantForceProblem(study).jacobian(problem.nominal_design()) is None
+    optimiser = study.optimiser.model_copy(update={"method": "hybrid"})
+    hybrid = ConstantForceProblem(study.model_copy(update={"optimiser": optimiser}))
+    assert hybrid.jacobian(problem.nominal_design()) is None
     x = problem.nominal_design()
     x[0] = x[1] + 0.01  # a1 > a2: the centreline folds back
     assert problem.jacobian(x) is None
@@ -292,3 +297,137 @@ def test_a_design_at_a_switch_of_the_mesh(problem):
     x[0] = lo - 3e-5 / 10.8
     jac = problem.jacobian(x)
     assert jac is not None and np.all(np.isfinite(jac.residuals))
+
+
+# ---- the band row (``optimiser: {method: hybrid}`` only) ------------------------------------
+
+
+@pytest.fixture(scope="module")
+def hybrid_problem(problem):
+    """The example's problem under ``method: hybrid``: its second constraint row is the band's
+    (``force_band_excess``); the beam solved to rtol = 1e-11 as :class:`TightProblem`."""
+    optimiser = problem.study.optimiser.model_copy(update={"method": "hybrid"})
+    return TightProblem(problem.study.model_copy(update={"optimiser": optimiser}))
+
+
+#: FD steps of the band row (fractions of :func:`_step`): the largest whose designs keep the
+#: mesh and the worst row is taken. From a tenth (1e-3 relative, 0.03 mm of vertex motion), as
+#: the stress tests: row 1 (0.5 mm) is near the buckling onset, and its force is smooth in t2
+#: only within ~4e-3 mm of the example's design (its second difference jumps from 0.22 to
+#: ~1e3 /mm^2 beyond; the row stays the worst): at a third (2.9e-3 mm, +-2 h reaching
+#: 5.8e-3 mm) t2's difference was 3e-3 off, at 1e-3 mm it agrees to 2e-7
+BAND_LADDER = np.array([1.0 / 10.0, 1.0 / 30.0, 1.0 / 100.0])
+
+#: the band row's derivative against FD of evaluate's: relative to the largest |FD| of the row
+#: (its gradient's size: a near-zero component tests nothing), asserted per variable
+BAND_TOL = 1e-5
+
+
+def _band(problem, x):
+    """evaluate's band row and its active (worst judged) row at x."""
+    ev = problem.evaluate(x)
+    assert not ev.reason, ev.reason
+    _, response, _ = problem._solve(x)
+    return ev.g[1], gradient._band_row(problem.study, response)
+
+
+def _band_fd(problem, x, jac, variables):
+    """FD of evaluate's band row by each of ``variables`` at the ladder's largest step whose
+    designs keep the mesh and the worst row (else NaN, with the reason in ``skipped``)."""
+    fd = np.full(23, np.nan)
+    skipped = {}
+    for k in variables:
+        for h in _step(problem, k) * BAND_LADDER:
+            if not _same_mesh(problem, x, k, h):
+                continue
+            values, active = {}, set()
+            for step in (-2 * h, -h, h, 2 * h):
+                v = x.copy()
+                v[k] += step
+                values[step], row = _band(problem, v)
+                active.add(row)
+            if active == {jac.info["band_row"]}:
+                fd[k] = _fd(lambda s, values=values: values[s], h)
+                break
+        else:
+            skipped[problem.space.names[k]] = "every step changes the mesh or the worst row"
+    return fd, skipped
+
+
+def test_the_band_row_against_central_differences_of_evaluate(hybrid_problem):
+    """d(force_band_excess)/dx_k for all 23 variables against FD of the problem's own
+    ``evaluate`` (its g[1]) at the example's design. The row is a max over the judged rows: on
+    this design its worst row is row 1 (0.5 mm, 0.016 N under 1.5 N) and the held share of the
+    band (0.024 N) is the larger allowance (3 x RMS = 0.019 N), so dg = -dF_1 / 1.5. A variable
+    is skipped where every step of the ladder changes the mesh or the worst row (checked on
+    every FD design): none is on this design, every one is checked at the ladder's first step
+    (measured: <= 2.5e-9 of the row's largest |FD|)."""
+    problem = hybrid_problem
+    assert problem.constraint_names == ("stress_ratio_minus_1", "force_band_excess")
+    x = problem.nominal_design()
+    jac = problem.jacobian(x)
+    assert jac is not None and jac.g.shape == (2, 23)
+    ev = problem.evaluate(x)
+    np.testing.assert_allclose(jac.values["g"], ev.g, rtol=0, atol=1e-9)
+    assert jac.info["band_row"] == 1 and not jac.info["band_reach_active"]
+    # the stress row is the GA problem's, unchanged by the band
+    np.testing.assert_allclose(jac.g[0], _ga_jacobian(problem, x).g[0])
+    fd, skipped = _band_fd(problem, x, jac, range(23))
+    assert not skipped, skipped
+    names = problem.space.names
+    err = np.abs(jac.g[1] - fd)
+    scale = np.abs(fd).max()
+    bad = {names[k]: err[k] / scale for k in range(23) if err[k] > BAND_TOL * scale}
+    assert not bad, bad
+    span = problem.space.upper - problem.space.lower
+    jac_err = err * span / np.abs(fd * span).max()  # the optimiser's normalised columns
+    assert jac_err.max() <= BAND_TOL, dict(zip(names, jac_err, strict=True))
+
+
+def test_the_band_row_where_the_rms_allowance_is_active(hybrid_problem):
+    """The other piece of the allowance: a target of 1.45 N puts the example's design ~0.05 N
+    off, so 3 x RMS exceeds the held share of the band and dg = (sign dF_k - 3 d rms) / 1.45;
+    checked against FD of evaluate for a position, two thicknesses and the width."""
+    study = hybrid_problem.study
+    target = study.target.model_copy(update={"force_N": 1.45})
+    problem = TightProblem(study.model_copy(update={"target": target}))
+    x = problem.nominal_design()
+    jac = problem.jacobian(x)
+    assert jac is not None and jac.info["band_reach_active"]
+    np.testing.assert_allclose(jac.values["g"], problem.evaluate(x).g, rtol=0, atol=1e-9)
+    variables = [2, 11, 14, 22]
+    fd, skipped = _band_fd(problem, x, jac, variables)
+    assert not skipped, skipped
+    err = np.abs(jac.g[1] - fd)[variables]
+    assert err.max() <= BAND_TOL * np.abs(fd[variables]).max(), (jac.g[1][variables], fd)
+    # and the reach term is in it: without it the derivative would be off
+    d_rms = 3.0 * jac.f[0][variables] / 1.45
+    assert np.abs(d_rms).max() > 100 * err.max()
+
+
+def _ga_jacobian(problem, x):
+    """The same design's Jacobian of the one-constraint (GA) problem."""
+    optimiser = problem.study.optimiser.model_copy(update={"method": "ga"})
+    ga = TightProblem(problem.study.model_copy(update={"optimiser": optimiser}))
+    assert ga.constraint_names == ("stress_ratio_minus_1",)
+    return ga.jacobian(x)
+
+
+def test_a_quick_hybrid_run_takes_exact_jacobians(tmp_path):
+    """A quick constant-force run under ``method: hybrid`` (its problem has the band row) takes
+    the study's exact Jacobians at every gradient iteration, no forward differences (~10 s: 24
+    GA designs, one start of two iterations, the report)."""
+    from flexopt.pipeline.parallel import ParallelSettings
+    from flexopt.pipeline.run import prepare_run, run_study
+    from flexopt.pipeline.study import HybridSpec
+
+    study = load_study("constant-force")
+    hybrid = HybridSpec(starts=1, max_iter=2, ga_n_gen=2)
+    optimiser = study.optimiser.model_copy(update={"method": "hybrid", "hybrid": hybrid})
+    fidelity = study.fidelity.model_copy(update={"enabled": False})
+    study = study.model_copy(update={"optimiser": optimiser, "fidelity": fidelity})
+    setup = prepare_run(study, quick=True)
+    assert setup.problem.constraint_names == ("stress_ratio_minus_1", "force_band_excess")
+    outcome = run_study(setup, out=tmp_path / "run", parallel=ParallelSettings("serial"))
+    jacobians = outcome.result.report["jacobians"]
+    assert jacobians["exact"] >= 1 and jacobians["finite_differences"] == 0, jacobians
