@@ -57,6 +57,9 @@ FIBRE_RIGHT = "stress_fibre_right_MPa"
 THICKNESS = "thickness_mm"
 #: Cell data: the beam's out-of-plane width per line segment, mm.
 WIDTH = "width_mm"
+#: Point data on the plane-stress vertices: 1 where the check's peak stress counts the vertex,
+#: 0 on the elements it leaves out (touching clamps and drives: singular corners); NaN elsewhere.
+STRESS_COUNTED = "stress_counted"
 
 UNITS = "units: coordinates and displacement_mm in mm, stress in MPa, force in N, moment in N mm"
 BEAM_STRESS_NOTE = (
@@ -183,6 +186,8 @@ def vtu_mesh(result: Any) -> Any:
                 point_data[name].append(nan3 if point_data[name][0].ndim == 2 else nan3[:, 0])
         for name in cell_data:
             cell_data[name].append(np.full(len(tri), np.nan))
+        if fmap.get("stress_counted") is not None:
+            point_data[STRESS_COUNTED] = [np.full(n_beam, np.nan), _counted(fmap, len(xy))]
         point_data.setdefault(VON_MISES, []).append(vm)
         if u is not None or DISPLACEMENT in point_data:  # a field alone without u: no array
             disp = nan3 if u is None else np.column_stack([u, np.zeros(len(u))])
@@ -353,6 +358,7 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         FIBRE_LEFT: [],
         FIBRE_RIGHT: [],
         THICKNESS: [],
+        STRESS_COUNTED: [],
     }
     field_data: dict[str, np.ndarray] = {UNITS: np.zeros(1)}
     drive = (getattr(result, "plot", None) or {}).get("x")
@@ -377,6 +383,7 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         point_data[DISPLACEMENT].append(disp)
         bf = beam_arrays(result, len(shapes), nb)
         nan = np.full(nb, np.nan)
+        point_data[STRESS_COUNTED].append(nan)
         if bf is None:
             for name in (VON_MISES, FIBRE_LEFT, FIBRE_RIGHT, THICKNESS):
                 point_data[name].append(nan)
@@ -417,6 +424,7 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         point_data[VON_MISES].append(np.asarray(state["values"], dtype=float).reshape(-1))
         for name in (FIBRE_LEFT, FIBRE_RIGHT, THICKNESS):
             point_data[name].append(np.full(len(xy), np.nan))
+        point_data[STRESS_COUNTED].append(_counted(fmap, len(xy)))
         label = str(fmap.get("label", "von Mises stress (MPa)"))
         field_data[f"plane stress {VON_MISES}: {label}"] = np.zeros(1)
     elif fmap is not None:
@@ -428,6 +436,14 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         cell_data=cell_data,
         field_data=field_data,
     )
+
+
+def _counted(fmap: dict[str, Any], n: int) -> np.ndarray:
+    """(n,) float: the field's ``stress_counted`` as 1 / 0, NaN where the field has none."""
+    counted = fmap.get("stress_counted")
+    if counted is None or np.shape(counted) != (n,):
+        return np.full(n, np.nan)
+    return np.asarray(counted, dtype=float)
 
 
 def pvd_text(entries: list[tuple[float, str]]) -> str:
