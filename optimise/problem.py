@@ -96,6 +96,9 @@ class DesignResult:
         (:func:`fea.beam_fields.beam_field`: ``thickness_mm``, ``width_mm``, the signed fibre
         stresses and the equivalent stress, rows as ``shapes_mm``), for best.vtu; not written
         into best.json.
+    solid_field : dict, optional — the 3D check's last state on its P2 tetrahedra
+        (:meth:`fea.solid3d.Solid3DModel.last_field`), for best_3d.vtu; not written into
+        best.json.
     files : dict of str to bytes — more files of the kind (``taguchi.png``, ``sweeps.png``), by
         plain file name; ``flexopt run`` / ``flexopt evaluate`` write them into the folder.
     verdicts : tuple of Verdict — the design's verdicts. A kind that judges itself fills them;
@@ -124,6 +127,7 @@ class DesignResult:
     info: dict[str, Any] = field(default_factory=dict)
     field_map: dict[str, Any] | None = None
     beam_field: dict[str, Any] | None = None
+    solid_field: dict[str, Any] | None = None
     files: dict[str, bytes] = field(default_factory=dict)
     verdicts: tuple[Verdict, ...] = ()
     cases: dict[str, CaseResponse] = field(default_factory=dict)

@@ -126,3 +126,11 @@ def constant_force_fields(record: Any, model: Any, response: Any, problem: Any) 
         ),
         "beam_field": None if response is None else beam_field(model, response),
     }
+
+
+def take_solid_field(record: Any) -> dict[str, Any] | None:
+    """Remove ``record['field']`` (the 3D check's state: fea.sea_design.correct_3d) and return
+    it (None without one): the DesignResult's ``solid_field``, best_3d.vtu's arrays."""
+    if not isinstance(record, dict):
+        return None
+    return record.pop("field", None)

@@ -79,15 +79,67 @@ GAP_FIELD_STEPS = (
     "displacement arrays are NaN on the triangles' points, displacement_mm holds that state"
 )
 GAP_SECTION = "gap: beam thickness and width not in the result; lines are bare centrelines"
+SOLID_NOTE = (
+    "3D check: linear elasticity on P2 tetrahedra at the check's drive (the hub turned by "
+    "+theta_T, counter-clockwise), the last thickness checked (the part's ST); von_mises_MPa at "
+    "a vertex averaged over its tetrahedra, at an edge node the mean of its two vertices"
+)
+SOLID_HALF = (
+    "3D check: the half model z >= 0 (symmetric about the mid-plane z = 0): ParaView's Reflect "
+    "filter about z gives the whole part"
+)
 GAP_STEP_FIELD = "gap: the plane-stress field was not solved at this load step (see best.pvd)"
 
 
 def has_mesh(result: Any) -> bool:
     """Whether ``result`` (a DesignResult) has anything to write: beam shapes or a field."""
     shapes = getattr(result, "shapes_mm", None)
+    return (
+        (shapes is not None and np.asarray(shapes).ndim == 3)
+        or bool(getattr(result, "field_map", None))
+        or bool(getattr(result, "solid_field", None))
+    )
+
+
+def vtu_mesh_possible(result: Any) -> bool:
+    """Whether :func:`vtu_mesh` has anything to write (beam shapes or a plane field)."""
+    shapes = getattr(result, "shapes_mm", None)
     return (shapes is not None and np.asarray(shapes).ndim == 3) or bool(
         getattr(result, "field_map", None)
     )
+
+
+def solid_vtu_bytes(result: Any) -> bytes | None:
+    """best_3d.vtu: the 3D check's P2 tetrahedra (VTK quadratic tetrahedra) with the
+    displacement and von Mises stress of its last state (:meth:`fea.solid3d.Solid3DModel.
+    last_field`), None without a 3D check. Written as zlib-compressed binary; the field's
+    arrays go to meshio as they are (already 3D: no padded copies of the 400k-DOF state)."""
+    import meshio
+
+    sf = getattr(result, "solid_field", None)
+    if not sf:
+        return None
+    counted = np.asarray(sf["stress_counted"], dtype=np.uint8)
+    mesh = meshio.Mesh(
+        sf["points_mm"],
+        [("tetra10", sf["tetra10"])],
+        point_data={
+            DISPLACEMENT: sf["displacement_mm"],
+            VON_MISES: sf["von_mises_MPa"],
+            STRESS_COUNTED: counted,
+        },
+        field_data={
+            UNITS: np.zeros(1),
+            SOLID_NOTE: np.zeros(1),
+            **({SOLID_HALF: np.zeros(1)} if sf.get("symmetric") else {}),
+            f"3D {VON_MISES}: peak over the counted vertices": np.array(
+                [float(np.max(np.asarray(sf["von_mises_MPa"])[counted.astype(bool)]))]
+                if counted.any()
+                else [np.nan]
+            ),
+        },
+    )
+    return _mesh_bytes(mesh)
 
 
 def step_name(k: int, drive: str | None, value: float | None) -> str:
@@ -464,19 +516,22 @@ def vtu_files(result: Any, stem: str) -> dict[str, bytes]:
     (:func:`vtu_bytes`: the whole response in one grid, the plain arrays at the last step),
     ``{stem}.pvd`` (the ParaView collection of the load steps, timestep = the drive value) and
     one ``{stem}_steps/{stem}_KKK.vtu`` per load step (:func:`step_mesh`: that step's
-    displacement and stresses as plain arrays). Empty when the design has neither shapes nor a
-    field."""
+    displacement and stresses as plain arrays), and ``{stem}_3d.vtu`` where the result has a
+    3D check's state (:func:`solid_vtu_bytes`). Empty when it has none of them."""
+    out: dict[str, bytes] = {}
     single = vtu_bytes(result)
-    if single is None:
-        return {}
-    out = {f"{stem}.vtu": single}
-    entries = []
-    for k, step in enumerate(load_steps(result)):
-        mesh = step_mesh(result, step, k)
-        name = f"{stem}_steps/{stem}_{k:03d}.vtu"
-        out[name] = _mesh_bytes(mesh)
-        entries.append((step["time"], name))
-    out[f"{stem}.pvd"] = pvd_text(entries).encode("utf-8")
+    if single is not None:
+        out[f"{stem}.vtu"] = single
+        entries = []
+        for k, step in enumerate(load_steps(result)):
+            mesh = step_mesh(result, step, k)
+            name = f"{stem}_steps/{stem}_{k:03d}.vtu"
+            out[name] = _mesh_bytes(mesh)
+            entries.append((step["time"], name))
+        out[f"{stem}.pvd"] = pvd_text(entries).encode("utf-8")
+    solid = solid_vtu_bytes(result)
+    if solid is not None:
+        out[f"{stem}_3d.vtu"] = solid
     return out
 
 
@@ -497,9 +552,13 @@ def vtu_makers(result: Any, stem: str) -> dict[str, Any]:
     making them (:func:`load_steps`). Empty when the design has neither shapes nor a field."""
     if not has_mesh(result):
         return {}
-    n = len(load_steps(result))
-    names = [f"{stem}.vtu", *(f"{stem}_steps/{stem}_{k:03d}.vtu" for k in range(n))]
-    names.append(f"{stem}.pvd")
+    names = []
+    if vtu_mesh_possible(result):
+        n = len(load_steps(result))
+        names = [f"{stem}.vtu", *(f"{stem}_steps/{stem}_{k:03d}.vtu" for k in range(n))]
+        names.append(f"{stem}.pvd")
+    if getattr(result, "solid_field", None):
+        names.append(f"{stem}_3d.vtu")
     made: dict[str, bytes] = {}
 
     def maker(name: str) -> Any:

@@ -237,3 +237,67 @@ def test_flexure_pivot_evaluation_has_its_plane_stress_field(tmp_path: Path) -> 
     assert mesh.point_data[VON_MISES][tri][counted].max() == pytest.approx(
         record["summary"]["plane_stress_peak_stress_MPa"], rel=1e-12
     )
+
+
+def _annulus_3d(edge_mm: float):
+    """An annulus (radii A_IN, B_OUT mm) extruded 4 mm, its inner rim turned by TURN rad, the
+    outer rim held: the 3D check's supports. Exact: u_theta = C r + D / r with u_theta(a) =
+    TURN a, u_theta(b) = 0, a pure shear tau = 2 G |C| b^2 / r^2 (traction-free faces: exact
+    in 3D too), von Mises sqrt(3) tau."""
+    from flexopt.fea.mesh import mesh_polygon
+    from flexopt.fea.plane_stress import Clamp, Rotate
+    from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings
+    from shapely.geometry import Point
+
+    outline = Point(0, 0).buffer(B_OUT, 64).difference(Point(0, 0).buffer(A_IN, 64))
+    model = Solid3DModel(
+        mesh_polygon(outline, edge_mm),
+        STEEL,
+        Clamp(outline.exterior),
+        Rotate(outline.interiors[0], (0.0, 0.0), TURN, 1),
+        Solid3DSettings(layers=2),
+        stress_ignore=Point(0, 0).buffer(A_IN + 1.0),
+    )
+    return outline, model, model.solve(4.0)
+
+
+STEEL = Material("steel", 200_000.0, 0.3, 1000.0)
+A_IN, B_OUT, TURN = 5.0, 15.0, 1e-3
+
+
+def test_best_3d_vtu_holds_the_check_state_and_converges_to_the_exact_shear(
+    tmp_path: Path,
+) -> None:
+    G = STEEL.E_MPa / (2 * (1 + STEEL.nu))
+    C = TURN * A_IN**2 / (A_IN**2 - B_OUT**2)
+    errors = []
+    for edge in (2.0, 1.0):
+        outline, model, result = _annulus_3d(edge)
+        detail = DesignDetail(solid_field=model.last_field(4.0))
+        files = vtu_files(detail, "best")
+        (tmp_path / "best_3d.vtu").write_bytes(files["best_3d.vtu"])
+        mesh = meshio.read(tmp_path / "best_3d.vtu", file_format="vtu")
+        tets = mesh.cells_dict["tetra10"]
+        p = mesh.points
+        # the half model z in [0, 2] of the 4 mm part: its volume is the area times 2 mm
+        v = p[tets[:, :4]]
+        vol = np.abs(np.einsum("ij,ij->i", np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]),
+                               v[:, 3] - v[:, 0])).sum() / 6.0  # fmt: skip
+        assert vol == pytest.approx(outline.area * 2.0, rel=1e-12)
+        np.testing.assert_allclose([p[:, 2].min(), p[:, 2].max()], [0.0, 2.0], atol=1e-12)
+        # edge nodes at their edges' midpoints (straight-sided P2)
+        np.testing.assert_allclose(p[tets[:, 4]], 0.5 * (p[tets[:, 0]] + p[tets[:, 1]]))
+        np.testing.assert_allclose(p[tets[:, 9]], 0.5 * (p[tets[:, 2]] + p[tets[:, 3]]))
+        vm = mesh.point_data[VON_MISES]
+        counted = mesh.point_data[STRESS_COUNTED] == 1
+        vertices = np.unique(tets[:, :4])
+        top = vm[np.intersect1d(vertices, np.flatnonzero(counted))].max()
+        assert top == pytest.approx(result.peak_nodal_stress_MPa, rel=1e-12)  # the check's
+        r = np.hypot(p[:, 0], p[:, 1])
+        sel = (r > A_IN + 2) & (r < B_OUT - 2)
+        exact = np.sqrt(3) * 2 * G * abs(C) * B_OUT**2 / r[sel] ** 2
+        errors.append(np.abs(vm[sel] / exact - 1).max())
+        u = mesh.point_data[DISPLACEMENT]
+        held = np.abs(r - B_OUT) < 1e-6
+        assert held.sum() > 50 and np.all(u[held] == 0)
+    assert errors[1] < 0.03 and errors[1] < 0.5 * errors[0]  # converges under refinement
