@@ -22,13 +22,23 @@ What the file holds (one unstructured grid, coordinates in mm, z = 0 in the plan
   ``gap: ...``. meshio 5.3's VTU writer drops ``field_data``, so :func:`vtu_bytes` inserts the
   block itself (ASCII Float64 arrays, which meshio and ParaView read).
 
-The gaps, said in the file rather than filled with invented numbers: the beam model gives its
-peak stress per load step (the ``peak_stress_MPa`` column), not a stress per node, so the beam's
-points carry ``von_mises_MPa`` = NaN; a field without ``displacement_mm`` (a plugin's) leaves
-the triangles' points at ``displacement_mm`` = NaN; a field has one state, so the beam's
-per-step displacement arrays are NaN on the triangles (the plain ``displacement_mm`` holds the
-field's state there); the beam's thickness and width are not in the result, so the lines are
-bare centrelines.
+Where the result has them (:attr:`DesignResult.beam_field`, :func:`fea.beam_fields.beam_field`),
+the beam's points carry the last step's ``von_mises_MPa`` (the larger magnitude of the two
+fibre stresses), ``stress_fibre_left_MPa`` / ``stress_fibre_right_MPa`` (signed, MPa) and
+``thickness_mm``, and its lines the cell data ``thickness_mm`` and ``width_mm`` (mm). The
+plane-stress vertices carry ``stress_counted`` (1 where the check's peak counts them).
+
+The gaps, said in the file rather than filled with invented numbers: a result without beam
+stresses leaves the beam's ``von_mises_MPa`` NaN and its lines bare centrelines; a field without
+``displacement_mm`` (a plugin's) leaves the triangles' points at ``displacement_mm`` = NaN; the
+beam's per-step displacement arrays are NaN on the triangles (the plain ``displacement_mm``
+holds the field's last state there).
+
+Beside it (:func:`vtu_files`): ``best.pvd``, the ParaView collection of the load steps
+(timestep = the drive value, in the drive column's unit), one ``best_steps/best_KKK.vtu`` per
+step (:func:`step_mesh`: that step's beam state and, where the check solved it, its
+plane-stress state, under plain names), and ``best_3d.vtu``, the 3D check's P2 tetrahedra
+(:func:`solid_vtu_bytes`). docs/print_to_part.md says what each holds and how to open them.
 """
 
 from __future__ import annotations
