@@ -24,7 +24,7 @@ def mesh_arrays(model: PlaneStressModel) -> dict[str, np.ndarray]:
     re-entrant corners are singular)."""
     t = model.skmesh.t.T
     counted = np.zeros(model.mesh.n_points, dtype=bool)
-    counted[t[model._stress_mask].ravel()] = True  # noqa: SLF001 - the model's own mask
+    counted[t[model.stress_mask].ravel()] = True
     return {
         "points_mm": np.asarray(model.mesh.points, dtype=float),
         "triangles": np.asarray(model.mesh.triangles, dtype=np.int64),
