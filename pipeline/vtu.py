@@ -570,11 +570,18 @@ def vtu_makers(result: Any, stem: str) -> dict[str, Any]:
     if getattr(result, "solid_field", None):
         names.append(f"{stem}_3d.vtu")
     made: dict[str, bytes] = {}
+    failed: list[Exception] = []
 
     def maker(name: str) -> Any:
         def make() -> bytes | None:
+            if failed:  # said once, by the first file's maker: not once per load step
+                return None
             if not made:
-                made.update(vtu_files(result, stem))
+                try:
+                    made.update(vtu_files(result, stem))
+                except Exception as exc:
+                    failed.append(exc)
+                    raise
             return made.get(name)
 
         return make
