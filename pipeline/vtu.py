@@ -487,7 +487,10 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         for name in (FIBRE_LEFT, FIBRE_RIGHT, THICKNESS):
             point_data[name].append(np.full(len(xy), np.nan))
         point_data[STRESS_COUNTED].append(_counted(fmap, len(xy)))
-        label = str(fmap.get("label", "von Mises stress (MPa)"))
+        if state.get("drive_value") is None:  # the field's one state: its label says which
+            label = str(fmap.get("label", "von Mises stress (MPa)"))
+        else:  # (the label names the top-level state, the last one)
+            label = "the plane-stress solve's state at this load step (MPa)"
         field_data[f"plane stress {VON_MISES}: {label}"] = np.zeros(1)
     elif fmap is not None:
         field_data[GAP_STEP_FIELD] = np.zeros(1)
