@@ -318,9 +318,7 @@ def evaluate_study(
     for name, data in extra.items():
         (run_dir / name).parent.mkdir(exist_ok=True)  # design_steps/ of design.pvd
         write_atomic(run_dir / name, data)
-    # the load steps' VTU files by their folder (design_steps/), not one name per step
-    folders = dict.fromkeys(n.split("/")[0] + "/" if "/" in n else n for n in extra)
-    record["files"] = [*EVALUATE_FILES, *folders]
+    record["files"] = [*EVALUATE_FILES, *extra]  # files, design_steps/design_KKK.vtu too
     write_atomic(run_dir / "evaluation.json", to_json(record))
     log.info("wrote %s", run_dir)
     return EvaluateOutcome(run_dir, result, record)
