@@ -221,6 +221,9 @@ class BeamResponse:
     contact : the contact outputs (a :class:`fea.stops.ContactResponse`: force per stop, closing
         gap, rows in contact, contact points) of a solve with rigid stops
         (:func:`fea.stops.solve_with_stops`); None without stops.
+    rotations_rad : (steps + 1, n_nodes) float, rad — the nodes' section rotation per row (NaN
+        on rows that did not converge; with ``shapes_mm`` the whole state, which
+        fea/beam_fields.py turns into fibre stresses per node); None from a stand-in response.
     """
 
     displacement_mm: np.ndarray
@@ -242,6 +245,7 @@ class BeamResponse:
     unstable_message: str = ""
     critical_value: float = float("nan")
     contact: object | None = None
+    rotations_rad: np.ndarray | None = None
 
 
 class ContactTerms(Protocol):
@@ -977,6 +981,7 @@ class BeamModel:
         u[:, n - 3 : n - 1] = q_rows[:, n - 3 : n - 1] @ frame
         done = converged
         rows.shapes[done] = self.reference_nodes_mm + u[done].reshape(-1, self.n_nodes, 3)[..., :2]
+        rows.rotations[done] = u[done].reshape(-1, self.n_nodes, 3)[..., 2]
         message = ""
         if not ok:
             value, inc = float(floats[0]), float(floats[1])
@@ -1172,6 +1177,7 @@ class _Rows:
         self.converged = np.zeros(n_rows, dtype=bool)
         self.stable = np.zeros(n_rows, dtype=bool)
         self.shapes = np.full((n_rows, n_nodes, 2), np.nan)
+        self.rotations = np.full((n_rows, n_nodes), np.nan)
 
     def store(self, k, model: BeamModel, q, r, frame, iters, ia, it, ir) -> None:
         a = self.a
@@ -1186,6 +1192,7 @@ class _Rows:
         self.iterations[k] = iters
         self.converged[k] = True
         self.shapes[k] = model.reference_nodes_mm + u.reshape(-1, 3)[:, :2]
+        self.rotations[k] = u.reshape(-1, 3)[:, 2]
 
     def response(
         self, ok: bool, message: str, extra: dict, stability: tuple[bool, str, float]
@@ -1203,6 +1210,7 @@ class _Rows:
             unstable=unstable,
             unstable_message=unstable_message,
             critical_value=critical,
+            rotations_rad=self.rotations,
         )
 
 

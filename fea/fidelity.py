@@ -30,6 +30,7 @@ from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.fea.mesh import mesh_polygon
 from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Translate
+from flexopt.fea.plane_stress_fields import mesh_arrays, state_field
 from flexopt.geometry.errors import GeometryError
 from shapely.geometry import Polygon
 
@@ -207,6 +208,7 @@ def plane_stress_check(
         "moved": [],
     }
     located = _locate(beam, model.xy)  # the nodes on the reference centreline, once
+    states = []  # each checked row's field (fea/plane_stress_fields.py), for best.vtu
     for k in rows:
         guess = _carry(beam, *located, response.shapes_mm[k], model.xy)
         u = np.zeros(model.n_dofs)
@@ -238,6 +240,7 @@ def plane_stress_check(
         out["eig"].append(eig)
         out["stable"].append(bool(eig > 0))
         out["moved"].append(float(moved))
+        states.append(state_field(model, u, "nonlinear") | {"drive_value": float(stroke_rows[k])})
     beam_f = np.asarray(response.force_N)[rows]
     ps_f = np.array(out["force"])
     rel = ps_f / beam_f - 1.0
@@ -266,4 +269,6 @@ def plane_stress_check(
             "dofs": model.n_dofs,
         },
         "time_s": time.perf_counter() - t0,  # the caller may count its own part too
+        # large arrays: the kind takes them out before the record is written (pipeline/fields.py)
+        "field": mesh_arrays(model) | {"steps": states},
     }

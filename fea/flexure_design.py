@@ -380,4 +380,6 @@ def plane_stress_check(
     }
     if non.ok:
         out["safety_factor"] = allowable_MPa / float(non.peak_stress_MPa[-1])
+    if non.field is not None:  # large arrays: the kind takes them out (pipeline/fields.py)
+        out["field"] = non.field
     return out

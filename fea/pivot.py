@@ -79,6 +79,9 @@ class PivotResponse:
     contact : fea.stops.ContactResponse or None — beam model with stops (``beam_pivot(stops=)``):
         the stops' forces on the members (N), gaps (mm) and the rotation (rad) at which each
         closes; None without stops.
+    field : dict or None — plane stress: the mesh and the last converged row's von Mises and
+        displacement (:func:`fea.plane_stress_fields.state_field`; ``drive_value`` in rad);
+        None for the beam model.
     """
 
     rotation_rad: np.ndarray
@@ -98,6 +101,7 @@ class PivotResponse:
     extra: dict = field(default_factory=dict)
     stable: np.ndarray | None = None
     contact: ContactResponse | None = None
+    field: dict | None = None
 
 
 def tangent_stiffness(angle_rad: np.ndarray, torque_Nmm: np.ndarray) -> np.ndarray:
@@ -301,7 +305,8 @@ def plane_stress_pivot(
         turns about it by itself); ``centre_shift_mm`` is zero by construction.
     """
     from flexopt.fea.mesh import mesh_polygon
-    from flexopt.fea.plane_stress import Clamp, Rotate, solve_plane_stress
+    from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Rotate
+    from flexopt.fea.plane_stress_fields import mesh_arrays, state_field
 
     if not flexure.is_planar:
         raise FeaError(
@@ -325,7 +330,7 @@ def plane_stress_pivot(
 
     mesh = mesh_polygon(outline, coarse, refine=size)
     grow = 1e-6
-    res = solve_plane_stress(
+    model = PlaneStressModel(
         mesh,
         material,
         flexure.width_mm,
@@ -338,12 +343,14 @@ def plane_stress_pivot(
             max_rad=float(max_rad),
             steps=int(steps),
         ),
-        kinematics=kinematics,  # type: ignore[arg-type]
         stress_ignore=ground.union(moving),
     )
+    res = model.solve(kinematics)  # type: ignore[arg-type]
     angles = np.asarray(res.drive_value, dtype=float)
     torque = np.asarray(res.torque_Nmm, dtype=float)
     small = float(torque[1] / angles[1]) if res.converged[1] else float("nan")
+    done = np.flatnonzero(res.converged)
+    last = float(angles[done[-1]]) if done.size else 0.0  # the row res.dofs holds, rad
     return PivotResponse(
         rotation_rad=angles,
         torque_Nmm=torque,
@@ -359,6 +366,9 @@ def plane_stress_pivot(
         message=res.message,
         model="plane_stress",
         solve_time_s=time.perf_counter() - t0,
+        # the last converged row's field (the solve keeps only that state's DOFs)
+        field=mesh_arrays(model)
+        | {"steps": [state_field(model, res.dofs, kinematics) | {"drive_value": last}]},
         extra={
             "kinematics": kinematics,
             "triangles": mesh.n_triangles,

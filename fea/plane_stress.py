@@ -1214,6 +1214,12 @@ class PlaneStressModel:
         s11, s22, s12 = sig[0, 0], sig[1, 1], sig[0, 1]
         return np.sqrt(np.maximum(s11**2 - s11 * s22 + s22**2 + 3.0 * s12**2, 0.0))
 
+    @property
+    def stress_mask(self) -> np.ndarray:
+        """(n_triangles,) bool: the elements :meth:`peak_stress` counts (those not touching
+        ``stress_ignore``); the model's own array, read-only by contract."""
+        return self._stress_mask
+
     def peak_stress(
         self, u: np.ndarray, kinematics: str
     ) -> tuple[float, np.ndarray, float, np.ndarray]:

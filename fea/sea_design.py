@@ -449,6 +449,8 @@ def correct_3d(
             s3.max_fraction_of_tolerance if s3.correct else math.inf,
             s3.max_checks,
         )
+        # the last check's state (the part's ST), kept by the model: best_3d.vtu, no new solve
+        field = model.last_field(corr["checks"][-1]["thickness_mm"]) if corr["checks"] else None
     except FeaError as exc:
         return {"problem": f"3D check not made: {exc}"}
     finally:
@@ -516,6 +518,8 @@ def correct_3d(
             out["peak_stress_3d_MPa"] = conv["peak_stress_3d_MPa"]
     out["stress_ok_3d"] = bool(out["peak_stress_3d_MPa"] <= allowable_MPa)
     out["time_s"] = time.perf_counter() - t0
+    if field is not None:  # large arrays: the kind takes them out (pipeline/fields.py)
+        out["field"] = field
     return out
 
 

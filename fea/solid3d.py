@@ -1319,6 +1319,58 @@ class Solid3DModel:
                              self._t, self._p * stretch[:, None], self._mask, self._lam,
                              self._mu, z_scale=zs, kernels=self._kernels)  # fmt: skip
 
+    def last_field(self, thickness_mm: float) -> dict | None:
+        """The last :meth:`solve`'s state on the P2 tetrahedra, for best_3d.vtu (no new solve:
+        the model keeps its last unknowns). ``thickness_mm`` must be that solve's thickness.
+
+        Returns
+        -------
+        dict or None (None before any solve)
+            ``points_mm`` (n_nodes, 3) mm, the P2 nodes of the mesh extruded to
+            ``thickness_mm`` (vertices first, then one per edge); ``tetra10`` (nel, 10) int, each
+            element's nodes in VTK's quadratic-tetrahedron order (4 vertices, then the edges
+            01, 12, 02, 03, 13, 23); ``displacement_mm`` (n_nodes, 3) mm;
+            ``von_mises_MPa`` (n_nodes,) MPa: at a vertex the P2 stress at the corners of its
+            tetrahedra averaged (the value :meth:`peak_stresses` reports as the nodal peak), at
+            an edge node the mean of its two vertices; ``stress_counted`` (n_nodes,) bool, the
+            vertices of the elements the peak counts (edge nodes: both ends counted);
+            ``symmetric`` bool, the half model z >= 0 (mirror about z = 0 for the whole part).
+        """
+        if self._q is None:
+            return None
+        zs = float(thickness_mm) / self.reference_thickness_mm
+        u = self._sup.ubar + self._sup.P @ self._q
+        if self._G is None:
+            _, _, Gc = _p2_gradients(self._tmesh, self._kernels)
+        else:
+            Gc = self._Gc
+        ue = u.reshape(-1, 3)
+        if self._kernels is not None:
+            vc = self._kernels.von_mises(u, self._dofs, Gc, self._mu, zs)  # (nel, 4)
+        else:
+            g = np.einsum("eac,eqaj->eqcj", ue[self._dofs], Gc)
+            g[..., 2] /= zs
+            vc = _von_mises(g, self._lam, self._mu)
+        del Gc
+        t, nv = self._t, self._p.shape[1]
+        total = np.bincount(t.ravel(), weights=vc.ravel(), minlength=nv)
+        vertex = total / np.maximum(np.bincount(t.ravel(), minlength=nv), 1)
+        counted_v = np.zeros(nv, dtype=bool)
+        counted_v[t[self._mask].ravel()] = True
+        n_nodes = ue.shape[0]
+        ends = np.empty((n_nodes - nv, 2), dtype=np.int64)  # each edge node's two vertices
+        for j, (a, b) in enumerate(((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))):
+            ends[self._dofs[:, 4 + j] - nv] = np.column_stack([t[:, a], t[:, b]])
+        p = self._p.T * np.array([1.0, 1.0, zs])
+        return {
+            "points_mm": np.vstack([p, 0.5 * (p[ends[:, 0]] + p[ends[:, 1]])]),
+            "tetra10": np.asarray(self._dofs, dtype=np.int64),
+            "displacement_mm": ue,
+            "von_mises_MPa": np.concatenate([vertex, vertex[ends].mean(axis=1)]),
+            "stress_counted": np.concatenate([counted_v, counted_v[ends].all(axis=1)]),
+            "symmetric": bool(self.settings.symmetric),
+        }
+
     def compare_with_plane_stress(self, thickness_mm: float) -> dict:
         """:func:`compare_with_plane_stress` at ``thickness_mm`` with this model's 3D solve."""
         return _compare(self.mesh, self.material, thickness_mm, self.clamp, self.drive,

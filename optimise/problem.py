@@ -93,6 +93,13 @@ class DesignResult:
         ``displacement_mm`` (n, 2) mm, the nodes' displacement in the solve whose field it is.
         Drawn as ``stress_map.png`` (and, with the displacement, ``stress_deformed.png`` on the
         deformed part); not written into best.json (it is large).
+    beam_field : dict, optional — the beam's section and stresses per node and load step
+        (:func:`fea.beam_fields.beam_field`: ``thickness_mm``, ``width_mm``, the signed fibre
+        stresses and the equivalent stress, rows as ``shapes_mm``), for best.vtu; not written
+        into best.json.
+    solid_field : dict, optional — the 3D check's last state on its P2 tetrahedra
+        (:meth:`fea.solid3d.Solid3DModel.last_field`), for best_3d.vtu; not written into
+        best.json.
     files : dict of str to bytes — more files of the kind (``taguchi.png``, ``sweeps.png``), by
         plain file name; ``flexopt run`` / ``flexopt evaluate`` write them into the folder.
     verdicts : tuple of Verdict — the design's verdicts. A kind that judges itself fills them;
@@ -120,6 +127,8 @@ class DesignResult:
     height_mm: float | None = None
     info: dict[str, Any] = field(default_factory=dict)
     field_map: dict[str, Any] | None = None
+    beam_field: dict[str, Any] | None = None
+    solid_field: dict[str, Any] | None = None
     files: dict[str, bytes] = field(default_factory=dict)
     verdicts: tuple[Verdict, ...] = ()
     cases: dict[str, CaseResponse] = field(default_factory=dict)

@@ -103,18 +103,19 @@ def _extra_files(result: DesignResult) -> dict[str, bytes]:
 DESIGN_VTU = "design.vtu"
 
 
-def _design_vtu(result: DesignResult) -> bytes | None:
-    """design.vtu of an evaluation that has beam shapes or a stress field (None without them,
-    or, with a warning, when it cannot be made: the evaluation's other files still stand)."""
-    from flexopt.pipeline.vtu import has_mesh, vtu_bytes
+def _design_vtu(result: DesignResult) -> dict[str, bytes]:
+    """design.vtu, design.pvd and design_steps/ of an evaluation that has beam shapes or a
+    stress field (:func:`pipeline.vtu.vtu_files`; none without them, or, with a warning, when
+    they cannot be made: the evaluation's other files still stand)."""
+    from flexopt.pipeline.vtu import has_mesh, vtu_files
 
     if not has_mesh(result):
-        return None
+        return {}
     try:
-        return vtu_bytes(result)
+        return vtu_files(result, DESIGN_VTU.removesuffix(".vtu"))
     except Exception as exc:
         log.warning("%s not written: %s: %s", DESIGN_VTU, type(exc).__name__, exc)
-        return None
+        return {}
 
 
 #: The stress field on the deformed part, where the evaluation carries a field with its
@@ -310,15 +311,14 @@ def evaluate_study(
         png = robust.png(f"{study.name}: robustness")
         if png is not None:
             extra["robustness.png"] = png
-    vtu = _design_vtu(result)
-    if vtu is not None:
-        extra[DESIGN_VTU] = vtu
+    extra.update(_design_vtu(result))
     png = _stress_deformed(result, study.name)
     if png is not None:
         extra[STRESS_DEFORMED] = png
     for name, data in extra.items():
+        (run_dir / name).parent.mkdir(exist_ok=True)  # design_steps/ of design.pvd
         write_atomic(run_dir / name, data)
-    record["files"] = [*EVALUATE_FILES, *extra]
+    record["files"] = [*EVALUATE_FILES, *extra]  # files, design_steps/design_KKK.vtu too
     write_atomic(run_dir / "evaluation.json", to_json(record))
     log.info("wrote %s", run_dir)
     return EvaluateOutcome(run_dir, result, record)

@@ -22,13 +22,23 @@ What the file holds (one unstructured grid, coordinates in mm, z = 0 in the plan
   ``gap: ...``. meshio 5.3's VTU writer drops ``field_data``, so :func:`vtu_bytes` inserts the
   block itself (ASCII Float64 arrays, which meshio and ParaView read).
 
-The gaps, said in the file rather than filled with invented numbers: the beam model gives its
-peak stress per load step (the ``peak_stress_MPa`` column), not a stress per node, so the beam's
-points carry ``von_mises_MPa`` = NaN; a field without ``displacement_mm`` (a plugin's) leaves
-the triangles' points at ``displacement_mm`` = NaN; a field has one state, so the beam's
-per-step displacement arrays are NaN on the triangles (the plain ``displacement_mm`` holds the
-field's state there); the beam's thickness and width are not in the result, so the lines are
-bare centrelines.
+Where the result has them (:attr:`DesignResult.beam_field`, :func:`fea.beam_fields.beam_field`),
+the beam's points carry the last step's ``von_mises_MPa`` (the larger magnitude of the two
+fibre stresses), ``stress_fibre_left_MPa`` / ``stress_fibre_right_MPa`` (signed, MPa) and
+``thickness_mm``, and its lines the cell data ``thickness_mm`` and ``width_mm`` (mm). The
+plane-stress vertices carry ``stress_counted`` (1 where the check's peak counts them).
+
+The gaps, said in the file rather than filled with invented numbers: a result without beam
+stresses leaves the beam's ``von_mises_MPa`` NaN and its lines bare centrelines; a field without
+``displacement_mm`` (a plugin's) leaves the triangles' points at ``displacement_mm`` = NaN; the
+beam's per-step displacement arrays are NaN on the triangles (the plain ``displacement_mm``
+holds the field's last state there).
+
+Beside it (:func:`vtu_files`): ``best.pvd``, the ParaView collection of the load steps
+(timestep = the drive value, in the drive column's unit), one ``best_steps/best_KKK.vtu`` per
+step (:func:`step_mesh`: that step's beam state and, where the check solved it, its
+plane-stress state, under plain names), and ``best_3d.vtu``, the 3D check's P2 tetrahedra
+(:func:`solid_vtu_bytes`). docs/print_to_part.md says what each holds and how to open them.
 """
 
 from __future__ import annotations
@@ -49,7 +59,23 @@ MODEL = "model"
 #: The value of :data:`MODEL` per model.
 MODELS = {"beam": 0, "plane_stress": 1}
 
+#: Point data on the beam's nodes (fea/beam_fields.py): the signed stress of the outer fibre at
+#: +t/2 along the normal (the tangent turned 90 degrees counter-clockwise) and at -t/2 (MPa).
+FIBRE_LEFT = "stress_fibre_left_MPa"
+FIBRE_RIGHT = "stress_fibre_right_MPa"
+#: The beam's section: point data (at the nodes) and cell data (per line segment), mm.
+THICKNESS = "thickness_mm"
+#: Cell data: the beam's out-of-plane width per line segment, mm.
+WIDTH = "width_mm"
+#: Point data on the plane-stress vertices: 1 where the check's peak stress counts the vertex,
+#: 0 on the elements it leaves out (touching clamps and drives: singular corners); NaN elsewhere.
+STRESS_COUNTED = "stress_counted"
+
 UNITS = "units: coordinates and displacement_mm in mm, stress in MPa, force in N, moment in N mm"
+BEAM_STRESS_NOTE = (
+    "beam: von_mises_MPa on the beam's points is the larger magnitude of its two outer-fibre "
+    "stresses (uniaxial), sampled by the solver at the node (fea/beam_fields.py)"
+)
 GAP_BEAM_STRESS = (
     "gap: no per-node stress along the beam (the beam model reports its peak stress per load "
     "step only, see the table columns); von_mises_MPa is NaN on the beam's points"
@@ -63,14 +89,67 @@ GAP_FIELD_STEPS = (
     "displacement arrays are NaN on the triangles' points, displacement_mm holds that state"
 )
 GAP_SECTION = "gap: beam thickness and width not in the result; lines are bare centrelines"
+SOLID_NOTE = (
+    "3D check: linear elasticity on P2 tetrahedra at the check's drive (the hub turned by "
+    "+theta_T, counter-clockwise), the last thickness checked (the part's ST); von_mises_MPa at "
+    "a vertex averaged over its tetrahedra, at an edge node the mean of its two vertices"
+)
+SOLID_HALF = (
+    "3D check: the half model z >= 0 (symmetric about the mid-plane z = 0): ParaView's Reflect "
+    "filter about z gives the whole part"
+)
+GAP_STEP_FIELD = "gap: the plane-stress field was not solved at this load step (see best.pvd)"
 
 
 def has_mesh(result: Any) -> bool:
     """Whether ``result`` (a DesignResult) has anything to write: beam shapes or a field."""
     shapes = getattr(result, "shapes_mm", None)
+    return (
+        (shapes is not None and np.asarray(shapes).ndim == 3)
+        or bool(getattr(result, "field_map", None))
+        or bool(getattr(result, "solid_field", None))
+    )
+
+
+def vtu_mesh_possible(result: Any) -> bool:
+    """Whether :func:`vtu_mesh` has anything to write (beam shapes or a plane field)."""
+    shapes = getattr(result, "shapes_mm", None)
     return (shapes is not None and np.asarray(shapes).ndim == 3) or bool(
         getattr(result, "field_map", None)
     )
+
+
+def solid_vtu_bytes(result: Any) -> bytes | None:
+    """best_3d.vtu: the 3D check's P2 tetrahedra (VTK quadratic tetrahedra) with the
+    displacement and von Mises stress of its last state (:meth:`fea.solid3d.Solid3DModel.
+    last_field`), None without a 3D check. Written as zlib-compressed binary; the field's
+    arrays go to meshio as they are (already 3D: no padded copies of the 400k-DOF state)."""
+    import meshio
+
+    sf = getattr(result, "solid_field", None)
+    if not sf:
+        return None
+    counted = np.asarray(sf["stress_counted"], dtype=np.uint8)
+    mesh = meshio.Mesh(
+        sf["points_mm"],
+        [("tetra10", sf["tetra10"])],
+        point_data={
+            DISPLACEMENT: sf["displacement_mm"],
+            VON_MISES: sf["von_mises_MPa"],
+            STRESS_COUNTED: counted,
+        },
+        field_data={
+            UNITS: np.zeros(1),
+            SOLID_NOTE: np.zeros(1),
+            **({SOLID_HALF: np.zeros(1)} if sf.get("symmetric") else {}),
+            f"3D {VON_MISES}: peak over the counted vertices": np.array(
+                [float(np.max(np.asarray(sf["von_mises_MPa"])[counted.astype(bool)]))]
+                if counted.any()
+                else [np.nan]
+            ),
+        },
+    )
+    return _mesh_bytes(mesh)
 
 
 def step_name(k: int, drive: str | None, value: float | None) -> str:
@@ -114,13 +193,14 @@ def vtu_mesh(result: Any) -> Any:
     cells: list[tuple[str, np.ndarray]] = []
     model: list[np.ndarray] = []
     point_data: dict[str, list[np.ndarray]] = {}
+    cell_data: dict[str, list[np.ndarray]] = {}
     field_data: dict[str, np.ndarray] = {UNITS: np.zeros(1)}
     n_beam = 0
     if shapes is not None:
         n_rows, n_beam = shapes.shape[:2]
         ref = shapes[0]
         points.append(np.column_stack([ref, np.zeros(n_beam)]))
-        lines = np.column_stack([np.arange(n_beam - 1), np.arange(1, n_beam)])
+        lines, keep = beam_lines(ref)
         cells.append(("line", lines))
         model.append(np.full(len(lines), MODELS["beam"], dtype=np.int32))
         drive, values = _drive(result, n_rows)
@@ -139,8 +219,18 @@ def vtu_mesh(result: Any) -> Any:
             arr = np.asarray(data)
             if arr.shape == (n_rows,) and arr.dtype.kind in "biuf":
                 field_data[f"per load step: {column}"] = arr.astype(float)
-        field_data[GAP_BEAM_STRESS] = np.zeros(1)
-        field_data[GAP_SECTION] = np.zeros(1)
+        bfield = beam_arrays(result, n_rows, n_beam)
+        if bfield is None:
+            field_data[GAP_BEAM_STRESS] = np.zeros(1)
+            field_data[GAP_SECTION] = np.zeros(1)
+        else:  # the last load step's stresses, as the plain displacement_mm is the last step's
+            point_data[VON_MISES] = [bfield["equivalent_MPa"][-1]]
+            point_data[FIBRE_LEFT] = [bfield["fibre_left_MPa"][-1]]
+            point_data[FIBRE_RIGHT] = [bfield["fibre_right_MPa"][-1]]
+            point_data[THICKNESS] = [bfield["thickness_mm"]]
+            cell_data[THICKNESS] = [bfield["segment_thickness_mm"][keep]]
+            cell_data[WIDTH] = [bfield["width_mm"][keep]]
+            field_data[BEAM_STRESS_NOTE] = np.zeros(1)
     if fmap is not None:
         xy = np.asarray(fmap["points_mm"], dtype=float).reshape(-1, 2)
         tri = np.asarray(fmap["triangles"], dtype=np.int64).reshape(-1, 3)
@@ -155,7 +245,11 @@ def vtu_mesh(result: Any) -> Any:
             u = None  # not the mesh's: said as a gap rather than misdrawn
         for name in point_data:
             if name not in (VON_MISES, DISPLACEMENT):
-                point_data[name].append(nan3)
+                point_data[name].append(nan3 if point_data[name][0].ndim == 2 else nan3[:, 0])
+        for name in cell_data:
+            cell_data[name].append(np.full(len(tri), np.nan))
+        if fmap.get("stress_counted") is not None:
+            point_data[STRESS_COUNTED] = [np.full(n_beam, np.nan), _counted(fmap, len(xy))]
         point_data.setdefault(VON_MISES, []).append(vm)
         if u is not None or DISPLACEMENT in point_data:  # a field alone without u: no array
             disp = nan3 if u is None else np.column_stack([u, np.zeros(len(u))])
@@ -178,7 +272,7 @@ def vtu_mesh(result: Any) -> Any:
         np.vstack(points),
         cells,
         point_data={name: np.concatenate(parts) for name, parts in point_data.items()},
-        cell_data={MODEL: model},
+        cell_data={MODEL: model, **cell_data},
         field_data=field_data,
     )
 
@@ -189,9 +283,14 @@ def vtu_bytes(result: Any) -> bytes | None:
     mesh = vtu_mesh(result)
     if mesh is None:
         return None
+    return _mesh_bytes(mesh)
+
+
+def _mesh_bytes(mesh: Any) -> bytes:
+    """A meshio mesh as VTU bytes (zlib-compressed binary arrays, field data in ASCII)."""
     with tempfile.TemporaryDirectory() as tmp:  # meshio's VTU writer wants a file name
         path = Path(tmp) / "design.vtu"
-        mesh.write(path, file_format="vtu")
+        mesh.write(path, file_format="vtu", compression="zlib")
         data = path.read_bytes()
     return _with_field_data(data, mesh.field_data)
 
@@ -211,3 +310,283 @@ def _with_field_data(data: bytes, field_data: dict[str, np.ndarray]) -> bytes:
     block = ("<FieldData>" + "".join(arrays) + "</FieldData>").encode("utf-8")
     at = data.index(b"<Piece")  # base64 and the header comment hold no '<'
     return data[:at] + block + data[at:]
+
+
+# ------------------------------------------------------------------------ the beam's section
+
+
+def beam_lines(ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The line cells (k, 2) int between consecutive points of the centreline ``ref`` (n, 2) mm
+    and which of the n - 1 segments they are (k,) int: a segment with a NaN end (the separator
+    between the members of a multi-member beam) is no line."""
+    finite = np.all(np.isfinite(ref), axis=1)
+    keep = np.flatnonzero(finite[:-1] & finite[1:])
+    return np.column_stack([keep, keep + 1]), keep
+
+
+def beam_arrays(result: Any, n_rows: int, n_nodes: int) -> dict[str, np.ndarray] | None:
+    """``result.beam_field`` (:func:`fea.beam_fields.beam_field`) when it fits the result's
+    shapes (n_rows rows of n_nodes nodes), else None (said as gaps in the file)."""
+    bf = getattr(result, "beam_field", None)
+    if not bf:
+        return None
+    try:
+        ok = np.shape(bf["equivalent_MPa"]) == (n_rows, n_nodes) and np.shape(
+            bf["thickness_mm"]
+        ) == (n_nodes,)
+    except KeyError:
+        return None
+    return {k: np.asarray(v, dtype=float) for k, v in bf.items()} if ok else None
+
+
+# ------------------------------------------------------------------------ load steps: best.pvd
+
+
+def _field_states(fmap: dict[str, Any]) -> list[dict[str, Any]]:
+    """The field's states: its ``steps`` (pipeline/fields.py) or its one top-level state (drive
+    value None: the label says which)."""
+    steps = fmap.get("steps")
+    if steps:
+        return list(steps)
+    return [
+        {
+            "drive_value": None,
+            "values": fmap["values"],
+            "displacement_mm": fmap.get("displacement_mm"),
+        }
+    ]
+
+
+def load_steps(result: Any) -> list[dict[str, Any]]:
+    """The load steps of best.pvd, in time order: each a dict with ``time`` (the drive value in
+    the drive column's unit, or the step's index where the drive is unknown or not increasing),
+    ``row`` (the beam's row of ``shapes_mm``, or None) and ``state`` (the field's state solved
+    at that drive value, or None). A field state at a drive value the beam has no row for is a
+    step of its own."""
+    shapes = getattr(result, "shapes_mm", None)
+    shapes = np.asarray(shapes, dtype=float) if shapes is not None else None
+    if shapes is not None and (shapes.ndim != 3 or shapes.shape[2] != 2 or not shapes.size):
+        shapes = None
+    fmap = getattr(result, "field_map", None) or None
+    steps: list[dict[str, Any]] = []
+    if shapes is not None:
+        drive, values = _drive(result, len(shapes))
+        for k in range(len(shapes)):
+            steps.append({"time": None if values is None else float(values[k]), "row": k})
+    if fmap is not None:
+        for state in _field_states(fmap):
+            v = state.get("drive_value")
+            match = [
+                st
+                for st in steps
+                if v is not None
+                and st["time"] is not None
+                and "state" not in st
+                and abs(st["time"] - v) <= 1e-6 * max(1.0, abs(v))
+            ]
+            if match:
+                match[0]["state"] = state
+            elif v is None and steps and shapes is not None:
+                steps[-1]["state"] = state  # one state, no drive value: the label's, the last
+            else:
+                steps.append({"time": None if v is None else float(v), "row": None})
+                steps[-1]["state"] = state
+    for st in steps:
+        st.setdefault("state", None)
+    times = [st["time"] for st in steps]
+    if any(t is None for t in times) or np.any(np.diff(np.asarray(times, dtype=float)) <= 0):
+        if all(t is not None for t in times):
+            steps.sort(key=lambda st: st["time"])
+            times = [st["time"] for st in steps]
+        if any(t is None for t in times) or np.any(np.diff(np.asarray(times, dtype=float)) <= 0):
+            for k, st in enumerate(steps):
+                st["index_time"] = True
+                st["time"] = float(k)
+    return steps
+
+
+def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
+    """The :class:`meshio.Mesh` of one load step (see :func:`vtu_files`)."""
+    import meshio
+
+    shapes = getattr(result, "shapes_mm", None)
+    fmap = getattr(result, "field_map", None) or None
+    points: list[np.ndarray] = []
+    cells: list[tuple[str, np.ndarray]] = []
+    cell_data: dict[str, list[np.ndarray]] = {MODEL: [], THICKNESS: [], WIDTH: []}
+    point_data: dict[str, list[np.ndarray]] = {
+        DISPLACEMENT: [],
+        VON_MISES: [],
+        FIBRE_LEFT: [],
+        FIBRE_RIGHT: [],
+        THICKNESS: [],
+        STRESS_COUNTED: [],
+    }
+    field_data: dict[str, np.ndarray] = {UNITS: np.zeros(1)}
+    drive = (getattr(result, "plot", None) or {}).get("x")
+    if step.get("index_time"):
+        field_data["time: the load step's index (the drive is not known or not increasing)"] = (
+            np.array([step["time"]])
+        )
+    elif drive or (fmap or {}).get("drive"):
+        field_data[f"time: {drive or fmap.get('drive')}"] = np.array([step["time"]])
+    n = 0
+    row = step["row"]
+    if row is not None:
+        shapes = np.asarray(shapes, dtype=float)
+        ref = shapes[0]
+        nb = len(ref)
+        lines, keep = beam_lines(ref)
+        points.append(np.column_stack([ref, np.zeros(nb)]))
+        cells.append(("line", lines))
+        cell_data[MODEL].append(np.full(len(lines), MODELS["beam"], dtype=np.int32))
+        disp = np.zeros((nb, 3))
+        disp[:, :2] = shapes[row] - ref
+        point_data[DISPLACEMENT].append(disp)
+        bf = beam_arrays(result, len(shapes), nb)
+        nan = np.full(nb, np.nan)
+        point_data[STRESS_COUNTED].append(nan)
+        if bf is None:
+            for name in (VON_MISES, FIBRE_LEFT, FIBRE_RIGHT, THICKNESS):
+                point_data[name].append(nan)
+            cell_data[THICKNESS].append(np.full(len(lines), np.nan))
+            cell_data[WIDTH].append(np.full(len(lines), np.nan))
+            field_data[GAP_BEAM_STRESS] = np.zeros(1)
+            field_data[GAP_SECTION] = np.zeros(1)
+        else:
+            point_data[VON_MISES].append(bf["equivalent_MPa"][row])
+            point_data[FIBRE_LEFT].append(bf["fibre_left_MPa"][row])
+            point_data[FIBRE_RIGHT].append(bf["fibre_right_MPa"][row])
+            point_data[THICKNESS].append(bf["thickness_mm"])
+            cell_data[THICKNESS].append(bf["segment_thickness_mm"][keep])
+            cell_data[WIDTH].append(bf["width_mm"][keep])
+            field_data[BEAM_STRESS_NOTE] = np.zeros(1)
+        for column, data in (getattr(result, "table", None) or {}).items():
+            arr = np.asarray(data)
+            if arr.shape == (len(shapes),) and arr.dtype.kind in "biuf":
+                field_data[f"this load step: {column}"] = arr[row : row + 1].astype(float)
+        n = nb
+    state = step["state"]
+    if state is not None:
+        xy = np.asarray(fmap["points_mm"], dtype=float).reshape(-1, 2)
+        tri = np.asarray(fmap["triangles"], dtype=np.int64).reshape(-1, 3)
+        points.append(np.column_stack([xy, np.zeros(len(xy))]))
+        cells.append(("triangle", tri + n))
+        cell_data[MODEL].append(np.full(len(tri), MODELS["plane_stress"], dtype=np.int32))
+        cell_data[THICKNESS].append(np.full(len(tri), np.nan))
+        cell_data[WIDTH].append(np.full(len(tri), np.nan))
+        u = state.get("displacement_mm")
+        u = None if u is None else np.asarray(u, dtype=float).reshape(-1, 2)
+        disp = np.full((len(xy), 3), np.nan)
+        if u is not None and len(u) == len(xy):
+            disp[:, :2], disp[:, 2] = u, 0.0
+        else:
+            field_data[GAP_FIELD_DISPLACEMENT] = np.zeros(1)
+        point_data[DISPLACEMENT].append(disp)
+        point_data[VON_MISES].append(np.asarray(state["values"], dtype=float).reshape(-1))
+        for name in (FIBRE_LEFT, FIBRE_RIGHT, THICKNESS):
+            point_data[name].append(np.full(len(xy), np.nan))
+        point_data[STRESS_COUNTED].append(_counted(fmap, len(xy)))
+        if state.get("drive_value") is None:  # the field's one state: its label says which
+            label = str(fmap.get("label", "von Mises stress (MPa)"))
+        else:  # (the label names the top-level state, the last one)
+            label = "the plane-stress solve's state at this load step (MPa)"
+        field_data[f"plane stress {VON_MISES}: {label}"] = np.zeros(1)
+    elif fmap is not None:
+        field_data[GAP_STEP_FIELD] = np.zeros(1)
+    return meshio.Mesh(
+        np.vstack(points),
+        cells,
+        point_data={name: np.concatenate(parts) for name, parts in point_data.items()},
+        cell_data=cell_data,
+        field_data=field_data,
+    )
+
+
+def _counted(fmap: dict[str, Any], n: int) -> np.ndarray:
+    """(n,) float: the field's ``stress_counted`` as 1 / 0, NaN where the field has none."""
+    counted = fmap.get("stress_counted")
+    if counted is None or np.shape(counted) != (n,):
+        return np.full(n, np.nan)
+    return np.asarray(counted, dtype=float)
+
+
+def pvd_text(entries: list[tuple[float, str]]) -> str:
+    """A ParaView collection (.pvd) of ``(time, relative file name)`` entries."""
+    rows = "".join(
+        f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(name)}/>\n'
+        for t, name in entries
+    )
+    return (
+        '<?xml version="1.0"?>\n'
+        '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+        f"  <Collection>\n{rows}  </Collection>\n</VTKFile>\n"
+    )
+
+
+def vtu_files(result: Any, stem: str) -> dict[str, bytes]:
+    """Every VTU file of a design by its name relative to the folder: ``{stem}.vtu``
+    (:func:`vtu_bytes`: the whole response in one grid, the plain arrays at the last step),
+    ``{stem}.pvd`` (the ParaView collection of the load steps, timestep = the drive value) and
+    one ``{stem}_steps/{stem}_KKK.vtu`` per load step (:func:`step_mesh`: that step's
+    displacement and stresses as plain arrays), and ``{stem}_3d.vtu`` where the result has a
+    3D check's state (:func:`solid_vtu_bytes`). Empty when it has none of them."""
+    out: dict[str, bytes] = {}
+    single = vtu_bytes(result)
+    if single is not None:
+        out[f"{stem}.vtu"] = single
+        entries = []
+        for k, step in enumerate(load_steps(result)):
+            mesh = step_mesh(result, step, k)
+            name = f"{stem}_steps/{stem}_{k:03d}.vtu"
+            out[name] = _mesh_bytes(mesh)
+            entries.append((step["time"], name))
+        out[f"{stem}.pvd"] = pvd_text(entries).encode("utf-8")
+    solid = solid_vtu_bytes(result)
+    if solid is not None:
+        out[f"{stem}_3d.vtu"] = solid
+    return out
+
+
+def write_vtu_files(folder: Path, result: Any, stem: str, write: Any) -> list[str]:
+    """Write :func:`vtu_files` into ``folder`` with ``write(path, data)`` (an atomic writer),
+    making the steps' folder; the names written (relative to ``folder``)."""
+    files = vtu_files(result, stem)
+    if files:
+        (Path(folder) / f"{stem}_steps").mkdir(parents=True, exist_ok=True)
+    for name, data in files.items():
+        write(Path(folder) / name, data)
+    return list(files)
+
+
+def vtu_makers(result: Any, stem: str) -> dict[str, Any]:
+    """:func:`vtu_files` as one maker per file name (a run folder's artefacts): the files are
+    made once, on the first call, by whichever maker runs first. The names are known without
+    making them (:func:`load_steps`). Empty when the design has neither shapes nor a field."""
+    if not has_mesh(result):
+        return {}
+    names = []
+    if vtu_mesh_possible(result):
+        n = len(load_steps(result))
+        names = [f"{stem}.vtu", *(f"{stem}_steps/{stem}_{k:03d}.vtu" for k in range(n))]
+        names.append(f"{stem}.pvd")
+    if getattr(result, "solid_field", None):
+        names.append(f"{stem}_3d.vtu")
+    made: dict[str, bytes] = {}
+    failed: list[Exception] = []
+
+    def maker(name: str) -> Any:
+        def make() -> bytes | None:
+            if failed:  # said once, by the first file's maker: not once per load step
+                return None
+            if not made:
+                try:
+                    made.update(vtu_files(result, stem))
+                except Exception as exc:
+                    failed.append(exc)
+                    raise
+            return made.get(name)
+
+        return make
+
+    return {name: maker(name) for name in names}

@@ -412,16 +412,22 @@ def _export_vtu(
     target: Path, design: str, x: np.ndarray, detail: DesignDetail, kind: str
 ) -> ExportOutcome:
     """Write the VTU of a rebuilt design (:func:`export_design` with ``fmt='vtu'``)."""
-    from flexopt.pipeline.vtu import vtu_bytes
+    from flexopt.pipeline.vtu import vtu_files
 
+    # the file itself, and beside it STEM.pvd with STEM_steps/ (one VTU per load step) and,
+    # after a 3D check, STEM_3d.vtu
     try:
-        data = vtu_bytes(detail)
+        files = vtu_files(detail, target.stem)
     except Exception as exc:
         why = _one_line(f"{type(exc).__name__}: {exc}")
         raise ExportError(f"design {design} cannot be written as VTU: {why}") from exc
-    if data is None:
+    single = files.pop(f"{target.stem}.vtu", None)
+    if single is None:
         raise ExportError(f"kind '{kind}' gives no beam shapes and no stress field to write as VTU")
-    write_atomic(target, data)
+    write_atomic(target, single)
+    (target.parent / f"{target.stem}_steps").mkdir(exist_ok=True)
+    for name, data in files.items():
+        write_atomic(target.parent / name, data)
     log.info("wrote %s (vtu)", target)
     zero = (0.0, 0.0, 0.0)  # no part: no volume, size or triangles
     return ExportOutcome(

@@ -48,6 +48,8 @@ RUN_FILES = (
     "best.dxf",
     "best.step",
     "best.vtu",
+    "best.pvd",  # its load steps in the folder best_steps/ (pipeline/vtu.py)
+    "best_3d.vtu",
     "best_cad.py",
     "best.3mf",
     "print_sheet.md",

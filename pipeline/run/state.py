@@ -45,7 +45,7 @@ from flexopt.pipeline.run.setup import RunSetup
 from flexopt.pipeline.run.step_child import EarlyStep
 from flexopt.pipeline.runfolder import records_to_csv, table_to_csv, to_json, write_atomic
 from flexopt.pipeline.verdict import judge_detail
-from flexopt.pipeline.vtu import has_mesh, vtu_bytes
+from flexopt.pipeline.vtu import has_mesh, vtu_makers
 
 if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
     from flexopt.geometry.solid import FlatPart
@@ -590,8 +590,10 @@ class RunState:
             self.notes.append(
                 "best.stl and best.dxf skipped: the kind gives no outline and height_mm"
             )
-        if detail is not None and has_mesh(detail):  # for ParaView: beam shapes, stress field
-            self.artefact("best.vtu", lambda: vtu_bytes(detail))
+        if detail is not None and has_mesh(detail):  # ParaView: best.vtu, best.pvd and its steps
+            (self.run_dir / "best_steps").mkdir(exist_ok=True)
+            for name, make in vtu_makers(detail, "best").items():
+                self.artefact(name, make)
         # The plots and the STEP solid are made in forked children while this process writes
         # report.html: the report phase otherwise runs on one core with the other idle.
         self.start_groups()

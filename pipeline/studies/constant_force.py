@@ -66,6 +66,7 @@ from flexopt.optimise.curve_objectives import (
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.fields import constant_force_fields
 from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies._constant_force_band import band_names, band_rows
 from flexopt.pipeline.studies._constant_force_schema import (
@@ -426,6 +427,7 @@ class ConstantForceProblem(DesignProblem):
             "x_label": "stroke of S6 along the work direction (mm)",
             "y_label": "output force (N)",
         }
+        fields = constant_force_fields(info["fidelity"], self._beam(design), response, self)
         return DesignDetail(
             evaluation=evaluation,
             table=table,
@@ -434,6 +436,7 @@ class ConstantForceProblem(DesignProblem):
             outline=shape,
             height_mm=design.B,
             info=info,
+            **fields,  # field_map and beam_field (best.vtu, stress_deformed.png)
         )
 
     def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
@@ -488,7 +491,12 @@ class ConstantForceProblem(DesignProblem):
             if column is not None:
                 table["plane_stress_force_N"] = column
         profile = beam_profile(design, prob.frame, study.geometry.end_flexures)
+        fields = constant_force_fields(
+            diagnostics.get("fidelity"), prob._beam(design), response, prob
+        )
         return DesignResult(
+            shapes_mm=np.asarray(response.shapes_mm),  # design.vtu of the evaluate folder
+            **fields,
             table=table,
             summary=summary,
             converged=bool(response.ok),

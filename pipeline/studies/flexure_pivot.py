@@ -44,7 +44,6 @@ from flexopt.fea.flexure_design import (
     flexure_of_type,
     pivot_at_range,
     pivot_table,
-    plane_stress_check,
 )
 from flexopt.fea.materials import Material, material_yield_MPa
 from flexopt.fea.pivot import PivotResponse, beam_pivot
@@ -60,6 +59,7 @@ from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.optimise.requirements import BEAM, PLANE_STRESS, Figure
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.fields import pivot_plane_stress
 from flexopt.pipeline.studies import StudyKind, register
 from flexopt.pipeline.studies._pivot_schema import PivotDesign, PivotFidelity, PivotType
 from flexopt.pipeline.studies._stops import StopsSpec
@@ -468,7 +468,7 @@ class FlexurePivotProblem(DesignProblem):
         }
         if study.stops is not None:  # first contact, forces, penetration (_pivot_stops)
             info["contact"] = pivot_stops.summary(study, res)
-        notes = []
+        notes, field_map = [], None
         outline = flex.outline()
         if flex.is_planar:
             try:
@@ -479,18 +479,8 @@ class FlexurePivotProblem(DesignProblem):
                 notes.append(f"min feature check failed: {exc}")
             if study.fidelity.plane_stress and study.stops is not None:
                 notes.append(pivot_stops.PLANE_STRESS_NOTE)  # that solve has no contact
-            elif study.fidelity.plane_stress:
-                info["plane_stress"] = plane_stress_check(
-                    flex,
-                    self.material,
-                    self.rom_rad,
-                    study.fidelity.plane_stress_steps,
-                    study.fidelity.web_elements,
-                    cf,
-                    res,
-                    self.allowable_MPa,
-                )
-                info.update(pivot_plane_stress_figures(info["plane_stress"]))
+            elif study.fidelity.plane_stress:  # the record, its figures and its field
+                field_map = pivot_plane_stress(info, self, flex, cf, res)
         else:
             notes.append(
                 "cross_axis: the leaves of a cross-axis pivot pass each other in separate layers, "
@@ -523,6 +513,7 @@ class FlexurePivotProblem(DesignProblem):
             outline=outline if flex.is_planar else None,
             height_mm=flex.width_mm if flex.is_planar else None,
             info=info,
+            field_map=field_map,  # stress_deformed.png, report.html's stress view, best.vtu
         )
 
     def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
@@ -582,6 +573,7 @@ class FlexurePivotProblem(DesignProblem):
                 "closed_form": detail.info["closed_form"],
             },
             diagnostics=dict(detail.info["beam"]),
+            field_map=detail.field_map,  # its plane-stress field (stress_deformed.png, VTU)
             plot={
                 "x": "rotation_deg",
                 "y": "torque_Nmm",

@@ -94,6 +94,7 @@ from flexopt.optimise.sea_cost import (
 )
 from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.fields import take_solid_field
 from flexopt.pipeline.screening import SideProcess, one_blas_thread, taguchi_stage
 from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies import _sea_spring_contact as slot_contact
@@ -478,6 +479,7 @@ class SeaSpringProblem(DesignProblem):
             )
         )  # fmt: skip
         height_mm, part_outline = p.thickness_mm, geom.outline
+        solid_field = take_solid_field(solid)  # best_3d.vtu's arrays, out of the record
         if solid is not None:
             info["solid_3d"] = solid
             info.update(solid_3d_scalars(info["solid_3d"]))
@@ -508,6 +510,7 @@ class SeaSpringProblem(DesignProblem):
             height_mm=height_mm,
             info=info,
             field_map=field_map,
+            solid_field=solid_field,
             files=files,
         ))  # fmt: skip
 
@@ -562,6 +565,7 @@ class SeaSpringProblem(DesignProblem):
         diagnostics: dict[str, Any] = {}
         if study.solid_3d.check:
             diagnostics["solid_3d"] = prob.solid_3d(geom, r)
+            solid_field = take_solid_field(diagnostics["solid_3d"])  # design_3d.vtu
             summary.update(solid_3d_scalars(diagnostics["solid_3d"]))
         # the part as exported: the outline extruded by ST (the 3D-corrected one where made)
         depth = diagnostics.get("solid_3d", {}).get("ST_after_mm", st)
@@ -594,6 +598,7 @@ class SeaSpringProblem(DesignProblem):
             },
             headline=tuple(summary),
             field_map=self._field_map(r),  # stress_deformed.png and design.vtu of evaluate
+            solid_field=solid_field if study.solid_3d.check else None,
         ))  # fmt: skip
 
     @no_numpy_hugepages  # the 3D model's arrays (pipeline/_hugepages.py)

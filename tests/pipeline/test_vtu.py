@@ -135,6 +135,16 @@ def _read(path: Path) -> meshio.Mesh:
     return meshio.read(path, file_format="vtu")
 
 
+def _pvd_steps(path: Path) -> list[tuple[float, Path]]:
+    """(timestep, file) of a ParaView collection."""
+    import xml.etree.ElementTree as ET
+
+    return [
+        (float(d.get("timestep")), path.parent / d.get("file"))
+        for d in ET.parse(path).getroot().iter("DataSet")
+    ]
+
+
 def test_vtu_of_beam_shapes_and_a_field_reads_back(tmp_path: Path) -> None:
     a = 20.0
     detail = VtuProblem(_study()).detail(np.array([a]))
@@ -196,9 +206,18 @@ def test_best_vtu_of_a_run_and_its_export(tmp_path: Path, capsys: pytest.Capture
     last = mesh.points[:N_NODES, :2] + mesh.point_data[DISPLACEMENT][:N_NODES, :2]
     np.testing.assert_allclose(last, toy_shapes(a)[-1], rtol=0, atol=1e-12)
 
+    # best.pvd: one VTU per load step, its time the drive (displacement_mm), the step's shape
+    steps = _pvd_steps(run_dir / "best.pvd")
+    np.testing.assert_allclose([t for t, _ in steps], np.linspace(0.0, 3.0, N_ROWS))
+    for k, (_, path) in enumerate(steps):
+        step = _read(path)
+        got = step.points[:N_NODES, :2] + step.point_data[DISPLACEMENT][:N_NODES, :2]
+        np.testing.assert_allclose(got, toy_shapes(a)[k], rtol=0, atol=1e-12)
+
     out = tmp_path / "again.vtu"
     assert main(["export", str(run_dir), "--format", "vtu", "--out", str(out)]) == 0
     assert "VTU" in capsys.readouterr().out
+    assert len(_pvd_steps(tmp_path / "again.pvd")) == N_ROWS  # beside it, with again_steps/
     again = _read(out)
     np.testing.assert_array_equal(again.points, mesh.points)
     assert sorted(again.point_data) == sorted(mesh.point_data)

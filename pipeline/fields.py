@@ -1,0 +1,136 @@
+"""A plane-stress check's field as a DesignResult's ``field_map`` (issue #26 item 5).
+
+The checks of fea/fidelity.py (constant_force) and fea/flexure_design.py (flexure_pivot) return
+their mesh and states under ``field`` in their record; the record is written into best.json and
+evaluation.json, which must not carry the mesh, so :func:`take_field` takes it out and makes the
+``field_map`` that stress_deformed.png, report.html's stress view and best.vtu draw.
+
+A ``field_map`` (optimise.problem.DesignResult) is one state at its top level (the last checked
+one: the end of the check's range) and, under ``steps``, every state the check solved, each with
+its drive value, for best.pvd's load steps (:mod:`pipeline.vtu`). Units: mm, MPa.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["take_field"]
+
+
+def take_field(
+    record: Any, label: str, limit: float | None, drive: str | None, drive_scale: float = 1.0
+) -> dict[str, Any] | None:
+    """Remove ``record['field']`` (a check's mesh and states) and return it as a ``field_map``.
+
+    Parameters
+    ----------
+    record : dict or anything else — a check's record (``skipped`` ones have no field).
+    label : the values' name and unit, for the plots (``von Mises stress ... (MPa)``).
+    limit : float, MPa, optional — the allowable stress drawn on the colour bar.
+    drive : the drive column the states' ``drive_value`` is in (``displacement_mm``,
+        ``rotation_deg``), or None.
+    drive_scale : the check's drive unit in the column's (``180 / pi`` for a check in rad and a
+        ``rotation_deg`` column).
+
+    Returns
+    -------
+    dict or None (None without a field or without a state)
+        ``points_mm`` (n, 2) mm, ``triangles`` (m, 3) int, ``values`` (n,) MPa (von Mises of the
+        last state), ``displacement_mm`` (n, 2) mm (of that state), ``label``, ``limit``,
+        ``stress_counted`` (n,) bool (the vertices the check's peak stress counts), ``drive``
+        and ``steps``: a list of ``{drive_value, values (n,) MPa, displacement_mm (n, 2) mm}``,
+        one per state, in the order solved.
+    """
+    if not isinstance(record, dict):
+        return None
+    field = record.pop("field", None)
+    if not field or not field.get("steps"):
+        return None
+    steps = [
+        {
+            "drive_value": float(s["drive_value"]) * drive_scale,
+            "values": np.asarray(s["von_mises_MPa"], dtype=float),
+            "displacement_mm": np.asarray(s["displacement_mm"], dtype=float),
+        }
+        for s in field["steps"]
+    ]
+    last = steps[-1]
+    return {
+        "points_mm": np.asarray(field["points_mm"], dtype=float),
+        "triangles": np.asarray(field["triangles"], dtype=np.int64),
+        "values": last["values"],
+        "displacement_mm": last["displacement_mm"],
+        "label": label,
+        "limit": limit,
+        "stress_counted": np.asarray(field.get("stress_counted"), dtype=bool),
+        "drive": drive,
+        "steps": steps,
+    }
+
+
+#: The label of flexure_pivot's field (its check's nonlinear state at the range of motion).
+PIVOT_LABEL = "von Mises stress at the range of motion, plane stress (MPa)"
+
+
+def pivot_plane_stress(
+    info: dict[str, Any], problem: Any, flex: Any, cf: Any, res: Any
+) -> dict[str, Any] | None:
+    """flexure_pivot's plane-stress check of a planar design (moved here from its detail, which
+    is at the kind files' line limit): the record as ``info['plane_stress']``, its figures into
+    ``info`` and its field as the returned ``field_map`` (None without one).
+
+    Parameters
+    ----------
+    info : the detail's info (updated in place).
+    problem : the FlexurePivotProblem (``material``, ``rom_rad`` in rad, ``allowable_MPa`` in
+        MPa, ``study.fidelity``).
+    flex : the planar Flexure; cf : its PivotClosedForm; res : the beam model's PivotResponse.
+    """
+    from flexopt.fea.flexure_design import plane_stress_check
+    from flexopt.optimise.joint_objectives import pivot_plane_stress_figures
+
+    fidelity = problem.study.fidelity
+    info["plane_stress"] = plane_stress_check(
+        flex,
+        problem.material,
+        problem.rom_rad,
+        fidelity.plane_stress_steps,
+        fidelity.web_elements,
+        cf,
+        res,
+        problem.allowable_MPa,
+    )
+    field_map = take_field(
+        info["plane_stress"], PIVOT_LABEL, problem.allowable_MPa, "rotation_deg", 180.0 / np.pi
+    )
+    info.update(pivot_plane_stress_figures(info["plane_stress"]))
+    return field_map
+
+
+#: The label of constant_force's field (its check's state at the largest checked stroke).
+CONSTANT_FORCE_LABEL = "von Mises stress at the largest checked stroke, plane stress (MPa)"
+
+
+def constant_force_fields(record: Any, model: Any, response: Any, problem: Any) -> dict[str, Any]:
+    """constant_force's fields as DesignResult keywords: ``field_map`` (its plane-stress check's
+    states, taken out of ``record``: :func:`take_field`) and ``beam_field`` (the section and
+    fibre stresses of ``response`` traced by the BeamModel ``model``:
+    :func:`fea.beam_fields.beam_field`); ``problem`` gives the allowable stress (MPa)."""
+    from flexopt.fea.beam_fields import beam_field
+
+    return {
+        "field_map": take_field(
+            record, CONSTANT_FORCE_LABEL, problem.allowable_MPa, "displacement_mm"
+        ),
+        "beam_field": None if response is None else beam_field(model, response),
+    }
+
+
+def take_solid_field(record: Any) -> dict[str, Any] | None:
+    """Remove ``record['field']`` (the 3D check's state: fea.sea_design.correct_3d) and return
+    it (None without one): the DesignResult's ``solid_field``, best_3d.vtu's arrays."""
+    if not isinstance(record, dict):
+        return None
+    return record.pop("field", None)
