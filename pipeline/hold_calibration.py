@@ -244,6 +244,7 @@ def _write_creep(path: Path, name: str, creep: dict[str, Any]) -> None:
         When the file is missing or not a mapping, or has no material ``name``.
     """
     import yaml
+    from flexopt.pipeline.runfolder import write_atomic
 
     try:
         loaded = yaml.safe_load(path.read_text(encoding="utf-8")) if path.is_file() else None
@@ -255,6 +256,5 @@ def _write_creep(path: Path, name: str, creep: dict[str, Any]) -> None:
             f"CURVE.csv --coupon COUPON --name {name}) or add it by hand, then its hold test"
         )
     loaded[name] = {**loaded[name], "creep": creep}
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(yaml.safe_dump(loaded, sort_keys=False), encoding="utf-8")
-    tmp.replace(path)
+    # atomic (a reader sees the old file or the whole new one), as every file flexopt writes
+    write_atomic(path, yaml.safe_dump(loaded, sort_keys=False))
