@@ -237,6 +237,10 @@ class PlaneStressResponse:
         "compiled" / "vectorised" / "skfem"), cholesky_failures: tangents the Cholesky
         (or LDLᵀ) path found indefinite and handed to LU, counted over the model's life, and
         guess: whether the first row started from a ``guess`` (see PlaneStressModel.solve).
+    row_dofs : tuple of (N,) float arrays, mm, or None — the full solution vector at every
+        converged row (None at a row that did not converge), kept only when the solve was asked
+        to (``keep_states``: a detailed design's per-step fields, issue #26 item 5); None
+        otherwise.
     """
 
     drive: str
@@ -264,6 +268,7 @@ class PlaneStressResponse:
     n_dofs: int
     solve_time_s: float
     extra: dict = field(default_factory=dict)
+    row_dofs: tuple[np.ndarray | None, ...] | None = None
 
 
 # --------------------------------------------------------------------------------------------
@@ -1488,6 +1493,7 @@ class PlaneStressModel:
         self,
         kinematics: Literal["linear", "nonlinear"] = "nonlinear",
         guess: np.ndarray | None = None,
+        keep_states: bool = False,
     ) -> PlaneStressResponse:
         """Step the drive from 0 to its maximum; see :class:`PlaneStressResponse`.
 
@@ -1499,6 +1505,10 @@ class PlaneStressModel:
             agree to it, in fewer iterations from a good guess. When Newton fails from the
             guess, the row is solved from the linearised step as without one (the cut-backs
             are not spent on it); ``extra["guess"]`` says "used", "failed: <why>" or "none".
+        keep_states : bool
+            Keep a copy of the solution vector at every converged row (``row_dofs``, (N,) mm
+            each): the per-load-step fields of a detailed design. Off for the optimiser's
+            designs, which need only the rows' figures (steps + 1 vectors of N floats each).
         """
         t0 = time.perf_counter()
         if kinematics not in KINEMATICS:
@@ -1544,6 +1554,9 @@ class PlaneStressModel:
         for key, val in rest.items():
             rows[key][0] = val
         converged[0] = True
+        kept: list[np.ndarray | None] | None = None
+        if keep_states:
+            kept = [u.copy()] + [None] * (n_rows - 1)
         message = ""
         frac, inc = 0.0, 1.0 / drive.steps  # progress and increment as fractions of vmax
         min_inc = inc * cfg.cutback_factor**cfg.max_cutbacks
@@ -1585,6 +1598,8 @@ class PlaneStressModel:
             for key, val in self._measure(u, st, kinematics).items():
                 rows[key][k] = val
             converged[k] = True
+            if kept is not None:
+                kept[k] = u.copy()
 
         d = self._direction()
         n = np.array([-d[1], d[0]])
@@ -1633,6 +1648,7 @@ class PlaneStressModel:
                 "cholesky_failures": self.counters["cholesky_failures"],
                 "guess": guess_note,
             },
+            row_dofs=None if kept is None else tuple(kept),
         )
 
 

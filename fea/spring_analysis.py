@@ -79,6 +79,9 @@ class SpringResponse:
     solve_time_s : float — model build, linear and nonlinear solves.
     model : PlaneStressModel or None — kept only when asked (for maps).
     u : (N,) float or None — the last nonlinear state when the model is kept.
+    row_u, reverse_row_u : tuple of (N,) float (mm) or None, or None — the state at every row
+        (rows of ``rotation_deg``; None at a row that did not converge) of the counter-clockwise
+        and clockwise solves, kept with the model (the per-load-step fields of best.pvd).
     """
 
     rotation_deg: np.ndarray
@@ -101,6 +104,8 @@ class SpringResponse:
     reverse_stiffness_Nm_per_rad: float = math.nan
     reverse_u: np.ndarray | None = None
     slot_gaps_mm: dict[str, float] | None = None
+    row_u: tuple[np.ndarray | None, ...] | None = None
+    reverse_row_u: tuple[np.ndarray | None, ...] | None = None
 
     @property
     def mean_stiffness_Nm_per_rad(self) -> float:
@@ -169,7 +174,7 @@ def analyse_spring(
         When the mesh or model cannot be built (a geometry problem, not a convergence one).
     """
     t0 = time.perf_counter()
-    rev_torque = rev_stress = rev_u = None
+    rev_torque = rev_stress = rev_u = rev_rows = None
     mesh = mesh or SpringMesh()
     m = mesh_polygon(geom.fe_outline, mesh.max_edge_mm, refine=geom.mesh_regions(
         mesh.elements_through, mesh.max_edge_mm))  # fmt: skip
@@ -185,7 +190,8 @@ def analyse_spring(
         settings=cfg,
         stress_ignore=ignore,
     )
-    lin = model.solve("linear")
+    # every row's state is kept with the model (a detailed design's per-step fields)
+    lin = model.solve("linear", keep_states=keep_model and not nonlinear)
     k_lin = float(lin.torque_Nmm[-1] / theta_rad) * 1e-3
     rows = np.degrees(lin.drive_value)
     if nonlinear:
@@ -194,11 +200,12 @@ def analyse_spring(
         # solve has just factorised) instead of the linearised step: a SEA spring turned 11
         # degrees in one row then needs 3 tangents instead of 5 (docs/plane_stress.md).
         u_odd, u_even = model.series_predictor(theta_rad / steps)
-        nl = model.solve("nonlinear", guess=u_odd + u_even)
+        nl = model.solve("nonlinear", guess=u_odd + u_even, keep_states=keep_model)
         torque = np.asarray(nl.torque_Nmm) * 1e-3
         stress = np.asarray(nl.peak_nodal_stress_MPa)
         where = np.asarray(nl.peak_nodal_stress_xy_mm)
         ok, message, its, u = nl.ok, nl.message, int(nl.iterations.sum()), nl.dofs
+        rows_u = nl.row_dofs
         rows = np.degrees(nl.drive_value)
         if both_directions and ok:
             # Same regions, opposite rotation: the model's constraint maps and the solver's
@@ -208,8 +215,8 @@ def analyse_spring(
             # whole turn (the odd orders cancel): 2-3 tangents instead of 5 and no
             # refactorisation of the linear stiffness; else the expansion itself.
             guess = 2.0 * u_even - nl.dofs if steps == 1 else u_even - u_odd
-            back = model.solve("nonlinear", guess=guess)
-            rev_u = back.dofs
+            back = model.solve("nonlinear", guess=guess, keep_states=keep_model)
+            rev_u, rev_rows = back.dofs, back.row_dofs
             model.drive = replace(model.drive, max_rad=theta_rad)
             rev_torque = np.asarray(back.torque_Nmm) * 1e-3
             rev_stress = np.asarray(back.peak_nodal_stress_MPa)
@@ -221,6 +228,7 @@ def analyse_spring(
         stress = np.asarray(lin.peak_nodal_stress_MPa)
         where = np.asarray(lin.peak_nodal_stress_xy_mm)
         ok, message, its, u = lin.ok, lin.message, 0, lin.dofs
+        rows_u = lin.row_dofs
     slot_gaps = None
     if gaps and nonlinear and ok:
         states = {"ccw": u}
@@ -245,6 +253,8 @@ def analyse_spring(
         model=model if keep_model else None,
         u=u if keep_model else None,
         reverse_u=rev_u if keep_model else None,
+        row_u=rows_u if keep_model else None,
+        reverse_row_u=rev_rows if keep_model else None,
         reverse_torque_Nm=rev_torque,
         reverse_peak_stress_MPa=rev_stress,
         reverse_stiffness_Nm_per_rad=(

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["take_field"]
+__all__ = ["spring_field_map", "take_field"]
 
 
 def take_field(
@@ -134,3 +134,60 @@ def take_solid_field(record: Any) -> dict[str, Any] | None:
     if not isinstance(record, dict):
         return None
     return record.pop("field", None)
+
+
+def spring_field_map(response: Any, label: str, limit: float | None) -> dict[str, Any] | None:
+    """The ``field_map`` of a spring's plane-stress solve kept with its model
+    (:class:`fea.spring_analysis.SpringResponse` with ``keep_model``: sea_spring's curve and
+    threshold_spring's check): the last counter-clockwise state at the top level (``label``
+    names it) and, under ``steps``, every converged row's state, the clockwise rows first (their
+    ``drive_value`` negative, from the largest clockwise turn to the smallest) then the
+    counter-clockwise ones from rest: the order of the kinds' response tables
+    (:func:`fea.spring_analysis.curve_table`). None without the model.
+
+    Each state is :func:`fea.plane_stress_fields.state_field` of that row's DOFs: its von Mises
+    stress at the vertices the model's peak counts (``stress_counted``) peaks at the row's
+    ``peak_stress_MPa`` (the same nodal average), so each step's VTU peaks at the figure the
+    verdict reads for that row.
+
+    Returns
+    -------
+    dict or None
+        as :func:`take_field`: ``points_mm`` (n, 2) mm, ``triangles`` (m, 3) int, ``values``
+        (n,) MPa, ``displacement_mm`` (n, 2) mm, ``label``, ``limit`` (MPa), ``stress_counted``
+        (n,) bool, ``drive`` ("rotation_deg") and ``steps`` (``drive_value`` in degrees).
+    """
+    from flexopt.fea.plane_stress_fields import mesh_arrays, state_field
+
+    model = getattr(response, "model", None)
+    if model is None or getattr(response, "u", None) is None:
+        return None
+    kinematics = "nonlinear" if response.iterations > 0 else "linear"
+    rot_deg = np.asarray(response.rotation_deg, dtype=float)
+    rows: list[tuple[float, np.ndarray]] = []
+    back = getattr(response, "reverse_row_u", None) or ()
+    for k in range(len(back) - 1, 0, -1):  # row 0 (rest) is the counter-clockwise solve's
+        if back[k] is not None:
+            rows.append((-float(rot_deg[k]), back[k]))
+    for k, u in enumerate(getattr(response, "row_u", None) or ()):
+        if u is not None:
+            rows.append((float(rot_deg[k]), u))
+    steps = []
+    for value, u in rows:
+        f = state_field(model, u, kinematics)
+        steps.append(
+            {
+                "drive_value": value,
+                "values": f["von_mises_MPa"],
+                "displacement_mm": f["displacement_mm"],
+            }
+        )
+    last = state_field(model, response.u, kinematics)
+    return mesh_arrays(model) | {
+        "values": last["von_mises_MPa"],
+        "displacement_mm": last["displacement_mm"],
+        "label": label,
+        "limit": limit,
+        "drive": "rotation_deg",
+        "steps": steps,
+    }

@@ -70,7 +70,6 @@ from flexopt.fea.sea_design import (
 )
 from flexopt.fea.sea_design import build_any as build
 from flexopt.fea.spring_analysis import SpringResponse, analyse_spring, curve_table
-from flexopt.fea.spring_analysis import stress_map_data as _stress_map_data
 from flexopt.geometry.arm_spring import ArmSpringParams
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.sea_spring import SpringFrame, SpringGeometry, SpringParams
@@ -94,7 +93,7 @@ from flexopt.optimise.sea_cost import (
 )
 from flexopt.pipeline._hugepages import no_numpy_hugepages
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.fields import take_solid_field
+from flexopt.pipeline.fields import spring_field_map, take_solid_field
 from flexopt.pipeline.screening import SideProcess, one_blas_thread, taguchi_stage
 from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies import _sea_spring_contact as slot_contact
@@ -515,19 +514,10 @@ class SeaSpringProblem(DesignProblem):
         ))  # fmt: skip
 
     def _field_map(self, r: SpringResponse) -> dict[str, Any] | None:
-        """The von Mises map and displacement of the last state of ``r`` (the model kept), the
-        DesignResult's ``field_map``; None without the model."""
-        smap = _stress_map_data(r)
-        if not smap:
-            return None
-        return {
-            "points_mm": smap["points_mm"],
-            "triangles": smap["triangles"],
-            "values": smap["von_mises_MPa"],
-            "displacement_mm": smap["displacement_mm"],
-            "label": "von Mises stress at +theta_T, counter-clockwise (MPa)",
-            "limit": self.study.target.allowable_stress_MPa,
-        }
+        """The DesignResult's ``field_map``: every row's state of ``r`` (the model kept), the last
+        on top (pipeline/fields.py); None without the model."""
+        label = "von Mises stress at +theta_T, counter-clockwise (MPa)"
+        return spring_field_map(r, label, self.study.target.allowable_stress_MPa)
 
     def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
         """``flexopt evaluate``: the torque curve of the design ``x`` (n_var,) (the study's

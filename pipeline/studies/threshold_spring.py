@@ -54,7 +54,6 @@ from flexopt.fea.arm_beam import ArmBeamResponse, arm_beam_torque
 from flexopt.fea.errors import FeaError
 from flexopt.fea.scaling import at_thickness
 from flexopt.fea.spring_analysis import analyse_spring
-from flexopt.fea.spring_analysis import stress_map_data as _stress_map_data
 from flexopt.geometry.arm_spring import ArmSpringParams, arm_clearances, build_arm_spring
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.solid import extrude, stl_bytes
@@ -79,6 +78,7 @@ from flexopt.optimise.requirements import BEAM, PLANE_STRESS, SOLID_3D
 from flexopt.optimise.requirements import Figure as FigureOf
 from flexopt.optimise.targets import curve_error, measure_key
 from flexopt.optimise.thickness_fit import fit_thickness
+from flexopt.pipeline.fields import spring_field_map
 from flexopt.pipeline.plot_targets import measure_band
 from flexopt.pipeline.plots import plot_field, spring_shape_png, threshold_curve_png
 from flexopt.pipeline.studies import StudyKind, _builtin, register
@@ -326,15 +326,7 @@ class ThresholdSpringProblem(DesignProblem):
         if geom is not None and study.fidelity.enabled:
             info["plane_stress"], ps_rows, smap = self._fidelity(geom, r.rotation_rad)
             info.update(threshold_plane_stress_figures(info["plane_stress"], self.error_name))
-            if smap:
-                field_map = {
-                    "points_mm": smap["points_mm"],
-                    "triangles": smap["triangles"],
-                    "values": smap["von_mises_MPa"],
-                    "displacement_mm": smap["displacement_mm"],
-                    "label": "von Mises stress at the end of the design range (MPa)",
-                    "limit": self.allowable_MPa,
-                }
+            field_map = smap  # every row's state, the last on top (pipeline/fields.py)
             if ps_rows is not None:
                 table["plane_stress_torque_Nm"] = ps_rows[0]
                 table["plane_stress_peak_stress_MPa"] = ps_rows[1]
@@ -415,7 +407,8 @@ class ThresholdSpringProblem(DesignProblem):
             if abs(rot_rad[j] - a) < 1e-9:
                 cols[0, j] = ps.torque_Nm[k]
                 cols[1, j] = ps.peak_stress_MPa[k]
-        smap = _stress_map_data(ps) if ps.ok else None
+        label = "von Mises stress at the end of the design range (MPa)"
+        smap = spring_field_map(ps, label, self.allowable_MPa) if ps.ok else None
         return rec, cols, smap
 
     def _check_spec(self) -> SpringCheckSpec:
