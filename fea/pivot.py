@@ -79,9 +79,9 @@ class PivotResponse:
     contact : fea.stops.ContactResponse or None — beam model with stops (``beam_pivot(stops=)``):
         the stops' forces on the members (N), gaps (mm) and the rotation (rad) at which each
         closes; None without stops.
-    field : dict or None — plane stress: the mesh and the last converged row's von Mises and
-        displacement (:func:`fea.plane_stress_fields.state_field`; ``drive_value`` in rad);
-        None for the beam model.
+    field : dict or None — plane stress: the mesh and, under ``steps``, every converged row's
+        von Mises and displacement (:func:`fea.plane_stress_fields.state_field`; ``drive_value``
+        in rad; the last is the range of motion); None for the beam model.
     """
 
     rotation_rad: np.ndarray
@@ -345,12 +345,12 @@ def plane_stress_pivot(
         ),
         stress_ignore=ground.union(moving),
     )
-    res = model.solve(kinematics)  # type: ignore[arg-type]
+    res = model.solve(kinematics, keep_states=True)  # type: ignore[arg-type]
     angles = np.asarray(res.drive_value, dtype=float)
     torque = np.asarray(res.torque_Nmm, dtype=float)
     small = float(torque[1] / angles[1]) if res.converged[1] else float("nan")
     done = np.flatnonzero(res.converged)
-    last = float(angles[done[-1]]) if done.size else 0.0  # the row res.dofs holds, rad
+    rows_u = res.row_dofs or ()
     return PivotResponse(
         rotation_rad=angles,
         torque_Nmm=torque,
@@ -366,9 +366,14 @@ def plane_stress_pivot(
         message=res.message,
         model="plane_stress",
         solve_time_s=time.perf_counter() - t0,
-        # the last converged row's field (the solve keeps only that state's DOFs)
+        # every converged row's field (best.pvd's load steps; the last is the range of motion)
         field=mesh_arrays(model)
-        | {"steps": [state_field(model, res.dofs, kinematics) | {"drive_value": last}]},
+        | {
+            "steps": [
+                state_field(model, rows_u[k], kinematics) | {"drive_value": float(angles[k])}
+                for k in done
+            ]
+        },
         extra={
             "kinematics": kinematics,
             "triangles": mesh.n_triangles,
