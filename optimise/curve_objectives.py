@@ -637,6 +637,8 @@ def threshold_solid_3d(
             checks.append(threshold_check_3d(spec, geom, m, ps, st0, first["ST_fit_3d_mm"]))
     except FeaError as exc:
         return {"problem": f"3D check not made: {exc}"}
+    # the last check's 3D state (the part's ST): best_3d.vtu's arrays, out of the records
+    fields = [c.pop("field", None) for c in checks]
     last = checks[-1]
     conv: dict[str, Any] = {}
     if spec.converge_peak:
@@ -672,6 +674,8 @@ def threshold_solid_3d(
         "checks": checks,
         **({"peak_convergence": conv} if spec.converge_peak else {}),
         "time_s": time.perf_counter() - t0,
+        # large arrays: the kind takes them out before the record is written (pipeline/fields.py)
+        **({"field": fields[-1]} if fields[-1] is not None else {}),
     }
 
 
@@ -684,17 +688,26 @@ def threshold_check_3d(
     st_mm: float,
 ) -> dict[str, Any]:
     """One 3D check of the drawn spring extruded to ``st_mm`` (mm) on the plane ``mesh``;
-    ``ps`` is the plane-stress record at ``st_ps_mm``. Raises FeaError."""
+    ``ps`` is the plane-stress record at ``st_ps_mm``. Its ``field`` is the 3D state
+    (:meth:`fea.solid3d.Solid3DModel.last_field`, for best_3d.vtu). Raises FeaError."""
     from flexopt.fea.plane_stress import Clamp, Rotate
-    from flexopt.fea.solid3d import Solid3DSettings, compare_with_plane_stress
+    from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings
 
     t0 = time.perf_counter()
-    c = compare_with_plane_stress(
-        mesh, spec.material, st_mm, Clamp(geom.pad_region),
+    if not (np.isfinite(st_mm) and st_mm > 0):  # as fea.solid3d.solve_solid3d refuses it
+        raise FeaError(f"thickness_mm = {st_mm} must be > 0 mm")
+    # fea.solid3d.compare_with_plane_stress's model (built at st_mm, solved there), kept to
+    # read its state for best_3d.vtu without a second solve
+    model = Solid3DModel(
+        mesh, spec.material, Clamp(geom.pad_region),
         Rotate(geom.hub_region, (0.0, 0.0), spec.range_rad, 1),
         Solid3DSettings(layers=spec.layers, solver=spec.solver),
         stress_ignore=geom.hub_region.union(geom.pad_region).buffer(0.05),
+        reference_thickness_mm=float(st_mm),
     )  # fmt: skip
+    c = model.compare_with_plane_stress(st_mm)
+    field = model.last_field(st_mm)
+    del model  # its factor is the large part (docs/solid3d.md, "Memory")
     ratio = c["stiffness_ratio"]
     rot_rad = np.radians(np.asarray(ps["rotation_deg"], dtype=float))
     # plane-stress torque is exactly proportional to the thickness (the same in-plane
@@ -725,6 +738,7 @@ def threshold_check_3d(
         "dofs": c["solid3d"]["n_dofs"],
         "solver": c["solid3d"]["solver"],
         "time_s": time.perf_counter() - t0,
+        "field": field,  # taken out by threshold_solid_3d
     }
 
 

@@ -90,9 +90,10 @@ GAP_FIELD_STEPS = (
 )
 GAP_SECTION = "gap: beam thickness and width not in the result; lines are bare centrelines"
 SOLID_NOTE = (
-    "3D check: linear elasticity on P2 tetrahedra at the check's drive (the hub turned by "
-    "+theta_T, counter-clockwise), the last thickness checked (the part's ST); von_mises_MPa at "
-    "a vertex averaged over its tetrahedra, at an edge node the mean of its two vertices"
+    "3D check: linear elasticity on P2 tetrahedra at the check's drive (the hub turned "
+    "counter-clockwise: sea_spring by +theta_T, threshold_spring to the end of the design "
+    "range), the last thickness checked (the part's ST); von_mises_MPa at a vertex averaged "
+    "over its tetrahedra, at an edge node the mean of its two vertices"
 )
 SOLID_HALF = (
     "3D check: the half model z >= 0 (symmetric about the mid-plane z = 0): ParaView's Reflect "

@@ -78,7 +78,7 @@ from flexopt.optimise.requirements import BEAM, PLANE_STRESS, SOLID_3D
 from flexopt.optimise.requirements import Figure as FigureOf
 from flexopt.optimise.targets import curve_error, measure_key
 from flexopt.optimise.thickness_fit import fit_thickness
-from flexopt.pipeline.fields import spring_field_map
+from flexopt.pipeline.fields import spring_field_map, take_solid_field
 from flexopt.pipeline.plot_targets import measure_band
 from flexopt.pipeline.plots import plot_field, spring_shape_png, threshold_curve_png
 from flexopt.pipeline.studies import StudyKind, _builtin, register
@@ -322,7 +322,7 @@ class ThresholdSpringProblem(DesignProblem):
         except GeometryError as exc:
             geom = None
             info["outline_problem"] = str(exc)
-        field_map = None
+        field_map = solid_field = None
         if geom is not None and study.fidelity.enabled:
             info["plane_stress"], ps_rows, smap = self._fidelity(geom, r.rotation_rad)
             info.update(threshold_plane_stress_figures(info["plane_stress"], self.error_name))
@@ -332,6 +332,7 @@ class ThresholdSpringProblem(DesignProblem):
                 table["plane_stress_peak_stress_MPa"] = ps_rows[1]
             if study.solid_3d.check:
                 info["solid_3d"] = self.solid_3d(geom, info["plane_stress"])
+                solid_field = take_solid_field(info["solid_3d"])  # best_3d.vtu's arrays
                 info.update(threshold_solid_3d_scalars(info["solid_3d"], self.error_name))
                 # the part to make is the corrected one (its STL, DXF), as in sea_spring
                 height = info["solid_3d"].get("ST_after_mm", height)
@@ -361,6 +362,7 @@ class ThresholdSpringProblem(DesignProblem):
             height_mm=height,
             info=info,
             field_map=field_map,
+            solid_field=solid_field,
         )
 
     def _in_window(self, rot_rad: np.ndarray) -> np.ndarray:
@@ -515,6 +517,7 @@ class ThresholdSpringProblem(DesignProblem):
             headline=tuple(k for k in summary if summary[k] is not None),
             files=files,
             field_map=d.field_map,  # stress_deformed.png and design.vtu of the evaluate folder
+            solid_field=d.solid_field,  # design_3d.vtu
         )
 
 
