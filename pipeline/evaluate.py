@@ -23,6 +23,7 @@ from flexopt.pipeline.responses import stacked_table, stress_allowable
 from flexopt.pipeline.runfolder import (
     check_out_dir,
     copy_inputs,
+    grouped_files,
     make_run_dir,
     new_run_dir_path,
     table_to_csv,
@@ -318,7 +319,9 @@ def evaluate_study(
     for name, data in extra.items():
         (run_dir / name).parent.mkdir(exist_ok=True)  # design_steps/ of design.pvd
         write_atomic(run_dir / name, data)
-    record["files"] = [*EVALUATE_FILES, *extra]  # files, design_steps/design_KKK.vtu too
+    # design_steps/ (one VTU per load step) as one entry, with its count
+    record["files"], counts = grouped_files([*EVALUATE_FILES, *extra])
+    record.update({"file_counts": counts} if counts else {})
     write_atomic(run_dir / "evaluation.json", to_json(record))
     log.info("wrote %s", run_dir)
     return EvaluateOutcome(run_dir, result, record)

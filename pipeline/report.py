@@ -17,6 +17,7 @@ import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict, overall, verdict_rows
+from flexopt.pipeline.runfolder import grouped_files
 from flexopt.pipeline.study import Study
 
 __all__ = ["ReportData", "format_value", "render_info", "render_report", "render_verdict"]
@@ -482,7 +483,8 @@ def render_report(data: ReportData) -> str:
         lines += ["## Notes", "", *(f"- {_escape(note)}" for note in data.notes), ""]
 
     lines += ["## Files", ""]
-    for name in sorted(set(data.files) | {"study.yaml", "run.json", "evaluations.csv"}):
+    listed = grouped_files(data.files)[0]  # best_steps/ once, not a line per load step
+    for name in sorted(set(listed) | {"study.yaml", "run.json", "evaluations.csv"}):
         lines.append(f"- [{name}]({name})")
     versions = record.get("versions", {})
     lines += [

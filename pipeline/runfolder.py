@@ -42,6 +42,7 @@ __all__ = [
     "copy_inputs",
     "echo",
     "file_mode",
+    "grouped_files",
     "input_files",
     "input_hashes",
     "load_folder_study",
@@ -875,11 +876,38 @@ RUN_JSON_FIELDS: dict[str, tuple[Callable[[Any], bool], str]] = {
         "a mapping of reasons to counts",
     ),
     "files": _NAMES,
+    "file_counts": _kind(
+        lambda v: isinstance(v, dict) and all(_is_int(n) and n >= 0 for n in v.values()),
+        "a mapping of folders to counts",
+    ),
     "notes": _NAMES,
     "parallel": _MAPPING,
     "versions": _MAPPING,
     "host": _MAPPING,
 }
+
+
+def grouped_files(names: Sequence[str]) -> tuple[list[str], dict[str, int]]:
+    """The ``files`` list of run.json / evaluation.json: ``names`` (relative paths of the files
+    written) with the files inside a folder (``best_steps/best_000.vtu`` ..., one VTU per load
+    step of best.pvd: 61 for constant-force) listed as that folder once, ``best_steps/`` (the
+    trailing slash says it is a folder), at its first file's place; and how many files each
+    such folder holds (``file_counts``). Names without a folder are kept as they are, in order;
+    a folder's entry given again (a list already grouped) is kept once and counts no file.
+    """
+    files: list[str] = []
+    counts: dict[str, int] = {}
+    for name in names:
+        folder, sep, rest = str(name).partition("/")
+        if not sep:
+            files.append(str(name))
+            continue
+        key = f"{folder}/"
+        if key not in counts:
+            files.append(key)
+            counts[key] = 0
+        counts[key] += 1 if rest else 0
+    return files, counts
 
 
 def _run_json_fix(run_dir: Path) -> str:

@@ -41,6 +41,7 @@ from flexopt.pipeline.runfolder import (
     RunDirLock,
     check_out_dir,
     copy_inputs,
+    grouped_files,
     lock_run_dir,
     make_run_dir,
     new_run_dir_path,
@@ -369,6 +370,9 @@ def _run_in(
                 | ({CHECKPOINT_FILE} if run.generations else set())
             ),
         )
+        # best_steps/ (one VTU per load step) as one entry with its count
+        record["files"], counts = grouped_files(record["files"])
+        record.update({"file_counts": counts} if counts else {})
         if write:
             write_atomic(run_dir / "run.json", to_json(record))
 

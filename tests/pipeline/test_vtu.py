@@ -19,6 +19,7 @@ from flexopt.optimise import DesignDetail, DesignSpace, Evaluation
 from flexopt.pipeline.cli import main
 from flexopt.pipeline.plots import deformation_scale
 from flexopt.pipeline.run import prepare_run, run_study
+from flexopt.pipeline.runfolder import read_run_json
 from flexopt.pipeline.studies import StudyKind, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, validate_study
 from flexopt.pipeline.vtu import (
@@ -198,7 +199,15 @@ def test_best_vtu_of_a_run_and_its_export(tmp_path: Path, capsys: pytest.Capture
     run_dir = run_study(prepare_run(_study()), out=tmp_path / "run").run_dir
     best = json.loads((run_dir / "best.json").read_text())
     a = best["parameters"]["a_mm"]
-    assert "best.vtu" in json.loads((run_dir / "run.json").read_text())["files"]
+    record = json.loads((run_dir / "run.json").read_text())
+    assert "best.vtu" in record["files"]
+    # best_steps/ is one entry with its count, in run.json, in report.md, and read back
+    assert "best_steps/" in record["files"] and record["file_counts"] == {"best_steps/": N_ROWS}
+    assert not any(n.startswith("best_steps/best_") for n in record["files"])
+    assert len(list((run_dir / "best_steps").iterdir())) == N_ROWS
+    report = (run_dir / "report.md").read_text(encoding="utf-8")
+    assert report.count("best_steps/") == 2 and "best_steps/best_000" not in report  # [x](x)
+    assert read_run_json(run_dir)["file_counts"] == {"best_steps/": N_ROWS}
     mesh = _read(run_dir / "best.vtu")
     # the mesh of the part, the peak stress of best.json, the last step's shape
     np.testing.assert_array_equal(mesh.cells_dict["triangle"] - N_NODES, toy_field(a)["triangles"])
