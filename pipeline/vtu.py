@@ -304,9 +304,11 @@ def _with_field_data(data: bytes, field_data: dict[str, np.ndarray]) -> bytes:
     for name, values in field_data.items():
         flat = np.asarray(values, dtype=float).reshape(-1)
         text = " ".join(repr(float(v)) if np.isfinite(v) else "nan" for v in flat)
+        # the newline after the values: VTK's ASCII reader fails on a last value "nan" that
+        # runs into the closing tag (vtk 9.7: vtkXMLUnstructuredGridReader error 20008)
         arrays.append(
             f'<DataArray type="Float64" Name={quoteattr(name)} NumberOfTuples="{len(flat)}" '
-            f'format="ascii">{text}</DataArray>'
+            f'format="ascii">{text}\n</DataArray>'
         )
     block = ("<FieldData>" + "".join(arrays) + "</FieldData>").encode("utf-8")
     at = data.index(b"<Piece")  # base64 and the header comment hold no '<'

@@ -21,6 +21,7 @@ import pytest
 from flexopt.fea.materials import Material
 from flexopt.fea.mesh import mesh_polygon
 from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Rotate, Translate
+from flexopt.optimise import DesignDetail
 from flexopt.pipeline.runfolder import grouped_files
 from flexopt.pipeline.vtu import DISPLACEMENT, STRESS_COUNTED, VON_MISES, vtu_files
 from shapely.geometry import box
@@ -221,3 +222,23 @@ def test_grouped_files_lists_a_folder_once_with_its_count() -> None:
     again, more = grouped_files([*files, "best_steps/best_000.vtu"])
     assert again == files and more == {"best_steps/": 1}
     assert grouped_files(["a.png"]) == (["a.png"], {})
+
+
+def test_field_data_values_end_before_the_closing_tag() -> None:
+    """VTK's ASCII reader (vtk 9.7) fails on a file whose field-data array ends with "nan"
+    run into ``</DataArray>`` (a beam row without a plane-stress state has NaN columns): every
+    ASCII array of the file ends with a newline (tests/pipeline/test_vtu_vtk_reader.py reads
+    the files with VTK where it is installed)."""
+    import re
+
+    from flexopt.pipeline.vtu import vtu_bytes
+
+    d = DesignDetail(
+        table={"x_mm": np.array([0.0, 1.0]), "peak_MPa": np.array([np.nan, np.nan])},
+        plot={"x": "x_mm"},
+        shapes_mm=np.array([[[0.0, 0.0], [1.0, 0.0]], [[0.0, 0.0], [1.0, 0.1]]]),
+    )
+    text = vtu_bytes(d).decode("utf-8", "replace")
+    ascii_arrays = re.findall(r'format="ascii">([^<]*)</DataArray>', text)
+    assert any("nan" in a for a in ascii_arrays)
+    assert all(a.endswith("\n") for a in ascii_arrays)
