@@ -129,11 +129,18 @@ def constant_force_fields(record: Any, model: Any, response: Any, problem: Any) 
 
 
 def take_solid_field(record: Any) -> dict[str, Any] | None:
-    """Remove ``record['field']`` (the 3D check's state: fea.sea_design.correct_3d) and return
-    it (None without one): the DesignResult's ``solid_field``, best_3d.vtu's arrays."""
+    """Remove ``record['field']`` (the 3D check's state: fea.sea_design.correct_3d,
+    optimise.curve_objectives.threshold_solid_3d) and return it (None without one): the
+    DesignResult's ``solid_field``, best_3d.vtu's arrays. The record's ``peak_stress_3d_MPa``
+    (the figure the verdict reads: the nonlinear, where converged refined, 2D peak times the
+    linear 3D / 2D ratio; not the linear state's own peak) goes with it as ``verdict_peak_MPa``
+    (MPa), for the file to say both."""
     if not isinstance(record, dict):
         return None
-    return record.pop("field", None)
+    field = record.pop("field", None)
+    if field is not None and isinstance(record.get("peak_stress_3d_MPa"), int | float):
+        field["verdict_peak_MPa"] = float(record["peak_stress_3d_MPa"])
+    return field
 
 
 def spring_field_map(response: Any, label: str, limit: float | None) -> dict[str, Any] | None:

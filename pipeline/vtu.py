@@ -99,6 +99,10 @@ SOLID_HALF = (
     "3D check: the half model z >= 0 (symmetric about the mid-plane z = 0): ParaView's Reflect "
     "filter about z gives the whole part"
 )
+SOLID_VERDICT = (
+    "3D peak_stress_3d_MPa the verdict reads (MPa): the nonlinear 2D peak (refined where "
+    "converged) times the linear 3D / 2D peak ratio, not this linear state's own peak"
+)
 GAP_STEP_FIELD = "gap: the plane-stress field was not solved at this load step (see best.pvd)"
 
 
@@ -147,6 +151,11 @@ def solid_vtu_bytes(result: Any) -> bytes | None:
                 [float(np.max(np.asarray(sf["von_mises_MPa"])[counted.astype(bool)]))]
                 if counted.any()
                 else [np.nan]
+            ),
+            **(
+                {SOLID_VERDICT: np.array([float(sf["verdict_peak_MPa"])])}
+                if sf.get("verdict_peak_MPa") is not None
+                else {}
             ),
         },
     )

@@ -23,7 +23,13 @@ from flexopt.fea.mesh import mesh_polygon
 from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Rotate, Translate
 from flexopt.optimise import DesignDetail
 from flexopt.pipeline.runfolder import grouped_files
-from flexopt.pipeline.vtu import DISPLACEMENT, STRESS_COUNTED, VON_MISES, vtu_files
+from flexopt.pipeline.vtu import (
+    DISPLACEMENT,
+    SOLID_VERDICT,
+    STRESS_COUNTED,
+    VON_MISES,
+    vtu_files,
+)
 from shapely.geometry import box
 
 MAT = Material("test", 2000.0, 0.35, 50.0)
@@ -207,6 +213,8 @@ def test_threshold_spring_steps_and_its_3d_check_in_best_3d_vtu() -> None:
     ratio = peak3d / float(r2.peak_nodal_stress_MPa[-1])
     assert ratio == pytest.approx(s3["peak_stress_ratio_3d_2d"], rel=1e-9)
     assert s3["peak_stress_3d_MPa"] == pytest.approx(ratio * ps["peak_stress_max_MPa"], rel=1e-9)
+    # ... and the file says it beside its own linear peak
+    assert solid.field_data[SOLID_VERDICT][0] == s3["peak_stress_3d_MPa"]
 
 
 # ------------------------------------------------------------------------ run.json's files

@@ -18,7 +18,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from flexopt.pipeline.runfolder import write_atomic
-from flexopt.pipeline.vtu import DISPLACEMENT, STRESS_COUNTED, VON_MISES, write_vtu_files
+from flexopt.pipeline.vtu import (
+    DISPLACEMENT,
+    SOLID_VERDICT,
+    STRESS_COUNTED,
+    VON_MISES,
+    write_vtu_files,
+)
 
 vtk = pytest.importorskip("vtk")
 from vtk.util.numpy_support import vtk_to_numpy  # noqa: E402  (after the skip)
@@ -145,7 +151,10 @@ def test_vtk_reads_the_hand_off_files_of_a_threshold_spring(tmp_path: Path) -> N
     sf = d.solid_field
     counted = np.asarray(sf["stress_counted"], dtype=bool)
     assert peak3d == float(np.max(np.asarray(sf["von_mises_MPa"])[counted]))
-    # the figure best.json carries is the 2D nonlinear peak times this peak's 3D / 2D ratio
+    # the figure best.json carries (the 2D nonlinear peak times the 3D / 2D ratio), in the
+    # file's field data beside this linear state's own peak
+    fd = solid.GetFieldData()
+    assert fd.GetArray(SOLID_VERDICT).GetValue(0) == s3["peak_stress_3d_MPa"]
     assert s3["peak_stress_3d_MPa"] == pytest.approx(
         s3["peak_stress_ratio_3d_2d"] * ps["peak_stress_max_MPa"], rel=1e-12
     )
