@@ -3,7 +3,9 @@
 The checks of fea/fidelity.py (constant_force) and fea/flexure_design.py (flexure_pivot) return
 their mesh and states under ``field`` in their record; the record is written into best.json and
 evaluation.json, which must not carry the mesh, so :func:`take_field` takes it out and makes the
-``field_map`` that stress_deformed.png, report.html's stress view and best.vtu draw.
+``field_map`` that stress_deformed.png, report.html's stress view and best.vtu draw. The springs'
+solves (fea/spring_analysis.py, the model and every row's state kept for the detailed design)
+become one with :func:`spring_field_map`; the 3D checks' states with :func:`take_solid_field`.
 
 A ``field_map`` (optimise.problem.DesignResult) is one state at its top level (the last checked
 one: the end of the check's range) and, under ``steps``, every state the check solved, each with
