@@ -215,30 +215,38 @@ def test_constant_force_evaluation_has_its_plane_stress_states_and_beam_stresses
 
 
 def test_flexure_pivot_evaluation_has_its_plane_stress_field(tmp_path: Path) -> None:
-    """The plane-stress state at the range of motion: the moving block turned rigidly by the
-    range (every one of its vertices gives the same centre of rotation), the ground block held,
-    and the check's peak on its counted vertices."""
+    """The plane-stress states of every row of the check (rest to the range of motion): in
+    each, the moving block turned rigidly by that row's own angle (every one of its vertices
+    gives the same centre of rotation, the same in every row: the check turns it about one
+    point), the ground block held; the last row's peak on its counted vertices is the check's."""
     ev = tmp_path / "ev"
     assert main(["evaluate", "flexure-pivot", "--out", str(ev)]) == 0
     record = json.loads((ev / "evaluation.json").read_text())
     assert "stress_deformed.png" in record["files"]
     with_field = [(t, m) for t, m in _steps(ev, "design") if "triangle" in m.cells_dict]
-    assert len(with_field) == 1  # the solve keeps its last state only
-    t, mesh = with_field[0]
-    theta = np.radians(float(_column(ev, "rotation_deg")[-1]))
-    assert t == pytest.approx(np.degrees(theta), rel=1e-9)
+    assert len(with_field) >= 3  # every row of the check, not only the last
+    theta_end = np.radians(float(_column(ev, "rotation_deg")[-1]))
+    assert with_field[-1][0] == pytest.approx(np.degrees(theta_end), rel=1e-9)
+    assert with_field[0][0] == 0.0
+    centres = []
+    for t, mesh in with_field[1:]:
+        theta = np.radians(t)
+        tri = np.unique(mesh.cells_dict["triangle"])
+        p, u = mesh.points[tri, :2], mesh.point_data[DISPLACEMENT][tri, :2]
+        rot_minus_one = np.array(
+            [[np.cos(theta) - 1, -np.sin(theta)], [np.sin(theta), np.cos(theta) - 1]]
+        )
+        centre = p - np.linalg.solve(rot_minus_one, u.T).T  # u = (R - I)(p - c)
+        moved = np.hypot(u[:, 0], u[:, 1]) > 1e-9
+        keys, counts = np.unique(np.round(centre[moved], 5), axis=0, return_counts=True)
+        c0 = keys[np.argmax(counts)]  # the centre most vertices share: the moving block's
+        rigid = moved & (np.hypot(*(centre - c0).T) < 1e-4)
+        held = np.hypot(u[:, 0], u[:, 1]) <= 1e-12
+        assert rigid.sum() >= 20 and held.sum() >= 20
+        centres.append(c0)
+    np.testing.assert_allclose(centres, np.broadcast_to(centres[0], np.shape(centres)), atol=1e-4)
+    t, mesh = with_field[-1]
     tri = np.unique(mesh.cells_dict["triangle"])
-    p, u = mesh.points[tri, :2], mesh.point_data[DISPLACEMENT][tri, :2]
-    rot_minus_one = np.array(
-        [[np.cos(theta) - 1, -np.sin(theta)], [np.sin(theta), np.cos(theta) - 1]]
-    )
-    centre = p - np.linalg.solve(rot_minus_one, u.T).T  # u = (R - I)(p - c)
-    moved = np.hypot(u[:, 0], u[:, 1]) > 1e-9
-    keys, counts = np.unique(np.round(centre[moved], 5), axis=0, return_counts=True)
-    c0 = keys[np.argmax(counts)]  # the centre most vertices share: the moving block's
-    rigid = moved & (np.hypot(*(centre - c0).T) < 1e-4)
-    held = np.hypot(u[:, 0], u[:, 1]) <= 1e-12
-    assert rigid.sum() >= 20 and held.sum() >= 20
     counted = mesh.point_data[STRESS_COUNTED][tri] == 1
     assert mesh.point_data[VON_MISES][tri][counted].max() == pytest.approx(
         record["summary"]["plane_stress_peak_stress_MPa"], rel=1e-12
