@@ -372,7 +372,10 @@ def _run_in(
         )
         # best_steps/ (one VTU per load step) as one entry with its count
         record["files"], counts = grouped_files(record["files"])
-        record.update({"file_counts": counts} if counts else {})
+        if counts:
+            record["file_counts"] = counts
+        else:  # a resumed run's earlier count, of files this session did not write
+            record.pop("file_counts", None)
         if write:
             write_atomic(run_dir / "run.json", to_json(record))
 
