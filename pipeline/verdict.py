@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from flexopt.optimise.durability import (
     LIFE_QUANTITIES,
+    STRESS_SETTINGS,
     LifeResult,
     life_constraint,
     life_of_table,
@@ -500,7 +501,29 @@ def judge_result(
         values.update(_hold_values(study, hold))
         table = {**(table or {}), **_hold_columns(hold)}
     verdicts = _hold_details(study, judge(study, values, table, requirements, design), hold)
+    verdicts = _life_setting_details(study, result, verdicts)
     return with_as_printed_verdicts(study, verdicts, result.info.get("as printed"))
+
+
+def _life_setting_details(
+    study: Study, result: DesignResult, verdicts: tuple[Verdict, ...]
+) -> tuple[Verdict, ...]:
+    """The life rows of a result with a stress per setting (a leaf joint) say in their detail
+    which setting each level ran at (the worst, by name, where the duty cycle names none)."""
+    from dataclasses import replace
+
+    if not isinstance(result.info.get(STRESS_SETTINGS), Mapping):
+        return verdicts
+    life = life_of_settings(study, result) if getattr(study, "duty_cycle", None) else None
+    if life is None:
+        return verdicts
+    note = life.setting_note if isinstance(life, LifeResult) else f"not computed: {life}"
+    return tuple(
+        replace(v, detail="; ".join(filter(None, (v.detail, note))))
+        if v.quantity in LIFE_QUANTITIES
+        else v
+        for v in verdicts
+    )
 
 
 def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | None:
@@ -517,6 +540,8 @@ def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | Non
         return None
     table = result.table or {}
     x_col = (result.plot or {}).get("x")
+    if isinstance(result.info.get(STRESS_SETTINGS), Mapping):
+        return life_of_settings(study, result)  # a stress per setting (a leaf joint)
     if not x_col or x_col not in table or "peak_stress_MPa" not in table:
         return (
             "the response has no driven column with a peak_stress_MPa column "
@@ -550,6 +575,28 @@ def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | Non
             spec, table, str(x_col), study.material.name, scale=scale, scale_model=model,
             stress_figure=figure,
         )  # fmt: skip
+    except OptimiseError as exc:
+        return str(exc)
+
+
+def life_of_settings(study: Study, result: DesignResult) -> LifeResult | str:
+    """The fatigue life of a result whose response has one stress column per setting
+    (``result.info[STRESS_SETTINGS]``: setting name -> column, each (n_rows,) MPa from that
+    setting's own nonlinear solve over the driven column ``plot["x"]``): each level at the
+    setting it names, the others at the worst one (:func:`~optimise.durability.life_of_table`
+    ``settings=``), or why not (a str)."""
+    settings = {str(k): str(v) for k, v in result.info[STRESS_SETTINGS].items()}
+    x_col = str((result.plot or {}).get("x") or "")
+    columns = ", ".join(dict.fromkeys(settings.values()))
+    try:
+        return life_of_table(
+            study.duty_cycle,  # type: ignore[attr-defined]
+            result.table or {},
+            x_col,
+            study.material.name,
+            settings=settings,
+            stress_figure=f"the stress of each level's setting ({columns})",
+        )
     except OptimiseError as exc:
         return str(exc)
 
