@@ -93,9 +93,10 @@ def test_a_level_naming_no_setting_runs_at_the_worst_one_by_name():
     assert "lmin" not in life.setting_note
     assert life.summary()["life_setting"] == life.setting_note
     flipped = {"deflection_deg": X, "s_stiff": TABLE["s_soft"], "s_soft": TABLE["s_stiff"]}
-    assert life_of_table(spec, flipped, "deflection_deg", "65Mn", settings=SETTINGS).levels[
-        0
-    ].setting == "soft"
+    assert (
+        life_of_table(spec, flipped, "deflection_deg", "65Mn", settings=SETTINGS).levels[0].setting
+        == "soft"
+    )
 
 
 def test_settings_the_response_has_not_are_refused():
