@@ -623,7 +623,8 @@ def with_life(study: Study, result: DesignResult) -> DesignResult:
         return result
     if isinstance(life, str):
         note = {"life_cycles": None, "life_hours": None, "fatigue_note": life}
-        return replace(result, summary={**result.summary, **note})
+        summary = _verdict_with_life(study, {**result.summary, **note}, {})
+        return replace(result, summary=summary)
     info = {
         **result.info,
         "fatigue": {
@@ -633,8 +634,35 @@ def with_life(study: Study, result: DesignResult) -> DesignResult:
         },
     }
     head = result.headline and (*result.headline, *LIFE_QUANTITIES)  # empty: the CLI shows all
-    summary = {**result.summary, **life.summary()}
+    summary = _verdict_with_life(study, {**result.summary, **life.summary()}, life.values())
     return replace(result, summary=summary, info=info, headline=head or ())
+
+
+#: The provisional word of a kind's per-design ``verdict`` metric (the mechanism's) when the
+#: study judges a life the optimiser does not compute per design (a life ``role: check``).
+LIFE_PROVISIONAL = " (life judged on the best design only)"
+
+
+def _verdict_with_life(
+    study: Study, metrics: Mapping[str, Any], life: Mapping[str, Any] | None
+) -> dict[str, Any]:
+    """``metrics`` whose ``verdict`` word (a kind that states one per design: the mechanism's
+    evaluations table and summary) takes the study's life requirements too, judged on ``life``
+    (:meth:`~optimise.durability.LifeResult.values`; empty: not computable, NOT MET; None: not
+    computed for this design, the word says so), so that it agrees with the verdict
+    :func:`judge_result` gives. Unchanged without a ``verdict`` word or a life requirement."""
+    out = dict(metrics)
+    reqs = [r for r in user_requirements(study) if r.quantity in LIFE_QUANTITIES]
+    word = out.get("verdict")
+    if not reqs or word not in ("MET", "NOT MET"):
+        return out
+    if life is None:
+        out["verdict"] = f"{word}{LIFE_PROVISIONAL}" if word == "MET" else word
+        return out
+    values = dict(life) or dict.fromkeys(LIFE_QUANTITIES)
+    met = all(r.check(values).met for r in reqs)
+    out["verdict"] = "MET" if word == "MET" and met else "NOT MET"
+    return out
 
 
 def _with_life_rows(
@@ -928,7 +956,7 @@ class LifeConstraints(ProblemWrapper):
         extra = np.array([life_constraint(r, values) for r in self.requirements], dtype=float)
         finite = life.summary() if life is not None else {}
         metrics = {
-            **ev.metrics,
+            **_verdict_with_life(self.duty_study, ev.metrics, values),
             "life_cycles": finite.get("life_cycles"),
             "life_hours": finite.get("life_hours"),
             "fatigue_damage_per_cycle_block": finite.get("fatigue_damage_per_cycle_block"),
@@ -985,6 +1013,14 @@ class LifeDetail(ProblemWrapper):
 
     def detail(self, x: np.ndarray) -> DesignDetail:
         return with_life(self.duty_study, self.inner.detail(x))
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        from dataclasses import replace
+
+        ev = self.inner.evaluate(x)
+        if "verdict" not in ev.metrics or "life_cycles" in ev.metrics:
+            return ev  # no verdict word, or LifeConstraints judged the life of this design
+        return replace(ev, metrics=_verdict_with_life(self.duty_study, ev.metrics, None))
 
 
 def with_requirement_constraints(study: Study, problem: Any) -> Any:

@@ -25,7 +25,7 @@ from flexopt.optimise.errors import OptimiseError
 from flexopt.pipeline.durability_report import durability_markdown, durability_record
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.study import validate_study
-from flexopt.pipeline.verdict import judge_result, with_requirement_constraints
+from flexopt.pipeline.verdict import judge_result
 
 RAW = yaml.safe_load(
     (Path(pipeline.__file__).parent / "examples" / "leaf-spring-joint.yaml").read_text()
