@@ -99,6 +99,18 @@ def test_a_level_naming_no_setting_runs_at_the_worst_one_by_name():
     )
 
 
+def test_a_history_runs_at_the_blocks_setting():
+    spec = DutyCycleSpec.model_validate({"history": [0.0, 8.0, 2.0, 6.0, 0.0], "setting": "soft"})
+    life = life_of_table(spec, TABLE, "deflection_deg", "65Mn", settings=SETTINGS)
+    # rainflow of 0, 8, 2, 6, 0: the cycle 2 -> 6 -> 2 and the half-cycles 0 -> 8 and 8 -> 0
+    assert sorted((lv.drive_min, lv.drive_max, lv.cycles) for lv in life.levels) == [
+        (0.0, 8.0, 0.5), (0.0, 8.0, 0.5), (2.0, 6.0, 1.0)
+    ]  # fmt: skip
+    assert {lv.setting for lv in life.levels} == {"soft"}
+    n_big, n_small = hand_cycles(0.0, 720.0), hand_cycles(180.0, 540.0)
+    assert life.damage_per_block == pytest.approx(1 / n_big + 1 / n_small, rel=1e-12)
+
+
 def test_settings_the_response_has_not_are_refused():
     spec = DutyCycleSpec.model_validate({"levels": [{"drive": 6.0, "cycles": 1, "setting": "x"}]})
     with pytest.raises(OptimiseError, match="setting 'x' is not a setting.*stiff, soft, lmin"):
@@ -207,3 +219,7 @@ def test_an_unknown_setting_is_refused_at_load_time():
     with pytest.raises(StudyError, match=r"duty_cycle.levels\[0\].setting.*'medium' is no setting"):
         validate_study(leaf_raw([{"fraction": 1.0, "cycles": 1, "setting": "medium"}]))
     validate_study(leaf_raw([{"fraction": 1.0, "cycles": 1, "setting": "sliding_l48"}]))
+    raw = leaf_raw([{"fraction": 1.0, "cycles": 1}])
+    raw["duty_cycle"]["setting"] = "fixed_l28"  # fixed is not analysed in this study
+    with pytest.raises(StudyError, match=r"duty_cycle.setting.*sliding_l28, sliding_l48"):
+        validate_study(raw)
