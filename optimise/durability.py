@@ -30,7 +30,7 @@ from flexopt.fea.fatigue import (
     rainflow_cycles,
 )
 from flexopt.optimise.errors import OptimiseError
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
 __all__ = [
     "LIFE_QUANTITIES",
@@ -54,6 +54,15 @@ LIFE_QUANTITIES = ("life_cycles", "life_hours", "fatigue_damage_per_cycle_block"
 STRESS_SETTINGS = "stress_settings"
 
 _CONFIG = ConfigDict(extra="forbid", frozen=True)
+
+
+def _without_unset_setting(model: BaseModel, handler: Any) -> dict[str, Any]:
+    """The model's dump without ``setting`` when it is None: a study that names no setting
+    dumps (evaluation.json's ``inputs.study``, best.json) as it did before the key existed."""
+    data = handler(model)
+    if isinstance(data, dict) and data.get("setting", 0) is None:
+        data.pop("setting")
+    return data
 
 
 class DutyLevel(BaseModel):
@@ -85,6 +94,10 @@ class DutyLevel(BaseModel):
         description="the setting this level runs at, in a kind whose response has a stress per "
         "setting (leaf_spring_joint: stiff / soft); default: the worst setting",
     )
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> dict[str, Any]:
+        return _without_unset_setting(self, handler)
 
     @model_validator(mode="after")
     def _one_of_each(self) -> DutyLevel:
@@ -130,6 +143,10 @@ class DutyCycleSpec(BaseModel):
         description="the setting a history (or a level without its own) runs at, in a kind "
         "whose response has a stress per setting; default: the worst setting",
     )
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> dict[str, Any]:
+        return _without_unset_setting(self, handler)
 
     @model_validator(mode="before")
     @classmethod
