@@ -257,6 +257,7 @@ def check_requirement_names(study: Study) -> None:
     StudyError
         At ``requirements[i].quantity`` (or ``.x``), listing the names the kind reports.
     """
+    check_duty_cycle_settings(study)
     specs: Sequence[RequirementSpec] = getattr(study, "requirements", None) or ()
     if not specs:
         return
@@ -316,6 +317,35 @@ RESPONSE_HOOK = "evaluate_response"
 #: pressure, a leaf joint's stress per stiffness setting) names it here and the life constraint
 #: is refused at load time with that reason (:attr:`optimise.DesignProblem.life_refusal`).
 LIFE_REFUSAL = "life_refusal"
+
+
+#: A design problem's attribute naming the settings its response has a stress for (setting
+#: -> stress column: a leaf joint's stiffness settings); a kind whose problem has none refuses a
+#: duty cycle that names a setting (:func:`check_duty_cycle_settings`).
+STRESS_SETTINGS_ATTR = "stress_settings"
+
+
+def check_duty_cycle_settings(study: Study) -> None:
+    """Refuse a ``duty_cycle:`` naming a ``setting`` in a kind with one stress per row (a kind
+    with settings checks their names itself: pipeline/studies/_leaf_life.py).
+
+    Raises
+    ------
+    StudyError
+        At ``duty_cycle.setting`` or ``duty_cycle.levels[i].setting``.
+    """
+    spec = getattr(study, "duty_cycle", None)
+    if spec is None or getattr(_problem_class(_kind(study)), STRESS_SETTINGS_ATTR, None):
+        return
+    named = [("duty_cycle.setting", spec.setting)]
+    named += [
+        (f"duty_cycle.levels[{i}].setting", lv.setting) for i, lv in enumerate(spec.levels or ())
+    ]
+    for path, name in named:
+        if name is not None:
+            raise StudyError(
+                path, f"kind {study.kind} has one stress per row, no settings; leave setting out"
+            )
 
 
 def _problem_class(kind: Any) -> type | None:

@@ -414,6 +414,7 @@ class LeafJointProblem(DesignProblem):
 
     objective_names = ("stress_ratio",)
     constraint_names = ("min_length", "hub", "stress")
+    stress_settings = leaf_life.DESIGN_SETTINGS  # a stress per setting: pipeline.verdict
 
     def warm_up(self) -> None:
         """Load the compiled beam and constrained-beam kernels (a pool calls this before it

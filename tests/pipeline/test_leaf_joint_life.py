@@ -223,3 +223,16 @@ def test_an_unknown_setting_is_refused_at_load_time():
     raw["duty_cycle"]["setting"] = "fixed_l28"  # fixed is not analysed in this study
     with pytest.raises(StudyError, match=r"duty_cycle.setting.*sliding_l28, sliding_l48"):
         validate_study(raw)
+
+
+@pytest.mark.parametrize("example", ["cantilever", "flexure-pivot"])
+def test_a_kind_with_one_stress_per_row_refuses_a_setting_at_load_time(example):
+    raw = yaml.safe_load(
+        (Path(pipeline.__file__).parent / "examples" / f"{example}.yaml").read_text()
+    )
+    raw["duty_cycle"] = {"levels": [{"fraction": 1.0, "cycles": 1, "setting": "stiff"}]}
+    with pytest.raises(StudyError, match=r"duty_cycle.levels\[0\].setting.*leave setting out"):
+        validate_study(raw)
+    raw["duty_cycle"] = {"history": [0.0, 1.0, 0.0], "setting": "stiff"}
+    with pytest.raises(StudyError, match=r"duty_cycle.setting: kind"):
+        validate_study(raw)
