@@ -30,10 +30,11 @@ from flexopt.fea.fatigue import (
     rainflow_cycles,
 )
 from flexopt.optimise.errors import OptimiseError
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
 __all__ = [
     "LIFE_QUANTITIES",
+    "STRESS_SETTINGS",
     "DutyCycleSpec",
     "DutyLevel",
     "LevelLife",
@@ -46,7 +47,22 @@ __all__ = [
 #: The quantities a ``requirements:`` item may judge when the study has a ``duty_cycle:``.
 LIFE_QUANTITIES = ("life_cycles", "life_hours", "fatigue_damage_per_cycle_block")
 
+#: The key of a result's ``info`` under which a kind whose response has one stress column per
+#: setting (a variable-stiffness joint) names them: ``{setting name: stress column}``, several
+#: names may share a column (aliases). The life then takes each level's stress from its
+#: setting's column (:func:`life_of_table` ``settings=``).
+STRESS_SETTINGS = "stress_settings"
+
 _CONFIG = ConfigDict(extra="forbid", frozen=True)
+
+
+def _without_unset_setting(model: BaseModel, handler: Any) -> dict[str, Any]:
+    """The model's dump without ``setting`` when it is None: a study that names no setting
+    dumps (evaluation.json's ``inputs.study``, best.json) as it did before the key existed."""
+    data = handler(model)
+    if isinstance(data, dict) and data.get("setting", 0) is None:
+        data.pop("setting")
+    return data
 
 
 class DutyLevel(BaseModel):
@@ -72,6 +88,16 @@ class DutyLevel(BaseModel):
         None, description="the level's minimum drive (default 0), unit of the driven column"
     )
     reversed: bool = Field(False, description="fully reversed: -drive to +drive")
+    setting: str | None = Field(
+        None,
+        min_length=1,
+        description="the setting this level runs at, in a kind whose response has a stress per "
+        "setting (leaf_spring_joint: stiff / soft); default: the worst setting",
+    )
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> dict[str, Any]:
+        return _without_unset_setting(self, handler)
 
     @model_validator(mode="after")
     def _one_of_each(self) -> DutyLevel:
@@ -111,6 +137,16 @@ class DutyCycleSpec(BaseModel):
     surface: str | None = Field(
         None, description="steels: surface finish of the S-N curve (default machined)"
     )
+    setting: str | None = Field(
+        None,
+        min_length=1,
+        description="the setting a history (or a level without its own) runs at, in a kind "
+        "whose response has a stress per setting; default: the worst setting",
+    )
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: Any) -> dict[str, Any]:
+        return _without_unset_setting(self, handler)
 
     @model_validator(mode="before")
     @classmethod
@@ -151,6 +187,7 @@ class LevelLife:
     cycles : float — cycles per block (a share as a fraction of one cycle).
     cycles_to_failure : float — N_i (``inf`` below the endurance limit).
     damage : float — n_i / N_i per block.
+    setting : str — the setting whose stress the level took ("" in a kind with one response).
     """
 
     drive_min: float
@@ -162,10 +199,16 @@ class LevelLife:
     cycles: float
     cycles_to_failure: float
     damage: float
+    setting: str = ""
 
-    def record(self) -> dict[str, float | None]:
-        """JSON-ready (``inf`` as None)."""
-        return {k: (v if math.isfinite(v) else None) for k, v in self.__dict__.items()}
+    def record(self) -> dict[str, Any]:
+        """JSON-ready (``inf`` as None; ``setting`` only where the kind has settings)."""
+        out: dict[str, Any] = {
+            k: (v if math.isfinite(v) else None) for k, v in self.__dict__.items() if k != "setting"
+        }
+        if self.setting:
+            out["setting"] = self.setting
+        return out
 
 
 @dataclass(frozen=True)
@@ -185,6 +228,8 @@ class LifeResult:
         figure over the beam's), 1 when the kind has one model.
     stress_figure : str — the stress figure the amplitudes stand for (the model and the
         quantity: ``3D solid (peak_stress_3d_MPa)``); the table's own peak when empty.
+    setting_note : str — in a kind with a stress per setting, which setting the levels ran at
+        (the worst one, by name, where a level names none); "" in a kind with one response.
     """
 
     levels: tuple[LevelLife, ...]
@@ -196,6 +241,7 @@ class LifeResult:
     source: str
     scale: float
     stress_figure: str = ""
+    setting_note: str = ""
 
     def summary(self) -> dict[str, Any]:
         """The scalars a result's summary carries (``inf`` as None: infinite life)."""
@@ -212,6 +258,8 @@ class LifeResult:
             "life_method": self.method,
             "fatigue_data_source": self.source,
             "life_stress_figure": self.stress_figure or "the response table's peak_stress_MPa",
+            # only in a kind with a stress per setting: other kinds' records stay as they were
+            **({"life_setting": self.setting_note} if self.setting_note else {}),
         }
 
     def values(self) -> dict[str, Any]:
@@ -274,19 +322,32 @@ def signed_peak_stress(
     return sign * scale * float(np.interp(abs(at), xs, ss))
 
 
-def _drive_cycles(spec: DutyCycleSpec, stroke: float) -> list[tuple[float, float, float, bool]]:
-    """``(drive_min, drive_max, count, share)`` of every level or counted cycle."""
+def _drive_cycles(
+    spec: DutyCycleSpec, stroke: float
+) -> list[tuple[float, float, float, bool, str | None]]:
+    """``(drive_min, drive_max, count, share, setting)`` of every level or counted cycle
+    (``setting``: the level's, else the block's, else None: the worst)."""
     out = []
     if spec.history is not None:
         for rng, mean, count in rainflow_cycles(spec.history):
             if rng > 0.0:
-                out.append((mean - 0.5 * rng, mean + 0.5 * rng, count, False))
+                out.append((mean - 0.5 * rng, mean + 0.5 * rng, count, False, spec.setting))
         return out
     for lv in spec.levels or ():
         top = float(lv.drive) if lv.drive is not None else float(lv.fraction or 0.0) * stroke
         low = -top if lv.reversed else float(lv.mean or 0.0)
         count = float(lv.cycles) if lv.cycles is not None else float(lv.share_percent) / 100.0
-        out.append((min(low, top), max(low, top), count, lv.share_percent is not None))
+        setting = lv.setting if lv.setting is not None else spec.setting
+        out.append((min(low, top), max(low, top), count, lv.share_percent is not None, setting))
+    return out
+
+
+def _distinct_settings(settings: Mapping[str, str]) -> dict[str, str]:
+    """One name per stress column (the first given: aliases share a column), in order."""
+    out: dict[str, str] = {}
+    for name, column in settings.items():
+        if column not in out.values():
+            out[name] = column
     return out
 
 
@@ -300,6 +361,7 @@ def life_of_table(
     scale: float = 1.0,
     scale_model: str = "",
     stress_figure: str = "",
+    settings: Mapping[str, str] | None = None,
 ) -> LifeResult:
     """Miner's life over ``spec`` of a design whose response is ``table``.
 
@@ -313,20 +375,27 @@ def life_of_table(
     scale : factor on the peak stress (the highest-fidelity figure over the beam's, >= 0).
     scale_model : the model that factor comes from, named in ``method``.
     stress_figure : the figure the scaled stresses stand for (model and quantity), recorded.
+    settings : for a kind whose response has one stress column per setting (a variable-
+        stiffness joint's stiffness settings, each its own nonlinear solve over the same
+        driven column): setting name -> its stress column (MPa, (n_rows,)); several names may
+        share a column (aliases). Each level takes the column of its ``setting``; the levels
+        without one run at the **worst** setting: the one whose damage per block is largest
+        when they all run there (named in ``setting_note``). ``stress_column`` is then unused.
 
     Raises
     ------
     OptimiseError
-        When a column is missing, a drive lies beyond the traced stroke or the material has no
-        fatigue data.
+        When a column is missing, a drive lies beyond the traced stroke, the material has no
+        fatigue data, a level names a setting the response does not have (or any setting,
+        without ``settings``).
     """
-    for col in (x_column, stress_column):
+    columns = [stress_column] if settings is None else list(dict.fromkeys(settings.values()))
+    for col in (x_column, *columns):
         if col not in table:
             raise OptimiseError(
                 f"duty_cycle: the response has no column '{col}' (it has {', '.join(table)})"
             )
     x = np.asarray(table[x_column], dtype=float)
-    peak = np.asarray(table[stress_column], dtype=float)
     finite = np.abs(x[np.isfinite(x)])
     stroke = float(finite.max()) if finite.size else 0.0
     try:
@@ -340,29 +409,73 @@ def life_of_table(
     if spec.correction not in CORRECTIONS:  # the model's Literal holds it; a guard for callers
         raise OptimiseError(f"duty_cycle: correction {spec.correction!r} is unknown")
     cycles = _drive_cycles(spec, stroke)
-    loads, rows = [], []
-    for lo, hi, count, share in cycles:
-        s_lo = signed_peak_stress(x, peak, lo, scale)
-        s_hi = signed_peak_stress(x, peak, hi, scale)
-        amp, mean = 0.5 * abs(s_hi - s_lo), 0.5 * (s_hi + s_lo)
-        loads.append(
-            LoadLevel(
-                amplitude_MPa=amp,
-                mean_MPa=mean,
-                **({"share": count} if share else {"cycles": count}),
-            )
-        )
-        rows.append((lo, hi, s_lo, s_hi, amp, mean, count))
-    if not loads:  # a flat history: nothing cycles
+    if not cycles:  # a flat history: nothing cycles
         raise OptimiseError("duty_cycle: the history holds no cycle (every value the same)")
-    result = miner(curve, loads, rate_hz=spec.rate_hz or 1.0, correction=spec.correction)
+    named = {c[4] for c in cycles if c[4] is not None}
+    if settings is None and named:
+        raise OptimiseError(
+            f"duty_cycle: setting '{sorted(named)[0]}': this response has one stress per row, "
+            "no settings; leave setting out"
+        )
+    unknown = sorted(named - set(settings or {}))
+    if unknown:
+        raise OptimiseError(
+            f"duty_cycle: setting '{unknown[0]}' is not a setting of this response; use one of "
+            + ", ".join(settings or {})
+        )
+
+    def count(worst: str | None) -> tuple[Any, list[tuple[Any, ...]]]:
+        """Miner's sum with the unnamed levels at setting ``worst`` (None: no settings)."""
+        loads, rows = [], []
+        for lo, hi, n, share, setting in cycles:
+            name = setting if setting is not None else worst
+            peak = np.asarray(
+                table[stress_column if settings is None else settings[str(name)]], dtype=float
+            )
+            s_lo = signed_peak_stress(x, peak, lo, scale)
+            s_hi = signed_peak_stress(x, peak, hi, scale)
+            amp, mean = 0.5 * abs(s_hi - s_lo), 0.5 * (s_hi + s_lo)
+            loads.append(
+                LoadLevel(
+                    amplitude_MPa=amp,
+                    mean_MPa=mean,
+                    **({"share": n} if share else {"cycles": n}),
+                )
+            )
+            rows.append((lo, hi, s_lo, s_hi, amp, mean, n, name or ""))
+        out = miner(curve, loads, rate_hz=spec.rate_hz or 1.0, correction=spec.correction)
+        return out, rows
+
+    setting_note = ""
+    if settings is None:
+        result, rows = count(None)
+    else:
+        distinct = _distinct_settings(settings)
+        if all(c[4] is not None for c in cycles):
+            result, rows = count(None)
+            setting_note = "every level at the setting it names"
+        else:
+            tried = {name: count(name) for name in distinct}
+            # the largest damage per block; the first listed on a tie
+            worst = max(tried, key=lambda k: (tried[k][0].damage_per_block, -list(tried).index(k)))
+            result, rows = tried[worst]
+            others = ", ".join(
+                f"{k}: {tried[k][0].damage_per_block:.4g}" for k in tried if k != worst
+            )
+            unnamed = "every level" if not named else "the levels without a setting"
+            setting_note = (
+                f"{unnamed} at the worst setting, {worst} (damage per block "
+                f"{result.damage_per_block:.4g}; at {others})"
+            )
     levels = tuple(
-        LevelLife(lo, hi, slo, shi, amp, mean, n, nf, d)
-        for (lo, hi, slo, shi, amp, mean, n), nf, d in zip(
+        LevelLife(lo, hi, slo, shi, amp, mean, n, nf, d, name)
+        for (lo, hi, slo, shi, amp, mean, n, name), nf, d in zip(
             rows, result.cycles_to_failure, result.damage_per_level, strict=True
         )
     )
     where = "the solver's peak stress at each level's drives (its location tracked per row)"
+    if settings is not None:
+        where += ", from the solve of the level's setting; " + setting_note
     if scale != 1.0:
         where += f", scaled by {scale:.4g} to the {scale_model or 'higher-fidelity'} peak"
     counting = "rainflow (ASTM E1049-85)" if spec.history is not None else "levels as given"
@@ -385,6 +498,7 @@ def life_of_table(
         source=source,
         scale=scale,
         stress_figure=stress_figure,
+        setting_note=setting_note,
     )
 
 

@@ -140,11 +140,14 @@ def _fatigue(study: Any, result: Any) -> dict[str, Any]:
             "cycles": lv.get("cycles"),
             "cycles_to_failure": lv.get("cycles_to_failure"),
             "damage": lv.get("damage"),
+            # a kind with a stress per setting (a leaf joint): the setting the level ran at
+            **({"setting": lv["setting"]} if lv.get("setting") else {}),
         }
         for i, lv in enumerate(levels)
     ]
     return {
         "levels": rows,
+        **({"setting_note": fat["life_setting"]} if fat.get("life_setting") else {}),
         "miner_sum": fat.get("fatigue_damage_per_cycle_block"),
         "life_cycles": fat.get("life_cycles"),
         "life_hours": fat.get("life_hours"),
@@ -340,9 +343,15 @@ def _blocks(record: Mapping[str, Any]) -> list[tuple[str, Any]]:
                  lv["damage"]]
                 for lv in fat["levels"]
             ]  # fmt: skip
-            out.append(("table", (["level", "drive min", "drive max", "amplitude (MPa)",
-                                   "mean (MPa)", "cycles per block", "cycles to failure",
-                                   "damage per block"], rows)))  # fmt: skip
+            header = ["level", "drive min", "drive max", "amplitude (MPa)", "mean (MPa)",
+                      "cycles per block", "cycles to failure", "damage per block"]  # fmt: skip
+            if any("setting" in lv for lv in fat["levels"]):  # a stress per setting
+                header.insert(1, "setting")
+                for row, lv in zip(rows, fat["levels"], strict=True):
+                    row.insert(1, lv.get("setting") or "–")
+            out.append(("table", (header, rows)))
+            if fat.get("setting_note"):
+                out.append(("p", f"Settings: {fat['setting_note']}."))
             hours = fat.get("life_hours")
             where = fat.get("critical_location") or {}
             place = ", ".join(

@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from flexopt.optimise.durability import (
     LIFE_QUANTITIES,
+    STRESS_SETTINGS,
     LifeResult,
     life_constraint,
     life_of_table,
@@ -256,6 +257,7 @@ def check_requirement_names(study: Study) -> None:
     StudyError
         At ``requirements[i].quantity`` (or ``.x``), listing the names the kind reports.
     """
+    check_duty_cycle_settings(study)
     specs: Sequence[RequirementSpec] = getattr(study, "requirements", None) or ()
     if not specs:
         return
@@ -315,6 +317,35 @@ RESPONSE_HOOK = "evaluate_response"
 #: pressure, a leaf joint's stress per stiffness setting) names it here and the life constraint
 #: is refused at load time with that reason (:attr:`optimise.DesignProblem.life_refusal`).
 LIFE_REFUSAL = "life_refusal"
+
+
+#: A design problem's attribute naming the settings its response has a stress for (setting
+#: -> stress column: a leaf joint's stiffness settings); a kind whose problem has none refuses a
+#: duty cycle that names a setting (:func:`check_duty_cycle_settings`).
+STRESS_SETTINGS_ATTR = "stress_settings"
+
+
+def check_duty_cycle_settings(study: Study) -> None:
+    """Refuse a ``duty_cycle:`` naming a ``setting`` in a kind with one stress per row (a kind
+    with settings checks their names itself: pipeline/studies/_leaf_life.py).
+
+    Raises
+    ------
+    StudyError
+        At ``duty_cycle.setting`` or ``duty_cycle.levels[i].setting``.
+    """
+    spec = getattr(study, "duty_cycle", None)
+    if spec is None or getattr(_problem_class(_kind(study)), STRESS_SETTINGS_ATTR, None):
+        return
+    named = [("duty_cycle.setting", spec.setting)]
+    named += [
+        (f"duty_cycle.levels[{i}].setting", lv.setting) for i, lv in enumerate(spec.levels or ())
+    ]
+    for path, name in named:
+        if name is not None:
+            raise StudyError(
+                path, f"kind {study.kind} has one stress per row, no settings; leave setting out"
+            )
 
 
 def _problem_class(kind: Any) -> type | None:
@@ -500,7 +531,29 @@ def judge_result(
         values.update(_hold_values(study, hold))
         table = {**(table or {}), **_hold_columns(hold)}
     verdicts = _hold_details(study, judge(study, values, table, requirements, design), hold)
+    verdicts = _life_setting_details(study, result, verdicts)
     return with_as_printed_verdicts(study, verdicts, result.info.get("as printed"))
+
+
+def _life_setting_details(
+    study: Study, result: DesignResult, verdicts: tuple[Verdict, ...]
+) -> tuple[Verdict, ...]:
+    """The life rows of a result with a stress per setting (a leaf joint) say in their detail
+    which setting each level ran at (the worst, by name, where the duty cycle names none)."""
+    from dataclasses import replace
+
+    if not isinstance(result.info.get(STRESS_SETTINGS), Mapping):
+        return verdicts
+    life = life_of_settings(study, result) if getattr(study, "duty_cycle", None) else None
+    if life is None:
+        return verdicts
+    note = life.setting_note if isinstance(life, LifeResult) else f"not computed: {life}"
+    return tuple(
+        replace(v, detail="; ".join(filter(None, (v.detail, note))))
+        if v.quantity in LIFE_QUANTITIES
+        else v
+        for v in verdicts
+    )
 
 
 def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | None:
@@ -517,6 +570,8 @@ def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | Non
         return None
     table = result.table or {}
     x_col = (result.plot or {}).get("x")
+    if isinstance(result.info.get(STRESS_SETTINGS), Mapping):
+        return life_of_settings(study, result)  # a stress per setting (a leaf joint)
     if not x_col or x_col not in table or "peak_stress_MPa" not in table:
         return (
             "the response has no driven column with a peak_stress_MPa column "
@@ -554,6 +609,28 @@ def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | Non
         return str(exc)
 
 
+def life_of_settings(study: Study, result: DesignResult) -> LifeResult | str:
+    """The fatigue life of a result whose response has one stress column per setting
+    (``result.info[STRESS_SETTINGS]``: setting name -> column, each (n_rows,) MPa from that
+    setting's own nonlinear solve over the driven column ``plot["x"]``): each level at the
+    setting it names, the others at the worst one (:func:`~optimise.durability.life_of_table`
+    ``settings=``), or why not (a str)."""
+    settings = {str(k): str(v) for k, v in result.info[STRESS_SETTINGS].items()}
+    x_col = str((result.plot or {}).get("x") or "")
+    columns = ", ".join(dict.fromkeys(settings.values()))
+    try:
+        return life_of_table(
+            study.duty_cycle,  # type: ignore[attr-defined]
+            result.table or {},
+            x_col,
+            study.material.name,
+            settings=settings,
+            stress_figure=f"the stress of each level's setting ({columns})",
+        )
+    except OptimiseError as exc:
+        return str(exc)
+
+
 def life_values(study: Study, result: DesignResult) -> dict[str, Any]:
     """The life figures a requirement judges (empty without ``duty_cycle:``; None values
     when the life cannot be computed or lies in low-cycle fatigue: NOT MET)."""
@@ -576,7 +653,8 @@ def with_life(study: Study, result: DesignResult) -> DesignResult:
         return result
     if isinstance(life, str):
         note = {"life_cycles": None, "life_hours": None, "fatigue_note": life}
-        return replace(result, summary={**result.summary, **note})
+        summary = _verdict_with_life(study, {**result.summary, **note}, {})
+        return replace(result, summary=summary)
     info = {
         **result.info,
         "fatigue": {
@@ -586,8 +664,35 @@ def with_life(study: Study, result: DesignResult) -> DesignResult:
         },
     }
     head = result.headline and (*result.headline, *LIFE_QUANTITIES)  # empty: the CLI shows all
-    summary = {**result.summary, **life.summary()}
+    summary = _verdict_with_life(study, {**result.summary, **life.summary()}, life.values())
     return replace(result, summary=summary, info=info, headline=head or ())
+
+
+#: The provisional word of a kind's per-design ``verdict`` metric (the mechanism's) when the
+#: study judges a life the optimiser does not compute per design (a life ``role: check``).
+LIFE_PROVISIONAL = " (life judged on the best design only)"
+
+
+def _verdict_with_life(
+    study: Study, metrics: Mapping[str, Any], life: Mapping[str, Any] | None
+) -> dict[str, Any]:
+    """``metrics`` whose ``verdict`` word (a kind that states one per design: the mechanism's
+    evaluations table and summary) takes the study's life requirements too, judged on ``life``
+    (:meth:`~optimise.durability.LifeResult.values`; empty: not computable, NOT MET; None: not
+    computed for this design, the word says so), so that it agrees with the verdict
+    :func:`judge_result` gives. Unchanged without a ``verdict`` word or a life requirement."""
+    out = dict(metrics)
+    reqs = [r for r in user_requirements(study) if r.quantity in LIFE_QUANTITIES]
+    word = out.get("verdict")
+    if not reqs or word not in ("MET", "NOT MET"):
+        return out
+    if life is None:
+        out["verdict"] = f"{word}{LIFE_PROVISIONAL}" if word == "MET" else word
+        return out
+    values = dict(life) or dict.fromkeys(LIFE_QUANTITIES)
+    met = all(r.check(values).met for r in reqs)
+    out["verdict"] = "MET" if word == "MET" and met else "NOT MET"
+    return out
 
 
 def _with_life_rows(
@@ -881,7 +986,7 @@ class LifeConstraints(ProblemWrapper):
         extra = np.array([life_constraint(r, values) for r in self.requirements], dtype=float)
         finite = life.summary() if life is not None else {}
         metrics = {
-            **ev.metrics,
+            **_verdict_with_life(self.duty_study, ev.metrics, values),
             "life_cycles": finite.get("life_cycles"),
             "life_hours": finite.get("life_hours"),
             "fatigue_damage_per_cycle_block": finite.get("fatigue_damage_per_cycle_block"),
@@ -938,6 +1043,14 @@ class LifeDetail(ProblemWrapper):
 
     def detail(self, x: np.ndarray) -> DesignDetail:
         return with_life(self.duty_study, self.inner.detail(x))
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        from dataclasses import replace
+
+        ev = self.inner.evaluate(x)
+        if "verdict" not in ev.metrics or "life_cycles" in ev.metrics:
+            return ev  # no verdict word, or LifeConstraints judged the life of this design
+        return replace(ev, metrics=_verdict_with_life(self.duty_study, ev.metrics, None))
 
 
 def with_requirement_constraints(study: Study, problem: Any) -> Any:

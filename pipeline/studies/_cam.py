@@ -21,6 +21,7 @@ from flexopt.pipeline.targets import resolve_target
 from pydantic import BaseModel, Field, model_validator
 
 __all__ = [
+    "CAM_LIFE_REFUSAL",
     "CAM_VARIABLES",
     "CamGeometry",
     "CamStudyFields",
@@ -30,7 +31,21 @@ __all__ = [
     "SABSpec",
     "SpringsSpec",
     "build_cam",
+    "refuse_duty_cycle",
 ]
+
+#: Why a cam has no fatigue life (issue 25; docs/durability.md, "The cam"): what could fatigue
+#: is the plate's track under the rolling follower (Hertz contact: pitting, whose surface
+#: fatigue strength needs data flexopt has no source for) and the followers' springs (bought
+#: parts given by rate and free length: no wire, no stress).
+CAM_LIFE_REFUSAL = (
+    "kind cam computes no fatigue life: its plate is rigid and its only stress is the Hertz "
+    "contact pressure of the rolling follower, whose surface (pitting) fatigue strength flexopt "
+    "has no sourced value of for any built-in material, and its springs are given by rate and "
+    "free length only (no wire, no stress: their life is the spring maker's rating); judge "
+    "max_contact_pressure_MPa (stress_yield_ratio: against the onset of yield under the "
+    "contact, 1.67 x yield) instead"
+)
 
 
 class CamGeometry(BaseModel):
@@ -230,3 +245,15 @@ def _geometry_path(message: str) -> str:
     if "target" in message:
         return "target"
     return "geometry"
+
+
+def refuse_duty_cycle(study: Any) -> None:
+    """Refuse a ``duty_cycle:`` block on a cam at load time (:data:`CAM_LIFE_REFUSAL`).
+
+    Raises
+    ------
+    StudyError
+        At ``duty_cycle``, with the reason and what to judge instead.
+    """
+    if getattr(study, "duty_cycle", None) is not None:
+        raise StudyError("duty_cycle", CAM_LIFE_REFUSAL)

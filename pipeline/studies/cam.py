@@ -55,11 +55,13 @@ from flexopt.optimise.targets import (
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies._cam import (
+    CAM_LIFE_REFUSAL,
     CAM_VARIABLES,
     CamGeometry,
     CamStudyFields,
     SpringsSpec,
     build_cam,
+    refuse_duty_cycle,
 )
 from flexopt.pipeline.study import material_record
 from flexopt.pipeline.verdict import envelope_values
@@ -82,6 +84,7 @@ class CamStudy(CamStudyFields):
 
 def check(study: CamStudy) -> None:
     """Build the target, the cam and its plate once, so that every refusal names its key."""
+    refuse_duty_cycle(study)  # no stress that fatigues: _cam.CAM_LIFE_REFUSAL
     for name, (lo, hi) in study.design_space.items():
         if name not in CAM_VARIABLES:
             raise StudyError(
@@ -222,7 +225,7 @@ class CamProblem(DesignProblem):
     diameter limit when given.
     """
 
-    life_refusal = "a rigid cam's response has contact pressure, no peak stress of a flexure"
+    life_refusal = CAM_LIFE_REFUSAL
 
     def __init__(self, study: CamStudy) -> None:
         self.study = study

@@ -31,6 +31,7 @@ import time
 from dataclasses import replace
 from typing import Any, ClassVar, Literal
 
+import flexopt.pipeline.studies._leaf_life as leaf_life
 import flexopt.pipeline.studies._leaf_stops as leaf_stops
 import numpy as np
 from flexopt.fea.errors import FeaError
@@ -271,6 +272,7 @@ def check(study: LeafSpringJointStudy) -> None:
             except GeometryError as exc:
                 raise StudyError(f"geometry.effective_lengths_mm[{i}]", str(exc)) from exc
     leaf_stops.check(study, joints)  # with stops: sliding only, clear of every leaf
+    leaf_life.check(study)  # a duty cycle names settings the joint has
 
 
 # --------------------------------------------------------------------------------------------
@@ -377,6 +379,7 @@ def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> D
             "curves": list(curves),
         },
         diagnostics={n: r.extra for n, (_, r) in curves.items()},
+        info=leaf_life.analysis_info(study, curves),  # each curve's stress, for the life
         plot={
             "x": "deflection_deg",
             "y": f"torque_Nm_{first}",
@@ -411,7 +414,7 @@ class LeafJointProblem(DesignProblem):
 
     objective_names = ("stress_ratio",)
     constraint_names = ("min_length", "hub", "stress")
-    life_refusal = "its response has a stress per stiffness setting, no one peak_stress_MPa"
+    stress_settings = leaf_life.DESIGN_SETTINGS  # a stress per setting: pipeline.verdict
 
     def warm_up(self) -> None:
         """Load the compiled beam and constrained-beam kernels (a pool calls this before it
@@ -558,6 +561,7 @@ class LeafJointProblem(DesignProblem):
                 self.joint(x, l_max), soft, self.material, self.allowable_MPa, elements, **at_max
             ),
             **leaf_stops.summary(self.study, {"lmin": stiff, "lmax": soft}),
+            **leaf_life.design_info(self.study),  # the two settings' stress, for the life
             "allowable_stress_MPa": self.allowable_MPa,
             "safety_factor": evaluation.metrics.get("safety_factor"),
         }

@@ -485,7 +485,10 @@ class MechanismProblem(DesignProblem):
 
     def judge(self, solved: Solved) -> tuple[Verdict, ...]:
         """The requirements and the interference judged on ``solved``'s figures."""
-        judged = scoring.judge(self.requirements, solved.metrics, solved.curves_table)
+        # the life rows are the pipeline's (pipeline.verdict, with the life it computes for every
+        # kind): judged here, without the life in the metrics, they would read NOT MET
+        own = [r for r in self.requirements if r.quantity not in LIFE_QUANTITIES]
+        judged = scoring.judge(own, solved.metrics, solved.curves_table)
         clear = scoring.interference_verdict(solved.metrics, solved.clearance)
         return (*judged, stops.interference_verdict(self.study, clear))
 

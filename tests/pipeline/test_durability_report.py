@@ -181,15 +181,16 @@ def test_report_md_of_a_run_detail():
 
 def test_a_run_writes_best_json_durability_as_report_md(tmp_path):
     """flexopt run: best.json's durability, BestDesign.durability, report.md and report.html
-    tell the same record (a quick leaf-spring run; its table has no peak_stress_MPa column, so
-    the record says why the life is not computed)."""
+    tell the same record (a quick leaf-spring run; its level's 10 deg lie beyond the 5 deg the
+    design is traced to, so the record says why the life is not computed)."""
     raw = yaml.safe_load((EXAMPLES / "leaf-spring-joint.yaml").read_text("utf-8"))
-    raw["duty_cycle"] = [{"fraction": 0.5, "cycles": 1}]
+    raw["duty_cycle"] = [{"drive": 10.0, "cycles": 1}]
     raw["optimiser"] = {**raw.get("optimiser", {}), "pop_size": 4, "n_gen": 1}
     run = flexopt.run(raw, out=tmp_path / "run")
     best = json.loads((tmp_path / "run" / "best.json").read_text(encoding="utf-8"))
     assert best["durability"] == run.best.durability
     note = run.best.durability["fatigue"]["note"]
+    assert "drive 10 lies beyond the traced stroke 5" in note
     assert note in md_section((tmp_path / "run" / "report.md").read_text(encoding="utf-8"))
     text = (tmp_path / "run" / "report.html").read_text(encoding="utf-8")
     assert html.escape(note, quote=True) in text and '<a href="#durability">' in text
