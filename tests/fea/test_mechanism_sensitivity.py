@@ -15,11 +15,11 @@ from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import get_material
 from flexopt.fea.mechanism import (
     LoadCase,
+    Mechanism,
+    MechanismSettings,
     MechBeam,
     MechBody,
     MechDrive,
-    Mechanism,
-    MechanismSettings,
     MechJoint,
     MechOutput,
     solve_mechanism,
