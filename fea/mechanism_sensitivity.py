@@ -292,6 +292,15 @@ def mechanism_sensitivities(
         response = solve_mechanism(base_mech, case, outputs, st)
     base = _Built(base_mech, case, outputs, st)
     md = base.model
+    nodes = tuple(np.asarray(n, float) for n in response.reference_nodes_mm)
+    if len(nodes) != len(md.models) or any(
+        n.shape != m.reference_nodes_mm.shape or not np.allclose(n, m.reference_nodes_mm)
+        for n, m in zip(nodes, md.models, strict=False)
+    ):
+        raise FeaError(
+            "the response is not the path of mech_of(x) (another mesh or shape: a path solved "
+            "again with an imperfection?)"
+        )
     h = 1e-4 * np.maximum(np.abs(x), 1.0) if steps is None else np.asarray(steps, float)
     built: list[list[tuple[float, float, _Built]]] = []
     for i in range(n_var):
