@@ -1709,8 +1709,9 @@ def sensitivity_model(
     outputs: Sequence[MechOutput] = (),
     settings: MechanismSettings | None = None,
 ):
-    """``(model, readers)``: the meshed model of ``mech`` under ``case`` (the solver's unknowns,
-    constraint rows, assembly) and its output readers, for :mod:`fea.mechanism_sensitivity`
-    (which differentiates the converged rows with the solver's own numbering)."""
+    """``(model, readers, newton)``: the meshed model of ``mech`` under ``case`` (the solver's
+    unknowns, constraint rows, assembly), its output readers and the solver's Newton at a drive
+    value, for :mod:`fea.mechanism_sensitivity` (which differentiates the converged rows with
+    the solver's own numbering)."""
     md = _Model(mech, case, settings or MechanismSettings())
-    return md, _output_readers(md, outputs)
+    return md, _output_readers(md, outputs), _Solver(md).newton

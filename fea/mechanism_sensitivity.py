@@ -139,7 +139,7 @@ class _Built:
     """One model of the mechanism at a design: the solver's model and its output readers."""
 
     def __init__(self, mech: Mechanism, case: LoadCase, outputs, settings) -> None:
-        self.model, self.readers = sensitivity_model(mech, case, outputs, settings)
+        self.model, self.readers, self.newton = sensitivity_model(mech, case, outputs, settings)
         if self.model.has_contact:
             raise FeaError(
                 "sensitivities of a mechanism with stops or beam contact are not computed "
@@ -231,12 +231,20 @@ def _guess(md: Any, response: MechanismResponse, k: int) -> np.ndarray:
     return z
 
 
-def _polish(md: Any, z: np.ndarray, p: float, max_iterations: int = 30):
+def _polish(built: _Built, z: np.ndarray, p: float, max_iterations: int = 30):
     """Newton at drive value ``p`` from ``z`` to round-off; returns ``(z, lam, lu, count)``
-    with ``lu`` the factorised KKT matrix at the converged state."""
+    with ``lu`` the factorised KKT matrix at the converged state.
+
+    The solver's own Newton (compiled where it runs) takes the guess to its tolerance first;
+    the corrections below (scipy's sparse LU of the same KKT matrix) then take it to round-off
+    and give the factorisation: one on a row the solver's Newton converged."""
+    md = built.model
     r, _ = md.assemble(z)
     _, G, _ = md.constraints(z, p)
     lam = np.linalg.lstsq(G.T.toarray(), r - md.loads(p), rcond=None)[0]
+    ok, state, _, _, _ = built.newton(z, lam, p, None)
+    if ok:
+        z, lam = np.array(state.z, dtype=float), np.array(state.lam, dtype=float)
     count = 0
     for _ in range(max_iterations):
         J, res = _kkt(md, z, lam, p)
@@ -244,9 +252,10 @@ def _polish(md: Any, z: np.ndarray, p: float, max_iterations: int = 30):
         count += 1
         step = lu.solve(-res)
         z, lam = z + step[: md.n], lam + step[md.n :]
-        if np.abs(step[: md.n]).max() <= 1e-11 * md.length:
-            # the matrix at the state this correction (< 1e-11 L) left: its change is of
-            # that order relative, far below what a derivative needs
+        if np.abs(step[: md.n]).max() <= 1e-9 * md.length:
+            # the matrix at the state this correction (< 1e-9 L) left: its change is of that
+            # order relative, below what a derivative needs; the state is now at round-off
+            # (Newton's quadratic convergence)
             return z, lam, lu, count
     raise FeaError(f"the row at drive {p:.6g} did not polish in {max_iterations} Newton steps")
 
@@ -329,7 +338,7 @@ def mechanism_sensitivities(
     mismatch = 0.0
     for j, k in enumerate(rows_arr):
         p = float(response.drive[k])
-        z, lam, lu, count = _polish(md, _guess(md, response, int(k)), p)
+        z, lam, lu, count = _polish(base, _guess(md, response, int(k)), p)
         counts["factorisations"] += count
         rhs = np.zeros((md.n + md.m, n_var))
         for i in range(n_var):
