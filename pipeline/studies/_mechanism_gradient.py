@@ -4,8 +4,9 @@ variables (issue 27 items 1-2; :meth:`MechanismProblem.jacobian`, docs/sensitivi
 The chain:
 
 1. variables -> the solver's mechanism: :func:`design_mechanism`, the kind's own map (the
-   ``variables:`` applied to the geometry, the part as made by :func:`build_outline`, the
-   beams as made by :func:`build_mechanism`) evaluated at the stencil's designs inside
+   ``variables:`` applied to the geometry, the beams as made (:func:`as_made_beams`, the first
+   step of :func:`build_outline`), the solver's mechanism of them (:func:`build_mechanism`))
+   evaluated at the stencil's designs inside
    :func:`fea.mechanism_sensitivity.mechanism_sensitivities`: the design terms of the KKT
    system are central differences of the residual at a fixed state between models built at
    ``x +- h e_i, x +- 2 h e_i``, so whatever the variables move (thicknesses, end points, the
@@ -36,6 +37,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import logging
+import math
 import time
 from typing import Any
 
@@ -44,12 +46,12 @@ from flexopt.fea.errors import FeaError
 from flexopt.fea.mechanism import first_unstable_row
 from flexopt.fea.mechanism_sensitivity import MechanismSensitivity, mechanism_sensitivities
 from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.mechanism import BeamShape, BodyShape, as_made_beams, attachments
 from flexopt.optimise.design_jacobian import DesignJacobian
 from flexopt.pipeline.studies._mechanism_schema import (
     MechanismGeometry,
     build_load_case,
     build_mechanism,
-    build_outline,
     build_outputs,
 )
 from flexopt.pipeline.studies._mechanism_stops import with_stops
@@ -76,8 +78,20 @@ def design_mechanism(problem: Any, x: np.ndarray) -> Any:
         {"geometry": study.geometry.model_dump(mode="json", exclude_none=True)}, x
     )
     geometry = MechanismGeometry.model_validate(raw["geometry"])
-    _, outline = build_outline(geometry)
-    mech = build_mechanism(geometry, study.material.to_material(), None, outline.beams)
+    # the beams as made, as build_outline makes them (its first step), without the outline's
+    # polygons and checks (shapely: ~3/4 of its time), which the solver does not read
+    shapes = [BeamShape(n, b.centreline(), b.thickness()) for n, b in geometry.beams.items()]
+    bodies = [
+        BodyShape(n, np.array(b.outline_mm, dtype=float))
+        for n, b in geometry.bodies.items()
+        if b.outline_mm is not None
+    ]
+    joined = attachments([(j.a, j.b) for j in geometry.joints], list(geometry.bodies))
+    made = as_made_beams(
+        shapes, bodies, joined, geometry.pad_thickness_mm, geometry.fillet_mm,
+        geometry.max_corner_deg, math.inf,
+    )  # fmt: skip
+    mech = build_mechanism(geometry, study.material.to_material(), None, made)
     return with_stops(mech, study)
 
 
