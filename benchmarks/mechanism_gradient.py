@@ -66,6 +66,7 @@ def main() -> None:
         span = problem.space.upper - problem.space.lower
         cols = [central(problem, x, i, 1e-3 * span[i]) for i in range(x.size)]
         F = np.column_stack([c[0] for c in cols])
+        W = np.array([c[2][0] for c in cols])
         G = np.column_stack([c[1] for c in cols])
         worst = []
         for exact, ref in ((jac.f, F), (jac.g, G)):
@@ -73,6 +74,8 @@ def main() -> None:
                 scale = np.abs(ref[row]).max()
                 if scale > 0.0:
                     worst.append(np.abs(exact[row] - ref[row]).max() / scale)
+        if np.abs(W).max() > 0.0:
+            worst.append(np.abs(jac.info["width_gradient"] - W).max() / np.abs(W).max())
         tj, te = [], []
         for _ in range(5):
             c = time.process_time()

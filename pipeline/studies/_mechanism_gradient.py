@@ -26,7 +26,8 @@ The chain:
    the max is unique, as the optimiser's linearisation of the max it is judged by.
 
 The KS aggregate (``rho = 100 / yield``) and its gradient are in ``info`` besides the max's,
-for comparison. Not differentiated (the hook answers None; the hybrid takes forward
+for comparison, and so are the solved width and its gradient (``width_mm``, ``width_gradient``
+(n_var,) mm per unit). Not differentiated (the hook answers None; the hybrid takes forward
 differences): a study with stops or beam contact, a path that loses stability (solved again
 with an imperfection, or cut), a design that cannot be built or solved, a mesh that changes
 within the stencil (a beam without ``elements:`` whose element count follows its length).
@@ -160,8 +161,8 @@ def _shifted(response: Any, sens: MechanismSensitivity, i: int, s: float) -> Any
 def _post(
     problem: Any, x: np.ndarray, responses: dict[str, Any], extend: Any = None
 ) -> tuple[np.ndarray, ...]:
-    """(f, g) of the kind's evaluation of ``x`` with the given responses (no solve), with a
-    wrapper's rows (``extend``: Evaluation -> Evaluation) where given."""
+    """(f, g, [width_mm]) of the kind's evaluation of ``x`` with the given responses (no solve),
+    with a wrapper's rows (``extend``: Evaluation -> Evaluation) where given."""
     given = copy.copy(problem)
     given.given_responses = responses
     ev = given.evaluate(np.asarray(x, dtype=float))
@@ -169,7 +170,9 @@ def _post(
         ev = extend(ev)
     if ev.reason:
         raise FeaError(f"the evaluation of the linearised responses failed: {ev.reason}")
-    return np.asarray(ev.f, dtype=float), np.asarray(ev.g, dtype=float)
+    width = ev.metrics.get("width_mm")
+    width = np.array([float(width) if width is not None else math.nan])
+    return np.asarray(ev.f, dtype=float), np.asarray(ev.g, dtype=float), width
 
 
 def mechanism_jacobian(problem: Any, x: np.ndarray, extend: Any = None) -> DesignJacobian | None:
@@ -195,24 +198,30 @@ def mechanism_jacobian(problem: Any, x: np.ndarray, extend: Any = None) -> Desig
         log.debug("mechanism jacobian: not differentiated (%s)", exc)
         return None
     span = np.asarray(problem.space.upper, float) - np.asarray(problem.space.lower, float)
-    f0, g0 = _post(problem, x, dict(solved.responses), extend)
-    F = np.zeros((f0.size, x.size))
-    G = np.zeros((g0.size, x.size))
-    for i in range(x.size):
-        e = POST_STEP * span[i]
-        ends = []
-        for s in (e, -e):
-            xs = x.copy()
-            xs[i] += s
-            shifted = {c: _shifted(r, sens[c], i, s) for c, r in solved.responses.items()}
-            ends.append(_post(problem, xs, shifted, extend))
-        F[:, i] = (ends[0][0] - ends[1][0]) / (2 * e)
-        G[:, i] = (ends[0][1] - ends[1][1]) / (2 * e)
+    try:
+        f0, g0, w0 = _post(problem, x, dict(solved.responses), extend)
+        F = np.zeros((f0.size, x.size))
+        G = np.zeros((g0.size, x.size))
+        W = np.zeros(x.size)  # d(width_mm)/dx: the width solved from its requirement
+        for i in range(x.size):
+            e = POST_STEP * span[i]
+            ends = []
+            for s in (e, -e):
+                xs = x.copy()
+                xs[i] += s
+                shifted = {c: _shifted(r, sens[c], i, s) for c, r in solved.responses.items()}
+                ends.append(_post(problem, xs, shifted, extend))
+            F[:, i], G[:, i], W[i : i + 1] = ((a - b) / (2 * e) for a, b in zip(*ends, strict=True))
+    except (FeaError, GeometryError, ValidationError) as exc:
+        log.debug("mechanism jacobian: the linearised evaluation failed (%s)", exc)
+        return None
     info = {
         "ks_MPa": {c: s.ks_MPa for c, s in sens.items()},
         "ks_gradient": {c: s.d_ks for c, s in sens.items()},
         "rho_per_MPa": next(iter(sens.values())).rho,
         "force_mismatch": max(s.force_mismatch for s in sens.values()),
+        "width_mm": float(w0[0]),
+        "width_gradient": W,
         "cpu_s": time.process_time() - t0,
     }
     return DesignJacobian(x=x, f=F, g=G, values={"f": f0, "g": g0}, info=info)

@@ -18,17 +18,18 @@ def problem_of(name: str):
     return prepare_run(load_study(EXAMPLES / f"{name}.yaml")).problem
 
 
-def central(problem, x: np.ndarray, i: int, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Fourth-order central differences of (f, g) of ``problem.evaluate`` along variable i."""
+def central(problem, x: np.ndarray, i: int, h: float) -> tuple[np.ndarray, ...]:
+    """Fourth-order central differences of (f, g, [width_mm]) of ``problem.evaluate`` along
+    variable i."""
     ev = {}
     for s in (1, -1, 2, -2):
         xs = x.copy()
         xs[i] += s * h
         e = problem.evaluate(xs)
         assert not e.reason, e.reason
-        ev[s] = (np.asarray(e.f, float), np.asarray(e.g, float))
+        ev[s] = (np.asarray(e.f, float), np.asarray(e.g, float), np.array([e.metrics["width_mm"]]))
     return tuple(
-        (8.0 * (ev[1][k] - ev[-1][k]) - (ev[2][k] - ev[-2][k])) / (12.0 * h) for k in (0, 1)
+        (8.0 * (ev[1][k] - ev[-1][k]) - (ev[2][k] - ev[-2][k])) / (12.0 * h) for k in (0, 1, 2)
     )
 
 
@@ -48,8 +49,11 @@ def test_jacobian_against_central_differences(name):
     span = problem.space.upper - problem.space.lower
     F = np.zeros_like(jac.f)
     G = np.zeros_like(jac.g)
+    W = np.zeros(x.size)
     for i in range(x.size):
-        F[:, i], G[:, i] = central(problem, x, i, 1e-3 * span[i])
+        F[:, i], G[:, i], W[i : i + 1] = central(problem, x, i, 1e-3 * span[i])
+    # the width: solved from the stiffness (parallel-guide) or the study's own (gripper)
+    assert np.abs(jac.info["width_gradient"] - W).max() <= 1e-6 * max(np.abs(W).max(), 1e-300)
     for exact, ref in ((jac.f, F), (jac.g, G)):
         for row in range(ref.shape[0]):
             scale = np.abs(ref[row]).max()
