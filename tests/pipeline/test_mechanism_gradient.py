@@ -69,3 +69,34 @@ def test_imperfect_path_is_not_differentiated():
     differentiating another mechanism's path."""
     problem = problem_of("bistable-switch")
     assert problem.jacobian(problem.nominal_design()) is None
+
+
+def test_a_hybrid_parallel_guide_run_uses_exact_jacobians(tmp_path):
+    """The runner's problem wraps the kind's (the requirements' constraint rows): the hybrid's
+    SLSQP stage still takes the exact Jacobian (none by forward differences) and the report's
+    sensitivity section comes from it."""
+    import json
+
+    from flexopt.pipeline.parallel import ParallelSettings
+    from flexopt.pipeline.run import run_study
+    from flexopt.pipeline.study import HybridSpec
+
+    study = load_study(EXAMPLES / "parallel-guide.yaml")
+    optimiser = study.optimiser.model_copy(
+        update={
+            "method": "hybrid",
+            "hybrid": HybridSpec(ga_n_gen=1, starts=1, max_iter=2, max_evaluations=6),
+            "pop_size": 4,
+        }
+    )
+    study = study.model_copy(
+        update={
+            "optimiser": optimiser,
+            "fidelity": study.fidelity.model_copy(update={"enabled": False}),
+        }
+    )
+    run_study(prepare_run(study), out=tmp_path / "run", parallel=ParallelSettings("serial"))
+    hybrid = json.loads((tmp_path / "run" / "run.json").read_text())["hybrid"]
+    assert hybrid["jacobians"]["exact"] >= 1 and hybrid["jacobians"]["finite_differences"] == 0
+    report = (tmp_path / "run" / "report.md").read_text()
+    assert "## Sensitivity of the best design" in report and "exact derivatives" in report
