@@ -1701,3 +1701,17 @@ def stable_positions(drive: np.ndarray, reaction: np.ndarray) -> tuple[int, floa
             count += 1
             second = at if second is None else second
     return count, second
+
+
+def sensitivity_model(
+    mech: Mechanism,
+    case: LoadCase,
+    outputs: Sequence[MechOutput] = (),
+    settings: MechanismSettings | None = None,
+):
+    """``(model, readers, newton)``: the meshed model of ``mech`` under ``case`` (the solver's
+    unknowns, constraint rows, assembly), its output readers and the solver's Newton at a drive
+    value, for :mod:`fea.mechanism_sensitivity` (which differentiates the converged rows with
+    the solver's own numbering)."""
+    md = _Model(mech, case, settings or MechanismSettings())
+    return md, _output_readers(md, outputs), _Solver(md).newton

@@ -907,6 +907,12 @@ class RequirementConstraints(ProblemWrapper):
     def evaluate(self, x: np.ndarray) -> Evaluation:
         return self._extend(self.inner.evaluate(x))
 
+    def jacobian(self, x: np.ndarray) -> Any:
+        """The inner kind's exact derivatives with these rows where its hook takes them
+        (``jacobian(x, extend=)``: the mechanism kind's linearised evaluation), else None."""
+        hook = getattr(self.inner, "jacobian_extends", False)
+        return self.inner.jacobian(x, extend=self._extend) if hook else None
+
     def detail(self, x: np.ndarray) -> DesignDetail:
         from dataclasses import replace
 

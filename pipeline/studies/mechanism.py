@@ -63,6 +63,7 @@ from flexopt.pipeline.studies._mechanism_check import (
     geometry_path,
 )
 from flexopt.pipeline.studies._mechanism_fidelity import annotate, with_fidelity
+from flexopt.pipeline.studies._mechanism_gradient import mechanism_jacobian
 from flexopt.pipeline.studies._mechanism_result import (
     Solved,
     case_responses,
@@ -342,6 +343,9 @@ class MechanismProblem(DesignProblem):
     has no variables, ``flexopt evaluate`` solves it and ``flexopt run`` refuses it
     (:meth:`initial_designs`)."""
 
+    #: case -> MechanismResponse used instead of solving (the Jacobian's linearised responses)
+    given_responses: Mapping[str, Any] | None = None
+
     def warm_up(self) -> None:
         """Load the compiled beam, constrained-beam and mechanism kernels (a pool calls this
         before it forks its workers, :func:`pipeline.backends.open_backend`)."""
@@ -448,7 +452,8 @@ class MechanismProblem(DesignProblem):
         responses = {}
         for case in study.load_cases:
             try:
-                response = _solve_printed_path(study, mech, case)
+                given = self.given_responses
+                response = given[case] if given else _solve_printed_path(study, mech, case)
             except FeaError as exc:
                 return None, f"cannot solve load case {case}: {exc}"
             responses[case] = response
@@ -478,6 +483,12 @@ class MechanismProblem(DesignProblem):
             geometry, shapes, outline, width, responses, tables, metrics,
             _curves_table(study, tables), reason, clearance,
         )  # fmt: skip
+
+    jacobian_extends = True  # a wrapper's rows of the metrics join (pipeline.verdict)
+
+    def jacobian(self, x: np.ndarray, extend: Any = None) -> Any:
+        """Exact derivatives of f and g (pipeline/studies/_mechanism_gradient.py), or None."""
+        return mechanism_jacobian(self, x, extend)
 
     def verdicts(self, solved: Solved) -> tuple[Verdict, ...]:
         """:meth:`judge`, each verdict the check of the exported outline changed saying so."""
