@@ -31,12 +31,12 @@ Units: mm, MPa, rad.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse
 
-__all__ = ["beam_field", "join_members", "members_field", "section_field"]
+__all__ = ["Members", "beam_field", "join_members", "members_field", "section_field"]
 
 
 def beam_field(model: BeamModel, response: BeamResponse) -> dict[str, Any] | None:
@@ -139,24 +139,38 @@ def join_members(arrays: Sequence[np.ndarray]) -> np.ndarray:
     return np.concatenate([x for a in parts for x in (a, gap)][:-1], axis=1)
 
 
+class Members(NamedTuple):
+    """What a multi-member engine keeps of its solve for the members' fields: references to
+    arrays it has anyway (no copy, no extra solve).
+
+    models : the members' BeamModels, in the part's order.
+    shapes_mm : per member (n_rows, n_nodes_i, 2) float, mm — deformed node positions.
+    rotations_rad : per member (n_rows, n_nodes_i) float, rad — the nodes' section rotation (NaN
+        on rows that did not converge).
+    """
+
+    models: tuple[BeamModel, ...]
+    shapes_mm: tuple[np.ndarray, ...]
+    rotations_rad: tuple[np.ndarray, ...]
+
+
 def members_field(
-    models: Sequence[BeamModel],
-    shapes_mm: Sequence[np.ndarray],
-    rotations_rad: Sequence[np.ndarray],
-    width_mm: float | None = None,
-) -> dict[str, Any]:
+    members: Members | None, width_mm: float | None = None, stress_factor: float = 1.0
+) -> dict[str, Any] | None:
     """:func:`section_field` of every member of a part, joined as :func:`join_members` joins
-    their shapes (one NaN node between two members; the module docstring).
+    their shapes (one NaN node between two members; the module docstring); None without
+    ``members`` (a response that kept none).
 
     Parameters
     ----------
-    models : the members' BeamModels, in the part's order.
-    shapes_mm : per member (n_rows, n_nodes_i, 2) float, mm — deformed node positions.
-    rotations_rad : per member (n_rows, n_nodes_i) float, rad — the nodes' section rotation.
+    members : Members — the members' models, shapes and rotations.
     width_mm : float, mm, optional — the out-of-plane width of the part as made where it is not
         the width the members were solved with (a kind that rescales the width after the solve:
         its stresses under a prescribed motion do not depend on the width); default the
         members' own.
+    stress_factor : float, no unit — what the kind's verdict multiplies the beams' peak stress
+        by (a notch hinge's K_t: the notch is modelled as its equivalent beam, whose nominal
+        stress the nodes carry); kept as ``verdict_stress_factor`` when it is not 1.
 
     Returns
     -------
@@ -166,8 +180,11 @@ def members_field(
         touching each, ``s_mm`` each member's own arc length, and ``member_of_segment``
         (N - 1,) float, the member index of each segment (NaN on the separators' segments).
     """
+    if members is None:
+        return None
     fields = [
-        section_field(m, s, r) for m, s, r in zip(models, shapes_mm, rotations_rad, strict=True)
+        section_field(m, s, r)
+        for m, s, r in zip(members.models, members.shapes_mm, members.rotations_rad, strict=True)
     ]
     node_keys = ("fibre_left_MPa", "fibre_right_MPa", "equivalent_MPa")
     out: dict[str, Any] = {k: join_members([f[k] for f in fields]) for k in node_keys}
@@ -180,6 +197,8 @@ def members_field(
     )
     if width_mm is not None:
         out["width_mm"] = np.where(np.isfinite(out["width_mm"]), float(width_mm), np.nan)
+    if stress_factor != 1.0:
+        out["verdict_stress_factor"] = float(stress_factor)
     return out
 
 
@@ -188,3 +207,14 @@ def _join_segments(per_member: Sequence[np.ndarray]) -> np.ndarray:
     members the two segments to and from the separator node, NaN."""
     gap = np.full(2, np.nan)
     return np.concatenate([x for a in per_member for x in (np.asarray(a, float), gap)][:-1])
+
+
+def constrained_members(models: Sequence[BeamModel], response: Any) -> Members:
+    """The :class:`Members` of a :class:`fea.constrained_beams.ConstrainedResponse` solved with
+    the beams ``models``: their shapes as the response has them and the rotations out of its
+    states (each beam's DOFs node by node u, v, phi: a strided view, no solve)."""
+    rows = len(response.params)
+    rotations = tuple(
+        response.beam_state(i).reshape(rows, -1, 3)[..., 2] for i in range(len(models))
+    )
+    return Members(tuple(models), tuple(response.shapes_mm), rotations)
