@@ -91,6 +91,9 @@ GAP_FIELD_STEPS = (
 #: Cell data on the beam's lines of a part of several members: the member's index (0, 1, ...
 #: in the kind's order; NaN on the plane-stress triangles).
 MEMBER = "member"
+#: Point data on a mechanism's beams: the equivalent stress times a filleted root's K_t over
+#: its flare (fea/mechanism_fields.py), MPa: what the verdict reads.
+AS_MADE = "stress_as_made_MPa"
 #: Field data: what the kind's verdict multiplies the beam's largest von_mises_MPa by.
 STRESS_FACTOR_NOTE = (
     "beam: the verdict's peak_stress_MPa is the largest von_mises_MPa on the beam's points "
@@ -241,6 +244,8 @@ def vtu_mesh(result: Any) -> Any:
             field_data.update(beam_notes(bfield))
             if "member_of_segment" in bfield:
                 cell_data[MEMBER] = [bfield["member_of_segment"][keep]]
+            if "as_made_MPa" in bfield:
+                point_data[AS_MADE] = [bfield["as_made_MPa"][-1]]
     if fmap is not None:
         xy = np.asarray(fmap["points_mm"], dtype=float).reshape(-1, 2)
         tri = np.asarray(fmap["triangles"], dtype=np.int64).reshape(-1, 3)
@@ -379,7 +384,10 @@ def beam_arrays(result: Any, n_rows: int, n_nodes: int) -> dict[str, np.ndarray]
         return None
     if not ok:
         return None
-    return {k: v if k == "notes" else np.asarray(v, dtype=float) for k, v in bf.items()}
+    out = {k: v if k == "notes" else np.asarray(v, dtype=float) for k, v in bf.items()}
+    if np.shape(out.get("as_made_MPa", out["equivalent_MPa"])) != (n_rows, n_nodes):
+        out.pop("as_made_MPa")  # not the shapes' rows: left out rather than misdrawn
+    return out
 
 
 # ------------------------------------------------------------------------ load steps: best.pvd
@@ -506,6 +514,8 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
             field_data.update(beam_notes(bf))
             if "member_of_segment" in bf:
                 cell_data[MEMBER] = [bf["member_of_segment"][keep]]
+            if "as_made_MPa" in bf:
+                point_data[AS_MADE] = [bf["as_made_MPa"][row]]
         for column, data in (getattr(result, "table", None) or {}).items():
             arr = np.asarray(data)
             if arr.shape == (len(shapes),) and arr.dtype.kind in "biuf":
@@ -533,6 +543,8 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         point_data[VON_MISES].append(np.asarray(state["values"], dtype=float).reshape(-1))
         for name in (FIBRE_LEFT, FIBRE_RIGHT, THICKNESS):
             point_data[name].append(np.full(len(xy), np.nan))
+        if AS_MADE in point_data:
+            point_data[AS_MADE].append(np.full(len(xy), np.nan))
         point_data[STRESS_COUNTED].append(_counted(fmap, len(xy)))
         if state.get("drive_value") is None:  # the field's one state: its label says which
             label = str(fmap.get("label", "von Mises stress (MPa)"))
