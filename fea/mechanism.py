@@ -361,7 +361,8 @@ class MechanismResponse:
         unit amplitude, theta in rad per mm of amplitude).
     rotations_rad : tuple per beam of (rows, nodes) float, rad — the FE nodes' section rotation
         (NaN where not converged); with ``beam_models`` (the beams' BeamModels) what
-        fea/mechanism_fields.py turns into the beams' fibre stresses per node (best.vtu).
+        fea/mechanism_fields.py turns into the beams' fibre stresses per node (best.vtu), and
+        ``beam_roots_mm`` the ``MechBeam.root_mm`` (start, end) mm each beam was solved with.
     contact : fea.stops.ContactResponse, or None — with stops (``Mechanism.stops``): per row
         and stop the resultant force the stop exerts on all beams (N), the smallest gap of any
         beam (mm), in contact, the contact point; the drive value at which each gap closes
@@ -392,6 +393,7 @@ class MechanismResponse:
     critical_body_mode: np.ndarray | None = None
     rotations_rad: tuple[np.ndarray, ...] = ()
     beam_models: tuple[BeamModel, ...] = ()
+    beam_roots_mm: tuple[tuple[float, float], ...] = ()
     reference_nodes_mm: tuple[np.ndarray, ...] = ()
     contact: ContactResponse | None = None
     beam_contact: dict[str, dict[str, np.ndarray]] | None = None
@@ -1396,6 +1398,7 @@ def _trace(
         reference_nodes_mm=tuple(m.reference_nodes_mm.copy() for m in md.models),
         rotations_rad=tuple(rotations),
         beam_models=tuple(md.models),
+        beam_roots_mm=tuple((float(b.root_mm[0]), float(b.root_mm[1])) for b in mech.beams),
         contact=None if md.contacts is None else _contact(md, shapes, targets, converged),
         beam_contact=_beam_contact(md, shapes, converged) if md.pairs else None,
     )

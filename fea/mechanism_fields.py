@@ -28,18 +28,35 @@ import numpy as np
 from flexopt.fea.beam import BeamModel
 from flexopt.fea.beam_fields import Members, join_members, members_field
 
-__all__ = ["VERDICT_NOTE", "as_made_factors", "mechanism_vtu"]
+__all__ = ["VERDICT_NOTE", "as_made_factors", "mechanism_vtu", "solved_vtu"]
 
 #: What the kind's verdict reads beside the nodes' stresses (field data of best.vtu).
 VERDICT_NOTE = (
-    "stress_as_made_MPa is von_mises_MPa times a filleted root's K_t over its flare (1 "
-    "elsewhere); its largest value per load step is the verdict's peak_stress_MPa, or below it "
-    "where a plane-stress check's ratio raised that (field data: per load step: peak_stress_MPa)"
+    "stress_judged_MPa is von_mises_MPa times a filleted root's K_t over its flare, and at "
+    "least times the fidelity check's peak-stress ratio to the beam model's (1 without); its "
+    "largest value per load step is the verdict's peak_stress_MPa (field data: per load step)"
 )
 
 
+def solved_vtu(solved: Any, case: str) -> dict[str, Any]:
+    """:func:`mechanism_vtu` of load case ``case`` of the mechanism kind's solved design
+    (pipeline/studies/_mechanism_result.py ``Solved``: its ``responses``, ``width_mm``,
+    ``outline.beams`` and, with a fidelity check, the stress ratio the verdict applied to that
+    case, ``fidelity["applied"][case]["stress_ratio_reported"]``)."""
+    applied = ((getattr(solved, "fidelity", None) or {}).get("applied") or {}).get(case) or {}
+    return mechanism_vtu(
+        solved.responses[case],
+        solved.width_mm,
+        solved.outline.beams,
+        applied.get("stress_ratio_reported"),
+    )
+
+
 def mechanism_vtu(
-    response: Any, width_mm: float | None = None, made: Mapping[str, Any] | None = None
+    response: Any,
+    width_mm: float | None = None,
+    made: Mapping[str, Any] | None = None,
+    check_ratio: float | None = None,
 ) -> dict[str, Any]:
     """DesignResult keywords for best.vtu of a mechanism's load case: ``shapes_mm`` (n_rows,
     N, 2) mm, its beams joined (N = the beams' nodes plus one NaN node between two beams), and
@@ -53,6 +70,8 @@ def mechanism_vtu(
     the solve (the stresses under a prescribed motion do not depend on the width).
     ``made`` : the beams as made (``geometry.mechanism.MechanismOutline.beams``, in the
     mechanism's beam order), whose filleted ends carry a K_t; None: every factor 1.
+    ``check_ratio`` : the fidelity check's peak-stress ratio to the beam model's (no unit),
+    which the verdict applies to the beam's peak at every row where it gives more; None: none.
     """
     models = tuple(getattr(response, "beam_models", ()) or ())
     if not models:
@@ -61,29 +80,42 @@ def mechanism_vtu(
     members = Members(models, shapes, tuple(response.rotations_rad))
     field = members_field(members, width_mm)
     assert field is not None
-    factors = as_made_factors(models, made)
-    field["as_made_MPa"] = field["equivalent_MPa"] * join_members([f[None] for f in factors])[0]
+    factors = join_members(
+        [f[None] for f in as_made_factors(models, made, getattr(response, "beam_roots_mm", None))]
+    )[0]
+    if check_ratio is not None and np.isfinite(check_ratio):
+        # the verdict's fmax(as made, beam peak x ratio) per row is the largest node value of
+        # the beam stress times the larger of the two factors at each node
+        factors = np.maximum(factors, float(check_ratio))
+        field["check_stress_ratio"] = float(check_ratio)
+    field["as_made_MPa"] = field["equivalent_MPa"] * factors
     field["notes"] = (VERDICT_NOTE,)
     return {"shapes_mm": join_members(shapes), "beam_field": field}
 
 
 def as_made_factors(
-    models: Sequence[BeamModel], made: Mapping[str, Any] | None
+    models: Sequence[BeamModel],
+    made: Mapping[str, Any] | None,
+    roots_mm: Sequence[tuple[float, float]] | None = None,
 ) -> list[np.ndarray]:
     """Per beam (n_nodes_i,) the factor the kind's verdict multiplies the beam-model stress at
-    each node by (fea/mechanism_design.py ``as_made_stress``): the end's K_t at the nodes
-    within its ``root_mm`` (arc length from that end, mm) where the end is filleted, else 1.
-    The root's stress is the largest sample within root_mm (fea/mechanism.py root_stresses),
-    and the samples sit on the nodes, so the largest node value of equivalent x factor is
-    the as-made peak."""
+    each node by (fea/mechanism_design.py ``as_made_stress``): the end's K_t (``made``) at the
+    nodes within the root the solver took that end's root stress over (``roots_mm``: per beam
+    (start, end) arc length from that end, mm, as solved,
+    :attr:`fea.mechanism.MechanismResponse.beam_roots_mm`; None: the ends' ``root_mm`` as
+    made), else 1. The solver's root stress is the largest sample within the root
+    (fea/mechanism.py root_stresses) and the samples sit on the nodes, so the largest node value
+    of equivalent x factor is the as-made peak the verdict reads."""
     out = [np.ones(m.n_nodes) for m in models]
     if made is None or len(made) != len(models):
         return out
-    for f, m, beam in zip(out, models, made.values(), strict=True):
+    if not roots_mm or len(roots_mm) != len(models):
+        roots_mm = [(b.start.root_mm, b.end.root_mm) for b in made.values()]
+    for f, m, beam, root in zip(out, models, made.values(), roots_mm, strict=True):
         s = np.asarray(m.s_nodes, dtype=float)
         length = float(m.profile.length_mm)
-        start = s <= float(beam.start.root_mm) + 1e-9  # the tolerance root_stresses uses
-        end = s >= length - float(beam.end.root_mm) - 1e-9
+        start = s <= float(root[0]) + 1e-9  # the tolerance root_stresses uses
+        end = s >= length - float(root[1]) - 1e-9
         f[start] = np.maximum(f[start], float(beam.start.kt))
         f[end] = np.maximum(f[end], float(beam.end.kt))
     return out

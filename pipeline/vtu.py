@@ -91,9 +91,10 @@ GAP_FIELD_STEPS = (
 #: Cell data on the beam's lines of a part of several members: the member's index (0, 1, ...
 #: in the kind's order; NaN on the plane-stress triangles).
 MEMBER = "member"
-#: Point data on a mechanism's beams: the equivalent stress times a filleted root's K_t over
-#: its flare (fea/mechanism_fields.py), MPa: what the verdict reads.
-AS_MADE = "stress_as_made_MPa"
+#: Point data on a mechanism's beams: the equivalent stress times the factor the verdict
+#: applies there (a filleted root's K_t over its flare, at least the fidelity check's stress
+#: ratio: fea/mechanism_fields.py), MPa; per load step its largest is the verdict's figure.
+AS_MADE = "stress_judged_MPa"
 #: Field data: what the kind's verdict multiplies the beam's largest von_mises_MPa by.
 STRESS_FACTOR_NOTE = (
     "beam: the verdict's peak_stress_MPa is the largest von_mises_MPa on the beam's points "
