@@ -26,7 +26,12 @@ Where the result has them (:attr:`DesignResult.beam_field`, :func:`fea.beam_fiel
 the beam's points carry the last step's ``von_mises_MPa`` (the larger magnitude of the two
 fibre stresses), ``stress_fibre_left_MPa`` / ``stress_fibre_right_MPa`` (signed, MPa) and
 ``thickness_mm``, and its lines the cell data ``thickness_mm`` and ``width_mm`` (mm). The
-plane-stress vertices carry ``stress_counted`` (1 where the check's peak counts them).
+plane-stress vertices carry ``stress_counted`` (1 where the check's peak counts them). A part
+of several members (a pivot's leaves, a mechanism's beams: :func:`fea.beam_fields.members_field`)
+is one centreline with one separator node between two members: no line uses it (its arrays
+NaN, its point put on its neighbour so no coordinate is NaN), and the lines carry the cell data
+``member`` (the member's index). A mechanism's beams also carry ``stress_judged_MPa``
+(fea/mechanism_fields.py: the stress the verdict reads at each node).
 
 The gaps, said in the file rather than filled with invented numbers: a result without beam
 stresses leaves the beam's ``von_mises_MPa`` NaN and its lines bare centrelines; a field without
@@ -94,7 +99,7 @@ MEMBER = "member"
 #: Point data on a mechanism's beams: the equivalent stress times the factor the verdict
 #: applies there (a filleted root's K_t over its flare, at least the fidelity check's stress
 #: ratio: fea/mechanism_fields.py), MPa; per load step its largest is the verdict's figure.
-AS_MADE = "stress_judged_MPa"
+JUDGED = "stress_judged_MPa"
 #: Field data: what the kind's verdict multiplies the beam's largest von_mises_MPa by.
 STRESS_FACTOR_NOTE = (
     "beam: the verdict's peak_stress_MPa is the largest von_mises_MPa on the beam's points "
@@ -246,7 +251,7 @@ def vtu_mesh(result: Any) -> Any:
             if "member_of_segment" in bfield:
                 cell_data[MEMBER] = [bfield["member_of_segment"][keep]]
             if "as_made_MPa" in bfield:
-                point_data[AS_MADE] = [bfield["as_made_MPa"][-1]]
+                point_data[JUDGED] = [bfield["as_made_MPa"][-1]]
     if fmap is not None:
         xy = np.asarray(fmap["points_mm"], dtype=float).reshape(-1, 2)
         tri = np.asarray(fmap["triangles"], dtype=np.int64).reshape(-1, 3)
@@ -516,7 +521,7 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
             if "member_of_segment" in bf:
                 cell_data[MEMBER] = [bf["member_of_segment"][keep]]
             if "as_made_MPa" in bf:
-                point_data[AS_MADE] = [bf["as_made_MPa"][row]]
+                point_data[JUDGED] = [bf["as_made_MPa"][row]]
         for column, data in (getattr(result, "table", None) or {}).items():
             arr = np.asarray(data)
             if arr.shape == (len(shapes),) and arr.dtype.kind in "biuf":
@@ -544,8 +549,8 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         point_data[VON_MISES].append(np.asarray(state["values"], dtype=float).reshape(-1))
         for name in (FIBRE_LEFT, FIBRE_RIGHT, THICKNESS):
             point_data[name].append(np.full(len(xy), np.nan))
-        if AS_MADE in point_data:
-            point_data[AS_MADE].append(np.full(len(xy), np.nan))
+        if JUDGED in point_data:
+            point_data[JUDGED].append(np.full(len(xy), np.nan))
         point_data[STRESS_COUNTED].append(_counted(fmap, len(xy)))
         if state.get("drive_value") is None:  # the field's one state: its label says which
             label = str(fmap.get("label", "von Mises stress (MPa)"))

@@ -23,9 +23,9 @@ from flexopt.fea.beam_fields import join_members, members_field
 from flexopt.fea.materials import Material
 from flexopt.pipeline.cli import main
 from flexopt.pipeline.vtu import (
-    AS_MADE,
     FIBRE_LEFT,
     FIBRE_RIGHT,
+    JUDGED,
     MEMBER,
     STRESS_FACTOR_NOTE,
     THICKNESS,
@@ -259,7 +259,7 @@ def test_mechanism_vtu_has_each_beam_and_the_judged_peak_the_verdict_reads(
     steps = _steps(ev)
     assert len(steps) == len(table["peak_stress_MPa"])  # one load case: its rows
     np.testing.assert_allclose(
-        _row_peaks(steps, AS_MADE), table["peak_stress_MPa"], rtol=1e-9, atol=1e-9
+        _row_peaks(steps, JUDGED), table["peak_stress_MPa"], rtol=1e-9, atol=1e-9
     )
     problem = MechanismProblem(load_study(example))
     solved = problem.solve(problem.nominal_design())
