@@ -36,7 +36,14 @@ from typing import Any, NamedTuple
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse
 
-__all__ = ["Members", "beam_field", "join_members", "members_field", "section_field"]
+__all__ = [
+    "Members",
+    "beam_field",
+    "constrained_members",
+    "join_members",
+    "members_field",
+    "section_field",
+]
 
 
 def beam_field(model: BeamModel, response: BeamResponse) -> dict[str, Any] | None:
@@ -140,8 +147,8 @@ def join_members(arrays: Sequence[np.ndarray]) -> np.ndarray:
 
 
 class Members(NamedTuple):
-    """What a multi-member engine keeps of its solve for the members' fields: references to
-    arrays it has anyway (no copy, no extra solve).
+    """What a multi-member engine keeps of its solve for the members' fields: its models and
+    the shapes and rotations it has anyway (references or small copies, no extra solve).
 
     models : the members' BeamModels, in the part's order.
     shapes_mm : per member (n_rows, n_nodes_i, 2) float, mm — deformed node positions.
@@ -212,7 +219,7 @@ def _join_segments(per_member: Sequence[np.ndarray]) -> np.ndarray:
 def constrained_members(models: Sequence[BeamModel], response: Any) -> Members:
     """The :class:`Members` of a :class:`fea.constrained_beams.ConstrainedResponse` solved with
     the beams ``models``: their shapes as the response has them and the rotations out of its
-    states (each beam's DOFs node by node u, v, phi: a strided view, no solve)."""
+    states (each beam's DOFs node by node u, v, phi: a (rows, n_nodes) copy, no solve)."""
     rows = len(response.params)
     rotations = tuple(
         response.beam_state(i).reshape(rows, -1, 3)[..., 2] for i in range(len(models))
