@@ -19,25 +19,58 @@ differ (``phi'`` jumps between P2 elements), and it takes the sample of the elem
 larger equivalent stress, so that the largest equivalent stress over the nodes of a row is the
 row's ``peak_stress_MPa`` (the value the verdicts read).
 
+A part of several members (a pivot's leaves, a mechanism's beams: :func:`members_field`) is
+one centreline of the members one after another with one NaN node between two members (the
+layout of :attr:`fea.pivot.PivotResponse.shapes_mm`), so that no line joins two members; each
+member's nodes carry its own section and stresses, computed from that member's state exactly
+as for one beam, and the NaN node carries NaN.
+
 Units: mm, MPa, rad.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse
 
-__all__ = ["beam_field"]
+__all__ = [
+    "Members",
+    "beam_field",
+    "constrained_members",
+    "join_members",
+    "members_field",
+    "section_field",
+]
 
 
 def beam_field(model: BeamModel, response: BeamResponse) -> dict[str, Any] | None:
-    """The section and the fibre stresses of ``response`` (traced by ``model``) per node.
+    """The section and the fibre stresses of ``response`` (traced by ``model``) per node
+    (:func:`section_field` of its shapes and rotations); None when the response carries no
+    rotations (a stand-in response)."""
+    rotations = getattr(response, "rotations_rad", None)
+    if rotations is None:
+        return None
+    return section_field(model, response.shapes_mm, rotations)
+
+
+def section_field(
+    model: BeamModel, shapes_mm: np.ndarray, rotations_rad: np.ndarray
+) -> dict[str, Any]:
+    """The section and the fibre stresses of one beam traced by ``model`` per node.
+
+    Parameters
+    ----------
+    model : BeamModel — the beam as solved (its profile, material and mesh).
+    shapes_mm : (n_rows, n_nodes, 2) float, mm — the deformed node positions per row.
+    rotations_rad : (n_rows, n_nodes) float, rad — the nodes' section rotation per row (the
+        model's third DOF); a row with a NaN is a row that did not converge.
 
     Returns
     -------
-    dict or None (None when the response carries no rotations: a stand-in response)
+    dict
         ``s_mm`` (n_nodes,) mm, the nodes' arc length; ``thickness_mm`` (n_nodes,) mm, the
         section thickness at the nodes (the profile's, as analysed); ``segment_thickness_mm``
         (n_nodes - 1,) mm, the profile's mean thickness over each segment between consecutive
@@ -47,13 +80,10 @@ def beam_field(model: BeamModel, response: BeamResponse) -> dict[str, Any] | Non
         signed outer-fibre stresses and the equivalent stress (see the module docstring), NaN on
         rows that did not converge.
     """
-    rotations = getattr(response, "rotations_rad", None)
-    if rotations is None:
-        return None
     profile = model.profile
     tab = model.tables
-    shapes = np.asarray(response.shapes_mm, dtype=float)  # (R, N, 2)
-    rotations = np.asarray(rotations, dtype=float)  # (R, N)
+    shapes = np.asarray(shapes_mm, dtype=float)  # (R, N, 2)
+    rotations = np.asarray(rotations_rad, dtype=float)  # (R, N)
     n_rows, n_nodes = rotations.shape
     n_el = model.n_elements
     E = float(model.material.E_MPa)
@@ -103,3 +133,95 @@ def beam_field(model: BeamModel, response: BeamResponse) -> dict[str, Any] | Non
         "fibre_right_MPa": right,
         "equivalent_MPa": np.maximum(np.abs(left), np.abs(right)),
     }
+
+
+def join_members(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """Per-member node arrays joined along the node axis (axis 1) with one NaN node between two
+    members (the layout of :attr:`fea.pivot.PivotResponse.shapes_mm`).
+
+    ``arrays``: one per member, each (n_rows, n_nodes_i, ...) (the trailing axes alike); returns
+    (n_rows, sum(n_nodes_i) + n_members - 1, ...) float."""
+    parts = [np.asarray(a, dtype=float) for a in arrays]
+    gap = np.full((parts[0].shape[0], 1, *parts[0].shape[2:]), np.nan)
+    return np.concatenate([x for a in parts for x in (a, gap)][:-1], axis=1)
+
+
+class Members(NamedTuple):
+    """What a multi-member engine keeps of its solve for the members' fields: its models and
+    the shapes and rotations it has anyway (references or small copies, no extra solve).
+
+    models : the members' BeamModels, in the part's order.
+    shapes_mm : per member (n_rows, n_nodes_i, 2) float, mm — deformed node positions.
+    rotations_rad : per member (n_rows, n_nodes_i) float, rad — the nodes' section rotation (NaN
+        on rows that did not converge).
+    """
+
+    models: tuple[BeamModel, ...]
+    shapes_mm: tuple[np.ndarray, ...]
+    rotations_rad: tuple[np.ndarray, ...]
+
+
+def members_field(
+    members: Members | None, width_mm: float | None = None, stress_factor: float = 1.0
+) -> dict[str, Any] | None:
+    """:func:`section_field` of every member of a part, joined as :func:`join_members` joins
+    their shapes (one NaN node between two members; the module docstring); None without
+    ``members`` (a response that kept none).
+
+    Parameters
+    ----------
+    members : Members — the members' models, shapes and rotations.
+    width_mm : float, mm, optional — the out-of-plane width of the part as made where it is not
+        the width the members were solved with (a kind that rescales the width after the solve:
+        its stresses under a prescribed motion do not depend on the width); default the
+        members' own.
+    stress_factor : float, no unit — what the kind's verdict multiplies the beams' peak stress
+        by (a notch hinge's K_t: the notch is modelled as its equivalent beam, whose nominal
+        stress the nodes carry); kept as ``verdict_stress_factor`` when it is not 1.
+
+    Returns
+    -------
+    dict
+        the keys of :func:`section_field` over the joined nodes (N = sum(n_nodes_i) +
+        n_members - 1; segments N - 1), NaN at the separator nodes and on the two segments
+        touching each, ``s_mm`` each member's own arc length, and ``member_of_segment``
+        (N - 1,) float, the member index of each segment (NaN on the separators' segments).
+    """
+    if members is None:
+        return None
+    fields = [
+        section_field(m, s, r)
+        for m, s, r in zip(members.models, members.shapes_mm, members.rotations_rad, strict=True)
+    ]
+    node_keys = ("fibre_left_MPa", "fibre_right_MPa", "equivalent_MPa")
+    out: dict[str, Any] = {k: join_members([f[k] for f in fields]) for k in node_keys}
+    for key in ("s_mm", "thickness_mm"):
+        out[key] = join_members([f[key][None] for f in fields])[0]
+    for key in ("segment_thickness_mm", "width_mm"):
+        out[key] = _join_segments([f[key] for f in fields])
+    out["member_of_segment"] = _join_segments(
+        [np.full(len(f["width_mm"]), float(i)) for i, f in enumerate(fields)]
+    )
+    if width_mm is not None:
+        out["width_mm"] = np.where(np.isfinite(out["width_mm"]), float(width_mm), np.nan)
+    if stress_factor != 1.0:
+        out["verdict_stress_factor"] = float(stress_factor)
+    return out
+
+
+def _join_segments(per_member: Sequence[np.ndarray]) -> np.ndarray:
+    """Per-member segment arrays (n_nodes_i - 1,) joined as the members' nodes are: between two
+    members the two segments to and from the separator node, NaN."""
+    gap = np.full(2, np.nan)
+    return np.concatenate([x for a in per_member for x in (np.asarray(a, float), gap)][:-1])
+
+
+def constrained_members(models: Sequence[BeamModel], response: Any) -> Members:
+    """The :class:`Members` of a :class:`fea.constrained_beams.ConstrainedResponse` solved with
+    the beams ``models``: their shapes as the response has them and the rotations out of its
+    states (each beam's DOFs node by node u, v, phi: a (rows, n_nodes) copy, no solve)."""
+    rows = len(response.params)
+    rotations = tuple(
+        response.beam_state(i).reshape(rows, -1, 3)[..., 2] for i in range(len(models))
+    )
+    return Members(tuple(models), tuple(response.shapes_mm), rotations)

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 from flexopt.fea.beam import BeamModel, BeamSettings
+from flexopt.fea.beam_fields import Members, constrained_members
 from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedResponse
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
@@ -85,6 +86,12 @@ class JointResponse:
     contact : fea.stops.ContactResponse or None — sliding structure with rigid stops
         (``sliding_response(stops=)``): the stops' forces on the leaf (N), gaps (mm) and the
         deflection (rad) at which each closes; None without stops.
+    members : fea.beam_fields.Members or None — the leaf's model, its solved shapes and node
+        rotations per row, for its section and fibre stresses (best.vtu); for the fixed
+        structure the leaf at its rest length l, as solved, before the scaling by s / l.
+    members_scale : (rows,) float or None — fixed structure: s / l per row (the solved leaf's
+        shape scaled by it is ``shapes_mm``, its stresses divided by it ``peak_stress_MPa``);
+        None for the sliding structure (no scaling).
     """
 
     structure: str
@@ -105,6 +112,8 @@ class JointResponse:
     solve_time_s: float
     extra: dict = field(default_factory=dict)
     contact: ContactResponse | None = None
+    members: Members | None = None
+    members_scale: np.ndarray | None = None
 
 
 def linear_joint_stiffness_Nmm(joint: LeafJoint, E_MPa: float) -> float:
@@ -226,6 +235,7 @@ def sliding_response(
     )
     force = res.multipliers[:, 3]
     torque = joint.n_leaves * force * r
+    members = constrained_members(system.beams, res)  # best.vtu's section and stresses
     return _response(
         "sliding",
         joint,
@@ -243,6 +253,7 @@ def sliding_response(
         t0,
         {"newton_iterations": int(res.iterations.sum())},
         res.contact,
+        members,
     )
 
 
@@ -324,6 +335,10 @@ def fixed_response(
         "tip": np.full((rows, 2), np.nan),
         "stress": np.full(rows, np.nan),
         "shapes": np.full((rows, n_nodes, 2), np.nan),
+        # the solved leaf at rest length before the scaling (best.vtu's stresses)
+        "solved": np.full((rows, n_nodes, 2), np.nan),
+        "rotations": np.full((rows, n_nodes), np.nan),
+        "scale": np.full(rows, np.nan),
     }
     converged = np.zeros(rows, dtype=bool)
     message = ""
@@ -352,6 +367,9 @@ def fixed_response(
         # the same shape scaled by s/l: curvature (bending stress) scales by l/s
         out["stress"][k] = float(res.peak_stress_MPa[-1, 0]) / scale
         out["shapes"][k] = res.shapes_mm[0][-1] * scale
+        out["solved"][k] = res.shapes_mm[0][-1]
+        out["rotations"][k] = res.beam_state(0)[-1, 2::3]
+        out["scale"][k] = scale
         converged[k] = True
 
     record(0, current, 0.0)
@@ -411,6 +429,8 @@ def fixed_response(
         linear_stiffness_Nmm_per_rad=linear_joint_stiffness_Nmm(joint, material.E_MPa),
         solve_time_s=time.perf_counter() - t0,
         extra={"newton_iterations": iterations},
+        members=Members((system.beams[0],), (out["solved"],), (out["rotations"],)),
+        members_scale=out["scale"],
     )
 
 
@@ -467,6 +487,7 @@ def _response(
     t0: float,
     extra: dict,
     contact: ContactResponse | None = None,
+    members: Members | None = None,
 ) -> JointResponse:
     return JointResponse(
         structure=structure,
@@ -487,6 +508,7 @@ def _response(
         solve_time_s=time.perf_counter() - t0,
         extra=extra,
         contact=contact,
+        members=members,
     )
 
 

@@ -359,6 +359,10 @@ class MechanismResponse:
         positions (where ``shapes_mm`` and ``critical_mode`` are given).
     critical_body_mode : (n_bodies, 3) float, or None — the same mode's body motion (U, V per
         unit amplitude, theta in rad per mm of amplitude).
+    rotations_rad : tuple per beam of (rows, nodes) float, rad — the FE nodes' section rotation
+        (NaN where not converged); with ``beam_models`` (the beams' BeamModels) what
+        fea/mechanism_fields.py turns into the beams' fibre stresses per node (best.vtu), and
+        ``beam_roots_mm`` the ``MechBeam.root_mm`` (start, end) mm each beam was solved with.
     contact : fea.stops.ContactResponse, or None — with stops (``Mechanism.stops``): per row
         and stop the resultant force the stop exerts on all beams (N), the smallest gap of any
         beam (mm), in contact, the contact point; the drive value at which each gap closes
@@ -387,6 +391,9 @@ class MechanismResponse:
     root_stress_MPa: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
     critical_mode: tuple[np.ndarray, ...] | None = None
     critical_body_mode: np.ndarray | None = None
+    rotations_rad: tuple[np.ndarray, ...] = ()
+    beam_models: tuple[BeamModel, ...] = ()
+    beam_roots_mm: tuple[tuple[float, float], ...] = ()
     reference_nodes_mm: tuple[np.ndarray, ...] = ()
     contact: ContactResponse | None = None
     beam_contact: dict[str, dict[str, np.ndarray]] | None = None
@@ -1360,10 +1367,12 @@ def _trace(
         v[~converged] = np.nan
     shapes = []
     thick = []
+    rotations = []  # with the models: the beams' fibre stresses per node (best.vtu)
     body_poses = np.full((n_rows, len(mech.bodies), 3), np.nan)
     for i, m in enumerate(md.models):
         q = Z[:, md.offsets[i] : md.offsets[i + 1]].reshape(n_rows, -1, 3)
         shapes.append(m.reference_nodes_mm[None] + q[:, :, :2])
+        rotations.append(q[:, :, 2])
         thick.append(np.interp(m.s_nodes, m.profile.arc_length_mm, m.profile.thickness_mm))
     for k in range(len(mech.bodies)):
         base = md.n_beam_dofs + 3 * k
@@ -1387,6 +1396,9 @@ def _trace(
         critical_mode=mode,
         critical_body_mode=body_mode,
         reference_nodes_mm=tuple(m.reference_nodes_mm.copy() for m in md.models),
+        rotations_rad=tuple(rotations),
+        beam_models=tuple(md.models),
+        beam_roots_mm=tuple((float(b.root_mm[0]), float(b.root_mm[1])) for b in mech.beams),
         contact=None if md.contacts is None else _contact(md, shapes, targets, converged),
         beam_contact=_beam_contact(md, shapes, converged) if md.pairs else None,
     )

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamSettings
+from flexopt.fea.beam_fields import Members, constrained_members
 from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedSettings
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
@@ -82,6 +83,8 @@ class PivotResponse:
     field : dict or None — plane stress: the mesh and, under ``steps``, every converged row's
         von Mises and displacement (:func:`fea.plane_stress_fields.state_field`; ``drive_value``
         in rad; the last is the range of motion); None for the beam model.
+    members : fea.beam_fields.Members or None — beam model: the members' models, shapes and
+        rotations per row, for their section and fibre stresses (best.vtu); None for plane stress.
     """
 
     rotation_rad: np.ndarray
@@ -102,6 +105,7 @@ class PivotResponse:
     stable: np.ndarray | None = None
     contact: ContactResponse | None = None
     field: dict | None = None
+    members: Members | None = None
 
 
 def tangent_stiffness(angle_rad: np.ndarray, torque_Nmm: np.ndarray) -> np.ndarray:
@@ -235,6 +239,7 @@ def beam_pivot(
         ok=res.ok,
         message=res.message,
         model="beam",
+        members=constrained_members(system.beams, res),  # best.vtu's section and stresses
         stable=res.stable,
         contact=res.contact,
         solve_time_s=time.perf_counter() - t0,

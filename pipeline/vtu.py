@@ -26,7 +26,12 @@ Where the result has them (:attr:`DesignResult.beam_field`, :func:`fea.beam_fiel
 the beam's points carry the last step's ``von_mises_MPa`` (the larger magnitude of the two
 fibre stresses), ``stress_fibre_left_MPa`` / ``stress_fibre_right_MPa`` (signed, MPa) and
 ``thickness_mm``, and its lines the cell data ``thickness_mm`` and ``width_mm`` (mm). The
-plane-stress vertices carry ``stress_counted`` (1 where the check's peak counts them).
+plane-stress vertices carry ``stress_counted`` (1 where the check's peak counts them). A part
+of several members (a pivot's leaves, a mechanism's beams: :func:`fea.beam_fields.members_field`)
+is one centreline with one separator node between two members: no line uses it (its arrays
+NaN, its point put on its neighbour so no coordinate is NaN), and the lines carry the cell data
+``member`` (the member's index). A mechanism's beams also carry ``stress_judged_MPa``
+(fea/mechanism_fields.py: the stress the verdict reads at each node).
 
 The gaps, said in the file rather than filled with invented numbers: a result without beam
 stresses leaves the beam's ``von_mises_MPa`` NaN and its lines bare centrelines; a field without
@@ -87,6 +92,18 @@ GAP_FIELD_DISPLACEMENT = (
 GAP_FIELD_STEPS = (
     "gap: the plane-stress field is one state (its label says which); the beam's per-step "
     "displacement arrays are NaN on the triangles' points, displacement_mm holds that state"
+)
+#: Cell data on the beam's lines of a part of several members: the member's index (0, 1, ...
+#: in the kind's order; NaN on the plane-stress triangles).
+MEMBER = "member"
+#: Point data on a mechanism's beams: the equivalent stress times the factor the verdict
+#: applies there (a filleted root's K_t over its flare, at least the fidelity check's stress
+#: ratio: fea/mechanism_fields.py), MPa; per load step its largest is the verdict's figure.
+JUDGED = "stress_judged_MPa"
+#: Field data: what the kind's verdict multiplies the beam's largest von_mises_MPa by.
+STRESS_FACTOR_NOTE = (
+    "beam: the verdict's peak_stress_MPa is the largest von_mises_MPa on the beam's points "
+    "times this factor (a notch hinge's K_t: the nodes carry its equivalent beam's nominal stress)"
 )
 GAP_SECTION = "gap: beam thickness and width not in the result; lines are bare centrelines"
 SOLID_NOTE = (
@@ -208,14 +225,13 @@ def vtu_mesh(result: Any) -> Any:
     n_beam = 0
     if shapes is not None:
         n_rows, n_beam = shapes.shape[:2]
-        ref = shapes[0]
+        ref, lines, keep = beam_points(shapes)
         points.append(np.column_stack([ref, np.zeros(n_beam)]))
-        lines, keep = beam_lines(ref)
         cells.append(("line", lines))
         model.append(np.full(len(lines), MODELS["beam"], dtype=np.int32))
         drive, values = _drive(result, n_rows)
         disp = np.zeros((n_rows, n_beam, 3))
-        disp[:, :, :2] = shapes - ref
+        disp[:, :, :2] = np.where(separators(shapes)[None, :, None], 0.0, shapes - ref)
         for k in range(n_rows):
             name = step_name(k, drive, None if values is None else float(values[k]))
             point_data[name] = [disp[k]]
@@ -241,6 +257,11 @@ def vtu_mesh(result: Any) -> Any:
             cell_data[THICKNESS] = [bfield["segment_thickness_mm"][keep]]
             cell_data[WIDTH] = [bfield["width_mm"][keep]]
             field_data[BEAM_STRESS_NOTE] = np.zeros(1)
+            field_data.update(beam_notes(bfield))
+            if "member_of_segment" in bfield:
+                cell_data[MEMBER] = [bfield["member_of_segment"][keep]]
+            if "as_made_MPa" in bfield:
+                point_data[JUDGED] = [bfield["as_made_MPa"][-1]]
     if fmap is not None:
         xy = np.asarray(fmap["points_mm"], dtype=float).reshape(-1, 2)
         tri = np.asarray(fmap["triangles"], dtype=np.int64).reshape(-1, 3)
@@ -336,6 +357,37 @@ def beam_lines(ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.column_stack([keep, keep + 1]), keep
 
 
+def separators(shapes: np.ndarray) -> np.ndarray:
+    """(n,) bool: the nodes of ``shapes`` (n_rows, n, 2) mm that are NaN in every row, the NaN
+    node between two members of a multi-member part (fea/beam_fields.py)."""
+    return ~np.isfinite(shapes).any(axis=(0, 2))
+
+
+def beam_points(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The beam's points, line cells and kept segments of ``shapes`` (n_rows, n, 2) mm: the
+    points are row 0's nodes (n, 2) mm, a separator node (:func:`separators`) placed on its
+    neighbour (no cell uses it; a NaN coordinate would spoil a reader's bounds, as ParaView's
+    camera reset), and the lines are :func:`beam_lines` of row 0."""
+    ref = np.array(shapes[0], dtype=float)
+    lines, keep = beam_lines(ref)
+    sep = np.flatnonzero(separators(shapes))
+    for i in sep:  # the node before it, or after it at the start (a separator is never last)
+        j = i - 1 if i > 0 else i + 1
+        ref[i] = ref[j] if np.all(np.isfinite(ref[j])) else 0.0
+    return ref, lines, keep
+
+
+def beam_notes(bfield: dict[str, Any]) -> dict[str, np.ndarray]:
+    """Field data a beam field adds: its ``verdict_stress_factor`` (:data:`STRESS_FACTOR_NOTE`)
+    and its ``notes`` (each a text, as an array's name)."""
+    out: dict[str, np.ndarray] = {}
+    if "verdict_stress_factor" in bfield:
+        out[STRESS_FACTOR_NOTE] = np.atleast_1d(np.asarray(bfield["verdict_stress_factor"], float))
+    for note in bfield.get("notes", ()):
+        out[f"beam: {note}"] = np.zeros(1)
+    return out
+
+
 def beam_arrays(result: Any, n_rows: int, n_nodes: int) -> dict[str, np.ndarray] | None:
     """``result.beam_field`` (:func:`fea.beam_fields.beam_field`) when it fits the result's
     shapes (n_rows rows of n_nodes nodes), else None (said as gaps in the file)."""
@@ -348,7 +400,12 @@ def beam_arrays(result: Any, n_rows: int, n_nodes: int) -> dict[str, np.ndarray]
         ) == (n_nodes,)
     except KeyError:
         return None
-    return {k: np.asarray(v, dtype=float) for k, v in bf.items()} if ok else None
+    if not ok:
+        return None
+    out = {k: v if k == "notes" else np.asarray(v, dtype=float) for k, v in bf.items()}
+    if np.shape(out.get("as_made_MPa", out["equivalent_MPa"])) != (n_rows, n_nodes):
+        out.pop("as_made_MPa")  # not the shapes' rows: left out rather than misdrawn
+    return out
 
 
 # ------------------------------------------------------------------------ load steps: best.pvd
@@ -446,14 +503,13 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
     row = step["row"]
     if row is not None:
         shapes = np.asarray(shapes, dtype=float)
-        ref = shapes[0]
+        ref, lines, keep = beam_points(shapes)
         nb = len(ref)
-        lines, keep = beam_lines(ref)
         points.append(np.column_stack([ref, np.zeros(nb)]))
         cells.append(("line", lines))
         cell_data[MODEL].append(np.full(len(lines), MODELS["beam"], dtype=np.int32))
         disp = np.zeros((nb, 3))
-        disp[:, :2] = shapes[row] - ref
+        disp[:, :2] = np.where(separators(shapes)[:, None], 0.0, shapes[row] - ref)
         point_data[DISPLACEMENT].append(disp)
         bf = beam_arrays(result, len(shapes), nb)
         nan = np.full(nb, np.nan)
@@ -473,6 +529,11 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
             cell_data[THICKNESS].append(bf["segment_thickness_mm"][keep])
             cell_data[WIDTH].append(bf["width_mm"][keep])
             field_data[BEAM_STRESS_NOTE] = np.zeros(1)
+            field_data.update(beam_notes(bf))
+            if "member_of_segment" in bf:
+                cell_data[MEMBER] = [bf["member_of_segment"][keep]]
+            if "as_made_MPa" in bf:
+                point_data[JUDGED] = [bf["as_made_MPa"][row]]
         for column, data in (getattr(result, "table", None) or {}).items():
             arr = np.asarray(data)
             if arr.shape == (len(shapes),) and arr.dtype.kind in "biuf":
@@ -487,6 +548,8 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         cell_data[MODEL].append(np.full(len(tri), MODELS["plane_stress"], dtype=np.int32))
         cell_data[THICKNESS].append(np.full(len(tri), np.nan))
         cell_data[WIDTH].append(np.full(len(tri), np.nan))
+        if MEMBER in cell_data:
+            cell_data[MEMBER].append(np.full(len(tri), np.nan))
         u = state.get("displacement_mm")
         u = None if u is None else np.asarray(u, dtype=float).reshape(-1, 2)
         disp = np.full((len(xy), 3), np.nan)
@@ -498,6 +561,8 @@ def step_mesh(result: Any, step: dict[str, Any], k: int) -> Any:
         point_data[VON_MISES].append(np.asarray(state["values"], dtype=float).reshape(-1))
         for name in (FIBRE_LEFT, FIBRE_RIGHT, THICKNESS):
             point_data[name].append(np.full(len(xy), np.nan))
+        if JUDGED in point_data:
+            point_data[JUDGED].append(np.full(len(xy), np.nan))
         point_data[STRESS_COUNTED].append(_counted(fmap, len(xy)))
         if state.get("drive_value") is None:  # the field's one state: its label says which
             label = str(fmap.get("label", "von Mises stress (MPa)"))

@@ -36,6 +36,7 @@ from typing import Any, ClassVar, Literal
 
 import flexopt.pipeline.studies._pivot_stops as pivot_stops
 import numpy as np
+from flexopt.fea.beam_fields import members_field
 from flexopt.fea.closed_forms import pivot_closed_form
 from flexopt.fea.flexure_design import (
     BEAM_TYPES,
@@ -514,6 +515,7 @@ class FlexurePivotProblem(DesignProblem):
             height_mm=flex.width_mm if flex.is_planar else None,
             info=info,
             field_map=field_map,  # stress_deformed.png, report.html's stress view, best.vtu
+            beam_field=members_field(res.members, stress_factor=cf.stress_concentration),
         )
 
     def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
@@ -574,6 +576,7 @@ class FlexurePivotProblem(DesignProblem):
             },
             diagnostics=dict(detail.info["beam"]),
             field_map=detail.field_map,  # its plane-stress field (stress_deformed.png, VTU)
+            **{"shapes_mm": detail.shapes_mm, "beam_field": detail.beam_field},  # design.vtu
             plot={
                 "x": "rotation_deg",
                 "y": "torque_Nmm",

@@ -493,6 +493,8 @@ def _with_requirement(
             "stress_yield_ratio",
         ),
         files={"constant-force.yaml": study_to_yaml(resolved, header).encode("utf-8")},
+        # the beam's design.vtu (section, fibre stresses) and its plane-stress check's field
+        **{k: getattr(beam, k) for k in ("shapes_mm", "beam_field", "field_map")},
     )
 
 

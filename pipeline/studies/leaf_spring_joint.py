@@ -42,6 +42,7 @@ from flexopt.fea.leaf_joint import (
     length_range_mm,
     linear_joint_stiffness_Nmm,
 )
+from flexopt.fea.leaf_joint_fields import critical_curve_vtu, joint_vtu
 from flexopt.fea.materials import Material, material_yield_MPa
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.leaf_joint import LeafJoint
@@ -380,6 +381,7 @@ def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> D
         },
         diagnostics={n: r.extra for n, (_, r) in curves.items()},
         info=leaf_life.analysis_info(study, curves),  # each curve's stress, for the life
+        **critical_curve_vtu(curves),  # design.vtu: the critical curve's leaf and stresses
         plot={
             "x": "deflection_deg",
             "y": f"torque_Nm_{first}",
@@ -587,10 +589,10 @@ class LeafJointProblem(DesignProblem):
             evaluation=evaluation,
             table=table,
             plot=plot,
-            shapes_mm=stiff.shapes_mm,
             outline=outline,
             height_mm=float(x[2]),
             info=info,
+            **joint_vtu(stiff, "the leaf at l_min (the table's stress_MPa_lmin per load step)"),
         )
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from flexopt.fea import mechanism_design as design
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
+from flexopt.fea.mechanism_fields import solved_vtu
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.mechanism import AsMadeBeam, MechanismOutline
 from flexopt.optimise import mechanism_objectives as scoring
@@ -562,6 +563,7 @@ class MechanismProblem(DesignProblem):
             files=design_files(self.study, solved),
             cases=case_responses(self.study, solved, self.material, self.requirements),
             verdicts=verdicts,
+            **solved_vtu(solved, first),  # best.vtu: the beams' sections and stresses
         )
 
     def result(self, x: np.ndarray, repeat: int = 1) -> DesignResult:
@@ -618,6 +620,7 @@ class MechanismProblem(DesignProblem):
             files=design_files(self.study, solved),
             cases=case_responses(self.study, solved, self.material, self.requirements),
             verdicts=verdicts,
+            **solved_vtu(solved, first),  # best.vtu: the beams' sections and stresses
         )
 
 

@@ -26,6 +26,7 @@ from typing import Annotated, ClassVar, Literal
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
+from flexopt.fea.beam_fields import beam_field
 from flexopt.fea.beam_response import (
     contact_summary,
     response_table,
@@ -460,6 +461,8 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
             *(_CONTACT_HEADLINE[drive.control] if stops else ()),
         ),
         files=files,
+        # design.vtu: the centreline per step with its section and fibre stresses
+        **{"shapes_mm": response.shapes_mm, "beam_field": beam_field(model, response)},
     )
 
 
