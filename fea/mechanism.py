@@ -570,7 +570,10 @@ class _Model:
                     )
         #: declared beam-beam contact pairs: (index of a, index of b, the pair's terms)
         self.pairs: list[tuple[int, int, BeamPairContact]] = []
+        rigid_pairs = [p for p in mech.beam_contacts if _rigid_pair(p, self.body_index)]
         for a_name, b_name in mech.beam_contacts:
+            if (a_name, b_name) in rigid_pairs:
+                continue  # a body, or a beam with itself: fea.body_contact
             ia, ib = (self._beam_of_pair(nm, a_name, b_name) for nm in (a_name, b_name))
             if ia == ib:
                 raise FeaError(f"beam contact [{a_name}, {b_name}]: a beam with itself")
@@ -585,6 +588,8 @@ class _Model:
                     f"{-gap0:.4g} mm (joined, or crossing); declare only beams that are apart"
                 )
             self.pairs.append((ia, ib, pair))
+        #: the bodies' contact (stops, declared pairs) and self contact (None: none declared)
+        self.rigid = _rigid_contacts(self, mech, rigid_pairs, settings)
 
         self.rows = _Rows()
         self.groups: list[_Group] = []
@@ -793,7 +798,7 @@ class _Model:
             ri, ab = m.assemble(z[a:b], frame, contact)
             r[a:b] = ri
             vals.append(ab[BAND:][self._band_src[i]])
-        if not self.pairs:
+        if not self.pairs and self.rigid is None:
             K = sp.coo_matrix(
                 (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
             )
@@ -809,6 +814,8 @@ class _Model:
                 rows.append(np.repeat(dofs, dofs.size))
                 cols.append(np.tile(dofs, dofs.size))
                 vals.append(kt.ravel())
+        if self.rigid is not None:
+            self.rigid.add(z, r, rows, cols, vals)
         K = sp.coo_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
             shape=(self.n, self.n),
@@ -828,12 +835,13 @@ class _Model:
     @property
     def has_contact(self) -> bool:
         """Stops or declared beam pairs: Python contact terms (the reference loop runs)."""
-        return self.contacts is not None or bool(self.pairs)
+        return self.contacts is not None or bool(self.pairs) or self.rigid is not None
 
     def contact_active(self) -> tuple:
         """The contact pairs acting in the last :meth:`assemble`, per beam (() without stops)."""
         stops = () if self.contacts is None else tuple(c.active for c in self.contacts)
-        return stops + tuple(p.active for _, _, p in self.pairs)
+        rigid = () if self.rigid is None else (self.rigid.active,)
+        return stops + tuple(p.active for _, _, p in self.pairs) + rigid
 
     def hessian(self, K: sp.spmatrix, lam: np.ndarray, ro: np.ndarray) -> sp.csr_matrix:
         """Hessian of the Lagrangian, H = K - sum_i lam_i d2g_i/dz2 (N, N)."""
@@ -1387,17 +1395,17 @@ def _trace(
         critical_mode=mode,
         critical_body_mode=body_mode,
         reference_nodes_mm=tuple(m.reference_nodes_mm.copy() for m in md.models),
-        contact=None if md.contacts is None else _contact(md, shapes, targets, converged),
-        beam_contact=_beam_contact(md, shapes, converged) if md.pairs else None,
+        contact=None if md.contacts is None else _contact(md, shapes, targets, converged, Z),
+        beam_contact=_beam_contact(md, shapes, converged, Z) if md.mech.beam_contacts else None,
     )
 
 
 def _beam_contact(
-    md: _Model, shapes: list[np.ndarray], converged: np.ndarray
+    md: _Model, shapes: list[np.ndarray], converged: np.ndarray, Z: np.ndarray
 ) -> dict[str, dict[str, np.ndarray]]:
-    """Per declared pair the force on beam a (N), the smallest gap (mm) and in contact at every
-    converged row (``shapes`` per beam (rows, nodes, 2) mm)."""
-    out = {}
+    """Per declared pair the force on part a (N), the smallest gap (mm) and in contact at every
+    converged row (``shapes`` per beam (rows, nodes, 2) mm, ``Z`` (rows, N) the states)."""
+    out = {} if md.rigid is None else md.rigid.pair_rows(Z, converged)
     rows = converged.shape[0]
     for ia, ib, pair in md.pairs:
         force, gap = np.full(rows, np.nan), np.full(rows, np.nan)
@@ -1408,13 +1416,35 @@ def _beam_contact(
 
 
 def _contact(
-    md: _Model, shapes: list[np.ndarray], drive: np.ndarray, converged: np.ndarray
+    md: _Model, shapes: list[np.ndarray], drive: np.ndarray, converged: np.ndarray, Z: np.ndarray
 ) -> ContactResponse:
     """The stops' forces, gaps and contact points at every converged row, over all beams
     (:func:`fea.stops.contact_over_beams`); ``shapes`` per beam (rows, nodes, 2) mm, ``drive``
     (rows,) the drive values."""
     assert md.contacts is not None
-    return contact_over_beams(md.contacts, shapes, drive, converged)
+    bodies = None if md.rigid is None or not md.rigid.movable else md.rigid.stop_rows(Z, converged)
+    return contact_over_beams(md.contacts, shapes, drive, converged, bodies)
+
+
+def _rigid_pair(pair: tuple[str, str], bodies: dict[str, int]) -> bool:
+    """A declared contact pair naming a body, or one beam twice (fea.body_contact's)."""
+    return pair[0] == pair[1] or pair[0] in bodies or pair[1] in bodies
+
+
+def _rigid_contacts(md: _Model, mech: Mechanism, pairs: list, st: MechanismSettings):
+    """fea.body_contact.MechanismContacts of the bodies with outlines against the stops and of
+    the declared pairs with a body or a beam's self contact; None when there are none."""
+    outlined = any(b.outline_mm is not None for b in mech.bodies)
+    if not pairs and not (mech.stops and outlined):
+        return None
+    from flexopt.fea.body_contact import MechanismContacts
+
+    grounded = {j.a for j in mech.joints if j.b == _GROUND and j.type == "clamped"}
+    names = [b.name for b in mech.beams]
+    return MechanismContacts(
+        md.models, md.offsets, mech.bodies, md.n_beam_dofs, mech.stops, pairs, grounded,
+        st.contact, names,
+    )  # fmt: skip
 
 
 def _critical_mode(
