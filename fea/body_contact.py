@@ -214,6 +214,7 @@ class MechanismContacts:
         self.models = list(models)
         self.offsets = np.asarray(offsets, dtype=int)
         self.beams = [BeamContact(m, (), settings) for m in self.models]
+        self._h_max = [float(np.diff(m.s_nodes[0::2]).max()) for m in self.models]  # mm
         self.tolerance_mm = min(c.tolerance_mm for c in self.beams)
         #: a body's pairs: the smallest k of the mechanism's beams (N/mm)
         self.k_body = float(min(c.k_elements.min() for c in self.beams))
@@ -403,17 +404,23 @@ class MechanismContacts:
         r = contact.radii_mm
         n_el = self.models[i].n_elements
         k_curve = float(contact.k_elements.min())
+        if not np.any(far):
+            return []
         d = np.hypot(x[:, None, 0] - x[None, :, 0], x[:, None, 1] - x[None, :, 1])
-        # a node's distance to each element's three nodes: the nearest far element's first
+        # a node's distance to each far element's nearest node: every point of a P2 element
+        # lies within a quarter of its length (along it) of one of its three nodes, so the
+        # curve is no nearer than that distance less h/4 (h/2 keeps a margin for stretch)
         d_el = np.minimum(np.minimum(d[:, 0:-1:2], d[:, 1::2]), d[:, 2::2])  # (n, E)
         d_el = np.where(far, d_el, np.inf)
+        dmin = d_el.min(axis=1)  # (n,) mm
+        h = self._h_max[i]
+        cand = np.flatnonzero(dmin - 0.5 * h <= r + r.max())  # those that may touch
+        if keep(1.0):  # every candidate (the gap output): also the nodes nearest to the rest
+            cand = np.union1d(cand, np.flatnonzero(dmin <= dmin.min() + h))
         out = []
-        for n in range(x.shape[0]):
-            dmin = d_el[n].min()
-            if not np.isfinite(dmin) or dmin - r[n] > contact.reach_mm:
-                continue
+        for n in cand:
             best = (np.inf, 0.0, -1)
-            for e in np.flatnonzero(d_el[n] <= dmin + contact.reach_mm):
+            for e in np.flatnonzero(d_el[n] <= dmin[n] + 0.5 * h):
                 nodes = 2 * e + np.arange(3)
                 phi, xi, _ = closest_on_element(x[n], x[nodes], r[nodes[0]], r[nodes[2]])
                 if phi < best[0]:
