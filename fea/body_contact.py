@@ -488,7 +488,7 @@ class MechanismContacts:
         within reach) and ``in_contact``; NaN where not converged."""
         out = {}
         rows = Z.shape[0]
-        for label, a, _, what in self.declared:
+        for label, *_ in self.declared:
             out[label] = {"force_N": np.full(rows, np.nan), "gap_mm": np.full(rows, np.nan)}
         for k in np.flatnonzero(converged):
             self._z = Z[k]
