@@ -247,13 +247,16 @@ class Mechanism:
     stops : tuple of fea.stops.RigidStop — rigid outlines fixed to the ground (points, open
         polylines, polygons; mm, the mechanism's coordinates): every beam (its centreline swept
         by t/2) is kept clear of them by frictionless penalty contact inside Newton
-        (:mod:`fea.stops`; the penalty is ``MechanismSettings.contact``). Bodies do not touch
-        them (not modelled). Empty: the solve is the one without contact, exactly.
-    beam_contacts : tuple of (beam name, beam name) — pairs of beams that may touch each other:
-        frictionless penalty contact between them inside Newton (:class:`fea.stops.BeamPairContact`,
-        node-to-curve both ways, the penalty of ``MechanismSettings.contact``), its force and gap
-        in ``MechanismResponse.beam_contact``. Beams of no declared pair pass through each other
-        (the kind's interference check says NOT MET). Empty: no beam-beam contact.
+        (:mod:`fea.stops`; the penalty is ``MechanismSettings.contact``), and so is every body
+        with an ``outline_mm`` that is not clamped to the ground (:mod:`fea.body_contact`).
+        Empty: the solve is the one without contact, exactly.
+    beam_contacts : tuple of (name, name) — pairs of parts that may touch each other:
+        frictionless penalty contact between them inside Newton, its force and gap in
+        ``MechanismResponse.beam_contact``: two beams (:class:`fea.stops.BeamPairContact`,
+        node-to-curve both ways), a body and a body or a beam (by the body's outline), or one
+        beam named twice, its self contact (:mod:`fea.body_contact`); the penalty of
+        ``MechanismSettings.contact``. Parts of no declared pair pass through each other (the
+        kind's interference check says NOT MET). Empty: no such contact.
     """
 
     beams: tuple[MechBeam, ...]
@@ -360,15 +363,18 @@ class MechanismResponse:
     critical_body_mode : (n_bodies, 3) float, or None — the same mode's body motion (U, V per
         unit amplitude, theta in rad per mm of amplitude).
     contact : fea.stops.ContactResponse, or None — with stops (``Mechanism.stops``): per row
-        and stop the resultant force the stop exerts on all beams (N), the smallest gap of any
-        beam (mm), in contact, the contact point; the drive value at which each gap closes
-        (``closing_value``, in the drive's unit: mm, rad, N or N·mm); the penetration check.
-        ``extra["force_by_beam_N"]`` (rows, n_beams, n_stops) N is each beam's share. None
-        without stops.
+        and stop the resultant force the stop exerts on all beams and bodies (N), the smallest
+        gap of any of them (mm), in contact, the contact point; the drive value at which each
+        gap closes (``closing_value``, in the drive's unit: mm, rad, N or N·mm); the
+        penetration check.
+        ``extra["force_by_beam_N"]`` (rows, n_beams, n_stops) N is each beam's share, with
+        moving bodies ``extra["force_by_bodies_N"]`` (rows, n_stops) N theirs. None without
+        stops.
     beam_contact : dict or None — with ``Mechanism.beam_contacts``: per pair ``"a/b"`` a dict of
-        (rows,) arrays ``force_N`` (the magnitude of the contact's resultant force on beam a,
-        N; b carries the opposite), ``gap_mm`` (the smallest gap between the two surfaces, mm;
-        negative: penetration), ``in_contact`` (bool); NaN where not converged. None without.
+        (rows,) arrays ``force_N`` (the magnitude of the contact's resultant force on part a,
+        N; b carries the opposite; a beam with itself: the sum of its pairs' normal forces),
+        ``gap_mm`` (the smallest gap between the two surfaces, mm; negative: penetration),
+        ``in_contact`` (bool); NaN where not converged. None without.
     """
 
     case: str

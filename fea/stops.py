@@ -44,9 +44,10 @@ normal, handled in ``_phi``).
 
 Limits: frictionless; rigid stops that do not move; node-to-segment pairs (a face is resolved at
 the beam's nodes, a vertex anywhere along the beam); a thin wall (open polyline) must not be
-crossed by the centreline inside one increment (the penetration would exceed t/2 there). Not
-modelled: contact of the beam with itself or with another beam, the plane-stress self-contact
-across slots. See docs/contact.md.
+crossed by the centreline inside one increment (the penetration would exceed t/2 there). Two
+beams of a mechanism: :class:`BeamPairContact`; a mechanism's bodies and a beam's self contact:
+:mod:`fea.body_contact`; the plane-stress self-contact across slots: fea/plane_stress_contact.py.
+See docs/contact.md.
 """
 
 from __future__ import annotations
