@@ -247,13 +247,16 @@ class Mechanism:
     stops : tuple of fea.stops.RigidStop — rigid outlines fixed to the ground (points, open
         polylines, polygons; mm, the mechanism's coordinates): every beam (its centreline swept
         by t/2) is kept clear of them by frictionless penalty contact inside Newton
-        (:mod:`fea.stops`; the penalty is ``MechanismSettings.contact``). Bodies do not touch
-        them (not modelled). Empty: the solve is the one without contact, exactly.
-    beam_contacts : tuple of (beam name, beam name) — pairs of beams that may touch each other:
-        frictionless penalty contact between them inside Newton (:class:`fea.stops.BeamPairContact`,
-        node-to-curve both ways, the penalty of ``MechanismSettings.contact``), its force and gap
-        in ``MechanismResponse.beam_contact``. Beams of no declared pair pass through each other
-        (the kind's interference check says NOT MET). Empty: no beam-beam contact.
+        (:mod:`fea.stops`; the penalty is ``MechanismSettings.contact``), and so is every body
+        with an ``outline_mm`` that is not clamped to the ground (:mod:`fea.body_contact`).
+        Empty: the solve is the one without contact, exactly.
+    beam_contacts : tuple of (name, name) — pairs of parts that may touch each other:
+        frictionless penalty contact between them inside Newton, its force and gap in
+        ``MechanismResponse.beam_contact``: two beams (:class:`fea.stops.BeamPairContact`,
+        node-to-curve both ways), a body and a body or a beam (by the body's outline), or one
+        beam named twice, its self contact (:mod:`fea.body_contact`); the penalty of
+        ``MechanismSettings.contact``. Parts of no declared pair pass through each other (the
+        kind's interference check says NOT MET). Empty: no such contact.
     """
 
     beams: tuple[MechBeam, ...]
@@ -364,15 +367,18 @@ class MechanismResponse:
         fea/mechanism_fields.py turns into the beams' fibre stresses per node (best.vtu), and
         ``beam_roots_mm`` the ``MechBeam.root_mm`` (start, end) mm each beam was solved with.
     contact : fea.stops.ContactResponse, or None — with stops (``Mechanism.stops``): per row
-        and stop the resultant force the stop exerts on all beams (N), the smallest gap of any
-        beam (mm), in contact, the contact point; the drive value at which each gap closes
-        (``closing_value``, in the drive's unit: mm, rad, N or N·mm); the penetration check.
-        ``extra["force_by_beam_N"]`` (rows, n_beams, n_stops) N is each beam's share. None
-        without stops.
+        and stop the resultant force the stop exerts on all beams and bodies (N), the smallest
+        gap of any of them (mm), in contact, the contact point; the drive value at which each
+        gap closes (``closing_value``, in the drive's unit: mm, rad, N or N·mm); the
+        penetration check.
+        ``extra["force_by_beam_N"]`` (rows, n_beams, n_stops) N is each beam's share, with
+        moving bodies ``extra["force_by_bodies_N"]`` (rows, n_stops) N theirs. None without
+        stops.
     beam_contact : dict or None — with ``Mechanism.beam_contacts``: per pair ``"a/b"`` a dict of
-        (rows,) arrays ``force_N`` (the magnitude of the contact's resultant force on beam a,
-        N; b carries the opposite), ``gap_mm`` (the smallest gap between the two surfaces, mm;
-        negative: penetration), ``in_contact`` (bool); NaN where not converged. None without.
+        (rows,) arrays ``force_N`` (the magnitude of the contact's resultant force on part a,
+        N; b carries the opposite; a beam with itself: the sum of its pairs' normal forces),
+        ``gap_mm`` (the smallest gap between the two surfaces, mm; negative: penetration),
+        ``in_contact`` (bool); NaN where not converged. None without.
     """
 
     case: str
@@ -577,7 +583,10 @@ class _Model:
                     )
         #: declared beam-beam contact pairs: (index of a, index of b, the pair's terms)
         self.pairs: list[tuple[int, int, BeamPairContact]] = []
+        rigid_pairs = [p for p in mech.beam_contacts if _rigid_pair(p, self.body_index)]
         for a_name, b_name in mech.beam_contacts:
+            if (a_name, b_name) in rigid_pairs:
+                continue  # a body, or a beam with itself: fea.body_contact
             ia, ib = (self._beam_of_pair(nm, a_name, b_name) for nm in (a_name, b_name))
             if ia == ib:
                 raise FeaError(f"beam contact [{a_name}, {b_name}]: a beam with itself")
@@ -592,6 +601,8 @@ class _Model:
                     f"{-gap0:.4g} mm (joined, or crossing); declare only beams that are apart"
                 )
             self.pairs.append((ia, ib, pair))
+        #: the bodies' contact (stops, declared pairs) and self contact (None: none declared)
+        self.rigid = _rigid_contacts(self, mech, rigid_pairs, settings)
 
         self.rows = _Rows()
         self.groups: list[_Group] = []
@@ -800,7 +811,7 @@ class _Model:
             ri, ab = m.assemble(z[a:b], frame, contact)
             r[a:b] = ri
             vals.append(ab[BAND:][self._band_src[i]])
-        if not self.pairs:
+        if not self.pairs and self.rigid is None:
             K = sp.coo_matrix(
                 (np.concatenate(vals), (self._k_rows, self._k_cols)), shape=(self.n, self.n)
             )
@@ -816,6 +827,8 @@ class _Model:
                 rows.append(np.repeat(dofs, dofs.size))
                 cols.append(np.tile(dofs, dofs.size))
                 vals.append(kt.ravel())
+        if self.rigid is not None:
+            self.rigid.add(z, r, rows, cols, vals)
         K = sp.coo_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
             shape=(self.n, self.n),
@@ -835,12 +848,13 @@ class _Model:
     @property
     def has_contact(self) -> bool:
         """Stops or declared beam pairs: Python contact terms (the reference loop runs)."""
-        return self.contacts is not None or bool(self.pairs)
+        return self.contacts is not None or bool(self.pairs) or self.rigid is not None
 
     def contact_active(self) -> tuple:
         """The contact pairs acting in the last :meth:`assemble`, per beam (() without stops)."""
         stops = () if self.contacts is None else tuple(c.active for c in self.contacts)
-        return stops + tuple(p.active for _, _, p in self.pairs)
+        rigid = () if self.rigid is None else (self.rigid.active,)
+        return stops + tuple(p.active for _, _, p in self.pairs) + rigid
 
     def hessian(self, K: sp.spmatrix, lam: np.ndarray, ro: np.ndarray) -> sp.csr_matrix:
         """Hessian of the Lagrangian, H = K - sum_i lam_i d2g_i/dz2 (N, N)."""
@@ -1399,17 +1413,17 @@ def _trace(
         rotations_rad=tuple(rotations),
         beam_models=tuple(md.models),
         beam_roots_mm=tuple((float(b.root_mm[0]), float(b.root_mm[1])) for b in mech.beams),
-        contact=None if md.contacts is None else _contact(md, shapes, targets, converged),
-        beam_contact=_beam_contact(md, shapes, converged) if md.pairs else None,
+        contact=None if md.contacts is None else _contact(md, shapes, targets, converged, Z),
+        beam_contact=_beam_contact(md, shapes, converged, Z) if md.mech.beam_contacts else None,
     )
 
 
 def _beam_contact(
-    md: _Model, shapes: list[np.ndarray], converged: np.ndarray
+    md: _Model, shapes: list[np.ndarray], converged: np.ndarray, Z: np.ndarray
 ) -> dict[str, dict[str, np.ndarray]]:
-    """Per declared pair the force on beam a (N), the smallest gap (mm) and in contact at every
-    converged row (``shapes`` per beam (rows, nodes, 2) mm)."""
-    out = {}
+    """Per declared pair the force on part a (N), the smallest gap (mm) and in contact at every
+    converged row (``shapes`` per beam (rows, nodes, 2) mm, ``Z`` (rows, N) the states)."""
+    out = {} if md.rigid is None else md.rigid.pair_rows(Z, converged)
     rows = converged.shape[0]
     for ia, ib, pair in md.pairs:
         force, gap = np.full(rows, np.nan), np.full(rows, np.nan)
@@ -1420,13 +1434,35 @@ def _beam_contact(
 
 
 def _contact(
-    md: _Model, shapes: list[np.ndarray], drive: np.ndarray, converged: np.ndarray
+    md: _Model, shapes: list[np.ndarray], drive: np.ndarray, converged: np.ndarray, Z: np.ndarray
 ) -> ContactResponse:
     """The stops' forces, gaps and contact points at every converged row, over all beams
     (:func:`fea.stops.contact_over_beams`); ``shapes`` per beam (rows, nodes, 2) mm, ``drive``
     (rows,) the drive values."""
     assert md.contacts is not None
-    return contact_over_beams(md.contacts, shapes, drive, converged)
+    bodies = None if md.rigid is None or not md.rigid.movable else md.rigid.stop_rows(Z, converged)
+    return contact_over_beams(md.contacts, shapes, drive, converged, bodies)
+
+
+def _rigid_pair(pair: tuple[str, str], bodies: dict[str, int]) -> bool:
+    """A declared contact pair naming a body, or one beam twice (fea.body_contact's)."""
+    return pair[0] == pair[1] or pair[0] in bodies or pair[1] in bodies
+
+
+def _rigid_contacts(md: _Model, mech: Mechanism, pairs: list, st: MechanismSettings):
+    """fea.body_contact.MechanismContacts of the bodies with outlines against the stops and of
+    the declared pairs with a body or a beam's self contact; None when there are none."""
+    outlined = any(b.outline_mm is not None for b in mech.bodies)
+    if not pairs and not (mech.stops and outlined):
+        return None
+    from flexopt.fea.body_contact import MechanismContacts
+
+    grounded = {j.a for j in mech.joints if j.b == _GROUND and j.type == "clamped"}
+    names = [b.name for b in mech.beams]
+    return MechanismContacts(
+        md.models, md.offsets, mech.bodies, md.n_beam_dofs, mech.stops, pairs, grounded,
+        st.contact, names,
+    )  # fmt: skip
 
 
 def _critical_mode(

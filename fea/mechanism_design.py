@@ -415,8 +415,8 @@ def interference(
                 discs = shapely.buffer(shapely.points(pts[:, k]), radius, quad_segs=8)
                 free = shapely.difference(free, discs)
             # a declared contact pair touches by design (modelled): overlap is still checked
-            joined |= {f"beam {b if a == name else a}" for a, b in mech.beam_contacts
-                       if name in (a, b)}  # fmt: skip
+            joined |= {f"{'body' if o in body_names else 'beam'} {o}" for a, b in mech.beam_contacts
+                       if name in (a, b) for o in (b if a == name else a,)}  # fmt: skip
             parts.append((f"beam {name}", free, joined))
         for k_body, body in enumerate(mech.bodies):
             if body.outline_mm is None:
@@ -430,6 +430,8 @@ def interference(
                 axis=2,
             )  # fmt: skip
             joined = {label for label, _ in fixed} if body.name in grounded_bodies else set()
+            joined |= {f"body {b if a == body.name else a}" for a, b in mech.beam_contacts
+                       if body.name in (a, b) and {a, b} <= set(body_names)}  # fmt: skip
             parts.append((f"body {body.name}", shapely.polygons(xy), joined))
         everything = [*parts, *((label, g, set()) for label, g in fixed)]
         for i, (la, ga, ja) in enumerate(parts):

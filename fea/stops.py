@@ -44,9 +44,10 @@ normal, handled in ``_phi``).
 
 Limits: frictionless; rigid stops that do not move; node-to-segment pairs (a face is resolved at
 the beam's nodes, a vertex anywhere along the beam); a thin wall (open polyline) must not be
-crossed by the centreline inside one increment (the penetration would exceed t/2 there). Not
-modelled: contact of the beam with itself or with another beam, the plane-stress self-contact
-across slots. See docs/contact.md.
+crossed by the centreline inside one increment (the penetration would exceed t/2 there). Two
+beams of a mechanism: :class:`BeamPairContact`; a mechanism's bodies and a beam's self contact:
+:mod:`fea.body_contact`; the plane-stress self-contact across slots: fea/plane_stress_contact.py.
+See docs/contact.md.
 """
 
 from __future__ import annotations
@@ -68,6 +69,8 @@ __all__ = [
     "BeamPairContact",
     "overlaps",
     "solve_with_stops",
+    "closest_on_element",
+    "vertex_curve_derivatives",
 ]
 
 
@@ -321,6 +324,29 @@ class BeamContact:
         self._vertex_k = [np.array([self.k_elements[c[2]] for c in cs]) for cs in closest0]
         self._r_max = float(self._r_nodes.max())
 
+    # ------------------------------------------------------------------ public views
+
+    @property
+    def radii_mm(self) -> np.ndarray:
+        """(n_nodes,) mm: the disk radius t/2 at each mesh node (read-only view)."""
+        return self._r_nodes
+
+    @property
+    def k_nodes(self) -> np.ndarray:
+        """(n_nodes,) N/mm: each node's penalty stiffness (the mean of its elements')."""
+        return self._k_nodes
+
+    @property
+    def reach_mm(self) -> float:
+        """mm: a point farther than this from every node is clear of the beam's curve
+        (two longest elements plus the largest radius)."""
+        return 2.0 * self._h_max + self._r_max
+
+    def closest(self, v: np.ndarray, x: np.ndarray) -> tuple[float, float, int, float]:
+        """Closest point of the centreline (nodes ``x`` (n_nodes, 2) mm) to ``v`` (2,) mm:
+        ``(distance - t/2 mm, xi, element, side)`` (see :meth:`_closest`)."""
+        return self._closest(v, x)
+
     # ------------------------------------------------------------------ gaps
 
     def pairs(self, x: np.ndarray, active_only: bool = True) -> list[_Pair]:
@@ -565,6 +591,7 @@ def contact_over_beams(
     shapes: list[np.ndarray] | tuple[np.ndarray, ...],
     driven: np.ndarray,
     converged: np.ndarray,
+    bodies: tuple[np.ndarray, ...] | None = None,
 ) -> ContactResponse:
     """The :class:`ContactResponse` of several beams against the same stops (a mechanism, a
     flexure pivot's members): per stop and converged row the resultant of its forces on all the
@@ -573,7 +600,11 @@ def contact_over_beams(
     ``contacts`` one :class:`BeamContact` per beam (same stops, same order); ``shapes`` per
     beam (rows, n_nodes_i, 2) mm, the deformed nodes; ``driven`` (rows,) the driven value of
     each row (mm, rad, N or N mm); ``converged`` (rows,) bool. ``extra["force_by_beam_N"]``
-    (rows, n_beams, n_stops) N is each beam's share.
+    (rows, n_beams, n_stops) N is each beam's share. ``bodies``: the rigid bodies' share
+    (:meth:`fea.body_contact.MechanismContacts.stop_rows`: force (rows, n_stops, 2) N, gap
+    (rows, n_stops) mm, force magnitude (rows, n_stops) N, force-weighted contact points
+    (rows, n_stops, 2) N mm), added to the resultant, the smallest gap and the contact point;
+    then ``extra["force_by_bodies_N"]`` (rows, n_stops) N is the bodies' share.
     """
     rows, nb, ns = driven.shape[0], len(contacts), len(contacts[0].stops)
     force = np.full((rows, ns, 2), np.nan)
@@ -589,6 +620,9 @@ def contact_over_beams(
             by_beam[k, i] = np.hypot(f[:, 0], f[:, 1])
             f_sum, g_min, w_sum = f_sum + f, np.minimum(g_min, g), w_sum + w
             p_sum = p_sum + np.where(t[:, None], pt, 0.0) * w[:, None]
+        if bodies is not None:
+            f_sum, g_min = f_sum + bodies[0][k], np.minimum(g_min, bodies[1][k])
+            w_sum, p_sum = w_sum + bodies[2][k], p_sum + bodies[3][k]
         force[k], gap[k], touch[k] = f_sum, g_min, w_sum > 0.0
         point[k] = np.where(
             touch[k][:, None], p_sum / np.where(touch[k], w_sum, 1.0)[:, None], np.nan
@@ -597,6 +631,8 @@ def contact_over_beams(
     penalty = np.concatenate([c.k_elements for c in contacts])
     out = contact_rows(contacts[0].names, force, gap, touch, point, driven, tolerance, penalty)
     out.extra["force_by_beam_N"] = by_beam
+    if bodies is not None:
+        out.extra["force_by_bodies_N"] = np.hypot(bodies[0][..., 0], bodies[0][..., 1])
     return out
 
 
@@ -868,3 +904,9 @@ def _pair_derivatives(v, xe, xi, r0, r1) -> tuple[np.ndarray, np.ndarray]:
         q = np.concatenate([-px, np.kron(n, px) - np.kron(dn, nv)])
         hess = hess - np.outer(q, q) / phi_xixi
     return grad, hess
+
+
+#: public names of the vertex-curve helpers (fea.body_contact: a body's corner or a beam's own
+#: node against a beam's P2 centreline)
+closest_on_element = _closest_on_element
+vertex_curve_derivatives = _pair_derivatives

@@ -431,7 +431,8 @@ class MechanismStudy(Study):
 
     contact: tuple[tuple[str, str], ...] | None = Field(
         None,
-        description="pairs of beams that may touch each other, [[beam, beam], ...]: "
+        description="pairs of parts that may touch each other, [[a, b], ...]: two beams, two "
+        "bodies (by their outlines), a body and a beam, or one beam twice (its self contact): "
         "frictionless penalty contact between them (any other meeting is interference)",
     )
 

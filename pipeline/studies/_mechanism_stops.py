@@ -13,14 +13,18 @@ with them inside Newton), and what the kind reports of it:
   unit), ``contact_rows``, and per stop ``stop_<name>_max_force_N``,
   ``stop_<name>_first_contact_<unit>``, ``stop_<name>_min_gap_mm``;
 * the built-in row "contact penetration within tolerance";
-* the interference check: a beam meeting a declared stop is contact, modelled (never
-  interference); a body meeting a stop is (bodies do not touch stops in the engine);
+* the interference check: a beam or a moving body (one with an outline, not clamped to the
+  ground) meeting a declared stop is contact, modelled (:mod:`fea.body_contact`: the stop's
+  columns carry the force on beams and bodies together); an overlap deeper than the engine's
+  penetration, or a body clamped to the ground overlapping a stop, is interference;
 * ``contact_shapes.png``: the beams' deformed shapes (solid where in contact) with the stops.
 
-Beam-beam contact (``contact: [[beam_a, beam_b], ...]``, :attr:`fea.mechanism.Mechanism.
-beam_contacts`): per declared pair and load case the columns ``contact_<a>_<b>_force_N`` (the
+Declared contact (``contact: [[a, b], ...]``, :attr:`fea.mechanism.Mechanism.beam_contacts`):
+two beams, two bodies, a body and a beam, or one beam named twice (its self contact,
+``[[a, a]]``); per declared pair and load case the columns ``contact_<a>_<b>_force_N`` (the
 force between the two beams, N, scaled like a stop's), ``contact_<a>_<b>_gap_mm``,
-``contact_<a>_<b>_in_contact``, the metrics ``<case>contact_<a>_<b>_max_force_N`` and the pairs'
+``contact_<a>_<b>_in_contact`` (a beam with itself: the force is the sum of its contact pairs'
+normal forces), the metrics ``<case>contact_<a>_<b>_max_force_N`` and the pairs'
 penetration in ``max_penetration_mm`` (the same built-in row); a declared pair touching is
 modelled contact, not interference (its overlap is still checked), any other meeting stays
 interference. The penalty is the ``stops:`` block's (default without it).
@@ -318,8 +322,10 @@ def stop_interference(
 ) -> dict[str, Any]:
     """``clearance`` (:func:`fea.mechanism_design.interference`: the parts among themselves)
     with every body outline's overlap with every stop at every converged row: the engine keeps
-    the beams out of the stops (contact, modelled: not interference, and no clearance to keep)
-    but not the bodies, so a body meeting a stop is interference. Unchanged without stops."""
+    the beams and the moving bodies out of the stops (contact, modelled: not interference, and
+    no clearance to keep; their penetration, ~1e-6 mm, overlaps far less than the threshold),
+    but not a body clamped to the ground, which stays interference where it meets a stop; an
+    overlap above the threshold is interference either way. Unchanged without stops."""
     stops = _stops(study)
     if not stops:
         return dict(clearance)
@@ -328,6 +334,7 @@ def stop_interference(
     out = dict(clearance)
     worst = (float(out.get("interference_mm2") or 0.0), out.get("interference_at", ""))
     shapes = [(st.name, _stop_shape(st)) for st in stops]
+    held = {j.a for j in mech.joints if j.b == "ground" and j.type == "clamped"}
     for case, resp in responses.items():
         rows = np.flatnonzero(np.asarray(resp.converged, dtype=bool))
         if rows.size == 0:
@@ -352,11 +359,15 @@ def stop_interference(
                 i = int(np.argmax(area))
                 if area[i] > max(worst[0], INTERFERENCE_MM2):
                     r = rows[i]
+                    why = (
+                        "a body clamped to the ground is not in the contact solve"
+                        if body.name in held
+                        else "deeper than the contact's penetration"
+                    )
                     worst = (
                         float(area[i]),
                         f"load case {case}, row {r} (drive {drive[r]:.4g} {d.unit}): body "
-                        f"{body.name} passes through stop {name} ({area[i]:.3g} mm²; bodies "
-                        "do not touch stops in the solve)",
+                        f"{body.name} passes through stop {name} ({area[i]:.3g} mm²; {why})",
                     )
     out["interference_mm2"], out["interference_at"] = worst
     return out
@@ -369,9 +380,10 @@ def interference_verdict(study: MechanismStudy, verdict: Verdict) -> Verdict:
     declared = "the declared stops" if study.stops is not None else ""
     if _pairs(study):
         pairs = ", ".join(f"{a}-{b}" for a, b in _pairs(study))
-        declared = f"{declared} and the beam pairs {pairs}".removeprefix(" and ")
+        declared = f"{declared} and the pairs {pairs}".removeprefix(" and ")
+    parts = "the beams and moving bodies" if study.stops is not None else "the parts"
     bound = (
-        f"0 mm² at every row (contact modelled between the beams and {declared} only; "
+        f"0 mm² at every row (contact modelled between {parts} and {declared} only; "
         "any other meeting is interference)"
     )
     return dataclasses.replace(verdict, bound=bound)

@@ -1,7 +1,7 @@
 """The ``stops:`` block of the ``mechanism`` kind (issue #25 item 3): a cantilever modelled in
 the kind pushed onto a stop at mid-span against the propped cantilever in closed form (derived
 here), the example ``parallel-guide-stop`` (the stop's columns, summary and verdict rows, first
-contact where a guided leaf's middle meets the block), a body meeting a stop is interference, a
+contact where a guided leaf's middle meets the block), a body meeting a stop (modelled contact), a
 study without stops unchanged, and the refusals."""
 
 from __future__ import annotations
@@ -144,7 +144,12 @@ def test_without_stops_nothing_changes_before_contact(example):
     )
 
 
-def test_a_body_meeting_a_stop_is_interference():
+def test_a_body_driven_onto_a_stop_meets_it_and_the_path_stops_there():
+    """The shuttle meets a stop under it (modelled contact, fea/body_contact.py: it was
+    interference before bodies met stops); the displacement drive then pushes it into a rigid
+    stop, a path no part can follow: the rows beyond do not converge, and the study is not
+    converged (tests/pipeline/test_mechanism_kind_body_contact.py drives a body by force onto a
+    floor instead)."""
     raw = copy.deepcopy(EXAMPLE)
     # a block under the shuttle (x 58..66, bottom at y = -13, moving 6 mm down)
     raw["stops"]["outlines"].append(
@@ -152,12 +157,14 @@ def test_a_body_meeting_a_stop_is_interference():
          "closed": True}
     )  # fmt: skip
     result = solve_study(_study(raw))
-    verdicts = {v["name"]: v for v in result.inputs["verdicts"]}
-    bad = verdicts["no_interference"]
-    assert bad["verdict"] == "NOT MET"
-    assert "body shuttle passes through stop floor" in bad["detail"]
-    # the beams' contact with the block is still not interference
-    assert "stop block" not in bad["detail"]
+    t = result.table
+    ok = np.asarray(t["converged"], dtype=bool)
+    assert ok[0] and not ok.all() and not result.converged
+    last = int(np.flatnonzero(ok)[-1])
+    # the last converged row: the shuttle 4 mm down, on the floor, which pushes back
+    assert t["drive_mm"][last] == pytest.approx(-4.0)
+    assert t["stop_floor_in_contact"][last] and t["stop_floor_force_N"][last] > 0.0
+    assert not t["stop_floor_in_contact"][: last - 1].any()
 
 
 def test_a_stop_overlapping_a_beam_is_refused_at_its_key():
