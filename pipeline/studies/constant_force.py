@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
+from flexopt.fea.beam_statics import with_statics_stress
 from flexopt.fea.errors import FeaError
 from flexopt.fea.fidelity import plane_stress_check
 from flexopt.fea.materials import Material
@@ -264,7 +265,8 @@ class ConstantForceProblem(DesignProblem):
             return design, None, reason
         drive = self._drive(self.study.boundary.stroke_mm, self.study.boundary.rows)
         try:
-            response = self._beam(design).solve(drive)
+            beam = self._beam(design)  # the stress from statics: converged at the clamp
+            response = with_statics_stress(beam, beam.solve(drive), WORK_DIRECTION)
         except (GeometryError, FeaError) as exc:
             return design, None, f"cannot build: {exc}"
         if not response.ok:
