@@ -25,7 +25,7 @@ __all__ = ["CHECKED_PEAK", "CHECKED_PEAK_MODEL", "checked_peak_figures"]
 CHECKED_PEAK = "checked_peak_stress_MPa"
 
 #: the model name the verdict shows for it: what it covers and what it does not
-CHECKED_PEAK_MODEL = "plane stress and beam at the pads"
+CHECKED_PEAK_MODEL = "plane stress and the beam's nominal stress at the pads"
 
 
 def checked_peak_figures(check: Mapping[str, Any], beam_peak_MPa: Any) -> dict[str, Any]:
