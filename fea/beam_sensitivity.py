@@ -460,7 +460,7 @@ class _CoordinateBatch:
         prof = model.profile
         seg = _segment_of_elements(model)
         keys = ("dN", "w", "theta0", "cos_theta0", "sin_theta0", "EA", "kGA", "EI", "dN_samples")
-        tables: dict[str, list[np.ndarray]] = {k: [] for k in (*keys, "ratio")}
+        tables: dict[str, list[np.ndarray]] = {k: [] for k in (*keys, "ratio", "xref")}
         e_idx, col, sign = [], [], []
         if moves is None:  # every coordinate on its own: x[i], y[i]
             moves = np.zeros((2 * prof.n_points, prof.n_points, 2))
@@ -490,6 +490,9 @@ class _CoordinateBatch:
                 tables["ratio"].append(
                     (pm.tables.EI_samples / pm.tables.section_modulus_samples)[els]
                 )
+                # the sampling points' reference positions (the element's nodes), for the
+                # stress from statics
+                tables["xref"].append(pm.reference_nodes_mm[2 * els[:, None] + np.arange(3)])
                 e_idx.append(els)
                 col.append(np.full(els.size, m))
                 sign.append(np.full(els.size, weight / h))
@@ -503,6 +506,22 @@ class _CoordinateBatch:
         self.last = self.e == model.n_elements - 1
         self.n_el = model.n_elements
         self.E = model.material.E_MPa
+        # explicit derivatives of the sampling points' geometry (the stress from statics,
+        # fea/beam_statics.py): reference position (E, 3, 2, n_coord) mm, reference section
+        # angle (E, 3, n_coord) rad and thickness (E, 3, n_coord) mm per unit of each variable
+        nc = len(self.names)
+        sidx = ((3 * self.e[:, None] + np.arange(3)) * nc + self.col[:, None]).ravel()
+        size = 3 * self.n_el * nc
+        w = self.weight[:, None]
+
+        def gather(values: np.ndarray) -> np.ndarray:
+            return np.bincount(sidx, (values * w).ravel(), size).reshape(self.n_el, 3, nc)
+
+        self.d_xref = np.stack(
+            [gather(self.t["xref"][..., 0]), gather(self.t["xref"][..., 1])], axis=2
+        )
+        self.d_theta0 = gather(self.t["theta0"] @ self.g2s)
+        self.d_thickness = gather(2.0 * self.t["ratio"] / self.E)  # E t / 2 -> t
 
     def terms(
         self, u: np.ndarray, frame: np.ndarray, n: int
@@ -543,6 +562,77 @@ class _CoordinateBatch:
         return dR.reshape(n, nc), da.reshape(shape), dc.reshape(shape)
 
 
+def _statics_terms(
+    twin: _Twin,
+    u: np.ndarray,
+    du: np.ndarray,
+    r: np.ndarray,
+    dr: np.ndarray,
+    frame: np.ndarray,
+    names: list[str],
+    coords: _CoordinateBatch | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The fibre stress terms from statics and their derivatives (``stress="statics"``).
+
+    ``a = N / (b t)`` and ``c = M / (b t^2 / 6)`` (E, 3) MPa at the sampling points, with ``M =
+    M_end + (r_end - r) x F`` and ``N = F . (cos theta, sin theta)`` (fea/beam_statics.py), and
+    ``da``, ``dc`` (E, 3, n_var) by the variables ``names``: through the state ``du`` (n, n_var)
+    (physical), the end force and moment ``dr`` (n, n_var) (generalised: along the rows of
+    ``frame``) and explicitly through the width, the vertex thicknesses and (``coords``) the
+    reference geometry of the sampling points. ``u`` (n,) physical DOFs, ``r`` (n,) the forces.
+    """
+    m = twin.model
+    tab = m.tables
+    n_el = m.n_elements
+    n_var = du.shape[1]
+    node = 2 * np.arange(n_el)[:, None] + np.arange(3)[None, :]  # (E, 3)
+    b = m.profile.width_mm
+    Z = tab.section_modulus_samples  # (E, 3) b t^2 / 6
+    t = np.sqrt(6.0 * Z / b)
+    theta0 = tab.theta0 @ tab.gauss_to_samples  # (E, 3), exact: linear along an element
+    pos = m.reference_nodes_mm + u.reshape(-1, 3)[:, :2]  # (n_nodes, 2)
+    dpos = du.reshape(len(u) // 3, 3, n_var)[:, :2, :]  # (n_nodes, 2, n_var)
+    ia, it, ir = len(u) - 3, len(u) - 2, len(u) - 1
+    F = r[ia] * frame[0] + r[it] * frame[1]  # (2,) N in x, y
+    dF = np.outer(frame[0], dr[ia]) + np.outer(frame[1], dr[it])  # (2, n_var)
+    arm = pos[-1] - pos[node]  # (E, 3, 2)
+    darm = dpos[-1][None, None] - dpos[node]  # (E, 3, 2, n_var)
+    theta = theta0 + u.reshape(-1, 3)[node, 2]
+    dtheta = du.reshape(len(u) // 3, 3, n_var)[node, 2, :]  # (E, 3, n_var)
+    dt = np.zeros((n_el, 3, n_var))
+    db = np.zeros(n_var)
+    if coords is not None:
+        cols = [names.index(k) for k in coords.names]
+        darm[..., cols] += coords.d_xref[-1, 2][None, None] - coords.d_xref
+        dtheta[..., cols] += coords.d_theta0
+        dt[..., cols] += coords.d_thickness
+    if "b" in names:
+        db[names.index("b")] = 1.0
+    thick = [k for k, v in enumerate(names) if v.startswith("t[")]
+    if thick:
+        dt[..., thick] += twin.hats()[1]  # t is linear between vertices: the hat functions
+    M = r[ir] + arm[..., 0] * F[1] - arm[..., 1] * F[0]
+    dM = (
+        dr[ir][None, None]
+        + darm[..., 0, :] * F[1]
+        + arm[..., 0, None] * dF[1]
+        - darm[..., 1, :] * F[0]
+        - arm[..., 1, None] * dF[0]
+    )
+    cos, sin = np.cos(theta), np.sin(theta)
+    N = F[0] * cos + F[1] * sin
+    dN = (
+        cos[..., None] * dF[0]
+        + sin[..., None] * dF[1]
+        + (-F[0] * sin + F[1] * cos)[..., None] * dtheta
+    )
+    a = N / (b * t)
+    c = M / Z
+    da = dN / (b * t)[..., None] - a[..., None] * (db / b + dt / t[..., None])
+    dc = dM / Z[..., None] - c[..., None] * (db / b + 2.0 * dt / t[..., None])
+    return a, c, da, dc
+
+
 def beam_sensitivities(
     model: BeamModel,
     drive: EndDrive,
@@ -554,6 +644,7 @@ def beam_sensitivities(
     move_names: tuple[str, ...] | None = None,
     rows: np.ndarray | None = None,
     coordinate_stencil: int = 4,
+    stress: str = "sampled",
 ) -> BeamSensitivity:
     """Derivatives of every converged row of ``response`` (``model.solve(drive)``).
 
@@ -582,6 +673,10 @@ def beam_sensitivities(
         NaN. Each row costs two assemblies and factorisations and its back-substitutions, so a
         response that reads a few rows (samples of the curve, the rows near the peak stress)
         asks for those only.
+    stress : "sampled" (default: the solver's stress, from the elements' curvature and axial
+        strain, :meth:`BeamModel.peak_stress`) or "statics" (the section forces from the end
+        load and the deformed centreline, :func:`fea.beam_statics.statics_stress`; only for a
+        beam loaded at its ends): which fibre stresses, and their derivatives, are returned.
 
     Returns
     -------
@@ -589,6 +684,8 @@ def beam_sensitivities(
     """
     if coordinate_stencil not in _STENCILS:
         raise FeaError(f"coordinate_stencil = {coordinate_stencil!r}; use 2 or 4")
+    if stress not in ("sampled", "statics"):
+        raise FeaError(f"stress = {stress!r}; use 'sampled' or 'statics'")
     for v in variables:
         if v not in ("thickness", "width", "coordinates", "moves"):
             raise FeaError(f"variable {v!r}; use 'thickness', 'width', 'coordinates' or 'moves'")
@@ -723,6 +820,8 @@ def beam_sensitivities(
         due = du[edofs]  # (E, 9, n_var)
         da = np.matmul(da_du, due) + da_x
         dc = np.matmul(dc_du, due) + dc_x
+        if stress == "statics":
+            a, c, da, dc = _statics_terms(twin, u, du, r, dr, frame, names, coords)
         fibre[row] = np.stack([a + c, a - c], -1).reshape(-1, 2)
         d_fibre[row] = np.stack([da + dc, da - dc], 2).reshape(3 * n_el, 2, n_var)
         # KS over the four signed fibre values +-(a + c), +-(a - c) of every sampling point: its

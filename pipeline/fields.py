@@ -121,12 +121,17 @@ def constant_force_fields(record: Any, model: Any, response: Any, problem: Any) 
     fibre stresses of ``response`` traced by the BeamModel ``model``:
     :func:`fea.beam_fields.beam_field`); ``problem`` gives the allowable stress (MPa)."""
     from flexopt.fea.beam_fields import beam_field
+    from flexopt.fea.beam_statics import statics_fibres
+    from flexopt.geometry.constant_force import WORK_DIRECTION
 
     return {
         "field_map": take_field(
             record, CONSTANT_FORCE_LABEL, problem.allowable_MPa, "displacement_mm"
         ),
-        "beam_field": None if response is None else beam_field(model, response),
+        # the stresses from statics, the verdict's (fea/beam_statics.py, docs/constant_force.md)
+        "beam_field": None
+        if response is None
+        else statics_fibres(beam_field(model, response), model, response, WORK_DIRECTION),
     }
 
 

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 from flexopt.fea.beam import BeamModel, EndDrive
 from flexopt.fea.beam_sensitivity import KS_RHO_YIELD, beam_sensitivities, ks_aggregate
+from flexopt.fea.beam_statics import with_statics_stress
 from flexopt.fea.errors import FeaError
 from flexopt.geometry.constant_force import design_from_vector
 from flexopt.geometry.constant_force_map import profile_derivatives
@@ -110,7 +111,8 @@ def study_sensitivities(
         design = design_from_vector(x)
         model = beam(design)
         path = drive(study.boundary.stroke_mm, study.boundary.rows)
-        response = model.solve(path)
+        # the study's stress is from statics (fea/beam_statics.py): so are the rows picked here
+        response = with_statics_stress(model, model.solve(path), np.asarray(path.direction))
     except (GeometryError, FeaError):
         return None
     if not response.ok:
@@ -143,6 +145,7 @@ def study_sensitivities(
                 vertex_moves=maps.points[moving],
                 move_names=tuple(maps.names[k] for k in moving),
                 rows=solved,
+                stress="statics",
             )
             break
         except FeaError:

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
+from flexopt.fea.beam_statics import with_statics_stress
 from flexopt.fea.errors import FeaError
 from flexopt.fea.fidelity import plane_stress_check
 from flexopt.fea.materials import Material
@@ -61,7 +62,6 @@ from flexopt.optimise.curve_objectives import (
     force_band_metrics,
     force_band_objective,
     plane_stress_force_column,
-    plane_stress_peak_figures,
 )
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
@@ -69,6 +69,7 @@ from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.fields import constant_force_fields
 from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies._constant_force_band import band_names, band_rows
+from flexopt.pipeline.studies._constant_force_clamp import checked_peak_figures
 from flexopt.pipeline.studies._constant_force_schema import (
     FRACTIONS,
     ConstantForceBoundary,
@@ -264,7 +265,8 @@ class ConstantForceProblem(DesignProblem):
             return design, None, reason
         drive = self._drive(self.study.boundary.stroke_mm, self.study.boundary.rows)
         try:
-            response = self._beam(design).solve(drive)
+            beam = self._beam(design)  # the stress from statics: converged at the clamp
+            response = with_statics_stress(beam, beam.solve(drive), WORK_DIRECTION)
         except (GeometryError, FeaError) as exc:
             return design, None, f"cannot build: {exc}"
         if not response.ok:
@@ -408,7 +410,7 @@ class ConstantForceProblem(DesignProblem):
         # The checks are reported, never fatal: a report without them beats no report.
         if study.fidelity.enabled:
             info["fidelity"] = _guarded(fidelity_check, self, design, response, lo, hi)
-            info.update(plane_stress_peak_figures(info["fidelity"]))
+            info.update(checked_peak_figures(info["fidelity"], response.peak_stress_MPa))
             column = plane_stress_force_column(table, info["fidelity"])
             if column is not None:
                 table["plane_stress_force_N"] = column
@@ -486,7 +488,7 @@ class ConstantForceProblem(DesignProblem):
             lo, hi = compared_over(prob._metrics(design, response), study.boundary.stroke_mm)
             check = _guarded(fidelity_check, prob, design, response, lo, hi)
             diagnostics["fidelity"] = check
-            summary.update(plane_stress_peak_figures(check))
+            summary.update(checked_peak_figures(check, response.peak_stress_MPa))
             column = plane_stress_force_column(table, check)
             if column is not None:
                 table["plane_stress_force_N"] = column

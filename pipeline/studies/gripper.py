@@ -449,6 +449,7 @@ def _with_requirement(
             "peak_stress_MPa": float(np.max(stress)),  # the name flexopt run reports
             # the constant-force study's plane-stress check: the figure the verdict judges
             "plane_stress_peak_stress_MPa": beam.summary.get("plane_stress_peak_stress_MPa"),
+            "checked_peak_stress_MPa": beam.summary.get("checked_peak_stress_MPa"),
             "stress_yield_ratio": float(np.max(stress)) / study.material.yield_MPa,
         }
     )

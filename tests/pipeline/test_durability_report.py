@@ -16,6 +16,7 @@ import pytest
 import yaml
 from flexopt.pipeline.durability_report import durability_markdown, durability_record
 from flexopt.pipeline.report import format_value
+from flexopt.pipeline.studies._constant_force_clamp import CHECKED_PEAK, CHECKED_PEAK_MODEL
 from flexopt.pipeline.study import validate_study
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -172,9 +173,11 @@ def test_report_md_of_a_run_detail():
     )
     assert row in section
     assert f"| life, cycles | {shown(fat['life_cycles'])} |" in section
-    # the stress figure the life used: the beam's peak scaled to the plane-stress check's
-    assert fat["stress_model"] == "plane stress"
-    assert "| stress figure | plane stress: plane stress (plane_stress_peak_stress_MPa" in section
+    # the stress figure the life used: the beam's peak scaled to the figure the verdict judges
+    # (the larger of plane stress and the beam at the pads, docs/constant_force.md)
+    assert fat["stress_model"] == CHECKED_PEAK_MODEL
+    figure = f"| stress figure | {CHECKED_PEAK_MODEL}: {CHECKED_PEAK_MODEL} ({CHECKED_PEAK}"
+    assert figure in section
     plain, _ = report(validate_study(raw))
     assert "## Durability" not in plain
 

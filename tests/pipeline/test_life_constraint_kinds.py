@@ -22,6 +22,7 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignProblem, DesignResult
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies._constant_force_clamp import CHECKED_PEAK
 from flexopt.pipeline.study import validate_study
 from flexopt.pipeline.verdict import result_values, with_requirement_constraints
 
@@ -91,7 +92,9 @@ class DetailToy(DesignProblem):
             evaluation=self.evaluate(x),
             table=table,
             plot={"x": "displacement_mm"},
-            info={"plane_stress_peak_stress_MPa": self.K * peak},
+            # what constant_force's detail carries: the plane-stress peak and the figure the
+            # verdict judges, the larger of it and the beam's (K > 1: the plane-stress one)
+            info={"plane_stress_peak_stress_MPa": self.K * peak, CHECKED_PEAK: self.K * peak},
         )
 
 
@@ -193,7 +196,7 @@ def hand_row(
 @pytest.mark.parametrize(
     ("name", "material", "figure", "patch", "fraction"),
     [
-        ("gripper", "ABS", "plane_stress_peak_stress_MPa", {}, 1.0),  # constant_force family
+        ("gripper", "ABS", CHECKED_PEAK, {}, 1.0),  # constant_force family
         ("flexure-pivot", "PETG", "plane_stress_peak_stress_MPa", {}, 1.0),
         ("threshold-spring", "PA12", None, {"fidelity": {"enabled": False}}, 0.5),
         ("parallel-guide", "PA12", None, {}, 1.0),  # mechanism

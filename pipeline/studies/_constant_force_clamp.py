@@ -1,0 +1,39 @@
+"""The peak stress a constant-force verdict judges: the plane-stress check's and the beam's at
+the pads, whichever is larger (docs/constant_force.md, "Stress at the clamp").
+
+Why both: the plane-stress check leaves out the elements touching the pads (the exported part
+has sharp re-entrant corners where the beam meets a pad, singular in 2D elasticity: their stress
+grows without bound under mesh refinement), so it does not see the clamp section, where a
+tapered design's peak stress can sit. The beam's stress from statics (fea/beam_statics.py) sees
+the clamp section's nominal stress N/A + M c/I, converged at the study's mesh. Judging the
+larger of the two never calls a design MET on a figure that left its peak out; what neither
+sees (the concentration at the sharp corner itself, a nominal-stress figure is not) is said in
+the docs; the model name says which figures were compared.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from flexopt.optimise.curve_objectives import plane_stress_peak_figures
+
+__all__ = ["CHECKED_PEAK", "CHECKED_PEAK_MODEL", "checked_peak_figures"]
+
+#: the metric the verdict's peak-stress row judges when a plane-stress check ran (MPa)
+CHECKED_PEAK = "checked_peak_stress_MPa"
+
+#: the model name the verdict shows for it: what it covers and what it does not
+CHECKED_PEAK_MODEL = "plane stress and the beam's nominal stress at the pads"
+
+
+def checked_peak_figures(check: Mapping[str, Any], beam_peak_MPa: Any) -> dict[str, Any]:
+    """The plane-stress figures of ``check`` (a fidelity-check record) and, when there is one,
+    ``checked_peak_stress_MPa`` = max(its peak, the beam's peak over the drive): ``beam_peak_MPa``
+    is the beam response's ``peak_stress_MPa`` (rows,) MPa, from statics (NaN rows ignored)."""
+    out = plane_stress_peak_figures(check)
+    if "plane_stress_peak_stress_MPa" in out:
+        beam = float(np.nanmax(np.asarray(beam_peak_MPa, dtype=float)))
+        out[CHECKED_PEAK] = max(out["plane_stress_peak_stress_MPa"], beam)
+    return out
