@@ -384,25 +384,27 @@ def self_overlap(
     off = _mitred_offsets(p, thickness_mm)
     left, right = p + off, p - off
     quads = np.stack([left[:, :-1], left[:, 1:], right[:, 1:], right[:, :-1]], axis=2)
-    shapes = shapely.polygons(quads.reshape(-1, 4, 2))  # (rows * (n - 1),), row-major
-    bad = ~shapely.is_valid(shapes)
-    if bad.any():  # a segment folded at a kink: its area is what it covers
-        shapes[bad] = shapely.make_valid(shapes[bad])
-    a, b = shapely.STRtree(shapes).query(shapes, predicate="intersects")
-    seg = n - 1
-    ra, ia, rb, ib = a // seg, a % seg, b // seg, b % seg
-    # the same row, and segment ib wholly beyond segment ia by more than the skip
-    keep = (ra == rb) & (s[ib] > s[ia + 1] + skip_mm)
-    a, b, r, ia, ib = a[keep], b[keep], ra[keep], ia[keep], ib[keep]
-    if a.size == 0:
+    # the far pairs (segment ib starts more than the skip after segment ia ends: ib > ia),
+    # then those whose boxes meet at some row; only these are made shapes (most have none)
+    ia, ib = np.nonzero(s[None, :-1] > s[1:, None] + skip_mm)
+    lo, hi = quads.min(axis=2), quads.max(axis=2)  # (rows, n - 1, 2) mm
+    meet = np.all((lo[:, ia] <= hi[:, ib]) & (lo[:, ib] <= hi[:, ia]), axis=2)  # (rows, pairs)
+    r, k = np.nonzero(meet)
+    if r.size == 0:
         return area, where
-    shared = shapely.area(shapely.intersection(shapes[a], shapes[b]))
+    ia, ib = ia[k], ib[k]
+    first, second = shapely.polygons(quads[r, ia]), shapely.polygons(quads[r, ib])
+    for g in (first, second):
+        bad = ~shapely.is_valid(g)
+        if bad.any():  # a segment folded at a kink: its area is what it covers
+            g[bad] = shapely.make_valid(g[bad])
+    shared = shapely.area(shapely.intersection(first, second))
     np.add.at(area, r, shared)
     mid = 0.5 * (s[:-1] + s[1:])
-    for k in np.unique(r):
-        j = np.flatnonzero(r == k)
+    for row in np.unique(r):
+        j = np.flatnonzero(r == row)
         j = j[np.argmax(shared[j])]
-        where[k] = (mid[ia[j]], mid[ib[j]])
+        where[row] = (mid[ia[j]], mid[ib[j]])
     return area, where
 
 
