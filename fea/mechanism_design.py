@@ -14,7 +14,7 @@ width they scale with, the path a printed part follows, its roots' stress, its p
   figure in the middle of its bound (the width scaling law solved from a target);
 * :func:`as_made_stress` — the beams' peak stress with their filleted roots' Kt;
 * :func:`interference` — the overlap and the clearance of the deformed parts over the stroke
-  (:func:`deformed_bands` draws a beam as its band).
+  (:func:`deformed_bands` draws a beam as its band; :func:`self_overlap`, a beam on itself).
 
 The solver (scipy and the compiled kernels) is imported with the first solve, not with this
 module: a kind imports this module when it registers. Units: mm, N, N·mm, rad (deg in the
@@ -461,6 +461,10 @@ def interference(
     beam end and its body, its pad or the beam end it is joined to; a grounded end and the
     ground outlines) are checked only for overlap elsewhere; every other pair also for its
     distance. Each pair is checked at all rows of a case at once (shapely's array functions).
+    Every beam is also checked against itself for overlap (:func:`self_overlap`, its parts
+    farther apart along it than the self contact's skip; a beam declared with itself in
+    ``mech.beam_contacts`` as a declared pair: only an overlap deeper than the penalty's
+    penetration reaches the threshold); its distance to itself is not a clearance.
     ``controls`` maps each case to its drive control (the rows are named by their drive).
 
     Returns
