@@ -14,7 +14,7 @@ width they scale with, the path a printed part follows, its roots' stress, its p
   figure in the middle of its bound (the width scaling law solved from a target);
 * :func:`as_made_stress` — the beams' peak stress with their filleted roots' Kt;
 * :func:`interference` — the overlap and the clearance of the deformed parts over the stroke
-  (:func:`deformed_bands` draws a beam as its band).
+  (:func:`deformed_bands` draws a beam as its band; :func:`self_overlap`, a beam on itself).
 
 The solver (scipy and the compiled kernels) is imported with the first solve, not with this
 module: a kind imports this module when it registers. Units: mm, N, N·mm, rad (deg in the
@@ -43,6 +43,7 @@ __all__ = [
     "case_table",
     "deformed_bands",
     "interference",
+    "self_overlap",
     "solve_printed_path",
     "stable_part",
     "width_exponent",
@@ -316,6 +317,20 @@ def width_for_target(
 # The parts' clearance over the stroke
 
 
+def _mitred_offsets(p: np.ndarray, thickness_mm: np.ndarray) -> np.ndarray:
+    """The half-thickness offsets (rows, n, 2) mm of a band's edges at the nodes ``p`` (rows,
+    n, 2) mm, along the mitred normals (see :func:`deformed_bands`)."""
+    d = np.diff(p, axis=1)
+    u = d / np.linalg.norm(d, axis=2, keepdims=True)
+    tangent = np.concatenate([u[:, :1], u[:, :-1] + u[:, 1:], u[:, -1:]], axis=1)
+    tangent /= np.linalg.norm(tangent, axis=2, keepdims=True)
+    cos_half = np.ones(p.shape[:2])
+    cos_half[:, 1:-1] = np.sum(u[:, :-1] * tangent[:, 1:-1], axis=2)  # cos of half the turn
+    normal = np.stack([-tangent[..., 1], tangent[..., 0]], axis=2)
+    half = 0.5 * np.asarray(thickness_mm, dtype=float)[None, :] / np.maximum(cos_half, 0.5)
+    return half[..., None] * normal
+
+
 def deformed_bands(points_mm: np.ndarray, thickness_mm: np.ndarray) -> np.ndarray:
     """A beam as a band of its thickness along its deformed centreline at every row: nodes
     (rows, n, 2) mm and thickness (n,) mm -> (rows,) shapely Polygons. Both edges are offset at
@@ -325,20 +340,109 @@ def deformed_bands(points_mm: np.ndarray, thickness_mm: np.ndarray) -> np.ndarra
     import shapely
 
     p = np.asarray(points_mm, dtype=float)
-    d = np.diff(p, axis=1)
-    u = d / np.linalg.norm(d, axis=2, keepdims=True)
-    tangent = np.concatenate([u[:, :1], u[:, :-1] + u[:, 1:], u[:, -1:]], axis=1)
-    tangent /= np.linalg.norm(tangent, axis=2, keepdims=True)
-    cos_half = np.ones(p.shape[:2])
-    cos_half[:, 1:-1] = np.sum(u[:, :-1] * tangent[:, 1:-1], axis=2)  # cos of half the turn
-    normal = np.stack([-tangent[..., 1], tangent[..., 0]], axis=2)
-    half = 0.5 * np.asarray(thickness_mm, dtype=float)[None, :] / np.maximum(cos_half, 0.5)
-    offset = half[..., None] * normal
+    offset = _mitred_offsets(p, thickness_mm)
     bands = shapely.polygons(np.concatenate([p + offset, (p - offset)[:, ::-1]], axis=1))
     bad = ~shapely.is_valid(bands)
     if bad.any():  # an inner edge folded at a kink
         bands[bad] = shapely.buffer(bands[bad], 0.0)
     return bands
+
+
+def self_overlap(
+    points_mm: np.ndarray, thickness_mm: np.ndarray, s_mm: np.ndarray, skip_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """How far a beam's band overlaps itself at every row: its parts farther apart than
+    ``skip_mm`` of arc length compared with each other (nearer parts touch by construction).
+
+    The band (:func:`deformed_bands`' mitred edges, the thickness as made) is cut into one
+    quadrilateral per segment between two nodes; a pair of segments counts when one ends
+    more than ``skip_mm`` before the other starts (the rule of the self-contact pairs,
+    :func:`fea.body_contact.default_skip_mm`), and its overlap is the area the two share.
+
+    Parameters
+    ----------
+    points_mm : (rows, n, 2) float — deformed centreline nodes, mm.
+    thickness_mm : (n,) float — thickness at the nodes, mm.
+    s_mm : (n,) float — the nodes' arc length along the beam as made, mm.
+    skip_mm : arc length (mm) within which parts of the beam are not compared.
+
+    Returns
+    -------
+    area_mm2 : (rows,) float — the summed overlap of all far segment pairs, mm² (0 where none).
+    where_mm : (rows, 2) float — the arc lengths (mm, segment midpoints) of the row's most
+        overlapping pair (NaN where none).
+    """
+    import shapely
+
+    p = np.asarray(points_mm, dtype=float)
+    s = np.asarray(s_mm, dtype=float)
+    rows, n = p.shape[:2]
+    area = np.zeros(rows)
+    where = np.full((rows, 2), np.nan)
+    if n < 3:
+        return area, where
+    off = _mitred_offsets(p, thickness_mm)
+    left, right = p + off, p - off
+    quads = np.stack([left[:, :-1], left[:, 1:], right[:, 1:], right[:, :-1]], axis=2)
+    # the far pairs (segment ib starts more than the skip after segment ia ends: ib > ia),
+    # then those whose boxes meet at some row; only these are made shapes (most have none)
+    ia, ib = np.nonzero(s[None, :-1] > s[1:, None] + skip_mm)
+    lo, hi = quads.min(axis=2), quads.max(axis=2)  # (rows, n - 1, 2) mm
+    meet = np.all((lo[:, ia] <= hi[:, ib]) & (lo[:, ib] <= hi[:, ia]), axis=2)  # (rows, pairs)
+    r, k = np.nonzero(meet)
+    if r.size == 0:
+        return area, where
+    ia, ib = ia[k], ib[k]
+    first, second = shapely.polygons(quads[r, ia]), shapely.polygons(quads[r, ib])
+    for g in (first, second):
+        bad = ~shapely.is_valid(g)
+        if bad.any():  # a segment folded at a kink: its area is what it covers
+            g[bad] = shapely.make_valid(g[bad])
+    shared = shapely.area(shapely.intersection(first, second))
+    np.add.at(area, r, shared)
+    mid = 0.5 * (s[:-1] + s[1:])
+    for row in np.unique(r):
+        j = np.flatnonzero(r == row)
+        j = j[np.argmax(shared[j])]
+        where[row] = (mid[ia[j]], mid[ib[j]])
+    return area, where
+
+
+def _self_worst(
+    worst: tuple[float, str],
+    resp: MechanismResponse,
+    i: int,
+    name: str,
+    pts: np.ndarray,
+    t: np.ndarray,
+    at: Sequence[str],
+    declared: bool,
+) -> tuple[float, str]:
+    """``worst`` (area mm², text) or beam ``i``'s overlap with itself (:func:`self_overlap`
+    over the checked rows ``pts`` (rows, n, 2) mm, named by ``at``) where that is larger and
+    above :data:`INTERFERENCE_MM2`. A declared self contact (``[[a, a]]``) keeps its parts
+    apart to the penalty's penetration, so only a deeper overlap reaches the threshold, as for
+    any declared pair. Without the beam's model (a response not from the solver) no arc length:
+    unchecked."""
+    if i >= len(resp.beam_models):
+        return worst
+    from flexopt.fea.body_contact import default_skip_mm  # the self-contact pairs' rule
+
+    model = resp.beam_models[i]
+    area, where = self_overlap(pts, t, model.s_nodes, default_skip_mm(model))
+    k = int(np.argmax(area))
+    if area[k] <= max(worst[0], INTERFERENCE_MM2):
+        return worst
+    why = (
+        "self contact declared: deeper than the contact's penetration"
+        if declared
+        else "self contact not declared"
+    )
+    return (
+        float(area[k]),
+        f"{at[k]}: beam {name} passes through itself (s = {where[k, 0]:.4g} mm and "
+        f"s = {where[k, 1]:.4g} mm along it; {area[k]:.3g} mm²; {why})",
+    )
 
 
 def interference(
@@ -357,6 +461,10 @@ def interference(
     beam end and its body, its pad or the beam end it is joined to; a grounded end and the
     ground outlines) are checked only for overlap elsewhere; every other pair also for its
     distance. Each pair is checked at all rows of a case at once (shapely's array functions).
+    Every beam is also checked against itself for overlap (:func:`self_overlap`, its parts
+    farther apart along it than the self contact's skip; a beam declared with itself in
+    ``mech.beam_contacts`` as a declared pair: only an overlap deeper than the penalty's
+    penetration reaches the threshold); its distance to itself is not a clearance.
     ``controls`` maps each case to its drive control (the rows are named by their drive).
 
     Returns
@@ -418,6 +526,9 @@ def interference(
             joined |= {f"{'body' if o in body_names else 'beam'} {o}" for a, b in mech.beam_contacts
                        if name in (a, b) for o in (b if a == name else a,)}  # fmt: skip
             parts.append((f"beam {name}", free, joined))
+            worst = _self_worst(
+                worst, resp, i, name, pts, t, at, (name, name) in mech.beam_contacts
+            )
         for k_body, body in enumerate(mech.bodies):
             if body.outline_mm is None:
                 continue
