@@ -1,8 +1,8 @@
 """The printed path of a mechanism that bifurcates is judged as the drawn part is: the
 imperfect copy the path is solved on keeps its beams' roots (``MechBeam.root_mm``, the flares
 of the filleted ends), so the verdict's as-made stress is K_t times the largest stress over
-each flare, not the end section's alone (docs/mechanism.md, "The imperfect copy keeps the
-roots").
+each flare, not the end section's alone (docs/mechanism.md, ``imperfection_mm``: "The
+imperfect part is judged as the drawn one").
 
 Reference computed here: each beam's fibre stress at every FE node of the solved rows
 (fea.beam_fields.members_field, from the response's shapes and rotations), times the end's
