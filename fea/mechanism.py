@@ -1533,7 +1533,9 @@ def imperfect_mechanism(
     Returns
     -------
     Mechanism — beams' points moved by the mode, bodies' reference points and outlines moved
-    and turned with it; same joints, material, thicknesses and widths.
+    and turned with it; same joints, material, thicknesses, widths, roots (``root_mm``) and
+    arcs (each drawn segment's curvature on the FE nodes' pieces within it): every other
+    attribute is the drawn part's, so the imperfect path is judged as the drawn one.
 
     Raises
     ------
@@ -1556,7 +1558,20 @@ def imperfect_mechanism(
         s_nodes *= s_pts[-1] / s_nodes[-1]
         t = np.interp(s_nodes, s_pts, np.asarray(b.thickness_mm, dtype=float))
         n_el = (len(nodes) - 1) // 2
-        beams.append(MechBeam(b.name, nodes + a * mode, t, b.width_mm, n_el))
+        kappa = None
+        if b.curvature_per_mm is not None:
+            # each node-to-node piece lies on one drawn segment (the mesh has a vertex at every
+            # drawn point): it keeps that segment's arc, so no imperfection is the drawn shape
+            mid = 0.5 * (s_nodes[:-1] + s_nodes[1:])
+            seg = np.clip(np.searchsorted(s_pts, mid, side="right") - 1, 0, len(s_pts) - 2)
+            kappa = np.asarray(b.curvature_per_mm, dtype=float)[seg]
+        # replace, not a new MechBeam: every other attribute (root_mm, the flares whose stress
+        # the as-made verdict multiplies by K_t, ...) is the drawn beam's (issue: false MET)
+        beams.append(
+            replace(
+                b, points_mm=nodes + a * mode, thickness_mm=t, elements=n_el, curvature_per_mm=kappa
+            )
+        )
     bodies = []
     for b, (du, dv, dth) in zip(mech.bodies, response.critical_body_mode, strict=True):
         ref = np.asarray(b.ref_mm, dtype=float)
@@ -1566,7 +1581,7 @@ def imperfect_mechanism(
             c, s = np.cos(a * dth), np.sin(a * dth)
             rel = np.asarray(b.outline_mm, dtype=float) - ref
             outline = rel @ np.array([[c, s], [-s, c]]) + new_ref
-        bodies.append(MechBody(b.name, new_ref, outline))
+        bodies.append(replace(b, ref_mm=new_ref, outline_mm=outline))
     return replace(mech, beams=tuple(beams), bodies=tuple(bodies))
 
 

@@ -10,6 +10,9 @@ imperfection vanishes.
 
 from __future__ import annotations
 
+from dataclasses import replace as replace_beam
+from dataclasses import replace as replace_response
+
 import numpy as np
 import pytest
 from flexopt.fea.errors import FeaError
@@ -128,3 +131,95 @@ def test_no_mode_without_an_instability():
     with pytest.raises(FeaError, match="no buckling mode"):
         imperfect_mechanism(mech, resp, 0.01)
     del case
+
+
+def _flared_arch() -> tuple[Mechanism, LoadCase]:
+    """The guided arch with each grounded end flared (twice as thick at the ground, tapering to
+    the beam's thickness over the first segment) and that segment as its root: the beam's
+    largest stress near the ground is at the flare's toe, not at the end section."""
+    mech, case = _guided_arch()
+    left, right = mech.beams
+    flare = float(np.hypot(*(left.points_mm[1] - left.points_mm[0])))  # mm, one segment
+    t_left = np.asarray(left.thickness_mm, dtype=float).copy()
+    t_right = np.asarray(right.thickness_mm, dtype=float).copy()
+    t_left[0] *= 2.0
+    t_right[-1] *= 2.0
+    beams = (
+        replace_beam(left, thickness_mm=t_left, root_mm=(flare, 0.0)),
+        replace_beam(right, thickness_mm=t_right, root_mm=(0.0, flare)),
+    )
+    return Mechanism(beams, mech.bodies, mech.joints, MAT), case
+
+
+def test_the_imperfect_mechanism_keeps_the_roots_so_it_is_judged_as_the_drawn_one():
+    # the verdict's as-made stress multiplies each root's K_t with the largest stress within
+    # the beam's root_mm (the flare): a copy that dropped root_mm would be judged at the end
+    # section alone, which here is 4x stiffer in bending and far below the toe's stress
+    mech, case = _flared_arch()
+    out = [MechOutput("F", "reaction")]
+    perfect = solve_mechanism(mech, case, out)
+    row = first_unstable_row(perfect) or len(perfect.drive)
+    assert row > 5 and perfect.converged[:row].all()
+    # no imperfection: the copy is the drawn part redrawn through its FE nodes, whatever the
+    # mode (the flared arch need not bifurcate for that)
+    zero_mode = tuple(np.zeros_like(n) for n in perfect.reference_nodes_mm)
+    same = imperfect_mechanism(
+        mech,
+        replace_response(perfect, critical_mode=zero_mode, critical_body_mode=np.zeros((1, 3))),
+        0.0,
+    )
+    for drawn, copy in zip(mech.beams, same.beams, strict=True):
+        assert copy.root_mm == drawn.root_mm and copy.width_mm == drawn.width_mm
+        assert copy.name == drawn.name and copy.curvature_per_mm is None
+    resp = solve_mechanism(same, case, out)
+    assert resp.beam_roots_mm == perfect.beam_roots_mm
+    roots, roots_ref = resp.root_stress_MPa[1:row], perfect.root_stress_MPa[1:row]
+    # the grounded roots (left start, right end) agree with the drawn part's to the copy's mesh
+    # (drawn through the FE nodes, 2 elements per drawn one): within 3 % of the largest, the
+    # error largest where the root's moment changes sign and the flare's peak moves along it
+    grounded = roots_ref[:, [0, 1], [0, 1]]
+    scale = float(grounded.max())
+    np.testing.assert_allclose(roots[:, [0, 1], [0, 1]], grounded, rtol=0, atol=0.03 * scale)
+    # the end sections' stresses (root_mm 0, what a copy without its roots was judged by) are
+    # far from it: the tolerance above tells the two apart
+    ends = solve_mechanism(
+        Mechanism(
+            tuple(replace_beam(b, root_mm=(0.0, 0.0)) for b in mech.beams),
+            mech.bodies,
+            mech.joints,
+            MAT,
+        ),
+        case,
+        out,
+    ).root_stress_MPa[1:row][:, [0, 1], [0, 1]]
+    assert np.max(np.abs(grounded - ends)) > 0.5 * scale
+    # the judged root stress is the largest beam stress within root_mm of the end: never above
+    # the beam's peak
+    assert np.all(roots.max(axis=2) <= resp.peak_stress_MPa[1:row] * (1 + 1e-12))
+
+
+def test_an_imperfect_curved_beam_keeps_its_arcs():
+    # a quarter circle (radius 20 mm) drawn as two exact arcs: the copy with no imperfection
+    # lies on the same circle between its FE nodes (each piece keeps its drawn arc)
+    R, L = 20.0, 5.0
+    th = np.array([0.0, np.pi / 4, np.pi / 2])
+    pts = np.stack([R * np.sin(th), R * (1 - np.cos(th))], axis=1)
+    beam = MechBeam("arc", pts, np.full(3, 0.5), W, 6, np.full(2, 1.0 / R), (0.5, 0.0))
+    mech = Mechanism((beam,), (), (MechJoint("arc.start", "ground"),), MAT)
+    case = LoadCase("c", MechDrive("arc.end", "displacement", L, 10, (-1, 0), "held", "held"))
+    resp = solve_mechanism(mech, case, [MechOutput("P", "reaction")])
+    nodes = resp.reference_nodes_mm[0]
+    np.testing.assert_allclose(np.hypot(nodes[:, 0], nodes[:, 1] - R), R, rtol=1e-12)
+    fake = replace_response(
+        resp, critical_mode=(np.zeros_like(nodes),), critical_body_mode=np.zeros((0, 3))
+    )
+    copy = imperfect_mechanism(mech, fake, 0.0).beams[0]
+    np.testing.assert_allclose(copy.curvature_per_mm, 1.0 / R, rtol=1e-12)
+    assert copy.root_mm == (0.5, 0.0)
+    again = solve_mechanism(Mechanism((copy,), (), mech.joints, MAT), case, [])
+    # the copy's nodes (its mesh halves each element) are on the same circle
+    np.testing.assert_allclose(
+        np.hypot(again.reference_nodes_mm[0][:, 0], again.reference_nodes_mm[0][:, 1] - R),
+        R,
+        rtol=1e-9,
+    )
