@@ -33,6 +33,7 @@ that is removed.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import resource
@@ -73,6 +74,10 @@ TIMED: tuple[tuple[str, str, str], ...] = (
     ("flexopt.pipeline.robustness", "run_robustness", "robustness samples"),
     ("flexopt.pipeline.plots", "plot_response", "evaluate: force_displacement.png"),
     ("flexopt.pipeline.plots", "plot_cases", "plot_cases"),
+    ("flexopt.pipeline.screening", "taguchi_stage", "SEA stage 1 (Taguchi)"),
+    ("flexopt.fea.solid3d", "check_solid3d", "3D check (check_solid3d)"),
+    ("flexopt.fea.solid3d", "solve_solid3d", "  3D solve (solve_solid3d)"),
+    ("flexopt.fea.solid3d", "converge_peak_stress", "3D peak convergence"),
 )
 
 #: modules imported before the timers go in (their import is timed as one phase)
@@ -254,9 +259,16 @@ def child(argv: list[str]) -> None:
         return
     import importlib
 
+    import yaml
+    from flexopt.pipeline.study import resolve_study_path
+
     t1, c1 = time.perf_counter(), time.process_time()
     for name in PRELOAD:
         importlib.import_module(name)
+    # the study's kind module: its functions imported by name are timed too (stage 1)
+    kind = yaml.safe_load(resolve_study_path(study).read_text()).get("kind", "")
+    with contextlib.suppress(ImportError):
+        importlib.import_module(f"flexopt.pipeline.studies.{kind}")
     rec.add("import run/report modules", time.perf_counter() - t1, time.process_time() - c1)
     _install(rec)
     t2, c2 = time.perf_counter(), time.process_time()
@@ -333,7 +345,9 @@ def part_startup(repeat: int) -> None:
     print(f"  load after: {_load()}")
 
 
-def part_command(what: str, study: str, repeat: int, workers: int | None) -> None:
+def part_command(
+    what: str, study: str, repeat: int, workers: int | None, timed_only: bool = False
+) -> None:
     more = ["--workers", str(workers)] if workers is not None and what == "run" else []
     print(f"{what} {study} {' '.join(more)} (load {_load()})")
     whole: list[tuple[float, float]] = []
@@ -343,10 +357,13 @@ def part_command(what: str, study: str, repeat: int, workers: int | None) -> Non
         for i in range(repeat):  # the plain command and the timed child, interleaved
             out = Path(tmp) / f"plain-{i}"
             quiet = ["--quiet"] if what == "run" else []
-            whole.append(
-                _timed_subprocess([str(FLEXOPT), what, study, "--out", str(out), *quiet, *more])
-            )
-            shutil.rmtree(out, ignore_errors=True)
+            if timed_only:  # a long study: the timed child alone
+                whole.append((float("nan"), float("nan")))
+            else:
+                whole.append(
+                    _timed_subprocess([str(FLEXOPT), what, study, "--out", str(out), *quiet, *more])
+                )
+                shutil.rmtree(out, ignore_errors=True)
             for kind, store in (("numba", numba), (what, rounds)):
                 if kind == "numba" and what != "evaluate":
                     continue  # once per part is enough: the evaluate part measures it
@@ -362,10 +379,14 @@ def part_command(what: str, study: str, repeat: int, workers: int | None) -> Non
                     str(out),
                     *more,
                 ]
+                cpu0, t0 = _children_cpu(), time.perf_counter()
                 done = subprocess.run(cmd, capture_output=True, text=True)
+                tree = {"wall": time.perf_counter() - t0, "cpu": _children_cpu() - cpu0}
                 if done.returncode != 0:
                     raise SystemExit(f"{' '.join(cmd)} failed: {done.stderr[-1500:]}")
-                store.append([json.loads(line) for line in record.read_text().splitlines()])
+                rows = [json.loads(line) for line in record.read_text().splitlines()]
+                label = "timed child, whole (CPU: with its workers)"
+                store.append([*rows, {"label": label, "where": "tree", **tree}])
                 shutil.rmtree(out, ignore_errors=True)
             print(
                 f"    round {i + 1}: {whole[-1][0]:.2f} s wall, {whole[-1][1]:.2f} s CPU, "
@@ -399,6 +420,11 @@ def main() -> None:
         choices=["startup", "evaluate", "run"],
     )
     parser.add_argument("--workers", type=int, default=None, help="flexopt run --workers")
+    parser.add_argument(
+        "--timed-only",
+        action="store_true",
+        help="run only the timed child (one run per round, for a long study such as sea-spring)",
+    )
     args = parser.parse_args()
     if args.repeat < 1:
         parser.exit(2, "fixed_costs.py: error: --repeat must be at least 1\n")
@@ -409,7 +435,7 @@ def main() -> None:
         part_startup(max(args.repeat, 5))
     for what in ("evaluate", "run"):
         if what in args.parts:
-            part_command(what, args.study, args.repeat, args.workers)
+            part_command(what, args.study, args.repeat, args.workers, args.timed_only)
 
 
 if __name__ == "__main__":
