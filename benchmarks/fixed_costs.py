@@ -406,6 +406,30 @@ def part_command(
     print(f"  load after: {_load()}")
 
 
+def part_ab(what: str, study: str, repeat: int, other: str) -> None:
+    """The plain command with this interpreter's flexopt and another's (e.g. main's venv),
+    alternating (the order swapped every round): medians of wall and CPU, s."""
+    ours, theirs = str(FLEXOPT), str(Path(other).with_name("flexopt"))
+    print(f"A/B {what} {study}: A = {theirs}, B = {ours} (load {_load()})")
+    runs: dict[str, list[tuple[float, float]]] = {"A": [], "B": []}
+    quiet = ["--quiet"] if what == "run" else []
+    with tempfile.TemporaryDirectory(prefix="fixed-costs-ab-") as tmp:
+        for i in range(repeat):
+            order = [("A", theirs), ("B", ours)] if i % 2 == 0 else [("B", ours), ("A", theirs)]
+            for name, exe in order:
+                out = Path(tmp) / f"{name}-{i}"
+                runs[name].append(_timed_subprocess([exe, what, study, "--out", str(out), *quiet]))
+                shutil.rmtree(out, ignore_errors=True)
+            print(
+                f"    round {i + 1}: A {runs['A'][-1][0]:.2f} s wall {runs['A'][-1][1]:.2f} s CPU, "
+                f"B {runs['B'][-1][0]:.2f} s wall {runs['B'][-1][1]:.2f} s CPU, load {_load()}"
+            )
+    for name in ("A", "B"):
+        wall = statistics.median(w for w, _ in runs[name])
+        cpu = statistics.median(c for _, c in runs[name])
+        print(f"  {name}: wall {wall:.2f} s, CPU {cpu:.2f} s (median of {repeat})")
+
+
 def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
         child(sys.argv[2:])
@@ -425,12 +449,23 @@ def main() -> None:
         action="store_true",
         help="run only the timed child (one run per round, for a long study such as sea-spring)",
     )
+    parser.add_argument(
+        "--ab",
+        metavar="OTHER_PYTHON",
+        help="instead of the breakdown: the plain commands of --parts evaluate/run with this "
+        "interpreter's flexopt (A) against ours (B), alternating",
+    )
     args = parser.parse_args()
     if args.repeat < 1:
         parser.exit(2, "fixed_costs.py: error: --repeat must be at least 1\n")
     print(f"date      {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
     print(f"python    {sys.executable}; cores {os.cpu_count()}")
     print(f"load avg  {_load()} (1, 5, 15 min) at start")
+    if args.ab:
+        for what in ("evaluate", "run"):
+            if what in args.parts:
+                part_ab(what, args.study, args.repeat, args.ab)
+        return
     if "startup" in args.parts:
         part_startup(max(args.repeat, 5))
     for what in ("evaluate", "run"):
