@@ -2,7 +2,7 @@
 report's files (issue 27 item 4).
 
     nice python benchmarks/fixed_costs.py [--study constant-force] [--repeat 3]
-        [--parts startup evaluate run] [--workers N]
+        [--parts startup evaluate run] [--workers N] [--timed-only] [--ab OTHER_PYTHON]
 
 Three parts, each repeated ``--repeat`` times in fresh processes (medians printed, with the
 load average before and after each part, since the machine is shared):
@@ -23,6 +23,12 @@ load average before and after each part, since the machine is shared):
     run in a forked child (the plots, best.step) are recorded by that child (their wall overlaps
     the main process's). The numba kernels' first call (cache load) is timed on its own: the
     study's nominal design evaluated twice in a fresh process after ``load_study``.
+
+``--ab OTHER_PYTHON``
+    Instead of the breakdown: the plain commands with another install's ``flexopt`` (A, e.g.
+    main's venv) and this one's (B), alternating, medians of wall and CPU.
+``--timed-only``
+    The timed child alone (no plain command): for a study too long to run twice (sea-spring).
 
 Times are wall (``time.perf_counter``) and CPU of the process that ran the code
 (``time.process_time``, all its threads), s. Nested timers are inclusive (``detail`` contains
