@@ -72,7 +72,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from flexopt.fea.errors import FeaError
-from scipy import integrate, special
 
 __all__ = [
     "GAS_CONSTANT_J_MOL_K",
@@ -95,6 +94,8 @@ _SERIES_LIMIT = 0.5
 
 def _ml_series(alpha: float, x: float) -> float:
     """E_alpha(-x) by its power series sum_k (-x)^k / Gamma(alpha k + 1), 0 <= x <= 0.5."""
+    from scipy import special  # here: a study's start-up (every CLI command) skips scipy.special
+
     total, k = 0.0, 0
     while True:
         term = math.exp(k * math.log(x) - special.gammaln(alpha * k + 1.0)) if x > 0 else 0.0
@@ -128,6 +129,8 @@ def _ml_integral(alpha: float, x: float) -> float:
     width = min(1.0, 10.0 * math.pi * (1.0 - alpha))
     points = sorted({-1.0, 0.0, 1.0, ls - 1.0, ls - width, ls, ls + width, ls + 1.0})
     edges = [-math.inf, *points, 4.0]  # exp(-e^4) ~ 2e-24: nothing beyond
+    from scipy import integrate  # here: start-up skips scipy.integrate (~0.3 s, issue 27)
+
     total = 0.0
     for a, b in zip(edges[:-1], edges[1:], strict=True):
         if b <= a:

@@ -252,6 +252,9 @@ def evaluate_study(
 
     if out is not None:
         check_out_dir(out)
+    from flexopt.pipeline import report_preload
+
+    preload = report_preload.start()  # matplotlib and plotly load while the design solves
     started = datetime.now().astimezone()
     started_s = time.perf_counter()
     result = solve_study(study, repeat, source)
@@ -293,6 +296,7 @@ def evaluate_study(
         record["input_files"] = input_files
     write_atomic(run_dir / "study.yaml", study_to_yaml(folder_study, header))
     extra = _extra_files(result)
+    preload.join()
     if result.cases:  # every load case, one column each; every output on its unit's axis
         args = case_plot_args(study, result)
         png = plot_cases(rows=("curve", "stress"), **args)

@@ -34,6 +34,7 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict, overall, verdict_rows
 from flexopt.pipeline import labels
+from flexopt.pipeline.html_templates import WHITE, finish_template, templates_at_embed
 from flexopt.pipeline.plot_targets import plot_spec
 from flexopt.pipeline.sensitivity_report import sensitivity_html
 
@@ -196,7 +197,7 @@ def _axis(title: str, **more: Any) -> dict[str, Any]:
 def _layout(title: str, **more: Any) -> dict[str, Any]:
     return {
         "title": {"text": title},
-        "template": "plotly_white",
+        "template": WHITE,  # "plotly_white", put in at embed (pipeline/html_templates.py)
         "margin": {"l": 70, "r": 30, "t": 60, "b": 60},
         **more,
     }
@@ -743,6 +744,7 @@ class _Figures:
     def embed(self, fig: Any, name: str) -> str:
         self.count += 1
         spec = json.loads(fig.to_json())  # plotly's encoder turns numpy into lists
+        finish_template(spec)  # its template's JSON, built once (pipeline/html_templates.py)
         text = json.dumps(spec, separators=(",", ":"), allow_nan=False)
         text = script_json(text)
         return (
@@ -811,6 +813,11 @@ nav a { margin-right: .8em; }
 
 def render_html(data: HtmlData) -> str:
     """The text of report.html (one file, plotly.js inline, no link to the network)."""
+    with templates_at_embed():  # each figure's template is put in once built: ~20 ms less each
+        return _render_html(data)
+
+
+def _render_html(data: HtmlData) -> str:
 
     p = data.problem
     figures = _Figures()
@@ -1045,6 +1052,11 @@ class EvaluateHtmlData:
 def render_evaluate_html(data: EvaluateHtmlData) -> str:
     """The text of an evaluate folder's report.html: the verdict, the summary, the response with
     its target and the part in 3D (one file, plotly.js inline, no link to the network)."""
+    with templates_at_embed():  # each figure's template is put in once built: ~20 ms less each
+        return _render_evaluate_html(data)
+
+
+def _render_evaluate_html(data: EvaluateHtmlData) -> str:
     figures = _Figures()
     record = data.record
     verdicts = list(data.verdicts)

@@ -42,6 +42,7 @@ from flexopt.pipeline.run.export import (
 from flexopt.pipeline.run.figures import convergence_png, curve_png, float_or_none, spec_label
 from flexopt.pipeline.run.folder import RUN_FILES, Columns, write_files
 from flexopt.pipeline.run.setup import RunSetup
+from flexopt.pipeline.run.split_makes import SPLIT_GROUP_AT, SplitMakes
 from flexopt.pipeline.run.step_child import EarlyStep
 from flexopt.pipeline.runfolder import records_to_csv, table_to_csv, to_json, write_atomic
 from flexopt.pipeline.verdict import judge_detail
@@ -134,7 +135,7 @@ class RunState:
         self._pending: Future | None = None
         # files made in forked children at the end of the run (see artefact)
         self._groups: dict[str, list[tuple[str, Callable[[], str | bytes | None]]]] = {}
-        self._started: list[ForkedMakes | EarlyStep] = []
+        self._started: list[ForkedMakes | SplitMakes | EarlyStep] = []
         self._early: EarlyStep | None = None  # best.step's child, once it has the part
         self._csv_header: list[str] | None = None
         self._csv_body: list[str] = []
@@ -372,8 +373,12 @@ class RunState:
         self.files.append(name)
 
     def start_groups(self) -> None:
-        """Make each queued group of files in a child process (see :class:`ForkedMakes`)."""
-        self._started = [ForkedMakes(items) for items in self._groups.values()]
+        """Make each queued group of files in a child process (see :class:`ForkedMakes`); a
+        group of :data:`SPLIT_GROUP_AT` files or more in two (:class:`SplitMakes`)."""
+        self._started = [
+            SplitMakes(items) if len(items) >= SPLIT_GROUP_AT else ForkedMakes(items)
+            for items in self._groups.values()
+        ]
         self._groups = {}
 
     def collect_groups(self) -> None:
