@@ -251,7 +251,8 @@ def arm_field(
     Parameters
     ----------
     members : Members — one member, arm 0 (the others follow by symmetry).
-    width_mm : float, mm — the plate thickness ST of the part as made (the arm was solved at a
+    width_mm : float, mm — the plate thickness of the part as made (the solved ST, or the 3D
+        check's corrected ST where it ran; the arm was solved at a
         nominal thickness and its torque rescaled: under a prescribed hub rotation its stresses
         do not depend on the plate thickness, :func:`fea.scaling.at_thickness`).
     judged_elsewhere : bool — the kind's verdict judges a plane-stress or 3D figure, not the

@@ -365,7 +365,7 @@ class ThresholdSpringProblem(DesignProblem):
             info=info,
             field_map=field_map,
             solid_field=solid_field,
-            beam_field=arm_field(r.members, st, "plane_stress" in info),  # best.vtu
+            beam_field=arm_field(r.members, height or st, "plane_stress" in info),  # best.vtu
         )
 
     def _in_window(self, rot_rad: np.ndarray) -> np.ndarray:
