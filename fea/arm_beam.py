@@ -21,9 +21,11 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamSettings
+from flexopt.fea.beam_fields import constrained_members
 from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedSettings
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
@@ -47,6 +49,8 @@ class ArmBeamResponse:
     message : str — why not, when not ok.
     solve_time_s : float, s.
     extra : dict — element count and Newton iterations.
+    members : fea.beam_fields.Members, optional — arm 0's model, shapes and rotations (no copy
+        of the solve beyond the rotations), for its section and fibre stresses in best.vtu.
     """
 
     rotation_rad: np.ndarray
@@ -58,6 +62,7 @@ class ArmBeamResponse:
     message: str
     solve_time_s: float
     extra: dict = field(default_factory=dict)
+    members: Any = None
 
 
 def _rotation(p: float) -> np.ndarray:
@@ -133,4 +138,5 @@ def arm_beam_torque(
         message=res.message,
         solve_time_s=time.perf_counter() - t0,
         extra={"elements": beam.n_elements, "newton_iterations": int(res.iterations.sum())},
+        members=constrained_members([beam], res),
     )

@@ -37,7 +37,10 @@ import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse
 
 __all__ = [
+    "ARM_NOTE",
+    "ARM_JUDGED_ELSEWHERE",
     "Members",
+    "arm_field",
     "beam_field",
     "constrained_members",
     "join_members",
@@ -225,3 +228,45 @@ def constrained_members(models: Sequence[BeamModel], response: Any) -> Members:
         response.beam_state(i).reshape(rows, -1, 3)[..., 2] for i in range(len(models))
     )
     return Members(tuple(models), tuple(response.shapes_mm), rotations)
+
+
+#: A note on an arm spring's beam field (fea/arm_beam.py): the file draws one arm of ``n``.
+ARM_NOTE = (
+    "arm 0 of the spring's identical arms (the others are it turned about the axis); its "
+    "largest von_mises_MPa per load step is the beam model's peak_stress_MPa of that row"
+)
+#: ... and where the kind judges its stress on a finer model than the beam.
+ARM_JUDGED_ELSEWHERE = (
+    "the verdict does not read these beam stresses: it judges the plane-stress check's peak "
+    "(plane_stress_peak_stress_MPa, the triangles) and, where it ran, the 3D check's"
+)
+
+
+def arm_field(
+    members: Members | None, width_mm: float, judged_elsewhere: bool
+) -> dict[str, Any] | None:
+    """:func:`section_field` of an arm spring's one traced arm (:attr:`fea.arm_beam.
+    ArmBeamResponse.members`), None where the response kept no members.
+
+    Parameters
+    ----------
+    members : Members — one member, arm 0 (the others follow by symmetry).
+    width_mm : float, mm — the plate thickness of the part as made (the solved ST, or the 3D
+        check's corrected ST where it ran; the arm was solved at a
+        nominal thickness and its torque rescaled: under a prescribed hub rotation its stresses
+        do not depend on the plate thickness, :func:`fea.scaling.at_thickness`).
+    judged_elsewhere : bool — the kind's verdict judges a plane-stress or 3D figure, not the
+        beam's: said in the field's ``notes``.
+
+    Returns
+    -------
+    dict
+        the keys of :func:`section_field` (``width_mm`` (n_nodes - 1,) = ``width_mm``) and
+        ``notes`` (tuple of str, the field data's texts).
+    """
+    if members is None or len(members.models) != 1:
+        return None
+    out = section_field(members.models[0], members.shapes_mm[0], members.rotations_rad[0])
+    out["width_mm"] = np.full_like(out["width_mm"], float(width_mm))
+    out["notes"] = (ARM_NOTE, ARM_JUDGED_ELSEWHERE) if judged_elsewhere else (ARM_NOTE,)
+    return out

@@ -51,11 +51,14 @@ class CaseResponse:
         ``y``, ``stress``, ``allowable_MPa``, a target band, ``x_label``).
     outputs : tuple of str — the columns the user defined for this case (``advantage``,
         ``jaw_force_N``), each drawn on the axis of its unit.
+    vtu : dict — the case's ``shapes_mm`` and ``beam_field`` as :class:`DesignResult` has
+        them, for best_CASE.vtu (pipeline/vtu.py); empty: the case is not drawn.
     """
 
     table: dict[str, np.ndarray]
     plot: dict[str, Any] = field(default_factory=dict)
     outputs: tuple[str, ...] = ()
+    vtu: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

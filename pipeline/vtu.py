@@ -43,13 +43,18 @@ Beside it (:func:`vtu_files`): ``best.pvd``, the ParaView collection of the load
 (timestep = the drive value, in the drive column's unit), one ``best_steps/best_KKK.vtu`` per
 step (:func:`step_mesh`: that step's beam state and, where the check solved it, its
 plane-stress state, under plain names), and ``best_3d.vtu``, the 3D check's P2 tetrahedra
-(:func:`solid_vtu_bytes`). docs/print_to_part.md says what each holds and how to open them.
+(:func:`solid_vtu_bytes`). A kind of several load cases (a mechanism) draws its first case
+there and every other case in ``best_CASE.vtu`` / ``best_CASE.pvd`` with its steps in
+``best_steps/best_CASE_KKK.vtu`` (:func:`load_case_series`; field data ``load case: NAME``).
+docs/print_to_part.md says what each holds and how to open them.
 """
 
 from __future__ import annotations
 
+import re
 import tempfile
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
@@ -120,6 +125,8 @@ SOLID_VERDICT = (
     "3D peak_stress_3d_MPa the verdict reads (MPa): the nonlinear 2D peak (refined where "
     "converged) times the linear 3D / 2D peak ratio, not this linear state's own peak"
 )
+#: Field data of a kind with several load cases: the case a file draws (its name follows).
+LOAD_CASE_NOTE = "load case: "
 GAP_STEP_FIELD = "gap: the plane-stress field was not solved at this load step (see best.pvd)"
 
 
@@ -607,22 +614,77 @@ def vtu_files(result: Any, stem: str) -> dict[str, bytes]:
     ``{stem}.pvd`` (the ParaView collection of the load steps, timestep = the drive value) and
     one ``{stem}_steps/{stem}_KKK.vtu`` per load step (:func:`step_mesh`: that step's
     displacement and stresses as plain arrays), and ``{stem}_3d.vtu`` where the result has a
-    3D check's state (:func:`solid_vtu_bytes`). Empty when it has none of them."""
+    3D check's state (:func:`solid_vtu_bytes`). A kind with several load cases (a mechanism)
+    draws its first in those and every other case ``CASE`` in ``{stem}_CASE.vtu``,
+    ``{stem}_CASE.pvd`` and ``{stem}_steps/{stem}_CASE_KKK.vtu`` (:func:`load_case_series`).
+    Empty when it has none of them."""
     out: dict[str, bytes] = {}
-    single = vtu_bytes(result)
-    if single is not None:
-        out[f"{stem}.vtu"] = single
+    for prefix, series, case in load_case_series(result, stem):
+        mesh = vtu_mesh(series)
+        if mesh is None:
+            continue
+        note = _case_note(case)
+        mesh.field_data.update(note)
+        out[f"{prefix}.vtu"] = _mesh_bytes(mesh)
         entries = []
-        for k, step in enumerate(load_steps(result)):
-            mesh = step_mesh(result, step, k)
-            name = f"{stem}_steps/{stem}_{k:03d}.vtu"
+        for k, step in enumerate(load_steps(series)):
+            mesh = step_mesh(series, step, k)
+            mesh.field_data.update(note)
+            name = f"{stem}_steps/{prefix}_{k:03d}.vtu"
             out[name] = _mesh_bytes(mesh)
             entries.append((step["time"], name))
-        out[f"{stem}.pvd"] = pvd_text(entries).encode("utf-8")
+        out[f"{prefix}.pvd"] = pvd_text(entries).encode("utf-8")
     solid = solid_vtu_bytes(result)
     if solid is not None:
         out[f"{stem}_3d.vtu"] = solid
     return out
+
+
+def case_slug(case: str) -> str:
+    """A load case's name as a file name's part: runs of characters other than letters,
+    digits, ``-`` and ``_`` become one ``_``."""
+    return re.sub(r"[^A-Za-z0-9_-]+", "_", str(case)).strip("_") or "case"
+
+
+def load_case_series(result: Any, stem: str) -> list[tuple[str, Any, str | None]]:
+    """The response series best.vtu / best.pvd draw: ``(file stem, result-like, load case)``.
+
+    The first is ``(stem, result, first case)``: the result's own shapes, beam field and plane
+    field, which a kind of several load cases fills with its first case (the case None for a
+    kind of one). Every further case of :attr:`DesignResult.cases` whose ``vtu`` holds its
+    ``shapes_mm`` (and ``beam_field``) follows as ``(stem_CASE, that case's shapes, table and
+    plot, CASE)``: one ParaView collection per case, since each case has its own drive (its
+    own time axis and unit), as ParaView's time-series reader expects."""
+    cases = dict(getattr(result, "cases", None) or {})
+    names = list(cases)
+    first = names[0] if len(names) > 1 else None
+    series: list[tuple[str, Any, str | None]] = [(stem, result, first)]
+    used = {stem, f"{stem}_3d"}
+    for case in names[1:]:
+        vtu = getattr(cases[case], "vtu", None) or {}
+        if vtu.get("shapes_mm") is None:
+            continue
+        prefix = f"{stem}_{case_slug(case)}"
+        while prefix in used:  # two names alike once slugged: kept apart
+            prefix += "_"
+        used.add(prefix)
+        view = SimpleNamespace(
+            shapes_mm=vtu["shapes_mm"],
+            beam_field=vtu.get("beam_field"),
+            table=cases[case].table,
+            plot=cases[case].plot,
+            field_map=None,
+            solid_field=None,
+        )
+        series.append((prefix, view, case))
+    return series
+
+
+def _case_note(case: str | None) -> dict[str, np.ndarray]:
+    """Field data naming the load case a file draws (none for a kind of one case)."""
+    if case is None:
+        return {}
+    return {f"{LOAD_CASE_NOTE}{case}": np.zeros(1)}
 
 
 def write_vtu_files(folder: Path, result: Any, stem: str, write: Any) -> list[str]:
@@ -643,10 +705,11 @@ def vtu_makers(result: Any, stem: str) -> dict[str, Any]:
     if not has_mesh(result):
         return {}
     names = []
-    if vtu_mesh_possible(result):
-        n = len(load_steps(result))
-        names = [f"{stem}.vtu", *(f"{stem}_steps/{stem}_{k:03d}.vtu" for k in range(n))]
-        names.append(f"{stem}.pvd")
+    for prefix, series, _ in load_case_series(result, stem):
+        if vtu_mesh_possible(series):
+            n = len(load_steps(series))
+            names += [f"{prefix}.vtu", *(f"{stem}_steps/{prefix}_{k:03d}.vtu" for k in range(n))]
+            names.append(f"{prefix}.pvd")
     if getattr(result, "solid_field", None):
         names.append(f"{stem}_3d.vtu")
     made: dict[str, bytes] = {}

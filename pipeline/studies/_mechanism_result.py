@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from flexopt.fea.materials import Material
 from flexopt.fea.mechanism_design import REACTION_UNIT
+from flexopt.fea.mechanism_fields import solved_vtu
 from flexopt.geometry.mechanism import BeamShape, MechanismOutline, as_made_info
 from flexopt.optimise.problem import CaseResponse
 from flexopt.optimise.requirements import Requirement
@@ -96,7 +97,8 @@ def case_responses(
         plot["x_label"] = f"drive of {d.part} ({d.control}, {d.unit})"
         # with stops, each stop's force is drawn and tabulated with the outputs
         forces = [f"stop_{o.name}_force_N" for o in (study.stops.outlines if study.stops else ())]
-        out[case] = CaseResponse(table, plot, (*outputs_in(study, case), *forces))
+        vtu = solved_vtu(solved, case)  # best_CASE.vtu (pipeline/vtu.py)
+        out[case] = CaseResponse(table, plot, (*outputs_in(study, case), *forces), vtu)
     return out
 
 

@@ -51,6 +51,7 @@ from typing import Any
 
 import numpy as np
 from flexopt.fea.arm_beam import ArmBeamResponse, arm_beam_torque
+from flexopt.fea.beam_fields import arm_field
 from flexopt.fea.errors import FeaError
 from flexopt.fea.scaling import at_thickness
 from flexopt.fea.spring_analysis import analyse_spring
@@ -228,6 +229,7 @@ class ThresholdSpringProblem(DesignProblem):
             message=r.message,
             solve_time_s=r.solve_time_s,
             extra=r.extra,
+            members=r.members,
         )
         return self.params(x, st), r, st, err
 
@@ -363,6 +365,7 @@ class ThresholdSpringProblem(DesignProblem):
             info=info,
             field_map=field_map,
             solid_field=solid_field,
+            beam_field=arm_field(r.members, height or st, "plane_stress" in info),  # best.vtu
         )
 
     def _in_window(self, rot_rad: np.ndarray) -> np.ndarray:
@@ -518,6 +521,8 @@ class ThresholdSpringProblem(DesignProblem):
             files=files,
             field_map=d.field_map,  # stress_deformed.png and design.vtu of the evaluate folder
             solid_field=d.solid_field,  # design_3d.vtu
+            shapes_mm=d.shapes_mm,  # design.vtu: arm 0 with its section and stresses
+            beam_field=d.beam_field,
         )
 
 
