@@ -52,6 +52,7 @@ if TYPE_CHECKING:
 __all__ = [
     "StaticsStress",
     "contact_point_loads",
+    "start_loaded_stress",
     "end_force",
     "sample_geometry",
     "statics_fibres",
@@ -262,3 +263,53 @@ def statics_fibres(
     out["fibre_right_MPa"] = right
     out["equivalent_MPa"] = np.maximum(np.abs(left), np.abs(right))
     return out
+
+
+def start_loaded_stress(
+    model: BeamModel,
+    shapes_mm: np.ndarray,
+    rotations_rad: np.ndarray,
+    start_force: np.ndarray,
+    converged: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The peak stress from statics of a beam loaded only at its two ends, from the load at its
+    start (a threshold spring's arm: the hub drives the start, the pad clamps the end).
+
+    The part [0, s] carries the start load, so the section at s has ``|M(s)| = |M0 + (r0 -
+    r(s)) x F0|`` and ``|N(s)| = |F0 . (cos theta, sin theta)|`` (the signs of the module
+    docstring's end form flip; the stress |N|/A + |M|/Z does not).
+
+    Parameters
+    ----------
+    model : BeamModel — the beam as solved (its sampling points: both ends and the middle of
+        every P2 element).
+    shapes_mm : (R, n_nodes, 2) float, mm — deformed node positions per row.
+    rotations_rad : (R, n_nodes) float, rad — the nodes' section rotation per row.
+    start_force : (R, 3) float — (Fx N, Fy N, M N·mm) applied to the start node per row.
+    converged : (R,) bool.
+
+    Returns
+    -------
+    peak_stress_MPa : (R,) float, MPa — max over the points of |N|/A + |M|/Z (NaN where not
+        converged).
+    peak_stress_s_mm : (R,) float, mm — its arc length (NaN likewise).
+    """
+    node, theta0, thickness = sample_geometry(model)
+    b = model.profile.width_mm
+    shapes = np.asarray(shapes_mm, dtype=float)
+    phi = np.asarray(rotations_rad, dtype=float)
+    load = np.asarray(start_force, dtype=float)
+    F = load[:, :2]
+    arm = shapes[:, :1, :] - shapes[:, node, :]  # (R, S, 2): r0 - r(s)
+    moment = load[:, 2:3] + arm[..., 0] * F[:, 1:2] - arm[..., 1] * F[:, 0:1]
+    theta = theta0[None, :] + phi[:, node]
+    axial_force = F[:, 0:1] * np.cos(theta) + F[:, 1:2] * np.sin(theta)
+    sigma = (
+        np.abs(axial_force) / (b * thickness)[None, :]
+        + np.abs(moment) / (b * thickness**2 / 6.0)[None, :]
+    )
+    s = np.asarray(model.tables.s_samples, dtype=float).ravel()
+    ok = np.asarray(converged, dtype=bool) & np.all(np.isfinite(sigma), axis=1)
+    k = np.argmax(np.where(np.isfinite(sigma), sigma, -np.inf), axis=1)
+    rows = np.arange(sigma.shape[0])
+    return np.where(ok, sigma[rows, k], np.nan), np.where(ok, s[k], np.nan)
