@@ -60,7 +60,8 @@ def test_propped_cantilever_on_a_mid_span_stop_has_the_closed_form_moment_diagra
     stop, the tip force P and the stop's reaction R solve (Euler-Bernoulli, point loads)
     P L^3 / 3 - R a^2 (3 L - a) / 6 = EI delta,   P a^2 (3 L - a) / 6 - R a^3 / 3 = EI g0,
     and M(s) = P (L - s) - R (a - s) for s < a, P (L - s) beyond. The moment from statics at
-    every node within 1e-3 of the largest moment, the reaction split within 1e-3."""
+    every node within 1e-3 of the largest moment, the reaction split within 1e-3, the peak
+    stress at the stop's apex (between nodes) within 1e-3."""
     L, t, b, g0, delta = 60.0, 1.0, 5.0, 0.02, 0.2
     a = L / 2.0
     profile = BeamProfile(np.array([[0.0, 0.0], [L, 0.0]]), np.array([t, t]), b)
@@ -85,6 +86,11 @@ def test_propped_cantilever_on_a_mid_span_stop_has_the_closed_form_moment_diagra
     scale = np.abs(exact).max()
     got = -st.bending_MPa[-1] * b * t**2 / 6.0  # counter-clockwise positive: the sign flips
     assert np.abs(got - exact).max() <= 1e-3 * scale, np.abs(got - exact).max() / scale
+    # the peak is at the stop's apex, between two sampling points (30 and 31.5 mm): the load
+    # point is a section of its own (the nodes alone read 1.6 % low, P 30 - R 0.37)
+    peak = 6.0 * P * (L - a) / (b * t**2)
+    assert st.peak_stress_MPa[-1] == pytest.approx(peak, rel=1e-3)
+    assert st.peak_stress_s_mm[-1] == pytest.approx(a, abs=0.01)
     # without the stop's force the moment at the clamp would be P L: far off
     assert abs(P * L - exact[0]) > 0.1 * scale
     with pytest.raises(Exception, match="BeamContact"):
@@ -94,7 +100,9 @@ def test_propped_cantilever_on_a_mid_span_stop_has_the_closed_form_moment_diagra
 @pytest.mark.parametrize("example", ["cantilever-stop", "cantilever"])
 def test_polyline_beam_verdict_and_fibres_are_the_stress_from_statics(example):
     """The evaluate's largest peak stress (the verdict's figure) is the largest equivalent
-    fibre stress in design.vtu's beam field, and both are the statics' figure."""
+    fibre stress in design.vtu's beam field (both from statics); with a stop pressing between
+    two nodes the verdict's peak is at the load point and the nodes' fibres read a little less
+    (never more)."""
     from flexopt.pipeline.studies import polyline_beam
 
     study = load_study(ROOT / "pipeline" / "examples" / f"{example}.yaml")
@@ -102,7 +110,15 @@ def test_polyline_beam_verdict_and_fibres_are_the_stress_from_statics(example):
     field = result.beam_field
     ok = np.asarray(result.table["converged"], dtype=bool)
     fibre_max = np.nanmax(np.asarray(field["equivalent_MPa"])[ok])
-    assert result.summary["max_peak_stress_MPa"] == pytest.approx(fibre_max, rel=1e-12)
+    verdict = result.summary["max_peak_stress_MPa"]
+    if example == "cantilever":
+        assert verdict == pytest.approx(fibre_max, rel=1e-12)
+    else:
+        # the anvil's apex sits 0.045 mm past the node at 30 mm: the peak is at the load point,
+        # which the per-node fibres do not carry (fea/beam_statics.py); never above the verdict
+        assert fibre_max <= verdict
+        assert verdict == pytest.approx(fibre_max, rel=5e-3)
+        assert abs(result.summary["max_peak_stress_s_mm"] - 30.0) < 0.1
     assert np.nanmax(np.abs(field["fibre_left_MPa"][ok])) <= fibre_max * (1 + 1e-12)
 
 
