@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Annotated, ClassVar, Literal
 
 import numpy as np
@@ -33,6 +33,7 @@ from flexopt.fea.beam_response import (
     stability_summary,
     summarise,
 )
+from flexopt.fea.beam_statics import statics_fibres, with_statics_stress
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
 from flexopt.fea.stops import BeamContact, ContactSettings, RigidStop, overlaps, solve_with_stops
@@ -400,6 +401,9 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
             raise StudyError(fea_error_path(str(exc)), str(exc)) from exc
         times.append(time.perf_counter() - start)
     assert response is not None
+    # the stress from statics (end load and stop forces): converged where the curvature is not
+    contact = statics_contact(model, stops, contact_settings, response)
+    response = with_statics_stress(model, response, np.asarray(drive.direction), contact)
     table = response_table(response)
     converged = bool(response.ok)
     message = response.message or ("" if converged else "not every step converged")
@@ -462,8 +466,28 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
         ),
         files=files,
         # design.vtu: the centreline per step with its section and fibre stresses
-        **{"shapes_mm": response.shapes_mm, "beam_field": beam_field(model, response)},
+        **{
+            "shapes_mm": response.shapes_mm,
+            "beam_field": statics_fibres(
+                beam_field(model, response), model, response, drive.direction, contact
+            ),
+        },
     )
+
+
+def statics_contact(
+    model: BeamModel,
+    stops: tuple[RigidStop, ...],
+    settings: ContactSettings,
+    response: BeamResponse,
+) -> BeamContact | None:
+    """The :class:`BeamContact` ``response`` was solved with (its final penalty factor, after
+    any raise by :func:`fea.stops.solve_with_stops`), for the stress from statics; None
+    without stops."""
+    if not stops or response.contact is None:
+        return None
+    factor = response.contact.extra.get("penalty_factor", settings.penalty_factor)
+    return BeamContact(model, stops, replace(settings, penalty_factor=factor))
 
 
 _CONTACT_HEADLINE = {
