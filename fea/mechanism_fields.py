@@ -44,12 +44,14 @@ def solved_vtu(solved: Any, case: str) -> dict[str, Any]:
     ``outline.beams`` and, with a fidelity check, the stress ratio the verdict applied to that
     case, ``fidelity["applied"][case]["stress_ratio_reported"]``)."""
     applied = ((getattr(solved, "fidelity", None) or {}).get("applied") or {}).get(case) or {}
-    return mechanism_vtu(
+    out = mechanism_vtu(
         solved.responses[case],
         solved.width_mm,
         solved.outline.beams,
         applied.get("stress_ratio_reported"),
     )
+    field_map = getattr(solved, "field_map", None)  # the check's plane-stress triangles
+    return {**out, "field_map": field_map} if field_map else out
 
 
 def mechanism_vtu(

@@ -99,7 +99,7 @@ def _check(study: Any, solved: Any, width_mm: float, case: str) -> dict[str, Any
     mech = build_mechanism(g, study.material.to_material(), width_mm, outline.beams)
     return mechanism_fidelity_check(
         mech, build_load_case(study, case), outline.polygon, grounds, outline.bodies,
-        list(outline.bands.values()), width_mm, settings, solid, outline.beams,
+        list(outline.bands.values()), width_mm, settings, solid, outline.beams, True,
     )  # fmt: skip
 
 
@@ -180,6 +180,7 @@ def with_fidelity(problem: SolvedBy, solved: Solved) -> Solved:
         stress_col = np.asarray(tables[case]["peak_stress_MPa"], float)
         tables[case]["peak_stress_MPa"] = stress_col * max(1.0, stress)
     metrics = problem.part_metrics(solved.geometry, solved.outline, tables, width, solved.clearance)
+    field_map = _field_map(study, solved, checks)
     beam_values = {**solved.metrics, **_worst(solved.curves_table)}
     beam_verdicts = {v.name: v.value for v in problem.judge(solved)}
     fidelity = {
@@ -192,8 +193,26 @@ def with_fidelity(problem: SolvedBy, solved: Solved) -> Solved:
     }
     return dataclasses.replace(
         solved, width_mm=width, tables=tables, metrics=metrics,
-        curves_table=problem.curves_table(tables), fidelity=fidelity,
+        curves_table=problem.curves_table(tables), fidelity=fidelity, field_map=field_map,
     )  # fmt: skip
+
+
+def _field_map(study: Any, solved: Solved, checks: dict[str, Any]) -> dict[str, Any] | None:
+    """The first case's plane-stress field at every row (best.vtu draws the first case), every
+    check's field removed from its record (best.json must not carry the mesh)."""
+    from flexopt.pipeline.fields import mechanism_field_map
+
+    case = next(iter(solved.responses))
+    drive = np.asarray(solved.responses[case].drive, dtype=float)
+    unit = study.load_cases[case].drive.unit
+    rotation = study.load_cases[case].drive.control == "rotation"
+    out = mechanism_field_map(
+        checks[case], drive, f"drive_{unit}", 180.0 / np.pi if rotation else 1.0
+    )
+    for check in checks.values():
+        if isinstance(check, dict):
+            check.pop("field", None)
+    return out
 
 
 def _worst(curves: dict[str, np.ndarray]) -> dict[str, float]:
