@@ -32,7 +32,9 @@ nonlinear response (forces, their slopes, peak stress).
 Stresses: the peak von Mises stress over the elements that do not touch a rigid region (the
 re-entrant corners where a beam meets a rigid clamp are singular in elasticity and have no
 counterpart in the beam; as the constant-force kind's check); its ratio to the beam's peak
-``|N|/A + |M|c/I`` at the same drive.
+``|N|/A + |M|c/I`` at the same drive. Passed the beams as made (``made``), the beam model is the
+part as made (its beams clipped and flared into their roots' fillets, the peak with the roots'
+Kt): the exported outline has those fillets, so both ratios compare one part in two models.
 
 What is refused (``skipped`` with the reason, the study then judges on the beam model and says
 so): a drive on a beam end or under force / moment control, a pinned beam end (the outline prints
@@ -223,9 +225,15 @@ def _solve(K: sp.spmatrix, T: sp.csr_matrix, ubar: np.ndarray) -> np.ndarray:
     return T @ q + ubar
 
 
-def _beam_linear(mech: Mechanism, case: LoadCase, fraction: float) -> tuple[float, float]:
+def _beam_linear(
+    mech: Mechanism, case: LoadCase, fraction: float, made: Mapping[str, Any] | None = None
+) -> tuple[float, float]:
     """The beam model's stiffness (reaction / drive) and peak stress per unit drive, from a
-    solve at ``fraction`` of the case's range."""
+    solve at ``fraction`` of the case's range; with ``made`` (``MechanismOutline.beams``, the
+    beams ``mech`` was built as made) the peak is the part's as made, the roots' Kt included
+    (:func:`fea.mechanism_design.as_made_stress`): the stress the verdict multiplies."""
+    from flexopt.fea.mechanism_design import as_made_stress
+
     drv = case.drive
     value = fraction * max(abs(drv.max_value - drv.min_value), 1e-12)
     small = MechDrive(drv.part, drv.control, value, 1, drv.direction, drv.transverse,
@@ -234,7 +242,8 @@ def _beam_linear(mech: Mechanism, case: LoadCase, fraction: float) -> tuple[floa
                            [MechOutput("F", "reaction")])  # fmt: skip
     if not resp.ok:
         raise FeaError(f"the beam model's linear solve failed: {resp.message}")
-    return float(resp.outputs["F"][-1]) / value, float(np.max(resp.peak_stress_MPa[-1])) / value
+    peak = as_made_stress(resp, made)[-1]
+    return float(resp.outputs["F"][-1]) / value, float(np.nanmax(peak)) / value
 
 
 def _refusal(mech: Mechanism, case: LoadCase) -> str | None:
@@ -263,6 +272,8 @@ def mechanism_fidelity_check(
     depth_mm: float | Sequence[float],
     settings: FidelitySettings = FidelitySettings(),
     solid: bool | None = None,
+    made: Mapping[str, Any] | None = None,
+    keep_field: bool = False,
 ) -> dict[str, Any]:
     """Stiffness and peak stress of the exported outline in plane stress (and as a solid where
     the part is deep) against the beam model's, in one load case, linearly.
@@ -279,14 +290,22 @@ def mechanism_fidelity_check(
         solved at each (one assembly; a width solved from these figures moves it).
     settings : FidelitySettings
     solid : force the 3D check on (True) or off (False); None: by ``solid_depth_ratio``.
+    made : ``MechanismOutline.beams`` when ``mech``'s beams are the part's as made (clipped,
+        flared into their roots' fillets): the beam peak the ratios divide by is then the as-made
+        peak with the roots' Kt, like for like with the exported outline, which has the fillets.
+    keep_field : keep the plane-stress state per unit drive under ``field`` (the reported design
+        only: best.vtu draws it): ``points_mm`` (n, 2) mm, ``triangles`` (m, 3), ``stress_counted``
+        (n,) bool (the vertices of the elements the peak counts), ``von_mises_MPa`` (n,) MPa and
+        ``displacement_mm`` (n, 2) mm per unit drive (1 mm or 1 rad; linear: both scale with it).
 
     Returns
     -------
     dict
         ``beam_stiffness``, ``plane_stress_stiffness``, ``plane_stress_ratio`` (to the beam),
-        ``beam_peak_stress_MPa``, ``plane_stress_peak_stress_MPa``, ``plane_stress_stress_ratio``
-        (all per unit drive: N/mm or N·mm/rad, MPa/mm or MPa/rad); ``solid`` (a list, one entry
-        per depth: ``depth_mm``, ``stiffness``, ``ratio``, ``peak_stress_MPa``,
+        ``beam_peak_stress_MPa``, ``plane_stress_peak_stress_MPa``, ``plane_stress_stress_ratio``,
+        ``plane_stress_peak_nodal_MPa`` (the peak over the vertices) (all per unit drive: N/mm
+        or N·mm/rad, MPa/mm or MPa/rad); ``solid`` (a list, one entry per depth: ``depth_mm``,
+        ``stiffness``, ``ratio``, ``peak_stress_MPa``,
         ``stress_ratio``) or None; ``stiffness_unit``; the mesh and the time; or ``skipped``
         with the reason.
     """
@@ -345,7 +364,7 @@ def mechanism_fidelity_check(
             cleaned = _clean(outline, 0.0)
             mesh = mesh_polygon(cleaned, settings.coarse_edge_mm, refine=refine)
         outline = cleaned
-        k_beam, s_beam = _beam_linear(mech, case, settings.drive_fraction)
+        k_beam, s_beam = _beam_linear(mech, case, settings.drive_fraction, made)
     except (FeaError, ValueError) as exc:
         return {"skipped": f"could not build the check: {exc}"}
     width = float(widths.pop())
@@ -363,7 +382,8 @@ def mechanism_fidelity_check(
         K = ps.linear_stiffness()
         u = _solve(K, T, ubar)
         k_ps = float(presc @ (K @ u))
-        s_ps = float(ps.peak_stress(u, "linear")[0])
+        s_ps, _, s_nodal, _ = ps.peak_stress(u, "linear")
+        s_ps, s_nodal = float(s_ps), float(s_nodal)
     except FeaError as exc:
         return {"skipped": f"the plane-stress solve failed: {exc}"}
     out.update(
@@ -371,6 +391,8 @@ def mechanism_fidelity_check(
         plane_stress_ratio=k_ps / k_beam,
         plane_stress_peak_stress_MPa=s_ps,
         plane_stress_stress_ratio=s_ps / s_beam,
+        # the same peak over the vertices (averaged corner values): what a drawn field shows
+        plane_stress_peak_nodal_MPa=s_nodal,
         mesh={
             "beam_edge_mm": h_beam,
             "coarse_edge_mm": settings.coarse_edge_mm,
@@ -379,6 +401,10 @@ def mechanism_fidelity_check(
         },
         plane_stress_time_s=time.perf_counter() - t1,
     )
+    if keep_field:
+        from flexopt.fea.plane_stress_fields import mesh_arrays, state_field
+
+        out["field"] = {**mesh_arrays(ps), **state_field(ps, u, "linear")}
     run_solid = solid if solid is not None else width >= settings.solid_depth_ratio * t_min
     out["solid_rule"] = (
         f"width {width:.4g} mm / thinnest beam {t_min:.4g} mm = {width / t_min:.3g} "

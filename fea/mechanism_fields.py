@@ -12,9 +12,9 @@ in the model).
 What the verdict reads can be more than the beams' largest node value, and the file says so:
 the mechanism kind's ``peak_stress_MPa`` column is, per row, the larger of the beam model's peak
 and each filleted root's K_t times the stress over its flare (fea/mechanism_design.py
-``as_made_stress``), and with a plane-stress check the beam peak times the check's ratio where
-that is larger (pipeline/studies/_mechanism_fidelity.py). The column itself is in the file's
-field data per load step (``per load step: peak_stress_MPa``).
+``as_made_stress``), and with a plane-stress check that as-made peak times the check's ratio to
+it where the ratio is above 1 (pipeline/studies/_mechanism_fidelity.py). The column itself is
+in the file's field data per load step (``per load step: peak_stress_MPa``).
 
 Units: mm, MPa, rad.
 """
@@ -32,8 +32,8 @@ __all__ = ["VERDICT_NOTE", "as_made_factors", "mechanism_vtu", "solved_vtu"]
 
 #: What the kind's verdict reads beside the nodes' stresses (field data of best.vtu).
 VERDICT_NOTE = (
-    "stress_judged_MPa is von_mises_MPa times a filleted root's K_t over its flare, and at "
-    "least times the fidelity check's peak-stress ratio to the beam model's (1 without); its "
+    "stress_judged_MPa is von_mises_MPa times a filleted root's K_t over its flare, times the "
+    "fidelity check's peak-stress ratio to the as-made peak where above 1 (1 without); its "
     "largest value per load step is the verdict's peak_stress_MPa (field data: per load step)"
 )
 
@@ -44,12 +44,14 @@ def solved_vtu(solved: Any, case: str) -> dict[str, Any]:
     ``outline.beams`` and, with a fidelity check, the stress ratio the verdict applied to that
     case, ``fidelity["applied"][case]["stress_ratio_reported"]``)."""
     applied = ((getattr(solved, "fidelity", None) or {}).get("applied") or {}).get(case) or {}
-    return mechanism_vtu(
+    out = mechanism_vtu(
         solved.responses[case],
         solved.width_mm,
         solved.outline.beams,
         applied.get("stress_ratio_reported"),
     )
+    field_map = getattr(solved, "field_map", None)  # the check's plane-stress triangles
+    return {**out, "field_map": field_map} if field_map else out
 
 
 def mechanism_vtu(
@@ -84,9 +86,9 @@ def mechanism_vtu(
         [f[None] for f in as_made_factors(models, made, getattr(response, "beam_roots_mm", None))]
     )[0]
     if check_ratio is not None and np.isfinite(check_ratio):
-        # the verdict's fmax(as made, beam peak x ratio) per row is the largest node value of
-        # the beam stress times the larger of the two factors at each node
-        factors = np.maximum(factors, float(check_ratio))
+        # the verdict's as-made peak x max(1, ratio) per row (the ratio is the check's to the
+        # as-made peak) is the largest node value of the as-made stress times that same factor
+        factors = factors * max(1.0, float(check_ratio))
         field["check_stress_ratio"] = float(check_ratio)
     field["as_made_MPa"] = field["equivalent_MPa"] * factors
     field["notes"] = (VERDICT_NOTE,)

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["spring_field_map", "take_field"]
+__all__ = ["mechanism_field_map", "spring_field_map", "take_field"]
 
 
 def take_field(
@@ -205,3 +205,38 @@ def spring_field_map(response: Any, label: str, limit: float | None) -> dict[str
         "drive": "rotation_deg",
         "steps": steps,
     }
+
+
+#: The label of the mechanism kind's field (its check's linear state, scaled to each row).
+MECHANISM_LABEL = "von Mises stress, plane-stress check, linear (MPa)"
+
+
+def mechanism_field_map(
+    check: Any, drive: np.ndarray, column: str, drive_scale: float = 1.0
+) -> dict[str, Any] | None:
+    """The mechanism kind's plane-stress check (fea/mechanism_fidelity.py, ``keep_field``) as a
+    ``field_map``: its state per unit drive scaled to every row's drive (the check is linear:
+    displacement times the drive, von Mises times its magnitude), so each row's largest counted
+    vertex value is the check's ``plane_stress_peak_nodal_MPa`` times the row's drive.
+
+    Parameters
+    ----------
+    check : the case's check record; its ``field`` is removed (best.json must not carry it).
+    drive : (n_rows,) the rows' drive in the check's unit (mm or rad); NaN rows are left out.
+    column : the table's drive column (``drive_mm``, ``drive_deg``); drive_scale : its unit
+        per the check's (``180 / pi`` for rad and ``drive_deg``).
+
+    Returns
+    -------
+    dict or None — :func:`take_field`'s ``field_map`` (None without a field).
+    """
+    if not isinstance(check, dict) or not isinstance(check.get("field"), dict):
+        return None
+    field = check["field"]
+    vm = np.asarray(field.pop("von_mises_MPa"), dtype=float)
+    u = np.asarray(field.pop("displacement_mm"), dtype=float)
+    rows = [float(d) for d in np.asarray(drive, dtype=float) if np.isfinite(d)]
+    field["steps"] = [
+        {"drive_value": d, "von_mises_MPa": abs(d) * vm, "displacement_mm": d * u} for d in rows
+    ]
+    return take_field(check, MECHANISM_LABEL, None, column, drive_scale)

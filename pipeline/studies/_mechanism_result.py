@@ -53,6 +53,7 @@ class Solved:
     reason: str = ""
     clearance: dict[str, Any] = dataclasses.field(default_factory=dict)  # design.interference
     fidelity: dict[str, Any] | None = None  # the check of the exported outline (detail, result)
+    field_map: dict[str, Any] | None = None  # its plane-stress field (best.vtu; fields.py)
 
 
 def plot_spec(study: MechanismStudy, case: str, material: Material) -> dict[str, Any]:

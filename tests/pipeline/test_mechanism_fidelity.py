@@ -138,10 +138,10 @@ def _guide_check(study, width_mm: float) -> dict:
     geometry = mk._geometry_of(study, x0)
     _, outline = build_outline(geometry)
     return mechanism_fidelity_check(
-        mk._mechanism(study, geometry, width_mm), build_load_case(study, "stroke"),
+        mk._mechanism(study, geometry, width_mm, outline.beams), build_load_case(study, "stroke"),
         outline.polygon, list(outline.pads.values()), outline.bodies,
         list(outline.bands.values()), width_mm,
-        FidelitySettings(elements_through=study.fidelity.elements_through),
+        FidelitySettings(elements_through=study.fidelity.elements_through), None, outline.beams,
     )  # fmt: skip
 
 
@@ -152,10 +152,11 @@ def _quick_guide(**changes) -> dict:
     return raw
 
 
-def test_parallel_guide_as_made_was_outside_its_band():
+def test_parallel_guide_beam_only_design_is_judged_on_its_3d_figure():
     """The design the beam model alone passed (width solved to 3.0 N/mm on the beam): its
-    exported outline is ~6 % stiffer in plane stress and ~13 % as a solid, and its verdict now
-    says so."""
+    exported outline, checked against the beam model of the same part as made (pads at the
+    leaves' ends, filleted roots), agrees with it within 2 % in plane stress and is stiffer as
+    a solid; its verdicts read the 3D figure, each computed here from the beam-only figure."""
     raw = _quick_guide()
     beam_only = study_result(validate_study({**raw, "fidelity": {"enabled": False}}))
     width = beam_only.summary["width_mm"]
@@ -164,20 +165,22 @@ def test_parallel_guide_as_made_was_outside_its_band():
     raw["geometry"]["width_mm"] = width
     study = validate_study(raw)
     check = _guide_check(study, width)
-    # the continuum's roots are stiffer than the beam's clamp (as made: pads at the leaves'
-    # ends, filleted roots, so only a few %); a solid this deep lies between plane stress and
-    # the plane-strain limit E / (1 - nu^2) of a wide plate
+    # the same part in two models: the beam model as made carries the flares' stiffness, so
+    # plane stress sits within 2 % of it; a solid this deep lies between plane stress and the
+    # plane-strain limit E / (1 - nu^2) of a wide plate
     ps = check["plane_stress_ratio"]
-    assert 1.0 < ps < 1.09
+    assert abs(ps - 1.0) < 0.02
     solid = check["solid"][0]
     nu = study.material.nu
     assert solid["depth_mm"] == width and ps < solid["ratio"] < ps / (1.0 - nu**2)
     result = study_result(study)
-    v = _verdict(result, "stiffness")
-    beam_mean = _verdict(beam_only, "stiffness").value
-    assert v.value == pytest.approx(beam_mean * solid["ratio"], rel=1e-6)
-    assert not v.met and "3D solid" in v.detail and "beam model" in v.detail
-    assert not _verdict(result, "max_stiffness_N_per_mm").met
+    for name, limit in (("stiffness", None), ("max_stiffness_N_per_mm", 3.15)):
+        v = _verdict(result, name)
+        expected = _verdict(beam_only, name).value * solid["ratio"]
+        assert v.value == pytest.approx(expected, rel=1e-6)
+        assert "3D solid" in v.detail and "beam model" in v.detail
+        if limit is not None:
+            assert v.met == (expected <= limit)
 
 
 def test_parallel_guide_verdict_is_judged_on_its_3d_figure():
@@ -208,6 +211,69 @@ def test_parallel_guide_verdict_is_judged_on_its_3d_figure():
     assert result.summary["envelope_depth_mm"] == pytest.approx(width, rel=1e-12)
 
 
+def _check_both_ways(study, case: str):
+    """The study's initial design checked with the beam model of the drawn centrelines and
+    with the beam model of the part as made (its beams clipped and flared into their roots'
+    fillets, the roots' Kt in its peak), solved here; and the as-made solve of ``case``."""
+    from flexopt.fea.mechanism_fidelity import FidelitySettings, mechanism_fidelity_check
+
+    x0 = mk._variables(study).initial
+    geometry = mk._geometry_of(study, x0)
+    _, outline = build_outline(geometry)
+    width = geometry.width_mm
+    settings = FidelitySettings(elements_through=study.fidelity.elements_through)
+    checks = {}
+    for tag, made in (("drawn", None), ("made", outline.beams)):
+        checks[tag] = mechanism_fidelity_check(
+            mk._mechanism(study, geometry, width, made), build_load_case(study, case),
+            outline.polygon, list(outline.pads.values()), outline.bodies,
+            list(outline.bands.values()), width, settings, None, made,
+        )  # fmt: skip
+    mech = mk._mechanism(study, geometry, made=outline.beams)
+    response = mk._solve_printed_path(study, mech, case)
+    return checks, response, outline
+
+
+def test_the_check_compares_the_exported_outline_with_the_beam_model_as_made():
+    """The gripper's hinge (issue 22 / s25 fidmade): the exported outline has the roots'
+    fillets, the beam model solved and judged is the part as made (flares, roots' Kt). Checked
+    against the drawn centrelines the ratios mix two parts: the plane-stress stiffness is 11 %
+    off the drawn beam's but within 3 % of the as-made beam's (the same part in two models),
+    and the stress verdict read the drawn-centreline ratio times the as-made beam's peak."""
+    study = validate_study(_raw("gripper-amplifier"))
+    checks, response, outline = _check_both_ways(study, "free")
+    drawn, made = checks["drawn"], checks["made"]
+    assert abs(made["plane_stress_ratio"] - 1.0) < 0.03 < abs(drawn["plane_stress_ratio"] - 1.0)
+    # the as-made beam's peak per unit drive, computed here from a small solve of the as-made
+    # mechanism: the check divides by it
+    x0 = mk._variables(study).initial
+    geometry = mk._geometry_of(study, x0)
+    mech = mk._mechanism(study, geometry, made=outline.beams)
+    case = build_load_case(study, "free")
+    d = case.drive
+    value = 1e-4 * abs(d.max_value - d.min_value)
+    small = fm.MechDrive(d.part, d.control, value, 1, d.direction, d.transverse, d.rotation, 0.0)
+    r = fm.solve_mechanism(mech, fm.LoadCase("free", small, case.supports), [])
+    per_drive = float(np.nanmax(as_made_stress(r, outline.beams)[-1])) / value
+    assert made["beam_peak_stress_MPa"] == pytest.approx(per_drive, rel=1e-9)
+    # the judged figure of each pairing, from the solve's rows
+    raw = np.nanmax(np.asarray(response.peak_stress_MPa, float), axis=1)
+    kt = np.nanmax(as_made_stress(response, outline.beams), axis=1)
+    old = float(np.nanmax(np.fmax(kt, raw * drawn["solid"][0]["stress_ratio"])))
+    new = float(np.nanmax(kt * max(1.0, made["solid"][0]["stress_ratio"])))
+    assert old > new * 1.02  # the pairings differ on this design
+    result = study_result(study)
+    ratio = result.inputs["fidelity"]["checks"]["free"]["solid"][0]["stress_ratio"]
+    assert ratio == pytest.approx(made["solid"][0]["stress_ratio"], rel=1e-6)
+    # the verdict: the larger of both cases' as-made peak and the check's figure (the blocked
+    # case has supports: the check skips it, the beam model as made is judged)
+    blocked = mk._solve_printed_path(study, mech, "blocked")
+    expected = max(new, float(np.nanmax(as_made_stress(blocked, outline.beams))))
+    v = _verdict(result, "max_peak_stress_MPa")
+    assert v.value == pytest.approx(expected, rel=1e-9)
+    assert "larger of the beam model" in v.detail
+
+
 def test_stress_is_judged_on_the_larger_of_the_beam_and_the_check():
     """The gripper's hinge: the check of the exported outline puts the peak above the beam
     model's (the roots' Kt included); the verdict reads the larger figure, and the optimiser
@@ -215,21 +281,20 @@ def test_stress_is_judged_on_the_larger_of_the_beam_and_the_check():
     study = validate_study(_raw("gripper-amplifier"))
     result = study_result(study)
     ratio = result.inputs["fidelity"]["checks"]["free"]["solid"][0]["stress_ratio"]
-    # the beam model's stresses, solved here: raw peak and as made (the roots' Kt)
+    # the beam model's stresses as made (the roots' Kt), solved here
     x0 = mk._variables(study).initial
     geometry = mk._geometry_of(study, x0)
     _, outline = build_outline(geometry)
     mech = mk._mechanism(study, geometry, made=outline.beams)
-    made, raw = {}, {}
+    made = {}
     for case in ("free", "blocked"):
         r = mk._solve_printed_path(study, mech, case)
-        raw[case] = float(np.nanmax(r.peak_stress_MPa))
         made[case] = float(np.nanmax(as_made_stress(r, outline.beams)))
-    # the blocked case has supports: the check skips it (beam model)
-    expected = max(made["free"], raw["free"] * ratio, made["blocked"])
+    # the blocked case has supports: the check skips it (beam model); the free case's figure
+    # is the as-made peak times the check's ratio to that same peak where it is above 1
+    expected = max(made["free"] * max(1.0, ratio), made["blocked"])
     v = _verdict(result, "max_peak_stress_MPa")
     assert v.value == pytest.approx(expected, rel=1e-9)
-    assert v.value > max(made.values())  # the check governs this part
     assert "larger of the beam model" in v.detail
     # the blocked case (a held jaw) is one the check skips: its verdicts say so, never silently
     jaw = _verdict(result, "jaw_force")
