@@ -2,6 +2,7 @@
 
     nice python benchmarks/pad_fillet.py                        # r = 0 (sharp), 0.5, 1, 2 mm
     nice python benchmarks/pad_fillet.py --radii 0 1 --elements 60 240
+    nice python benchmarks/pad_fillet.py --radii 0.5 1 --plane-stress 0.5 0.25 0.125
 
 The example's recorded design (``pipeline/examples/constant-force.yaml``, ``design:``) with its
 pads ``pad_thickness_mm`` thick, both ends flared into fillets of radius r
@@ -19,6 +20,14 @@ stress from statics (fea/beam_statics.py). Per radius (r as asked -> as drawn at
   the plane-stress check's, which this script does not run);
 * the force band: the mean force and the worst |F - target| over the rows from 0.5 mm (N), and
   Eq. 8's RMS error (N).
+
+``--plane-stress EDGE ...``: the study's plane-stress check (fea/fidelity.py
+``plane_stress_check``, Newton from the beam's shape) of the filleted outline at the last row
+(30 mm) on uniform meshes of those edge lengths (mm): its peak nodal von Mises stress over the
+counted elements (MPa; with fillets only the first layer at each pad face is left out), and the
+largest over the fillets (0 <= s <= root_mm + 0.25 mm from S1 and from S6, and where), against Kt x
+the beam's largest stress over each flare at that row and the beam's largest past the toe in the
+same strip.
 """
 
 from __future__ import annotations
@@ -42,6 +51,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--radii", nargs="+", type=float, default=[0.0, 0.5, 1.0, 2.0])
     parser.add_argument("--elements", nargs="+", type=int, default=[60])
+    parser.add_argument("--plane-stress", nargs="*", type=float, default=[])
     args = parser.parse_args()
     study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
     prob = cf.problem(study)
@@ -93,6 +103,80 @@ def main() -> None:
                 f" | {peak:.2f} ({float(st.peak_stress_s_mm[k]):.2f}) | {made.start.kt:.3f}/"
                 f"{made.end.kt:.3f} | {root:.2f} | {est:.2f} | {max(peak, root):.2f} | "
                 f"{float(np.mean(f[d >= 0.5 - 1e-9])):.4f} | {worst:.4f} | {rms:.5f}"
+            )
+
+    if args.plane_stress:
+        plane_stress(args, study, prob, design, solve)
+
+
+def plane_stress(args, study, prob, design, solve) -> None:
+    """The filleted outline's plane-stress check at the last row (module docstring)."""
+    from flexopt.fea.fidelity import plane_stress_check
+    from flexopt.geometry.constant_force import WORK_DIRECTION, outline
+
+    g = study.geometry
+    print(
+        "r mm | max edge mm | triangles | F plane stress / beam N | peak MPa | "
+        "near S1: plane stress (at s mm from S1) / Kt x root / beam beyond the toe MPa | "
+        "near S6: the same (s from S6)"
+    )
+    for r in args.radii:
+        made, model, response, st = solve(r, g.elements)
+        last = len(response.displacement_mm) - 1
+        sigma = np.abs(st.axial_MPa[last]) + np.abs(st.bending_MPa[last])  # (S,) MPa
+        s, total = st.s_mm, float(st.s_mm[-1])
+        shape = outline(design, prob.frame, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures, r)
+        ends = made.shape.points_mm[[0, -1]]
+        kt_root = [
+            made.start.kt * float(np.max(sigma[s <= made.start.root_mm + 1e-9])),
+            made.end.kt * float(np.max(sigma[s >= total - made.end.root_mm - 1e-9])),
+        ]
+        # the beam's own (nominal) stress past the toe inside the searched strip (s <= root + 0.25)
+        # (the sampling points are ~1 mm apart: read it on a fine grid, linear in between)
+        beyond = [
+            float(np.max(np.interp(np.linspace(a, a + 0.25, 26), s, sigma)))
+            for a in (made.start.root_mm, total - made.end.root_mm - 0.25)
+        ]
+        for edge in args.plane_stress:
+            res = plane_stress_check(
+                model,
+                shape,
+                prob.material,
+                design.B,
+                g.pad_length_mm,
+                g.pad_thickness_mm,
+                WORK_DIRECTION,
+                response,
+                np.array([last]),
+                float(response.displacement_mm[last]),
+                edge,
+            )
+            if "skipped" in res:
+                print(f"{r:g} | {edge:g} | skipped: {res['skipped']}")
+                continue
+            field = res["field"]
+            xy, counted = field["points_mm"], field["stress_counted"]
+            vm = np.asarray(field["steps"][0]["von_mises_MPa"], dtype=float)
+            near, at = [], []
+            pts = made.shape.points_mm
+            for e, inward, root in (
+                (ends[0], pts[1] - pts[0], made.start.root_mm),
+                (ends[1], pts[-2] - pts[-1], made.end.root_mm),
+            ):
+                along = (xy - e) @ inward / np.linalg.norm(inward)  # (n,) mm from the end
+                # the flare and 0.25 mm past its toe (the next vertex, a kink where the taper
+                # changes, is 1.36 mm or more from an end: left out)
+                mask = counted & (along >= 0) & (along <= root + 0.25)
+                mask &= np.linalg.norm(xy - e, axis=1) <= root + 3.0
+                k = int(np.flatnonzero(mask)[np.argmax(vm[mask])])
+                near.append(float(vm[k]))
+                at.append(float(along[k]))
+            print(
+                f"{r:g} | {edge:g} | {res['mesh']['triangles']} | "
+                f"{res['plane_stress_force_N'][0]:.4f} / {res['beam_force_N'][0]:.4f} | "
+                f"{res['plane_stress_peak_nodal_von_mises_MPa'][0]:.2f} | "
+                f"{near[0]:.2f} (s {at[0]:.3f}) / {kt_root[0]:.2f} / {beyond[0]:.2f} | "
+                f"{near[1]:.2f} (s {at[1]:.3f}) / {kt_root[1]:.2f} / {beyond[1]:.2f}"
             )
 
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from flexopt.geometry.constant_force import (
     TABLE3_OPTIMUM,
+    ConstantForceDesign,
     beam_profile,
     centreline_points,
     filleted_beam,
@@ -99,3 +100,23 @@ def test_outline_area_adds_the_chord_polygons_of_four_fillets(r):
 def test_negative_radius_refused():
     with pytest.raises(GeometryError, match="pad_fillet_mm"):
         filleted_beam(TABLE3_OPTIMUM, pad_fillet_mm=-0.1)
+
+
+def test_no_micro_edge_where_a_toe_meets_a_vertex():
+    # the shipped example's design (pipeline/examples/constant-force.yaml): with r at the
+    # shoulder height its S6 toe fell 3 um from p10, a notch in the outline
+    d = ConstantForceDesign(
+        a=np.array([0.159, 0.8071, 0.5057, 0.8453, 0.133, 0.8451, 0.4573, 0.7743, 0.2115, 0.8743]),
+        t=np.array([1.059, 0.8668, 0.966, 0.8001, 0.8003, 0.8275, 0.8367, 0.9738, 0.9394, 1.049]),
+        T1=1.371,
+        T6=1.278,
+        B=6.826,
+    )
+    made = filleted_beam(d, pad_fillet_mm=2.0)
+    p10 = centreline_points(d)[-2]
+    toe = made.end.root_mm
+    assert abs(np.linalg.norm(p10 - centreline_points(d)[-1]) - toe) < 0.02  # the case at hand
+    ring = np.asarray(outline(d, pad_fillet_mm=2.0).exterior.coords)
+    assert np.min(np.linalg.norm(np.diff(ring, axis=0), axis=1)) > 0.01
+    seg = np.linalg.norm(np.diff(made.shape.points_mm, axis=0), axis=1)
+    assert seg.min() > 0.01
