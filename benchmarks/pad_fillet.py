@@ -46,6 +46,7 @@ def main() -> None:
     from flexopt.geometry.constant_force import WORK_DIRECTION, filleted_beam
     from flexopt.geometry.profile import BeamProfile
     from flexopt.pipeline.studies import constant_force as cf
+    from flexopt.pipeline.studies._constant_force_fillet import root_stress_MPa
     from flexopt.pipeline.study import load_study
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -80,15 +81,10 @@ def main() -> None:
         length = float(sharp.s_mm[-1])
         for r in args.radii:
             made, model, response, st = solve(r, n)
-            sigma = np.abs(st.axial_MPa) + np.abs(st.bending_MPa)  # (rows, S) MPa
-            s = st.s_mm
-            total = float(s[-1])
-            root, est = 0.0, 0.0
+            root, est = float(np.nanmax(root_stress_MPa(made, st))), 0.0
             for j, end in enumerate((made.start, made.end)):
                 if end.root_mm <= 0:
                     continue
-                near = s <= end.root_mm + 1e-9 if j == 0 else s >= total - end.root_mm - 1e-9
-                root = max(root, end.kt * float(np.nanmax(sigma[:, near])))
                 toe = end.root_mm if j == 0 else length - end.root_mm
                 est = max(est, end.kt * float(np.interp(toe, sharp.s_mm, sharp_sigma)))
             k = int(np.nanargmax(st.peak_stress_MPa))
