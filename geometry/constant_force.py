@@ -37,6 +37,13 @@ from typing import Literal, NamedTuple
 import numpy as np
 import shapely
 from flexopt.geometry.errors import GeometryError
+from flexopt.geometry.mechanism import (
+    FILLET_CHORDS,
+    AsMadeBeam,
+    BeamShape,
+    EndJunction,
+    shoulder_kt,
+)
 from flexopt.geometry.profile import BeamProfile
 from shapely.geometry import Polygon
 
@@ -60,6 +67,7 @@ __all__ = [
     "centreline_points",
     "beam_profile",
     "outline",
+    "filleted_beam",
     "min_feature_mm",
 ]
 
@@ -483,12 +491,88 @@ def _side_offsets(points: np.ndarray, thickness: np.ndarray) -> np.ndarray:
     return points + (0.5 * thickness / cos_half)[:, None] * vertex_n
 
 
+#: Shortest chord a fillet's flare adds next to a centreline vertex, mm: far below a printer's
+#: resolution, far above the micro-edges that a plane-stress mesh resolves into notches.
+_MIN_CHORD_MM = 0.02
+
+
+def _flare_along(points: np.ndarray, thickness: np.ndarray, radius_mm: float):
+    """The polyline ``points`` (n, 2) mm with thickness ``thickness`` (n,) mm flared at its start
+    into two fillets of ``radius_mm``: points added at ``s = r (1 - cos psi)`` for the
+    ``FILLET_CHORDS + 1`` angles psi from 0 to 90 deg (the arc's chord ends), and every point
+    with ``s <= r`` thickened by ``2 r (1 - sin psi)``. Unlike the mechanism kind's flare the
+    arc may run past a vertex (this beam's end segments are ~1.4 mm, its kinks a few mrad), so
+    the centreline is kept exactly. Returns (m, 2) points and (m,) thickness, mm."""
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    s_vertex = np.concatenate([[0.0], np.cumsum(seg)])
+    psi = np.linspace(0.0, 0.5 * np.pi, FILLET_CHORDS + 1)
+    s_arc = radius_mm * (1.0 - np.cos(psi))
+    # an arc point within _MIN_CHORD_MM of a vertex is left out (the vertex, thickened on the
+    # arc, stands for it): a micro-edge there is a notch in the outline (the shipped design's
+    # S6 flare at r = 1.361 mm ended 3 um past p10, and plane stress read 45.6 MPa there
+    # against 28.5 MPa at the other toes; benchmarks/pad_fillet.py) and a beam element of no
+    # length. Not at the end itself: there the arc runs across the beam (s ~ r psi^2 / 2) and
+    # its first chords are short in s only; psi = 0 is the end vertex.
+    gap = np.abs(s_arc[:, None] - s_vertex[None, 1:])
+    far = (np.min(gap, axis=1) > _MIN_CHORD_MM) & (s_arc > 1e-9)
+    s = np.union1d(s_vertex, s_arc[far])
+    xy = np.column_stack([np.interp(s, s_vertex, points[:, k]) for k in range(2)])
+    t = np.interp(s, s_vertex, thickness)
+    inside = s < radius_mm
+    # cos psi = 1 - s / r on the arc; psi = 90 deg (no thickening) at the toe and beyond
+    t[inside] += 2.0 * radius_mm * (1.0 - np.sin(np.arccos(1.0 - s[inside] / radius_mm)))
+    return xy, t
+
+
+def filleted_beam(
+    design: ConstantForceDesign,
+    prb_params: PRBParams = TABLE1,
+    pad_thickness_mm: float = 4.0,
+    end_flexures: Literal["centred", "outboard"] = "centred",
+    pad_fillet_mm: float = 0.0,
+) -> AsMadeBeam:
+    """The beam as made where it meets its two pads with fillets of ``pad_fillet_mm`` (mm).
+
+    At each end the radius is ``r = min(pad_fillet_mm, shoulder height (pad_thickness -
+    t_end) / 2)`` (a quarter arc cannot rise above the pad's edge), the beam is flared along
+    the two arcs (``FILLET_CHORDS`` chords each; thickness ``t(s) + 2 r (1 - sin psi)`` at
+    ``s = r (1 - cos psi)``), and ``start`` / ``end`` carry the root's radius, the square
+    shoulder's Kt (:func:`geometry.mechanism.shoulder_kt` with ``D = t_end + 2 h``) and the
+    flare's length ``root_mm = r``, as the mechanism kind's roots do. Why one shape for both:
+    the outline and the beam model must hold the same fillet, and Kt multiplies the beam's
+    stress over the flare (its toe is the nominal section). ``pad_fillet_mm = 0`` is the sharp
+    step: the beam of :func:`beam_profile`, Kt 1.
+
+    Returns
+    -------
+    AsMadeBeam
+        ``shape.points_mm`` (n, 2) mm and ``shape.thickness_mm`` (n,) mm, S1 first.
+    """
+    if not pad_fillet_mm >= 0 or not np.isfinite(pad_fillet_mm):
+        raise GeometryError(f"pad_fillet_mm = {pad_fillet_mm:g} must be a number >= 0 mm")
+    pts = centreline_points(design, prb_params, end_flexures)
+    t = design.vertex_thickness_mm.copy()
+    length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
+    ends = []
+    for t_end in (design.T1, design.T6):  # S1, then S6 with the beam walked backwards
+        shoulder = 0.5 * (pad_thickness_mm - t_end)
+        r = min(pad_fillet_mm, shoulder, 0.25 * length)
+        if r > 1e-6:
+            ends.append(EndJunction(0.0, r, shoulder_kt(t_end + 2.0 * shoulder, t_end, r), r))
+            pts, t = _flare_along(pts, t, r)
+        else:
+            ends.append(EndJunction())
+        pts, t = pts[::-1], t[::-1]
+    return AsMadeBeam(BeamShape("beam", pts, t), ends[0], ends[1])
+
+
 def outline(
     design: ConstantForceDesign,
     prb_params: PRBParams = TABLE1,
     pad_length_mm: float = 8.0,
     pad_thickness_mm: float = 4.0,
     end_flexures: Literal["centred", "outboard"] = "centred",
+    pad_fillet_mm: float = 0.0,
 ) -> Polygon:
     """Printable planar outline: the tapered beam plus a clamping pad at each end.
 
@@ -508,11 +592,15 @@ def outline(
         The pads must be at least as thick as the beam ends (T1, T6) so they hold the whole end
         section.
     end_flexures : "centred" or "outboard" — see :func:`reference_points`.
+    pad_fillet_mm : float, mm
+        Radius of the fillets where the beam meets each pad (:func:`filleted_beam`: the beam's
+        end segments flared along the arcs, drawn as their chords); 0 (default): a sharp step.
 
     Returns
     -------
     shapely.Polygon
-        One valid polygon, mm, in the PRB frame; area ``int t ds + 2 pad_length pad_thickness``.
+        One valid polygon, mm, in the PRB frame; area ``int t ds + 2 pad_length pad_thickness``
+        (``t`` the flared thickness with fillets).
     """
     if not pad_length_mm > 0 or not pad_thickness_mm > 0:
         raise GeometryError(
@@ -525,8 +613,8 @@ def outline(
             f"(T1 = {design.T1:g}, T6 = {design.T6:g} mm); use a pad at least "
             f"{max(design.T1, design.T6):g} mm thick"
         )
-    pts = centreline_points(design, prb_params, end_flexures)
-    t = design.vertex_thickness_mm
+    made = filleted_beam(design, prb_params, pad_thickness_mm, end_flexures, pad_fillet_mm)
+    pts, t = made.shape.points_mm, made.shape.thickness_mm
     left = _side_offsets(pts, t)
     right = _side_offsets(pts, -t)
     half = 0.5 * pad_thickness_mm
@@ -542,7 +630,10 @@ def outline(
     # reversed to continue from the side the ring arrives on.
     end_pad = pad(pts[-1], _unit(pts[-1] - pts[-2]))[::-1]
     start_pad = pad(pts[0], _unit(pts[0] - pts[1]))[::-1]
-    shape = Polygon([*right, *end_pad, *left[::-1], *start_pad])
+    ring = np.array([*right, *end_pad, *left[::-1], *start_pad])
+    # a fillet as high as the shoulder ends on the pad's corner: drop the repeated point
+    keep = np.linalg.norm(ring - np.roll(ring, 1, axis=0), axis=1) > 1e-9
+    shape = Polygon(ring[keep])
     if not shape.is_valid:
         raise GeometryError(
             f"the outline is not a valid polygon ({shapely.is_valid_reason(shape)}); check that "
