@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamSettings
 from flexopt.fea.beam_fields import constrained_members
-from flexopt.fea.beam_statics import start_loaded_stress
+from flexopt.fea.beam_statics import node_fibres, start_loaded_samples, start_loaded_stress
 from flexopt.fea.constrained_beams import ConstrainedBeams, ConstrainedSettings
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
@@ -54,6 +54,9 @@ class ArmBeamResponse:
         MPa, the peak from the elements' curvature (EI phi'), for comparison.
     members : fea.beam_fields.Members, optional — arm 0's model, shapes and rotations (no copy
         of the solve beyond the rotations), for its section and fibre stresses in best.vtu.
+    fibres : dict, optional — arm 0's fibre stresses from statics at its nodes
+        (:func:`fea.beam_statics.node_fibres`: ``fibre_left_MPa``, ``fibre_right_MPa``,
+        ``equivalent_MPa``, each (rows, n_nodes) MPa), the figures ``peak_stress_MPa`` reads.
     """
 
     rotation_rad: np.ndarray
@@ -66,6 +69,7 @@ class ArmBeamResponse:
     solve_time_s: float
     extra: dict = field(default_factory=dict)
     members: Any = None
+    fibres: Any = None
 
 
 def _rotation(p: float) -> np.ndarray:
@@ -135,6 +139,9 @@ def arm_beam_torque(
     # the elements' curvature is an h^2 approximation on the tapered arm
     phi = res.beam_state(0).reshape(angles.size, -1, 3)[..., 2]
     stress, _ = start_loaded_stress(beam, res.shapes_mm[0], phi, start, res.converged)
+    fibres = node_fibres(
+        beam, *start_loaded_samples(beam, res.shapes_mm[0], phi, start), res.converged
+    )
     return ArmBeamResponse(
         rotation_rad=angles,
         torque_Nmm=torque,
@@ -151,4 +158,5 @@ def arm_beam_torque(
             "curvature_peak_stress_MPa": np.where(res.converged, res.peak_stress_MPa[:, 0], np.nan),
         },
         members=constrained_members([beam], res),
+        fibres=fibres,
     )

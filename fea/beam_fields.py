@@ -243,7 +243,10 @@ ARM_JUDGED_ELSEWHERE = (
 
 
 def arm_field(
-    members: Members | None, width_mm: float, judged_elsewhere: bool
+    members: Members | None,
+    width_mm: float,
+    judged_elsewhere: bool,
+    fibres: dict[str, np.ndarray] | None = None,
 ) -> dict[str, Any] | None:
     """:func:`section_field` of an arm spring's one traced arm (:attr:`fea.arm_beam.
     ArmBeamResponse.members`), None where the response kept no members.
@@ -257,6 +260,9 @@ def arm_field(
         do not depend on the plate thickness, :func:`fea.scaling.at_thickness`).
     judged_elsewhere : bool — the kind's verdict judges a plane-stress or 3D figure, not the
         beam's: said in the field's ``notes``.
+    fibres : dict, optional — the arm's fibre stresses from statics
+        (:attr:`fea.arm_beam.ArmBeamResponse.fibres`), which replace the elements' curvature
+        figures so that each row's largest node value is the arm's ``peak_stress_MPa``.
 
     Returns
     -------
@@ -267,6 +273,8 @@ def arm_field(
     if members is None or len(members.models) != 1:
         return None
     out = section_field(members.models[0], members.shapes_mm[0], members.rotations_rad[0])
+    if fibres is not None:
+        out.update(fibres)
     out["width_mm"] = np.full_like(out["width_mm"], float(width_mm))
     out["notes"] = (ARM_NOTE, ARM_JUDGED_ELSEWHERE) if judged_elsewhere else (ARM_NOTE,)
     return out

@@ -57,7 +57,9 @@ if TYPE_CHECKING:
 __all__ = [
     "StaticsStress",
     "contact_point_loads",
+    "start_loaded_samples",
     "start_loaded_stress",
+    "node_fibres",
     "end_force",
     "sample_geometry",
     "statics_fibres",
@@ -286,10 +288,26 @@ def statics_fibres(
     if response.contact is not None and contact is None:
         return field
     st = statics_stress(model, response, direction, contact)
-    n_rows, n_nodes = np.asarray(response.rotations_rad).shape
+    out = dict(field)
+    out.update(node_fibres(model, st.axial_MPa, st.bending_MPa, response.converged))
+    return out
+
+
+def node_fibres(
+    model: BeamModel, axial_MPa: np.ndarray, bending_MPa: np.ndarray, converged: np.ndarray
+) -> dict[str, np.ndarray]:
+    """The sampled section stresses of ``model`` (its sampling points: both ends and the middle
+    of every P2 element, which are its nodes) at the nodes: ``axial_MPa`` N/A and
+    ``bending_MPa`` M/Z (R, S) MPa, signed as :func:`statics_stress` gives them (the beam's
+    end form), ``converged`` (R,) bool. Returns ``fibre_left_MPa`` = N/A - M/Z,
+    ``fibre_right_MPa`` = N/A + M/Z and ``equivalent_MPa`` (R, n_nodes) MPa; where two elements
+    meet the larger equivalent stress wins (so each row's largest node value is the row's
+    largest sampled |N/A| + |M/Z|); NaN on rows that did not converge."""
+    n_rows = np.asarray(axial_MPa).shape[0]
     n_el = model.n_elements
-    lo = (st.axial_MPa - st.bending_MPa).reshape(n_rows, n_el, 3)
-    hi = (st.axial_MPa + st.bending_MPa).reshape(n_rows, n_el, 3)
+    n_nodes = 2 * n_el + 1
+    lo = (axial_MPa - bending_MPa).reshape(n_rows, n_el, 3)
+    hi = (axial_MPa + bending_MPa).reshape(n_rows, n_el, 3)
     eq = np.abs(lo).clip(min=np.abs(hi))  # |N/A| + |M/Z| = max(|lo|, |hi|)
     left = np.empty((n_rows, n_nodes))
     right = np.empty((n_rows, n_nodes))
@@ -300,13 +318,13 @@ def statics_fibres(
         left[:, idx] = np.where(take, lo[:, :, j], left[:, idx])
         right[:, idx] = np.where(take, hi[:, :, j], right[:, idx])
         best[:, idx] = np.where(take, eq[:, :, j], best[:, idx])
-    bad = ~np.asarray(response.converged, dtype=bool)
+    bad = ~np.asarray(converged, dtype=bool)
     left[bad] = right[bad] = np.nan
-    out = dict(field)
-    out["fibre_left_MPa"] = left
-    out["fibre_right_MPa"] = right
-    out["equivalent_MPa"] = np.maximum(np.abs(left), np.abs(right))
-    return out
+    return {
+        "fibre_left_MPa": left,
+        "fibre_right_MPa": right,
+        "equivalent_MPa": np.maximum(np.abs(left), np.abs(right)),
+    }
 
 
 def start_loaded_stress(
@@ -338,6 +356,24 @@ def start_loaded_stress(
         converged).
     peak_stress_s_mm : (R,) float, mm — its arc length (NaN likewise).
     """
+    axial, bending = start_loaded_samples(model, shapes_mm, rotations_rad, start_force)
+    sigma = np.abs(axial) + np.abs(bending)
+    s = np.asarray(model.tables.s_samples, dtype=float).ravel()
+    ok = np.asarray(converged, dtype=bool) & np.all(np.isfinite(sigma), axis=1)
+    k = np.argmax(np.where(np.isfinite(sigma), sigma, -np.inf), axis=1)
+    rows = np.arange(sigma.shape[0])
+    return np.where(ok, sigma[rows, k], np.nan), np.where(ok, s[k], np.nan)
+
+
+def start_loaded_samples(
+    model: BeamModel, shapes_mm: np.ndarray, rotations_rad: np.ndarray, start_force: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`start_loaded_stress`'s section stresses at every sampling point, signed as
+    :func:`statics_stress` signs them (the end form: the part beyond the section, loaded by
+    minus the start load): ``axial_MPa`` N/A and ``bending_MPa`` M/Z, both (R, S) MPa. The
+    start form ``M0 + (r0 - r(s)) x F0`` and ``F0 . (cos theta, sin theta)`` is the force the
+    part [0, s] puts on the section, so the end form is its negative; the stress
+    |N|/A + |M|/Z is the same either way. Arguments as :func:`start_loaded_stress`."""
     node, theta0, thickness = sample_geometry(model)
     b = model.profile.width_mm
     shapes = np.asarray(shapes_mm, dtype=float)
@@ -348,12 +384,7 @@ def start_loaded_stress(
     moment = load[:, 2:3] + arm[..., 0] * F[:, 1:2] - arm[..., 1] * F[:, 0:1]
     theta = theta0[None, :] + phi[:, node]
     axial_force = F[:, 0:1] * np.cos(theta) + F[:, 1:2] * np.sin(theta)
-    sigma = (
-        np.abs(axial_force) / (b * thickness)[None, :]
-        + np.abs(moment) / (b * thickness**2 / 6.0)[None, :]
+    return (
+        -axial_force / (b * thickness)[None, :],
+        -moment / (b * thickness**2 / 6.0)[None, :],
     )
-    s = np.asarray(model.tables.s_samples, dtype=float).ravel()
-    ok = np.asarray(converged, dtype=bool) & np.all(np.isfinite(sigma), axis=1)
-    k = np.argmax(np.where(np.isfinite(sigma), sigma, -np.inf), axis=1)
-    rows = np.arange(sigma.shape[0])
-    return np.where(ok, sigma[rows, k], np.nan), np.where(ok, s[k], np.nan)

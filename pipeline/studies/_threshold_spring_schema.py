@@ -77,7 +77,9 @@ class FidelitySpec(BaseModel):
     max_edge_mm: float = Field(2.0, gt=0.1, le=10, description="largest triangle edge, mm")
     elements_through: float = Field(2.0, ge=0.5, le=6, description="P2 triangles across an arm")
     fillet_segments: int = Field(4, ge=1, le=16, description="segments per quarter fillet")
-    steps: int = Field(8, ge=1, le=80, description="load steps (rows) over the design range")
+    # at least 2: with one step the check's only loaded row is the range's end, and the
+    # window's normalised curve error has no non-zero target row to divide by
+    steps: int = Field(8, ge=2, le=80, description="load steps (rows) over the design range")
 
 
 class ThresholdSpringStudy(Study):

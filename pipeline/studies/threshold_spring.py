@@ -45,6 +45,7 @@ section 4.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import Any
@@ -219,18 +220,8 @@ class ThresholdSpringProblem(DesignProblem):
             st = self.held_st_mm
             torque = at_thickness(r.torque_Nmm, p.thickness_mm, st)
             err = float(curve_error(self.curve, r.rotation_rad, torque, self.measure, self.window))
-        r = ArmBeamResponse(
-            rotation_rad=r.rotation_rad,
-            torque_Nmm=at_thickness(r.torque_Nmm, p.thickness_mm, st),
-            peak_stress_MPa=r.peak_stress_MPa,
-            shapes_mm=r.shapes_mm,
-            converged=r.converged,
-            ok=r.ok,
-            message=r.message,
-            solve_time_s=r.solve_time_s,
-            extra=r.extra,
-            members=r.members,
-        )
+        # replace, not rebuild: the response keeps every field (members, fibres) for best.vtu
+        r = dataclasses.replace(r, torque_Nmm=at_thickness(r.torque_Nmm, p.thickness_mm, st))
         return self.params(x, st), r, st, err
 
     def evaluate(self, x: np.ndarray) -> Evaluation:
@@ -365,7 +356,7 @@ class ThresholdSpringProblem(DesignProblem):
             info=info,
             field_map=field_map,
             solid_field=solid_field,
-            beam_field=arm_field(r.members, height or st, "plane_stress" in info),  # best.vtu
+            beam_field=arm_field(r.members, height or st, "plane_stress" in info, r.fibres),
         )
 
     def _in_window(self, rot_rad: np.ndarray) -> np.ndarray:

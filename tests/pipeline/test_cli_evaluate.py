@@ -34,6 +34,9 @@ COLUMNS = [
     "stable",
 ]
 SRC_ROOT = Path(pipeline.__file__).resolve().parents[1]
+# a polyline_beam evaluation draws its beam with its section (docs/print_to_part.md): the
+# ParaView collection, its last step and one file per load step in design_steps/
+CANTILEVER_VTU = ("design.vtu", "design.pvd", "design_steps")
 
 
 def read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
@@ -49,7 +52,9 @@ def test_evaluate_cantilever_writes_the_run_folder(tmp_path, capsys):
     assert "max_abs_force_N" in captured.out and str(out) in captured.out
     assert captured.err == ""
     # no temp files left; report.html beside them (pipeline/report_html.py, evaluate page)
-    assert sorted(p.name for p in out.iterdir()) == sorted([*EVALUATE_FILES, "report.html"])
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [*EVALUATE_FILES, *CANTILEVER_VTU, "report.html"]
+    )
 
     header, rows = read_csv(out / "response.csv")
     assert header == COLUMNS
@@ -262,7 +267,9 @@ def test_installed_console_script(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
-    assert sorted(p.name for p in out.iterdir()) == sorted([*EVALUATE_FILES, "report.html"])
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [*EVALUATE_FILES, *CANTILEVER_VTU, "report.html"]
+    )
 
 
 def test_a_buckled_strut_is_flagged_unstable_in_the_console_and_the_files(tmp_path, capsys):

@@ -58,6 +58,8 @@ def shipped():
         ({"geometry": {"kind": "threshold_spring", "arms": 3}}, "geometry.arms", ["unknown key"]),
         ({"beam": {"rows": 2}}, "beam.rows", ["greater than or equal to 4"]),
         ({"impact": {"initial_spring": "loose"}}, "impact.initial_spring", ["unloaded"]),
+        # one step left the check's normalised curve error nothing to divide by (a traceback)
+        ({"fidelity": {"steps": 1}}, "fidelity.steps", ["greater than or equal to 2"]),
     ],
 )  # fmt: skip
 def test_bad_studies_name_the_key_path(changes, path, words):
