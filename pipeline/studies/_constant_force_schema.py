@@ -75,6 +75,14 @@ class ConstantForceGeometry(BaseModel):
     )
     pad_length_mm: float = Field(8.0, gt=0, description="clamping pad length beyond S1 and S6, mm")
     pad_thickness_mm: float = Field(4.0, gt=0, description="clamping pad thickness, mm")
+    pad_fillet_mm: float = Field(
+        0.0,
+        ge=0,
+        le=10,
+        description="radius of the fillets where the beam meets each pad, mm (capped at the "
+        "shoulder height (pad - T1 or T6) / 2); the beam is flared along them and Kt times its "
+        "stress there joins the peak stress. 0: sharp corners, Kt not modelled",
+    )
 
 
 class ConstantForceBoundary(BaseModel):
@@ -375,6 +383,7 @@ def check(study: ConstantForceStudy) -> None:
             pad_length_mm=study.geometry.pad_length_mm,
             pad_thickness_mm=study.geometry.pad_thickness_mm,
             end_flexures=study.geometry.end_flexures,
+            pad_fillet_mm=study.geometry.pad_fillet_mm,
         )
     except GeometryError as exc:
         raise StudyError("geometry.pad_thickness_mm", str(exc)) from exc
@@ -384,6 +393,12 @@ def check(study: ConstantForceStudy) -> None:
             "geometry.pad_thickness_mm",
             f"{study.geometry.pad_thickness_mm:g} mm is thinner than the beam ends may be "
             f"(T1/T6 up to {upper_t.max():g} mm); make the pads at least that thick",
+        )
+    if study.geometry.pad_fillet_mm > 0 and study.optimiser.method == "hybrid":
+        raise StudyError(
+            "geometry.pad_fillet_mm",
+            "method: hybrid differentiates the beam without the fillets' Kt x root stress; "
+            "use method: ga with a pad fillet, or pad_fillet_mm: 0",
         )
     if study.target.min_operative_stroke_mm > study.boundary.stroke_mm:
         raise StudyError(

@@ -36,8 +36,7 @@ import time
 from typing import Any
 
 import numpy as np
-from flexopt.fea.beam import BeamModel, BeamResponse, BeamSettings, EndDrive
-from flexopt.fea.beam_statics import with_statics_stress
+from flexopt.fea.beam import BeamModel, BeamResponse, EndDrive
 from flexopt.fea.errors import FeaError
 from flexopt.fea.fidelity import plane_stress_check
 from flexopt.fea.materials import Material
@@ -50,7 +49,6 @@ from flexopt.geometry.constant_force import (
     beam_profile,
     design_from_vector,
     design_to_vector,
-    outline,
 )
 from flexopt.geometry.constant_force import min_feature_mm as design_min_feature_mm
 from flexopt.geometry.errors import GeometryError
@@ -68,6 +66,7 @@ from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.fields import constant_force_fields
 from flexopt.pipeline.studies import StudyKind, _builtin, register
+from flexopt.pipeline.studies import _constant_force_fillet as pads  # geometry.pad_fillet_mm
 from flexopt.pipeline.studies._constant_force_band import band_names, band_rows
 from flexopt.pipeline.studies._constant_force_clamp import checked_peak_figures
 from flexopt.pipeline.studies._constant_force_schema import (
@@ -180,7 +179,7 @@ class ConstantForceProblem(DesignProblem):
     def jacobian(self, x: np.ndarray) -> Any:
         """Exact derivatives at ``x`` (23,): :mod:`._constant_force_gradient` (imported here:
         ~0.1 s that a run without a gradient stage or report does not pay at start-up)."""
-        from flexopt.pipeline.studies._constant_force_gradient import jacobian
+        from flexopt.pipeline.studies._constant_force_fillet import jacobian  # None with a fillet
 
         return jacobian(self, x, self._beam, self._drive)
 
@@ -238,9 +237,7 @@ class ConstantForceProblem(DesignProblem):
         )
 
     def _beam(self, design: ConstantForceDesign) -> BeamModel:
-        profile = beam_profile(design, self.frame, self.study.geometry.end_flexures)
-        settings = BeamSettings(n_elements=self.study.geometry.elements)
-        return BeamModel(profile, self.material, "clamped", settings)
+        return pads.beam_model(self, design)  # with geometry.pad_fillet_mm's fillets
 
     def _printability(self, design: ConstantForceDesign) -> str:
         """Empty when printable, else the reason (a check on the design vector: exact, as the
@@ -266,7 +263,7 @@ class ConstantForceProblem(DesignProblem):
         drive = self._drive(self.study.boundary.stroke_mm, self.study.boundary.rows)
         try:
             beam = self._beam(design)  # the stress from statics: converged at the clamp
-            response = with_statics_stress(beam, beam.solve(drive), WORK_DIRECTION)
+            response = pads.with_root_stress(self, design, beam, beam.solve(drive))  # + Kt x root
         except (GeometryError, FeaError) as exc:
             return design, None, f"cannot build: {exc}"
         if not response.ok:
@@ -382,7 +379,7 @@ class ConstantForceProblem(DesignProblem):
             info["problem"] = f"cannot build: {exc}"
             return DesignDetail(evaluation, info=info)
         g = study.geometry
-        shape = outline(design, self.frame, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+        shape = pads.study_outline(self, design)  # with the pad fillets
         profile = beam_profile(design, self.frame, g.end_flexures)
         info["beam_length_mm"] = profile.length_mm
         info["outline_area_mm2"] = shape.area
@@ -480,8 +477,7 @@ class ConstantForceProblem(DesignProblem):
         summary.update(
             {name: float(v) for name, v in zip(prob.constraint_names, evaluation.g, strict=True)}
         )
-        g = study.geometry  # the part as exported (best.stl's outline and B): its envelope
-        shape = outline(design, prob.frame, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+        shape = pads.study_outline(prob, design)  # the part as exported (best.stl's): its envelope
         summary.update(envelope_values(shape, design.B))
         diagnostics = dict(response.extra)
         if study.fidelity.enabled:  # the figure the verdict judges, as flexopt run's report does
@@ -629,7 +625,7 @@ def fidelity_check(
         stroke_rows, response.converged, response.peak_stress_MPa, lo, hi, spec.points
     )
     try:
-        shape = outline(design, problem.frame, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+        shape = pads.study_outline(problem, design)
         beam = problem._beam(design)
     except (GeometryError, FeaError) as exc:
         return {"skipped": f"could not build the plane-stress model: {exc}"}
