@@ -29,6 +29,7 @@ from flexopt.optimise.requirements import (
 )
 from flexopt.optimise.targets import ConstantTarget, measure_key
 from flexopt.pipeline.studies._constant_force_clamp import CHECKED_PEAK_MODEL
+from flexopt.pipeline.studies._constant_force_fillet import pad_stress
 
 # --------------------------------------------------------------------------------------------
 # polyline_beam (flexopt evaluate cantilever, fixed_guided)
@@ -81,7 +82,7 @@ def constant_force(study: Any) -> list[Requirement]:
                      b.stroke_mm / b.rows)
         )  # fmt: skip
     reqs += [
-        AllowableStress("peak_stress_MPa", "peak stress", "constraint", allowable),
+        pad_stress(study, allowable),  # its bound says when the pad corners are sharp
         Flag("stable", "stable (no bifurcation)", "constraint", True),
         MinFeature("min_feature_mm", "printable feature", "constraint",
                    study.geometry.min_feature_mm),

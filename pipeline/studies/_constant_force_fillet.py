@@ -13,7 +13,7 @@ response's ``peak_stress_MPa``, so the GA's stress constraint and the verdict se
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -29,12 +29,16 @@ from flexopt.geometry.constant_force import (
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.mechanism import AsMadeBeam
 from flexopt.geometry.profile import BeamProfile
+from flexopt.optimise.requirements import AllowableStress
 
 __all__ = [
+    "SHARP_PADS",
     "TOE_CLEAR_MM",
+    "PadStress",
     "beam_model",
     "jacobian",
     "made_beam",
+    "pad_stress",
     "root_stress_MPa",
     "study_outline",
     "with_root_stress",
@@ -45,6 +49,31 @@ __all__ = [
 #: design's capped S6 fillet (toe 3 um from p10) plane stress read 34.2 MPa against Kt x root
 #: 31.1 MPa (benchmarks/pad_fillet.py, docs/constant_force.md).
 TOE_CLEAR_MM = 0.1
+
+
+#: The peak-stress row's word on a study without fillets (``geometry.pad_fillet_mm: 0``): the
+#: part meets its pads in sharp corners, whose concentration no figure of this kind models.
+SHARP_PADS = "pad corners sharp, their Kt not modelled: geometry.pad_fillet_mm = 0"
+
+
+@dataclass(frozen=True)
+class PadStress(AllowableStress):
+    """The constant-force kind's allowable stress: with ``sharp`` its bound says that the pad
+    corners are sharp and not modelled (:data:`SHARP_PADS`). Why in the bound: the row's verdict
+    is still judged on the figures the run computed (the default stays as it was judged), but a
+    reader of the verdict is told the corners are outside them."""
+
+    sharp: bool = False
+
+    def bound_text(self) -> str:
+        text = super().bound_text()
+        return f"{text} ({SHARP_PADS})" if self.sharp else text
+
+
+def pad_stress(study: Any, allowable_MPa: float) -> PadStress:
+    """The ``peak stress`` requirement of a constant-force ``study`` (MPa)."""
+    sharp = not study.geometry.pad_fillet_mm > 0
+    return PadStress("peak_stress_MPa", "peak stress", "constraint", allowable_MPa, sharp=sharp)
 
 
 def made_beam(problem: Any, design: Any) -> AsMadeBeam:

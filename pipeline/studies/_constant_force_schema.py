@@ -30,7 +30,7 @@ from flexopt.pipeline.studies._constant_force_spec import (
     fill_from_spec,
 )
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import BaseModel, Field, field_validator, model_serializer, model_validator
 
 __all__ = [
     "FRACTIONS",
@@ -83,6 +83,15 @@ class ConstantForceGeometry(BaseModel):
         "shoulder height (pad - T1 or T6) / 2); the beam is flared along them and Kt times its "
         "stress there joins the peak stress. 0: sharp corners, Kt not modelled",
     )
+
+    @model_serializer(mode="wrap")
+    def _without_sharp_pads(self, handler: Any) -> Any:
+        # added after studies were first written: a study without fillets dumps (evaluation.json,
+        # the run folder's study.yaml, the study hash) as it did before the key existed
+        data = handler(self)
+        if isinstance(data, dict) and data.get("pad_fillet_mm") == 0:
+            del data["pad_fillet_mm"]
+        return data
 
 
 class ConstantForceBoundary(BaseModel):

@@ -94,8 +94,8 @@ def test_shipped_design_with_half_mm_fillets_judges_the_beam_peak_and_kt_root():
 
 @pytest.mark.timeout(300)
 def test_a_small_fillet_on_tall_pads_makes_kt_root_the_peak():
-    """r = 0.1 mm on 5 mm pads (h / r = 18, in the fit), Kt x root passes the mid-beam peak, and the peak the
-    verdict and the GA see is Kt x root, located at a pad end (s = 0 or the beam's length)."""
+    """r = 0.1 mm on 5 mm pads (h / r = 18, in the fit): Kt x root passes the mid-beam peak,
+    and the peak the verdict and the GA see is Kt x root, at a pad end (s = 0 or the length)."""
     prob = cf.problem(_study(pad_fillet_mm=0.1, pad_thickness_mm=5.0))
     x = prob.nominal_design()
     beam_peak, root, _ = _expected(prob, prob._design(x))
@@ -164,3 +164,20 @@ def test_pad_fillet_bounds(bad):
     with pytest.raises(ValidationError):
         cf.ConstantForceGeometry(**data)
     assert cf.ConstantForceGeometry(kind="constant_force").pad_fillet_mm == 0.0
+
+
+def test_the_peak_stress_row_says_when_the_pad_corners_are_sharp():
+    """Default: judged as before (same figure, same allowable), the bound naming the sharp
+    corners; with a fillet the bound is the plain allowable. A study without the key dumps as
+    before the key existed (evaluation.json, the study hash)."""
+    from flexopt.pipeline.studies._builtin import constant_force
+
+    def row(study):
+        return next(r for r in constant_force(study) if r.quantity == "peak_stress_MPa")
+
+    sharp, filleted = row(_study()), row(_study(pad_fillet_mm=0.5))
+    assert sharp.allowable_MPa == filleted.allowable_MPa == 42.5
+    assert "pad corners sharp" in sharp.bound_text() and "not modelled" in sharp.bound_text()
+    assert filleted.bound_text() == "<= 42.5 MPa"
+    assert "pad_fillet_mm" not in load_study(EXAMPLE).model_dump()["geometry"]
+    assert _study(pad_fillet_mm=0.5).model_dump()["geometry"]["pad_fillet_mm"] == 0.5
