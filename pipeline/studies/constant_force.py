@@ -49,6 +49,7 @@ from flexopt.geometry.constant_force import (
     beam_profile,
     design_from_vector,
     design_to_vector,
+    outline,
 )
 from flexopt.geometry.constant_force import min_feature_mm as design_min_feature_mm
 from flexopt.geometry.errors import GeometryError
@@ -95,6 +96,7 @@ __all__ = [
     "ConstantForceProblem",
     "design_space",
     "design_vector",
+    "outline",  # the sharp outline, as before (the study's: _constant_force_fillet)
     "fidelity_check",
     "prb_report",
     "prb_synthesis",
