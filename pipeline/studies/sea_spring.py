@@ -359,6 +359,12 @@ class SeaSpringProblem(DesignProblem):
     def evaluate(self, x: np.ndarray) -> Evaluation:
         return self._evaluate(x)[0]
 
+    def jacobian(self, x: np.ndarray) -> Any:
+        """Exact derivatives (spiral, ``thickness: solve``; else None): _sea_spring_gradient.py."""
+        from flexopt.pipeline.studies._sea_spring_gradient import sea_spring_jacobian
+
+        return sea_spring_jacobian(self, x)
+
     def evaluate_response(self, x: np.ndarray) -> tuple[Evaluation, dict | None, str]:
         """The evaluation and the torque-rotation table of one solve, ``mesh.curve_steps`` rows
         per direction as the report's (a life constraint's stresses: verdict.LifeConstraints)."""

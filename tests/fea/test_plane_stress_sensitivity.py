@@ -149,6 +149,7 @@ def _sea_model(points: np.ndarray | None = None):
     return mesh, model
 
 
+@pytest.mark.slow
 def test_sea_spring_coarse_mesh_matches_central_differences() -> None:
     """The SEA spring's torque rows and KS stress (rho = 500 / yield) on a coarse mesh, along a
     smooth velocity field of every vertex, against central differences of the nonlinear solve."""
