@@ -148,15 +148,20 @@ def _figures(problem: Any, torques: dict[str, np.ndarray], ks: dict[str, float],
 
 
 def morphed_responses(
-    problem: Any, x0: np.ndarray, x: np.ndarray, settings: PlaneStressSettings = SETTINGS
+    problem: Any,
+    x0: np.ndarray,
+    x: np.ndarray,
+    settings: PlaneStressSettings = SETTINGS,
+    steps: int = 1,
 ) -> dict[str, Any]:
     """The study's figures (:func:`_figures`) of design ``x`` solved on the mesh of ``x0`` moved
-    to ``x`` (:class:`fea.mesh_morph.SpiralMorph`): the function :func:`spring_sensitivities`
-    differentiates, for checking it by differences. Raises FeaError, GeometryError."""
+    to ``x`` (:class:`fea.mesh_morph.SpiralMorph`), the hub turned in ``steps`` rows: the
+    function :func:`spring_sensitivities` differentiates, for checking it by differences.
+    Raises FeaError, GeometryError."""
     s = _Spring(problem, np.asarray(x0, dtype=float), settings)
     morph = SpiralMorph(s.mesh, s.p, problem.frame)
     pts = morph.points(problem.params(np.asarray(x, dtype=float)))
-    model = s.model(pts, 1)
+    model = s.model(pts, steps)
     solved = _solve_both(model, problem.theta, problem.study.target.directions == "both")
     torques = {d: np.asarray(r.torque_Nmm[1:]) for d, r in solved.items()}
     rho = ks_rho(problem.material.yield_MPa)
@@ -178,18 +183,19 @@ def _drive(model: PlaneStressModel, direction: str, theta: float) -> PlaneStress
 
 
 def spring_sensitivities(
-    problem: Any, x: np.ndarray, settings: PlaneStressSettings = SETTINGS
+    problem: Any, x: np.ndarray, settings: PlaneStressSettings = SETTINGS, steps: int = 1
 ) -> dict[str, Any]:
     """The study's figures at ``x`` (n_var,) and their derivatives by ``x``: ``values`` (as
     :func:`morphed_responses` at ``x0 = x``) and ``gradients`` (each figure's (n_var,) or, for a
-    row array (k,), (k, n_var) array, in its unit per unit of the variable), ``cpu_s``.
-    Raises FeaError, GeometryError."""
+    row array (k,), (k, n_var) array, in its unit per unit of the variable), ``cpu_s``. The hub
+    is turned in ``steps`` rows (1: the evaluation's; ``mesh.curve_steps``: the report's curve),
+    every row's torque differentiated. Raises FeaError, GeometryError."""
     t0 = time.process_time()
     x = np.asarray(x, dtype=float)
     s = _Spring(problem, x, settings)
     morph = SpiralMorph(s.mesh, s.p, problem.frame)
     dX = morph.jacobian(problem.params, x)  # (n, 2, n_var)
-    model = s.model(s.mesh.points, 1)
+    model = s.model(s.mesh.points, steps)
     t_solve = time.process_time()
     solved = _solve_both(model, problem.theta, problem.study.target.directions == "both")
     t_solve = time.process_time() - t_solve
