@@ -27,7 +27,7 @@ unions, buffers and a simplification of the polygon, a sampling count that follo
 length) is not differentiable, so ``dX/dp`` (:meth:`SpiralMorph.jacobian`) is a central
 difference of this smooth map (cheap: no FE, no mesh). The morphed mesh is not the re-meshed
 design: the two responses differ by the discretisation error, which falls with refinement
-(tests/fea/test_mesh_morph.py measures it).
+(tests/pipeline/test_sea_spring_gradient.py measures it).
 
 Only the spiral topology (:mod:`geometry.arm_spring`) has a morph; the serpentine's arcs and
 links (:mod:`geometry.sea_spring`) are not mapped (:class:`MorphError`).

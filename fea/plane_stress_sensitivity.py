@@ -57,7 +57,6 @@ __all__ = [
     "fe_node_map",
     "ks_rho",
     "node_sensitivities",
-    "shape_work",
 ]
 
 #: The KS parameter as ``rho = KS_RHO_YIELD / yield`` (1/MPa): 500 / 2000 MPa = 0.25 /MPa for
@@ -203,7 +202,7 @@ def _stress(H: np.ndarray, lam: float, mu: float, nonlinear: bool):
     return F, F @ S, S
 
 
-def shape_work(
+def _shape_work(
     model: PlaneStressModel,
     geo: _Geometry,
     u: np.ndarray,
@@ -327,7 +326,7 @@ class _Row:
         node_grad[model.drive_nodes] += (
             np.column_stack([xi[model.drive_dofs_x], xi[model.drive_dofs_y]]) @ self.dub
         )
-        work = shape_work(model, self.geo, self.u, psi, self.nonlinear, self.state)
+        work = _shape_work(model, self.geo, self.u, psi, self.nonlinear, self.state)
         return self.MT @ node_grad + work
 
 
