@@ -74,8 +74,10 @@ class _Spring:
         )
         self.settings = settings
 
-    def model(self, points: np.ndarray, steps: int) -> PlaneStressModel:
-        g = self.geom
+    def model(self, points: np.ndarray, steps: int, geom: Any = None) -> PlaneStressModel:
+        """The model on the mesh with its vertices at ``points`` (n, 2) mm, the rigid regions
+        of ``geom`` (default the design's own: the morphed design's pads have moved)."""
+        g = self.geom if geom is None else geom
         return PlaneStressModel(
             TriMesh(points, self.mesh.triangles, self.mesh.boundary_edges),
             self.problem.material,
@@ -160,8 +162,18 @@ def morphed_responses(
     Raises FeaError, GeometryError."""
     s = _Spring(problem, np.asarray(x0, dtype=float), settings)
     morph = SpiralMorph(s.mesh, s.p, problem.frame)
-    pts = morph.points(problem.params(np.asarray(x, dtype=float)))
-    model = s.model(pts, steps)
+    p = problem.params(np.asarray(x, dtype=float))
+    pts = morph.points(p)
+    # the pads' washer footprints where the pads went: the morph moved them rigidly, so the
+    # clamp holds the same vertices (checked: the derivatives are those of this model)
+    model = s.model(pts, steps, build_any(p, problem.frame))
+    same = s.model(s.mesh.points, steps)
+    if not (
+        np.array_equal(model.clamp_nodes, same.clamp_nodes)
+        and np.array_equal(model.drive_nodes, same.drive_nodes)
+        and np.array_equal(model.stress_mask, same.stress_mask)
+    ):
+        raise FeaError("the morphed mesh's clamp, drive or stress search is not the design's")
     solved = _solve_both(model, problem.theta, problem.study.target.directions == "both")
     torques = {d: np.asarray(r.torque_Nmm[1:]) for d, r in solved.items()}
     rho = ks_rho(problem.material.yield_MPa)
