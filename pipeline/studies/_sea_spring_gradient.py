@@ -220,7 +220,7 @@ def spring_sensitivities(
         ks[d] = float(sens.ks_MPa[-1])
         d_ks[d] = np.einsum("nj,njv->v", sens.d_ks[-1], dX)
     model.drive = replace(model.drive, max_rad=problem.theta)
-    area0, d_area = _area_gradient(s.mesh.points, s.mesh.triangles)
+    _, d_area = _area_gradient(s.mesh.points, s.mesh.triangles)
     area = s.geom.area_mm2
     d_area = np.einsum("nj,njv->v", d_area, dX)
     values = _figures(problem, torques, ks, area)
