@@ -516,6 +516,7 @@ def judge_result(
         row, see the module docstring).
     """
     from flexopt.pipeline.materials_file import with_as_printed_verdicts  # says so (#26)
+    from flexopt.pipeline.stroke_verdict import with_stroke_row
 
     life = life_values(study, result)
     hold = hold_of_result(study, result)
@@ -525,13 +526,14 @@ def judge_result(
         given = _with_hold_rows(study, given, hold)
         if requirements is None and all(v.quantity != DesignRange.quantity for v in given):
             given = with_design_range(study, given, design)
+        given = with_stroke_row(given, result)  # a solve that stopped part-way: NOT MET
         return with_as_printed_verdicts(study, given, result.info.get("as printed"))
     values, table = {**result_values(result), **life}, result.table
     if hold is not None:
         values.update(_hold_values(study, hold))
         table = {**(table or {}), **_hold_columns(hold)}
     verdicts = _hold_details(study, judge(study, values, table, requirements, design), hold)
-    verdicts = _life_setting_details(study, result, verdicts)
+    verdicts = with_stroke_row(_life_setting_details(study, result, verdicts), result)
     return with_as_printed_verdicts(study, verdicts, result.info.get("as printed"))
 
 

@@ -1,0 +1,44 @@
+"""The verdict row of a solve that did not reach the end of its stroke (#22 class, session 26).
+
+Every figure a verdict judges over a response (a peak stress, a force band, a stop's force) is
+taken over the rows the solve reached: NaN rows (not converged) are left out. A design whose
+solve stops converging part-way through its stroke was therefore judged on the part of the
+stroke it reached, and could be MET on it: parallel-guide-landing with its load case cut after
+row 8 of 20 (4 of 10 N) read MET 7 of 7, its peak stress 6.73 MPa against the 9.96 MPa of the
+whole stroke (tests/pipeline/test_stroke_verdict.py). The only trace was ``converged: false`` in
+evaluation.json, a warning on stderr and, in the mechanism kind, numpy's "All-NaN slice" warning
+from the rows the solver did not reach (fea/mechanism_design.py).
+
+:func:`with_stroke_row` adds the row "solved through the stroke" to such a result's verdicts:
+NOT MET, with the solver's message, so the overall verdict is NOT MET. A result that converged
+(every shipped example does) is judged exactly as before.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+from flexopt.optimise.requirements import Flag, Verdict
+
+__all__ = ["STROKE_ROW", "with_stroke_row"]
+
+#: the row's name
+STROKE_ROW = "solved through the stroke"
+
+
+def with_stroke_row(verdicts: Sequence[Verdict], result: Any) -> tuple[Verdict, ...]:
+    """``verdicts`` with the NOT MET row :data:`STROKE_ROW` appended when ``result`` (a
+    :class:`~optimise.problem.DesignResult`) says its solve did not converge
+    (``result.converged is False``); unchanged otherwise (also for an object without the
+    attribute, e.g. a design's detail)."""
+    if getattr(result, "converged", True) is not False:
+        return tuple(verdicts)
+    message = getattr(result, "message", "") or "no message"
+    row = Flag("converged", STROKE_ROW, "check", True).check({"converged": False})
+    detail = (
+        f"the solve did not converge ({message}); every other row is judged on the rows it "
+        "reached only, not on the whole stroke"
+    )
+    return (*verdicts, replace(row, detail=detail))
