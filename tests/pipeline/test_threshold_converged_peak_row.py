@@ -38,3 +38,20 @@ def test_row_judges_the_converged_figure_where_there_is_one(figures):
     # without the convergence: the check mesh's plane stress, as before
     v = judge_best(req, {**base, "peak_stress_3d_MPa": 44.42}, None, figures, taken)
     assert v.value == 41.48 and v.met and v.model == "plane stress"
+
+
+def test_sea_spring_lists_the_converged_2d_peak_first():
+    from flexopt.optimise.sea_cost import solid_3d_scalars
+    from flexopt.pipeline.studies import sea_spring
+
+    record = {
+        "peak_stress_3d_MPa": 792.1,
+        "peak_convergence": {"converged": True, "peak_stress_2d_MPa": 747.8},
+    }
+    assert solid_3d_scalars(record)["peak_stress_2d_converged_MPa"] == 747.8
+    figures = sea_spring.FIGURES["peak_stress_MPa"]
+    req = AllowableStress("peak_stress_MPa", "peak stress", "constraint", 800.0)
+    metrics = {"peak_stress_MPa": 743.4, "peak_stress_2d_converged_MPa": 747.8,
+               "peak_stress_3d_MPa": 792.1}  # fmt: skip
+    v = judge_best(req, metrics, None, figures, ("peak_stress_3d_MPa",))
+    assert v.value == 747.8 and v.model == "plane stress, converged" and v.met
