@@ -16,13 +16,14 @@ NOT MET, with the solver's message, so the overall verdict is NOT MET. A result 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
 from flexopt.optimise.requirements import Flag, Verdict
 
-__all__ = ["STROKE_ROW", "with_stroke_row"]
+__all__ = ["STROKE_ROW", "with_life_reason", "with_stroke_row"]
 
 #: the row's name
 STROKE_ROW = "solved through the stroke"
@@ -42,3 +43,20 @@ def with_stroke_row(verdicts: Sequence[Verdict], result: Any) -> tuple[Verdict, 
         "reached only, not on the whole stroke"
     )
     return (*verdicts, replace(row, detail=detail))
+
+
+def with_life_reason(
+    verdicts: Sequence[Verdict], result: Any, life_quantities: Sequence[str]
+) -> tuple[Verdict, ...]:
+    """``verdicts`` whose life rows (quantity in ``life_quantities``) that have no value say why
+    the life was not computed: ``result.summary["fatigue_note"]`` (pipeline.verdict.with_life's
+    reason, e.g. a pivot leaf's sharp roots); unchanged without a note."""
+    note = (getattr(result, "summary", None) or {}).get("fatigue_note")
+    if not isinstance(note, str) or not note:
+        return tuple(verdicts)
+    return tuple(
+        replace(v, detail=f"life not computed: {note}")
+        if v.quantity in life_quantities and not v.met and math.isnan(v.value)
+        else v
+        for v in verdicts
+    )

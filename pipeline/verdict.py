@@ -516,7 +516,7 @@ def judge_result(
         row, see the module docstring).
     """
     from flexopt.pipeline.materials_file import with_as_printed_verdicts  # says so (#26)
-    from flexopt.pipeline.stroke_verdict import with_stroke_row
+    from flexopt.pipeline.stroke_verdict import with_life_reason, with_stroke_row
 
     life = life_values(study, result)
     hold = hold_of_result(study, result)
@@ -534,6 +534,7 @@ def judge_result(
         table = {**(table or {}), **_hold_columns(hold)}
     verdicts = _hold_details(study, judge(study, values, table, requirements, design), hold)
     verdicts = with_stroke_row(_life_setting_details(study, result, verdicts), result)
+    verdicts = with_life_reason(verdicts, result, LIFE_QUANTITIES)  # why a life is missing
     return with_as_printed_verdicts(study, verdicts, result.info.get("as printed"))
 
 
@@ -583,6 +584,10 @@ def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | Non
     peak = peak[np.isfinite(peak)]
     scale, model, figure = 1.0, "", ""
     values = result_values(result)
+    if values.get("sharp_roots"):  # a pivot's sharp leaf roots: no stress bounds the life there
+        from flexopt.pipeline.studies._pivot_roots import SHARP_ROOTS_LIFE
+
+        return SHARP_ROOTS_LIFE
     # the best figure of the peak stress the design has: the highest-ranked one, also where a
     # built-in row judges it on its own (a spring's 3D peak): the life is judged on the best
     # stress the run computed, not on the stress verdict's choice of row

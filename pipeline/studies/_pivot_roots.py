@@ -13,7 +13,9 @@ in two sharp 90° steps. No figure of the kind bounds the stress there:
   docs/flexures.md "Sharp leaf roots").
 
 So a design of those types is NOT MET on the peak-stress row, with the reason: the part as
-exported has a stress the run did not compute. Not a refusal: the design can still be
+exported has a stress the run did not compute; for the same reason its fatigue life is not
+computed (:data:`SHARP_ROOTS_LIFE`, pipeline.verdict.life_of_result: its life rows NOT MET
+with that reason). Not a refusal: the design can still be
 evaluated, its nominal figure is shown. The way out today is the ``corner_filleted`` type (a
 straight web with fillets into the blocks, its Kt from the notch fit). The GA's own stress
 constraint is unchanged (it judges the nominal figure, so it may still pick a leaf).
@@ -27,7 +29,7 @@ from typing import Any
 
 from flexopt.optimise.requirements import AllowableStress, Verdict
 
-__all__ = ["SHARP_ROOTS", "SHARP_ROOT_TYPES", "RootStress"]
+__all__ = ["SHARP_ROOTS", "SHARP_ROOTS_LIFE", "SHARP_ROOT_TYPES", "RootStress"]
 
 #: the pivot types whose exported outline meets the blocks in sharp corners (geometry/flexures.py
 #: ``Leaf.outline``, which ``VariableLeaf`` inherits)
@@ -39,6 +41,13 @@ SHARP_ROOTS = (
     "kind bounds (the beam and closed form have no Kt there, the plane-stress check leaves the "
     "root elements out and rises without bound under refinement at them); the figure shown is "
     "the nominal stress away from the roots; use type corner_filleted (a web with root fillets)"
+)
+
+#: why a design with sharp roots has no fatigue life (pipeline.verdict.life_of_result): the life
+#: of a part is that of its most stressed point, here a corner whose stress is not computed
+SHARP_ROOTS_LIFE = (
+    "a leaf with sharp roots: the stress at its 90° steps into the blocks is not bounded by the "
+    "model (the peak-stress row); use type corner_filleted"
 )
 
 

@@ -79,3 +79,25 @@ def test_leaf_design_is_not_met_with_the_reason():
     # a filleted design (or a notch) is judged exactly as the plain allowable stress
     for metrics in ({"peak_stress_MPa": 23.28, "sharp_roots": False}, {"peak_stress_MPa": 60.0}):
         assert req.check(metrics) == plain.check(metrics)
+
+
+def test_leaf_life_is_not_computed_and_its_row_says_why():
+    import dataclasses
+
+    from flexopt.pipeline.problems import study_result
+    from flexopt.pipeline.studies._pivot_roots import SHARP_ROOTS_LIFE
+    from flexopt.pipeline.study import load_study
+    from flexopt.pipeline.verdict import judge_result, life_of_result, with_life
+
+    study = load_study("flexure-pivot-life")  # a leaf: sharp roots
+    result = study_result(study, 1)
+    assert result.summary["sharp_roots"] is True
+    assert life_of_result(study, result) == SHARP_ROOTS_LIFE
+    # as flexopt evaluate judges it: the life (here its reason) in the summary first
+    life = {v.name: v for v in judge_result(study, with_life(study, result))}["service life"]
+    assert not life.met and SHARP_ROOTS_LIFE in life.detail
+    # the same response without the flag: the life is computed from the nominal stress
+    nominal = dataclasses.replace(result, summary={**result.summary, "sharp_roots": False})
+    computed = life_of_result(study, nominal)
+    assert computed is not None and not isinstance(computed, str)
+    assert math.isfinite(computed.values()["life_cycles"])
