@@ -651,7 +651,7 @@ def requirements(study: SeaSpringStudy) -> list[Requirement]:
 #: where made. The 3D stiffness and peak have rows of their own (:func:`_builtin.sea_spring`):
 #: the 2D rows keep the 2D figures; the life takes the 3D peak (verdict.life_of_result).
 _PEAK_3D = Figure("peak_stress_3d_MPa", "3D solid", SOLID_3D)
-_PEAK_2D = Figure("peak_stress_2d_converged_MPa", "plane stress, converged", PLANE_STRESS)
+_PEAK_2D = Figure("peak_stress_2d_refined_MPa", "plane stress, refined", PLANE_STRESS)
 _PEAK = Figure("peak_stress_MPa", "plane stress", PLANE_STRESS)
 _ST_3D = Figure("ST_3d_mm", "3D correction", SOLID_3D)
 FIGURES = {

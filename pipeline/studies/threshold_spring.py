@@ -518,7 +518,7 @@ class ThresholdSpringProblem(DesignProblem):
 
 
 #: the peak-stress row's best figure where the 3D check converged it: listed first of its rank
-CONVERGED_2D = FigureOf("peak_stress_2d_converged_MPa", "plane stress, converged", PLANE_STRESS)
+CONVERGED_2D = FigureOf("peak_stress_2d_refined_MPa", "plane stress, refined", PLANE_STRESS)
 
 
 def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
