@@ -23,10 +23,27 @@ from typing import Any
 
 from flexopt.optimise.requirements import Flag, Verdict
 
-__all__ = ["STROKE_ROW", "with_life_reason", "with_stroke_row"]
+__all__ = [
+    "STROKE_ROW",
+    "UNBOUNDED_LIFE",
+    "UNBOUNDED_STRESS",
+    "with_life_reason",
+    "with_stroke_row",
+]
 
 #: the row's name
 STROKE_ROW = "solved through the stroke"
+
+#: the summary flag of a design whose part as exported has a stress no figure of its kind bounds
+#: (a sharp corner: a flexure pivot's leaf roots, pipeline/studies/_pivot_roots.py): its peak
+#: stress row is NOT MET and its fatigue life is not computed (pipeline.verdict.life_of_result)
+UNBOUNDED_STRESS = "unbounded_stress"
+
+#: why such a design has no fatigue life: a part's life is that of its most stressed point
+UNBOUNDED_LIFE = (
+    "the part as exported has a stress the model does not bound (a sharp corner: see the "
+    "peak-stress row), so no life is computed"
+)
 
 
 def with_stroke_row(verdicts: Sequence[Verdict], result: Any) -> tuple[Verdict, ...]:

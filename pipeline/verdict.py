@@ -74,6 +74,7 @@ from flexopt.optimise.requirements import (
 )
 from flexopt.optimise.robust_requirements import RobustShareSpec
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.stroke_verdict import UNBOUNDED_LIFE, UNBOUNDED_STRESS
 
 if TYPE_CHECKING:  # annotations only: study.validate_study calls check_requirement_names
     from flexopt.pipeline.study import Study
@@ -584,10 +585,8 @@ def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | Non
     peak = peak[np.isfinite(peak)]
     scale, model, figure = 1.0, "", ""
     values = result_values(result)
-    if values.get("sharp_roots"):  # a pivot's sharp leaf roots: no stress bounds the life there
-        from flexopt.pipeline.studies._pivot_roots import SHARP_ROOTS_LIFE
-
-        return SHARP_ROOTS_LIFE
+    if values.get(UNBOUNDED_STRESS):  # e.g. a pivot's sharp leaf roots: no life there
+        return UNBOUNDED_LIFE
     # the best figure of the peak stress the design has: the highest-ranked one, also where a
     # built-in row judges it on its own (a spring's 3D peak): the life is judged on the best
     # stress the run computed, not on the stress verdict's choice of row

@@ -14,8 +14,8 @@ in two sharp 90° steps. No figure of the kind bounds the stress there:
 
 So a design of those types is NOT MET on the peak-stress row, with the reason: the part as
 exported has a stress the run did not compute; for the same reason its fatigue life is not
-computed (:data:`SHARP_ROOTS_LIFE`, pipeline.verdict.life_of_result: its life rows NOT MET
-with that reason). Not a refusal: the design can still be
+computed (the summary flag ``unbounded_stress``, pipeline/stroke_verdict.py: its life rows NOT
+MET with that reason). Not a refusal: the design can still be
 evaluated, its nominal figure is shown. The way out today is the ``corner_filleted`` type (a
 straight web with fillets into the blocks, its Kt from the notch fit). The GA's own stress
 constraint is unchanged (it judges the nominal figure, so it may still pick a leaf).
@@ -28,8 +28,9 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from flexopt.optimise.requirements import AllowableStress, Verdict
+from flexopt.pipeline.stroke_verdict import UNBOUNDED_STRESS
 
-__all__ = ["SHARP_ROOTS", "SHARP_ROOTS_LIFE", "SHARP_ROOT_TYPES", "RootStress"]
+__all__ = ["SHARP_ROOTS", "SHARP_ROOT_TYPES", "RootStress"]
 
 #: the pivot types whose exported outline meets the blocks in sharp corners (geometry/flexures.py
 #: ``Leaf.outline``, which ``VariableLeaf`` inherits)
@@ -43,24 +44,17 @@ SHARP_ROOTS = (
     "the nominal stress away from the roots; use type corner_filleted (a web with root fillets)"
 )
 
-#: why a design with sharp roots has no fatigue life (pipeline.verdict.life_of_result): the life
-#: of a part is that of its most stressed point, here a corner whose stress is not computed
-SHARP_ROOTS_LIFE = (
-    "a leaf with sharp roots: the stress at its 90° steps into the blocks is not bounded by the "
-    "model (the peak-stress row); use type corner_filleted"
-)
-
 
 @dataclass(frozen=True)
 class RootStress(AllowableStress):
     """The allowable stress of a pivot (MPa): NOT MET for a design of a type with sharp roots
-    (:data:`SHARP_ROOT_TYPES`; the metric ``sharp_roots`` the kind's result sets), with
+    (:data:`SHARP_ROOT_TYPES`; the flag ``unbounded_stress`` the kind's result sets), with
     :data:`SHARP_ROOTS` as its detail and no margin (the stress at the roots is not computed);
     else :class:`AllowableStress`'s verdict."""
 
     def check(self, metrics: Any, curves: Any = None) -> Verdict:
         verdict = super().check(metrics, curves)
-        if not metrics.get("sharp_roots"):
+        if not metrics.get(UNBOUNDED_STRESS):
             return verdict
         detail = "; ".join(filter(None, (verdict.detail, SHARP_ROOTS)))
         return replace(

@@ -71,13 +71,16 @@ def test_sharp_leaf_root_does_not_converge_but_a_filleted_one_does():
 def test_leaf_design_is_not_met_with_the_reason():
     req = RootStress("peak_stress_MPa", "peak stress", "constraint", 50.0)
     plain = AllowableStress("peak_stress_MPa", "peak stress", "constraint", 50.0)
-    sharp = req.check({"peak_stress_MPa": 23.28, "sharp_roots": True})
+    sharp = req.check({"peak_stress_MPa": 23.28, "unbounded_stress": True})
     assert not sharp.met
     assert SHARP_ROOTS in sharp.detail
     assert "leaf roots sharp" in sharp.bound
     assert math.isnan(sharp.margin) and sharp.value == 23.28
     # a filleted design (or a notch) is judged exactly as the plain allowable stress
-    for metrics in ({"peak_stress_MPa": 23.28, "sharp_roots": False}, {"peak_stress_MPa": 60.0}):
+    for metrics in (
+        {"peak_stress_MPa": 23.28, "unbounded_stress": False},
+        {"peak_stress_MPa": 60.0},
+    ):
         assert req.check(metrics) == plain.check(metrics)
 
 
@@ -85,19 +88,19 @@ def test_leaf_life_is_not_computed_and_its_row_says_why():
     import dataclasses
 
     from flexopt.pipeline.problems import study_result
-    from flexopt.pipeline.studies._pivot_roots import SHARP_ROOTS_LIFE
+    from flexopt.pipeline.stroke_verdict import UNBOUNDED_LIFE
     from flexopt.pipeline.study import load_study
     from flexopt.pipeline.verdict import judge_result, life_of_result, with_life
 
     study = load_study("flexure-pivot-life")  # a leaf: sharp roots
     result = study_result(study, 1)
-    assert result.summary["sharp_roots"] is True
-    assert life_of_result(study, result) == SHARP_ROOTS_LIFE
+    assert result.summary["unbounded_stress"] is True
+    assert life_of_result(study, result) == UNBOUNDED_LIFE
     # as flexopt evaluate judges it: the life (here its reason) in the summary first
     life = {v.name: v for v in judge_result(study, with_life(study, result))}["service life"]
-    assert not life.met and SHARP_ROOTS_LIFE in life.detail
+    assert not life.met and UNBOUNDED_LIFE in life.detail
     # the same response without the flag: the life is computed from the nominal stress
-    nominal = dataclasses.replace(result, summary={**result.summary, "sharp_roots": False})
+    nominal = dataclasses.replace(result, summary={**result.summary, "unbounded_stress": False})
     computed = life_of_result(study, nominal)
     assert computed is not None and not isinstance(computed, str)
     assert math.isfinite(computed.values()["life_cycles"])
