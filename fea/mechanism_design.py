@@ -180,11 +180,15 @@ def case_table(
     for o in pending:  # refers to an output not read in this case
         table[o.name] = np.full(len(drive), np.nan)
     per_beam = as_made_stress(response, made)
+    # the largest beam's per row; a row the solver did not reach is NaN in every beam and stays
+    # NaN (fmax.reduce: no "All-NaN slice" warning); the verdict says the stroke was not solved
+    # through (pipeline/stroke_verdict.py)
+    row_peak = np.fmax.reduce(per_beam, axis=1)
     for o in outputs:  # a peak stress output reads the roots' factors too
         if o.quantity == "peak_stress" and made is not None:
             i = list(made).index(o.part) if o.part in made else None
-            table[o.name] = np.nanmax(per_beam, axis=1) if i is None else per_beam[:, i]
-    table["peak_stress_MPa"] = np.nanmax(per_beam, axis=1)
+            table[o.name] = row_peak.copy() if i is None else per_beam[:, i]
+    table["peak_stress_MPa"] = row_peak
     table["converged"] = np.asarray(response.converged, dtype=bool)
     table["stable"] = np.asarray(response.stable, dtype=bool)
     return stable_part(table, response)

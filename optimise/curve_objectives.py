@@ -362,6 +362,8 @@ def threshold_solid_3d_scalars(s3: Mapping[str, Any], error_name: str) -> dict[s
     conv = s3.get("peak_convergence") or {}
     if "converged" in conv:
         out["peak_stress_converged"] = conv["converged"]
+    if "peak_stress_2d_MPa" in conv:  # the 2D peak refined on the exported outline (MPa)
+        out["peak_stress_2d_refined_MPa"] = conv["peak_stress_2d_MPa"]
     return out
 
 

@@ -309,6 +309,8 @@ def solid_3d_scalars(s3: dict[str, Any]) -> dict[str, Any]:
     conv = s3.get("peak_convergence") or {}
     if "converged" in conv:
         out["peak_stress_converged"] = conv["converged"]
+    if "peak_stress_2d_MPa" in conv:  # the 2D peak refined on the exported outline (MPa)
+        out["peak_stress_2d_refined_MPa"] = conv["peak_stress_2d_MPa"]
     return out
 
 

@@ -74,6 +74,7 @@ from flexopt.optimise.requirements import (
 )
 from flexopt.optimise.robust_requirements import RobustShareSpec
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.stroke_verdict import UNBOUNDED_LIFE, UNBOUNDED_STRESS
 
 if TYPE_CHECKING:  # annotations only: study.validate_study calls check_requirement_names
     from flexopt.pipeline.study import Study
@@ -516,6 +517,7 @@ def judge_result(
         row, see the module docstring).
     """
     from flexopt.pipeline.materials_file import with_as_printed_verdicts  # says so (#26)
+    from flexopt.pipeline.stroke_verdict import with_life_reason, with_stroke_row
 
     life = life_values(study, result)
     hold = hold_of_result(study, result)
@@ -525,13 +527,15 @@ def judge_result(
         given = _with_hold_rows(study, given, hold)
         if requirements is None and all(v.quantity != DesignRange.quantity for v in given):
             given = with_design_range(study, given, design)
+        given = with_stroke_row(given, result)  # a solve that stopped part-way: NOT MET
         return with_as_printed_verdicts(study, given, result.info.get("as printed"))
     values, table = {**result_values(result), **life}, result.table
     if hold is not None:
         values.update(_hold_values(study, hold))
         table = {**(table or {}), **_hold_columns(hold)}
     verdicts = _hold_details(study, judge(study, values, table, requirements, design), hold)
-    verdicts = _life_setting_details(study, result, verdicts)
+    verdicts = with_stroke_row(_life_setting_details(study, result, verdicts), result)
+    verdicts = with_life_reason(verdicts, result, LIFE_QUANTITIES)  # why a life is missing
     return with_as_printed_verdicts(study, verdicts, result.info.get("as printed"))
 
 
@@ -581,6 +585,8 @@ def life_of_result(study: Study, result: DesignResult) -> LifeResult | str | Non
     peak = peak[np.isfinite(peak)]
     scale, model, figure = 1.0, "", ""
     values = result_values(result)
+    if values.get(UNBOUNDED_STRESS):  # e.g. a pivot's sharp leaf roots: no life there
+        return UNBOUNDED_LIFE
     # the best figure of the peak stress the design has: the highest-ranked one, also where a
     # built-in row judges it on its own (a spring's 3D peak): the life is judged on the best
     # stress the run computed, not on the stress verdict's choice of row

@@ -48,10 +48,10 @@ __all__ = ["SolvedBy", "with_fidelity", "annotate"]
 #: why a stress requirement stays on the beam model (docs/mechanism.md, "The check of the part
 #: as exported")
 STRESS_NOTE = (
-    "judged on the larger of the beam model (with the filleted roots' Kt) and the check's peak "
-    "(its ratio to the beam's peak applied at every row); the check's peak at the roots' "
-    "chorded fillets rises slowly under mesh refinement, so it is a lower bound of the "
-    "exported part's"
+    "judged on the larger of the beam model as made (its filleted roots' Kt included) and the "
+    "check's peak (the check's linear peak over the as-made beam model's, applied at every "
+    "row); the check's peak at the roots' chorded fillets rises slowly under mesh refinement, "
+    "so it is a lower bound of the exported part's"
 )
 
 
@@ -234,7 +234,7 @@ def annotate(verdicts: tuple, solved: Any) -> tuple:
     for v in verdicts:
         if "peak_stress" in v.quantity or "stress_yield" in v.quantity:
             ratios = [
-                f"{a['model']} / beam {a['stress_ratio_reported']:.3g}"
+                f"{a['model']} / beam as made {a['stress_ratio_reported']:.3g}"
                 for a in fid["applied"].values()
                 if "stress_ratio_reported" in a
             ]

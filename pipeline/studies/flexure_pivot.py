@@ -61,7 +61,9 @@ from flexopt.optimise.requirements import BEAM, PLANE_STRESS, Figure
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.fields import pivot_plane_stress
+from flexopt.pipeline.stroke_verdict import UNBOUNDED_STRESS
 from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.studies._pivot_roots import SHARP_ROOT_TYPES
 from flexopt.pipeline.studies._pivot_schema import PivotDesign, PivotFidelity, PivotType
 from flexopt.pipeline.studies._stops import StopsSpec
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
@@ -535,6 +537,7 @@ class FlexurePivotProblem(DesignProblem):
         table = dict(detail.table)
         summary: dict[str, Any] = {
             "type": detail.info["type"],
+            UNBOUNDED_STRESS: detail.info["type"] in SHARP_ROOT_TYPES,  # sharp roots: _pivot_roots
             "small_angle_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"][
                 "beam_small_angle"
             ],

@@ -596,7 +596,8 @@ class MechanismProblem(DesignProblem):
             evaluation = self._evaluation(x, solved, time.perf_counter())
             for name, value in zip(self.objective_names, map(float, evaluation.f), strict=True):
                 summary.setdefault(name, value)  # a metric minimised as itself keeps its value
-        summary["verdict"] = "MET" if verdicts and all(v.met for v in verdicts) else "NOT MET"
+        met = verdicts and all(v.met for v in verdicts) and not solved.reason  # whole stroke
+        summary["verdict"] = "MET" if met else "NOT MET"  # as pipeline/stroke_verdict.py's row
         message = "; ".join(f"{c}: {r.message}" for c, r in solved.responses.items() if r.message)
         if solved.reason and solved.reason not in message:
             message = "; ".join(m for m in (message, solved.reason) if m)

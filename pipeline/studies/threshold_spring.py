@@ -517,6 +517,10 @@ class ThresholdSpringProblem(DesignProblem):
         )
 
 
+#: the peak-stress row's best figure where the 3D check converged it: listed first of its rank
+CONVERGED_2D = FigureOf("peak_stress_2d_refined_MPa", "plane stress, refined", PLANE_STRESS)
+
+
 def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
     """The figures of a quantity by model (pipeline.verdict): the error measure and the peak
     stress are judged on the plane-stress check's where the run made one (the 3D figures have
@@ -532,6 +536,8 @@ def figures(study: ThresholdSpringStudy) -> dict[str, tuple[FigureOf, ...]]:
         )
         for q in (name, "peak_stress_MPa")
     }
+    # the 2D peak the 3D check refined on the exported outline outranks the check mesh's (#22)
+    out["peak_stress_MPa"] = (CONVERGED_2D, *out["peak_stress_MPa"])
     # ST as exported: the 3D check's corrected ST where it made one (the STL's thickness)
     out["ST_mm"] = (
         FigureOf("ST_mm", "beam fit", BEAM),
