@@ -1349,6 +1349,11 @@ class Solid3DModel:
                 if lean:
                     self._assemble_compiled()
                 K = self.stiffness_matrix(thickness_mm)
+            elif not sup.selection:  # a sector's tie: P^T K P formed lean (_factor_tied)
+                held = [K]
+                K = None
+                self._factor = self._factor_tied(held, direct)
+                K = self.stiffness_matrix(thickness_mm)
             else:
                 self._factor = SparseSolver((P.T @ K.tocsr() @ P).tocsr(), direct)
             q = self._factor.solve(b)
@@ -1367,6 +1372,32 @@ class Solid3DModel:
             solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"
         return _result(sup, rx, peaks, self.n_dofs, self._t.shape[0], self._n_layers, st,
                        solver, times, iterations)  # fmt: skip
+
+    def _factor_tied(self, held: list, which: str) -> SparseSolver:
+        """The factor of P^T K P when P ties DOFs (a sector: cut B = R cut A), K (ndof, ndof)
+        N/mm handed over in the one-element list ``held`` (emptied: its only reference, so
+        that each intermediate goes as soon as the next is made). Only the reduced lower
+        triangle reaches the solver, in compressed columns; with the compiled assembly and
+        ``lean_factorisation`` the stiffness parts and the block pattern are dropped while
+        it factorises and made again after, as on the selection path (docs/solid3d.md, "The
+        sector solve": the SEA spring's check 1.69 GB with everything held, see there)."""
+        P = self._sup.P
+        A = held.pop().tocsr()
+        A = A @ P  # (ndof, nq)
+        A = (P.T.tocsr() @ A).tocsc()  # (nq, nq)
+        A = sp.tril(A, format="csc")
+        A.sort_indices()
+        vals, rows, colptr = [A.data], A.indices, A.indptr
+        A = None
+        lean = self._kernels is not None and self.settings.lean_factorisation
+        if lean:  # made again below, bit for bit, from the mesh
+            self._parts = self._lower = self._indices = self._indptr = None
+        try:
+            return SparseSolver(None, which, columns=(vals, rows, colptr, P.shape[1]))
+        finally:
+            del rows, colptr
+            if lean:
+                self._assemble_compiled()
 
     def _coarse_prolongation(self) -> sp.csr_matrix:
         """The P1 functions of the tetrahedral mesh as P2 vectors on the unknowns, (nfree,
