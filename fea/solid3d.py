@@ -1541,13 +1541,18 @@ class Solid3DModel:
         t, nv = self._t, self._p.shape[1]
         vertex = _vertex_average(vc, t, nv, self._vertex_class)
         counted_v = np.zeros(nv, dtype=bool)
-        counted_v[t[self._mask].ravel()] = True
+        cls = self._vertex_class
+        if cls is None:
+            counted_v[t[self._mask].ravel()] = True
+        else:  # a cut vertex is counted as the whole part's one vertex there (peak_stresses)
+            counted_v[cls[t[self._mask].ravel()]] = True
+            counted_v = counted_v[cls]
         n_nodes = ue.shape[0]
         ends = np.empty((n_nodes - nv, 2), dtype=np.int64)  # each edge node's two vertices
         for j, (a, b) in enumerate(((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))):
             ends[self._dofs[:, 4 + j] - nv] = np.column_stack([t[:, a], t[:, b]])
         p = self._p.T * np.array([1.0, 1.0, zs])
-        return {
+        field = {
             "points_mm": np.vstack([p, 0.5 * (p[ends[:, 0]] + p[ends[:, 1]])]),
             "tetra10": np.asarray(self._dofs, dtype=np.int64),
             "displacement_mm": ue,
@@ -1555,6 +1560,11 @@ class Solid3DModel:
             "stress_counted": np.concatenate([counted_v, counted_v[ends].all(axis=1)]),
             "symmetric": bool(self.settings.symmetric),
         }
+        if self.periodic is not None:  # the whole part: the sector's n turned copies
+            from flexopt.fea.solid3d_sector import whole_field
+
+            field = whole_field(field, self.periodic)
+        return field
 
     def compare_with_plane_stress(self, thickness_mm: float) -> dict:
         """:func:`compare_with_plane_stress` at ``thickness_mm`` with this model's 3D solve."""

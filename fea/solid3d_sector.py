@@ -53,6 +53,8 @@ __all__ = [
     "rotation_matrix",
     "rotational_symmetry_problem",
     "choose_cut_angle",
+    "sector_or_reason",
+    "whole_field",
 ]
 
 
@@ -369,3 +371,70 @@ def _assemble(pts, tris, n, centre, a0, tol, rounds) -> PeriodicMesh:
     whole = TriMesh(wpts, np.vstack(tri_w))
     return PeriodicMesh(sector, whole, n, centre, float(a0), cut_a, cut_b,
                         np.arange(f), rounds)  # fmt: skip
+
+
+def sector_or_reason(
+    outline: Polygon,
+    n: int,
+    max_edge_mm: float,
+    refine: Refinement | None,
+    regions: dict[str, BaseGeometry],
+    solver: str = "auto",
+    centre_mm=(0.0, 0.0),
+) -> tuple[PeriodicMesh | None, str]:
+    """The periodic mesh a 3D check solves one sector of, or None and the reason the whole
+    model is solved instead; the second item says which in one line (for the record).
+
+    The caller's load must be a rigid turn about ``centre_mm`` (the SEA spring's hub); the
+    outline and ``regions`` (supports, stress-ignore) must repeat every 2 pi / n
+    (:func:`rotational_symmetry_problem`). ``solver``: the check's
+    :attr:`fea.solid3d.Solid3DSettings.solver`: the sector's tie is no DOF selection, so it
+    is factorised (CHOLMOD, QDLDL, SuperLU), never solved by multigrid: with ``"multigrid"``,
+    or ``"auto"`` where CHOLMOD does not import (a plain install, where "auto" takes
+    multigrid on a model this large), the whole model is solved as before.
+    """
+    from flexopt.fea.solid3d import cholmod_available
+
+    if solver == "multigrid":
+        return None, "whole model: solid_3d.solver is multigrid (a sector needs a direct factor)"
+    if solver == "auto" and not cholmod_available():
+        return None, (
+            "whole model: without the cholmod extra 'auto' solves by multigrid (no factor), "
+            "which a sector's tie does not allow"
+        )
+    why = rotational_symmetry_problem(outline, n, centre_mm, regions)
+    if why is not None:
+        return None, f"whole model: not rotationally symmetric ({why})"
+    try:
+        pm = periodic_mesh(outline, n, max_edge_mm, refine=refine, centre_mm=centre_mm)
+    except FeaError as exc:
+        return None, f"whole model: no periodic mesh ({exc})"
+    return pm, (
+        f"one sector of {pm.n} (rotational symmetry: cut B tied to cut A turned by "
+        f"{360.0 / pm.n:g} deg; cuts at {math.degrees(pm.angle0_rad):.4g} deg from the axis "
+        f"({pm.centre_mm[0]:g}, {pm.centre_mm[1]:g}) mm; {pm.cut_a.size} plane nodes per cut)"
+    )
+
+
+def whole_field(field: dict, pm: PeriodicMesh) -> dict:
+    """A sector's :meth:`fea.solid3d.Solid3DModel.last_field` as the whole part's: its n
+    copies turned by k 2 pi / n (points and displacements turned, the von Mises stress and
+    the counted flags repeated; a cut's nodes appear once in each of its two copies, with
+    the same values there, since u_B = R u_A). Keys and units as there."""
+    pts, disp = field["points_mm"], field["displacement_mm"]
+    c = np.append(pm.centre_mm, 0.0)
+    out_p, out_u, out_t = [], [], []
+    for k in range(pm.n):
+        R = np.eye(3)
+        R[:2, :2] = rotation_matrix(k * pm.step_rad)
+        out_p.append((pts - c) @ R.T + c)
+        out_u.append(disp @ R.T)
+        out_t.append(field["tetra10"] + k * pts.shape[0])
+    return {
+        **field,
+        "points_mm": np.vstack(out_p),
+        "tetra10": np.vstack(out_t),
+        "displacement_mm": np.vstack(out_u),
+        "von_mises_MPa": np.tile(field["von_mises_MPa"], pm.n),
+        "stress_counted": np.tile(field["stress_counted"], pm.n),
+    }
