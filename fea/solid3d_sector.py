@@ -410,9 +410,9 @@ def sector_or_reason(
     except FeaError as exc:
         return None, f"whole model: no periodic mesh ({exc})"
     return pm, (
-        f"one sector of {pm.n} (rotational symmetry: cut B tied to cut A turned by "
-        f"{360.0 / pm.n:g} deg; cuts at {math.degrees(pm.angle0_rad):.4g} deg from the axis "
-        f"({pm.centre_mm[0]:g}, {pm.centre_mm[1]:g}) mm; {pm.cut_a.size} plane nodes per cut)"
+        f"one sector of {pm.n} (rotational symmetry about ({pm.centre_mm[0]:g}, "
+        f"{pm.centre_mm[1]:g}) mm: cut A at {math.degrees(pm.angle0_rad):.4g} deg, cut B "
+        f"{360.0 / pm.n:g} deg further tied to cut A turned; {pm.cut_a.size} plane nodes a cut)"
     )
 
 
