@@ -36,6 +36,11 @@ Physics
     factorised): half CHOLMOD's memory at ~3x its time, and less memory and time than QDLDL.
     ``solver = "auto"`` takes multigrid from ``Solid3DSettings.multigrid_from_dofs`` DOFs on
     when CHOLMOD does not import (a plain install), CHOLMOD wherever it does.
+Rotational sector (``Solid3DModel(periodic=)``, fea/solid3d_sector.py)
+    A part whose outline, supports and load (a hub turned about the axis) repeat every
+    2 pi / n: one sector of a periodic mesh, cut B's DOFs tied to cut A's turned
+    (``u_B = R u_A``), gives the whole part's answer on that mesh (stiffness n times the
+    sector's torque, the sector's peak); the SEA spring's check in half the memory.
 Several thicknesses (:class:`Solid3DModel`)
     The layers scale with the thickness, so one assembly serves every thickness (the
     stiffness is a sum of three parts weighted by t, 1 and 1/t); a thickness after the first

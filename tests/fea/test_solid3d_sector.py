@@ -23,7 +23,9 @@ from flexopt.fea.solid3d_sector import (
     periodic_mesh,
     rotation_matrix,
     rotational_symmetry_problem,
+    sector_or_reason,
 )
+from scipy.spatial import cKDTree
 from shapely import affinity
 from shapely.geometry import Point, box
 from shapely.ops import unary_union
@@ -113,6 +115,18 @@ def test_sector_equals_whole_on_the_same_periodic_mesh(n, bore):
     f = sec.last_field(3.0)
     judged = f["von_mises_MPa"][f["stress_counted"]].max()
     assert judged == pytest.approx(cs["peak_nodal_stress_3d_MPa"], rel=1e-12)
+    # ... holding the n turned copies: every node's displacement and stress is the whole
+    # model's at the same point
+    fw = whole.last_field(3.0)
+    assert f["points_mm"].shape[0] > fw["points_mm"].shape[0] > 0.9 * f["points_mm"].shape[0]
+    assert f["tetra10"].shape[0] == fw["tetra10"].shape[0]
+    dist, k = cKDTree(fw["points_mm"]).query(f["points_mm"])
+    assert dist.max() < 1e-9
+    scale = np.abs(fw["displacement_mm"]).max()
+    np.testing.assert_allclose(f["displacement_mm"], fw["displacement_mm"][k], rtol=0,
+                               atol=1e-9 * scale)  # fmt: skip
+    np.testing.assert_allclose(f["von_mises_MPa"], fw["von_mises_MPa"][k], rtol=1e-8,
+                               atol=1e-9 * judged)  # fmt: skip
 
 
 def test_annulus_sector_against_the_closed_form():
@@ -172,3 +186,21 @@ def test_periodic_mesh_against_the_whole_outline_meshed_by_triangle():
     own = max(abs(per[1] / per[0] - 1), abs(tri[1] / tri[0] - 1))
     assert abs(per[1] / tri[1] - 1) <= own
     assert abs(per[0] / tri[0] - 1) <= 2 * own
+
+
+def test_sector_or_reason_says_why_the_whole_is_solved(monkeypatch):
+    import flexopt.fea.solid3d as s3d
+
+    outline, clamp, drive, ignore = _arms(3, True)
+    regions = {"clamp": clamp.region, "stress-ignore": ignore}
+    pm, why = sector_or_reason(outline, 3, 1.5, None, regions, "cholmod")
+    assert pm is not None and why.startswith("one sector of 3")
+    pm, why = sector_or_reason(outline, 3, 1.5, None, regions, "multigrid")
+    assert pm is None and "multigrid" in why
+    pm, why = sector_or_reason(outline, 3, 1.5, None, {"clamp": Point(14, 0).buffer(1.0)})
+    assert pm is None and "not rotationally symmetric" in why and "clamp" in why
+    monkeypatch.setattr(s3d, "cholmod_available", lambda: False)
+    pm, why = sector_or_reason(outline, 3, 1.5, None, regions, "auto")
+    assert pm is None and "cholmod extra" in why
+    pm, why = sector_or_reason(outline, 3, 1.5, None, regions, "qdldl")
+    assert pm is not None
