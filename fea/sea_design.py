@@ -441,8 +441,11 @@ def correct_3d(
         # one sector of the RP arms where the part repeats (fea/solid3d_sector.py: half the
         # memory of the whole for two arms, the same answer on its periodic mesh)
         repeat = {"hub": geom.hub_region, "pads": geom.pad_region, "stress-ignore": ignore}
+        # the cuts kept off the plane-stress peak (a line of cut nodes through it changes the
+        # mesh there most: fea/solid3d_sector.choose_cut_angle)
         pm, model_3d = sector_or_reason(geom.fe_outline, geom.params.n_sets, mesh.max_edge_mm,
-                                        regions, repeat, s3.solver)  # fmt: skip
+                                        regions, repeat, s3.solver,
+                                        avoid_mm=r.peak_stress_xy_mm)  # fmt: skip
         m = (
             mesh_polygon(geom.fe_outline, mesh.max_edge_mm, refine=regions)
             if pm is None

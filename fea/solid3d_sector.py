@@ -115,7 +115,8 @@ def _boundary_edges(outline: Polygon) -> tuple[np.ndarray, np.ndarray]:
 
 def _ray_crossings(a: np.ndarray, b: np.ndarray, centre: np.ndarray, angle: float):
     """Where the ray from ``centre`` at ``angle`` crosses the segments a-b: distances s (k,) mm
-    along the ray and the sine of the crossing angle (k,)."""
+    along the ray, the sine of the crossing angle (k,) and the distance from each crossing to
+    the nearer end of its segment (k,) mm."""
     d = _unit(angle)
     e = b - a
     den = d[0] * e[:, 1] - d[1] * e[:, 0]  # cross(d, e)
@@ -125,29 +126,52 @@ def _ray_crossings(a: np.ndarray, b: np.ndarray, centre: np.ndarray, angle: floa
     s = (w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]) / den_s  # along the ray
     t = (w[:, 0] * d[1] - w[:, 1] * d[0]) / den_s  # along the segment
     hit = ok & (s >= 0.0) & (t >= 0.0) & (t < 1.0)
-    sine = np.abs(den[hit]) / np.linalg.norm(e[hit], axis=1)
-    return s[hit], sine
+    length = np.linalg.norm(e[hit], axis=1)
+    sine = np.abs(den[hit]) / length
+    return s[hit], sine, np.minimum(t[hit], 1.0 - t[hit]) * length
 
 
 def choose_cut_angle(outline: Polygon, n: int, centre_mm=(0.0, 0.0), candidates: int = 720,
-                     tol_mm: float = 1e-9) -> float:  # fmt: skip
-    """The direction of cut A, rad: among ``candidates`` directions in [0, 2 pi / n), one whose
-    crossings of the outline repeat on cut B (the same distances from the centre within
-    ``tol_mm``; else the least mismatch) and cross the boundary most steeply (a shallow crossing
-    leaves a sliver beside the cut). Ties go to the smaller angle."""
+                     tol_mm: float = 1e-9, avoid_mm: np.ndarray | None = None,
+                     clearance_mm: float = 0.0) -> float:  # fmt: skip
+    """The direction of cut A, rad, among ``candidates`` directions in [0, 2 pi / n), by
+    these criteria in turn:
+
+    1. its crossings of the outline repeat on cut B (the same distances from the centre
+       within ``tol_mm``; else the least mismatch);
+    2. both cuts pass at least ``clearance_mm`` from the points ``avoid_mm`` (k, 2) mm and
+       their turned copies (the plane-stress peak: a cut's line of nodes through it changes
+       the mesh there, and with it the vertex-averaged peak, by more than elsewhere: the SEA
+       spring's default design, cut through its peak, read its 2D peak 5 % higher);
+    3. no crossing shallower than 30 deg (a shallow one leaves a sliver beside the cut), the
+       steepest below that;
+    4. the crossings furthest from the outline's vertices (a crossing next to a vertex leaves
+       a tiny boundary segment that Triangle refines around).
+
+    Ties go to the smaller angle."""
     a, b = _boundary_edges(outline)
     c = np.asarray(centre_mm, dtype=float)
     step = 2.0 * math.pi / n
+    pts = np.zeros((0, 2)) if avoid_mm is None else np.asarray(avoid_mm, float).reshape(-1, 2)
+    pts = np.vstack([(pts - c) @ rotation_matrix(j * step).T + c for j in range(n)])
     best = None
     for k in range(candidates):
         ang = (k + 0.5) * step / candidates
-        sa, ka = _ray_crossings(a, b, c, ang)
-        sb, kb = _ray_crossings(a, b, c, ang + step)
+        sa, ka, ga = _ray_crossings(a, b, c, ang)
+        sb, kb, gb = _ray_crossings(a, b, c, ang + step)
         if sa.size != sb.size:
             continue
         mismatch = float(np.max(np.abs(np.sort(sa) - np.sort(sb)), initial=0.0))
         steep = float(min(ka.min(initial=1.0), kb.min(initial=1.0)))
-        key = (max(mismatch, tol_mm), -steep)
+        gap = float(min(ga.min(initial=np.inf), gb.min(initial=np.inf)))
+        near = 0.0
+        for ray in (ang, ang + step):  # the avoided points' distance to the ray, mm
+            d = _unit(ray)
+            w = pts - c
+            along = np.maximum(w @ d, 0.0)
+            near = max(near, float(np.sum(np.linalg.norm(w - along[:, None] * d, axis=1)
+                                          < clearance_mm)))  # fmt: skip
+        key = (max(mismatch, tol_mm), near, -min(steep, 0.5), -gap)
         if best is None or key < best[0]:
             best = (key, ang)
     if best is None:
@@ -243,6 +267,7 @@ def periodic_mesh(
     centre_mm=(0.0, 0.0),
     angle0_rad: float | None = None,
     max_rounds: int = 8,
+    avoid_mm: np.ndarray | None = None,
 ) -> PeriodicMesh:
     """Mesh one 1/n sector of ``outline`` with matching cuts and rotate it into the whole.
 
@@ -253,7 +278,8 @@ def periodic_mesh(
     n : int >= 2 — sectors.
     max_edge_mm, refine : as :func:`fea.mesh.mesh_polygon` (applied to the sector).
     centre_mm : (2,) mm — the axis.
-    angle0_rad : rad — direction of cut A; default :func:`choose_cut_angle`.
+    angle0_rad : rad — direction of cut A; default :func:`choose_cut_angle`, the cuts kept
+        2 ``max_edge_mm`` from the points ``avoid_mm`` (k, 2) mm (the peak stress) if given.
     max_rounds : int — meshings at most until the cuts match.
 
     Returns
@@ -269,7 +295,10 @@ def periodic_mesh(
     n = int(n)
     centre = np.asarray(centre_mm, dtype=float)
     step = 2.0 * math.pi / n
-    a0 = choose_cut_angle(outline, n, centre) if angle0_rad is None else float(angle0_rad)
+    if angle0_rad is None:
+        a0 = choose_cut_angle(outline, n, centre, avoid_mm=avoid_mm, clearance_mm=2 * max_edge_mm)
+    else:
+        a0 = float(angle0_rad)
     a1 = a0 + step
     x0, y0, x1, y1 = outline.bounds
     radius = 4.0 * (math.hypot(x1 - x0, y1 - y0) + float(np.abs(centre).max()) + 1.0)
@@ -381,6 +410,7 @@ def sector_or_reason(
     regions: dict[str, BaseGeometry],
     solver: str = "auto",
     centre_mm=(0.0, 0.0),
+    avoid_mm: np.ndarray | None = None,
 ) -> tuple[PeriodicMesh | None, str]:
     """The periodic mesh a 3D check solves one sector of, or None and the reason the whole
     model is solved instead; the second item says which in one line (for the record).
@@ -391,7 +421,8 @@ def sector_or_reason(
     :attr:`fea.solid3d.Solid3DSettings.solver`: the sector's tie is no DOF selection, so it
     is factorised (CHOLMOD, QDLDL, SuperLU), never solved by multigrid: with ``"multigrid"``,
     or ``"auto"`` where CHOLMOD does not import (a plain install, where "auto" takes
-    multigrid on a model this large), the whole model is solved as before.
+    multigrid on a model this large), the whole model is solved as before. ``avoid_mm``
+    (k, 2) mm: points the cuts keep away from (:func:`choose_cut_angle`; the plane-stress peak).
     """
     from flexopt.fea.solid3d import cholmod_available
 
@@ -406,7 +437,8 @@ def sector_or_reason(
     if why is not None:
         return None, f"whole model: not rotationally symmetric ({why})"
     try:
-        pm = periodic_mesh(outline, n, max_edge_mm, refine=refine, centre_mm=centre_mm)
+        pm = periodic_mesh(outline, n, max_edge_mm, refine=refine, centre_mm=centre_mm,
+                           avoid_mm=avoid_mm)  # fmt: skip
     except FeaError as exc:
         return None, f"whole model: no periodic mesh ({exc})"
     return pm, (
