@@ -28,6 +28,12 @@ of docs/solid3d.md's earlier tables measure what they did); ``sector`` one secto
 periodic mesh (fea/solid3d_sector.py: what the report's check solves now where the part
 repeats); ``whole`` the whole part on that same periodic mesh (the sector's reference: the
 same answers to round-off). The answers are compared with the last row's.
+``--mesh-table [DEG ...]``: instead, in one process, the 3D/2D ratios the check applies
+(``compare_with_plane_stress`` at the case's ST) on Triangle's mesh of the outline, on
+Triangle's mesh of the outline turned by 360/n degrees and turned back (another mesh of the
+same size), on the periodic mesh the check solves (its sector) and on periodic meshes cut
+at the angles DEG (degrees; each must cross the outline alike on both cuts): the meshes'
+own spread (docs/solid3d.md, "The sector solve").
 """
 
 from __future__ import annotations
@@ -86,7 +92,8 @@ def _make_case(study: str, run: str | None) -> dict:
     repeat = {"hub": geom.hub_region, "pads": geom.pad_region, "stress-ignore": case["ignore"]}
     pm, why = sector_or_reason(geom.fe_outline, geom.params.n_sets, st.mesh.max_edge_mm,
                                regions, repeat, "cholmod")  # fmt: skip
-    return {**case, "periodic": pm, "model_3d": why}
+    return {**case, "periodic": pm, "model_3d": why, "outline": geom.fe_outline,
+            "regions": regions, "max_edge_mm": st.mesh.max_edge_mm}  # fmt: skip
 
 
 def child(case_file: str, lean: str, solver: str, model_kind: str = "today") -> None:
@@ -175,6 +182,56 @@ def child_stages(case_file: str, solver: str) -> None:
     print(f"  {r.solver}, {r.iterations} iterations, stiffness {r.stiffness:.6f} N·mm/rad")
 
 
+def mesh_table(case_file: str, angles: list[float]) -> None:
+    """The ratios of the check on several plane meshes of the same size (see above)."""
+    import math
+
+    import numpy as np
+    from flexopt.fea.mesh import TriMesh, mesh_polygon
+    from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings
+    from flexopt.fea.solid3d_sector import periodic_mesh, rotation_matrix
+    from flexopt.pipeline._hugepages import without_numpy_hugepages
+    from shapely import affinity
+
+    case = pickle.loads(Path(case_file).read_bytes())
+    pm = case["periodic"]
+    if pm is None:
+        raise SystemExit(f"no periodic mesh: {case['model_3d']}")
+    outline, regions, edge = case["outline"], case["regions"], case["max_edge_mm"]
+    deg = 360.0 / pm.n
+    turned = mesh_polygon(affinity.rotate(outline, deg, origin=(0, 0)), edge,
+                          refine=[(affinity.rotate(g, deg, origin=(0, 0)), h)
+                                  for g, h in regions])  # fmt: skip
+    back = TriMesh(turned.points @ rotation_matrix(-math.radians(deg)).T, turned.triangles)
+    rows = [("Triangle's, whole outline", case["mesh"], None),
+            (f"Triangle's, outline turned {deg:g} deg and back", back, None),
+            (f"periodic, cut at {math.degrees(pm.angle0_rad):.4g} deg (the check's)",
+             pm.sector, pm)]  # fmt: skip
+    for a in angles:
+        p = periodic_mesh(outline, pm.n, edge, refine=regions, angle0_rad=math.radians(a))
+        rows.append((f"periodic, cut at {a:g} deg", p.sector, p))
+    settings = Solid3DSettings(layers=case["layers"])
+    print("plane mesh | plane nodes | stiffness ratio 3D/2D | peak ratio 3D/2D | 3D vertex peak "
+          "MPa | where (x, y) mm | each arm's copy of the peak region (3 mm) MPa")  # fmt: skip
+    for name, mesh, p in rows:
+        with without_numpy_hugepages():
+            model = Solid3DModel(mesh, case["material"], case["clamp"], case["drive"], settings,
+                                 stress_ignore=case["ignore"], periodic=p)  # fmt: skip
+            c = model.compare_with_plane_stress(case["st_mm"])
+            f = model.last_field(case["st_mm"])  # the whole part (a sector's turned copies)
+        nodes = (p.whole if p is not None else mesh).n_points
+        x, y = (float(v) for v in c["solid3d"]["peak_nodal_stress_xyz_mm"][:2])
+        pts, vm, counted = f["points_mm"][:, :2], f["von_mises_MPa"], f["stress_counted"]
+        copies = []
+        for j in range(pm.n):  # the judged vertex values near each arm's copy of the peak
+            q = np.array([x, y]) @ rotation_matrix(j * math.radians(deg)).T
+            near = counted & (np.linalg.norm(pts - q, axis=1) < 3.0)
+            copies.append(f"{vm[near].max():.3f}")
+        print(f"{name} | {nodes} | {c['stiffness_ratio']:.8f} | {c['peak_stress_ratio']:.6f} | "
+              f"{c['peak_nodal_stress_3d_MPa']:.3f} | ({x:.2f}, {y:.2f}) | {' / '.join(copies)}",
+              flush=True)  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("study", nargs="?", default="sea-spring")
@@ -190,6 +247,8 @@ def main() -> None:
                     help="lean_factorisation False (the arrays kept throughout)")  # fmt: skip
     ap.add_argument("--stages", action="store_true",
                     help="instead: the memory stage by stage, a process per solver")  # fmt: skip
+    ap.add_argument("--mesh-table", nargs="*", type=float, metavar="DEG",
+                    help="instead: the ratios on several meshes (see above)")  # fmt: skip
     ap.add_argument("--case", help=argparse.SUPPRESS)  # a pickled case (re-use between runs)
     ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     ap.add_argument("--child-stages", nargs=2, help=argparse.SUPPRESS)
@@ -211,6 +270,9 @@ def main() -> None:
             case_file.write_bytes(pickle.dumps(case))
             print(f"{args.run or args.study}: ST = {case['st_mm']:.4f} mm "
                   f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
+        if args.mesh_table is not None:
+            mesh_table(str(case_file), args.mesh_table)
+            return
         if args.stages:
             for solver in args.solvers:
                 subprocess.run([sys.executable, __file__, "--child-stages", str(case_file),
