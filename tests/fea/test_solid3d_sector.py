@@ -204,3 +204,45 @@ def test_sector_or_reason_says_why_the_whole_is_solved(monkeypatch):
     assert pm is None and "cholmod extra" in why
     pm, why = sector_or_reason(outline, 3, 1.5, None, regions, "qdldl")
     assert pm is not None
+
+
+@pytest.mark.slow
+def test_sea_spring_design_sector_equals_whole_on_its_periodic_mesh():
+    """The sea-spring example's recorded design (two spiral arms, the kind's own mesh sizes),
+    one prism layer: the sector against the whole part on the same periodic mesh."""
+    from flexopt.pipeline.studies.sea_spring import SeaSpringProblem, design_vector
+    from flexopt.pipeline.study import load_study
+
+    study = load_study("sea-spring")
+    prob = SeaSpringProblem(study, stage1={})
+    x = np.delete(design_vector(study), prob.names.index("ST"))
+    _, geom, _, st_mm = prob.solve(x, 1)
+    spec = study.mesh
+    regions = geom.mesh_regions(spec.elements_through, spec.max_edge_mm)
+    ignore = geom.hub_region.union(geom.pad_region).buffer(0.05)
+    pm, why = sector_or_reason(geom.fe_outline, geom.params.n_sets, spec.max_edge_mm, regions,
+                               {"hub": geom.hub_region, "pads": geom.pad_region,
+                                "stress-ignore": ignore}, "cholmod")  # fmt: skip
+    assert pm is not None and pm.n == 2, why
+    args = (prob.material, Clamp(geom.pad_region), Rotate(geom.hub_region, (0, 0), prob.theta, 1),
+            Solid3DSettings(layers=1))  # fmt: skip
+    rs = Solid3DModel(pm.sector, *args, ignore, periodic=pm).solve(st_mm)
+    rw = Solid3DModel(pm.whole, *args, ignore).solve(st_mm)
+    assert rs.n_dofs < 0.52 * rw.n_dofs
+    assert rs.stiffness == pytest.approx(rw.stiffness, rel=SAME)
+    assert rs.peak_stress_MPa == pytest.approx(rw.peak_stress_MPa, rel=SAME)
+    assert rs.peak_nodal_stress_MPa == pytest.approx(rw.peak_nodal_stress_MPa, rel=SAME)
+
+
+def test_sector_with_the_numpy_assembly_equals_the_compiled_one():
+    outline, clamp, drive, ignore = _arms(3, True)
+    pm = periodic_mesh(outline, 3, 1.5)
+    out = []
+    for assembly in ("numpy", "compiled"):
+        st = Solid3DSettings(layers=1, assembly=assembly)
+        m = Solid3DModel(pm.sector, STEEL, clamp, drive, st, ignore, periodic=pm)
+        out.append(m.solve(3.0))
+        assert m.assembly == assembly
+    assert out[0].stiffness == pytest.approx(out[1].stiffness, rel=SAME)
+    assert out[0].peak_nodal_stress_MPa == pytest.approx(out[1].peak_nodal_stress_MPa, rel=SAME)
+    assert out[0].peak_stress_MPa == pytest.approx(out[1].peak_stress_MPa, rel=SAME)
