@@ -127,7 +127,8 @@ class Solid3DSettings:
     # CHOLMOD whenever it imports (cholmod_available(): the fast route, 2.0 GB on the SEA
     # spring's check); without it multigrid from multigrid_from_dofs DOFs on (there both less
     # memory and less time than QDLDL: 1.04 GB and 28.5 s CPU against 4.65 GB and 35.8 s),
-    # below that QDLDL, else SuperLU.
+    # below that QDLDL, else SuperLU. (A sector model, Solid3DModel(periodic=), is factorised
+    # whatever this says: its tie is no DOF selection; the SEA spring's check so, 1.13 GB.)
     solver: Literal["auto", "cholmod", "qdldl", "superlu", "multigrid"] = "auto"
     # Where "auto" without CHOLMOD turns to multigrid: a direct factor of a P2 model this
     # large is ~0.5 GB and grows faster than the model (the SEA spring's 408k DOFs: CHOLMOD's
