@@ -671,8 +671,6 @@ def _partners(xyz: np.ndarray, pm: PeriodicMesh, tol: float) -> tuple[np.ndarray
     """The points of ``xyz`` (k, 3) mm on the sector's cut B and, for each, its partner on
     cut A (the point that the rotation R turns onto it, at the same z): (b (m,), a (m,)) int.
     Points on the axis are on neither. Raises FeaError when a cut point has no partner."""
-    from flexopt.fea.solid3d_sector import rotation_matrix
-
     c = pm.centre_mm
     w = xyz[:, :2] - c
     r = np.linalg.norm(w, axis=1)
@@ -685,7 +683,7 @@ def _partners(xyz: np.ndarray, pm: PeriodicMesh, tol: float) -> tuple[np.ndarray
     if a.size != b.size:
         raise FeaError(f"the sector's cuts hold {a.size} and {b.size} nodes: not periodic")
     # cut B turned back onto cut A: the same (x, y, z) up to round-off
-    back = np.column_stack([w[b] @ rotation_matrix(-pm.step_rad).T + c, xyz[b, 2]])
+    back = np.column_stack([w[b] @ pm.rotation(-1).T + c, xyz[b, 2]])
     from scipy.spatial import cKDTree
 
     dist, k = cKDTree(xyz[a]).query(back)
@@ -1567,9 +1565,7 @@ class Solid3DModel:
             "symmetric": bool(self.settings.symmetric),
         }
         if self.periodic is not None:  # the whole part: the sector's n turned copies
-            from flexopt.fea.solid3d_sector import whole_field
-
-            field = whole_field(field, self.periodic)
+            field = self.periodic.whole_field(field)
         return field
 
     def compare_with_plane_stress(self, thickness_mm: float) -> dict:

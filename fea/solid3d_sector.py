@@ -93,6 +93,15 @@ class PeriodicMesh:
         """2 pi / n, rad."""
         return 2.0 * math.pi / self.n
 
+    def rotation(self, copies: int = 1) -> np.ndarray:
+        """(2, 2) the turn by ``copies`` steps of 2 pi / n (fea.solid3d uses the mesh's own
+        methods: it does not import this module, which imports it)."""
+        return rotation_matrix(copies * self.step_rad)
+
+    def whole_field(self, field: dict) -> dict:
+        """:func:`whole_field` of a sector's field."""
+        return whole_field(field, self)
+
     def rotate(self, xy: np.ndarray, copies: int = 1) -> np.ndarray:
         """xy (k, 2) mm turned by ``copies`` steps about the centre, (k, 2) mm."""
         c = self.centre_mm
