@@ -7,7 +7,7 @@ multigrid-preconditioned CG, no factor), as ``SeaSpringProblem.solid_3d`` makes 
 Run from the repository root::
 
     python benchmarks/solid3d_memory.py [study] [--run RUN_FOLDER] [--repeat 3]
-        [--solvers multigrid cholmod] [--keep] [--stages]
+        [--solvers multigrid cholmod] [--models today] [--keep] [--stages]
 
 The design is the study's ``design:`` (default ``sea-spring``, ST from the target as the run
 solves it) or the best design of a finished run folder (``--run``; nothing is written there).
@@ -21,6 +21,19 @@ to the last solver's, and the load average before and after (the times move with
 shared machine). ``--stages``: instead, one process per solver printing the resident set after
 each stage of the check and its peak during it (Linux's /proc/self/status, the peak reset
 between stages).
+
+``--models`` (each measured with each solver): ``today`` the whole part on Triangle's mesh of
+the whole outline (the check before the sector, and the default here so that the commands
+of docs/solid3d.md's earlier tables measure what they did); ``sector`` one sector of the
+periodic mesh (fea/solid3d_sector.py: what the report's check solves now where the part
+repeats); ``whole`` the whole part on that same periodic mesh (the sector's reference: the
+same answers to round-off). The answers are compared with the last row's.
+``--mesh-table [DEG ...]``: instead, in one process, the 3D/2D ratios the check applies
+(``compare_with_plane_stress`` at the case's ST) on Triangle's mesh of the outline, on
+Triangle's mesh of the outline turned by 360/n degrees and turned back (another mesh of the
+same size), on the periodic mesh the check solves (its sector) and on periodic meshes cut
+at the angles DEG (degrees; each must cross the outline alike on both cuts): the meshes'
+own spread (docs/solid3d.md, "The sector solve").
 """
 
 from __future__ import annotations
@@ -45,16 +58,45 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _make_case(study: str, run: str | None) -> dict:
-    """The plane mesh, supports and ST (benchmarks/solid3d_build_speed.py's ``make_case``)."""
+    """The plane mesh, supports and ST (benchmarks/solid3d_build_speed.py's ``make_case``),
+    and the periodic mesh of the sector the report's check solves (``periodic``: as
+    fea/sea_design.correct_3d makes it; None, with ``model_3d`` saying why, where it solves
+    the whole)."""
     spec = importlib.util.spec_from_file_location(
         "solid3d_build_speed", Path(__file__).with_name("solid3d_build_speed.py")
     )
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    return mod.make_case(study, run)
+    # make_case builds the design's geometry; its outline and regions are read here through
+    # the same study (one more build of the design, a fraction of a second)
+    case = mod.make_case(study, run)
+    from flexopt.fea.solid3d_sector import sector_or_reason
+    from flexopt.pipeline.studies.sea_spring import SeaSpringProblem, design_vector
+    from flexopt.pipeline.study import load_study
+
+    if run is not None:
+        st = load_study(str(Path(run) / "study.yaml"))
+        prob = SeaSpringProblem(st)
+        x = json.loads((Path(run) / "best.json").read_text())["x"]
+        _, (_, geom, _, _) = prob._evaluate(x, st.mesh.curve_steps, keep_model=True)
+    else:
+        import numpy as np
+
+        st = load_study(study)
+        prob = SeaSpringProblem(st, stage1={})
+        x = design_vector(st)
+        if prob.solve_st:
+            x = np.delete(x, prob.names.index("ST"))
+        _, geom, _, _ = prob.solve(x, 1)
+    regions = geom.mesh_regions(st.mesh.elements_through, st.mesh.max_edge_mm)
+    repeat = {"hub": geom.hub_region, "pads": geom.pad_region, "stress-ignore": case["ignore"]}
+    pm, why = sector_or_reason(geom.fe_outline, geom.params.n_sets, st.mesh.max_edge_mm,
+                               regions, repeat, "cholmod")  # fmt: skip
+    return {**case, "periodic": pm, "model_3d": why, "outline": geom.fe_outline,
+            "regions": regions, "max_edge_mm": st.mesh.max_edge_mm}  # fmt: skip
 
 
-def child(case_file: str, lean: str, solver: str) -> None:
+def child(case_file: str, lean: str, solver: str, model_kind: str = "today") -> None:
     """One measurement, printed as one JSON line."""
     from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings
     from flexopt.pipeline._hugepages import without_numpy_hugepages
@@ -62,16 +104,26 @@ def child(case_file: str, lean: str, solver: str) -> None:
     case = pickle.loads(Path(case_file).read_bytes())
     settings = Solid3DSettings(layers=case["layers"], lean_factorisation=lean == "lean",
                                solver=solver)  # fmt: skip
+    pm = case.get("periodic")
+    if model_kind != "today" and pm is None:
+        raise SystemExit(f"no periodic mesh: {case.get('model_3d')}")
+    mesh = {"today": case["mesh"], "sector": pm and pm.sector, "whole": pm and pm.whole}[model_kind]
+    periodic = pm if model_kind == "sector" else None
     marks = [(time.perf_counter(), time.process_time())]
     with without_numpy_hugepages():
-        model = Solid3DModel(case["mesh"], case["material"], case["clamp"], case["drive"],
-                             settings, stress_ignore=case["ignore"])  # fmt: skip
+        model = Solid3DModel(mesh, case["material"], case["clamp"], case["drive"],
+                             settings, stress_ignore=case["ignore"],
+                             periodic=periodic)  # fmt: skip
         marks.append((time.perf_counter(), time.process_time()))
         r = model.solve(case["st_mm"])
         marks.append((time.perf_counter(), time.process_time()))
         r2 = model.solve(0.98 * case["st_mm"])
         marks.append((time.perf_counter(), time.process_time()))
-    out = {"mode": lean, "peak_rss_GB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+    out = {
+        "mode": lean,
+        "model": model_kind,
+        "peak_rss_GB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
+    }
     for k, name in enumerate(("build", "solve", "recheck")):
         out[name + "_wall"] = marks[k + 1][0] - marks[k][0]
         out[name + "_cpu"] = marks[k + 1][1] - marks[k][1]
@@ -130,6 +182,56 @@ def child_stages(case_file: str, solver: str) -> None:
     print(f"  {r.solver}, {r.iterations} iterations, stiffness {r.stiffness:.6f} N·mm/rad")
 
 
+def mesh_table(case_file: str, angles: list[float]) -> None:
+    """The ratios of the check on several plane meshes of the same size (see above)."""
+    import math
+
+    import numpy as np
+    from flexopt.fea.mesh import TriMesh, mesh_polygon
+    from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings
+    from flexopt.fea.solid3d_sector import periodic_mesh, rotation_matrix
+    from flexopt.pipeline._hugepages import without_numpy_hugepages
+    from shapely import affinity
+
+    case = pickle.loads(Path(case_file).read_bytes())
+    pm = case["periodic"]
+    if pm is None:
+        raise SystemExit(f"no periodic mesh: {case['model_3d']}")
+    outline, regions, edge = case["outline"], case["regions"], case["max_edge_mm"]
+    deg = 360.0 / pm.n
+    turned = mesh_polygon(affinity.rotate(outline, deg, origin=(0, 0)), edge,
+                          refine=[(affinity.rotate(g, deg, origin=(0, 0)), h)
+                                  for g, h in regions])  # fmt: skip
+    back = TriMesh(turned.points @ rotation_matrix(-math.radians(deg)).T, turned.triangles)
+    rows = [("Triangle's, whole outline", case["mesh"], None),
+            (f"Triangle's, outline turned {deg:g} deg and back", back, None),
+            (f"periodic, cut at {math.degrees(pm.angle0_rad):.4g} deg (the check's)",
+             pm.sector, pm)]  # fmt: skip
+    for a in angles:
+        p = periodic_mesh(outline, pm.n, edge, refine=regions, angle0_rad=math.radians(a))
+        rows.append((f"periodic, cut at {a:g} deg", p.sector, p))
+    settings = Solid3DSettings(layers=case["layers"])
+    print("plane mesh | plane nodes | stiffness ratio 3D/2D | peak ratio 3D/2D | 3D vertex peak "
+          "MPa | where (x, y) mm | each arm's copy of the peak region (3 mm) MPa")  # fmt: skip
+    for name, mesh, p in rows:
+        with without_numpy_hugepages():
+            model = Solid3DModel(mesh, case["material"], case["clamp"], case["drive"], settings,
+                                 stress_ignore=case["ignore"], periodic=p)  # fmt: skip
+            c = model.compare_with_plane_stress(case["st_mm"])
+            f = model.last_field(case["st_mm"])  # the whole part (a sector's turned copies)
+        nodes = (p.whole if p is not None else mesh).n_points
+        x, y = (float(v) for v in c["solid3d"]["peak_nodal_stress_xyz_mm"][:2])
+        pts, vm, counted = f["points_mm"][:, :2], f["von_mises_MPa"], f["stress_counted"]
+        copies = []
+        for j in range(pm.n):  # the judged vertex values near each arm's copy of the peak
+            q = np.array([x, y]) @ rotation_matrix(j * math.radians(deg)).T
+            near = counted & (np.linalg.norm(pts - q, axis=1) < 3.0)
+            copies.append(f"{vm[near].max():.3f}")
+        print(f"{name} | {nodes} | {c['stiffness_ratio']:.8f} | {c['peak_stress_ratio']:.6f} | "
+              f"{c['peak_nodal_stress_3d_MPa']:.3f} | ({x:.2f}, {y:.2f}) | {' / '.join(copies)}",
+              flush=True)  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("study", nargs="?", default="sea-spring")
@@ -138,12 +240,17 @@ def main() -> None:
     ap.add_argument("--solvers", nargs="+", default=["multigrid", "cholmod"],
                     choices=("auto", "cholmod", "qdldl", "multigrid"),
                     help="Solid3DSettings.solver of each; the last is the reference")  # fmt: skip
+    ap.add_argument("--models", nargs="+", default=["today"],
+                    choices=("today", "sector", "whole"),
+                    help="the plane mesh and model of each (see above)")  # fmt: skip
     ap.add_argument("--keep", action="store_true",
                     help="lean_factorisation False (the arrays kept throughout)")  # fmt: skip
     ap.add_argument("--stages", action="store_true",
                     help="instead: the memory stage by stage, a process per solver")  # fmt: skip
+    ap.add_argument("--mesh-table", nargs="*", type=float, metavar="DEG",
+                    help="instead: the ratios on several meshes (see above)")  # fmt: skip
     ap.add_argument("--case", help=argparse.SUPPRESS)  # a pickled case (re-use between runs)
-    ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     ap.add_argument("--child-stages", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -163,28 +270,32 @@ def main() -> None:
             case_file.write_bytes(pickle.dumps(case))
             print(f"{args.run or args.study}: ST = {case['st_mm']:.4f} mm "
                   f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
+        if args.mesh_table is not None:
+            mesh_table(str(case_file), args.mesh_table)
+            return
         if args.stages:
             for solver in args.solvers:
                 subprocess.run([sys.executable, __file__, "--child-stages", str(case_file),
                                 solver], check=True, cwd=ROOT)  # fmt: skip
             return
-        rows: dict[str, list[dict]] = {m: [] for m in args.solvers}
+        combos = [(m, s) for m in args.models for s in args.solvers]
+        rows: dict[str, list[dict]] = {f"{m}/{s}": [] for m, s in combos}
         load0 = os.getloadavg()
         for k in range(args.repeat):
             # the order alternates, so a load that changes with time favours neither
-            for solver in args.solvers if k % 2 == 0 else args.solvers[::-1]:
+            for m, solver in combos if k % 2 == 0 else combos[::-1]:
                 out = subprocess.run(
-                    [sys.executable, __file__, "--child", str(case_file), lean, solver],
+                    [sys.executable, __file__, "--child", str(case_file), lean, solver, m],
                     check=True, capture_output=True, text=True, cwd=ROOT,
                 ).stdout  # fmt: skip
-                rows[solver].append(json.loads(out.strip().splitlines()[-1]))
+                rows[f"{m}/{solver}"].append(json.loads(out.strip().splitlines()[-1]))
         load1 = os.getloadavg()
     print(f"load average before {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}, "
           f"after {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f} (2 cores)")  # fmt: skip
     print(f"medians of {args.repeat} fresh processes each ({lean}), one BLAS thread, "
           "s (wall / CPU):")  # fmt: skip
     keys = ("build", "solve", "recheck")
-    print(f"{'solver':10s}" + "".join(f"{k:>16s}" for k in keys) + "   peak RSS GB")
+    print(f"{'model/solver':18s}" + "".join(f"{k:>16s}" for k in keys) + "   peak RSS GB")
     for solver, rs in rows.items():
         cells = "".join(
             f"{statistics.median(r[k + '_wall'] for r in rs):8.2f} /"
@@ -192,16 +303,17 @@ def main() -> None:
             for k in keys
         )
         peaks = sorted(r["peak_rss_GB"] for r in rs)
-        print(f"{solver:10s}{cells}   {statistics.median(peaks):.2f} "
+        print(f"{solver:18s}{cells}   {statistics.median(peaks):.2f} "
               f"({' '.join(f'{p:.2f}' for p in peaks)})")  # fmt: skip
-    ref = rows[args.solvers[-1]][0]
+    last = list(rows)[-1]
+    ref = rows[last][0]
     for solver, rs in rows.items():
         a = rs[0]
         print(f"{solver}: {a['solver']}, DOFs {a['n_dofs']}, re-check iterations "
               f"{a['recheck_iterations']}")  # fmt: skip
         for key in ("stiffness", "peak_stress_MPa", "peak_nodal_stress_MPa",
                     "recheck_stiffness", "recheck_peak_nodal_MPa"):  # fmt: skip
-            print(f"  {key}: {a[key]:.12g} (against {args.solvers[-1]}: "
+            print(f"  {key}: {a[key]:.12g} (against {last}: "
                   f"{abs(a[key] / ref[key] - 1):.1e})")  # fmt: skip
 
 

@@ -405,6 +405,7 @@ def correct_3d(
     dict — N m/rad, MPa, mm, s; ``problem`` alone when the 3D model cannot be built.
     """
     from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings, correct_thickness_3d
+    from flexopt.fea.solid3d_sector import sector_or_reason
 
     t0 = time.perf_counter()
     st0 = float(geom.thickness_mm)
@@ -437,10 +438,22 @@ def correct_3d(
         }
 
     try:
-        m = mesh_polygon(geom.fe_outline, mesh.max_edge_mm, refine=regions)
+        # one sector of the RP arms where the part repeats (fea/solid3d_sector.py: half the
+        # memory of the whole for two arms, the same answer on its periodic mesh)
+        repeat = {"hub": geom.hub_region, "pads": geom.pad_region, "stress-ignore": ignore}
+        # the cuts kept off the plane-stress peak (a line of cut nodes through it changes the
+        # mesh there most: fea/solid3d_sector.choose_cut_angle)
+        pm, model_3d = sector_or_reason(geom.fe_outline, geom.params.n_sets, mesh.max_edge_mm,
+                                        regions, repeat, s3.solver,
+                                        avoid_mm=r.peak_stress_xy_mm)  # fmt: skip
+        m = (
+            mesh_polygon(geom.fe_outline, mesh.max_edge_mm, refine=regions)
+            if pm is None
+            else pm.sector
+        )
         drive = Rotate(geom.hub_region, (0.0, 0.0), theta_rad, 1)
         settings = Solid3DSettings(layers=s3.layers, solver=s3.solver)
-        model = Solid3DModel(m, material, clamp, drive, settings, stress_ignore=ignore)
+        model = Solid3DModel(m, material, clamp, drive, settings, stress_ignore=ignore, periodic=pm)
         corr = correct_thickness_3d(
             check,
             st0,
@@ -504,6 +517,7 @@ def correct_3d(
             "peak_stress_3d_MPa": last["peak_stress_3d_MPa"],
             "allowable_stress_MPa": allowable_MPa,
             "dofs": last["dofs"],
+            "model_3d": model_3d,  # one sector of RP (its DOFs above) or the whole and why
             "solver": last["solver"],
             "time_3d_s": time.perf_counter() - t0,
         }

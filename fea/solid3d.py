@@ -36,6 +36,11 @@ Physics
     factorised): half CHOLMOD's memory at ~3x its time, and less memory and time than QDLDL.
     ``solver = "auto"`` takes multigrid from ``Solid3DSettings.multigrid_from_dofs`` DOFs on
     when CHOLMOD does not import (a plain install), CHOLMOD wherever it does.
+Rotational sector (``Solid3DModel(periodic=)``, fea/solid3d_sector.py)
+    A part whose outline, supports and load (a hub turned about the axis) repeat every
+    2 pi / n: one sector of a periodic mesh, cut B's DOFs tied to cut A's turned
+    (``u_B = R u_A``), gives the whole part's answer on that mesh (stiffness n times the
+    sector's torque, the sector's peak); the SEA spring's check in half the memory.
 Several thicknesses (:class:`Solid3DModel`)
     The layers scale with the thickness, so one assembly serves every thickness (the
     stiffness is a sum of three parts weighted by t, 1 and 1/t); a thickness after the first
@@ -58,7 +63,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from types import ModuleType
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -69,6 +74,9 @@ from flexopt.fea.mesh import Refinement, TriMesh, mesh_polygon
 from flexopt.fea.plane_stress import Clamp, Rotate, Translate
 from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
+
+if TYPE_CHECKING:
+    from flexopt.fea.solid3d_sector import PeriodicMesh
 
 __all__ = [
     "Solid3DSettings",
@@ -119,7 +127,8 @@ class Solid3DSettings:
     # CHOLMOD whenever it imports (cholmod_available(): the fast route, 2.0 GB on the SEA
     # spring's check); without it multigrid from multigrid_from_dofs DOFs on (there both less
     # memory and less time than QDLDL: 1.04 GB and 28.5 s CPU against 4.65 GB and 35.8 s),
-    # below that QDLDL, else SuperLU.
+    # below that QDLDL, else SuperLU. (A sector model, Solid3DModel(periodic=), is factorised
+    # whatever this says: its tie is no DOF selection; the SEA spring's check so, 1.13 GB.)
     solver: Literal["auto", "cholmod", "qdldl", "superlu", "multigrid"] = "auto"
     # Where "auto" without CHOLMOD turns to multigrid: a direct factor of a P2 model this
     # large is ~0.5 GB and grows faster than the model (the SEA spring's 408k DOFs: CHOLMOD's
@@ -212,6 +221,9 @@ class Solid3DResult:
     times_s: dict = field(default_factory=dict)
     # conjugate-gradient iterations (Solid3DModel's later thicknesses); 0 for a direct solve
     iterations: int = 0
+    # the model was one sector of this many (a rotationally periodic part: n_dofs, n_tets are
+    # the sector's; forces, torque and stiffness the whole part's)
+    sectors: int = 1
 
     @property
     def solve_time_s(self) -> float:
@@ -238,6 +250,8 @@ class Solid3DResult:
             "solver": self.solver,
             "iterations": self.iterations,
             "times_s": dict(self.times_s),
+            # a sector model only (the whole part's records stay as they were)
+            **({"sectors": self.sectors} if self.sectors > 1 else {}),
         }
 
 
@@ -596,6 +610,10 @@ class _Supports:
     direction: np.ndarray  # (2,) unit
     value: float  # rad or mm
     is_rot: bool
+    # False when P ties DOFs together (a rotational sector's cut B to cut A): not a selection
+    selection: bool = True
+    # rotated copies of the meshed part in the whole (a sector model: n), for the reactions
+    copies: int = 1
 
 
 def _supports(locs: np.ndarray, ndof: int, clamp: Clamp, drive: Drive,
@@ -649,17 +667,121 @@ def _supports(locs: np.ndarray, ndof: int, clamp: Clamp, drive: Drive,
                      direction, value, is_rot)  # fmt: skip
 
 
+def _partners(xyz: np.ndarray, pm: PeriodicMesh, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The points of ``xyz`` (k, 3) mm on the sector's cut B and, for each, its partner on
+    cut A (the point that the rotation R turns onto it, at the same z): (b (m,), a (m,)) int.
+    Points on the axis are on neither. Raises FeaError when a cut point has no partner."""
+    c = pm.centre_mm
+    w = xyz[:, :2] - c
+    r = np.linalg.norm(w, axis=1)
+    on = {}
+    for name, ang in (("a", pm.angle0_rad), ("b", pm.angle0_rad + pm.step_rad)):
+        d = np.array([math.cos(ang), math.sin(ang)])
+        on[name] = np.flatnonzero((np.abs(w[:, 0] * d[1] - w[:, 1] * d[0]) <= tol)
+                                  & (w @ d > tol) & (r > tol))  # fmt: skip
+    a, b = on["a"], on["b"]
+    if a.size != b.size:
+        raise FeaError(f"the sector's cuts hold {a.size} and {b.size} nodes: not periodic")
+    # cut B turned back onto cut A: the same (x, y, z) up to round-off
+    back = np.column_stack([w[b] @ pm.rotation(-1).T + c, xyz[b, 2]])
+    from scipy.spatial import cKDTree
+
+    dist, k = cKDTree(xyz[a]).query(back)
+    if a.size and (dist.max() > tol or np.unique(k).size != a.size):
+        raise FeaError(
+            f"a node of the sector's cut B has no partner on cut A ({dist.max():.3g} mm away): "
+            "the cuts are not meshed alike"
+        )
+    return b, a[k]
+
+
+def _periodic_supports(sup: _Supports, locs: np.ndarray, pm: PeriodicMesh, drive: Drive,
+                       settings: Solid3DSettings) -> _Supports:  # fmt: skip
+    """The supports ``sup`` of a sector's P2 nodes ``locs`` (Ns, 3) mm with its cut B tied
+    to cut A: ``u_B = R u_A`` (R the turn by 2 pi / n about z through the centre), cut B's DOFs
+    no unknowns of their own (their rows of P are R times cut A's); a free node on the axis
+    (its own partner: R u = u) keeps only w. The clamp and drive must hold cut A's and cut B's
+    nodes alike (a part and supports that repeat), and the drive be a Rotate about the centre.
+    """
+    if not isinstance(drive, Rotate):
+        raise FeaError("a sector model needs the drive to be a Rotate (a translation is not "
+                       "repeated by the rotation)")  # fmt: skip
+    if not np.allclose(drive.centre_mm, pm.centre_mm, rtol=0.0, atol=settings.select_tol_mm):
+        raise FeaError(f"the drive turns about {tuple(drive.centre_mm)}, the sector's axis is "
+                       f"{tuple(pm.centre_mm)}: not a symmetric load")  # fmt: skip
+    tol = settings.select_tol_mm
+    ndof = sup.ubar.size
+    b, a = _partners(locs, pm, tol)
+    held = np.ones(ndof, dtype=bool)
+    held[sup.free] = False
+    hb, ha = held.reshape(-1, 3)[b], held.reshape(-1, 3)[a]
+    if np.any(hb != ha):
+        raise FeaError(
+            f"{int(np.any(hb != ha, axis=1).sum())} node(s) of the sector's cut B are held "
+            "unlike their partners on cut A: the supports do not repeat"
+        )
+    # R ubar_A = ubar_B where both are held (the supports repeat; the rigid turn does)
+    c, s = math.cos(pm.step_rad), math.sin(pm.step_rad)
+    R3 = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    ua = sup.ubar.reshape(-1, 3)[a] @ R3.T
+    ub = sup.ubar.reshape(-1, 3)[b]
+    off = np.abs(np.where(hb, ua - ub, 0.0)).max(initial=0.0)
+    if off > 1e-9 * max(1.0, np.abs(sup.ubar).max(initial=0.0)):
+        raise FeaError(f"a held node of cut B moves unlike its partner turned ({off:.3g} mm)")
+    held3 = held.reshape(-1, 3).copy()
+    held3[b] = True  # cut B: no unknowns of its own
+    w = locs[:, :2] - pm.centre_mm
+    axis = np.flatnonzero(np.linalg.norm(w, axis=1) <= tol)
+    held3[axis, :2] = True  # R u = u on the axis: u = v = 0 (n >= 2), held at 0
+    ubar = sup.ubar.copy()
+    ubar.reshape(-1, 3)[axis[~held.reshape(-1, 3)[axis, 0]], :2] = 0.0
+    free = np.flatnonzero(~held3.ravel())
+    col = np.full(ndof, -1, dtype=np.int64)
+    col[free] = np.arange(free.size)
+    rows, cols, vals = [free], [np.arange(free.size)], [np.ones(free.size)]
+    fb = ~hb  # (m, 3) free components of cut B (those of cut A alike)
+    for ci in range(3):
+        for di in range(3):
+            if R3[ci, di] == 0.0:
+                continue
+            k = fb[:, ci] & fb[:, di]
+            rows.append(3 * b[k] + ci)
+            cols.append(col[3 * a[k] + di])
+            vals.append(np.full(int(k.sum()), R3[ci, di]))
+    r_, c_, v_ = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    if np.any(c_ < 0):
+        raise FeaError("a free component of cut B is tied to a held one of cut A")
+    P = sp.csr_matrix((v_, (r_, c_)), shape=(ndof, free.size))
+    return _Supports(sup.clamp_nodes, sup.drive_nodes, ubar, P, free, sup.arm_mm,
+                     sup.direction, sup.value, sup.is_rot, selection=False,
+                     copies=pm.n)  # fmt: skip
+
+
+def _partner_class(p: np.ndarray, pm: PeriodicMesh, tol: float) -> np.ndarray:
+    """(nv,) int: each tetrahedral vertex (p (nv, 3) mm) stands for itself, a cut B vertex
+    for its partner on cut A (the whole part's one vertex there)."""
+    cls = np.arange(p.shape[0])
+    b, a = _partners(p, pm, tol)
+    cls[b] = a
+    return cls
+
+
 def _reactions(f: np.ndarray, sup: _Supports, settings: Solid3DSettings) -> dict:
     """Drive and clamp reactions of the whole part from the internal force ``f`` (ndof,) N."""
     # Whole part: the half model carries half the in-plane forces; the z forces of the two
     # mirrored halves are equal and opposite, so the part's is 0.
-    scale = 2.0 if settings.symmetric else 1.0
+    # A sector stands for its n rotated copies: the torque is n times its own, and the net
+    # in-plane forces of the copies, sum_k R^k f, vanish (sum_k R^k = 0 in the plane, n >= 2).
+    scale = (2.0 if settings.symmetric else 1.0) * sup.copies
     keep_z = 0.0 if settings.symmetric else 1.0
     dn, cn, arm = sup.drive_nodes, sup.clamp_nodes, sup.arm_mm
     fd = np.array([f[3 * dn + c].sum() for c in range(3)]) * scale
     fc = np.array([f[3 * cn + c].sum() for c in range(3)]) * scale
     fd[2] *= keep_z
     fc[2] *= keep_z
+    if sup.copies > 1:
+        fd[:2] = 0.0
+        fc[:2] = 0.0
     torque = float(np.sum(arm[:, 0] * f[3 * dn + 1] - arm[:, 1] * f[3 * dn])) * scale
     force = float(fd[:2] @ sup.direction)
     stiffness = torque / sup.value if sup.is_rot else force / sup.value
@@ -689,6 +811,7 @@ def _result(sup: _Supports, rx: dict, peaks: tuple, ndof: int, n_tets: int, n_la
         solver=solver,
         times_s=times,
         iterations=int(iterations),
+        sectors=int(sup.copies),
     )
 
 
@@ -712,7 +835,8 @@ def _stress_mask(nel: int, mesh: TriMesh, ignore: BaseGeometry | None) -> np.nda
     return mask
 
 
-def peak_stresses(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=None):
+def peak_stresses(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kernels=None,
+                  merge=None):  # fmt: skip
     """Peak von Mises at quadrature points and vertex-averaged, with their (x, y, z), mm.
 
     u (ndof,) mm; dofs (nel, 10) scalar P2 DOFs; G (nel, nqp, 10, 3) and Gc (nel, 4, 10, 3)
@@ -721,11 +845,14 @@ def peak_stresses(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kern
     z_scale: the mesh the gradients belong to stretched by this along z (their z components
     divided by it; xyz_qp and p are the stretched mesh's). kernels: the compiled module
     (:func:`fea._solid3d_kernels.von_mises`, one pass over the elements) or None (numpy).
+    merge: (nv,) int or None: vertices averaged together (a sector's cut B vertex with its
+    partner on cut A: in the whole part both are one vertex, with the tetrahedra of both
+    sides; a vertex's class is the index of the vertex standing for it).
     """
     if kernels is not None:
         vm = kernels.von_mises(u, dofs, G, mu, z_scale)  # (nel, nqp)
         vc = kernels.von_mises(u, dofs, Gc, mu, z_scale)  # (nel, 4)
-        return _peak_values(vm, vc, xyz_qp, t, p, mask)
+        return _peak_values(vm, vc, xyz_qp, t, p, mask, merge)
     ue = u.reshape(-1, 3)[dofs]  # (nel, 10, 3)
 
     def grad_u(G: np.ndarray) -> np.ndarray:  # G (nel, nqp, 10, 3) -> (nel, nqp, 3, 3)
@@ -737,20 +864,32 @@ def peak_stresses(u, dofs, G, xyz_qp, Gc, t, p, mask, lam, mu, z_scale=1.0, kern
     vm = _von_mises(grad_u(G), lam, mu)  # (nel, nqp)
     # Vertex values: the P2 gradient at the tetrahedron's corners, averaged over its elements.
     vc = _von_mises(grad_u(Gc), lam, mu)  # (nel, 4) in t order
-    return _peak_values(vm, vc, xyz_qp, t, p, mask)
+    return _peak_values(vm, vc, xyz_qp, t, p, mask, merge)
 
 
-def _peak_values(vm, vc, xyz_qp, t, p, mask):
+def _vertex_average(vc, t, nv, merge=None):
+    """(nv,) the corner values vc (nel, 4) averaged at each vertex over its tetrahedra (t
+    (nel, 4)), vertices of one class of ``merge`` (nv,) together."""
+    tv = t.ravel() if merge is None else merge[t.ravel()]
+    total = np.bincount(tv, weights=vc.ravel(), minlength=nv)
+    count = np.bincount(tv, minlength=nv)
+    nodal = total / np.maximum(count, 1)
+    return nodal if merge is None else nodal[merge]
+
+
+def _peak_values(vm, vc, xyz_qp, t, p, mask, merge=None):
     """peak_stresses' answer from the von Mises stress vm (nel, nqp) and vc (nel, 4), MPa."""
     vm_m = np.where(mask[:, None], vm, -np.inf)
     e, qp = np.unravel_index(np.argmax(vm_m), vm_m.shape)
     xyz = xyz_qp[:, e, qp]
     n = p.shape[1]
-    total = np.bincount(t.ravel(), weights=vc.ravel(), minlength=n)
-    count = np.bincount(t.ravel(), minlength=n)
-    nodal = total / np.maximum(count, 1)
+    nodal = _vertex_average(vc, t, n, merge)
     allowed = np.zeros(n, dtype=bool)
-    allowed[t[mask].ravel()] = True
+    if merge is None:
+        allowed[t[mask].ravel()] = True
+    else:  # a class is judged when any of its vertices' elements is
+        allowed[merge[t[mask].ravel()]] = True
+        allowed = allowed[merge]
     nodal[~allowed] = -np.inf
     k = int(np.argmax(nodal))
     return float(vm[e, qp]), xyz.copy(), float(nodal[k]), p[:, k].copy()
@@ -963,6 +1102,15 @@ class Solid3DModel:
     settings : Solid3DSettings; stress_ignore : shapely geometry, optional
     reference_thickness_mm : float, mm — the extrusion the model is built at (1 mm; a
         model solved at its reference thickness involves no stretch: solve_solid3d)
+    periodic : fea.solid3d_sector.PeriodicMesh, optional — ``mesh`` is its sector: the
+        model is that sector with cut B's nodes tied to cut A's turned, ``u_B = R u_A``
+        (:func:`_periodic_supports`), which is the whole part's answer when the part, its
+        supports and the drive (a Rotate about the same centre) repeat every 2 pi / n:
+        stiffness n times the sector's torque, the sector's peak stress (vertex averages on
+        the cuts over both sides' tetrahedra); the plane-stress comparison runs on
+        ``periodic.whole``. The tie is no DOF selection: the reduced matrix is P^T K P and
+        the solver a direct one (multigrid needs a selection). docs/solid3d.md, "The sector
+        solve".
 
     Memory: the factor of the first thickness is kept (CHOLMOD: 1.04 GB for the SEA spring's
     375k free DOFs) while the model lives. The peak is the first factorisation (2.0 GB there):
@@ -983,6 +1131,7 @@ class Solid3DModel:
         settings: Solid3DSettings = Solid3DSettings(),
         stress_ignore: BaseGeometry | None = None,
         reference_thickness_mm: float = 1.0,
+        periodic: PeriodicMesh | None = None,
     ) -> None:
         from skfem import Basis, ElementTetP2
 
@@ -992,6 +1141,11 @@ class Solid3DModel:
         if settings.later_solves not in ("pcg", "direct"):
             raise FeaError(f"later_solves '{settings.later_solves}': use 'pcg' or 'direct'")
         self.mesh, self.material, self.settings = mesh, material, settings
+        if periodic is not None and periodic.sector is not mesh:
+            raise FeaError("a periodic model's mesh must be its PeriodicMesh's sector")
+        self.periodic = periodic
+        # the plane mesh of the whole part (compare_with_plane_stress solves plane stress on it)
+        self.comparison_mesh = mesh if periodic is None else periodic.whole
         self.clamp, self.drive, self.stress_ignore = clamp, drive, stress_ignore
         # the thickness the model is built at, mm (any: the parts are exact at every one)
         self.reference_thickness_mm = float(reference_thickness_mm)
@@ -1028,6 +1182,10 @@ class Solid3DModel:
         if self.n_dofs > settings.max_dofs:
             raise FeaError(f"{self.n_dofs} DOFs exceed max_dofs = {settings.max_dofs}")
         self._sup = _supports(doflocs, self.n_dofs, clamp, drive, settings)
+        self._vertex_class: np.ndarray | None = None  # vertices averaged together (sector)
+        if periodic is not None:
+            self._sup = _periodic_supports(self._sup, doflocs, periodic, drive, settings)
+            self._vertex_class = _partner_class(tmesh.p.T, periodic, settings.select_tol_mm)
         t1 = time.perf_counter()
         self._lam, self._mu = _lame(material)
         if kernels is not None:
@@ -1080,7 +1238,7 @@ class Solid3DModel:
         matrix is made from the compressed columns; or None
         (numpy: triplets)."""
         sup = self._sup
-        if sup.P.shape[1] != sup.free.size:
+        if sup.P.shape[1] != sup.free.size or not sup.selection:
             return None
         red = np.full(self.n_dofs, -1, dtype=np.int64)
         red[sup.free] = np.arange(sup.free.size)
@@ -1195,6 +1353,11 @@ class Solid3DModel:
                 if lean:
                     self._assemble_compiled()
                 K = self.stiffness_matrix(thickness_mm)
+            elif not sup.selection:  # a sector's tie: P^T K P formed lean (_factor_tied)
+                held = [K]
+                K = None
+                self._factor = self._factor_tied(held, direct)
+                K = self.stiffness_matrix(thickness_mm)
             else:
                 self._factor = SparseSolver((P.T @ K.tocsr() @ P).tocsr(), direct)
             q = self._factor.solve(b)
@@ -1213,6 +1376,32 @@ class Solid3DModel:
             solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"
         return _result(sup, rx, peaks, self.n_dofs, self._t.shape[0], self._n_layers, st,
                        solver, times, iterations)  # fmt: skip
+
+    def _factor_tied(self, held: list, which: str) -> SparseSolver:
+        """The factor of P^T K P when P ties DOFs (a sector: cut B = R cut A), K (ndof, ndof)
+        N/mm handed over in the one-element list ``held`` (emptied: its only reference, so
+        that each intermediate goes as soon as the next is made). Only the reduced lower
+        triangle reaches the solver, in compressed columns; with the compiled assembly and
+        ``lean_factorisation`` the stiffness parts and the block pattern are dropped while
+        it factorises and made again after, as on the selection path (docs/solid3d.md, "The
+        sector solve": the SEA spring's check 1.69 GB with everything held, see there)."""
+        P = self._sup.P
+        A = held.pop().tocsr()
+        A = A @ P  # (ndof, nq)
+        A = (P.T.tocsr() @ A).tocsc()  # (nq, nq)
+        A = sp.tril(A, format="csc")
+        A.sort_indices()
+        vals, rows, colptr = [A.data], A.indices, A.indptr
+        A = None
+        lean = self._kernels is not None and self.settings.lean_factorisation
+        if lean:  # made again below, bit for bit, from the mesh
+            self._parts = self._lower = self._indices = self._indptr = None
+        try:
+            return SparseSolver(None, which, columns=(vals, rows, colptr, P.shape[1]))
+        finally:
+            del rows, colptr
+            if lean:
+                self._assemble_compiled()
 
     def _coarse_prolongation(self) -> sp.csr_matrix:
         """The P1 functions of the tetrahedral mesh as P2 vectors on the unknowns, (nfree,
@@ -1317,7 +1506,8 @@ class Solid3DModel:
             G, Gc = self._G, self._Gc
         return peak_stresses(u, self._dofs, G, self._xyz_qp * stretch[:, None, None], Gc,
                              self._t, self._p * stretch[:, None], self._mask, self._lam,
-                             self._mu, z_scale=zs, kernels=self._kernels)  # fmt: skip
+                             self._mu, z_scale=zs, kernels=self._kernels,
+                             merge=self._vertex_class)  # fmt: skip
 
     def last_field(self, thickness_mm: float) -> dict | None:
         """The last :meth:`solve`'s state on the P2 tetrahedra, for best_3d.vtu (no new solve:
@@ -1353,16 +1543,20 @@ class Solid3DModel:
             vc = _von_mises(g, self._lam, self._mu)
         del Gc
         t, nv = self._t, self._p.shape[1]
-        total = np.bincount(t.ravel(), weights=vc.ravel(), minlength=nv)
-        vertex = total / np.maximum(np.bincount(t.ravel(), minlength=nv), 1)
+        vertex = _vertex_average(vc, t, nv, self._vertex_class)
         counted_v = np.zeros(nv, dtype=bool)
-        counted_v[t[self._mask].ravel()] = True
+        cls = self._vertex_class
+        if cls is None:
+            counted_v[t[self._mask].ravel()] = True
+        else:  # a cut vertex is counted as the whole part's one vertex there (peak_stresses)
+            counted_v[cls[t[self._mask].ravel()]] = True
+            counted_v = counted_v[cls]
         n_nodes = ue.shape[0]
         ends = np.empty((n_nodes - nv, 2), dtype=np.int64)  # each edge node's two vertices
         for j, (a, b) in enumerate(((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))):
             ends[self._dofs[:, 4 + j] - nv] = np.column_stack([t[:, a], t[:, b]])
         p = self._p.T * np.array([1.0, 1.0, zs])
-        return {
+        field = {
             "points_mm": np.vstack([p, 0.5 * (p[ends[:, 0]] + p[ends[:, 1]])]),
             "tetra10": np.asarray(self._dofs, dtype=np.int64),
             "displacement_mm": ue,
@@ -1370,11 +1564,14 @@ class Solid3DModel:
             "stress_counted": np.concatenate([counted_v, counted_v[ends].all(axis=1)]),
             "symmetric": bool(self.settings.symmetric),
         }
+        if self.periodic is not None:  # the whole part: the sector's n turned copies
+            field = self.periodic.whole_field(field)
+        return field
 
     def compare_with_plane_stress(self, thickness_mm: float) -> dict:
         """:func:`compare_with_plane_stress` at ``thickness_mm`` with this model's 3D solve."""
-        return _compare(self.mesh, self.material, thickness_mm, self.clamp, self.drive,
-                        self.stress_ignore, self.solve(thickness_mm))  # fmt: skip
+        return _compare(self.comparison_mesh, self.material, thickness_mm, self.clamp,
+                        self.drive, self.stress_ignore, self.solve(thickness_mm))  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------------

@@ -12,10 +12,10 @@ import flexopt.pipeline.studies._sea_spring_peak as peak
 import flexopt.pipeline.studies.sea_spring as ss
 import numpy as np
 import pytest
-from flexopt.fea.mesh import mesh_polygon
 from flexopt.fea.plane_stress import Clamp, Rotate
 from flexopt.fea.sea_design import worse_direction
 from flexopt.fea.solid3d import Solid3DSettings, compare_with_plane_stress
+from flexopt.fea.solid3d_sector import periodic_mesh
 from flexopt.fea.spring_analysis import analyse_spring
 from flexopt.pipeline._hugepages import without_numpy_hugepages
 from flexopt.pipeline.screening import SideProcess
@@ -50,10 +50,12 @@ def test_every_3d_check_equals_the_reference_check_at_its_st():
     assert "problem" not in out, out
     assert [c["solver"] for c in out["checks"]][1:] == ["pcg (cholmod)"] * (len(out["checks"]) - 1)
     assert len(out["checks"]) >= 2
-    # the reference: the plane mesh solid_3d meshes, compare_with_plane_stress at each ST
+    # the reference: the whole part on the periodic plane mesh whose sector solid_3d solves
+    # (the four arms repeat: fea/solid3d_sector.py), compare_with_plane_stress at each ST
+    assert out["model_3d"].startswith("one sector of 4"), out["model_3d"]
     spec = prob.study.mesh
     regions = geom.mesh_regions(spec.elements_through, spec.max_edge_mm)
-    mesh = mesh_polygon(geom.fe_outline, spec.max_edge_mm, refine=regions)
+    mesh = periodic_mesh(geom.fe_outline, 4, spec.max_edge_mm, refine=regions).whole
     ignore = geom.hub_region.union(geom.pad_region).buffer(0.05)
     drive = Rotate(geom.hub_region, (0.0, 0.0), prob.theta, 1)
     # the re-check (PCG on the calibration's factor; the direct first solve is fea's test)
@@ -63,7 +65,7 @@ def test_every_3d_check_equals_the_reference_check_at_its_st():
                                             drive, Solid3DSettings(layers=1), ignore)  # fmt: skip
         assert c["stiffness_ratio_3d_2d"] == pytest.approx(ref["stiffness_ratio"], rel=1e-8)
         assert c["peak_stress_ratio_3d_2d"] == pytest.approx(ref["peak_stress_ratio"], rel=1e-8)
-        assert c["dofs"] == ref["solid3d"]["n_dofs"]
+        assert c["dofs"] < 0.3 * ref["solid3d"]["n_dofs"]  # a quarter and the cuts
 
 
 @pytest.mark.slow

@@ -122,7 +122,7 @@ def test_sea_spring_check_builds_its_model_with_the_chosen_solver(monkeypatch):
     seen = []
 
     class Spy:
-        def __init__(self, mesh, material, clamp, drive, settings, stress_ignore=None):
+        def __init__(self, mesh, material, clamp, drive, settings, stress_ignore=None, **kw):
             seen.append(settings)
             raise FeaError("stopped by the test")
 
