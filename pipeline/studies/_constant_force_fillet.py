@@ -35,6 +35,7 @@ from flexopt.optimise.requirements import AllowableStress, Verdict
 
 __all__ = [
     "DEFAULT_PAD_FILLET_MM",
+    "KINK_BLEND_MM",
     "SHARP_PADS",
     "SHARP_PADS_REASON",
     "TOE_CLEAR_MM",
@@ -47,6 +48,13 @@ __all__ = [
     "study_outline",
     "with_root_stress",
 ]
+
+#: mm: the blend along each edge at a design vertex of the part as exported (capped at a quarter
+#: of the shorter adjacent segment; why blended: pipeline/studies/_constant_force_kinks.py).
+#: Why 1 mm: it moves the outline by 2.6 um at the shipped design's peak vertex (a 0.59 deg kink
+#: per side), far under a printer's tolerance, and is drawn by chords of 0.25 mm, which the
+#: study's 0.5 mm mesh keeps as nodes.
+KINK_BLEND_MM = 1.0
 
 #: mm: a fillet's toe must land at least this far from the first design point (p1 from S1, p10
 #: from S6). Why: a toe on a vertex is a corner the Kt fit does not describe; at the shipped
@@ -144,7 +152,9 @@ def beam_model(problem: Any, design: Any) -> BeamModel:
 
 
 def study_outline(problem: Any, design: Any) -> Any:
-    """The part's outline (a shapely Polygon, mm) as exported: pads and the fillets drawn."""
+    """The part's outline (a shapely Polygon, mm) as exported: pads and the fillets drawn, the
+    design vertices' kinks blended along :data:`KINK_BLEND_MM` (:mod:`._constant_force_kinks`:
+    a mitred kink is a corner whose stress the plane-stress check cannot converge on)."""
     g = problem.study.geometry
     return outline(
         design,
@@ -153,6 +163,7 @@ def study_outline(problem: Any, design: Any) -> Any:
         g.pad_thickness_mm,
         g.end_flexures,
         g.pad_fillet_mm,
+        KINK_BLEND_MM,
     )
 
 
