@@ -46,22 +46,23 @@ REFINE_RADIUS_MM = 1.0
 def refined_check(
     problem: Any,
     design: Any,
+    beam: Any,
     shape: Any,
     response: Any,
     rows: np.ndarray,
     hi: float,
 ) -> dict[str, Any]:
     """:func:`fea.fidelity.plane_stress_check` of the study's outline ``shape`` (a shapely
-    Polygon, mm) at ``rows`` (k,) of ``response`` (strokes up to ``hi`` mm), and, when every row
-    converged, the row of the largest peak re-solved with the mesh refined within
-    :data:`REFINE_RADIUS_MM` of where that peak sits. Adds ``plane_stress_refined_peak_MPa``
-    (MPa), ``refined`` (``stroke_mm``, ``at_mm`` (2,) mm, ``max_edge_mm``, ``triangles``,
-    ``converged``, ``peak_MPa`` and ``coarse_peak_MPa``: the study mesh's figure at that row)
-    to the record; ``refined`` says ``skipped`` with the reason when the re-solve was not made
-    or did not converge (then the verdict has the study mesh's figure only)."""
+    Polygon, mm) and its beam model ``beam`` at ``rows`` (k,) of ``response`` (strokes up to
+    ``hi`` mm), and, when every row converged, the row of the largest peak re-solved with the
+    mesh refined within :data:`REFINE_RADIUS_MM` of where that peak sits.
+
+    Adds ``plane_stress_refined_peak_MPa`` (MPa) and ``refined``: ``stroke_mm``, ``at_mm``
+    (2,) mm, ``radius_mm``, ``max_edge_mm``, ``coarse_peak_MPa`` (the study mesh's figure at
+    that row), ``peak_MPa`` and ``triangles``; or ``skipped`` with the reason when the re-solve
+    was not made or did not converge (then the verdict has the study mesh's figure only)."""
     g = problem.study.geometry
     edge = problem.study.fidelity.max_edge_mm
-    beam = problem._beam(design)
     args = (beam, shape, problem.material, design.B, g.pad_length_mm, g.pad_thickness_mm)
     result = plane_stress_check(*args, WORK_DIRECTION, response, rows, hi, edge)
     if "skipped" in result:

@@ -628,12 +628,12 @@ def fidelity_check(
     )
     try:
         shape = pads.study_outline(problem, design)  # the pad fillets and the blended kinks
-        problem._beam(design)
+        beam = problem._beam(design)
     except (GeometryError, FeaError) as exc:
         return {"skipped": f"could not build the plane-stress model: {exc}"}
     # fea.fidelity.plane_stress_check, and its peak's row re-solved on a locally refined mesh
     hi = max(hi, float(stroke_rows[rows].max()))
-    result = kinks.refined_check(problem, design, shape, response, rows, hi)
+    result = kinks.refined_check(problem, design, beam, shape, response, rows, hi)
     if "skipped" not in result:
         result["time_s"] = time.perf_counter() - t0  # the rows' choice counted as before
     return result

@@ -13,10 +13,12 @@ import pytest
 from flexopt.fea.beam import BeamModel, BeamSettings
 from flexopt.fea.beam_statics import statics_stress
 from flexopt.geometry.constant_force import (
+    DESIGN_VARIABLE_NAMES,
     FILLET_CHORDS,
     WORK_DIRECTION,
     centreline_points,
     filleted_beam,
+    outline,
 )
 from flexopt.geometry.profile import BeamProfile
 from flexopt.pipeline.errors import StudyError
@@ -113,13 +115,17 @@ def test_a_small_fillet_on_tall_pads_makes_kt_root_the_peak():
 def test_the_outline_draws_the_fillets_as_chords():
     """The outline's extra area is, per end, the chord polygon of the two quarter arcs: the
     trapezoid sum of 2 r (1 - sin psi) over s = r (1 - cos psi) at FILLET_CHORDS + 1 angles
-    (the taper is linear, so the flare adds exactly that); close to 4 (1 - pi / 4) r^2."""
+    (the taper is linear, so the flare adds exactly that); close to 4 (1 - pi / 4) r^2. The
+    outlines are mitred (blend 0): the study's blends of the design vertices' kinks depend on
+    the segments next to them, which the flare splits (test_constant_force_kinks.py)."""
     r = 0.5
     sharp = cf.problem(_study(pad_fillet_mm=0.0))
     fil = cf.problem(_study(pad_fillet_mm=r))
     design = sharp._design(sharp.nominal_design())
-    a0 = cf.pads.study_outline(sharp, design).area
-    a1 = cf.pads.study_outline(fil, design).area
+    g = sharp.study.geometry
+    args = (design, sharp.frame, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+    a0 = outline(*args, 0.0, 0.0).area
+    a1 = outline(*args, r, 0.0).area
     psi = np.linspace(0.0, 0.5 * np.pi, FILLET_CHORDS + 1)
     s, extra = r * (1 - np.cos(psi)), 2 * r * (1 - np.sin(psi))
     per_end = float(np.sum(0.5 * (extra[1:] + extra[:-1]) * np.diff(s)))
@@ -127,17 +133,28 @@ def test_the_outline_draws_the_fillets_as_chords():
     assert a1 - a0 == pytest.approx(2 * 2 * (1 - math.pi / 4) * r**2, rel=0.05)
     # the default study (no key) draws the default fillet, 0.5 mm: the same outline as r above
     assert cf.pads.DEFAULT_PAD_FILLET_MM == r
-    assert a1 == pytest.approx(cf.pads.study_outline(_problem_default(), design).area, abs=0)
+    drawn = cf.pads.study_outline(fil, design).area
+    assert drawn == pytest.approx(cf.pads.study_outline(_problem_default(), design).area, abs=0)
 
 
 def _problem_default():
     return cf.problem(load_study(EXAMPLE))
 
 
+#: the example's design before session 26 (an input here): its S6 end segment is 1.36 mm
+SESSION_25_DESIGN = {
+    "a1": 0.159, "a2": 0.8071, "a3": 0.5057, "a4": 0.8453, "a5": 0.133, "a6": 0.8451,
+    "a7": 0.4573, "a8": 0.7743, "a9": 0.2115, "a10": 0.8743, "t1": 1.059, "t2": 0.8668,
+    "t3": 0.966, "t4": 0.8001, "t5": 0.8003, "t6": 0.8275, "t7": 0.8367, "t8": 0.9738,
+    "t9": 0.9394, "t10": 1.049, "T1": 1.371, "T6": 1.278, "B": 6.826,
+}  # fmt: skip
+
+
 def test_toe_on_a_design_point_is_refused_with_one_line():
-    """r = 2 mm is capped at the S6 shoulder (1.36 mm), whose toe lands 3 um from p10."""
+    """r = 2 mm is capped at the S6 shoulder (1.36 mm) of the session-25 design, whose toe
+    lands 3 um from p10."""
     prob = cf.problem(_study(pad_fillet_mm=2.0))
-    x = prob.nominal_design()
+    x = np.array([SESSION_25_DESIGN[n] for n in DESIGN_VARIABLE_NAMES])
     design = prob._design(x)
     pts = centreline_points(design, prob.frame, "centred")
     assert abs(np.linalg.norm(pts[-1] - pts[-2]) - 0.5 * (4.0 - design.T6)) < cf.pads.TOE_CLEAR_MM
