@@ -22,7 +22,7 @@ from flexopt.optimise.curve_objectives import plane_stress_peak_figures
 #: the fidelity record's key of the peak re-solved on a refined mesh (_constant_force_kinks.py)
 REFINED_PEAK = "plane_stress_refined_peak_MPa"
 
-__all__ = ["CHECKED_PEAK", "CHECKED_PEAK_MODEL", "checked_peak_figures"]
+__all__ = ["CHECKED_PEAK", "CHECKED_PEAK_MODEL", "REFINED_PEAK", "checked_peak_figures"]
 
 #: the metric the verdict's peak-stress row judges when a plane-stress check ran (MPa)
 CHECKED_PEAK = "checked_peak_stress_MPa"
