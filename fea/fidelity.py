@@ -118,6 +118,7 @@ def plane_stress_check(
     rows: np.ndarray,
     hi: float,
     max_edge_mm: float,
+    refine: Any = None,
 ) -> dict[str, Any]:
     """Check the beam model against a plane-stress, geometrically nonlinear FEA of the outline.
 
@@ -159,6 +160,8 @@ def plane_stress_check(
     rows : (k,) int — the rows of ``response`` to check.
     hi : float, mm — the largest stroke (the drive's ``max_mm``; each stroke is prescribed).
     max_edge_mm : float, mm — the largest triangle edge.
+    refine : optional local sizes for :func:`fea.mesh.mesh_polygon` (``(geometry, edge mm)``
+        regions or a size field); None: ``max_edge_mm`` everywhere.
 
     Returns
     -------
@@ -182,7 +185,7 @@ def plane_stress_check(
 
         clamp = pad(pts[0], pts[0] - pts[1])
         driven = pad(pts[-1], pts[-1] - pts[-2])
-        mesh = mesh_polygon(shape, max_edge_mm)
+        mesh = mesh_polygon(shape, max_edge_mm, refine)
         # The drive's max_mm and steps are not used: each stroke is prescribed directly.
         model = PlaneStressModel(
             mesh,

@@ -69,6 +69,8 @@ __all__ = [
     "outline",
     "filleted_beam",
     "min_feature_mm",
+    "BLEND_CHORDS",
+    "MIN_BLEND_MM",
 ]
 
 # ----------------------------------------------------------------------------------------------
@@ -524,6 +526,40 @@ def _flare_along(points: np.ndarray, thickness: np.ndarray, radius_mm: float):
     return xy, t
 
 
+#: mm: the shortest blend drawn at a kink; shorter ones (a fillet's chords, 0.02-0.13 mm) are
+#: left as drawn (the fillet's Kt covers them).
+MIN_BLEND_MM = 0.1
+
+#: Chords of a kink's blend (:func:`_blend_kinks`): each joint between them turns by 1/8 of the
+#: kink, whose elastic singularity (exponent ~ 2 x turn / pi) is then 8x weaker still.
+BLEND_CHORDS = 8
+
+
+def _blend_kinks(side: np.ndarray, tangent_mm: np.ndarray) -> np.ndarray:
+    """The side polyline ``side`` (n, 2) mm with each interior vertex i replaced by a quadratic
+    Bezier from ``tangent_mm[i]`` before it to ``tangent_mm[i]`` after it along its two edges
+    (control point: the vertex), drawn as :data:`BLEND_CHORDS` chords; a vertex with
+    ``tangent_mm[i] <= 0`` (and both ends) is kept sharp. Why: a kink of the outline, where the
+    taper changes, is a re-entrant corner on the side where it turns inward, whose stress is
+    singular in elasticity (weakly: ~ r^(-2 kink / pi)); no mesh converges on it (the shipped
+    design's plane-stress peak rose 0.3 MPa per halving of the edge there). The blend is
+    tangent to both edges, so the curve has no corner; it moves the outline by at most
+    ``tangent x tan(kink / 2) / 2`` (~ tangent x kink / 4) at the vertex. Returns (m, 2) mm."""
+    out = [side[0]]
+    u = np.linspace(0.0, 1.0, BLEND_CHORDS + 1)[:, None]
+    for i in range(1, len(side) - 1):
+        a = float(tangent_mm[i])
+        if a <= 0.0:
+            out.append(side[i])
+            continue
+        p = side[i]
+        start = p + a * _unit(side[i - 1] - p)
+        end = p + a * _unit(side[i + 1] - p)
+        out.extend((1 - u) ** 2 * start + 2 * u * (1 - u) * p + u**2 * end)
+    out.append(side[-1])
+    return np.asarray(out)
+
+
 def filleted_beam(
     design: ConstantForceDesign,
     prb_params: PRBParams = TABLE1,
@@ -573,6 +609,7 @@ def outline(
     pad_thickness_mm: float = 4.0,
     end_flexures: Literal["centred", "outboard"] = "centred",
     pad_fillet_mm: float = 0.0,
+    blend_mm: float = 0.0,
 ) -> Polygon:
     """Printable planar outline: the tapered beam plus a clamping pad at each end.
 
@@ -595,6 +632,11 @@ def outline(
     pad_fillet_mm : float, mm
         Radius of the fillets where the beam meets each pad (:func:`filleted_beam`: the beam's
         end segments flared along the arcs, drawn as their chords); 0 (default): a sharp step.
+    blend_mm : float, mm
+        Each design vertex's kink blended along ``min(blend_mm, a quarter of the shorter
+        adjacent segment)`` of both sides' edges (:func:`_blend_kinks`); vertices whose
+        segments are shorter than ``4 x MIN_BLEND_MM`` (the fillets' chords) stay as drawn.
+        0 (default): mitred corners.
 
     Returns
     -------
@@ -617,6 +659,11 @@ def outline(
     pts, t = made.shape.points_mm, made.shape.thickness_mm
     left = _side_offsets(pts, t)
     right = _side_offsets(pts, -t)
+    if blend_mm > 0:
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        tangent = np.concatenate([[0.0], np.minimum(seg[:-1], seg[1:]) / 4.0, [0.0]])
+        tangent = np.where(tangent >= MIN_BLEND_MM, np.minimum(tangent, blend_mm), 0.0)
+        left, right = _blend_kinks(left, tangent), _blend_kinks(right, tangent)
     half = 0.5 * pad_thickness_mm
 
     def pad(end: np.ndarray, outward: np.ndarray) -> list[np.ndarray]:

@@ -24,13 +24,14 @@ from flexopt.geometry.constant_force import (
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.studies._constant_force_fillet import DEFAULT_PAD_FILLET_MM
 from flexopt.pipeline.studies._constant_force_spec import (
     ConstantForceSpec,
     check_spec,
     fill_from_spec,
 )
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
-from pydantic import BaseModel, Field, field_validator, model_serializer, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 __all__ = [
     "FRACTIONS",
@@ -76,22 +77,14 @@ class ConstantForceGeometry(BaseModel):
     pad_length_mm: float = Field(8.0, gt=0, description="clamping pad length beyond S1 and S6, mm")
     pad_thickness_mm: float = Field(4.0, gt=0, description="clamping pad thickness, mm")
     pad_fillet_mm: float = Field(
-        0.0,
+        DEFAULT_PAD_FILLET_MM,
         ge=0,
         le=10,
         description="radius of the fillets where the beam meets each pad, mm (capped at the "
         "shoulder height (pad - T1 or T6) / 2); the beam is flared along them and Kt times its "
-        "stress there joins the peak stress. 0: sharp corners, Kt not modelled",
+        "stress there joins the peak stress. 0: sharp corners, whose stress the model does not "
+        "bound: the peak-stress row is then NOT MET",
     )
-
-    @model_serializer(mode="wrap")
-    def _without_sharp_pads(self, handler: Any) -> Any:
-        # added after studies were first written: a study without fillets dumps (evaluation.json,
-        # the run folder's study.yaml, the study hash) as it did before the key existed
-        data = handler(self)
-        if isinstance(data, dict) and data.get("pad_fillet_mm") == 0:
-            del data["pad_fillet_mm"]
-        return data
 
 
 class ConstantForceBoundary(BaseModel):

@@ -38,7 +38,6 @@ from typing import Any
 import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, EndDrive
 from flexopt.fea.errors import FeaError
-from flexopt.fea.fidelity import plane_stress_check
 from flexopt.fea.materials import Material
 from flexopt.fea.prb import prb_frame_comparison, prb_report
 from flexopt.geometry.constant_force import (
@@ -68,6 +67,7 @@ from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.fields import constant_force_fields
 from flexopt.pipeline.studies import StudyKind, _builtin, register
 from flexopt.pipeline.studies import _constant_force_fillet as pads  # geometry.pad_fillet_mm
+from flexopt.pipeline.studies import _constant_force_kinks as kinks  # the refined peak
 from flexopt.pipeline.studies._constant_force_band import band_names, band_rows
 from flexopt.pipeline.studies._constant_force_clamp import checked_peak_figures
 from flexopt.pipeline.studies._constant_force_schema import (
@@ -585,7 +585,8 @@ def fidelity_check(
 ) -> dict[str, Any]:
     """Check the beam model against a plane-stress, geometrically nonlinear FEA of the outline.
 
-    The study's part: the rows and the outline; the FEA is :func:`fea.fidelity.plane_stress_check`.
+    The study's part: the rows and the outline; the FEA is :func:`fea.fidelity.plane_stress_check`,
+    its peak's row re-solved on a locally refined mesh (:mod:`._constant_force_kinks`).
     The outline (beam plus pads) is meshed with quadratic triangles; the S1 pad is clamped and
     the S6 pad translated along the work direction as a rigid body (transverse motion and
     rotation held: the beam's boundary conditions). At ``fidelity.points`` strokes spread over
@@ -615,7 +616,6 @@ def fidelity_check(
     """
     study = problem.study
     spec = study.fidelity
-    g = study.geometry
     if study.boundary.rotation != "fixed":
         return {
             "skipped": "boundary.rotation is free: a rigid drive pad holds the rotation, so the "
@@ -627,23 +627,13 @@ def fidelity_check(
         stroke_rows, response.converged, response.peak_stress_MPa, lo, hi, spec.points
     )
     try:
-        shape = pads.study_outline(problem, design)
+        shape = pads.study_outline(problem, design)  # the pad fillets and the blended kinks
         beam = problem._beam(design)
     except (GeometryError, FeaError) as exc:
         return {"skipped": f"could not build the plane-stress model: {exc}"}
-    result = plane_stress_check(
-        beam,
-        shape,
-        problem.material,
-        design.B,
-        g.pad_length_mm,
-        g.pad_thickness_mm,
-        WORK_DIRECTION,
-        response,
-        rows,
-        max(hi, float(stroke_rows[rows].max())),
-        spec.max_edge_mm,
-    )
+    # fea.fidelity.plane_stress_check, and its peak's row re-solved on a locally refined mesh
+    hi = max(hi, float(stroke_rows[rows].max()))
+    result = kinks.refined_check(problem, design, beam, shape, response, rows, hi)
     if "skipped" not in result:
         result["time_s"] = time.perf_counter() - t0  # the rows' choice counted as before
     return result

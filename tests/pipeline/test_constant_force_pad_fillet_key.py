@@ -13,10 +13,12 @@ import pytest
 from flexopt.fea.beam import BeamModel, BeamSettings
 from flexopt.fea.beam_statics import statics_stress
 from flexopt.geometry.constant_force import (
+    DESIGN_VARIABLE_NAMES,
     FILLET_CHORDS,
     WORK_DIRECTION,
     centreline_points,
     filleted_beam,
+    outline,
 )
 from flexopt.geometry.profile import BeamProfile
 from flexopt.pipeline.errors import StudyError
@@ -88,7 +90,7 @@ def test_shipped_design_with_half_mm_fillets_judges_the_beam_peak_and_kt_root():
     ev = prob.evaluate(x)
     assert ev.metrics["peak_stress_MPa"] == pytest.approx(np.max(want), rel=1e-9)
     # the sharp study's peak (no fold, the sharp beam) is lower: the flare stiffens the clamp
-    _, sharp, _ = cf.problem(_study())._solve(x)
+    _, sharp, _ = cf.problem(_study(pad_fillet_mm=0.0))._solve(x)
     assert np.max(sharp.peak_stress_MPa) < np.max(response.peak_stress_MPa)
 
 
@@ -113,29 +115,46 @@ def test_a_small_fillet_on_tall_pads_makes_kt_root_the_peak():
 def test_the_outline_draws_the_fillets_as_chords():
     """The outline's extra area is, per end, the chord polygon of the two quarter arcs: the
     trapezoid sum of 2 r (1 - sin psi) over s = r (1 - cos psi) at FILLET_CHORDS + 1 angles
-    (the taper is linear, so the flare adds exactly that); close to 4 (1 - pi / 4) r^2."""
+    (the taper is linear, so the flare adds exactly that); close to 4 (1 - pi / 4) r^2. The
+    outlines are mitred (blend 0): the study's blends of the design vertices' kinks depend on
+    the segments next to them, which the flare splits (test_constant_force_kinks.py)."""
     r = 0.5
-    sharp = cf.problem(_study())
+    sharp = cf.problem(_study(pad_fillet_mm=0.0))
     fil = cf.problem(_study(pad_fillet_mm=r))
     design = sharp._design(sharp.nominal_design())
-    a0 = cf.pads.study_outline(sharp, design).area
-    a1 = cf.pads.study_outline(fil, design).area
+    g = sharp.study.geometry
+    args = (design, sharp.frame, g.pad_length_mm, g.pad_thickness_mm, g.end_flexures)
+    a0 = outline(*args, 0.0, 0.0).area
+    a1 = outline(*args, r, 0.0).area
     psi = np.linspace(0.0, 0.5 * np.pi, FILLET_CHORDS + 1)
     s, extra = r * (1 - np.cos(psi)), 2 * r * (1 - np.sin(psi))
     per_end = float(np.sum(0.5 * (extra[1:] + extra[:-1]) * np.diff(s)))
     assert a1 - a0 == pytest.approx(2 * per_end, rel=1e-6)
     assert a1 - a0 == pytest.approx(2 * 2 * (1 - math.pi / 4) * r**2, rel=0.05)
-    assert a0 == pytest.approx(cf.pads.study_outline(_problem_default(), design).area, abs=0)
+    # the default study (no key) draws the default fillet, 0.5 mm: the same outline as r above
+    assert cf.pads.DEFAULT_PAD_FILLET_MM == r
+    drawn = cf.pads.study_outline(fil, design).area
+    assert drawn == pytest.approx(cf.pads.study_outline(_problem_default(), design).area, abs=0)
 
 
 def _problem_default():
     return cf.problem(load_study(EXAMPLE))
 
 
+#: the example's design before session 26 (an input here): its S6 end segment is 1.36 mm
+SESSION_25_DESIGN = {
+    "a1": 0.159, "a2": 0.8071, "a3": 0.5057, "a4": 0.8453, "a5": 0.133, "a6": 0.8451,
+    "a7": 0.4573, "a8": 0.7743, "a9": 0.2115, "a10": 0.8743, "t1": 1.059, "t2": 0.8668,
+    "t3": 0.966, "t4": 0.8001, "t5": 0.8003, "t6": 0.8275, "t7": 0.8367, "t8": 0.9738,
+    "t9": 0.9394, "t10": 1.049, "T1": 1.371, "T6": 1.278, "B": 6.826,
+}  # fmt: skip
+
+
 def test_toe_on_a_design_point_is_refused_with_one_line():
-    """r = 2 mm is capped at the S6 shoulder (1.36 mm), whose toe lands 3 um from p10."""
+    """r = 2 mm is capped at the S6 shoulder (1.36 mm) of the session-25 design, whose toe
+    lands 3 um from p10."""
     prob = cf.problem(_study(pad_fillet_mm=2.0))
-    x = prob.nominal_design()
+    x = np.array([SESSION_25_DESIGN[n] for n in DESIGN_VARIABLE_NAMES])
     design = prob._design(x)
     pts = centreline_points(design, prob.frame, "centred")
     assert abs(np.linalg.norm(pts[-1] - pts[-2]) - 0.5 * (4.0 - design.T6)) < cf.pads.TOE_CLEAR_MM
@@ -159,25 +178,84 @@ def test_hybrid_with_a_fillet_is_refused_and_its_jacobian_is_none():
 
 
 @pytest.mark.parametrize("bad", [-0.1, 10.5, float("nan")])
-def test_pad_fillet_bounds(bad):
+def test_pad_fillet_bounds_and_default(bad):
     data = {"kind": "constant_force", "pad_fillet_mm": bad}
     with pytest.raises(ValidationError):
         cf.ConstantForceGeometry(**data)
-    assert cf.ConstantForceGeometry(kind="constant_force").pad_fillet_mm == 0.0
+    default = cf.ConstantForceGeometry(kind="constant_force").pad_fillet_mm
+    assert default == cf.pads.DEFAULT_PAD_FILLET_MM == 0.5
 
 
-def test_the_peak_stress_row_says_when_the_pad_corners_are_sharp():
-    """Default: judged as before (same figure, same allowable), the bound naming the sharp
-    corners; with a fillet the bound is the plain allowable. A study without the key dumps as
-    before the key existed (evaluation.json, the study hash)."""
+def _row(study):
     from flexopt.pipeline.studies._builtin import constant_force
 
-    def row(study):
-        return next(r for r in constant_force(study) if r.quantity == "peak_stress_MPa")
+    return next(r for r in constant_force(study) if r.quantity == "peak_stress_MPa")
 
-    sharp, filleted = row(_study()), row(_study(pad_fillet_mm=0.5))
+
+@pytest.mark.parametrize("value", [41.31, 44.0])
+def test_sharp_pad_corners_are_not_met_whatever_the_figure(value):
+    """pad_fillet_mm: 0 judges the row NOT MET with the reason, under the allowable or over it;
+    with a fillet the same figure is judged against the allowable alone. The margin (and so
+    the GA's constraint row) is the nominal one either way: only the verdict refuses MET."""
+    sharp, filleted = _row(_study(pad_fillet_mm=0.0)), _row(_study(pad_fillet_mm=0.5))
     assert sharp.allowable_MPa == filleted.allowable_MPa == 42.5
-    assert "pad corners sharp" in sharp.bound_text() and "not modelled" in sharp.bound_text()
-    assert filleted.bound_text() == "<= 42.5 MPa"
-    assert "pad_fillet_mm" not in load_study(EXAMPLE).model_dump()["geometry"]
-    assert _study(pad_fillet_mm=0.5).model_dump()["geometry"]["pad_fillet_mm"] == 0.5
+    metrics = {"peak_stress_MPa": value}
+    vs, vf = sharp.check(metrics), filleted.check(metrics)
+    assert vf.met is (value <= 42.5) and vf.bound == "<= 42.5 MPa"
+    assert vs.met is False and vs.word == "NOT MET"
+    assert vs.margin == vf.margin == pytest.approx(42.5 - value, rel=1e-12)
+    assert sharp.constraint(metrics) == filleted.constraint(metrics)
+    assert "sharp" in vs.bound and "pad_fillet_mm = 0" in vs.bound
+    assert "not bound" in vs.detail or "no figure" in vs.detail
+    assert "pad_fillet_mm > 0" in vs.detail and "\n" not in vs.detail
+
+
+def test_the_key_dumps_and_reads_back_both_ways():
+    """The default is written into the resolved study, and an explicit 0 reads back as 0 (not as
+    the default): run folders and the study hash tell a sharp study from a filleted one."""
+    default = load_study(EXAMPLE)
+    assert default.geometry.pad_fillet_mm == 0.5
+    assert default.model_dump()["geometry"]["pad_fillet_mm"] == 0.5
+    sharp = _study(pad_fillet_mm=0.0)
+    dumped = sharp.model_dump()["geometry"]
+    assert dumped["pad_fillet_mm"] == 0.0
+    assert cf.ConstantForceGeometry(**dumped).pad_fillet_mm == 0.0
+
+
+def _write_variant(tmp_path, fillet):
+    """The shipped example with the plane-stress check off (the verdict judges the beam) and
+    ``pad_fillet_mm`` set, or absent when ``fillet`` is None."""
+    import yaml
+
+    data = yaml.safe_load(EXAMPLE.read_text(encoding="utf-8"))
+    data["fidelity"] = {"enabled": False}
+    if fillet is not None:
+        data["geometry"]["pad_fillet_mm"] = fillet
+    path = tmp_path / f"cf-{fillet}.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize(("fillet", "word"), [(None, "MET"), (0, "NOT MET")])
+def test_the_cli_verdict_line_with_and_without_fillets(fillet, word, tmp_path, capsys):
+    """``flexopt evaluate``: the shipped design with the default fillet is MET; with
+    ``pad_fillet_mm: 0`` the peak-stress row and the overall verdict are NOT MET, with the
+    reason on the row's line; exit code 0 either way (evaluate reports, it does not refuse)."""
+    import json
+
+    from flexopt.pipeline.cli import main
+
+    out = tmp_path / "eval"
+    code = main(["evaluate", str(_write_variant(tmp_path, fillet)), "--out", str(out)])
+    text = capsys.readouterr().out
+    assert code == 0
+    rows = [line for line in text.splitlines() if line.startswith("peak stress ")]
+    assert len(rows) == 1 and rows[0].rstrip().endswith(f"{word} (constraint)"), rows
+    assert f"overall: {word} (" in text
+    record = json.loads((out / "evaluation.json").read_text(encoding="utf-8"))
+    row = next(r for r in record["verdict"]["requirements"] if r["name"] == "peak stress")
+    assert row["verdict"] == word
+    if fillet == 0:
+        assert "sharp 90 degree corners" in text and "sharp" in row["bound"]
+        assert row["value"] < 42.5  # under the allowable, and still NOT MET

@@ -133,8 +133,9 @@ def test_print_compare_retrim_loop_on_a_simulated_printer(tmp_path, capsys):
     (row,) = record["requirements_on_measured"]
     assert (row["name"], row["verdict"], row["predicted"]) == ("force band", "NOT MET", "MET")
     assert record["overall_on_measured"] == "NOT MET"
-    # the worst deviation of the measured curve from 1.5 N: about 10 % of it
-    assert row["value"] == pytest.approx(0.15, abs=0.02)
+    # the worst deviation of the measured curve from 1.5 N (about 10 % of it, plus the design's
+    # own deviation scaled by 0.9), computed here from the measured points
+    assert row["value"] == pytest.approx(float(np.max(np.abs(noisy - 1.5))), abs=2e-3)
     trim = retrim_run(tmp_path / "design", tmp_path / "measured.csv")  # the kind's width key
     assert trim.key == "design.B"
     assert trim.new_mm == pytest.approx(trim.old_mm / 0.9, rel=2e-3)

@@ -193,8 +193,8 @@ def test_a_robustness_sample_under_a_bound_is_judged_without_the_range_row():
     study = load_study("constant-force-robust")
     x = nominal_design(build_base_problem(study), study)
     i = build_base_problem(study).space.names.index("t4_mm")
-    assert x[i] == pytest.approx(0.8001)  # on its lower bound, 0.8 mm
-    # the sample printed 0.1 mm thin: t4 = 0.7001 mm, under the bound, as made
+    assert x[i] == pytest.approx(0.802)  # 2 um above its lower bound, 0.8 mm
+    # the sample printed 0.1 mm thin: t4 = 0.702 mm, under the bound, as made
     ev = SampleProblem(study, "design", x).evaluate(np.array([1.0, -0.1, 0.0]))
     verdicts = ev.metrics["robustness"].verdicts
     assert verdicts and all(v.quantity != DesignRange.quantity for v in verdicts)

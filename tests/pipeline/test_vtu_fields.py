@@ -203,8 +203,12 @@ def test_constant_force_evaluation_has_its_plane_stress_states_and_beam_stresses
         assert held.sum() >= 10 and driven.sum() >= 10
         counted = mesh.point_data[STRESS_COUNTED][tri] == 1
         counted_peaks.append(mesh.point_data[VON_MISES][tri][counted].max())
-    assert max(counted_peaks) == pytest.approx(
-        record["summary"]["plane_stress_peak_stress_MPa"], rel=1e-12
+    # the fields are the study mesh's (0.5 mm): its peak; the summary's figure is the larger of
+    # that and the peak row re-solved on a refined mesh (_constant_force_kinks.py)
+    coarse = max(check["plane_stress_peak_nodal_von_mises_MPa"])
+    assert max(counted_peaks) == pytest.approx(coarse, rel=1e-12)
+    assert record["summary"]["plane_stress_peak_stress_MPa"] == max(
+        coarse, check["plane_stress_refined_peak_MPa"]
     )
     beam_peaks = [
         np.nanmax(m.point_data[VON_MISES][np.unique(m.cells_dict["line"])]) for _, m in steps
