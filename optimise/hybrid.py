@@ -55,6 +55,7 @@ __all__ = [
     "GradientStep",
     "HybridConfig",
     "HybridResult",
+    "pieces_of",
     "residuals_of",
     "run_hybrid",
     "pick_starts",
@@ -159,6 +160,29 @@ def residuals_of(evaluation: Evaluation) -> np.ndarray | None:
     return r if np.all(np.isfinite(r)) else None
 
 
+def pieces_of(
+    jac: DesignJacobian, n_con: int, span: np.ndarray
+) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """The constraint rows a problem gives as pieces: ``jac.info["g_pieces"]`` maps a row
+    index c to ``{"values": (p,), "gradients": (p, n_var)}``, smooth functions of the design
+    whose max is row c (a peak stress: one piece per place and row of the path it may sit at).
+    Returned per row as (values (p,), gradients (p, n_var) times ``span``: per normalised unit);
+    rows whose pieces are missing, malformed or not finite are left out (the row's own
+    derivative serves)."""
+    out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    given = jac.info.get("g_pieces") if isinstance(jac.info, dict) else None
+    for c, piece in (given or {}).items():
+        try:
+            values = np.asarray(piece["values"], dtype=float).ravel()
+            grads = np.asarray(piece["gradients"], dtype=float)
+        except (KeyError, TypeError, ValueError):
+            continue
+        ok = 0 <= int(c) < n_con and len(values) and grads.shape == (len(values), len(span))
+        if ok and np.all(np.isfinite(values)) and np.all(np.isfinite(grads)):
+            out[int(c)] = (values, grads * span)
+    return out
+
+
 def pick_starts(
     space: DesignSpace, evaluations: Sequence[Evaluation], n: int, min_distance: float
 ) -> list[Evaluation]:
@@ -216,6 +240,8 @@ class _Stage:
         self.best = ga.best
         self.generations: list[Generation] = list(ga.generations)
         self.n = 0
+        #: the last exact Jacobian's constraint pieces (:func:`pieces_of`), in normalised units
+        self.pieces: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def x_of(self, u: np.ndarray) -> np.ndarray:
         """(n_var,) the design of normalised ``u``, inside the bounds."""
@@ -268,6 +294,7 @@ class _Stage:
                 return None
             J = np.asarray(jac.residuals, dtype=float) * self.span
         self.jacobians["exact"] += 1
+        self.pieces = pieces_of(jac, n_con, self.span)
         return J, np.asarray(jac.g, dtype=float) * self.span, np.asarray(jac.f[0]) * self.span
 
     def jacobian_designs(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -314,6 +341,38 @@ class StallRule:
         return None
 
 
+def _linear_rows(
+    g: np.ndarray, Jg: np.ndarray, pieces: dict[int, tuple[np.ndarray, np.ndarray]] | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The linearised constraints as rows: (k,) values, (k, n_var) gradients and (k,) the row
+    c each belongs to. A row given as pieces (:func:`pieces_of`) is one row per piece, shifted
+    so that their max is ``g[c]`` (the evaluation's value: the pieces are its terms), the others
+    one row each (``g``, ``Jg``)."""
+    values, grads, owner = [], [], []
+    for c in range(len(g)):
+        if pieces and c in pieces:
+            h, H = pieces[c]
+            values.append(h + (g[c] - float(np.max(h))))
+            grads.append(H)
+            owner.append(np.full(len(h), c))
+        else:
+            values.append(g[c : c + 1])
+            grads.append(Jg[c : c + 1])
+            owner.append(np.array([c]))
+    if not values:
+        return np.zeros(0), np.zeros((0, Jg.shape[1])), np.zeros(0, dtype=int)
+    return np.concatenate(values), np.vstack(grads), np.concatenate(owner)
+
+
+def _predicted(g: np.ndarray, Jg: np.ndarray, d: np.ndarray, pieces: dict | None) -> np.ndarray:
+    """(n_con,) each constraint row's value after the step ``d`` by its linearisation: the max
+    of its pieces' where it has pieces."""
+    values, grads, owner = _linear_rows(g, Jg, pieces)
+    out = np.full(len(g), -np.inf)
+    np.maximum.at(out, owner, values + grads @ d)
+    return out
+
+
 def _gauss_newton_step(
     r: np.ndarray,
     J: np.ndarray,
@@ -322,6 +381,7 @@ def _gauss_newton_step(
     lower: np.ndarray,
     upper: np.ndarray,
     backoff: np.ndarray,
+    pieces: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> np.ndarray:
     """(n_var,) the step d minimising ``||r + J d||**2`` subject to ``g + Jg d <= -backoff``
     (elastic: what cannot be met is paid for at :data:`ELASTIC_WEIGHT`) and ``lower <= d <=
@@ -329,13 +389,18 @@ def _gauss_newton_step(
 
     r (n_res,), J (n_res, n_var), g (n_con,), Jg (n_con, n_var), lower, upper (n_var,), backoff
     (n_con,) >= 0: how far inside each linearised constraint to aim (its linearisation error
-    as seen so far). An infeasible design's step aims at feasibility to first order. The
-    objective is scaled by ``||r||**2`` (SLSQP's tolerances are absolute).
+    as seen so far). ``pieces`` (:func:`pieces_of`): a row that is a max of smooth pieces is
+    held by each piece's linearisation (``h_k + H_k d <= -backoff_c``), one slack per row, so
+    the step sees a piece other than the active one rise (the peak stress moving from the clamp
+    to mid-beam) instead of stepping onto it blind. An infeasible design's step aims at
+    feasibility to first order. The objective is scaled by ``||r||**2`` (SLSQP's tolerances are
+    absolute).
     """
     from scipy.optimize import minimize
 
     n, m = len(lower), len(g)
     scale = max(float(r @ r), 1e-300)
+    values, grads, owner = _linear_rows(g, Jg, pieces)
 
     def objective(z: np.ndarray) -> float:
         e = r + J @ z[:n]
@@ -344,15 +409,19 @@ def _gauss_newton_step(
     def gradient(z: np.ndarray) -> np.ndarray:
         return np.concatenate([J.T @ (r + J @ z[:n]) / scale, np.full(m, ELASTIC_WEIGHT)])
 
-    # elastic: g + Jg d <= -backoff + s with slacks s >= 0 at a high price, so a step that
-    # cannot reach feasibility in the trust region still lowers the violation as far as it can
-    A = np.hstack([-Jg, np.eye(m)])
-    constraints = (
-        [{"type": "ineq", "fun": lambda z: -backoff - g + A @ z, "jac": lambda z: A}] if m else []
-    )
+    # elastic: h + H d <= -backoff + s with slacks s >= 0 (one per constraint row) at a high
+    # price, so a step that cannot reach feasibility in the trust region still lowers the
+    # violation as far as it can
+    slack = np.zeros((len(values), m))
+    slack[np.arange(len(values)), owner] = 1.0
+    A = np.hstack([-grads, slack])
+    aim = -backoff[owner] - values
+    start = np.zeros(m)
+    np.maximum.at(start, owner, np.maximum(values + backoff[owner], 0.0))
+    constraints = [{"type": "ineq", "fun": lambda z: aim + A @ z, "jac": lambda z: A}] if m else []
     qp = minimize(
         objective,
-        np.concatenate([np.zeros(n), np.maximum(g + backoff, 0.0)]),
+        np.concatenate([np.zeros(n), start]),
         jac=gradient,
         bounds=[*zip(lower, upper, strict=True), *([(0.0, None)] * m)],
         constraints=constraints,
@@ -377,7 +446,15 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     (ratio of actual to predicted decrease > 1e-4); from an infeasible one when it lowers the
     violation (feasibility first). A constraint the trial violates that its linearisation said
     it would not sets that constraint's backoff to the error seen, so the next steps aim inside
-    by it; a trial inside halves it.
+    by it; a trial inside halves it. A constraint row given as pieces (an exact Jacobian's
+    ``g_pieces``) is linearised piece by piece (:func:`_gauss_newton_step`).
+
+    The stop rule (:class:`StallRule`) counts accepted steps only: a rejected trial says the
+    model was wrong over that radius, not that the design is stationary, so it shrinks the
+    radius (to half the step when the trial broke a constraint, whose backoff it has just
+    learnt; to a quarter when it raised the objective) and the next step is tried from the same
+    design with the same Jacobian. Rejections end a start only when the radius falls below
+    1e-6 (:data:`STATIONARY`), or at ``max_iter`` or the stage's budget.
     """
     config = stage.config
     u = stage.u_of(start.x)
@@ -389,13 +466,16 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     radius = 0.1
     backoff = np.zeros(n_con)
     J = Jg = None
+    pieces: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     frozen = np.zeros(len(u), dtype=bool)
     for iteration in range(1, config.max_iter + 1):
         exact = stage.exact(current, len(r), n_con) if J is None else None
         if exact is not None:  # the problem's derivatives: no perturbed designs
             J, Jg, _ = exact
+            pieces = stage.pieces
             frozen[:] = False
         if J is None:  # a Jacobian at every accepted point (a rejected step reuses it)
+            pieces = {}
             U, steps = stage.jacobian_designs(u)
             columns = stage.batch(U)
             J = np.zeros((len(r), len(u)))
@@ -410,7 +490,7 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
                 Jg[:, i] = (ev.g - current.g) / steps[i]
         lower = np.where(frozen, 0.0, np.maximum(-u, -radius))
         upper = np.where(frozen, 0.0, np.minimum(1.0 - u, radius))
-        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff)
+        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff, pieces)
         predicted = 0.5 * float(r @ r) - 0.5 * float((r + J @ d) @ (r + J @ d))
         size = float(np.max(np.abs(d))) if len(d) else 0.0
         if size < 1e-12 or (current.feasible and predicted <= 0.0):
@@ -423,9 +503,10 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
             continue
         (trial,) = stage.batch((u + d)[None, :])
         rt = residuals_of(trial)
+        linear = _predicted(current.g, Jg, d, pieces) if n_con else np.zeros(0)
         if rt is not None and n_con:
             missed = trial.g > 0.0
-            error = trial.g - (current.g + Jg @ d)
+            error = trial.g - linear
             # the last error seen where it mattered; halved where the trial kept inside, so a
             # wild step's error does not hold every later step back
             backoff = np.where(missed, np.maximum(error, 0.0), 0.5 * backoff)
@@ -433,7 +514,7 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
             actual = 0.5 * float(r @ r) - 0.5 * float(rt @ rt) if rt is not None else -np.inf
             ratio = actual / predicted if predicted > 0.0 else 0.0
         else:  # restoring: the radius follows how well the violation's model predicts it
-            model = float(np.sum(np.maximum(current.g + Jg @ d, 0.0)))
+            model = float(np.sum(np.maximum(linear, 0.0)))
             expected = current.violation - model
             ratio = (current.violation - trial.violation) / expected if expected > 0 else 0.0
         if current.feasible:
@@ -451,11 +532,13 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
                 rule.restart(float(current.f[0]))  # progress towards feasibility
                 continue
         else:
-            radius = 0.25 * size
-            if not current.feasible:  # still restoring: only the radius's collapse ends it
-                if radius < 1e-6:
-                    return iteration, STATIONARY
-                continue
+            # rejected: not counted by the stop rule; a broken constraint has just taught its
+            # backoff, so half the step is tried, an objective that rose a quarter of it
+            broke = rt is not None and not trial.feasible
+            radius = (0.5 if broke else 0.25) * size
+            if radius < 1e-6:
+                return iteration, STATIONARY
+            continue
         reason = rule.update(float(current.f[0]))
         if reason:
             return iteration, reason

@@ -127,11 +127,8 @@ def study_outline(problem: Any, design: Any) -> Any:
 
 
 def jacobian(problem: Any, x: np.ndarray, beam: Any, drive: Any) -> Any:
-    """:func:`._constant_force_gradient.jacobian`, or None with a fillet: the exact derivatives
-    do not differentiate the fillets' Kt x root stress (the run refuses ``method: hybrid`` with
-    a fillet; a report's sensitivities fall back to differences)."""
-    if problem.study.geometry.pad_fillet_mm > 0:
-        return None
+    """:func:`._constant_force_gradient.jacobian` (with fillets it differentiates Kt x root
+    stress too: :mod:`._constant_force_flare_map`)."""
     from flexopt.pipeline.studies._constant_force_gradient import jacobian as exact
 
     return exact(problem, x, beam, drive)
