@@ -415,9 +415,14 @@ def _gauss_newton_step(
     slack = np.zeros((len(values), m))
     slack[np.arange(len(values)), owner] = 1.0
     A = np.hstack([-grads, slack])
-    aim = -backoff[owner] - values
+    # aim inside by the backoff, but never further in than the design already is: a feasible
+    # design's step need not move inwards (at a cost in the objective) to honour a backoff
+    # larger than its slack; d = 0 stays a feasible step
+    limit = -backoff - FEASIBILITY_MARGIN
+    limit = np.where(g <= 0.0, np.maximum(limit, g), limit)
+    aim = limit[owner] - values
     start = np.zeros(m)
-    np.maximum.at(start, owner, np.maximum(values + backoff[owner], 0.0))
+    np.maximum.at(start, owner, np.maximum(-aim, 0.0))
     constraints = [{"type": "ineq", "fun": lambda z: aim + A @ z, "jac": lambda z: A}] if m else []
     qp = minimize(
         objective,
@@ -430,6 +435,12 @@ def _gauss_newton_step(
     )
     return np.clip(np.asarray(qp.x[:n], dtype=float), lower, upper)
 
+
+#: how far inside every linearised constraint row a step aims besides its backoff: SLSQP meets
+#: its constraints to ~1e-10, and a trial on a linear constraint's boundary by that much is
+#: infeasible by round-off (g > 0) and rejected (constraint rows are O(1): a stress ratio minus
+#: 1, a band fraction)
+FEASIBILITY_MARGIN = 1.0e-8
 
 #: the price of a unit of linearised constraint violation in the Gauss-Newton step, against the
 #: objective scaled to 1/2 at the current design: feasibility comes first

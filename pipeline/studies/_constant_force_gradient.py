@@ -142,9 +142,10 @@ def study_sensitivities(
     W = interpolation_matrix(stroke, probes)
     rows = np.union1d(np.flatnonzero(np.any(W != 0.0, axis=0)), _stress_rows(response, rho))
     worst = _band_row(study, response) if band else None
-    # the band's worst row is differentiated besides; the KS stays over ``rows`` (the same KS
-    # with or without the band row)
-    solved = rows if worst is None else np.union1d(rows, [worst])
+    near = _band_near_rows(study, response) if band else np.zeros(0, dtype=int)
+    # the band's worst row and those near it are differentiated besides; the KS stays over
+    # ``rows`` (the same KS with or without the band row)
+    solved = rows if worst is None else np.union1d(np.union1d(rows, [worst]), near)
     sens = None
     # the semi-analytic vertex moves need the mesh (elements per segment, rounded from the
     # lengths) to stay the same over +-2 steps: a design that close to a switch of the rounding
@@ -198,7 +199,7 @@ def study_sensitivities(
     d_peak = d_signed[row_k, samp, side]
     extra: dict[str, Any] = {}
     if worst is not None:
-        extra = _band_sensitivity(study, response, worst, force, d_force, rms, d_rms)
+        extra = _band_sensitivity(study, response, worst, force, d_force, rms, d_rms, near)
     pieces = _stress_pieces(signed, d_signed, sens.stress_s_mm, rows)
     return {
         "residuals_N": r,
@@ -296,6 +297,29 @@ def _band_row(study: Any, response: Any) -> int:
     return int(judged[np.argmax(np.abs(f[judged] - study.target.force_N))])
 
 
+#: the band row's pieces: the judged rows whose |F - target| is within this fraction of the
+#: allowance below the worst row's, at most :data:`MAX_BAND_PIECES` of them (the worst first)
+BAND_WINDOW = 0.5
+MAX_BAND_PIECES = 24
+
+
+def _band_near_rows(study: Any, response: Any) -> np.ndarray:
+    """(p,) int: the judged rows whose ``|F - target|`` is within :data:`BAND_WINDOW` x the
+    held share of the band below the worst row's, the worst first, at most
+    :data:`MAX_BAND_PIECES` (the band row's pieces: the worst row switches as the design moves,
+    and the gradient stage is to see the next one coming)."""
+    t = study.target
+    s = np.asarray(response.displacement_mm, dtype=float)
+    f = np.asarray(response.force_N, dtype=float)
+    first_mm = study.boundary.stroke_mm / study.boundary.rows
+    judged = np.flatnonzero(s >= first_mm - 1e-9 * max(1.0, abs(first_mm)))
+    error = np.abs(f[judged] - t.force_N)
+    held = BAND_SHARE * t.tolerance_percent / 100.0 * abs(t.force_N)
+    order = np.argsort(-error, kind="stable")
+    keep = order[error[order] >= error.max() - BAND_WINDOW * held][:MAX_BAND_PIECES]
+    return judged[keep]
+
+
 def _band_sensitivity(
     study: Any,
     response: Any,
@@ -304,11 +328,14 @@ def _band_sensitivity(
     d_force: np.ndarray,
     rms: float,
     d_rms: np.ndarray,
+    near: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The band row's value and its derivative (23,) at the active pieces: the worst judged row
     ``k`` (``force`` (rows,) N and ``d_force`` (rows, 23) N per unit of the polished rows) and
     the larger allowance (the held share of the band, fixed, or ``BAND_REACH`` x the RMS error
-    ``rms`` N with derivative ``d_rms`` (23,))."""
+    ``rms`` N with derivative ``d_rms`` (23,)). With ``near`` (p,) rows: the row as pieces too,
+    one per row, ``(|F_j - target| - allowance) / target`` and its derivative (the active
+    allowance's), "band_pieces" (p,) and "d_band_pieces" (p, 23)."""
     t = study.target
     target = abs(t.force_N)
     tol = t.tolerance_percent / 100.0
@@ -324,7 +351,17 @@ def _band_sensitivity(
         study.boundary.stroke_mm / study.boundary.rows,
         rms_error_N=rms,
     )
+    extra: dict[str, Any] = {}
+    if near is not None and len(near):
+        sign = np.sign(force[near] - t.force_N)
+        allowed = max(BAND_SHARE * tol * target, BAND_REACH * rms)
+        d_allowed = BAND_REACH * d_rms if reach_active else np.zeros_like(d_rms)
+        extra = {
+            "band_pieces": (np.abs(force[near] - t.force_N) - allowed) / target,
+            "d_band_pieces": (sign[:, None] * d_force[near] - d_allowed[None, :]) / target,
+        }
     return {
+        **extra,
         "band_excess": float(value),
         "d_band": d_band / target,
         "band_row": int(k),
@@ -394,6 +431,8 @@ def jacobian(
             return None
         g.append(out["d_band"])
         g_values.append(out["band_excess"])
+        if "band_pieces" in out and np.all(np.isfinite(out["d_band_pieces"])):
+            pieces[1] = {"values": out["band_pieces"], "gradients": out["d_band_pieces"]}
         band_info = {"band_row": out["band_row"], "band_reach_active": out["band_reach_active"]}
     return DesignJacobian(
         x=np.asarray(x, dtype=float).copy(),
