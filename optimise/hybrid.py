@@ -76,8 +76,9 @@ class HybridConfig:
     Attributes
     ----------
     ga : the GA stage's settings; its ``n_gen`` is the stage's most generations.
-    ga_n_gen : the GA stage ends after this many generations once its best design is feasible
-        (else it goes on, to ``ga.n_gen`` at most); None: ``ga.n_gen``.
+    ga_n_gen : the GA stage ends after this many generations; without exact derivatives
+        (no ``jacobian`` given to :func:`run_hybrid`, or ``exact_jacobian`` False) only once its
+        best design is feasible (else it goes on, to ``ga.n_gen`` at most); None: ``ga.n_gen``.
     local : ``"gauss_newton"`` (needs residuals) or ``"slsqp"``.
     starts : distinct GA designs the gradient stage starts from, best first.
     min_distance : least max-norm distance of two starts in bound-normalised units.
@@ -652,9 +653,16 @@ def _ga_stage(
     config: HybridConfig,
     on_generation: Callable[[Generation], None] | None,
     initial: np.ndarray | None,
+    until_feasible: bool = True,
 ) -> GAResult:
-    """The GA for ``config.ga_n_gen`` generations, or more until its best is feasible (a
-    gradient method from an infeasible GA design mostly spends itself restoring feasibility).
+    """The GA for ``config.ga_n_gen`` generations; with ``until_feasible`` more until its best
+    is feasible. Why the two: with forward differences (23 designs a Jacobian on the
+    constant-force study) a gradient method from an infeasible GA design mostly spends itself
+    restoring feasibility; with exact derivatives a restoring step costs one design, and the GA
+    generations it saves are the larger cost (constant-force with 0.5 mm pad fillets, seed 1: the
+    GA's first feasible best came at generation 9, 360 designs, seed 4 at 16, 640 designs; from
+    generation 5's infeasible best Gauss-Newton restored and ended lower in 278 designs,
+    docs/benchmarks.md).
 
     Stopped from its generation callback: pymoo draws the same populations whatever its
     ``n_gen``, so the stage is the first generations of the GA of ``config.ga`` (and a resume
@@ -665,8 +673,9 @@ def _ga_stage(
         generations.append(gen)
         if on_generation is not None:
             on_generation(gen)
-        if config.ga_n_gen is not None and gen.index + 1 >= config.ga_n_gen and gen.best.feasible:
-            raise _GADone
+        if config.ga_n_gen is not None and gen.index + 1 >= config.ga_n_gen:
+            if gen.best.feasible or not until_feasible:
+                raise _GADone
 
     try:
         return run_ga(space, evaluate, n_obj, n_con, config.ga, done, initial)
@@ -697,7 +706,8 @@ def run_hybrid(
     """
     if n_obj != 1:
         raise OptimiseError(f"the hybrid optimiser needs one objective, got {n_obj}")
-    ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial)
+    exact = jacobian is not None and config.exact_jacobian
+    ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial, not exact)
     n_ga = ga.generations[-1].n_evaluations if ga.generations else 0
     stage = _Stage(space, evaluate, config, ga, on_generation, jacobian)
     method = _gauss_newton if config.local == "gauss_newton" else _slsqp

@@ -82,3 +82,43 @@ def test_pieces_of_checks_what_a_problem_gives():
     )
     assert pieces_of(bad, 1, span) == {}
     assert pieces_of(jac, 0, span) == {}  # a row the problem does not have
+
+
+def diamond(X: np.ndarray) -> list[Evaluation]:
+    """r = (x - 1, y - 1) subject to |x - 0.3| + |y - 0.7| <= 0.01: a feasible set a GA of 10
+    designs does not hit in its first generations. The optimum by hand: the diamond's point
+    nearest (1, 1) in the RMS sense, on its edge x + y = 1.01 (x in [0.3, 0.31]): r = (x - 1,
+    0.01 - x), minimised at x = 0.505 outside the edge, so at its end (0.31, 0.7), f =
+    sqrt((0.69^2 + 0.3^2) / 2)."""
+    out = []
+    for x in np.atleast_2d(X):
+        r = x - 1.0
+        g = abs(x[0] - 0.3) + abs(x[1] - 0.7) - 0.01
+        metrics = {f"residual_{i + 1}": float(v) for i, v in enumerate(r)}
+        out.append(Evaluation(x.copy(), np.array([np.sqrt(np.mean(r**2))]), np.array([g]), metrics))
+    return out
+
+
+def diamond_jacobian(x: np.ndarray) -> DesignJacobian:
+    r = x - 1.0
+    f = np.sqrt(np.mean(r**2))
+    dg = np.array([[np.sign(x[0] - 0.3), np.sign(x[1] - 0.7)]])
+    return DesignJacobian(x, (r / (2 * f))[None, :], dg, np.eye(2))
+
+
+def test_with_exact_derivatives_the_ga_stage_ends_at_ga_n_gen_even_if_infeasible():
+    """With exact derivatives a restoring step costs one design, so the GA stage stops at
+    ga_n_gen whatever its best; without, it goes on until its best is feasible."""
+    cfg = HybridConfig(
+        GAConfig("ga", 10, 8, seed=3), ga_n_gen=2, local="gauss_newton", starts=1, max_iter=60
+    )
+    exact = run_hybrid(SPACE, diamond, 1, 1, cfg, jacobian=diamond_jacobian)
+    assert exact.report["ga"]["generations"] == 2
+    ga_best = exact.generations[1].best
+    assert not ga_best.feasible  # the GA stage ended infeasible ...
+    assert exact.best.feasible  # ... and the gradient stage restored it
+    # to the stop rule's 0.1 % (tolerance 1e-3)
+    np.testing.assert_allclose(exact.best.x, [0.31, 0.7], atol=1e-3)
+    assert exact.best.f[0] == pytest.approx(np.sqrt((0.69**2 + 0.3**2) / 2), rel=1e-3)
+    fd = run_hybrid(SPACE, diamond, 1, 1, cfg)
+    assert fd.report["ga"]["generations"] > 2 or fd.generations[1].best.feasible
