@@ -167,6 +167,12 @@ def one_run(
         "feasible": outcome.result.best.feasible,
         "reached": reached,
         "verdict": best["verdict"]["overall"],
+        # the rows a NOT MET verdict failed: name, value and bound (what decided it)
+        "not_met": [
+            f"{r.get('name') or r.get('quantity')} {r.get('value')} (bound {r.get('bound')})"
+            for r in best["verdict"]["requirements"]
+            if r.get("verdict") != "MET"
+        ],
         "opt_wall": record["optimise_wall_s"],
         "wall": wall,
         "setup": t_setup,
@@ -189,6 +195,8 @@ def line(r: dict) -> str:
         f"CPU {r['cpu']:5.1f} s\n      wall: setup {r['setup']:4.1f} s, GA {r['ga_wall']:5.1f} s, "
         f"gradient {r['gradient_wall']:5.1f} s, report and the rest {r['rest']:4.1f} s"
     )
+    if r["not_met"]:
+        text += "\n      not met: " + "; ".join(r["not_met"])
     h = r["hybrid"]
     if h:
         stops = "; ".join(f"{s['iterations']} it: {s['stop']}" for s in h["starts"])
