@@ -36,7 +36,6 @@ __all__ = [
     "TOE_CLEAR_MM",
     "PadStress",
     "beam_model",
-    "jacobian",
     "made_beam",
     "pad_stress",
     "root_stress_MPa",
@@ -124,14 +123,6 @@ def study_outline(problem: Any, design: Any) -> Any:
         g.end_flexures,
         g.pad_fillet_mm,
     )
-
-
-def jacobian(problem: Any, x: np.ndarray, beam: Any, drive: Any) -> Any:
-    """:func:`._constant_force_gradient.jacobian` (with fillets it differentiates Kt x root
-    stress too: :mod:`._constant_force_flare_map`)."""
-    from flexopt.pipeline.studies._constant_force_gradient import jacobian as exact
-
-    return exact(problem, x, beam, drive)
 
 
 def _end_stress(made: AsMadeBeam, stress: StaticsStress) -> list[np.ndarray]:
