@@ -26,13 +26,18 @@ Two gradient methods:
   error a trial showed), the bounds and ``|d|_inf <= radius`` (a small QP solved by SciPy's
   SLSQP), evaluates the step, accepts it when the objective falls and a feasible design stays
   feasible (from an infeasible design: when the violation falls), and sets the radius by the
-  ratio of the actual to the predicted decrease (of the violation while infeasible).
+  ratio of the actual to the predicted decrease (of the violation while infeasible). A
+  constraint row that is a max, given as pieces by the exact Jacobian (:func:`pieces_of`,
+  ``info["g_pieces"]``), is linearised piece by piece (one slack for the row), so a step sees
+  the max about to move to another piece.
 * **SLSQP** (``slsqp``, SciPy) on ``f[0]`` scaled by its start value, with the constraints and
   bounds, otherwise.
 
 The stop rule of a start: ``patience`` iterations in a row that lower its best objective by no
 more than ``tolerance`` times it (relative), or ``max_iter`` iterations, or the whole stage's
-``max_evaluations``. :attr:`HybridResult.report` says which stage found the best design, the
+``max_evaluations``; Gauss-Newton counts its accepted steps only (a rejected trial shrinks the
+radius, and rejections end a start only when the radius falls below 1e-6).
+:attr:`HybridResult.report` says which stage found the best design, the
 evaluations of each stage and why each start stopped.
 """
 
