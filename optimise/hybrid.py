@@ -26,13 +26,18 @@ Two gradient methods:
   error a trial showed), the bounds and ``|d|_inf <= radius`` (a small QP solved by SciPy's
   SLSQP), evaluates the step, accepts it when the objective falls and a feasible design stays
   feasible (from an infeasible design: when the violation falls), and sets the radius by the
-  ratio of the actual to the predicted decrease (of the violation while infeasible).
+  ratio of the actual to the predicted decrease (of the violation while infeasible). A
+  constraint row that is a max, given as pieces by the exact Jacobian (:func:`pieces_of`,
+  ``info["g_pieces"]``), is linearised piece by piece (one slack for the row), so a step sees
+  the max about to move to another piece.
 * **SLSQP** (``slsqp``, SciPy) on ``f[0]`` scaled by its start value, with the constraints and
   bounds, otherwise.
 
 The stop rule of a start: ``patience`` iterations in a row that lower its best objective by no
 more than ``tolerance`` times it (relative), or ``max_iter`` iterations, or the whole stage's
-``max_evaluations``. :attr:`HybridResult.report` says which stage found the best design, the
+``max_evaluations``; Gauss-Newton counts its accepted steps only (a rejected trial shrinks the
+radius, and rejections end a start only when the radius falls below 1e-6).
+:attr:`HybridResult.report` says which stage found the best design, the
 evaluations of each stage and why each start stopped.
 """
 
@@ -55,6 +60,7 @@ __all__ = [
     "GradientStep",
     "HybridConfig",
     "HybridResult",
+    "pieces_of",
     "residuals_of",
     "run_hybrid",
     "pick_starts",
@@ -75,8 +81,9 @@ class HybridConfig:
     Attributes
     ----------
     ga : the GA stage's settings; its ``n_gen`` is the stage's most generations.
-    ga_n_gen : the GA stage ends after this many generations once its best design is feasible
-        (else it goes on, to ``ga.n_gen`` at most); None: ``ga.n_gen``.
+    ga_n_gen : the GA stage ends after this many generations; without exact derivatives
+        (no ``jacobian`` given to :func:`run_hybrid`, or ``exact_jacobian`` False) only once its
+        best design is feasible (else it goes on, to ``ga.n_gen`` at most); None: ``ga.n_gen``.
     local : ``"gauss_newton"`` (needs residuals) or ``"slsqp"``.
     starts : distinct GA designs the gradient stage starts from, best first.
     min_distance : least max-norm distance of two starts in bound-normalised units.
@@ -159,6 +166,29 @@ def residuals_of(evaluation: Evaluation) -> np.ndarray | None:
     return r if np.all(np.isfinite(r)) else None
 
 
+def pieces_of(
+    jac: DesignJacobian, n_con: int, span: np.ndarray
+) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """The constraint rows a problem gives as pieces: ``jac.info["g_pieces"]`` maps a row
+    index c to ``{"values": (p,), "gradients": (p, n_var)}``, smooth functions of the design
+    whose max is row c (a peak stress: one piece per place and row of the path it may sit at).
+    Returned per row as (values (p,), gradients (p, n_var) times ``span``: per normalised unit);
+    rows whose pieces are missing, malformed or not finite are left out (the row's own
+    derivative serves)."""
+    out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    given = jac.info.get("g_pieces") if isinstance(jac.info, dict) else None
+    for c, piece in (given or {}).items():
+        try:
+            values = np.asarray(piece["values"], dtype=float).ravel()
+            grads = np.asarray(piece["gradients"], dtype=float)
+        except (KeyError, TypeError, ValueError):
+            continue
+        ok = 0 <= int(c) < n_con and len(values) and grads.shape == (len(values), len(span))
+        if ok and np.all(np.isfinite(values)) and np.all(np.isfinite(grads)):
+            out[int(c)] = (values, grads * span)
+    return out
+
+
 def pick_starts(
     space: DesignSpace, evaluations: Sequence[Evaluation], n: int, min_distance: float
 ) -> list[Evaluation]:
@@ -216,6 +246,8 @@ class _Stage:
         self.best = ga.best
         self.generations: list[Generation] = list(ga.generations)
         self.n = 0
+        #: the last exact Jacobian's constraint pieces (:func:`pieces_of`), in normalised units
+        self.pieces: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def x_of(self, u: np.ndarray) -> np.ndarray:
         """(n_var,) the design of normalised ``u``, inside the bounds."""
@@ -268,6 +300,7 @@ class _Stage:
                 return None
             J = np.asarray(jac.residuals, dtype=float) * self.span
         self.jacobians["exact"] += 1
+        self.pieces = pieces_of(jac, n_con, self.span)
         return J, np.asarray(jac.g, dtype=float) * self.span, np.asarray(jac.f[0]) * self.span
 
     def jacobian_designs(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -314,6 +347,38 @@ class StallRule:
         return None
 
 
+def _linear_rows(
+    g: np.ndarray, Jg: np.ndarray, pieces: dict[int, tuple[np.ndarray, np.ndarray]] | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The linearised constraints as rows: (k,) values, (k, n_var) gradients and (k,) the row
+    c each belongs to. A row given as pieces (:func:`pieces_of`) is one row per piece, shifted
+    so that their max is ``g[c]`` (the evaluation's value: the pieces are its terms), the others
+    one row each (``g``, ``Jg``)."""
+    values, grads, owner = [], [], []
+    for c in range(len(g)):
+        if pieces and c in pieces:
+            h, H = pieces[c]
+            values.append(h + (g[c] - float(np.max(h))))
+            grads.append(H)
+            owner.append(np.full(len(h), c))
+        else:
+            values.append(g[c : c + 1])
+            grads.append(Jg[c : c + 1])
+            owner.append(np.array([c]))
+    if not values:
+        return np.zeros(0), np.zeros((0, Jg.shape[1])), np.zeros(0, dtype=int)
+    return np.concatenate(values), np.vstack(grads), np.concatenate(owner)
+
+
+def _predicted(g: np.ndarray, Jg: np.ndarray, d: np.ndarray, pieces: dict | None) -> np.ndarray:
+    """(n_con,) each constraint row's value after the step ``d`` by its linearisation: the max
+    of its pieces' where it has pieces."""
+    values, grads, owner = _linear_rows(g, Jg, pieces)
+    out = np.full(len(g), -np.inf)
+    np.maximum.at(out, owner, values + grads @ d)
+    return out
+
+
 def _gauss_newton_step(
     r: np.ndarray,
     J: np.ndarray,
@@ -322,6 +387,7 @@ def _gauss_newton_step(
     lower: np.ndarray,
     upper: np.ndarray,
     backoff: np.ndarray,
+    pieces: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> np.ndarray:
     """(n_var,) the step d minimising ``||r + J d||**2`` subject to ``g + Jg d <= -backoff``
     (elastic: what cannot be met is paid for at :data:`ELASTIC_WEIGHT`) and ``lower <= d <=
@@ -329,13 +395,18 @@ def _gauss_newton_step(
 
     r (n_res,), J (n_res, n_var), g (n_con,), Jg (n_con, n_var), lower, upper (n_var,), backoff
     (n_con,) >= 0: how far inside each linearised constraint to aim (its linearisation error
-    as seen so far). An infeasible design's step aims at feasibility to first order. The
-    objective is scaled by ``||r||**2`` (SLSQP's tolerances are absolute).
+    as seen so far). ``pieces`` (:func:`pieces_of`): a row that is a max of smooth pieces is
+    held by each piece's linearisation (``h_k + H_k d <= -backoff_c``), one slack per row, so
+    the step sees a piece other than the active one rise (the peak stress moving from the clamp
+    to mid-beam) instead of stepping onto it blind. An infeasible design's step aims at
+    feasibility to first order. The objective is scaled by ``||r||**2`` (SLSQP's tolerances are
+    absolute).
     """
     from scipy.optimize import minimize
 
     n, m = len(lower), len(g)
     scale = max(float(r @ r), 1e-300)
+    values, grads, owner = _linear_rows(g, Jg, pieces)
 
     def objective(z: np.ndarray) -> float:
         e = r + J @ z[:n]
@@ -344,15 +415,24 @@ def _gauss_newton_step(
     def gradient(z: np.ndarray) -> np.ndarray:
         return np.concatenate([J.T @ (r + J @ z[:n]) / scale, np.full(m, ELASTIC_WEIGHT)])
 
-    # elastic: g + Jg d <= -backoff + s with slacks s >= 0 at a high price, so a step that
-    # cannot reach feasibility in the trust region still lowers the violation as far as it can
-    A = np.hstack([-Jg, np.eye(m)])
-    constraints = (
-        [{"type": "ineq", "fun": lambda z: -backoff - g + A @ z, "jac": lambda z: A}] if m else []
-    )
+    # elastic: h + H d <= -backoff + s with slacks s >= 0 (one per constraint row) at a high
+    # price, so a step that cannot reach feasibility in the trust region still lowers the
+    # violation as far as it can
+    slack = np.zeros((len(values), m))
+    slack[np.arange(len(values)), owner] = 1.0
+    A = np.hstack([-grads, slack])
+    # aim inside by the backoff, but never further in than the design already is: a feasible
+    # design's step need not move inwards (at a cost in the objective) to honour a backoff
+    # larger than its slack; d = 0 stays a feasible step
+    limit = -backoff - FEASIBILITY_MARGIN
+    limit = np.where(g <= 0.0, np.maximum(limit, g), limit)
+    aim = limit[owner] - values
+    start = np.zeros(m)
+    np.maximum.at(start, owner, np.maximum(-aim, 0.0))
+    constraints = [{"type": "ineq", "fun": lambda z: aim + A @ z, "jac": lambda z: A}] if m else []
     qp = minimize(
         objective,
-        np.concatenate([np.zeros(n), np.maximum(g + backoff, 0.0)]),
+        np.concatenate([np.zeros(n), start]),
         jac=gradient,
         bounds=[*zip(lower, upper, strict=True), *([(0.0, None)] * m)],
         constraints=constraints,
@@ -361,6 +441,12 @@ def _gauss_newton_step(
     )
     return np.clip(np.asarray(qp.x[:n], dtype=float), lower, upper)
 
+
+#: how far inside every linearised constraint row a step aims besides its backoff: SLSQP meets
+#: its constraints to ~1e-10, and a trial on a linear constraint's boundary by that much is
+#: infeasible by round-off (g > 0) and rejected (constraint rows are O(1): a stress ratio minus
+#: 1, a band fraction)
+FEASIBILITY_MARGIN = 1.0e-8
 
 #: the price of a unit of linearised constraint violation in the Gauss-Newton step, against the
 #: objective scaled to 1/2 at the current design: feasibility comes first
@@ -377,7 +463,15 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     (ratio of actual to predicted decrease > 1e-4); from an infeasible one when it lowers the
     violation (feasibility first). A constraint the trial violates that its linearisation said
     it would not sets that constraint's backoff to the error seen, so the next steps aim inside
-    by it; a trial inside halves it.
+    by it; a trial inside halves it. A constraint row given as pieces (an exact Jacobian's
+    ``g_pieces``) is linearised piece by piece (:func:`_gauss_newton_step`).
+
+    The stop rule (:class:`StallRule`) counts accepted steps only: a rejected trial says the
+    model was wrong over that radius, not that the design is stationary, so it shrinks the
+    radius (to half the step when the trial broke a constraint, whose backoff it has just
+    learnt; to a quarter when it raised the objective) and the next step is tried from the same
+    design with the same Jacobian. Rejections end a start only when the radius falls below
+    1e-6 (:data:`STATIONARY`), or at ``max_iter`` or the stage's budget.
     """
     config = stage.config
     u = stage.u_of(start.x)
@@ -389,13 +483,16 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     radius = 0.1
     backoff = np.zeros(n_con)
     J = Jg = None
+    pieces: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     frozen = np.zeros(len(u), dtype=bool)
     for iteration in range(1, config.max_iter + 1):
         exact = stage.exact(current, len(r), n_con) if J is None else None
         if exact is not None:  # the problem's derivatives: no perturbed designs
             J, Jg, _ = exact
+            pieces = stage.pieces
             frozen[:] = False
         if J is None:  # a Jacobian at every accepted point (a rejected step reuses it)
+            pieces = {}
             U, steps = stage.jacobian_designs(u)
             columns = stage.batch(U)
             J = np.zeros((len(r), len(u)))
@@ -410,7 +507,7 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
                 Jg[:, i] = (ev.g - current.g) / steps[i]
         lower = np.where(frozen, 0.0, np.maximum(-u, -radius))
         upper = np.where(frozen, 0.0, np.minimum(1.0 - u, radius))
-        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff)
+        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff, pieces)
         predicted = 0.5 * float(r @ r) - 0.5 * float((r + J @ d) @ (r + J @ d))
         size = float(np.max(np.abs(d))) if len(d) else 0.0
         if size < 1e-12 or (current.feasible and predicted <= 0.0):
@@ -423,9 +520,10 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
             continue
         (trial,) = stage.batch((u + d)[None, :])
         rt = residuals_of(trial)
+        linear = _predicted(current.g, Jg, d, pieces) if n_con else np.zeros(0)
         if rt is not None and n_con:
             missed = trial.g > 0.0
-            error = trial.g - (current.g + Jg @ d)
+            error = trial.g - linear
             # the last error seen where it mattered; halved where the trial kept inside, so a
             # wild step's error does not hold every later step back
             backoff = np.where(missed, np.maximum(error, 0.0), 0.5 * backoff)
@@ -433,7 +531,7 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
             actual = 0.5 * float(r @ r) - 0.5 * float(rt @ rt) if rt is not None else -np.inf
             ratio = actual / predicted if predicted > 0.0 else 0.0
         else:  # restoring: the radius follows how well the violation's model predicts it
-            model = float(np.sum(np.maximum(current.g + Jg @ d, 0.0)))
+            model = float(np.sum(np.maximum(linear, 0.0)))
             expected = current.violation - model
             ratio = (current.violation - trial.violation) / expected if expected > 0 else 0.0
         if current.feasible:
@@ -451,11 +549,13 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
                 rule.restart(float(current.f[0]))  # progress towards feasibility
                 continue
         else:
-            radius = 0.25 * size
-            if not current.feasible:  # still restoring: only the radius's collapse ends it
-                if radius < 1e-6:
-                    return iteration, STATIONARY
-                continue
+            # rejected: not counted by the stop rule; a broken constraint has just taught its
+            # backoff, so half the step is tried, an objective that rose a quarter of it
+            broke = rt is not None and not trial.feasible
+            radius = (0.5 if broke else 0.25) * size
+            if radius < 1e-6:
+                return iteration, STATIONARY
+            continue
         reason = rule.update(float(current.f[0]))
         if reason:
             return iteration, reason
@@ -558,9 +658,16 @@ def _ga_stage(
     config: HybridConfig,
     on_generation: Callable[[Generation], None] | None,
     initial: np.ndarray | None,
+    until_feasible: bool = True,
 ) -> GAResult:
-    """The GA for ``config.ga_n_gen`` generations, or more until its best is feasible (a
-    gradient method from an infeasible GA design mostly spends itself restoring feasibility).
+    """The GA for ``config.ga_n_gen`` generations; with ``until_feasible`` more until its best
+    is feasible. Why the two: with forward differences (23 designs a Jacobian on the
+    constant-force study) a gradient method from an infeasible GA design mostly spends itself
+    restoring feasibility; with exact derivatives a restoring step costs one design, and the GA
+    generations it saves are the larger cost (constant-force with 0.5 mm pad fillets, seed 1: the
+    GA's first feasible best came at generation 9, 360 designs, seed 4 at 16, 640 designs; from
+    generation 5's infeasible best Gauss-Newton restored and ended lower in 278 designs,
+    docs/benchmarks.md).
 
     Stopped from its generation callback: pymoo draws the same populations whatever its
     ``n_gen``, so the stage is the first generations of the GA of ``config.ga`` (and a resume
@@ -571,8 +678,9 @@ def _ga_stage(
         generations.append(gen)
         if on_generation is not None:
             on_generation(gen)
-        if config.ga_n_gen is not None and gen.index + 1 >= config.ga_n_gen and gen.best.feasible:
-            raise _GADone
+        if config.ga_n_gen is not None and gen.index + 1 >= config.ga_n_gen:
+            if gen.best.feasible or not until_feasible:
+                raise _GADone
 
     try:
         return run_ga(space, evaluate, n_obj, n_con, config.ga, done, initial)
@@ -603,7 +711,8 @@ def run_hybrid(
     """
     if n_obj != 1:
         raise OptimiseError(f"the hybrid optimiser needs one objective, got {n_obj}")
-    ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial)
+    exact = jacobian is not None and config.exact_jacobian
+    ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial, not exact)
     n_ga = ga.generations[-1].n_evaluations if ga.generations else 0
     stage = _Stage(space, evaluate, config, ga, on_generation, jacobian)
     method = _gauss_newton if config.local == "gauss_newton" else _slsqp

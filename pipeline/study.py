@@ -178,8 +178,8 @@ class HybridSpec(BaseModel):
         5,
         ge=1,
         le=100000,
-        description="GA generations before the gradient stage, more until the GA's best is "
-        "feasible (n_gen at most; null: n_gen)",
+        description="GA generations before the gradient stage (without exact derivatives "
+        "more until the GA's best is feasible, n_gen at most; null: n_gen)",
     )
     local: Literal["auto", "gauss_newton", "slsqp"] = Field(
         "auto",

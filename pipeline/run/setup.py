@@ -116,7 +116,8 @@ def _hybrid_setup(
     n_gen: int,
 ) -> RunSetup:
     """The run of ``optimiser.method: hybrid``: its GA stage (``hybrid.ga_n_gen`` generations,
-    more until its best is feasible, ``n_gen`` at most; ``quick_n_gen`` under ``--quick``) and
+    without exact derivatives more until its best is feasible, ``n_gen`` at most;
+    ``quick_n_gen`` under ``--quick``) and
     its gradient stage; Gauss-Newton on the problem's
     :meth:`~optimise.problem.DesignProblem.with_residuals`."""
     options = spec.hybrid or HybridSpec()

@@ -41,7 +41,6 @@ __all__ = [
     "TOE_CLEAR_MM",
     "PadStress",
     "beam_model",
-    "jacobian",
     "made_beam",
     "pad_stress",
     "root_stress_MPa",
@@ -165,17 +164,6 @@ def study_outline(problem: Any, design: Any) -> Any:
         g.pad_fillet_mm,
         KINK_BLEND_MM,
     )
-
-
-def jacobian(problem: Any, x: np.ndarray, beam: Any, drive: Any) -> Any:
-    """:func:`._constant_force_gradient.jacobian`, or None with a fillet: the exact derivatives
-    do not differentiate the fillets' Kt x root stress (the run refuses ``method: hybrid`` with
-    a fillet; a report's sensitivities fall back to differences)."""
-    if problem.study.geometry.pad_fillet_mm > 0:
-        return None
-    from flexopt.pipeline.studies._constant_force_gradient import jacobian as exact
-
-    return exact(problem, x, beam, drive)
 
 
 def _end_stress(made: AsMadeBeam, stress: StaticsStress) -> list[np.ndarray]:

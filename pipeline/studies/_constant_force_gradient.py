@@ -52,7 +52,7 @@ from flexopt.fea.beam import BeamModel, EndDrive
 from flexopt.fea.beam_sensitivity import KS_RHO_YIELD, beam_sensitivities, ks_aggregate
 from flexopt.fea.beam_statics import with_statics_stress
 from flexopt.fea.errors import FeaError
-from flexopt.geometry.constant_force import design_from_vector
+from flexopt.geometry.constant_force import DESIGN_VARIABLE_NAMES, design_from_vector
 from flexopt.geometry.constant_force_map import profile_derivatives
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.curve_objectives import (
@@ -62,6 +62,8 @@ from flexopt.optimise.curve_objectives import (
     force_band_ratio,
 )
 from flexopt.optimise.design_jacobian import DesignJacobian
+from flexopt.pipeline.studies import _constant_force_fillet as pads
+from flexopt.pipeline.studies._constant_force_flare_map import flare_derivatives
 
 __all__ = ["interpolation_matrix", "jacobian", "study_sensitivities"]
 
@@ -107,18 +109,32 @@ def study_sensitivities(
     t0 = time.perf_counter()
     study = problem.study
     x = np.asarray(x, dtype=float)
+    fillet = study.geometry.pad_fillet_mm > 0
     try:
         design = design_from_vector(x)
         model = beam(design)
         path = drive(study.boundary.stroke_mm, study.boundary.rows)
-        # the study's stress is from statics (fea/beam_statics.py): so are the rows picked here
-        response = with_statics_stress(model, model.solve(path), np.asarray(path.direction))
+        solved_path = model.solve(path)
+        # the study's stress: from statics (fea/beam_statics.py), with fillets the larger of it
+        # and Kt x the stress over each flare; the rows are picked by it
+        if fillet:
+            response = pads.with_root_stress(problem, design, model, solved_path)
+        else:
+            response = with_statics_stress(model, solved_path, np.asarray(path.direction))
     except (GeometryError, FeaError):
         return None
     if not response.ok:
         return None
-    maps = profile_derivatives(problem.frame, study.geometry.end_flexures)
-    moving = maps.moving  # a1..a10: one directional derivative each
+    if fillet:
+        flare = flare_derivatives(problem, x)
+        if flare is None:
+            return None
+        d_points, d_thick, d_width = flare.points, flare.thickness, flare.width
+    else:
+        flare = None
+        maps = profile_derivatives(problem.frame, study.geometry.end_flexures)
+        d_points, d_thick, d_width = maps.points, maps.thickness, maps.width
+    moving = np.flatnonzero(np.any(d_points != 0.0, axis=(1, 2)))  # one directional derivative each
     rho = KS_RHO_YIELD / problem.material.yield_MPa if ks_rho_per_MPa is None else ks_rho_per_MPa
     stroke = np.asarray(response.displacement_mm, dtype=float)  # prescribed: design-independent
     t = study.target
@@ -126,9 +142,10 @@ def study_sensitivities(
     W = interpolation_matrix(stroke, probes)
     rows = np.union1d(np.flatnonzero(np.any(W != 0.0, axis=0)), _stress_rows(response, rho))
     worst = _band_row(study, response) if band else None
-    # the band's worst row is differentiated besides; the KS stays over ``rows`` (the same KS
-    # with or without the band row)
-    solved = rows if worst is None else np.union1d(rows, [worst])
+    near = _band_near_rows(study, response) if band else np.zeros(0, dtype=int)
+    # the band's worst row and those near it are differentiated besides; the KS stays over
+    # ``rows`` (the same KS with or without the band row)
+    solved = rows if worst is None else np.union1d(np.union1d(rows, [worst]), near)
     sens = None
     # the semi-analytic vertex moves need the mesh (elements per segment, rounded from the
     # lengths) to stay the same over +-2 steps: a design that close to a switch of the rounding
@@ -142,8 +159,8 @@ def study_sensitivities(
                 ("thickness", "width", "moves"),
                 ks_rho_per_MPa=rho,
                 coordinate_step_mm=scale * model.profile.length_mm,
-                vertex_moves=maps.points[moving],
-                move_names=tuple(maps.names[k] for k in moving),
+                vertex_moves=d_points[moving],
+                move_names=tuple(DESIGN_VARIABLE_NAMES[k] for k in moving),
                 rows=solved,
                 stress="statics",
             )
@@ -152,11 +169,12 @@ def study_sensitivities(
             continue
     if sens is None:
         return None
-    # chain: d/dx = d/dt (n_rows, 12) @ dt/dx (12, 23) + d/db dB/dx + d/dmove (one per a_j)
+    # chain: d/dx = d/dt (n_rows, n_pts) @ dt/dx (n_pts, 23) + d/db dB/dx + d/dmove (one per
+    # moving variable)
     n_pts = model.profile.n_points
     chain = np.zeros((len(sens.variables), len(x)))
-    chain[:n_pts] = maps.thickness.T
-    chain[n_pts] = maps.width
+    chain[:n_pts] = d_thick.T
+    chain[n_pts] = d_width
     chain[n_pts + 1 + np.arange(len(moving)), moving] = 1.0
 
     def by_x(key: str) -> np.ndarray:
@@ -168,26 +186,34 @@ def study_sensitivities(
     dr = used @ d_force[rows]
     rms = float(np.sqrt(np.mean(r**2)))
     d_rms = r @ dr / (len(r) * rms) if rms > 0 else np.zeros(len(x))
-    ks_rows, d_ks_rows = sens.values["ks_stress_MPa"][rows], by_x("ks_stress_MPa")[rows]
-    ks, w = ks_aggregate(ks_rows, rho)  # KS of the rows' KS = KS of every value (same rho)
-    # the max's derivative: the active (row, point, fibre, sign) of the signed fibre stresses
-    fibre = np.where(np.isnan(sens.fibre_stress_MPa), 0.0, sens.fibre_stress_MPa)
-    row, samp, side = np.unravel_index(int(np.argmax(np.abs(fibre))), fibre.shape)
-    sign = np.sign(fibre[row, samp, side])
-    d_peak = sign * sens.d_fibre_stress[row, samp, side] @ chain
+    # the study's signed fibre values (rows, points, 2) and their derivatives by x: with
+    # fillets, Kt x the beam's over each flare (the larger, so the peak is the study's)
+    fibre, d_fibre = _judged_fibres(sens, chain, rows, flare, model.profile.length_mm)
+    signed = np.concatenate([fibre, -fibre], axis=2)  # (k, S, 4): +-(a + c), +-(a - c)
+    d_signed = np.concatenate([d_fibre, -d_fibre], axis=2)  # (k, S, 4, 23)
+    ks, w = ks_aggregate(signed.ravel(), rho)
+    d_ks = w @ d_signed.reshape(-1, len(x))
+    # the max's derivative: the active (row, point, fibre, sign) of the signed fibre values
+    active = int(np.argmax(signed))
+    row_k, samp, side = np.unravel_index(active, signed.shape)
+    d_peak = d_signed[row_k, samp, side]
     extra: dict[str, Any] = {}
     if worst is not None:
-        extra = _band_sensitivity(study, response, worst, force, d_force, rms, d_rms)
+        extra = _band_sensitivity(study, response, worst, force, d_force, rms, d_rms, near)
+    pieces = _stress_pieces(signed, d_signed, sens.stress_s_mm, rows)
     return {
         "residuals_N": r,
         "d_residuals": dr,
         "rms_error_N": rms,
         "d_rms": d_rms,
         "ks_stress_MPa": float(ks),
-        "d_ks": w @ d_ks_rows,
-        "peak_stress_MPa": float(np.abs(fibre[row, samp, side])),
+        "d_ks": d_ks,
+        "peak_stress_MPa": float(signed.max()),
         "d_peak": d_peak,
-        "peak_row": int(row),
+        "peak_row": int(rows[row_k]),
+        "stress_pieces_MPa": pieces[0],
+        "d_stress_pieces": pieces[1],
+        "stress_pieces_where": pieces[2],
         "force_N": force,
         "d_force": d_force,
         "rho": float(rho),
@@ -196,6 +222,67 @@ def study_sensitivities(
         "time_s": time.perf_counter() - t0,
         **extra,
     }
+
+
+def _judged_fibres(
+    sens: Any, chain: np.ndarray, rows: np.ndarray, flare: Any, length_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The signed fibre stresses the study judges at ``rows`` (k,): (k, S, 2) MPa and their
+    derivatives by the 23 variables (k, S, 2, 23) MPa per unit. Without fillets (``flare``
+    None) the beam's (statics); with them each flare's sampling points (``s <= root_mm`` from
+    S1, ``s >= L - root_mm`` from S6, as :func:`._constant_force_fillet.root_stress_MPa` takes
+    them) carry Kt x the beam's, ``d(Kt sigma) = sigma dKt + Kt d sigma`` (the larger of the
+    two, since Kt >= 1 and the signs agree)."""
+    fibre = sens.fibre_stress_MPa[rows]
+    d_fibre = sens.d_fibre_stress[rows] @ chain
+    if flare is None:
+        return fibre, d_fibre
+    s = np.asarray(sens.stress_s_mm, dtype=float)
+    factor = np.ones(len(s))
+    d_factor = np.zeros((len(s), chain.shape[1]))
+    # 1e-9 mm: the toe is a node (a sampling point) of the flared beam
+    for near, e in (
+        (s <= flare.root_mm[0] + 1e-9, 0),
+        (s >= length_mm - flare.root_mm[1] - 1e-9, 1),
+    ):
+        if flare.root_mm[e] > 0:
+            factor[near] = flare.kt[e]
+            d_factor[near] = flare.d_kt[e]
+    d_out = d_fibre * factor[None, :, None, None] + fibre[..., None] * d_factor[None, :, None, :]
+    return fibre * factor[None, :, None], d_out
+
+
+#: the stress pieces handed to the gradient stage: (row, element) maxima within this fraction of
+#: the path's peak below it, at most :data:`MAX_PIECES` of them (the highest)
+PIECE_WINDOW = 0.1
+MAX_PIECES = 48
+
+
+def _stress_pieces(
+    signed: np.ndarray, d_signed: np.ndarray, s_mm: np.ndarray, rows: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The peak stress as pieces for an active-set step (:mod:`optimise.hybrid`): the path's
+    peak is the max of them, and each is a smooth function of the design. Why: the peak switches
+    between the clamp and mid-beam, and one linearised row (the active point's, or the KS's
+    blend) cannot see the other place rise. A piece is one (row, element): the largest of its
+    3 points x 4 signed fibre values (k rows, S = 3 E points); kept where within
+    :data:`PIECE_WINDOW` of the peak (relative), at most :data:`MAX_PIECES`, highest first.
+
+    Returns (p,) values MPa, (p, 23) derivatives MPa per unit, (p, 2) (row, arc length mm)."""
+    k, n_s = signed.shape[:2]
+    per_el = signed.reshape(k, n_s // 3, 12)  # (rows, elements, 3 points x 4 values)
+    best = np.argmax(per_el, axis=2)  # (rows, elements)
+    value = np.take_along_axis(per_el, best[..., None], axis=2)[..., 0]
+    peak = float(value.max())
+    cand = np.flatnonzero(value.ravel() >= peak - PIECE_WINDOW * abs(peak))
+    cand = cand[np.argsort(-value.ravel()[cand], kind="stable")][:MAX_PIECES]
+    row_i, el = np.unravel_index(cand, value.shape)
+    flat = best[row_i, el]  # index into the element's 12
+    point = 3 * el + flat // 4
+    value_idx = flat % 4
+    d = d_signed.reshape(k, n_s, 4, -1)[row_i, point, value_idx]
+    where = np.column_stack([rows[row_i], s_mm[point]])
+    return value.ravel()[cand], d, where
 
 
 def _band_row(study: Any, response: Any) -> int:
@@ -210,6 +297,29 @@ def _band_row(study: Any, response: Any) -> int:
     return int(judged[np.argmax(np.abs(f[judged] - study.target.force_N))])
 
 
+#: the band row's pieces: the judged rows whose |F - target| is within this fraction of the
+#: allowance below the worst row's, at most :data:`MAX_BAND_PIECES` of them (the worst first)
+BAND_WINDOW = 0.5
+MAX_BAND_PIECES = 24
+
+
+def _band_near_rows(study: Any, response: Any) -> np.ndarray:
+    """(p,) int: the judged rows whose ``|F - target|`` is within :data:`BAND_WINDOW` x the
+    held share of the band below the worst row's, the worst first, at most
+    :data:`MAX_BAND_PIECES` (the band row's pieces: the worst row switches as the design moves,
+    and the gradient stage is to see the next one coming)."""
+    t = study.target
+    s = np.asarray(response.displacement_mm, dtype=float)
+    f = np.asarray(response.force_N, dtype=float)
+    first_mm = study.boundary.stroke_mm / study.boundary.rows
+    judged = np.flatnonzero(s >= first_mm - 1e-9 * max(1.0, abs(first_mm)))
+    error = np.abs(f[judged] - t.force_N)
+    held = BAND_SHARE * t.tolerance_percent / 100.0 * abs(t.force_N)
+    order = np.argsort(-error, kind="stable")
+    keep = order[error[order] >= error.max() - BAND_WINDOW * held][:MAX_BAND_PIECES]
+    return judged[keep]
+
+
 def _band_sensitivity(
     study: Any,
     response: Any,
@@ -218,11 +328,14 @@ def _band_sensitivity(
     d_force: np.ndarray,
     rms: float,
     d_rms: np.ndarray,
+    near: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The band row's value and its derivative (23,) at the active pieces: the worst judged row
     ``k`` (``force`` (rows,) N and ``d_force`` (rows, 23) N per unit of the polished rows) and
     the larger allowance (the held share of the band, fixed, or ``BAND_REACH`` x the RMS error
-    ``rms`` N with derivative ``d_rms`` (23,))."""
+    ``rms`` N with derivative ``d_rms`` (23,)). With ``near`` (p,) rows: the row as pieces too,
+    one per row, ``(|F_j - target| - allowance) / target`` and its derivative (the active
+    allowance's), "band_pieces" (p,) and "d_band_pieces" (p, 23)."""
     t = study.target
     target = abs(t.force_N)
     tol = t.tolerance_percent / 100.0
@@ -238,7 +351,17 @@ def _band_sensitivity(
         study.boundary.stroke_mm / study.boundary.rows,
         rms_error_N=rms,
     )
+    extra: dict[str, Any] = {}
+    if near is not None and len(near):
+        sign = np.sign(force[near] - t.force_N)
+        allowed = max(BAND_SHARE * tol * target, BAND_REACH * rms)
+        d_allowed = BAND_REACH * d_rms if reach_active else np.zeros_like(d_rms)
+        extra = {
+            "band_pieces": (np.abs(force[near] - t.force_N) - allowed) / target,
+            "d_band_pieces": (sign[:, None] * d_force[near] - d_allowed[None, :]) / target,
+        }
     return {
+        **extra,
         "band_excess": float(value),
         "d_band": d_band / target,
         "band_row": int(k),
@@ -295,12 +418,21 @@ def jacobian(
     counts = out["sensitivity"].counts
     g = [scale * out["d_ks"]]
     g_values = [out["peak_stress_MPa"] * scale - 1.0]
+    # the stress row as pieces (its max): an active-set step sees where the peak may move
+    pieces = {
+        0: {
+            "values": scale * out["stress_pieces_MPa"] - 1.0,
+            "gradients": scale * out["d_stress_pieces"],
+        }
+    }
     band_info: dict[str, Any] = {}
     if band:
         if not np.all(np.isfinite(out["d_band"])):  # the worst row not differentiated
             return None
         g.append(out["d_band"])
         g_values.append(out["band_excess"])
+        if "band_pieces" in out and np.all(np.isfinite(out["d_band_pieces"])):
+            pieces[1] = {"values": out["band_pieces"], "gradients": out["d_band_pieces"]}
         band_info = {"band_row": out["band_row"], "band_reach_active": out["band_reach_active"]}
     return DesignJacobian(
         x=np.asarray(x, dtype=float).copy(),
@@ -320,6 +452,7 @@ def jacobian(
             "peak_stress_gradient": scale * out["d_peak"],
             "time_s": out["time_s"],
             "back_substitutions": counts.get("back_substitutions", 0),
+            "g_pieces": pieces,
             **band_info,
         },
     )

@@ -396,12 +396,6 @@ def check(study: ConstantForceStudy) -> None:
             f"{study.geometry.pad_thickness_mm:g} mm is thinner than the beam ends may be "
             f"(T1/T6 up to {upper_t.max():g} mm); make the pads at least that thick",
         )
-    if study.geometry.pad_fillet_mm > 0 and study.optimiser.method == "hybrid":
-        raise StudyError(
-            "geometry.pad_fillet_mm",
-            "method: hybrid differentiates the beam without the fillets' Kt x root stress; "
-            "use method: ga with a pad fillet, or pad_fillet_mm: 0",
-        )
     if study.target.min_operative_stroke_mm > study.boundary.stroke_mm:
         raise StudyError(
             "target.min_operative_stroke_mm",

@@ -181,7 +181,7 @@ class ConstantForceProblem(DesignProblem):
     def jacobian(self, x: np.ndarray) -> Any:
         """Exact derivatives at ``x`` (23,): :mod:`._constant_force_gradient` (imported here:
         ~0.1 s that a run without a gradient stage or report does not pay at start-up)."""
-        from flexopt.pipeline.studies._constant_force_fillet import jacobian  # None with a fillet
+        from flexopt.pipeline.studies._constant_force_gradient import jacobian  # fillets too
 
         return jacobian(self, x, self._beam, self._drive)
 

@@ -164,17 +164,16 @@ def test_toe_on_a_design_point_is_refused_with_one_line():
     assert not prob.evaluate(x).feasible
 
 
-def test_hybrid_with_a_fillet_is_refused_and_its_jacobian_is_none():
+def test_hybrid_with_a_fillet_is_taken_and_differentiates_kt_x_root():
+    """Since the exact Jacobian differentiates Kt x root (tests/pipeline/
+    test_constant_force_fillet_gradient.py), method: hybrid takes a fillet."""
     study = _study(pad_fillet_mm=0.5)
     hybrid = study.model_copy(
         update={"optimiser": study.optimiser.model_copy(update={"method": "hybrid"})}
     )
-    with pytest.raises(StudyError, match="pad_fillet_mm") as err:
-        cf.check(hybrid)
-    assert "\n" not in str(err.value)
-    cf.check(study)  # the GA takes it
+    cf.check(hybrid)
     prob = cf.problem(study)
-    assert prob.jacobian(prob.nominal_design()) is None
+    assert prob.jacobian(prob.nominal_design()) is not None
 
 
 @pytest.mark.parametrize("bad", [-0.1, 10.5, float("nan")])

@@ -1,0 +1,171 @@
+"""The constant-force study's exact derivatives with pad fillets (``geometry.pad_fillet_mm > 0``):
+Kt x root stress differentiated (pipeline/studies/_constant_force_flare_map.py and
+_constant_force_gradient.py).
+
+Each link against a reference computed here:
+
+* the Roark / Peterson fit's partials (``shoulder_kt_partials``) against central differences of
+  :func:`geometry.mechanism.shoulder_kt`, on both branches of the fit and where h is capped;
+* the flared profile's derivatives against the closed form of a point at fixed arc length
+  ``sigma`` from S1 on the segment S1 -> p1 (its position ``S1 + sigma u``, ``u`` the segment's
+  unit vector; its thickness ``T1 + (t1 - T1) sigma / L + flare(sigma)``);
+* the whole chain (the study's Eq. 8 residuals and its stress constraint, where Kt x root is the
+  peak) against fourth-order central differences of the study's own ``evaluate``. Tolerance:
+  the flared beam's solve is noisier than the sharp one (the fillet's first chord is 0.017 mm
+  long at r = 0.5 mm; differences of the solved force scatter by ~1e-8 N against ~1e-10 N on
+  the sharp beam at the same rtol), so these hold 1e-4 (measured 2e-5 and below at the steps
+  here); each link above holds 1e-7.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from flexopt.fea.beam import BeamModel
+from flexopt.geometry.constant_force import (
+    DESIGN_VARIABLE_NAMES,
+    centreline_points,
+    design_from_vector,
+)
+from flexopt.geometry.constant_force_map import profile_derivatives
+from flexopt.geometry.mechanism import shoulder_kt
+from flexopt.pipeline.studies import _constant_force_gradient as gradient
+from flexopt.pipeline.studies._constant_force_flare_map import (
+    flare_derivatives,
+    shoulder_kt_partials,
+)
+from flexopt.pipeline.studies.constant_force import ConstantForceProblem
+from flexopt.pipeline.study import load_study
+
+ROOT = Path(__file__).resolve().parents[2]
+NAMES = DESIGN_VARIABLE_NAMES
+
+
+class TightProblem(ConstantForceProblem):
+    """The example's problem, its beam solved to rtol = 1e-11 (everything else the study's)."""
+
+    def _beam(self, design):
+        model = super()._beam(design)
+        return BeamModel(
+            model.profile, model.material, "clamped", replace(model.settings, rtol=1e-11)
+        )
+
+
+def _problem(**geometry):
+    study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
+    # min_feature_mm lowered: the example's t4 sits on it, and the differences either side are
+    # to be solved, not refused as unprintable
+    geometry = study.geometry.model_copy(update={"min_feature_mm": 0.5, **geometry})
+    return TightProblem(study.model_copy(update={"geometry": geometry}))
+
+
+@pytest.mark.parametrize(
+    ("wide", "narrow", "radius"),
+    [
+        (4.0, 1.0, 0.5),  # h / r = 3: the upper branch (the study's pads)
+        (4.0, 0.9, 1.0),  # h / r = 1.55: the lower branch
+        (5.0, 1.2, 0.1),  # h / r = 19
+        (40.0, 1.0, 0.1),  # h capped at 20 r
+    ],
+)
+def test_shoulder_kt_partials_match_central_differences(wide, narrow, radius):
+    kt, d_narrow, d_radius = shoulder_kt_partials(wide, narrow, radius)
+    assert kt == pytest.approx(shoulder_kt(wide, narrow, radius), rel=1e-12)
+    h = 1e-6
+    fd_n = (shoulder_kt(wide, narrow + h, radius) - shoulder_kt(wide, narrow - h, radius)) / (2 * h)
+    fd_r = (shoulder_kt(wide, narrow, radius + h) - shoulder_kt(wide, narrow, radius - h)) / (2 * h)
+    scale = max(abs(fd_n), abs(fd_r))
+    assert abs(d_narrow - fd_n) <= 1e-7 * scale
+    assert abs(d_radius - fd_r) <= 1e-7 * scale
+    assert scale > 0.01  # a slope there to check
+
+
+def test_flared_profile_derivatives_match_the_closed_form_on_the_first_segment():
+    prob = _problem(pad_fillet_mm=0.5)
+    x = prob.nominal_design()
+    flare = flare_derivatives(prob, x)
+    assert flare is not None
+    design = design_from_vector(x)
+    g = prob.study.geometry
+    made = prob._beam(design).profile
+    pts = centreline_points(design, prob.frame, g.end_flexures)
+    seg = pts[1] - pts[0]
+    length = float(np.linalg.norm(seg))
+    u = seg / length
+    dp1 = profile_derivatives(prob.frame, g.end_flexures).points[NAMES.index("a1"), 1]
+    sigma = np.linalg.norm(made.points_mm - pts[0], axis=1)
+    inside = np.flatnonzero((sigma > 1e-9) & (sigma < 0.5 - 1e-9))  # the arc points
+    assert len(inside) >= 4
+    a1, t1, T1 = NAMES.index("a1"), NAMES.index("t1"), NAMES.index("T1")
+    for k in inside:
+        s = sigma[k]
+        expected = s * (dp1 - u * (u @ dp1)) / length  # d(S1 + s u)/d a1
+        np.testing.assert_allclose(flare.points[a1, k], expected, atol=1e-7 * np.abs(dp1).max())
+        assert flare.thickness[T1, k] == pytest.approx(1.0 - s / length, abs=1e-7)
+        assert flare.thickness[t1, k] == pytest.approx(s / length, abs=1e-7)
+        d_len = u @ dp1
+        d_t = -(design.t[0] - design.T1) * s / length**2 * d_len
+        assert flare.thickness[a1, k] == pytest.approx(d_t, abs=1e-7)
+    # Kt: r = 0.5 mm (below the 1.5 mm shoulder), so only T1 / T6 move it
+    kt, d_narrow, _ = shoulder_kt_partials(g.pad_thickness_mm, design.T1, 0.5)
+    assert flare.kt[0] == pytest.approx(kt, rel=1e-12)
+    assert flare.d_kt[0, T1] == pytest.approx(d_narrow, rel=1e-12)
+    assert np.count_nonzero(flare.d_kt[0]) == 1
+    np.testing.assert_array_equal(flare.root_mm, [0.5, 0.5])
+
+
+def _fd(fun, h):
+    return (8.0 * (fun(h) - fun(-h)) - (fun(2 * h) - fun(-2 * h))) / (12.0 * h)
+
+
+def _check(prob, out, columns, respond, exact_of, tol, step=1e-2):
+    """Fourth-order central differences of ``respond`` at ``step`` (relative; a_j: absolute)
+    against ``exact_of(out, k)`` for each variable k in ``columns``."""
+    x = prob.nominal_design()
+    for k in columns:
+        h = step * (1.0 if k < 10 else x[k])
+        e = np.eye(len(x))[k]
+        fd = _fd(lambda step, e=e: respond(x + step * e), h)
+        exact = exact_of(out, k)
+        assert np.max(np.abs(exact - fd)) <= tol * np.max(np.abs(fd)), (NAMES[k], exact, fd)
+
+
+def test_the_residuals_with_half_mm_fillets_match_differences_of_evaluate():
+    prob = _problem(pad_fillet_mm=0.5).with_residuals()
+    out = gradient.study_sensitivities(prob, prob.nominal_design(), prob._beam, prob._drive)
+
+    def residuals(x):
+        metrics = prob.evaluate(x).metrics
+        return np.array([metrics[f"residual_{i + 1}"] for i in range(10)])
+
+    columns = [NAMES.index(n) for n in ("a1", "t1", "T1", "t6", "a10", "T6")]
+    _check(prob, out, columns, residuals, lambda o, k: o["d_residuals"][:, k], 1e-4)
+
+
+def test_kt_x_root_as_the_peak_matches_differences_of_the_stress_constraint():
+    """r = 0.1 mm on 5 mm pads: Kt x root is the peak (tests/pipeline/
+    test_constant_force_pad_fillet_key.py), so the stress row's derivative (the active piece's)
+    carries dKt/dT and Kt x the flare's stress derivative. The steps stay where the max is
+    smooth: S6's flare reads 40.71 MPa, the next place (mid-beam, 8.7 mm) 40.43 MPa, and
+    T6 + 1 % would pass it (dpeak/dT6 = -48.5 MPa/mm), so 5e-4 relative."""
+    prob = _problem(pad_fillet_mm=0.1, pad_thickness_mm=5.0)
+    x = prob.nominal_design()
+    out = gradient.study_sensitivities(prob, x, prob._beam, prob._drive)
+    s = out["stress_pieces_where"][0, 1]
+    length = prob._beam(design_from_vector(x)).profile.length_mm
+    assert min(s, length - s) <= 0.1 + 1e-9  # the peak piece is on a flare
+    assert out["peak_stress_MPa"] == pytest.approx(out["stress_pieces_MPa"][0], rel=1e-12)
+    scale = prob.study.fidelity.beam_stress_factor / prob.allowable_MPa
+    columns = [NAMES.index(n) for n in ("T1", "T6", "t1", "t10", "a1", "a10", "t5")]
+    _check(
+        prob,
+        out,
+        columns,
+        lambda xx: prob.evaluate(xx).g[:1] / scale,
+        lambda o, k: o["d_peak"][k : k + 1],
+        1e-4,
+        step=5e-4,
+    )
