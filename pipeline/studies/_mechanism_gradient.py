@@ -49,7 +49,6 @@ from flexopt.fea.mechanism_sensitivity import MechanismSensitivity, mechanism_se
 from flexopt.geometry.errors import GeometryError
 from flexopt.geometry.mechanism import BeamShape, BodyShape, as_made_beams, attachments
 from flexopt.optimise.design_jacobian import DesignJacobian
-from flexopt.pipeline.fork import limit_loaded_pools
 from flexopt.pipeline.studies._mechanism_schema import (
     MechanismGeometry,
     build_load_case,
@@ -185,19 +184,7 @@ def mechanism_jacobian(problem: Any, x: np.ndarray, extend: Any = None) -> Desig
     ``g`` (n_con, n_var), each row in its own unit per unit of the variable; None where the
     design or the study is not differentiated (module docstring). ``extend`` (Evaluation ->
     Evaluation): a wrapper's extra rows of the metrics (pipeline.verdict.RequirementConstraints),
-    differentiated with the rest.
-
-    Computed with one BLAS thread, as the run's workers solve every design: the hybrid calls it
-    in the run's own process, whose pools are sized by the machine's cores, and the last digits
-    of a factorisation with two threads differ from one thread's; SLSQP's path follows them (a
-    gripper-amplifier run took 147 designs with the process's default threads, 142 with
-    OMP_NUM_THREADS=1). One thread makes a run's designs the same on any machine, and these
-    small solves do not gain from a second thread (pipeline.fork.limit_loaded_pools)."""
-    with limit_loaded_pools():
-        return _jacobian(problem, x, extend)
-
-
-def _jacobian(problem: Any, x: np.ndarray, extend: Any) -> DesignJacobian | None:
+    differentiated with the rest."""
     t0 = time.process_time()
     x = np.asarray(x, dtype=float)
     if problem.variables is None or x.size == 0:
