@@ -28,9 +28,10 @@ from flexopt.geometry.mechanism import (
 from flexopt.optimise.names import check_name
 from flexopt.optimise.requirements import RequirementSpec, unit_of
 from flexopt.optimise.variables import VariableSpec
+from flexopt.pipeline.studies._mechanism_optimiser import default_method
 from flexopt.pipeline.studies._stops import StopsSpec
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
 
 __all__ = [
     "BeamSpec",
@@ -420,7 +421,9 @@ class MechanismStudy(Study):
     optimiser: OptimiserSpec = Field(
         default_factory=lambda: OptimiserSpec(pop_size=24, n_gen=15, quick_pop_size=4,
                                               quick_n_gen=1),
-        description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen",
+        description="algorithm, pop_size, n_gen, seed, quick_pop_size, quick_n_gen, method "
+        "(unset: hybrid where it applies; ga: the GA alone), hybrid",
+        validate_default=True,  # the default block gets the default method too
     )  # fmt: skip
     stops: StopsSpec | None = Field(
         None,
@@ -445,6 +448,15 @@ class MechanismStudy(Study):
         for name in value:
             _check_name(name, "load case or output")
         return value
+
+    @field_validator("optimiser")
+    @classmethod
+    def _default_method(cls, value: OptimiserSpec, info: ValidationInfo) -> OptimiserSpec:
+        # the kind's default optimiser: the hybrid where it applies (variables, objectives are
+        # declared above, so validated before it)
+        return default_method(
+            value, info.data.get("variables", ()), info.data.get("objectives", ())
+        )
 
 
 # --------------------------------------------------------------------------------------------

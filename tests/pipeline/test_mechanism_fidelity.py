@@ -28,6 +28,19 @@ def _raw(name: str) -> dict:
     return yaml.safe_load((EXAMPLES / f"{name}.yaml").read_text())
 
 
+#: gripper-amplifier's recorded design of session 25, where the drawn and the as-made pairings
+#: differ; since session 26 the example records the hybrid's optimum (hinge 0.83322, link
+#: 0.8025 mm at 6.075 mm), where both pairings judge the same as-made Kt figure
+S25_GRIPPER = {"hinge_thickness_mm": 1.1622, "link_thickness_mm": 0.87972, "link_height_mm": 8.9526}
+
+
+def _gripper_s25() -> dict:
+    raw = _raw("gripper-amplifier")
+    for variable in raw["variables"]:
+        variable["initial"] = S25_GRIPPER[variable["name"]]
+    return raw
+
+
 def _verdict(result, name: str):
     return next(v for v in result.verdicts if v.name == name)
 
@@ -239,8 +252,9 @@ def test_the_check_compares_the_exported_outline_with_the_beam_model_as_made():
     fillets, the beam model solved and judged is the part as made (flares, roots' Kt). Checked
     against the drawn centrelines the ratios mix two parts: the plane-stress stiffness is 11 %
     off the drawn beam's but within 3 % of the as-made beam's (the same part in two models),
-    and the stress verdict read the drawn-centreline ratio times the as-made beam's peak."""
-    study = validate_study(_raw("gripper-amplifier"))
+    and the stress verdict read the drawn-centreline ratio times the as-made beam's peak (on the
+    session-25 design, :data:`S25_GRIPPER`)."""
+    study = validate_study(_gripper_s25())
     checks, response, outline = _check_both_ways(study, "free")
     drawn, made = checks["drawn"], checks["made"]
     assert abs(made["plane_stress_ratio"] - 1.0) < 0.03 < abs(drawn["plane_stress_ratio"] - 1.0)

@@ -35,7 +35,7 @@ def central(problem, x: np.ndarray, i: int, h: float) -> tuple[np.ndarray, ...]:
 
 @pytest.mark.parametrize(
     ("name", "step"),
-    [("parallel-guide", 1e-3), ("gripper-amplifier", 1e-3), ("constant-force-mechanism", 1e-5)],
+    [("parallel-guide", 1e-3), ("gripper-amplifier", 1e-4), ("constant-force-mechanism", 1e-5)],
 )
 def test_jacobian_against_central_differences(name, step):
     """Objective and every constraint row (the interference, the requirements' rows: the peak
@@ -43,7 +43,11 @@ def test_jacobian_against_central_differences(name, step):
     gripper's amplification and forces, constant-force-mechanism's RMS error over its 23
     variables: vertex positions, thicknesses, width), each variable: within 1e-6 of the row's
     largest |FD| (steps ``step`` of the range: constant-force-mechanism's response switches
-    place (peak, mesh) within 1.5e-4 of a3's range; measured: 4.7e-8, 1.3e-7, 4.9e-8)."""
+    place (peak, mesh) within 1.5e-4 of a3's range; gripper-amplifier's recorded optimum holds
+    the stress constraint, and its peak switches place within 1e-3 of the hinge's range (the
+    central difference at 1e-3 was 2 % off, one-sided slopes at 1e-4 and 1e-5 agree with the
+    exact one to 3e-4 and 3e-5); measured at 1e-3, 1e-3, 1e-5 on earlier designs: 4.7e-8,
+    1.3e-7, 4.9e-8)."""
     problem = problem_of(name)
     x = problem.nominal_design()
     jac = problem.jacobian(x)
