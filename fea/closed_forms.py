@@ -314,9 +314,9 @@ def _leaf(f: Leaf, E: float) -> PivotClosedForm:
     s = leaf_stress_MPa(E, t, L, 1.0)
     return PivotClosedForm(
         K,
+        s * f.root_kt,  # root fillets: their shoulder Kt (1 for sharp roots, not bounded)
         s,
-        s,
-        1.0,
+        f.root_kt,
         "K = E I / L, sigma = E t theta / (2 L); pivot at the middle",
         "Howell (2001) Compliant Mechanisms, §5.2 (small-length flexural pivot)",
         {"prb_long_leaf_tip_force_Nmm_per_rad": prb_cantilever_stiffness_Nmm(E, b, t, L)},
@@ -329,9 +329,9 @@ def _variable_leaf(f: VariableLeaf, E: float) -> PivotClosedForm:
     s = _nominal_stress_per_rad(K, f.width_mm, f.min_thickness_mm)
     return PivotClosedForm(
         K,
+        s * f.root_kt,  # the roots' Kt on the thinnest section's stress: an upper bound
         s,
-        s,
-        1.0,
+        f.root_kt,
         "C = sum 12 h (t1 + t2) / (2 E b t1^2 t2^2) over the linear segments; "
         "sigma = 6 K theta / (b t_min^2)",
         "Euler-Bernoulli compliance integral (Castigliano), e.g. Lobontiu (2003) Compliant "
@@ -400,9 +400,9 @@ def _cross_axis(f: CrossAxis, E: float) -> PivotClosedForm:
     s = leaf_stress_MPa(E, t, L, 1.0)
     return PivotClosedForm(
         K,
+        s * f.root_kt,  # root fillets: their shoulder Kt (1 for sharp roots, not bounded)
         s,
-        s,
-        1.0,
+        f.root_kt,
         "K = 2 E I / L, sigma = E t theta / (2 L); pivot at the crossing",
         "Wittrick (1948) Aeronaut. Q. 1:121; Jensen & Howell (2002) Mech. Mach. Theory 37:461",
     )
