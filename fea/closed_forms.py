@@ -308,9 +308,21 @@ def _nominal_stress_per_rad(K: float, width_mm: float, t_min: float) -> float:
     return 6.0 * K / (width_mm * t_min**2)
 
 
+def drawn_leaf_compliance(
+    E_MPa: float, width_mm: float, x_mm: np.ndarray, t_mm: np.ndarray
+) -> float:
+    """theta / M of a leaf whose thickness is linear between stations ``x_mm`` (k,) mm of
+    thickness ``t_mm`` (k,) mm (any spacing; a leaf with root fillets as drawn), rad/(N·mm): the
+    Euler-Bernoulli integral, exact per segment, sum 12 h (t1 + t2) / (2 E b t1^2 t2^2)."""
+    h, t1, t2 = np.diff(x_mm), t_mm[:-1], t_mm[1:]
+    return float(np.sum(12.0 * h * (t1 + t2) / (2.0 * E_MPa * width_mm * t1**2 * t2**2)))
+
+
 def _leaf(f: Leaf, E: float) -> PivotClosedForm:
     b, t, L = f.width_mm, f.thickness_mm, f.length_mm
     K = leaf_stiffness_Nmm(E, b, t, L)
+    if f.root_fillet_mm > 0:  # the fillets' flare stiffens the leaf (E I / L without it)
+        K = 1.0 / drawn_leaf_compliance(E, b, *f.profile())
     s = leaf_stress_MPa(E, t, L, 1.0)
     return PivotClosedForm(
         K,
@@ -325,6 +337,8 @@ def _leaf(f: Leaf, E: float) -> PivotClosedForm:
 
 def _variable_leaf(f: VariableLeaf, E: float) -> PivotClosedForm:
     C = variable_leaf_compliance(E, f.width_mm, f.length_mm, f.station_thicknesses)
+    if f.root_fillet_mm > 0:  # with the fillets' flare
+        C = drawn_leaf_compliance(E, f.width_mm, *f.profile())
     K = 1.0 / C
     s = _nominal_stress_per_rad(K, f.width_mm, f.min_thickness_mm)
     return PivotClosedForm(
@@ -400,9 +414,9 @@ def _cross_axis(f: CrossAxis, E: float) -> PivotClosedForm:
     s = leaf_stress_MPa(E, t, L, 1.0)
     return PivotClosedForm(
         K,
-        s * f.root_kt,  # root fillets: their shoulder Kt (1 for sharp roots, not bounded)
         s,
-        f.root_kt,
+        s,
+        1.0,
         "K = 2 E I / L, sigma = E t theta / (2 L); pivot at the crossing",
         "Wittrick (1948) Aeronaut. Q. 1:121; Jensen & Howell (2002) Mech. Mach. Theory 37:461",
     )

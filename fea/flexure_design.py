@@ -136,11 +136,7 @@ def flexure_of_type(
         )
     if kind == "cross_axis":
         return CrossAxis(
-            length_mm=length,
-            thickness_mm=thickness,
-            block_height_mm=block_height_mm,
-            root_fillet_mm=root_fillet_mm,
-            **common,
+            length_mm=length, thickness_mm=thickness, block_height_mm=block_height_mm, **common
         )
     raise GeometryError(f"unknown pivot type '{kind}'; use one of {', '.join(PIVOT_TYPES)}")
 

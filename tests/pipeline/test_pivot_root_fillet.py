@@ -138,3 +138,29 @@ def test_the_ga_and_the_verdict_read_kt_times_the_beam_stress():
     # the flare stiffens the leaf a little; the sharp leaf's stress has no Kt
     assert ev.metrics["stiffness_Nmm_per_rad"] > ev0.metrics["stiffness_Nmm_per_rad"]
     assert ev.metrics["peak_stress_MPa"] > 1.2 * ev0.metrics["peak_stress_MPa"]
+
+
+def test_the_closed_form_stiffness_is_the_drawn_profiles_compliance_integral():
+    from flexopt.fea.closed_forms import drawn_leaf_compliance, pivot_closed_form
+    from flexopt.fea.pivot import beam_pivot
+    from scipy.integrate import quad
+
+    E = PETG.E_MPa
+    # a uniform leaf: 12 L / (E b t^3) exactly
+    assert drawn_leaf_compliance(E, B, np.array([0.0, 25.0]), np.array([T, T])) == pytest.approx(
+        12.0 * 25.0 / (E * B * T**3), rel=1e-14
+    )
+    f = leaf()
+    K = pivot_closed_form(f, E).stiffness_Nmm_per_rad
+
+    # against quadrature of the true circular flare (the drawn chords: within 1e-4)
+    def thickness(x: float) -> float:
+        d = R - min(x, 25.0 - x, R)  # how far into a fillet
+        return T + 2.0 * (R - math.sqrt(R * R - d * d))
+
+    exact = 12.0 * quad(lambda x: thickness(x) ** -3, 0.0, 25.0, points=[R, 25.0 - R])[0]
+    assert K == pytest.approx(E * B / exact, rel=1e-4)
+    assert K > E * B * T**3 / (12.0 * 25.0)  # the flare stiffens the leaf
+    # the beam model of the same profile, turned 1 degree
+    res = beam_pivot(f, PETG, math.radians(1.0), 2, n_elements=40)
+    assert res.small_angle_stiffness_Nmm_per_rad == pytest.approx(K, rel=1e-6)
