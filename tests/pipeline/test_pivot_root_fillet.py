@@ -164,3 +164,23 @@ def test_the_closed_form_stiffness_is_the_drawn_profiles_compliance_integral():
     # the beam model of the same profile, turned 1 degree
     res = beam_pivot(f, PETG, math.radians(1.0), 2, n_elements=40)
     assert res.small_angle_stiffness_Nmm_per_rad == pytest.approx(K, rel=1e-6)
+
+
+def test_only_sharp_roots_keep_the_not_met_rule():
+    from flexopt.pipeline.studies._pivot_roots import SHARP_ROOTS, sharp
+    from flexopt.pipeline.verdict import judge_result
+
+    rows = {}
+    for r in (R, 0.0):
+        study = _study(r)
+        study = study.model_copy(
+            update={"fidelity": study.fidelity.model_copy(update={"plane_stress": False})}
+        )
+        assert sharp("leaf", study) is (r == 0.0) and not sharp("circular_notch", study)
+        from flexopt.pipeline.problems import study_result
+
+        result = study_result(study, 1)
+        assert result.summary["unbounded_stress"] is (r == 0.0)
+        rows[r] = {v.name: v for v in judge_result(study, result)}["peak stress"]
+    assert rows[R].met and SHARP_ROOTS not in (rows[R].detail or "")
+    assert not rows[0.0].met and SHARP_ROOTS in rows[0.0].detail
