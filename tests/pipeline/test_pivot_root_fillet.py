@@ -167,6 +167,7 @@ def test_the_closed_form_stiffness_is_the_drawn_profiles_compliance_integral():
 
 
 def test_only_sharp_roots_keep_the_not_met_rule():
+    from flexopt.pipeline.problems import study_result
     from flexopt.pipeline.studies._pivot_roots import SHARP_ROOTS, sharp
     from flexopt.pipeline.verdict import judge_result
 
@@ -177,8 +178,6 @@ def test_only_sharp_roots_keep_the_not_met_rule():
             update={"fidelity": study.fidelity.model_copy(update={"plane_stress": False})}
         )
         assert sharp("leaf", study) is (r == 0.0) and not sharp("circular_notch", study)
-        from flexopt.pipeline.problems import study_result
-
         result = study_result(study, 1)
         assert result.summary["unbounded_stress"] is (r == 0.0)
         rows[r] = {v.name: v for v in judge_result(study, result)}["peak stress"]
