@@ -308,15 +308,27 @@ def _nominal_stress_per_rad(K: float, width_mm: float, t_min: float) -> float:
     return 6.0 * K / (width_mm * t_min**2)
 
 
+def drawn_leaf_compliance(
+    E_MPa: float, width_mm: float, x_mm: np.ndarray, t_mm: np.ndarray
+) -> float:
+    """theta / M of a leaf whose thickness is linear between stations ``x_mm`` (k,) mm of
+    thickness ``t_mm`` (k,) mm (any spacing; a leaf with root fillets as drawn), rad/(N·mm): the
+    Euler-Bernoulli integral, exact per segment, sum 12 h (t1 + t2) / (2 E b t1^2 t2^2)."""
+    h, t1, t2 = np.diff(x_mm), t_mm[:-1], t_mm[1:]
+    return float(np.sum(12.0 * h * (t1 + t2) / (2.0 * E_MPa * width_mm * t1**2 * t2**2)))
+
+
 def _leaf(f: Leaf, E: float) -> PivotClosedForm:
     b, t, L = f.width_mm, f.thickness_mm, f.length_mm
     K = leaf_stiffness_Nmm(E, b, t, L)
+    if f.root_fillet_mm > 0:  # the fillets' flare stiffens the leaf (E I / L without it)
+        K = 1.0 / drawn_leaf_compliance(E, b, *f.profile())
     s = leaf_stress_MPa(E, t, L, 1.0)
     return PivotClosedForm(
         K,
+        s * f.root_kt,  # root fillets: their shoulder Kt (1 for sharp roots, not bounded)
         s,
-        s,
-        1.0,
+        f.root_kt,
         "K = E I / L, sigma = E t theta / (2 L); pivot at the middle",
         "Howell (2001) Compliant Mechanisms, §5.2 (small-length flexural pivot)",
         {"prb_long_leaf_tip_force_Nmm_per_rad": prb_cantilever_stiffness_Nmm(E, b, t, L)},
@@ -325,13 +337,15 @@ def _leaf(f: Leaf, E: float) -> PivotClosedForm:
 
 def _variable_leaf(f: VariableLeaf, E: float) -> PivotClosedForm:
     C = variable_leaf_compliance(E, f.width_mm, f.length_mm, f.station_thicknesses)
+    if f.root_fillet_mm > 0:  # with the fillets' flare
+        C = drawn_leaf_compliance(E, f.width_mm, *f.profile())
     K = 1.0 / C
     s = _nominal_stress_per_rad(K, f.width_mm, f.min_thickness_mm)
     return PivotClosedForm(
         K,
+        s * f.root_kt,  # the roots' Kt on the thinnest section's stress: an upper bound
         s,
-        s,
-        1.0,
+        f.root_kt,
         "C = sum 12 h (t1 + t2) / (2 E b t1^2 t2^2) over the linear segments; "
         "sigma = 6 K theta / (b t_min^2)",
         "Euler-Bernoulli compliance integral (Castigliano), e.g. Lobontiu (2003) Compliant "

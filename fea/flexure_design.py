@@ -81,8 +81,10 @@ def flexure_of_type(
     width_mm: float,
     block_length_mm: float,
     block_height_mm: float | None = None,
+    root_fillet_mm: float = 0.0,
 ) -> Flexure:
-    """The flexure of type ``kind`` for the shared variables (mm; ``shape`` clipped to [0, 1]).
+    """The flexure of type ``kind`` for the shared variables (mm; ``shape`` clipped to [0, 1]);
+    ``root_fillet_mm`` (mm) rounds the leaf types' roots (0: sharp).
 
     ==================  =======================  ===============  ============================
     type                length                   thickness        shape
@@ -105,7 +107,11 @@ def flexure_of_type(
     shape = min(max(float(shape), 0.0), 1.0)
     if kind == "leaf":
         return Leaf(
-            length_mm=length, thickness_mm=thickness, block_height_mm=block_height_mm, **common
+            length_mm=length,
+            thickness_mm=thickness,
+            block_height_mm=block_height_mm,
+            root_fillet_mm=root_fillet_mm,
+            **common,
         )
     if kind == "variable_leaf":
         return VariableLeaf(
@@ -113,6 +119,7 @@ def flexure_of_type(
             thickness_mm=thickness,
             end_thickness_mm=thickness * (1.0 + 2.0 * shape),
             block_height_mm=block_height_mm,
+            root_fillet_mm=root_fillet_mm,
             **common,
         )
     if kind == "circular_notch":

@@ -348,7 +348,8 @@ def plane_stress_pivot(
             max_rad=float(max_rad),
             steps=int(steps),
         ),
-        stress_ignore=ground.union(moving),
+        # filleted leaf roots are smooth: their elements count (sharp ones are singular)
+        stress_ignore=None if getattr(flexure, "root_fillet_mm", 0.0) > 0 else ground.union(moving),
     )
     res = model.solve(kinematics, keep_states=True)  # type: ignore[arg-type]
     angles = np.asarray(res.drive_value, dtype=float)

@@ -179,6 +179,7 @@ class Leaf(Flexure):
 
     length_mm: float = 10.0
     thickness_mm: float = 0.5
+    root_fillet_mm: float = 0.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -189,6 +190,8 @@ class Leaf(Flexure):
                 f"block_height_mm = {self.block_height:g} is thinner than the leaf "
                 f"(thickness_mm = {self.thickness_mm:g}); make the blocks at least as high"
             )
+        if not (math.isfinite(self.root_fillet_mm) and self.root_fillet_mm >= 0.0):
+            raise GeometryError(f"root_fillet_mm = {self.root_fillet_mm:g} must be >= 0 mm")
 
     @property
     def block_height(self) -> float:
@@ -209,11 +212,66 @@ class Leaf(Flexure):
         return np.array([0.0, self.length_mm]), np.full(2, self.thickness_mm)
 
     def beams(self) -> tuple[BeamProfile, ...]:
-        x, t = self.stations()
+        # with root fillets the beam carries their flare (it stiffens the pivot), read off the
+        # drawn outline so that the beam and the exported part are one shape
+        x, t = self.profile()
         return (BeamProfile(np.column_stack([x, np.zeros_like(x)]), t, self.width_mm),)
 
-    def local_thickness_mm(self, x_mm: np.ndarray) -> np.ndarray:
+    def profile(self) -> tuple[np.ndarray, np.ndarray]:
+        """(x (k,), thickness (k,)) mm of the leaf as drawn: :meth:`stations`, and with
+        ``root_fillet_mm`` > 0 the flare of each root fillet (the outline's lower edge, the
+        leaf being symmetric about its centreline)."""
+        if self.root_fillet_mm <= 0.0:
+            return self.stations()
+        bottom = self._bottom_edge()
+        return bottom[:, 0], -2.0 * bottom[:, 1]
+
+    @property
+    def root_kt(self) -> float:
+        """Kt of the root fillets in in-plane bending (1 for sharp roots, whose stress is not
+        bounded: pipeline/studies/_pivot_roots.py): the larger of the two roots'
+        :func:`geometry.mechanism.shoulder_kt` (the block's height the wide side, the leaf's
+        end thickness the narrow one; for a tapered end the fit of a uniform bar)."""
+        if self.root_fillet_mm <= 0.0:
+            return 1.0
+        from flexopt.geometry.mechanism import shoulder_kt  # geometry.mechanism is heavier
+
+        _, t = self.stations()
+        return max(
+            shoulder_kt(self.block_height, float(e), self.root_fillet_mm) for e in t[[0, -1]]
+        )
+
+    def _bottom_edge(self) -> np.ndarray:
+        """(k, 2) mm: the outline's lower edge from the ground block's face (x = 0) to the
+        moving block's (x = L), root fillets drawn (each tangent to the block face and to the
+        leaf's surface, its radius ``root_fillet_mm``).
+
+        Raises
+        ------
+        GeometryError
+            When a fillet does not fit on the block face or on the leaf.
+        """
         x, t = self.stations()
+        H, L, r = 0.5 * self.block_height, self.length_mm, self.root_fillet_mm
+        pts = [
+            np.array([0.0, -H]),
+            *(np.array([xi, -0.5 * ti]) for xi, ti in zip(x, t, strict=True)),
+            np.array([L, -H]),
+        ]
+        if r <= 0.0:
+            return np.array(pts[1:-1])
+        left = _fillet(pts[0], pts[1], pts[2], r, self)
+        right = _fillet(pts[-3], pts[-2], pts[-1], r, self)
+        if left[-1][0] >= right[0][0] or left[-1][0] > x[1] or right[0][0] < x[-2]:
+            raise GeometryError(
+                f"root_fillet_mm = {r:g} does not fit on a {L:g} mm leaf of "
+                f"{self.kind}; make the fillet smaller or the leaf longer"
+            )
+        inner = [p for p in pts[2:-2]]
+        return np.array([*left, *inner, *right])
+
+    def local_thickness_mm(self, x_mm: np.ndarray) -> np.ndarray:
+        x, t = self.profile()
         xq = np.asarray(x_mm, dtype=float)
         return np.where((xq >= 0.0) & (xq <= self.length_mm), np.interp(xq, x, t), np.nan)
 
@@ -224,11 +282,12 @@ class Leaf(Flexure):
         return _block_pair(0.0, self.length_mm, self.block_length_mm, self.block_height)[1]
 
     def outline(self) -> Polygon:
-        # One ring (no boolean union), so no micro-edges where pieces would meet.
-        x, t = self.stations()
+        # One ring (no boolean union), so no micro-edges where pieces would meet; the leaf is
+        # symmetric about its centreline, so the upper edge mirrors the lower one.
         L, B, H = self.length_mm, self.block_length_mm, 0.5 * self.block_height
-        bottom = [(xi, -0.5 * ti) for xi, ti in zip(x, t, strict=True)]
-        top = [(xi, 0.5 * ti) for xi, ti in zip(x[::-1], t[::-1], strict=True)]
+        edge = self._bottom_edge()
+        bottom = [(float(p[0]), float(p[1])) for p in edge]
+        top = [(float(p[0]), -float(p[1])) for p in edge[::-1]]
         ring = [(-B, -H), (0.0, -H), *bottom, (L, -H), (L + B, -H), (L + B, H), (L, H), *top]
         ring += [(0.0, H), (-B, H)]
         return _valid(Polygon(ring), self)
@@ -664,6 +723,37 @@ def _dedupe(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
     if len(out) > 1 and math.dist(out[0], out[-1]) <= _SAME_POINT_MM:
         out.pop()
     return out
+
+
+def _fillet(a: np.ndarray, p: np.ndarray, b: np.ndarray, r: float, flexure: Flexure) -> list:
+    """The arc of radius ``r`` (mm) that rounds the corner ``p`` of the path a -> p -> b (each
+    (2,) mm), tangent to both edges: its points from the tangent point on p-a to the one on
+    p-b, one every 90° / CURVE_POINTS at least.
+
+    Raises
+    ------
+    GeometryError
+        When a tangent point falls beyond the end of its edge.
+    """
+    u, v = a - p, b - p
+    la, lb = float(np.hypot(*u)), float(np.hypot(*v))
+    u, v = u / la, v / lb
+    theta = math.acos(min(max(float(u @ v), -1.0), 1.0))  # the corner's interior angle
+    d = r / math.tan(0.5 * theta)  # corner to each tangent point
+    if d > la or d > lb:
+        raise GeometryError(
+            f"root_fillet_mm = {r:g} does not fit the {flexure.kind}'s root (it needs {d:.3g} mm "
+            f"of edge, {min(la, lb):.3g} mm there); make the fillet smaller or the blocks higher"
+        )
+    w = (u + v) / np.hypot(*(u + v))
+    centre = p + w * (r / math.sin(0.5 * theta))
+    t1, t2 = p + d * u, p + d * v
+    a1 = math.atan2(*(t1 - centre)[::-1])
+    a2 = math.atan2(*(t2 - centre)[::-1])
+    sweep = (a2 - a1 + math.pi) % (2.0 * math.pi) - math.pi  # the short way round
+    n = max(2, int(math.ceil(abs(sweep) / (0.5 * math.pi) * CURVE_POINTS)))
+    ang = a1 + sweep * np.linspace(0.0, 1.0, n + 1)
+    return [centre + r * np.array([math.cos(q), math.sin(q)]) for q in ang]
 
 
 def _valid(shape, flexure: Flexure) -> Polygon:

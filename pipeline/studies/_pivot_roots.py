@@ -16,9 +16,15 @@ So a design of those types is NOT MET on the peak-stress row, with the reason: t
 exported has a stress the run did not compute; for the same reason its fatigue life is not
 computed (the summary flag ``unbounded_stress``, pipeline/stroke_verdict.py: its life rows NOT
 MET with that reason). Not a refusal: the design can still be
-evaluated, its nominal figure is shown. The way out today is the ``corner_filleted`` type (a
-straight web with fillets into the blocks, its Kt from the notch fit). The GA's own stress
-constraint is unchanged (it judges the nominal figure, so it may still pick a leaf).
+evaluated, its nominal figure is shown.
+
+The way out is the key ``geometry.leaf_root_fillet_mm`` (:data:`FILLET_KEY`, default 1 mm):
+the outline rounds each root with a fillet of that radius (``Leaf.root_fillet_mm``), the beam
+carries the fillets' flare, and its stress is multiplied by the roots' shoulder Kt
+(``Leaf.root_kt``, geometry/mechanism.py ``shoulder_kt``), so the GA's constraint, the
+verdict, the life and best.vtu read Kt x nominal; the plane-stress check counts the root
+elements (a fillet's stress converges under refinement, tests/pipeline/test_pivot_root_fillet.py).
+Only ``leaf_root_fillet_mm: 0`` (sharp) keeps the NOT MET rule above.
 """
 
 from __future__ import annotations
@@ -30,7 +36,13 @@ from typing import Any
 from flexopt.optimise.requirements import AllowableStress, Verdict
 from flexopt.pipeline.stroke_verdict import UNBOUNDED_STRESS
 
-__all__ = ["SHARP_ROOTS", "SHARP_ROOT_TYPES", "RootStress"]
+__all__ = ["FILLET_KEY", "SHARP_ROOTS", "SHARP_ROOT_TYPES", "RootStress", "sharp"]
+
+#: the description of ``geometry.leaf_root_fillet_mm``
+FILLET_KEY = (
+    "fillet radius where a leaf / variable_leaf meets each block, mm (0: sharp roots, whose "
+    "stress is not bounded: the peak-stress row NOT MET); its shoulder Kt multiplies the stress"
+)
 
 #: the pivot types whose exported outline meets the blocks in sharp corners (geometry/flexures.py
 #: ``Leaf.outline``, which ``VariableLeaf`` inherits)
@@ -41,8 +53,15 @@ SHARP_ROOTS = (
     "leaf roots sharp: the leaf meets its blocks in 90° steps, whose stress no figure of this "
     "kind bounds (the beam and closed form have no Kt there, the plane-stress check leaves the "
     "root elements out and rises without bound under refinement at them); the figure shown is "
-    "the nominal stress away from the roots; use type corner_filleted (a web with root fillets)"
+    "the nominal stress away from the roots; give geometry.leaf_root_fillet_mm > 0 (root "
+    "fillets, their Kt modelled) or use type corner_filleted"
 )
+
+
+def sharp(kind: str, study: Any) -> bool:
+    """Whether a design of type ``kind`` in ``study`` (a flexure_pivot study) is exported with
+    sharp roots: a leaf type with ``geometry.leaf_root_fillet_mm`` 0."""
+    return kind in SHARP_ROOT_TYPES and not study.geometry.leaf_root_fillet_mm > 0
 
 
 @dataclass(frozen=True)

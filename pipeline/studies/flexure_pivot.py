@@ -34,6 +34,7 @@ import math
 import time
 from typing import Any, ClassVar, Literal
 
+import flexopt.pipeline.studies._pivot_roots as pivot_roots
 import flexopt.pipeline.studies._pivot_stops as pivot_stops
 import numpy as np
 from flexopt.fea.beam_fields import members_field
@@ -63,7 +64,6 @@ from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.fields import pivot_plane_stress
 from flexopt.pipeline.stroke_verdict import UNBOUNDED_STRESS
 from flexopt.pipeline.studies import StudyKind, register
-from flexopt.pipeline.studies._pivot_roots import SHARP_ROOT_TYPES
 from flexopt.pipeline.studies._pivot_schema import PivotDesign, PivotFidelity, PivotType
 from flexopt.pipeline.studies._stops import StopsSpec
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
@@ -112,6 +112,7 @@ class FlexurePivotGeometry(BaseModel):
     max_length_mm: float = Field(40.0, gt=0, description="envelope: overall length, mm")
     max_height_mm: float = Field(20.0, gt=0, description="envelope: overall height, mm")
     elements: int = Field(40, ge=4, le=2000, description="beam elements per member")
+    leaf_root_fillet_mm: float = Field(1.0, ge=0, le=10, description=pivot_roots.FILLET_KEY)
 
     @model_validator(mode="after")
     def _unique_candidates(self) -> FlexurePivotGeometry:
@@ -234,8 +235,9 @@ def build_flexure(
     """
     g = geometry
     return flexure_of_type(
-        kind, length, thickness, shape, g.width_mm, g.block_length_mm, g.block_height_mm
-    )
+        kind, length, thickness, shape, g.width_mm, g.block_length_mm, g.block_height_mm,
+        g.leaf_root_fillet_mm,
+    )  # fmt: skip
 
 
 def design_space(study: FlexurePivotStudy) -> DesignSpace:
@@ -537,7 +539,7 @@ class FlexurePivotProblem(DesignProblem):
         table = dict(detail.table)
         summary: dict[str, Any] = {
             "type": detail.info["type"],
-            UNBOUNDED_STRESS: detail.info["type"] in SHARP_ROOT_TYPES,  # sharp roots: _pivot_roots
+            UNBOUNDED_STRESS: pivot_roots.sharp(detail.info["type"], prob.study),  # _pivot_roots
             "small_angle_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"][
                 "beam_small_angle"
             ],

@@ -92,7 +92,9 @@ def test_leaf_life_is_not_computed_and_its_row_says_why():
     from flexopt.pipeline.study import load_study
     from flexopt.pipeline.verdict import judge_result, life_of_result, with_life
 
-    study = load_study("flexure-pivot-life")  # a leaf: sharp roots
+    study = load_study("flexure-pivot-life")  # a leaf, made sharp (leaf_root_fillet_mm 0)
+    sharp = study.geometry.model_copy(update={"leaf_root_fillet_mm": 0.0})
+    study = study.model_copy(update={"geometry": sharp})
     result = study_result(study, 1)
     assert result.summary["unbounded_stress"] is True
     assert life_of_result(study, result) == UNBOUNDED_LIFE

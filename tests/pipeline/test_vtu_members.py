@@ -138,9 +138,17 @@ def test_flexure_pivot_leaf_under_pure_moment_is_6m_over_bt2_along_the_leaf(
 ) -> None:
     """The example's leaf (25 x 2.15 mm, 6 mm wide) turned by its block, the centre free: a pure
     moment, a circular arc at every angle. Every node carries 6 M / (b t^2) = E t theta / (2 L)
-    with M the block's torque; the largest per step is the table's peak_stress_MPa."""
+    with M the block's torque; the largest per step is the table's peak_stress_MPa. The roots
+    sharp (``leaf_root_fillet_mm: 0``): a uniform leaf, no fillet flare or Kt."""
+    import yaml
+    from flexopt.pipeline.study import resolve_study_path
+
+    raw = yaml.safe_load(resolve_study_path("flexure-pivot").read_text())
+    raw["geometry"]["leaf_root_fillet_mm"] = 0.0
+    study = tmp_path / "flexure-pivot.yaml"
+    study.write_text(yaml.safe_dump(raw))
     ev = tmp_path / "ev"
-    assert main(["evaluate", "flexure-pivot", "--out", str(ev)]) == 0
+    assert main(["evaluate", str(study), "--out", str(ev)]) == 0
     record = json.loads((ev / "evaluation.json").read_text())
     E = record["inputs"]["material"]["E_MPa"]
     L, t, b = 25.0, 2.15, 6.0
