@@ -54,6 +54,17 @@ class TightProblem(ConstantForceProblem):
         )
 
 
+# The design these derivatives were first checked on (the example's recorded design until
+# session 26): its Kt x root peak at S6 is 0.28 MPa clear of the next place along the beam, so
+# the steps below stay where the max is smooth. The example's design changes with each re-run.
+SESSION_25_DESIGN = {
+    "a1": 0.159, "a2": 0.8071, "a3": 0.5057, "a4": 0.8453, "a5": 0.133, "a6": 0.8451,
+    "a7": 0.4573, "a8": 0.7743, "a9": 0.2115, "a10": 0.8743, "t1": 1.059, "t2": 0.8668,
+    "t3": 0.966, "t4": 0.8001, "t5": 0.8003, "t6": 0.8275, "t7": 0.8367, "t8": 0.9738,
+    "t9": 0.9394, "t10": 1.049, "T1": 1.371, "T6": 1.278, "B": 6.826,
+}  # fmt: skip
+
+
 def _problem(**geometry):
     study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
     # min_feature_mm lowered: the example's t4 sits on it, and the differences either side are
@@ -152,7 +163,8 @@ def test_kt_x_root_as_the_peak_matches_differences_of_the_stress_constraint():
     smooth: S6's flare reads 40.71 MPa, the next place (mid-beam, 8.7 mm) 40.43 MPa, and
     T6 + 1 % would pass it (dpeak/dT6 = -48.5 MPa/mm), so 5e-4 relative."""
     prob = _problem(pad_fillet_mm=0.1, pad_thickness_mm=5.0)
-    x = prob.nominal_design()
+    x = np.array([SESSION_25_DESIGN[n] for n in NAMES])
+    prob.nominal_design = lambda: x.copy()  # _check differences about this design
     out = gradient.study_sensitivities(prob, x, prob._beam, prob._drive)
     s = out["stress_pieces_where"][0, 1]
     length = prob._beam(design_from_vector(x)).profile.length_mm
