@@ -55,6 +55,7 @@ __all__ = [
     "pivot_at_range",
     "pivot_table",
     "plane_stress_check",
+    "plane_stress_stiffness",
 ]
 
 PIVOT_TYPES: tuple[str, ...] = (
@@ -319,6 +320,30 @@ def pivot_table(res: PivotResponse, cf: PivotClosedForm) -> dict[str, np.ndarray
     }
 
 
+def _linear_plane_stress(
+    flex: Flexure, material: Material, range_rad: float, web_elements: float
+) -> PivotResponse:
+    # the linear solve of the check (one row at a tenth of the range, about the nominal centre)
+    web = flex.min_thickness_mm / web_elements
+    return plane_stress_pivot(flex, material, range_rad / 10.0, 1, "linear", web_edge_mm=web)
+
+
+def plane_stress_stiffness(
+    flex: Flexure, material: Material, range_rad: float, web_elements: float
+) -> float:
+    """The linear plane-stress stiffness of a planar pivot, N·mm/rad: the figure
+    :func:`plane_stress_check` reports as ``linear_stiffness_Nmm_per_rad`` (the same solve, the
+    same mesh), which the verdict judges the stiffness band on.
+
+    Raises
+    ------
+    FeaError, GeometryError
+        When the plane-stress model cannot be built or solved.
+    """
+    lin = _linear_plane_stress(flex, material, range_rad, web_elements)
+    return float(lin.small_angle_stiffness_Nmm_per_rad)
+
+
 def plane_stress_check(
     flex: Flexure,
     material: Material,
@@ -353,7 +378,7 @@ def plane_stress_check(
     web = flex.min_thickness_mm / web_elements
     t0 = time.perf_counter()
     try:
-        lin = plane_stress_pivot(flex, material, range_rad / 10.0, 1, "linear", web_edge_mm=web)
+        lin = _linear_plane_stress(flex, material, range_rad, web_elements)
         centre = flex.centre_mm
         if beam.ok:
             centre = pure_moment_centre(flex.centre_mm, range_rad, beam.centre_displacement_mm[-1])

@@ -30,7 +30,7 @@ from flexopt.optimise.requirements import (
 from flexopt.optimise.targets import ConstantTarget, measure_key
 from flexopt.pipeline.studies._constant_force_clamp import CHECKED_PEAK_MODEL
 from flexopt.pipeline.studies._constant_force_fillet import pad_stress
-from flexopt.pipeline.studies._pivot_roots import RootStress
+from flexopt.pipeline.studies._pivot_roots import PartMax, PartRange, RootStress
 
 # --------------------------------------------------------------------------------------------
 # polyline_beam (flexopt evaluate cantilever, fixed_guided)
@@ -146,19 +146,18 @@ def flexure_pivot(study: Any) -> list[Requirement]:
     t, g = study.target, study.geometry
     k = t.stiffness_Nmm_per_rad or 1000.0 * t.stiffness_Nm_per_rad
     tol = t.tolerance_percent / 100.0
+    # NOT MET for a leaf's sharp roots and for a cross_axis design (no part exported), with the
+    # reason (_pivot_roots.py)
     reqs: list[Requirement] = [
-        Range("stiffness_Nmm_per_rad", "stiffness band", "constraint", k * (1 - tol),
-              k * (1 + tol)),
-        # NOT MET for a leaf's sharp roots, with the reason (_pivot_roots.py)
+        PartRange("stiffness_Nmm_per_rad", "stiffness band", "constraint", k * (1 - tol),
+                  k * (1 + tol)),
         RootStress("peak_stress_MPa", "peak stress", "constraint",
                    t.allowable_stress_MPa or study.material.yield_MPa),
-        MaxValue("envelope_length_mm", "envelope length", "constraint", g.max_length_mm),
-        MaxValue("envelope_height_mm", "envelope height", "constraint", g.max_height_mm),
+        PartMax("envelope_length_mm", "envelope length", "constraint", g.max_length_mm),
+        PartMax("envelope_height_mm", "envelope height", "constraint", g.max_height_mm),
     ]  # fmt: skip
     if t.max_centre_shift_mm is not None:
-        reqs.append(
-            MaxValue("centre_shift_mm", "centre shift", "constraint", t.max_centre_shift_mm)
-        )
+        reqs.append(PartMax("centre_shift_mm", "centre shift", "constraint", t.max_centre_shift_mm))
     return reqs
 
 

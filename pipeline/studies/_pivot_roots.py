@@ -25,6 +25,17 @@ carries the fillets' flare, and its stress is multiplied by the roots' shoulder 
 verdict, the life and best.vtu read Kt x nominal; the plane-stress check counts the root
 elements (a fillet's stress converges under refinement, tests/pipeline/test_pivot_root_fillet.py).
 Only ``leaf_root_fillet_mm: 0`` (sharp) keeps the NOT MET rule above.
+
+A ``cross_axis`` pivot (issue 27, session 27) is NOT MET the same way, whatever the fillet key
+says, with its own reason (:data:`CROSS_AXIS`): its leaves meet the block faces at the half
+angle (45°: an acute and an obtuse corner at each root), for which the shoulder fit of the
+leaves (a 90° step) gives no Kt, and no part of it is exported at all: its leaves pass each
+other in separate layers, which the planar outline does not draw, so no STL is written and no
+plane-stress check is made. So its stiffness band and envelope rows are NOT MET too (the flag
+``part_not_exported``, :data:`NO_PART`; :class:`PartRange`, :class:`PartMax`): they would
+judge the beam model of a part of which no file is written. In the GA such a design (and a
+sharp-rooted leaf) violates the stress constraint (:func:`ga_stress_row`), so a run picks it
+only when no design meets every constraint.
 """
 
 from __future__ import annotations
@@ -33,10 +44,24 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
-from flexopt.optimise.requirements import AllowableStress, Verdict
+import numpy as np
+from flexopt.optimise.requirements import AllowableStress, MaxValue, Range, Verdict
 from flexopt.pipeline.stroke_verdict import UNBOUNDED_STRESS
 
-__all__ = ["FILLET_KEY", "SHARP_ROOTS", "SHARP_ROOT_TYPES", "RootStress", "sharp"]
+__all__ = [
+    "CROSS_AXIS",
+    "FILLET_KEY",
+    "NO_PART",
+    "NO_PART_TYPES",
+    "SHARP_ROOTS",
+    "SHARP_ROOT_TYPES",
+    "PartMax",
+    "PartRange",
+    "RootStress",
+    "ga_stress_row",
+    "no_part",
+    "sharp",
+]
 
 #: the description of ``geometry.leaf_root_fillet_mm``
 FILLET_KEY = (
@@ -58,27 +83,98 @@ SHARP_ROOTS = (
 )
 
 
+#: the pivot types of which no part is exported (their outline is a projection, not the part)
+NO_PART_TYPES = ("cross_axis",)
+
+#: the summary flag of a design of which no part is exported
+NO_PART = "part_not_exported"
+
+#: the peak-stress row's word on a cross_axis design
+CROSS_AXIS = (
+    "cross_axis: no part is exported (its leaves pass each other in separate layers, which the "
+    "planar outline does not draw: no STL is written, no plane-stress check is made) and its "
+    "leaves meet the blocks at the half angle in sharp corners (an acute and an obtuse one at "
+    "each root), for which no Kt is modelled (the leaves' shoulder fit is for a 90° step); the "
+    "figure shown is the beam's nominal stress; use a planar type (leaf, variable_leaf with "
+    "root fillets, or a notch hinge)"
+)
+
+#: the other rows' word on a design of which no part is exported
+NO_PART_ROW = (
+    "no part is exported for a cross_axis design (its leaves cross in separate layers, which "
+    "the planar outline does not draw): the figure is the beam model's of a part of which no "
+    "file is written"
+)
+
+
 def sharp(kind: str, study: Any) -> bool:
-    """Whether a design of type ``kind`` in ``study`` (a flexure_pivot study) is exported with
-    sharp roots: a leaf type with ``geometry.leaf_root_fillet_mm`` 0."""
+    """Whether a design of type ``kind`` in ``study`` (a flexure_pivot study) has a stress no
+    figure of the kind bounds: a leaf type with ``geometry.leaf_root_fillet_mm`` 0 (sharp
+    roots), or a cross_axis pivot (oblique sharp roots, no part exported: :data:`CROSS_AXIS`)."""
+    if kind in NO_PART_TYPES:
+        return True
     return kind in SHARP_ROOT_TYPES and not study.geometry.leaf_root_fillet_mm > 0
+
+
+def no_part(kind: str) -> bool:
+    """Whether no part is exported for a design of type ``kind`` (:data:`NO_PART_TYPES`)."""
+    return kind in NO_PART_TYPES
+
+
+def ga_stress_row(kind: str, study: Any, g: np.ndarray, index: int) -> np.ndarray:
+    """The GA's constraints ``g`` (n_con,) with the stress row ``g[index]`` violated (at least
+    1, i.e. twice the allowable) for a design whose stress the kind does not bound
+    (:func:`sharp`): the verdict's peak-stress row of such a design is NOT MET whatever its
+    nominal stress, so the GA must not count it feasible. Unchanged otherwise."""
+    if not sharp(kind, study):
+        return g
+    g = np.array(g, dtype=float)
+    g[index] = max(float(g[index]), 1.0)
+    return g
+
+
+def _no_part_verdict(verdict: Verdict, metrics: Any) -> Verdict:
+    if not metrics.get(NO_PART):
+        return verdict
+    detail = "; ".join(filter(None, (verdict.detail, NO_PART_ROW)))
+    return replace(verdict, met=False, margin=math.nan, margin_rel=None, detail=detail)
+
+
+@dataclass(frozen=True)
+class PartRange(Range):
+    """:class:`Range`, NOT MET (with :data:`NO_PART_ROW`) for a design of which no part is
+    exported (the summary flag :data:`NO_PART`)."""
+
+    def check(self, metrics: Any, curves: Any = None) -> Verdict:
+        return _no_part_verdict(super().check(metrics, curves), metrics)
+
+
+@dataclass(frozen=True)
+class PartMax(MaxValue):
+    """:class:`MaxValue`, NOT MET (with :data:`NO_PART_ROW`) for a design of which no part is
+    exported (the summary flag :data:`NO_PART`)."""
+
+    def check(self, metrics: Any, curves: Any = None) -> Verdict:
+        return _no_part_verdict(super().check(metrics, curves), metrics)
 
 
 @dataclass(frozen=True)
 class RootStress(AllowableStress):
     """The allowable stress of a pivot (MPa): NOT MET for a design of a type with sharp roots
-    (:data:`SHARP_ROOT_TYPES`; the flag ``unbounded_stress`` the kind's result sets), with
-    :data:`SHARP_ROOTS` as its detail and no margin (the stress at the roots is not computed);
-    else :class:`AllowableStress`'s verdict."""
+    (:data:`SHARP_ROOT_TYPES` without fillets, or cross_axis; the flag ``unbounded_stress`` the
+    kind's result sets), with :data:`SHARP_ROOTS` (:data:`CROSS_AXIS`) as its detail and no
+    margin (the stress at the roots is not computed); else :class:`AllowableStress`'s verdict."""
 
     def check(self, metrics: Any, curves: Any = None) -> Verdict:
         verdict = super().check(metrics, curves)
         if not metrics.get(UNBOUNDED_STRESS):
             return verdict
-        detail = "; ".join(filter(None, (verdict.detail, SHARP_ROOTS)))
+        cross = bool(metrics.get(NO_PART))  # a cross_axis design (the flag its result sets)
+        detail = "; ".join(filter(None, (verdict.detail, CROSS_AXIS if cross else SHARP_ROOTS)))
+        why = "cross_axis: no part, roots" if cross else "leaf roots"
         return replace(
             verdict,
-            bound=f"{verdict.bound} (leaf roots sharp: not bounded by the model)",
+            bound=f"{verdict.bound} ({why} sharp: not bounded by the model)",
             margin=math.nan,
             margin_rel=None,
             met=False,

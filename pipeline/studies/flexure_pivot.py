@@ -34,6 +34,7 @@ import math
 import time
 from typing import Any, ClassVar, Literal
 
+import flexopt.pipeline.studies._pivot_band as pivot_band
 import flexopt.pipeline.studies._pivot_roots as pivot_roots
 import flexopt.pipeline.studies._pivot_stops as pivot_stops
 import numpy as np
@@ -389,7 +390,9 @@ class FlexurePivotProblem(DesignProblem):
         if at.failure:
             return self._fail(x, at.failure, t0)
         K, sigma, shift = at.stiffness_Nmm_per_rad, at.stress_MPa, at.centre_shift_mm
-        ratio, g = pivot_objective(self.limits, K, sigma, (length, height), shift)
+        K_band, extra = pivot_band.band_stiffness(self, flex, K)  # the verdict's figure
+        ratio, g = pivot_objective(self.limits, K_band, sigma, (length, height), shift)
+        g = pivot_roots.ga_stress_row(kind, study, g, 1)  # an unbounded stress: infeasible
         metrics = {
             "type": kind,
             "model": at.model,
@@ -400,6 +403,7 @@ class FlexurePivotProblem(DesignProblem):
             "centre_shift_mm": shift,
             "envelope_length_mm": length,
             "envelope_height_mm": height,
+            **extra,
         }
         return Evaluation(x, np.array([ratio]), g, metrics, "", time.perf_counter() - t0)
 
@@ -540,6 +544,7 @@ class FlexurePivotProblem(DesignProblem):
         summary: dict[str, Any] = {
             "type": detail.info["type"],
             UNBOUNDED_STRESS: pivot_roots.sharp(detail.info["type"], prob.study),  # _pivot_roots
+            pivot_roots.NO_PART: pivot_roots.no_part(detail.info["type"]),  # cross_axis
             "small_angle_stiffness_Nmm_per_rad": detail.info["stiffness_Nmm_per_rad"][
                 "beam_small_angle"
             ],

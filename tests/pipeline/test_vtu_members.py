@@ -136,7 +136,7 @@ def test_polyline_cantilever_fibre_stress_is_m_c_over_i_linear_along_the_span(
 def test_flexure_pivot_leaf_under_pure_moment_is_6m_over_bt2_along_the_leaf(
     tmp_path: Path,
 ) -> None:
-    """The example's leaf (25 x 2.15 mm, 6 mm wide) turned by its block, the centre free: a pure
+    """A leaf of the example (25 x 2.15 mm, 6 mm wide) turned by its block, the centre free: a pure
     moment, a circular arc at every angle. Every node carries 6 M / (b t^2) = E t theta / (2 L)
     with M the block's torque; the largest per step is the table's peak_stress_MPa. The roots
     sharp (``leaf_root_fillet_mm: 0``): a uniform leaf, no fillet flare or Kt."""
@@ -145,6 +145,7 @@ def test_flexure_pivot_leaf_under_pure_moment_is_6m_over_bt2_along_the_leaf(
 
     raw = yaml.safe_load(resolve_study_path("flexure-pivot").read_text())
     raw["geometry"]["leaf_root_fillet_mm"] = 0.0
+    raw["design"] = {"type": "leaf", "length_mm": 25.0, "thickness_mm": 2.15}
     study = tmp_path / "flexure-pivot.yaml"
     study.write_text(yaml.safe_dump(raw))
     ev = tmp_path / "ev"
