@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 from flexopt.pipeline.studies import get_kind
-from flexopt.pipeline.studies._pivot_band import KEY
+from flexopt.pipeline.studies._pivot_band import DOUBT, KEY
 from flexopt.pipeline.studies._pivot_roots import (
     CROSS_AXIS,
     NO_PART,
@@ -112,7 +112,7 @@ def test_the_ga_judges_the_band_on_the_verdicts_plane_stress_stiffness():
     ev_beam = plain.evaluate(x)
     assert KEY not in ev_beam.metrics
     assert ev_beam.g[0] == pytest.approx(abs(beam / 300.0 - 1.0) - 0.05, rel=1e-12)
-    # a design the beam puts outside the band keeps the beam's figure (no solve): infeasible
+    # a design the beam puts far outside the band keeps the beam's figure (no solve): infeasible
     far = prob.evaluate(_x(study, {**leaf, "thickness_mm": 1.2}))
-    assert far.metrics["stiffness_Nmm_per_rad"] < 285.0 and KEY not in far.metrics
+    assert far.metrics["stiffness_Nmm_per_rad"] < 285.0 * (1.0 - DOUBT) and KEY not in far.metrics
     assert far.g[0] > 0.0
