@@ -404,6 +404,14 @@ def plane_stress_check(
         "torque_at_range_Nmm": float(non.torque_Nmm[-1]),
         "beam_torque_at_range_Nmm": float(beam.torque_Nmm[-1]),
         "peak_von_mises_at_range_MPa": float(non.peak_stress_MPa[-1]),
+        # every row's peak, and the largest: the verdict judges the largest. The rows before the
+        # range are turned about the range's pure-moment centre (not each its own pure-moment
+        # state), so an earlier row can read more than the last (13.3 deg: 25.93 against
+        # 25.70 MPa at 20 deg on the flexure-pivot example): the largest is the safe figure
+        "peak_von_mises_by_row_MPa": [float(v) for v in non.peak_stress_MPa],
+        "peak_von_mises_MPa": float(np.nanmax(non.peak_stress_MPa))
+        if np.any(np.isfinite(non.peak_stress_MPa))
+        else float("nan"),
         "centre_force_at_range_N": float(non.centre_force_N[-1]),
         "ok": non.ok,
         "message": non.message,
@@ -411,7 +419,7 @@ def plane_stress_check(
         "time_s": time.perf_counter() - t0,
     }
     if non.ok:
-        out["safety_factor"] = allowable_MPa / float(non.peak_stress_MPa[-1])
+        out["safety_factor"] = allowable_MPa / out["peak_von_mises_MPa"]
     if non.field is not None:  # large arrays: the kind takes them out (pipeline/fields.py)
         out["field"] = non.field
     return out
