@@ -1,12 +1,13 @@
 """The verdict row of a SEA spring study whose 3D check is off (#27, session 27).
 
 A spiral SEA spring's plate is stiffer as a 3D solid than plane stress says: the shipped
-spring at ST = 19.19 mm is x1.0216 stiffer in 3D (docs/solid3d.md, "The thickness
-correction", round 1), which moves its clockwise stiffness from 280.34 N·m/rad (plane stress,
-+1.94 %) to 286.39 N·m/rad (+4.14 %), outside the ±2 % band of 275 N·m/rad. The 3D check
-(``solid_3d: {check: true}``, the default) sees that, corrects ST for it and judges each
-direction's 3D stiffness; a study that switches it off (``sea-spring-quick``, a smoke run) has
-only the plane-stress rows, and those were MET on a part whose stiffness as made is not.
+spring at ST = 19.19 mm is x1.0216 stiffer in 3D (docs/solid3d.md, "The correction: designs
+that meet the requirement in 3D", check 1), which moves its clockwise stiffness from 280.34
+N·m/rad (plane stress, +1.94 %) to 286.39 N·m/rad (+4.14 %), outside the ±2 % band of 275
+N·m/rad. The 3D check (``solid_3d: {check: true}``, the default) sees that, corrects ST for it
+and judges each direction's 3D stiffness; a study that switches it off (``sea-spring-quick``,
+a smoke run) has only the plane-stress rows, and those were MET on a part whose stiffness as
+made is not.
 
 Decision: such a study keeps its plane-stress rows (they judge the plane-stress design at its
 own ST) and gets one more row, "checked in 3D", NOT MET with the reason, so its overall verdict
