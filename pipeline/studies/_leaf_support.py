@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from flexopt.optimise.requirements import Requirement, Verdict, _value_of
+from flexopt.optimise.requirements import Requirement, Verdict
 
 __all__ = ["SUPPORT_ROW", "SupportAsMade", "support_rows"]
 
@@ -66,6 +66,18 @@ class SupportAsMade(Requirement):
             margin / self.allowable_MPa, margin >= 0, "MPa", self.role,
             f"stated support_kt {self.support_kt:g} x the beam's peak {peak:.4g} MPa",
         )  # fmt: skip
+
+
+def _value_of(metrics: Any, quantity: str) -> float | None:
+    """``metrics[quantity]`` as a finite float, else None (missing, text or not finite)."""
+    value = metrics.get(quantity)
+    if value is None or isinstance(value, str | bool):
+        return None
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return None
+    return out if math.isfinite(out) else None
 
 
 def _num(value: float | None) -> str:
