@@ -21,8 +21,9 @@ L / t     clamped-guided       cantilever
 20        -0.25 %              -0.11 %
 ========  ===================  ============
 
-(command: ``python /tmp/trust/slender.py 2 3 4 5 6 8 10 20`` and ``slender2.py free ...``,
-2026-12-06 21:08 UTC, load average ~2; the script's body is the test's.) The surface stress at
+(measured 2026-12-06 21:08 UTC, load average ~2, by the test's ``beam_stiffness`` and
+``plane_stress_stiffness`` at each L/t; the cantilever by the same with the end driven at the
+node (L, 0)). The surface stress at
 mid-span of the cantilever matches M c / I within 0.2 % at every L/t (Saint-Venant: away from
 the ends the beam's stress is the elastic one). What grows as the strip gets stubby is the end
 zones, each about one thickness long, where the stress is not M c / I (at a sharp clamp it is
