@@ -266,6 +266,27 @@ class _Outcome:
     table: dict[str, np.ndarray]
 
 
+#: what a sample whose solve did not reach the end of its stroke says (its reason)
+UNSOLVED_SAMPLE = "not solved through its stroke"
+
+
+def unsolved_reason(message: str) -> str:
+    """The reason of a sample whose solve stopped part-way (``message``: the solver's)."""
+    return f"{UNSOLVED_SAMPLE} ({message or 'did not converge'}): meets no requirement"
+
+
+def _not_solved(verdict: Verdict, reason: str) -> Verdict:
+    """``verdict`` of a sample that did not solve through its stroke: NOT MET, no margin (its
+    value over the rows reached is kept, named as such)."""
+    return replace(
+        verdict,
+        met=False,
+        margin=math.nan,
+        margin_rel=None,
+        detail=f"{reason}; {verdict.value:.4g} {verdict.unit} over the rows reached only",
+    )
+
+
 class SampleProblem(DesignProblem):
     """A design problem whose design vector is one sample ``(E_factor, thickness_delta_mm,
     width_delta_mm)`` of a fixed design; picklable, for the parallel backends.
@@ -316,6 +337,12 @@ class SampleProblem(DesignProblem):
         # the sample's own study: its printable minimum moved with the print (THICKNESS_KEYS),
         # every other requirement is the verdict's
         verdicts = judge_result(study, result, requirements=study_requirements(study))
+        if getattr(result, "converged", True) is False:
+            # a print whose solve stopped part-way is judged on no rows: its figures over the
+            # rows it reached under-read the stroke (#27; the nominal's "solved through the
+            # stroke" row, pipeline/stroke_verdict.py)
+            reason = unsolved_reason(result.message or reason)
+            verdicts = tuple(_not_solved(v, reason) for v in verdicts)
         n_not_met = sum(not v.met for v in verdicts)
         return Evaluation(
             np.asarray(s, dtype=float),
@@ -1066,9 +1093,10 @@ def _shares(
             verdict = None
             if outcome is not None:
                 verdict = next((v for v in outcome.verdicts if v.name == req.label), None)
-            if verdict is None:
+            if verdict is None or ev.reason:  # not built, not solved, or solved part-way
                 why = ev.reason or "the requirement was not judged"
                 failures.append(f"sample {row} ({_sample_words(draws[rs.seed][row])}): {why}")
+            if verdict is None:
                 margins.append(math.nan)
                 continue
             met += bool(verdict.met)

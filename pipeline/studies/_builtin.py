@@ -222,6 +222,10 @@ def sea_spring(study: Any) -> list[Requirement]:
                                     t.allowable_stress_MPa))  # fmt: skip
         if s3.converge_peak:
             reqs.append(Flag("peak_stress_converged", "peak stress mesh-converged", "check", True))
+    else:  # the part as made is not judged: NOT MET with the reason (#27)
+        from flexopt.pipeline.studies._sea_spring_3d_off import unchecked_3d_rows
+
+        reqs += unchecked_3d_rows(study)
     if t.max_asymmetry_percent is not None:
         reqs.append(MaxValue("asymmetry_percent", "asymmetry", "constraint",
                              t.max_asymmetry_percent))  # fmt: skip

@@ -190,6 +190,10 @@ def requirements(study: Any) -> list[Requirement]:
     thinnest leaf: ``geometry.thickness_mm``, or the design space's lower bound, whichever is
     thinner)."""
     reqs = list(_builtin.leaf_spring_joint(study))
+    # the support's edge as made: its stated Kt, or NOT MET with the reason (#27)
+    from flexopt.pipeline.studies._leaf_support import support_rows
+
+    reqs += support_rows(study, study.target.allowable_stress_MPa or study.material.yield_MPa)
     if study.stops is not None:
         thinnest = min(study.geometry.thickness_mm, study.design_space.thickness_mm[0])
         tolerance = ContactSettings().penetration_tol * thinnest

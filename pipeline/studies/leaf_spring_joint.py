@@ -95,6 +95,12 @@ class LeafJointGeometry(BaseModel):
         "the arm, the leaf slides past it (Fig. 5b)",
     )
     clamp_mm: float = Field(10.0, gt=0, description="leaf held behind the support (outline), mm")
+    support_kt: float | None = Field(
+        None,
+        ge=1,
+        description="stress-concentration factor of the support's edge as built (the model "
+        "clamps ideally); without it the support row is NOT MET (docs/leaf_joint.md)",
+    )
     overhang_mm: float = Field(
         30.0,
         ge=0,

@@ -63,6 +63,7 @@ from flexopt.pipeline.studies._mechanism_check import (
     fea_refusal,
     geometry_path,
 )
+from flexopt.pipeline.studies._mechanism_driven_end import driven_end_verdicts
 from flexopt.pipeline.studies._mechanism_fidelity import annotate, with_fidelity
 from flexopt.pipeline.studies._mechanism_gradient import mechanism_jacobian
 from flexopt.pipeline.studies._mechanism_result import (
@@ -502,7 +503,9 @@ class MechanismProblem(DesignProblem):
         own = [r for r in self.requirements if r.quantity not in LIFE_QUANTITIES]
         judged = scoring.judge(own, solved.metrics, solved.curves_table)
         clear = scoring.interference_verdict(solved.metrics, solved.clearance)
-        return (*judged, stops.interference_verdict(self.study, clear))
+        # a drive that holds a bare beam end's rotation: a corner as made (#27)
+        held = driven_end_verdicts(self.study)
+        return (*judged, stops.interference_verdict(self.study, clear), *held)
 
     def _evaluation(self, x: np.ndarray, solved: Solved, t0: float) -> Evaluation:
         verdicts = self.verdicts(solved)

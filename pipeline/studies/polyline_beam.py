@@ -42,6 +42,11 @@ from flexopt.geometry.profile import BeamProfile, first_crossing
 from flexopt.optimise.requirements import Requirement
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies._polyline_slenderness import (
+    SLENDERNESS,
+    Slenderness,
+    slenderness_ratio,
+)
 from flexopt.pipeline.studies._stops import PenetrationWithin, StopOutline, StopsSpec
 from flexopt.pipeline.study import STUDY_CONFIG, Study, material_record
 from pydantic import (
@@ -408,6 +413,8 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
     converged = bool(response.ok)
     message = response.message or ("" if converged else "not every step converged")
     summary = summarise(table, material, profile)
+    # L/t: below its bound the beam's figures are not the strip's (_polyline_slenderness.py)
+    summary[SLENDERNESS] = slenderness_ratio(profile.length_mm, study.geometry.thickness_mm)
     files: dict[str, bytes] = {}
     if stops:
         summary.update(contact_summary(response, drive.control))
@@ -521,7 +528,7 @@ def penetration_tolerance_mm(study: PolylineBeamStudy) -> float:
 
 def requirements(study: PolylineBeamStudy) -> list[Requirement]:
     """The built-in requirements; with stops also "contact penetration within tolerance"."""
-    reqs = list(_builtin.polyline_beam(study))
+    reqs = [*_builtin.polyline_beam(study), Slenderness()]
     if study.stops is not None:
         reqs.append(
             PenetrationWithin(
@@ -536,7 +543,7 @@ def requirements(study: PolylineBeamStudy) -> list[Requirement]:
 
 def quantities(study: PolylineBeamStudy) -> tuple[str, ...]:
     """The names a requirement may judge; with stops, each stop's columns and figures too."""
-    names = list(_builtin.POLYLINE_BEAM)
+    names = [*_builtin.POLYLINE_BEAM, SLENDERNESS]
     if study.stops is None:
         return tuple(names)
     unit = "displacement_mm" if study.boundary.end.control == "displacement" else "force_N"

@@ -173,7 +173,7 @@ def test_evaluate_agrees_with_flexopt_evaluate(cantilever_cli: Path) -> None:
         else:
             np.testing.assert_allclose(column, np.array(cells, dtype=float), rtol=1e-9)
     assert result.solve_time_s > 0
-    assert "cantilever (polyline_beam): MET (2 of 2), converged, 21 rows x 12" in repr(result)
+    assert "cantilever (polyline_beam): MET (3 of 3), converged, 21 rows x 12" in repr(result)
 
 
 def test_evaluate_result_is_physics_not_just_numbers() -> None:

@@ -264,3 +264,34 @@ def test_robust_evaluations_round_trip_through_the_runs_store(tmp_path):
     store.close()
     for a, b in zip(evaluations, store.load(), strict=True):
         assert a.g.tobytes() == b.g.tobytes() and a.metrics == b.metrics
+
+
+def test_a_print_solved_part_way_meets_nothing_with_the_reason(tmp_path):
+    """A print whose solve stops part-way (#27) is judged on no rows: its stress over the rows
+    it reached (half the load: half the stress) would meet the bound, the whole load's may not."""
+    from flexopt.pipeline.evaluate import evaluate_study
+
+    raw = cantilever({"share_percent": 95}, role="check", stall_below_mm=1.95)
+    # the corners too: nominal 2.0 mm, prints 1.9 mm (stalls) and 2.1 mm
+    study = validate_study(raw)
+    outcome = evaluate_study(study, out=tmp_path / "ev")
+    rows = {r["name"]: r for r in outcome.record["verdict"]["requirements"]}
+    row = rows["root stress (robust)"]
+    # the fresh prints that stall, counted here from numpy's generator (stream 1)
+    n_stall = int(np.sum(2.0 + thickness_draws(590, 1, 1) < 1.95))
+    assert 100 < n_stall < 200  # about a quarter of the prints
+    record = outcome.record["robustness"]["robust_requirements"]["requirements"][0]
+    assert record["met_samples"] == 590 - n_stall and record["n_failed"] == n_stall
+    assert "not solved through its stroke (no convergence at row 3)" in record["failure"]
+    assert row["verdict"] == "NOT MET"
+    assert math.isclose(row["value"], demonstrated_share(590 - n_stall, 590, 95))
+    assert f"{n_stall} sample(s) failed" in row["detail"]
+    assert record["worst_margin"] is None  # a stalled print has no margin over its stroke
+
+    # the corner samples: the thin corner meets nothing, named with the reason
+    corners = outcome.record["robustness"]
+    thin = next(s for s in corners["samples"] if s["thickness_delta_mm"] < 0)
+    assert thin["met"] == 0 and thin["reason"].startswith("not solved through its stroke")
+    req = corners["requirements"][0]
+    assert math.isclose(req["share_percent"], 100 * 2 / 3) and not req["met_robustly"]
+    assert corners["n_failed"] == 1
