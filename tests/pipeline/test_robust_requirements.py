@@ -295,3 +295,19 @@ def test_a_print_solved_part_way_meets_nothing_with_the_reason(tmp_path):
     req = corners["requirements"][0]
     assert math.isclose(req["share_percent"], 100 * 2 / 3) and not req["met_robustly"]
     assert corners["n_failed"] == 1
+
+
+def test_a_sample_of_a_sea_spring_is_not_judged_on_the_3d_row_its_sampler_switched_off():
+    """The sampler turns the SEA spring's 3D check off in every sample (SAMPLE_SWITCHES); the
+    "checked in 3D" row that a 3D-off study gets (NOT MET whatever the design) is left out of a
+    sample's requirements, and nothing else is."""
+    from flexopt.pipeline.robustness import CHECKED_3D, sample_requirements
+    from flexopt.pipeline.study import load_study
+    from flexopt.pipeline.verdict import study_requirements
+
+    study = load_study("sea-spring-quick")  # its 3D check is off: the row is there
+    full = study_requirements(study)
+    assert any(getattr(r, "quantity", None) == CHECKED_3D for r in full)
+    kept = sample_requirements(study)
+    assert [r for r in full if getattr(r, "quantity", None) != CHECKED_3D] == kept
+    assert len(kept) == len(full) - 1
