@@ -273,6 +273,10 @@ def threshold_spring(study: Any) -> list[Requirement]:
         ]
         if getattr(s3, "converge_peak", False):
             reqs.append(Flag("peak_stress_converged", "peak stress mesh-converged", "check", True))
+    elif s3 is not None:  # the part as made is not judged: NOT MET with the reason (#27)
+        from flexopt.pipeline.studies._sea_spring_3d_off import THRESHOLD_REASON, Unchecked3D
+
+        reqs.append(Unchecked3D(reason=THRESHOLD_REASON))
     return reqs
 
 

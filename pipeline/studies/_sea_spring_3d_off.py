@@ -23,7 +23,7 @@ from typing import Any
 
 from flexopt.optimise.requirements import Requirement, Verdict
 
-__all__ = ["NOT_CHECKED_3D", "Unchecked3D"]
+__all__ = ["NOT_CHECKED_3D", "THRESHOLD_REASON", "Unchecked3D"]
 
 #: the row's name
 NOT_CHECKED_3D = "checked in 3D"
@@ -36,6 +36,15 @@ REASON = (
 )
 
 
+#: why a threshold spring with its 3D check off is NOT MET (the same hole: its plate's curve as
+#: made is the plane-stress curve times the 3D/2D stiffness ratio, docs/threshold_torque.md)
+THRESHOLD_REASON = (
+    "3D check off (solid_3d.check: false, or fidelity off): the plate's 3D stiffening is not "
+    "seen, so the curve-error and peak-stress rows judge plane stress (or the beam) only, not "
+    "the part as made; set solid_3d: {check: true} and fidelity: {enabled: true} to judge it"
+)
+
+
 @dataclass(frozen=True)
 class Unchecked3D(Requirement):
     """NOT MET whatever the design: the part as made was not judged in 3D (see the module
@@ -43,10 +52,11 @@ class Unchecked3D(Requirement):
 
     quantity: str = "checked_3d"
     name: str = NOT_CHECKED_3D
+    reason: str = REASON
 
     def check(self, metrics: Any, curves: Any = None) -> Verdict:  # noqa: ARG002 - the API's
         return Verdict(
-            self.label, self.quantity, 0.0, "= yes", -1.0, None, False, "", self.role, REASON
+            self.label, self.quantity, 0.0, "= yes", -1.0, None, False, "", self.role, self.reason
         )
 
 

@@ -44,6 +44,22 @@ def test_a_sea_spring_without_its_3d_check_is_not_met_with_the_reason():
     assert "checked in 3D" not in {r.label for r in study_requirements(no_target)}
 
 
+def test_a_threshold_spring_without_its_3d_check_is_not_met_with_the_reason():
+    """The same hole in threshold_spring: with solid_3d.check false (or fidelity off) the curve
+    and stress rows judge plane stress only; a NOT MET "checked in 3D" row says so."""
+    raw = _raw("threshold-spring")
+    full = {r.label for r in study_requirements(validate_study(raw))}
+    assert "checked in 3D" not in full and "3D peak stress ≤ allowable" in full
+    for switch in (("solid_3d", "check"), ("fidelity", "enabled")):
+        off = _raw("threshold-spring")
+        off.setdefault(switch[0], {})[switch[1]] = False
+        study = validate_study(off)
+        rows = {v.name: v for v in judge(study, {}, None)}
+        row = rows["checked in 3D"]
+        assert not row.met and "3D check off" in row.detail and row.role == "check"
+        assert "3D peak stress ≤ allowable" not in {r.label for r in study_requirements(study)}
+
+
 # ---- mechanism: a drive that holds a bare beam end's rotation
 
 
