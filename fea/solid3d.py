@@ -1665,7 +1665,7 @@ class Solid3DModel:
         model at thickness t is the one at t0 with its stiffness times t / t0 (every element
         matrix carries the thickness as a factor), so with displacement supports its answer
         is the same displacement, the reaction times t / t0 and the same stresses; a later
-        thickness scales that (the same figures as a solve at t to round-off, ~1e-15;
+        thickness scales that (the same figures as a solve at t to its round-off, ~1e-10;
         tests/fea/test_solid3d_model.py). ``time_2d_s`` is 0 then (no solve made).
         """
         r3 = self.solve(thickness_mm)
