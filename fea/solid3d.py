@@ -134,8 +134,10 @@ class Solid3DSettings:
     # Where "auto" without CHOLMOD turns to multigrid: a direct factor of a P2 model this
     # large is ~0.5 GB and grows faster than the model (the SEA spring's 408k DOFs: CHOLMOD's
     # 1.04 GB, QDLDL's check peaks at 4.65 GB), while the multigrid solver's memory is
-    # ~2.5 kB per DOF; below it the factor is small and a direct solve the quicker.
-    multigrid_from_dofs: int = 200_000
+    # ~2.5 kB per DOF; below it the factor is small and a direct solve the quicker. 150k since
+    # session 27: the SEA serpentine's quarter sector (165k DOFs) peaks at 1.76 GB with QDLDL,
+    # 0.75 GB by multigrid (issue 27's 1.5 GB for the check; docs/solid3d.md).
+    multigrid_from_dofs: int = 150_000
     # Elements per assembly block: bounds the memory of the (block, 30, 30) element matrices
     # (20 000 blocks use ~150 MB each) independently of the mesh size. Solid3DModel's
     # assembly uses blocks of 2 000 at most (its batched products run ~10x faster in cache).
