@@ -161,9 +161,9 @@ def child_stages(case_file: str, solver: str) -> None:
     model_cls = s3.Solid3DModel
     inner = model_cls._solve_multigrid
 
-    def marked(self, vals, b, lean):  # the multigrid solve between two marks
+    def marked(self, *args, **kwargs):  # the multigrid solve between two marks
         _mark("K(t) formed, its values gathered, K (and the parts) let go")
-        out = inner(self, vals, b, lean)
+        out = inner(self, *args, **kwargs)
         _mark("multigrid: whole matrix, P1 factor, CG")
         return out
 

@@ -427,21 +427,11 @@ def sector_or_reason(
     The caller's load must be a rigid turn about ``centre_mm`` (the SEA spring's hub); the
     outline and ``regions`` (supports, stress-ignore) must repeat every 2 pi / n
     (:func:`rotational_symmetry_problem`). ``solver``: the check's
-    :attr:`fea.solid3d.Solid3DSettings.solver`: the sector's tie is no DOF selection, so it
-    is factorised (CHOLMOD, QDLDL, SuperLU), never solved by multigrid: with ``"multigrid"``,
-    or ``"auto"`` where CHOLMOD does not import (a plain install, where "auto" takes
-    multigrid on a model this large), the whole model is solved as before. ``avoid_mm``
-    (k, 2) mm: points the cuts keep away from (:func:`choose_cut_angle`; the plane-stress peak).
+    :attr:`fea.solid3d.Solid3DSettings.solver`; every solver solves the sector (multigrid
+    on P^T K P with the tied P1 functions as its coarse space: a plain install, where "auto"
+    takes multigrid on a model this large, solves the sector too). ``avoid_mm`` (k, 2) mm:
+    points the cuts keep away from (:func:`choose_cut_angle`; the plane-stress peak).
     """
-    from flexopt.fea.solid3d import cholmod_available
-
-    if solver == "multigrid":
-        return None, "whole model: solid_3d.solver is multigrid (a sector needs a direct factor)"
-    if solver == "auto" and not cholmod_available():
-        return None, (
-            "whole model: without the cholmod extra 'auto' solves by multigrid (no factor), "
-            "which a sector's tie does not allow"
-        )
     why = rotational_symmetry_problem(outline, n, centre_mm, regions)
     if why is not None:
         return None, f"whole model: not rotationally symmetric ({why})"

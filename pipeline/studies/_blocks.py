@@ -99,7 +99,7 @@ class Solid3DCheckSpec(BaseModel):
     solver: Literal["auto", "multigrid", "cholmod", "qdldl", "superlu"] = Field(
         "auto",
         description="3D solver: auto = CHOLMOD with the cholmod extra, else multigrid from "
-        "200k DOFs; multigrid = least memory, ~3x CHOLMOD's time (docs/solid3d.md)",
+        "150k DOFs; multigrid = least memory, ~3x CHOLMOD's time (docs/solid3d.md)",
     )
 
     @field_validator("solver")

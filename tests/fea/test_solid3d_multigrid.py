@@ -139,7 +139,7 @@ def test_multigrid_without_cvxopt_factorises_the_coarse_grid_with_qdldl(monkeypa
 def test_auto_takes_cholmod_else_multigrid_from_multigrid_from_dofs_on(install, monkeypatch):
     """The "auto" solver: CHOLMOD wherever it imports (~3x faster than multigrid, at twice its
     memory), at every size; on a plain install (no `cholmod` extra, simulated by making
-    `import cvxopt` fail) QDLDL below ``multigrid_from_dofs`` (by default 200k DOFs, below the
+    `import cvxopt` fail) QDLDL below ``multigrid_from_dofs`` (by default 150k DOFs, below the
     SEA spring's 408k) and multigrid from it on (less memory and less time than QDLDL). The
     same model below and above a lowered threshold."""
     import sys
