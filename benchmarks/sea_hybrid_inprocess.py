@@ -7,7 +7,7 @@ Jacobians; stage 1 excluded), and the load average.
 
     nice python benchmarks/sea_hybrid_inprocess.py                    # seeds 1 2 3, Gauss-Newton
     nice python benchmarks/sea_hybrid_inprocess.py --local slsqp --seeds 1
-    nice python benchmarks/sea_hybrid_inprocess.py --max-evaluations 44
+    nice python benchmarks/sea_hybrid_inprocess.py --max-evaluations 44 --patience 3
 
 ``benchmarks/hybrid.py --studies sea-spring`` runs the whole ``flexopt run`` (report and 3D
 checks included) against NSGA-II instead.
@@ -32,6 +32,7 @@ def main() -> None:
     parser.add_argument("--starts", type=int, default=2)
     parser.add_argument("--local", choices=("gauss_newton", "slsqp"), default="gauss_newton")
     parser.add_argument("--max-evaluations", type=int, default=None)
+    parser.add_argument("--patience", type=int, default=6, help="the study's default: 6")
     args = parser.parse_args()
 
     from flexopt.optimise.first_objective import FirstObjective
@@ -57,6 +58,7 @@ def main() -> None:
             args.ga_n_gen,
             args.local,
             args.starts,
+            patience=args.patience,
             max_evaluations=args.max_evaluations,
         )
         cpu0, wall0 = time.process_time(), time.perf_counter()

@@ -128,6 +128,12 @@ def _hybrid_setup(
         # several objectives: the hybrid minimises the first, the one a run's best design is
         # chosen by (optimise/first_objective.py); the others stay in every design's metrics
         problem = FirstObjective(problem)
+    if spec.algorithm != "ga" and not isinstance(problem, FirstObjective):
+        raise StudyError(
+            "optimiser.method",
+            f"'hybrid' with algorithm: {spec.algorithm} needs several objectives; kind "
+            f"'{study.kind}' has one ({problem.objective_names[0]}): use algorithm: ga",
+        )
     if len(problem.objective_names) != 1:
         raise StudyError(
             "optimiser.method",
