@@ -439,3 +439,62 @@ def node_sensitivities(
         residual_N=arr["res"],
         info={"cpu_s": time.process_time() - t0},
     )
+
+
+def gap_sensitivity(
+    model: PlaneStressModel, response: PlaneStressResponse, row: int, pairs: np.ndarray
+) -> tuple[float, np.ndarray]:
+    """The narrowest deformed distance of the node ``pairs`` (p, 2) (FE node indices into
+    ``model.xy``: a spring's slot pairs, :func:`fea.spring_analysis.slot_pairs`) at the converged
+    ``row`` of ``response`` (solved on ``model`` with ``keep_states=True``, its drive as it was
+    solved), mm, and its derivative (n_vertices, 2) by the vertex coordinates.
+
+    The distance of the closest pair ``a, b``, ``J = |x_a + u_a - x_b - u_b|``, differentiated
+    with that pair held (the min over pairs is not differentiable where two pairs tie; the
+    derivative is the active pair's, as the KS stress's is the aggregate's): ``dJ/du`` is the
+    unit vector ``n`` at a's displacements and ``-n`` at b's, ``dJ/dx`` the same at the nodes'
+    coordinates, and the adjoint of :func:`node_sensitivities` (``w = 0``) carries ``dJ/du``
+    through the equilibrium.
+
+    Raises
+    ------
+    FeaError
+        No kept states, or the row did not converge.
+    """
+    if response.row_dofs is None or response.row_dofs[row] is None:
+        raise FeaError("the gap's sensitivity needs the row's state: solve with keep_states=True")
+    if not response.converged[row]:
+        raise FeaError(f"the gap's sensitivity: row {row} did not converge")
+    kin = response.kinematics
+    nonlinear = kin != "linear"
+    u = np.asarray(response.row_dofs[row], dtype=float)
+    xy = np.asarray(model.xy)
+    moved = xy + np.column_stack([u[model.ix], u[model.iy]])
+    d = moved[pairs[:, 0]] - moved[pairs[:, 1]]
+    dist = np.hypot(d[:, 0], d[:, 1])
+    k = int(np.argmin(dist))
+    a, b = (int(i) for i in pairs[k])
+    gap = float(dist[k])
+    n = d[k] / gap
+    da = np.zeros(model.n_dofs)
+    da[model.ix[a]], da[model.iy[a]] = n
+    da[model.ix[b]] -= n[0]
+    da[model.iy[b]] -= n[1]
+    expl = np.zeros((xy.shape[0], 2))
+    expl[a] += n
+    expl[b] -= n
+    st = model.state(u, kin)
+    geo = _Geometry(model)
+    value = float(response.drive_value[row])
+    if isinstance(model.drive, Rotate):
+        if nonlinear:
+            c, s = np.cos(value), np.sin(value)
+            dub = np.array([[c - 1.0, -s], [s, c - 1.0]])
+        else:
+            dub = value * np.array([[0.0, -1.0], [1.0, 0.0]])
+    else:
+        dub = np.zeros((2, 2))
+    state = _point_state(model, geo, u, nonlinear)
+    MT = geo.node_map.T.tocsr()
+    r = _Row(model, geo, MT, u, st.K, dub, nonlinear, state)
+    return gap, r.total(np.zeros(model.n_dofs), da, expl)

@@ -34,6 +34,7 @@ __all__ = [
     "analyse_spring",
     "curve_table",
     "slot_gaps_mm",
+    "slot_pairs",
     "stress_map_data",
 ]
 
@@ -268,8 +269,8 @@ def slot_gaps_mm(model: Any, states: dict[str, np.ndarray], outline: Any) -> dic
 
     A slot is where the outline comes back close to itself: two boundary nodes of the FE mesh
     closer than 3 mm whose distance along the outline is more than three times that (so they lie
-    on two members facing each other, not on one edge). Measured node to node (P2 nodes 0.25 mm
-    apart near the edges), which overstates a 0.9 mm gap by under 0.01 mm.
+    on two members facing each other, not on one edge; :func:`slot_pairs`). Measured node to
+    node (P2 nodes 0.25 mm apart near the edges), which overstates a 0.9 mm gap by under 0.01 mm.
 
     Parameters
     ----------
@@ -280,6 +281,27 @@ def slot_gaps_mm(model: Any, states: dict[str, np.ndarray], outline: Any) -> dic
     Returns
     -------
     dict — ``undeformed`` and one entry per state, mm (inf where no slot is found).
+    """
+    pairs = slot_pairs(model, outline)
+    if pairs is None:
+        return {"undeformed": math.inf, **{k: math.inf for k in states}}
+    xy = np.asarray(model.xy)
+
+    def gap(points: np.ndarray) -> float:
+        d = points[pairs[:, 0]] - points[pairs[:, 1]]
+        return float(np.hypot(d[:, 0], d[:, 1]).min())
+
+    out = {"undeformed": gap(xy)}
+    for name, u in states.items():
+        out[name] = gap(xy + np.column_stack([u[model.ix], u[model.iy]]))
+    return out
+
+
+def slot_pairs(model: Any, outline: Any) -> np.ndarray | None:
+    """(p, 2) int: the pairs of FE nodes (indices into ``model.xy``) facing each other across a
+    slot (:func:`slot_gaps_mm`), or None where there is none. The narrowest slot of a state
+    ``u`` is the pair whose moved nodes are closest (the loaded slot's derivative,
+    :func:`fea.plane_stress_sensitivity.gap_sensitivity`, differentiates that pair's distance).
     """
     from scipy.spatial import cKDTree
 
@@ -315,7 +337,7 @@ def slot_gaps_mm(model: Any, states: dict[str, np.ndarray], outline: Any) -> dic
     on = dist[first] < 1e-6
     idx = node[first][on]  # sorted: node is the first sort key
     if len(idx) == 0:
-        return {"undeformed": math.inf, **{k: math.inf for k in states}}
+        return None
     pts = xy[idx]
     w = which[first][on]
     s = start[w] + t[first][on] * np.sqrt(seg_len2[w])
@@ -323,22 +345,13 @@ def slot_gaps_mm(model: Any, states: dict[str, np.ndarray], outline: Any) -> dic
     reach = 3.0
     pairs = cKDTree(pts).query_pairs(reach, output_type="ndarray")
     if len(pairs) == 0:
-        return {"undeformed": math.inf, **{k: math.inf for k in states}}
+        return None
     ds = np.abs(s[pairs[:, 0]] - s[pairs[:, 1]])
     ds = np.minimum(ds, length - ds)
     pairs = pairs[ds > 3.0 * reach]
     if len(pairs) == 0:
-        return {"undeformed": math.inf, **{k: math.inf for k in states}}
-
-    def gap(points: np.ndarray) -> float:
-        d = points[pairs[:, 0]] - points[pairs[:, 1]]
-        return float(np.hypot(d[:, 0], d[:, 1]).min())
-
-    out = {"undeformed": gap(pts)}
-    for name, u in states.items():
-        moved = pts + np.column_stack([u[model.ix][idx], u[model.iy][idx]])
-        out[name] = gap(moved)
-    return out
+        return None
+    return idx[pairs]
 
 
 def stress_map_data(r: SpringResponse) -> dict[str, Any]:

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from flexopt.optimise.errors import OptimiseError
+from flexopt.optimise.first_objective import FirstObjective
 from flexopt.optimise.ga import GAConfig
 from flexopt.optimise.hybrid import HybridConfig
 from flexopt.optimise.problem import DesignProblem
@@ -119,13 +120,26 @@ def _hybrid_setup(
     without exact derivatives more until its best is feasible, ``n_gen`` at most;
     ``quick_n_gen`` under ``--quick``) and
     its gradient stage; Gauss-Newton on the problem's
-    :meth:`~optimise.problem.DesignProblem.with_residuals`."""
+    :meth:`~optimise.problem.DesignProblem.with_residuals`. With ``algorithm: nsga2`` and
+    several objectives it minimises the first (:class:`optimise.first_objective.
+    FirstObjective`: the objective the run's best design is chosen by)."""
     options = spec.hybrid or HybridSpec()
-    if spec.algorithm != "ga" or len(problem.objective_names) != 1:
+    if spec.algorithm == "nsga2" and len(problem.objective_names) > 1:
+        # several objectives: the hybrid minimises the first, the one a run's best design is
+        # chosen by (optimise/first_objective.py); the others stay in every design's metrics
+        problem = FirstObjective(problem)
+    if spec.algorithm != "ga" and not isinstance(problem, FirstObjective):
         raise StudyError(
             "optimiser.method",
-            f"'hybrid' optimises one objective with algorithm: ga; kind '{study.kind}' has "
-            f"{len(problem.objective_names)} ({', '.join(problem.objective_names)})",
+            f"'hybrid' with algorithm: {spec.algorithm} needs several objectives; kind "
+            f"'{study.kind}' has one ({problem.objective_names[0]}): use algorithm: ga",
+        )
+    if len(problem.objective_names) != 1:
+        raise StudyError(
+            "optimiser.method",
+            f"'hybrid' optimises one objective with algorithm: ga (or the first of several "
+            f"with nsga2); kind '{study.kind}' has {len(problem.objective_names)} "
+            f"({', '.join(problem.objective_names)})",
         )
     local = options.local
     if local in ("auto", "gauss_newton"):
@@ -142,7 +156,7 @@ def _hybrid_setup(
             local = "slsqp"
     try:
         config = HybridConfig(
-            GAConfig(spec.algorithm, pop_size, n_gen, spec.seed),
+            GAConfig("ga", pop_size, n_gen, spec.seed),  # its GA stage: one objective
             None if quick else options.ga_n_gen,
             local,
             1 if quick else options.starts,

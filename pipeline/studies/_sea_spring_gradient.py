@@ -22,9 +22,12 @@ What is differentiated is the response of the **morphed** mesh, which equals the
 design's at ``x`` exactly and near it up to the discretisation error (falling with refinement:
 tests/pipeline/test_sea_spring_gradient.py). The geometric margins' rows are central differences
 of the generator's margins (distances between polygons, not smooth to better than the polygon's
-resolution); the loaded-slot row (``deformed_slot_mm``) is not differentiated (NaN). Not
-differentiated at all (the hook answers None): the serpentine topology (no morph), ``thickness:
-search``, a design that cannot be built, meshed, morphed or solved.
+resolution); the loaded-slot row (``deformed_slot_mm``) is the narrowest deformed distance of
+the slot's node pairs (:func:`fea.spring_analysis.slot_pairs`) over both directions, its
+derivative the closest pair's by the adjoint (:func:`fea.plane_stress_sensitivity.
+gap_sensitivity`; a min: not differentiable where two pairs tie). Not differentiated at all
+(the hook answers None): the serpentine topology (no morph), ``thickness: search``, a design
+that cannot be built, meshed, morphed or solved.
 """
 
 from __future__ import annotations
@@ -40,8 +43,9 @@ from flexopt.fea.errors import FeaError
 from flexopt.fea.mesh import TriMesh, mesh_polygon
 from flexopt.fea.mesh_morph import SpiralMorph
 from flexopt.fea.plane_stress import Clamp, PlaneStressModel, PlaneStressSettings, Rotate
-from flexopt.fea.plane_stress_sensitivity import ks_rho, node_sensitivities
+from flexopt.fea.plane_stress_sensitivity import gap_sensitivity, ks_rho, node_sensitivities
 from flexopt.fea.sea_design import build_any, spring_margins
+from flexopt.fea.spring_analysis import slot_pairs
 from flexopt.geometry.arm_spring import ArmSpringParams
 from flexopt.geometry.errors import GeometryError
 from flexopt.optimise.design_jacobian import DesignJacobian
@@ -175,6 +179,8 @@ def morphed_responses(
     ):
         raise FeaError("the morphed mesh's clamp, drive or stress search is not the design's")
     solved = _solve_both(model, problem.theta, problem.study.target.directions == "both")
+    pairs = slot_pairs(same, s.geom.fe_outline)  # x0's pairs: the topology is fixed
+    gap, _ = _loaded_gap(model, solved, problem.theta, pairs)
     torques = {d: np.asarray(r.torque_Nmm[1:]) for d, r in solved.items()}
     rho = ks_rho(problem.material.yield_MPa)
     ks = {d: float(node_sensitivities(_drive(model, d, problem.theta), r, rho,
@@ -185,7 +191,26 @@ def morphed_responses(
     area, _ = _area_gradient(pts, s.mesh.triangles)
     out = _figures(problem, torques, ks, s.geom.area_mm2 + area - area0)
     out["peak_stress_MPa"] = max(float(r.peak_nodal_stress_MPa[-1]) for r in solved.values())
+    out["deformed_slot_mm"] = gap
     return out
+
+
+def _loaded_gap(
+    model: PlaneStressModel, solved: dict[str, Any], theta: float, pairs: np.ndarray | None
+) -> tuple[float, np.ndarray | None]:
+    """The narrowest loaded slot over the solved directions' last rows, mm (1e3 where there is
+    no slot, as :func:`optimise.sea_cost.spring_scores` caps it), and its derivative (n, 2) by
+    the vertices (None without a slot): the closest pair's in the direction where it is
+    narrowest (:func:`fea.plane_stress_sensitivity.gap_sensitivity`)."""
+    if pairs is None:
+        return 1e3, None
+    best: tuple[float, np.ndarray | None] = (1e3, None)
+    for d, r in solved.items():
+        gap, grad = gap_sensitivity(_drive(model, d, theta), r, len(r.torque_Nmm) - 1, pairs)
+        if gap < best[0]:
+            best = (gap, grad)
+    model.drive = replace(model.drive, max_rad=theta)
+    return best
 
 
 def _drive(model: PlaneStressModel, direction: str, theta: float) -> PlaneStressModel:
@@ -220,6 +245,10 @@ def spring_sensitivities(
         ks[d] = float(sens.ks_MPa[-1])
         d_ks[d] = np.einsum("nj,njv->v", sens.d_ks[-1], dX)
     model.drive = replace(model.drive, max_rad=problem.theta)
+    gap, d_gap_X = 1e3, None
+    if problem.min_gap is not None:
+        pairs = slot_pairs(model, s.geom.fe_outline)
+        gap, d_gap_X = _loaded_gap(model, solved, problem.theta, pairs)
     _, d_area = _area_gradient(s.mesh.points, s.mesh.triangles)
     area = s.geom.area_mm2
     d_area = np.einsum("nj,njv->v", d_area, dX)
@@ -252,6 +281,11 @@ def spring_sensitivities(
         * (dk["ccw"] / k_mean - k["ccw"] * dk_mean / k_mean**2),
     }
     values["peak_stress_MPa"] = max(float(r.peak_nodal_stress_MPa[-1]) for r in solved.values())
+    if problem.min_gap is not None:
+        values["deformed_slot_mm"] = gap
+        grads["deformed_slot_mm"] = (
+            np.zeros(x.size) if d_gap_X is None else np.einsum("nj,njv->v", d_gap_X, dX)
+        )
     return {
         "values": values,
         "gradients": grads,
@@ -295,14 +329,13 @@ def sea_spring_jacobian(problem: Any, x: np.ndarray) -> DesignJacobian | None:
     lo, hi = problem.st_range
     g0 += [v["ST_mm"] - hi, lo - v["ST_mm"]]
     G += [dv["ST_mm"][None, :], -dv["ST_mm"][None, :]]
-    not_diff = []
+    not_diff: list[str] = []
     if problem.study.target.max_asymmetry_percent is not None:
         g0.append(v["asymmetry_percent"] - problem.study.target.max_asymmetry_percent)
         G.append(dv["asymmetry_percent"][None, :])
     if problem.min_gap is not None:
-        g0.append(math.nan)
-        G.append(np.full((1, x.size), math.nan))
-        not_diff.append("deformed_slot_mm")
+        g0.append(problem.min_gap - v["deformed_slot_mm"])
+        G.append(-dv["deformed_slot_mm"][None, :])
     F = np.vstack([dv["ks_MPa"], dv["mass_g"]])
     info = {
         "ks_MPa": v["ks_MPa"],
