@@ -62,17 +62,27 @@ def solved():
 def test_figures_match_central_differences_of_the_morphed_solve(solved, name: str) -> None:
     prob, x, sens = solved
     i = prob.space.names.index(name)
-    h = 1e-5 * (prob.space.upper[i] - prob.space.lower[i])
-    ends = []
-    for s in (h, -h):
-        xs = x.copy()
-        xs[i] += s
-        ends.append(morphed_responses(prob, x, xs, steps=STEPS))
+    # two steps, 1e-5 and 4e-5 of the range; each figure is judged by the better of the two.
+    # The torque rows are nonlinear solves whose Newton tolerance leaves ~1e-12 relative noise,
+    # which a central difference divides by h: at 1e-5 torque_cw's error read 1.02e-6 for
+    # F1_fraction (6.5e-7 at 2e-5, 5.8e-7 at 5e-6: noise, not falling as h**2), 1.1e-7 at 4e-5;
+    # the loaded slot gap (a min over slot pairs, curved) wants the smaller step (3.1e-6 at 4e-5)
+    fds = []
+    for rel in (1e-5, 4e-5):
+        h = rel * (prob.space.upper[i] - prob.space.lower[i])
+        ends = []
+        for s in (h, -h):
+            xs = x.copy()
+            xs[i] += s
+            ends.append(morphed_responses(prob, x, xs, steps=STEPS))
+        fds.append(
+            {k: (np.asarray(ends[0][k]) - np.asarray(ends[1][k])) / (2 * h) for k in FIGURES}
+        )
     for key in FIGURES:
-        fd = (np.asarray(ends[0][key]) - np.asarray(ends[1][key])) / (2 * h)
         exact = np.asarray(sens["gradients"][key])[..., i]
-        err = np.max(np.abs(exact - fd)) / np.max(np.abs(fd))
-        assert err <= 1e-6, (name, key, exact, fd, err)
+        errs = [np.max(np.abs(exact - fd[key])) / np.max(np.abs(fd[key])) for fd in fds]
+        err = min(errs)
+        assert err <= 1e-6, (name, key, exact, [fd[key] for fd in fds], errs)
 
 
 @pytest.mark.slow
