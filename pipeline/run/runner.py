@@ -514,6 +514,7 @@ def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
             import flexopt.geometry.dxf  # noqa: F401
             import flexopt.geometry.solid  # noqa: F401
             import manifold3d  # noqa: F401  (geometry.solid imports them where a solid is made)
+            import scipy.optimize  # noqa: F401  (e.g. the constant-force detail's PRB synthesis)
             import trimesh  # noqa: F401
 
             # report.html's plotly classes, validators and template JSON (~0.3 s CPU)
