@@ -2,7 +2,8 @@
 report's files (issue 27 item 4).
 
     nice python benchmarks/fixed_costs.py [--study constant-force] [--repeat 3]
-        [--parts startup evaluate run] [--workers N] [--timed-only] [--ab OTHER_PYTHON]
+        [--parts startup evaluate run] [--workers N] [--quick] [--timed-only]
+        [--ab OTHER_PYTHON]
 
 Three parts, each repeated ``--repeat`` times in fresh processes (medians printed, with the
 load average before and after each part, since the machine is shared):
@@ -27,6 +28,9 @@ load average before and after each part, since the machine is shared):
 ``--ab OTHER_PYTHON``
     Instead of the breakdown: the plain commands with another install's ``flexopt`` (A, e.g.
     main's venv) and this one's (B), alternating, medians of wall and CPU.
+``--quick``
+    ``flexopt run --quick`` (the study's ``quick_pop_size`` x ``quick_n_gen`` designs): a run
+    that is nearly all fixed costs.
 ``--timed-only``
     The timed child alone (no plain command): for a study too long to run twice (sea-spring).
 
@@ -60,6 +64,9 @@ FLEXOPT = Path(sys.executable).with_name("flexopt")
 TIMED: tuple[tuple[str, str, str], ...] = (
     ("flexopt.pipeline.study", "load_study", "load_study"),
     ("flexopt.pipeline.run.setup", "prepare_run", "prepare_run"),
+    ("flexopt.pipeline.run.runner", "start_early_step", "best.step's child: fork"),
+    ("flexopt.pipeline.backends", "_warm_up_kernels", "pool: kernels loaded before the fork"),
+    ("flexopt.pipeline.parallel", "ProcessPool.__init__", "pool: the workers forked"),
     ("flexopt.optimise.ga", "run_ga", "optimiser (GA)"),
     ("flexopt.optimise.hybrid", "run_hybrid", "optimiser (hybrid)"),
     ("flexopt.pipeline.run.state", "RunState.finish", "report phase: RunState.finish"),
@@ -352,9 +359,15 @@ def part_startup(repeat: int) -> None:
 
 
 def part_command(
-    what: str, study: str, repeat: int, workers: int | None, timed_only: bool = False
+    what: str,
+    study: str,
+    repeat: int,
+    workers: int | None,
+    timed_only: bool = False,
+    quick: bool = False,
 ) -> None:
     more = ["--workers", str(workers)] if workers is not None and what == "run" else []
+    more += ["--quick"] if quick and what == "run" else []
     print(f"{what} {study} {' '.join(more)} (load {_load()})")
     whole: list[tuple[float, float]] = []
     rounds: list[list[dict[str, Any]]] = []
@@ -412,13 +425,13 @@ def part_command(
     print(f"  load after: {_load()}")
 
 
-def part_ab(what: str, study: str, repeat: int, other: str) -> None:
+def part_ab(what: str, study: str, repeat: int, other: str, quick: bool = False) -> None:
     """The plain command with this interpreter's flexopt and another's (e.g. main's venv),
     alternating (the order swapped every round): medians of wall and CPU, s."""
     ours, theirs = str(FLEXOPT), str(Path(other).with_name("flexopt"))
     print(f"A/B {what} {study}: A = {theirs}, B = {ours} (load {_load()})")
     runs: dict[str, list[tuple[float, float]]] = {"A": [], "B": []}
-    quiet = ["--quiet"] if what == "run" else []
+    quiet = ["--quiet", *(["--quick"] if quick else [])] if what == "run" else []
     with tempfile.TemporaryDirectory(prefix="fixed-costs-ab-") as tmp:
         for i in range(repeat):
             order = [("A", theirs), ("B", ours)] if i % 2 == 0 else [("B", ours), ("A", theirs)]
@@ -450,6 +463,7 @@ def main() -> None:
         choices=["startup", "evaluate", "run"],
     )
     parser.add_argument("--workers", type=int, default=None, help="flexopt run --workers")
+    parser.add_argument("--quick", action="store_true", help="flexopt run --quick")
     parser.add_argument(
         "--timed-only",
         action="store_true",
@@ -470,13 +484,13 @@ def main() -> None:
     if args.ab:
         for what in ("evaluate", "run"):
             if what in args.parts:
-                part_ab(what, args.study, args.repeat, args.ab)
+                part_ab(what, args.study, args.repeat, args.ab, args.quick)
         return
     if "startup" in args.parts:
         part_startup(max(args.repeat, 5))
     for what in ("evaluate", "run"):
         if what in args.parts:
-            part_command(what, args.study, args.repeat, args.workers, args.timed_only)
+            part_command(what, args.study, args.repeat, args.workers, args.timed_only, args.quick)
 
 
 if __name__ == "__main__":

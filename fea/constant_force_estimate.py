@@ -87,7 +87,6 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
-from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
 __all__ = [
@@ -143,6 +142,8 @@ def elastica_parameter(chord_ratio: float) -> float:
 
     if f(_M_MAX) > 0:
         raise ValueError(f"chord / length = {r:.4g} is beyond the buckled column's reach")
+    from scipy.optimize import brentq  # here: ~0.1 s CPU that importing a kind need not pay
+
     return float(brentq(f, 0.0, _M_MAX, xtol=1e-14, rtol=1e-12))
 
 
@@ -294,6 +295,8 @@ def estimate_spec(
     min_width = (
         3.0 * F * L * L / (math.pi**2 * E * t_strain**3 * math.cos(phi)) if printable else None
     )
+
+    from scipy.optimize import brentq  # here: ~0.1 s CPU that importing a kind need not pay
 
     def over_stroke(s: float) -> float:
         return peak_stress_MPa(E, t, L, phi, s) - allow

@@ -61,7 +61,6 @@ from flexopt.geometry.cam import (
     follower_radius_from_outline,
 )
 from flexopt.geometry.errors import GeometryError
-from scipy.integrate import solve_ivp
 from shapely.geometry import Polygon
 
 __all__ = [
@@ -280,6 +279,10 @@ def _friction_radius(
     # integrate until the event, bounded by a generous multiple of that distance.
     r_free = float(_invert_spring_work(springs, layout, np.array([u_end]), settings)[0])
     span = 4.0 * (r_free - r0) + 1.0
+    # imported here: scipy.integrate is ~0.04 s CPU that importing a kind through this module
+    # (load_study of every constant-force study) does not need
+    from scipy.integrate import solve_ivp
+
     sol = solve_ivp(
         rhs,
         (r0, r0 + span),

@@ -47,7 +47,6 @@ from flexopt.geometry.constant_force import (
     slider_x_mm,
 )
 from flexopt.geometry.errors import GeometryError
-from scipy.optimize import minimize
 
 __all__ = [
     "PRBState",
@@ -511,6 +510,10 @@ def optimise_prb(
     """
     if not target_force_N > 0:
         raise GeometryError(f"target_force_N = {target_force_N:g} must be > 0")
+    # imported here: scipy.optimize (~0.1 s CPU) is not needed to import this module (every
+    # constant-force study does), only to re-synthesise the PRB parameters
+    from scipy.optimize import minimize
+
     samples = stroke_samples_mm(stroke_mm, n_samples)
     lower, upper = prb_bounds(x_in_mm, e_mm, k_max_Nmm)
     alpha0 = lower[1]

@@ -27,7 +27,6 @@ from typing import Any
 import numpy as np
 import shapely
 from flexopt.geometry.errors import GeometryError
-from scipy.interpolate import CubicHermiteSpline
 from shapely.geometry import MultiPolygon, Point, Polygon
 
 __all__ = [
@@ -252,6 +251,10 @@ def _pitch_polygon(profile: CamProfile, settings: CamSettings) -> Polygon:
     g = np.linspace(0.0, gmax, m)
     # cubic Hermite with the exact slopes: linear interpolation of the synthesis grid would put
     # kinks into the pitch curve that show as torque errors of ~0.3 % where r'' is large
+    # (scipy.interpolate imported here: importing this module, as every constant-force study
+    # does through fea.contact, need not load it)
+    from scipy.interpolate import CubicHermiteSpline
+
     r = CubicHermiteSpline(
         profile.rotation_rad, profile.follower_radius_mm, profile.slope_mm_per_rad
     )(g)

@@ -23,15 +23,19 @@ fewer STEP faces than the outline has edges. :func:`step_bytes` writes it as a S
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import manifold3d
 import numpy as np
 import shapely
-import trimesh
 from flexopt.geometry.errors import FlexoptError, GeometryError
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
+
+if TYPE_CHECKING:  # trimesh (with scipy.spatial) and manifold3d are imported by the functions
+    # that make a solid (~0.4 s CPU): a kind that imports this module for its outline checks
+    # (geometry.mechanism) does not pay them in load_study, nor its pool's workers
+    import trimesh
 
 __all__ = [
     "SolidSettings",
@@ -131,6 +135,9 @@ def extrude(
     contours = [
         np.asarray(ring.coords, dtype=float)[:-1] for ring in (poly.exterior, *poly.interiors)
     ]
+    import manifold3d
+    import trimesh
+
     section = manifold3d.CrossSection(contours, manifold3d.FillRule.Positive)
     solid = manifold3d.Manifold.extrude(section, float(height_mm))
     out = solid.to_mesh()

@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 from flexopt.optimise.targets import curve_error
-from scipy.optimize import minimize_scalar
 
 __all__ = ["fit_thickness"]
 
@@ -51,6 +50,10 @@ def fit_thickness(
 
     def err(c: float) -> float:
         return float(curve_error(target, x, c * y, measure, window))
+
+    # imported here: scipy.optimize (~0.1 s CPU) is not needed by the kinds that only import
+    # this module
+    from scipy.optimize import minimize_scalar
 
     res = minimize_scalar(err, bounds=(0.0, hi), method="bounded", options={"xatol": 1e-7 * hi})
     return float(res.x), float(res.fun)

@@ -510,6 +510,7 @@ def _print_run_summary(outcome: RunOutcome, console: Console) -> None:
 def _run(args: argparse.Namespace) -> int:
     from flexopt.pipeline.parallel import BackendError
     from flexopt.pipeline.run import parallel_settings, prepare_run, resume_run, run_study
+    from flexopt.pipeline.run.runner import start_early_step
 
     prog = "flexopt run"
     if args.resume is None and args.study is None:
@@ -531,6 +532,7 @@ def _run(args: argparse.Namespace) -> int:
         "on_generation": progress.generation,
         "on_result": progress.result,
     }
+    early = None
     try:
         if args.resume is not None:
             outcome = resume_run(
@@ -543,11 +545,19 @@ def _run(args: argparse.Namespace) -> int:
             )
         else:
             path = resolve_study_path(args.study)
+            # best.step's child before the study loads: its import of the STEP writer uses the
+            # core that idles while this process imports the kind (the run ends it)
+            early = start_early_step()
             study = load_study(path)
             setup = prepare_run(study, quick=args.quick, seed=args.seed)
             settings = parallel_settings(study, args.workers, args.dask, args.eval_timeout)
             outcome = run_study(
-                setup, out=args.out, source=str(path), parallel=settings, **callbacks
+                setup,
+                out=args.out,
+                source=str(path),
+                parallel=settings,
+                early_step=early,
+                **callbacks,
             )
     except StudyError as exc:
         progress.stop()
@@ -577,6 +587,9 @@ def _run(args: argparse.Namespace) -> int:
         where = f"; see {progress.run_dir / 'run.json'}" if progress.run_dir else ""
         print(f"{prog}: error: the run failed: {type(exc).__name__}: {exc}{where}", file=sys.stderr)
         return EXIT_WRITE
+    finally:
+        if early is not None:  # a run that did not reach its report (a refused study): at once
+            early.abort()
     progress.stop()
     _print_run_summary(outcome, Console(highlight=False))
     for note in outcome.notes:

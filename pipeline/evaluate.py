@@ -7,6 +7,7 @@ import platform
 import re
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from datetime import datetime
 from importlib import metadata
@@ -16,7 +17,7 @@ from typing import Any
 from flexopt.optimise.problem import DesignResult
 from flexopt.optimise.requirements import verdict_record
 from flexopt.pipeline.errors import StudyError
-from flexopt.pipeline.fork import limit_loaded_pools
+from flexopt.pipeline.fork import ForkedMakes, limit_loaded_pools
 from flexopt.pipeline.plot_targets import plot_spec
 from flexopt.pipeline.problems import can_evaluate, study_result
 from flexopt.pipeline.responses import stacked_table, stress_allowable
@@ -297,29 +298,44 @@ def evaluate_study(
     write_atomic(run_dir / "study.yaml", study_to_yaml(folder_study, header))
     extra = _extra_files(result)
     preload.join()
+    makes: dict[str, Callable[[], Any]] = {}
     if result.cases:  # every load case, one column each; every output on its unit's axis
         args = case_plot_args(study, result)
-        png = plot_cases(rows=("curve", "stress"), **args)
+        makes["force_displacement.png"] = lambda: plot_cases(rows=("curve", "stress"), **args)
         if any(c.outputs for c in result.cases.values()):
-            extra["outputs.png"] = plot_cases(rows=("outputs",), **args)
+            makes["outputs.png"] = lambda: plot_cases(rows=("outputs",), **args)
     else:
-        png = plot_response(result.table, **response_plot_args(study, result))
-    write_atomic(run_dir / "force_displacement.png", png)
+        makes["force_displacement.png"] = lambda: plot_response(
+            result.table, **response_plot_args(study, result)
+        )
+    if robust is not None:
+        makes["robustness.png"] = lambda: robust.png(f"{study.name}: robustness")
+    makes["design.vtu"] = lambda: _design_vtu(result)  # design.vtu, design.pvd, design_steps/
+    makes[STRESS_DEFORMED] = lambda: _stress_deformed(result, study.name)
+    # The plots and the VTU files (~0.6 s CPU for constant-force) are made in a forked child
+    # while this process writes report.html (ForkedMakes: made here, in order, where fork is
+    # not available)
+    child = ForkedMakes(list(makes.items()))
     if robust is not None:  # before report.html, which draws its band
         record["robustness"] = robust.record()
     # report.html: the verdict, the response with its target, the part in 3D (one offline file)
     with limit_loaded_pools():  # it solves the design again for its 3D view (a short solve)
         html = evaluate_html(study, result, record, evaluation_wall_s)
+    made = {}
+    for name, data, error in child.results():
+        # A file the child could not make (its make raised, or the child died) is made here
+        # again, as before the child: a plot that raises ends the evaluate with its own error
+        made[name] = makes[name]() if error is not None else data
+    write_atomic(run_dir / "force_displacement.png", made["force_displacement.png"])
+    if "outputs.png" in made:
+        extra["outputs.png"] = made["outputs.png"]
     if html is not None:
         extra["report.html"] = html.encode("utf-8")
-    if robust is not None:
-        png = robust.png(f"{study.name}: robustness")
-        if png is not None:
-            extra["robustness.png"] = png
-    extra.update(_design_vtu(result))
-    png = _stress_deformed(result, study.name)
-    if png is not None:
-        extra[STRESS_DEFORMED] = png
+    if made.get("robustness.png") is not None:
+        extra["robustness.png"] = made["robustness.png"]
+    extra.update(made["design.vtu"])
+    if made[STRESS_DEFORMED] is not None:
+        extra[STRESS_DEFORMED] = made[STRESS_DEFORMED]
     for name, data in extra.items():
         (run_dir / name).parent.mkdir(exist_ok=True)  # design_steps/ of design.pvd
         write_atomic(run_dir / name, data)

@@ -120,6 +120,7 @@ def run_study(
     parallel: ParallelSettings | None = None,
     resume: Resume | None = None,
     lock: RunDirLock | None = None,
+    early_step: EarlyStep | None = None,
 ) -> RunOutcome:
     """Optimise a prepared study and write its run folder.
 
@@ -149,6 +150,10 @@ def run_study(
         The lock of ``out``, already held (``--resume`` takes it before it reads the folder);
         otherwise the folder's lock is taken here, before the folder is checked or written. It
         is released when the run ends (a killed process's lock is released by the kernel).
+    early_step : EarlyStep, optional
+        best.step's child, already started by the caller (:func:`start_early_step`, which the
+        CLI calls before it loads the study); the run takes it over and ends it. Without it
+        the run starts one when its folder exists.
 
     Returns
     -------
@@ -209,6 +214,7 @@ def run_study(
             on_generation,
             on_result,
             resume,
+            early_step,
         )
 
 
@@ -243,6 +249,7 @@ def _run_in(
     on_generation: Callable[[GenerationReport], None] | None,
     on_result: Callable[[], None] | None,
     resume: Resume | None,
+    early_step: EarlyStep | None = None,
 ) -> RunOutcome:
     """The body of :func:`run_study` once the folder can be written and the backend is up."""
     study, config = setup.study, setup.config
@@ -320,11 +327,7 @@ def _run_in(
     # could hold a lock the child needs): it imports build123d (~3 s CPU) at the lowest
     # priority, in the moments a core idles while the workers solve (generation barriers),
     # instead of on the report's critical path.
-    early = (
-        EarlyStep.start(nice=EARLY_STEP_NICE)
-        if threading.active_count() == 1 and step_available() and can_restore_priority()
-        else None
-    )
+    early = early_step if early_step is not None else start_early_step()
     if on_start is not None:
         on_start(run_dir, config)
 
@@ -468,6 +471,22 @@ def _run_in(
     return RunOutcome(run_dir, result, detail, record, tuple(run.notes), run.verdicts)
 
 
+def start_early_step() -> EarlyStep | None:
+    """best.step's child (:class:`EarlyStep`), forked now at the lowest priority, where it can
+    be: the STEP writer installed, no other thread running in this process (a lock another
+    thread holds at the fork stays held in the child) and the child's priority restorable
+    (:func:`can_restore_priority`); else None.
+
+    Its import of build123d (~3 s CPU) takes only the CPU time no other process wants. The CLI
+    starts it before it loads the study: while this process imports the kind and loads the
+    compiled kernels (~1 s on one core) the other core is idle, and that import uses it instead
+    of competing with the report at the end of a short run.
+    """
+    if threading.active_count() == 1 and step_available() and can_restore_priority():
+        return EarlyStep.start(nice=EARLY_STEP_NICE)
+    return None
+
+
 def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
     """Import and load what the report will need, in a thread, while the workers solve.
 
@@ -494,6 +513,9 @@ def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
             # without the ~1 s of interpreter teardown OpenCascade adds to a process.
             import flexopt.geometry.dxf  # noqa: F401
             import flexopt.geometry.solid  # noqa: F401
+            import manifold3d  # noqa: F401  (geometry.solid imports them where a solid is made)
+            import scipy.optimize  # noqa: F401  (e.g. the constant-force detail's PRB synthesis)
+            import trimesh  # noqa: F401
 
             # report.html's plotly classes, validators and template JSON (~0.3 s CPU)
             from flexopt.pipeline.html_templates import warm_up as warm_up_html

@@ -373,9 +373,10 @@ class RunState:
         self.files.append(name)
 
     def start_groups(self) -> None:
-        """Make each queued group of files in a child process (see :class:`ForkedMakes`); a
-        group of :data:`SPLIT_GROUP_AT` files or more in two (:class:`SplitMakes`)."""
-        self._started = [
+        """Make each group queued since the last call in a child process (see
+        :class:`ForkedMakes`); a group of :data:`SPLIT_GROUP_AT` files or more in two
+        (:class:`SplitMakes`). :meth:`collect_groups` writes them in the order they started."""
+        self._started += [
             SplitMakes(items) if len(items) >= SPLIT_GROUP_AT else ForkedMakes(items)
             for items in self._groups.values()
         ]
@@ -577,6 +578,10 @@ class RunState:
             self.artefact(
                 "robustness.png", lambda: robust.png(f"{study.name}: robustness"), group="png"
             )
+        # the plots (every PNG is queued by now) start in their children at once: they need
+        # only the detail, and this process makes the part's files below beside them (STL,
+        # DXF, 3MF, VTU: ~0.2-0.3 s CPU that otherwise came before the children's start)
+        self.start_groups()
         design = self._flat_part(detail, "design") if part is not None else None
         if part is not None and design is not None:  # STL on the bed, DXF and STEP as designed
             self.artefact("best.stl", lambda: self._stl(part))
@@ -599,8 +604,9 @@ class RunState:
             (self.run_dir / "best_steps").mkdir(exist_ok=True)
             for name, make in vtu_makers(detail, "best").items():
                 self.artefact(name, make)
-        # The plots and the STEP solid are made in forked children while this process writes
-        # report.html: the report phase otherwise runs on one core with the other idle.
+        # The plots (started above) and the STEP solid are made in forked children while this
+        # process writes report.html: the report phase otherwise runs on one core with the
+        # other idle. A "step" group (no early child) starts here.
         self.start_groups()
         if self._early is not None:
             self._started.append(self._early)

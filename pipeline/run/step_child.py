@@ -41,8 +41,9 @@ class EarlyStep:
 
     items = (("best.step", None),)  # what it makes, for a dead child's notes
 
-    def __init__(self, conn: Any, process: Any) -> None:
+    def __init__(self, conn: Any, process: Any, nice: int = 0) -> None:
         self.conn, self.process = conn, process
+        self.nice = nice  # > 0: the child runs lowered (and on SCHED_IDLE) until it has the part
         self._sent = False
 
     @classmethod
@@ -65,7 +66,7 @@ class EarlyStep:
         except Exception as exc:
             log.info("best.step made later: %s", _one_line(str(exc)))
             return None
-        return cls(ours, process)
+        return cls(ours, process, nice)
 
     def send(self, part: FlatPart) -> bool:
         """Hand the child the part; False when it is gone (then make the file another way)."""
@@ -74,7 +75,23 @@ class EarlyStep:
         except (OSError, ValueError, EOFError):
             return False
         self._sent = True
+        if self.nice > 0:
+            self._restore_priority()
         return True
+
+    def _restore_priority(self) -> None:
+        """The child back at this process's priority now that the report waits for it.
+
+        The child does so itself once its import is done, but a child on SCHED_IDLE gets no CPU
+        time while every core is wanted: on a busy machine its import, and so the run's end,
+        waited for minutes (a constant-force run at load 40 on 2 cores: over 10 minutes, the
+        report done). Where this process may not (no CAP_SYS_NICE, RLIMIT_NICE), the child's
+        own restore stands as before.
+        """
+        pid = self.process.pid
+        with contextlib.suppress(OSError, AttributeError, ValueError):
+            os.sched_setscheduler(pid, os.SCHED_OTHER, os.sched_param(0))
+            os.setpriority(os.PRIO_PROCESS, pid, os.getpriority(os.PRIO_PROCESS, 0))
 
     def results(self) -> list[tuple[str, str | bytes | None, str | None]]:
         try:
@@ -84,6 +101,14 @@ class EarlyStep:
             code = self.process.exitcode
             how = f"signal {-code}" if code is not None and code < 0 else f"exit code {code}"
             return [("best.step", None, f"the process making it died ({how})")]
+
+    def abort(self) -> None:
+        """End the child at once (the run stopped before its report: there is nothing to make,
+        and no reason to wait for an import); nothing when it has ended already."""
+        with contextlib.suppress(OSError, ValueError):
+            self.process.kill()
+        self.process.join(5)
+        self.conn.close()
 
     def close(self) -> None:
         """End the child: told there is no part when it has none, else its answer was read."""

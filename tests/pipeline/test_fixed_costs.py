@@ -60,3 +60,174 @@ def test_templates_put_in_after_building_give_the_same_figure_json():
         assert json.dumps(spec, separators=(",", ":")) == json.dumps(
             json.loads(want), separators=(",", ":")
         )
+
+
+def test_loading_a_constant_force_study_leaves_the_solid_and_scipy_solvers_unimported():
+    """load_study of the default study (and so every run's start, and the pool's workers, which
+    fork from it) imports no STL/3D-solid library and none of the scipy solvers it only uses
+    later: trimesh with scipy.spatial and manifold3d (~0.4 s CPU), scipy.optimize,
+    scipy.interpolate and scipy.integrate (geometry.solid, fea.prb, fea.contact, geometry.cam,
+    optimise.thickness_fit, fea.constant_force_estimate import them where they are used)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from flexopt.pipeline.study import load_study, resolve_study_path\n"
+        "load_study(resolve_study_path('constant-force'))\n"
+        "names = ('trimesh', 'manifold3d', 'scipy.optimize', 'scipy.interpolate',\n"
+        "         'scipy.integrate', 'scipy.spatial')\n"
+        "print(' '.join(n for n in names if n in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == []
+
+
+def test_the_part_solid_still_imports_what_it_needs():
+    """geometry.solid's lazy imports: extrude and its STL work in a fresh process."""
+    import subprocess
+    import sys
+
+    code = (
+        "from shapely.geometry import box\n"
+        "from flexopt.geometry.solid import extrude, stl_bytes\n"
+        "mesh = extrude(box(0.0, 0.0, 10.0, 4.0), 2.0)\n"
+        "print(round(float(mesh.volume), 9), len(stl_bytes(mesh)))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    volume, size = done.stdout.split()
+    # 10 x 4 x 2 mm box: 12 triangles of 50 bytes after the 84-byte header
+    assert float(volume) == pytest.approx(80.0, rel=1e-6) and int(size) == 84 + 12 * 50
+
+
+def test_the_cli_starts_best_steps_child_before_the_study_and_ends_a_refused_run_at_once(
+    monkeypatch, tmp_path, capsys
+):
+    """`flexopt run`: best.step's child is forked before load_study (its import of the STEP
+    writer then uses the core that idles while the study loads); a study refused after that
+    ends the child at once (abort, no wait for its import) and exits 2."""
+    from flexopt.pipeline import cli
+    from flexopt.pipeline.run import runner
+
+    events = []
+
+    class Child:
+        def abort(self):
+            events.append("abort")
+
+        def close(self):
+            events.append("close")
+
+    def start():
+        events.append("start")
+        return Child()
+
+    monkeypatch.setattr(runner, "start_early_step", start)
+
+    def refuse(path):
+        events.append("load_study")
+        raise cli.StudyError("geometry.kind", "refused for the test")
+
+    monkeypatch.setattr(cli, "load_study", refuse)
+    study = tmp_path / "s.yaml"
+    study.write_text("name: s\n")
+    assert cli.main(["run", str(study), "--out", str(tmp_path / "run")]) == 2
+    assert events == ["start", "load_study", "abort"]
+    assert "refused for the test" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+def test_an_early_step_child_aborted_mid_import_ends_at_once(monkeypatch):
+    """EarlyStep.abort: a child still busy before its part (here: waiting a minute for an
+    idle core, as a long import would keep it) is killed, not waited for."""
+    import time
+
+    from flexopt.pipeline.run import step_child
+
+    if step_child.fork_context() is None:
+        pytest.skip("no fork on this platform")
+    monkeypatch.setattr(step_child, "_wait_for_idle_core", lambda *a, **k: time.sleep(60.0))
+    early = step_child.EarlyStep.start()
+    assert early is not None and early.process.is_alive()
+    t0 = time.monotonic()
+    early.abort()
+    assert time.monotonic() - t0 < 4.0
+    assert not early.process.is_alive()
+    early.abort()  # again: nothing left to end
+
+
+def test_evaluate_makes_its_plots_in_a_child_and_remakes_here_what_the_child_could_not(
+    monkeypatch, tmp_path
+):
+    """`flexopt evaluate` draws force_displacement.png and makes the VTU files in a forked
+    child while it writes report.html. A file the child fails to make is made again in this
+    process: the same bytes as a plot made here; a plot that fails here too ends the evaluate
+    with its own error, as before the child."""
+    from flexopt.pipeline import plots
+    from flexopt.pipeline.evaluate import evaluate_study
+    from flexopt.pipeline.fork import fork_context
+    from flexopt.pipeline.study import load_study
+
+    study = load_study("cantilever")
+    here = os.getpid()
+    real = plots.plot_response
+    where = []
+
+    def only_here(*args, **kwargs):
+        where.append(os.getpid())
+        if os.getpid() != here:
+            raise RuntimeError("not in the child")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(plots, "plot_response", only_here)
+    out = evaluate_study(study, out=tmp_path / "a").run_dir
+    if fork_context() is not None:  # the child's attempt is not seen here; the remake is
+        assert where == [here]
+    monkeypatch.setattr(plots, "plot_response", real)
+    again = evaluate_study(study, out=tmp_path / "b").run_dir
+    for name in ("force_displacement.png", "design.vtu", "design.pvd"):
+        assert (out / name).read_bytes() == (again / name).read_bytes()
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in again.iterdir())
+
+    def broken(*args, **kwargs):
+        raise ValueError("no plot today")
+
+    monkeypatch.setattr(plots, "plot_response", broken)
+    with pytest.raises(ValueError, match="no plot today"):
+        evaluate_study(study, out=tmp_path / "c")
+
+
+def test_an_early_step_child_gets_the_runs_priority_back_when_it_is_sent_the_part(monkeypatch):
+    """A lowered EarlyStep (nice 19, SCHED_IDLE) is put back at the run's priority by the run
+    the moment it is sent the part, even while its own import is still going on: on a busy
+    machine a SCHED_IDLE child gets no CPU time, and the run's end waited for it."""
+    import sys
+    import time
+
+    from flexopt.pipeline.run import step_child
+
+    if step_child.fork_context() is None or not step_child.can_restore_priority():
+        pytest.skip("no fork here, or this user may not raise a process's priority")
+
+    class SlowFinder:  # the child's import of the STEP writer takes a minute
+        @staticmethod
+        def find_spec(name, path=None, target=None):
+            if name == "build123d":
+                time.sleep(60.0)
+            return None
+
+    monkeypatch.delitem(sys.modules, "build123d", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [SlowFinder, *sys.meta_path])
+    early = step_child.EarlyStep.start(nice=step_child.EARLY_STEP_NICE)
+    assert early is not None
+    pid, ours = early.process.pid, os.getpriority(os.PRIO_PROCESS, 0)
+    try:
+        deadline = time.monotonic() + 30.0  # it lowers itself first thing
+        while os.sched_getscheduler(pid) != os.SCHED_IDLE:
+            assert time.monotonic() < deadline, "the child did not lower its priority"
+            time.sleep(0.01)
+        assert early.send("plate")
+        assert os.sched_getscheduler(pid) == os.SCHED_OTHER
+        assert os.getpriority(os.PRIO_PROCESS, pid) == ours
+    finally:
+        early.abort()
