@@ -1,0 +1,94 @@
+"""Compiled (numba) kernel of :mod:`fea.beam_sensitivity`: the fibre stresses from statics and
+their derivatives over every differentiated row (``stress="statics"``, the constant-force
+study's Jacobian).
+
+:func:`fea.beam_sensitivity._statics_terms_rows` is the numpy reference: the same formulas in
+the same order, one array operation at a time over (rows, elements, 3 points, variables), ~30
+temporaries of ~1.4 MB each on the example's design (33 rows, 72 elements, 24 variables), which
+made it the largest single cost of a Jacobian. Here each (row, point) is one pass over the
+variables, no temporaries. ``@njit(cache=True, fastmath=False, error_model="numpy",
+nogil=True)`` as fea/_beam_kernels.py: compiled once per install (the cache in
+``fea/__pycache__`` or ``NUMBA_CACHE_DIR``), IEEE arithmetic without reassociation or
+contraction, so the numbers are the reference's to round-off (the tests compare them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_jit = njit(cache=True, fastmath=False, error_model="numpy", nogil=True)
+
+
+@_jit
+def statics_fibres(
+    U: np.ndarray,
+    dU: np.ndarray,
+    R: np.ndarray,
+    dr: np.ndarray,
+    frame: np.ndarray,
+    ref: np.ndarray,
+    theta0: np.ndarray,
+    b: float,
+    t: np.ndarray,
+    Z: np.ndarray,
+    dt: np.ndarray,
+    db: np.ndarray,
+    xarm: np.ndarray,
+    xtheta: np.ndarray,
+    fibre: np.ndarray,
+    d_fibre: np.ndarray,
+) -> None:
+    """Signed fibre stresses ``a + c``, ``a - c`` from statics and their derivatives, written
+    into ``fibre`` (K, 3 E, 2) MPa and ``d_fibre`` (K, 3 E, 2, n_var) MPa per unit.
+
+    ``a = N / (b t)``, ``c = M / Z`` at the sampling points (element e, point j: node 2 e + j),
+    ``M = M_end + (r_end - r) x F``, ``N = F . (cos theta, sin theta)``. Per row k: ``U`` (K, n)
+    physical DOFs, ``dU`` (K, n, n_var) their derivatives, ``R`` (K, n) the forces (end force
+    along the rows of ``frame`` (2, 2), moment last) and ``dr`` (K, n, n_var). Per design:
+    ``ref`` (n_nodes, 2) mm the reference nodes, ``theta0`` (E, 3) rad, ``b`` mm, ``t`` and
+    ``Z`` (E, 3) mm and mm^3 (b t^2 / 6), ``dt`` (E, 3, n_var) and ``db`` (n_var,) the explicit
+    derivatives of the thickness and width, ``xarm`` (E, 3, 2, n_var) and ``xtheta`` (E, 3,
+    n_var) those of the lever arm and the reference angle (the vertex moves; zero otherwise).
+    """
+    n_rows, n = U.shape
+    n_var = dU.shape[2]
+    n_el = theta0.shape[0]
+    end = n // 3 - 1
+    ia, it, ir = n - 3, n - 2, n - 1
+    f00, f01, f10, f11 = frame[0, 0], frame[0, 1], frame[1, 0], frame[1, 1]
+    for k in range(n_rows):
+        F0 = R[k, ia] * f00 + R[k, it] * f10
+        F1 = R[k, ia] * f01 + R[k, it] * f11
+        pe0 = ref[end, 0] + U[k, 3 * end]
+        pe1 = ref[end, 1] + U[k, 3 * end + 1]
+        for e in range(n_el):
+            for j in range(3):
+                node = 2 * e + j
+                s = 3 * e + j
+                arm0 = pe0 - (ref[node, 0] + U[k, 3 * node])
+                arm1 = pe1 - (ref[node, 1] + U[k, 3 * node + 1])
+                theta = theta0[e, j] + U[k, 3 * node + 2]
+                cos, sin = math.cos(theta), math.sin(theta)
+                M = R[k, ir] + arm0 * F1 - arm1 * F0
+                N = F0 * cos + F1 * sin
+                bt = b * t[e, j]
+                a = N / bt
+                c = M / Z[e, j]
+                fibre[k, s, 0] = a + c
+                fibre[k, s, 1] = a - c
+                rot = -F0 * sin + F1 * cos
+                for v in range(n_var):
+                    dF0 = f00 * dr[k, ia, v] + f10 * dr[k, it, v]
+                    dF1 = f01 * dr[k, ia, v] + f11 * dr[k, it, v]
+                    darm0 = dU[k, 3 * end, v] - dU[k, 3 * node, v] + xarm[e, j, 0, v]
+                    darm1 = dU[k, 3 * end + 1, v] - dU[k, 3 * node + 1, v] + xarm[e, j, 1, v]
+                    dtheta = dU[k, 3 * node + 2, v] + xtheta[e, j, v]
+                    dM = dr[k, ir, v] + darm0 * F1 + arm0 * dF1 - darm1 * F0 - arm1 * dF0
+                    dN = cos * dF0 + sin * dF1 + rot * dtheta
+                    da = dN / bt - a * (db[v] / b + dt[e, j, v] / t[e, j])
+                    dc = dM / Z[e, j] - c * (db[v] / b + 2.0 * dt[e, j, v] / t[e, j])
+                    d_fibre[k, s, 0, v] = da + dc
+                    d_fibre[k, s, 1, v] = da - dc
