@@ -92,3 +92,31 @@ def statics_fibres(
                     dc = dM / Z[e, j] - c * (db[v] / b + 2.0 * dt[e, j, v] / t[e, j])
                     d_fibre[k, s, 0, v] = da + dc
                     d_fibre[k, s, 1, v] = da - dc
+
+
+@_jit
+def pbtrs_many(ab: np.ndarray, B: np.ndarray) -> None:
+    """Solve ``U^T U X = B`` in place for the m columns of ``B`` (n, m), ``U`` the banded
+    Cholesky factor from LAPACK ``dpbtrf`` (``lower=0``): ``ab`` (kd + 1, n), ``U[i, j] =
+    ab[kd + i - j, j]``. LAPACK's ``dpbtrs`` solves column by column (two ``dtbsv`` per
+    right-hand side: ~25 us each on the beam's 435 DOFs, 0.6 ms for a row's 24 variables); here
+    each step of the two triangular sweeps runs over every column at once, the sweeps in
+    ``dtbsv``'s order (the transposed one by dot products, the other by columns)."""
+    kd = ab.shape[0] - 1
+    n, m = B.shape
+    for j in range(n):  # U^T y = b
+        for i in range(max(0, j - kd), j):
+            u = ab[kd + i - j, j]
+            for v in range(m):
+                B[j, v] -= u * B[i, v]
+        d = ab[kd, j]
+        for v in range(m):
+            B[j, v] /= d
+    for j in range(n - 1, -1, -1):  # U x = y
+        d = ab[kd, j]
+        for v in range(m):
+            B[j, v] /= d
+        for i in range(max(0, j - kd), j):
+            u = ab[kd + i - j, j]
+            for v in range(m):
+                B[i, v] -= u * B[j, v]

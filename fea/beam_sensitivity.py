@@ -1010,9 +1010,15 @@ def _batched_rows(
     # one back-substitution per variable with each row's factorised tangent
     rhs = -dR
     rhs[:, fixed] = 0.0
-    dq = np.empty_like(rhs)
+    compiled = twin.solver.kernel == "numba"
+    if compiled:
+        from flexopt.fea._sensitivity_kernels import pbtrs_many
+    dq = rhs  # solved in place, row by row
     for i, fac in enumerate(facs):
-        dq[i] = fac.solve(rhs[i])
+        if compiled and fac.chol is not None:
+            pbtrs_many(fac.chol, dq[i])
+        else:
+            dq[i] = fac.solve(rhs[i])
     counts["back_substitutions"] += n_var * k_rows
     # reactions of the held DOFs: rows ``fixed`` of each full tangent times dq
     dr = np.zeros((k_rows, n, n_var))
@@ -1034,7 +1040,7 @@ def _batched_rows(
 
     du = dq.copy()  # generalised -> physical end translations
     du[:, n - 3 : n - 1] = np.einsum("ij,kiv->kjv", frame, dq[:, n - 3 : n - 1])
-    if stress == "statics" and twin.solver.kernel == "numba":
+    if stress == "statics" and compiled:
         fib = np.empty((k_rows, 3 * n_el, 2))
         dfib = np.empty((k_rows, 3 * n_el, 2, n_var))
         _compiled_statics(twin, U, du, R, dr, frame, names, coords, fib, dfib)
