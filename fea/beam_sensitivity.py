@@ -39,7 +39,6 @@ from flexopt.fea.beam import (
     BeamModel,
     BeamResponse,
     EndDrive,
-    _centreline_points,
     _gauss_rule,
     _reference_tables,
 )
@@ -218,6 +217,8 @@ class _Twin:
         ]
         self.s_gauss = s_vert[:-1, None] + xi_g[None, :] * h[:, None]
         self.assemblies = 0
+        #: mm: :func:`_polish`'s length scale (the profile's length, at least 1)
+        self.length_scale = max(m.profile.length_mm, 1.0)
 
     def rotation_system(self) -> Callable[[np.ndarray], np.ndarray]:
         """Solver of the (2 E + 1) square system: the P2 interpolation of the nodal rotations at
@@ -366,7 +367,7 @@ def _polish(
     leaves ~C delta^2, round-off; a worse start (a load along the span, which the estimate does
     not know) only costs iterations. Returns (q, r, ab, factor) at the final state.
     """
-    scale = max(twin.model.profile.length_mm, 1.0)
+    scale = twin.length_scale
     q = q.copy()
     for _ in range(max_iterations):
         r, ab = twin.assemble(q, frame)
@@ -434,6 +435,24 @@ def _segment_of_elements(model: BeamModel) -> np.ndarray:
     return np.clip(seg, 0, model.profile.n_points - 2)
 
 
+def _centreline_at(
+    profile: BeamProfile, s_pts: np.ndarray, theta_seg: np.ndarray, s: np.ndarray
+) -> np.ndarray:
+    """``fea.beam._centreline_points(profile, s)`` (m, 2) mm with the profile's arc lengths
+    ``s_pts`` (n,) and segment start angles ``theta_seg`` (n - 1,) given (the same formulas: it
+    recomputes both, twice, per call)."""
+    seg = np.clip(np.searchsorted(s_pts, s, side="right") - 1, 0, profile.n_points - 2)
+    sigma = s - s_pts[seg]
+    th = theta_seg[seg]
+    kap = profile.curvature_per_mm[seg]
+    p0 = profile.points_mm[seg]
+    straight = np.abs(kap) < 1e-14
+    safe = np.where(straight, 1.0, kap)
+    dx = np.where(straight, sigma * np.cos(th), (np.sin(th + kap * sigma) - np.sin(th)) / safe)
+    dy = np.where(straight, sigma * np.sin(th), (np.cos(th) - np.cos(th + kap * sigma)) / safe)
+    return p0 + np.stack([dx, dy], axis=-1)
+
+
 def _perturbed_tables(
     model: BeamModel, profile: BeamProfile, els: np.ndarray, seg: np.ndarray
 ) -> dict | None:
@@ -453,6 +472,11 @@ def _perturbed_tables(
     """
     settings, material = model.settings, model.material
     seg_len = profile.segment_lengths_mm
+    chord_angle = np.diff(profile.points_mm, axis=0)
+    # profile.segment_start_angles_rad(), with the lengths above
+    theta_seg = (
+        np.arctan2(chord_angle[:, 1], chord_angle[:, 0]) - profile.curvature_per_mm * seg_len / 2
+    )
     s_pts = np.concatenate([[0.0], np.cumsum(seg_len)])  # profile.arc_length_mm
     n_seg = np.maximum(1, np.rint(settings.n_elements * seg_len / seg_len.sum())).astype(int)
     if int(n_seg.sum()) != model.n_elements:
@@ -472,7 +496,6 @@ def _perturbed_tables(
     dN = dng[None, :, :] / h[:, None, None]
     w = wg[None, :] * h[:, None]
     s_gauss = s_vert[:-1, None] + xg[None, :] * h[:, None]
-    theta_seg = profile.segment_start_angles_rad()
     kappa_seg = profile.curvature_per_mm
     theta0 = theta_seg[seg_of_el, None] + kappa_seg[seg_of_el, None] * (
         s_gauss - s_pts[seg_of_el, None]
@@ -502,7 +525,7 @@ def _perturbed_tables(
         "EI": (E * b * t_g**3 / 12.0)[els],
         "dN_samples": dNs[els],
         "ratio": (EI_s / Z_s)[els],
-        "xref": _centreline_points(profile, s_nodes)[nodes],
+        "xref": _centreline_at(profile, s_pts, theta_seg, s_nodes)[nodes],
     }
 
 
@@ -993,8 +1016,14 @@ def _batched_rows(
         dre, dc_t = _thickness_terms_rows(twin, U)
         dre[:, -1, 6:8] = frame @ dre[:, -1, 6:8]  # the last element's rows, generalised
         npt = prof.n_points
-        for k in range(9):  # distinct DOFs within one local index: plain fancy += is safe
-            dR[:, edofs[:, k], col : col + npt] += dre[:, :, k]
+        # element e's DOFs are 6 e .. 6 e + 8: its first six rows are its own, its last three
+        # those of element e + 1's first node (the reference loop's sums in its order: the
+        # next element's entry, then this one's)
+        block = np.empty((k_rows, n, npt))
+        block[:, : 6 * n_el].reshape(k_rows, n_el, 6, npt)[:] = dre[:, :, :6]
+        block[:, 6 * n_el :] = dre[:, -1, 6:]
+        block[:, 6 : 6 * n_el].reshape(k_rows, n_el - 1, 6, npt)[:, :, :3] += dre[:, :-1, 6:]
+        dR[..., col : col + npt] = block
         dc_x[..., col : col + npt] = dc_t
         col += npt
     if "width" in variables:
