@@ -120,3 +120,99 @@ def pbtrs_many(ab: np.ndarray, B: np.ndarray) -> None:
             u = ab[kd + i - j, j]
             for v in range(m):
                 B[i, v] -= u * B[j, v]
+
+
+@_jit
+def coordinate_terms(
+    U: np.ndarray,
+    frame: np.ndarray,
+    vdofs: np.ndarray,
+    dN: np.ndarray,
+    theta0: np.ndarray,
+    cos0: np.ndarray,
+    sin0: np.ndarray,
+    EA: np.ndarray,
+    kGA: np.ndarray,
+    EI: np.ndarray,
+    w: np.ndarray,
+    N: np.ndarray,
+    g2s: np.ndarray,
+    dNs: np.ndarray,
+    ratio: np.ndarray,
+    e_mpa: float,
+    weight: np.ndarray,
+    col: np.ndarray,
+    elem: np.ndarray,
+    last: np.ndarray,
+    dR: np.ndarray,
+    da: np.ndarray,
+    dc: np.ndarray,
+) -> None:
+    """:meth:`fea.beam_sensitivity._CoordinateBatch.terms_rows` compiled: the residual and the
+    fibre terms of every virtual element (a perturbed model's element, V of them) at each row's
+    state, times its stencil weight, summed into its variable's column in the reference's
+    order of the elements (the sums within an element in the kernel's: round-off apart).
+
+    Per row k of ``U`` (K, n) physical DOFs: ``dR`` (K, n, n_coord), ``da`` and ``dc`` (K, E, 3,
+    n_coord), zero on entry, accumulate. Per virtual element v: ``vdofs`` (V, 9) its DOFs,
+    ``dN`` (V, Q, 3), ``theta0``, ``cos0``, ``sin0``, ``EA``, ``kGA``, ``EI``, ``w`` (V, Q) its
+    perturbed model's tables, ``dNs`` (V, 3, 3), ``ratio`` (V, 3), ``weight`` (V,) the stencil's
+    weight / step, ``col`` (V,) its variable, ``elem`` (V,) the element it stands for, ``last``
+    (V,) whether that is the end element (its end node's rows in ``frame``'s axes). ``N`` (Q, 3),
+    ``g2s`` (Q, 3): the reference tables; ``e_mpa``: Young's modulus.
+    """
+    n_rows = U.shape[0]
+    n_v, n_q = w.shape
+    qe = np.empty((3, 3))
+    re = np.empty((3, 3))
+    grad = np.empty((n_q, 3))
+    h1 = np.empty(n_q)
+    for k in range(n_rows):
+        for v in range(n_v):
+            for a in range(3):
+                for f in range(3):
+                    qe[a, f] = U[k, vdofs[v, 3 * a + f]]
+                    re[a, f] = 0.0
+            for q in range(n_q):
+                for f in range(3):
+                    grad[q, f] = (
+                        dN[v, q, 0] * qe[0, f] + dN[v, q, 1] * qe[1, f] + dN[v, q, 2] * qe[2, f]
+                    )
+                theta = theta0[v, q] + (
+                    qe[0, 2] * N[q, 0] + qe[1, 2] * N[q, 1] + qe[2, 2] * N[q, 2]
+                )
+                c, s = math.cos(theta), math.sin(theta)
+                x1 = cos0[v, q] + grad[q, 0]
+                x2 = sin0[v, q] + grad[q, 1]
+                h = c * x1 + s * x2
+                g2 = c * x2 - s * x1
+                h1[q] = h
+                nf = EA[v, q] * (h - 1.0)
+                qf = kGA[v, q] * g2
+                s0 = nf * c - qf * s
+                s1 = nf * s + qf * c
+                s2 = EI[v, q] * grad[q, 2]
+                s3 = nf * g2 - qf * h
+                for a in range(3):
+                    wd = w[v, q] * dN[v, q, a]
+                    wn = w[v, q] * N[q, a]
+                    re[a, 0] += wd * s0
+                    re[a, 1] += wd * s1
+                    re[a, 2] += wd * s2 + wn * s3
+            if last[v]:  # the end node's force in the drive's axes (direction, normal)
+                r0, r1 = re[2, 0], re[2, 1]
+                re[2, 0] = r0 * frame[0, 0] + r1 * frame[0, 1]
+                re[2, 1] = r0 * frame[1, 0] + r1 * frame[1, 1]
+            wv = weight[v]
+            cv = col[v]
+            for a in range(3):
+                for f in range(3):
+                    dR[k, vdofs[v, 3 * a + f], cv] += re[a, f] * wv
+            e = elem[v]
+            for m in range(3):
+                g1s = 0.0
+                for q in range(n_q):
+                    g1s += (h1[q] - 1.0) * g2s[q, m]
+                kap = dNs[v, m, 0] * qe[0, 2] + dNs[v, m, 1] * qe[1, 2] + dNs[v, m, 2] * qe[2, 2]
+                da[k, e, m, cv] += e_mpa * g1s * wv
+                dc[k, e, m, cv] += ratio[v, m] * kap * wv

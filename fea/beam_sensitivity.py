@@ -657,13 +657,47 @@ class _CoordinateBatch:
         return dR.reshape(n, nc), da.reshape(shape), dc.reshape(shape)
 
     def terms_rows(
-        self, U: np.ndarray, frame: np.ndarray, n: int
+        self, U: np.ndarray, frame: np.ndarray, n: int, compiled: bool = False
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`terms` for K rows at once: ``U`` (K, n) physical DOFs; returns dR/dx
         (K, n, n_coord) and the fibre terms' explicit derivatives (K, E, 3, n_coord) each (each
-        row's sums in the same order as :meth:`terms`)."""
+        row's sums in the same order as :meth:`terms`). ``compiled``: by the numba kernel
+        (fea/_sensitivity_kernels.py), the same formulas element by element."""
         t, nc = self.t, len(self.names)
         k_rows = len(U)
+        if compiled:
+            from flexopt.fea._sensitivity_kernels import coordinate_terms
+
+            dR = np.zeros((k_rows, n, nc))
+            da = np.zeros((k_rows, self.n_el, 3, nc))
+            dc = np.zeros((k_rows, self.n_el, 3, nc))
+            c = np.ascontiguousarray
+            coordinate_terms(
+                c(U),
+                c(frame),
+                c(self.edofs[self.e]),
+                c(t["dN"]),
+                c(t["theta0"]),
+                c(t["cos_theta0"]),
+                c(t["sin_theta0"]),
+                c(t["EA"]),
+                c(t["kGA"]),
+                c(t["EI"]),
+                c(t["w"]),
+                c(self.N),
+                c(self.g2s),
+                c(t["dN_samples"]),
+                c(t["ratio"]),
+                float(self.E),
+                c(self.weight),
+                c(self.col),
+                c(self.e),
+                c(self.last),
+                dR,
+                da,
+                dc,
+            )
+            return dR, da, dc
         qe = U[:, self.edofs[self.e].reshape(-1, 3, 3)]  # (K, V, node, field)
         grad = t["dN"] @ qe  # (K, V, Q, field)
         theta = t["theta0"] + qe[..., 2] @ self.N.T
@@ -1006,6 +1040,8 @@ def _batched_rows(
     U = Q.copy()  # physical DOFs: the end node's translations out of the drive's frame
     U[:, n - 3 : n - 1] = Q[:, n - 3 : n - 1] @ frame
 
+    #: the compiled kernels (fea/_sensitivity_kernels.py) where the model runs compiled code
+    compiled = twin.solver.kernel == "numba"
     # explicit derivatives at fixed q (K, n, n_var), and of the fibre stress terms (K, E, 3, n_var)
     dR = np.zeros((k_rows, n, n_var))
     da_x = np.zeros((k_rows, n_el, 3, n_var))
@@ -1032,14 +1068,13 @@ def _batched_rows(
     if coords is not None:
         nc = len(coords.names)
         dR[..., col : col + nc], da_x[..., col : col + nc], dc_x[..., col : col + nc] = (
-            coords.terms_rows(U, frame, n)
+            coords.terms_rows(U, frame, n, compiled)
         )
         col += nc
 
     # one back-substitution per variable with each row's factorised tangent
     rhs = -dR
     rhs[:, fixed] = 0.0
-    compiled = twin.solver.kernel == "numba"
     if compiled:
         from flexopt.fea._sensitivity_kernels import pbtrs_many
     dq = rhs  # solved in place, row by row
