@@ -8,6 +8,11 @@ RMS (via mean(r^2)/2), and of the bound-normalised Jacobian; then the KS and pea
 and the CPU of one Jacobian against one evaluation (the example's problem, default tolerance).
 
     OMP_NUM_THREADS=1 nice python benchmarks/constant_force_gradient.py
+    OMP_NUM_THREADS=1 nice python benchmarks/constant_force_gradient.py --timing-only --repeat 15
+
+``--timing-only``: only the CPU of a Jacobian and of an evaluation at the example's design
+(medians and minima of ``--repeat`` calls each, one call first to load the code; the load
+average printed), without the finite-difference checks: what A/B runs of two checkouts compare.
 """
 
 from __future__ import annotations
@@ -21,7 +26,44 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def timing(repeat: int) -> None:
+    """Medians and minima of the CPU of one Jacobian and one evaluation (module docstring)."""
+    import os
+    import statistics
+
+    from flexopt.pipeline.run import prepare_run
+    from flexopt.pipeline.study import load_study
+
+    study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
+    problem = prepare_run(study).problem  # the example as it runs (default tolerance)
+    x = problem.nominal_design()
+    problem.jacobian(x)  # loads the code once
+    problem.evaluate(x)
+
+    def cpu(call, n: int) -> list[float]:
+        out = []
+        for _ in range(n):
+            t0 = time.process_time()
+            call()
+            out.append(time.process_time() - t0)
+        return out
+
+    load = os.getloadavg()[0]
+    t_jac = cpu(lambda: problem.jacobian(x), repeat)
+    t_ev = cpu(lambda: problem.evaluate(x), 3 * repeat)
+    jac, ev = statistics.median(t_jac), statistics.median(t_ev)
+    print(
+        f"CPU: Jacobian median {jac * 1e3:.1f} ms (min {min(t_jac) * 1e3:.1f}), evaluation "
+        f"median {ev * 1e3:.2f} ms (min {min(t_ev) * 1e3:.2f}): {jac / ev:.1f} evaluations "
+        f"(medians); load average {load:.1f} -> {os.getloadavg()[0]:.1f}"
+    )
+
+
 def main() -> None:
+    if "--timing-only" in sys.argv:
+        repeat = int(sys.argv[sys.argv.index("--repeat") + 1]) if "--repeat" in sys.argv else 15
+        timing(repeat)
+        return
     sys.path.insert(0, str(ROOT / "tests" / "pipeline"))
     import test_constant_force_gradient as T
     from flexopt.pipeline.run import prepare_run

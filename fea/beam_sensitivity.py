@@ -35,7 +35,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from flexopt.fea.beam import BeamModel, BeamResponse, EndDrive
+from flexopt.fea.beam import (
+    BeamModel,
+    BeamResponse,
+    EndDrive,
+    _gauss_rule,
+    _reference_tables,
+)
 from flexopt.fea.errors import FeaError
 from flexopt.geometry.profile import BeamProfile
 from scipy.linalg import lu_factor, lu_solve
@@ -211,6 +217,8 @@ class _Twin:
         ]
         self.s_gauss = s_vert[:-1, None] + xi_g[None, :] * h[:, None]
         self.assemblies = 0
+        #: mm: :func:`_polish`'s length scale (the profile's length, at least 1)
+        self.length_scale = max(m.profile.length_mm, 1.0)
 
     def rotation_system(self) -> Callable[[np.ndarray], np.ndarray]:
         """Solver of the (2 E + 1) square system: the P2 interpolation of the nodal rotations at
@@ -359,7 +367,7 @@ def _polish(
     leaves ~C delta^2, round-off; a worse start (a load along the span, which the estimate does
     not know) only costs iterations. Returns (q, r, ab, factor) at the final state.
     """
-    scale = max(twin.model.profile.length_mm, 1.0)
+    scale = twin.length_scale
     q = q.copy()
     for _ in range(max_iterations):
         r, ab = twin.assemble(q, frame)
@@ -427,6 +435,100 @@ def _segment_of_elements(model: BeamModel) -> np.ndarray:
     return np.clip(seg, 0, model.profile.n_points - 2)
 
 
+def _centreline_at(
+    profile: BeamProfile, s_pts: np.ndarray, theta_seg: np.ndarray, s: np.ndarray
+) -> np.ndarray:
+    """``fea.beam._centreline_points(profile, s)`` (m, 2) mm with the profile's arc lengths
+    ``s_pts`` (n,) and segment start angles ``theta_seg`` (n - 1,) given (the same formulas: it
+    recomputes both, twice, per call)."""
+    seg = np.clip(np.searchsorted(s_pts, s, side="right") - 1, 0, profile.n_points - 2)
+    sigma = s - s_pts[seg]
+    th = theta_seg[seg]
+    kap = profile.curvature_per_mm[seg]
+    p0 = profile.points_mm[seg]
+    straight = np.abs(kap) < 1e-14
+    safe = np.where(straight, 1.0, kap)
+    dx = np.where(straight, sigma * np.cos(th), (np.sin(th + kap * sigma) - np.sin(th)) / safe)
+    dy = np.where(straight, sigma * np.sin(th), (np.cos(th) - np.cos(th + kap * sigma)) / safe)
+    return p0 + np.stack([dx, dy], axis=-1)
+
+
+def _perturbed_tables(
+    model: BeamModel, profile: BeamProfile, els: np.ndarray, seg: np.ndarray
+) -> dict | None:
+    """The element tables :class:`BeamModel` ``(profile, model.material, model.start,
+    model.settings)`` would have at its elements ``els`` (k,), without building that model
+    (:class:`_CoordinateBatch` needs 4 of them per vertex move, and a full build with its
+    assembly tables was most of a Jacobian's cost); None when ``profile`` does not mesh like
+    ``model`` (another element count, or elements on other segments than ``seg`` (E,), the
+    model's :func:`_segment_of_elements`).
+
+    The same formulas in the same order as ``BeamModel.__init__`` on the full mesh (so the same
+    numbers, bit for bit; tests/fea/test_beam_sensitivity.py checks it), ``np.linspace`` of each
+    segment written out as its ``k (stop - start) / n + start``. Returns "dN" (k, Q, 3), "w",
+    "theta0", "cos_theta0", "sin_theta0" (k, Q), "EA", "kGA", "EI" (k, Q), "dN_samples"
+    (k, 3, 3), "ratio" (k, 3) EI / Z at the sampling points and "xref" (k, 3, 2) mm, the
+    element's reference nodes.
+    """
+    settings, material = model.settings, model.material
+    seg_len = profile.segment_lengths_mm
+    chord_angle = np.diff(profile.points_mm, axis=0)
+    # profile.segment_start_angles_rad(), with the lengths above
+    theta_seg = (
+        np.arctan2(chord_angle[:, 1], chord_angle[:, 0]) - profile.curvature_per_mm * seg_len / 2
+    )
+    s_pts = np.concatenate([[0.0], np.cumsum(seg_len)])  # profile.arc_length_mm
+    n_seg = np.maximum(1, np.rint(settings.n_elements * seg_len / seg_len.sum())).astype(int)
+    if int(n_seg.sum()) != model.n_elements:
+        return None
+    seg_of_el = np.repeat(np.arange(len(seg_len)), n_seg)
+    k = np.arange(model.n_elements) - np.repeat(np.cumsum(n_seg) - n_seg, n_seg)
+    step = (s_pts[1:] - s_pts[:-1]) / n_seg  # linspace's (stop - start) / div
+    s_vert = np.concatenate([k * step[seg_of_el] + s_pts[seg_of_el], s_pts[-1:]])
+    mid = 0.5 * (s_vert[:-1] + s_vert[1:])  # as _segment_of_elements
+    if np.any(
+        np.clip(np.searchsorted(s_pts, mid, side="right") - 1, 0, profile.n_points - 2) != seg
+    ):
+        return None
+    h = np.diff(s_vert)
+    xg, wg = _gauss_rule()
+    _, dng = _reference_tables(tuple(xg))
+    dN = dng[None, :, :] / h[:, None, None]
+    w = wg[None, :] * h[:, None]
+    s_gauss = s_vert[:-1, None] + xg[None, :] * h[:, None]
+    kappa_seg = profile.curvature_per_mm
+    theta0 = theta_seg[seg_of_el, None] + kappa_seg[seg_of_el, None] * (
+        s_gauss - s_pts[seg_of_el, None]
+    )
+    b = profile.width_mm
+    t_g = np.interp(s_gauss, s_pts, profile.thickness_mm)
+    E, G = material.E_MPa, material.G_MPa
+    xs = np.array([0.0, 0.5, 1.0])
+    _, dns = _reference_tables(tuple(xs))
+    dNs = dns[None, :, :] / h[:, None, None]
+    s_samp = s_vert[:-1, None] + xs[None, :] * h[:, None]
+    t_s = np.interp(s_samp, s_pts, profile.thickness_mm)
+    EI_s = E * b * t_s**3 / 12.0
+    Z_s = b * t_s**2 / 6.0
+    s_nodes = np.empty(2 * model.n_elements + 1)
+    s_nodes[0::2] = s_vert
+    s_nodes[1::2] = 0.5 * (s_vert[:-1] + s_vert[1:])
+    nodes = 2 * els[:, None] + np.arange(3)
+    return {
+        "dN": dN[els],
+        "w": w[els],
+        "theta0": theta0[els],
+        "cos_theta0": np.cos(theta0)[els],
+        "sin_theta0": np.sin(theta0)[els],
+        "EA": (E * b * t_g)[els],
+        "kGA": (settings.shear_factor * G * b * t_g)[els],
+        "EI": (E * b * t_g**3 / 12.0)[els],
+        "dN_samples": dNs[els],
+        "ratio": (EI_s / Z_s)[els],
+        "xref": _centreline_at(profile, s_pts, theta_seg, s_nodes)[nodes],
+    }
+
+
 #: central-difference stencils of dR/dx|_q: (offset in steps, weight per step) pairs. The residual
 #: is far more curved in a vertex coordinate than the response (the axial term EA (l/l0 - 1) of
 #: a stiff, short element): on paper 003's beam the second-order stencil at 1.3e-4 mm was 1.4e-4
@@ -477,22 +579,15 @@ class _CoordinateBatch:
             for sgn, weight in _STENCILS[stencil]:
                 pts = np.array(prof.points_mm) + sgn * h * move
                 p2 = BeamProfile(pts, prof.thickness_mm, prof.width_mm, prof.curvature_per_mm)
-                pm = BeamModel(p2, model.material, model.start, model.settings)
+                own = _perturbed_tables(model, p2, els, seg)
                 counts["model_builds"] += 1
-                if pm.n_elements != model.n_elements or np.any(_segment_of_elements(pm) != seg):
+                if own is None:
                     raise FeaError(
                         f"coordinate step {step:g} mm changes the mesh (move {self.names[m]}); "
                         "pass a smaller coordinate_step_mm"
                     )
-                own = pm.tables
-                for key in keys:
-                    tables[key].append(getattr(own, key)[els])
-                tables["ratio"].append(
-                    (pm.tables.EI_samples / pm.tables.section_modulus_samples)[els]
-                )
-                # the sampling points' reference positions (the element's nodes), for the
-                # stress from statics
-                tables["xref"].append(pm.reference_nodes_mm[2 * els[:, None] + np.arange(3)])
+                for key in tables:
+                    tables[key].append(own[key])
                 e_idx.append(els)
                 col.append(np.full(els.size, m))
                 sign.append(np.full(els.size, weight / h))
@@ -560,6 +655,90 @@ class _CoordinateBatch:
         dc = np.bincount(sidx, (t["ratio"] * kap * w[:, None]).ravel(), size)
         shape = (self.n_el, 3, nc)
         return dR.reshape(n, nc), da.reshape(shape), dc.reshape(shape)
+
+    def terms_rows(
+        self, U: np.ndarray, frame: np.ndarray, n: int, compiled: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`terms` for K rows at once: ``U`` (K, n) physical DOFs; returns dR/dx
+        (K, n, n_coord) and the fibre terms' explicit derivatives (K, E, 3, n_coord) each (each
+        row's sums in the same order as :meth:`terms`). ``compiled``: by the numba kernel
+        (fea/_sensitivity_kernels.py), the same formulas element by element."""
+        t, nc = self.t, len(self.names)
+        k_rows = len(U)
+        if compiled:
+            from flexopt.fea._sensitivity_kernels import coordinate_terms
+
+            dR = np.zeros((k_rows, n, nc))
+            da = np.zeros((k_rows, self.n_el, 3, nc))
+            dc = np.zeros((k_rows, self.n_el, 3, nc))
+            c = np.ascontiguousarray
+            coordinate_terms(
+                c(U),
+                c(frame),
+                c(self.edofs[self.e]),
+                c(t["dN"]),
+                c(t["theta0"]),
+                c(t["cos_theta0"]),
+                c(t["sin_theta0"]),
+                c(t["EA"]),
+                c(t["kGA"]),
+                c(t["EI"]),
+                c(t["w"]),
+                c(self.N),
+                c(self.g2s),
+                c(t["dN_samples"]),
+                c(t["ratio"]),
+                float(self.E),
+                c(self.weight),
+                c(self.col),
+                c(self.e),
+                c(self.last),
+                dR,
+                da,
+                dc,
+            )
+            return dR, da, dc
+        qe = U[:, self.edofs[self.e].reshape(-1, 3, 3)]  # (K, V, node, field)
+        grad = t["dN"] @ qe  # (K, V, Q, field)
+        theta = t["theta0"] + qe[..., 2] @ self.N.T
+        c, s = np.cos(theta), np.sin(theta)
+        x1 = t["cos_theta0"] + grad[..., 0]
+        x2 = t["sin_theta0"] + grad[..., 1]
+        h1 = c * x1 + s * x2
+        g2 = c * x2 - s * x1
+        nf = t["EA"] * (h1 - 1.0)
+        qf = t["kGA"] * g2
+        wd = t["w"][..., None] * t["dN"]  # (V, Q, 3)
+        wn = t["w"][..., None] * self.N[None]
+        re = np.empty(qe.shape)
+        re[..., 0] = np.einsum("vqk,rvq->rvk", wd, nf * c - qf * s)
+        re[..., 1] = np.einsum("vqk,rvq->rvk", wd, nf * s + qf * c)
+        re[..., 2] = np.einsum("vqk,rvq->rvk", wd, t["EI"] * grad[..., 2]) + np.einsum(
+            "vqk,rvq->rvk", wn, nf * g2 - qf * h1
+        )
+        last = re[:, self.last, 2, :2]  # end node: (direction, normal)
+        re[:, self.last, 2, :2] = last @ frame.T
+        w = self.weight
+        idx = self.edofs[self.e] * nc + self.col[:, None]  # (V, 9)
+        offset = (np.arange(k_rows) * (n * nc))[:, None, None]
+        dR = np.bincount(
+            (idx[None] + offset).ravel(),
+            (re.reshape(k_rows, -1, 9) * w[:, None]).ravel(),
+            k_rows * n * nc,
+        )
+        g1s = (h1 - 1.0) @ self.g2s  # (K, V, 3)
+        kap = np.einsum("vmk,rvk->rvm", t["dN_samples"], qe[..., 2])
+        sidx = ((3 * self.e[:, None] + np.arange(3)) * nc + self.col[:, None]).ravel()
+        size = 3 * self.n_el * nc
+        soff = (np.arange(k_rows) * size)[:, None]
+        da = np.bincount(
+            (sidx[None] + soff).ravel(), (self.E * g1s * w[:, None]).ravel(), k_rows * size
+        )
+        dc = np.bincount(
+            (sidx[None] + soff).ravel(), (t["ratio"] * kap * w[:, None]).ravel(), k_rows * size
+        )
+        shape = (k_rows, self.n_el, 3, nc)
+        return dR.reshape(k_rows, n, nc), da.reshape(shape), dc.reshape(shape)
 
 
 def _statics_terms(
@@ -633,6 +812,332 @@ def _statics_terms(
     return a, c, da, dc
 
 
+def _fields_rows(twin: _Twin, U: np.ndarray) -> dict[str, np.ndarray]:
+    """:meth:`_Twin.fields` for K rows at once: ``U`` (K, n) physical DOFs; every array gains a
+    leading row axis, (K, E, Q) and qe (K, E, 3, 3)."""
+    tab = twin.model.tables
+    qe = U[:, tab.edofs3]
+    grad = tab.dN @ qe
+    theta = tab.theta0 + qe[..., 2] @ tab.N.T
+    c, s = np.cos(theta), np.sin(theta)
+    x1 = tab.cos_theta0 + grad[..., 0]
+    x2 = tab.sin_theta0 + grad[..., 1]
+    return {
+        "c": c,
+        "s": s,
+        "h1": c * x1 + s * x2,
+        "g2": c * x2 - s * x1,
+        "kappa": grad[..., 2],
+        "qe": qe,
+    }
+
+
+def _thickness_terms_rows(twin: _Twin, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_thickness_terms` for K rows at once (``U`` (K, n)): (K, E, 9, n_pts) and
+    (K, E, 3, n_pts), the same formulas with a leading row axis."""
+    m = twin.model
+    prof = m.profile
+    psi_g, psi_s, t_g = twin.hats()
+    b = prof.width_mm
+    E, G = m.material.E_MPa, m.material.G_MPa
+    f = _fields_rows(twin, U)
+    g1, g2, c, s = f["h1"] - 1.0, f["g2"], f["c"], f["s"]
+    z = np.zeros_like(g1)
+    d_ea = np.stack([g1 * c, g1 * s, z, g1 * g2], -1)  # (K, E, Q, 4)
+    d_kga = np.stack([-g2 * s, g2 * c, z, -g2 * f["h1"]], -1)
+    d_ei = np.stack([z, z, f["kappa"], z], -1)
+    drs = (
+        d_ea[..., None] * (E * b)
+        + d_kga[..., None] * (m.settings.shear_factor * G * b)
+        + d_ei[..., None] * (E * b * t_g**2 / 4.0)[..., None, None]
+    ) * psi_g[:, :, None, :]  # (K, E, Q, 4, n_pts)
+    k, n_el, n_q = g1.shape
+    dre = np.matmul(m.residual_map.transpose(0, 2, 1), drs.reshape(k, n_el, n_q * 4, -1))
+    kap_s = np.einsum("eqk,rek->req", m.tables.dN_samples, f["qe"][..., 2])
+    dbend = (0.5 * E * kap_s)[..., None] * psi_s
+    return dre, dbend
+
+
+def _statics_terms_rows(
+    twin: _Twin,
+    U: np.ndarray,
+    dU: np.ndarray,
+    R: np.ndarray,
+    dr: np.ndarray,
+    frame: np.ndarray,
+    names: list[str],
+    coords: _CoordinateBatch | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_statics_terms` for K rows at once: ``U`` (K, n), ``dU`` (K, n, n_var), ``R``
+    (K, n), ``dr`` (K, n, n_var); returns a, c (K, E, 3) MPa and da, dc (K, E, 3, n_var), the
+    same formulas with a leading row axis (the design's explicit parts computed once)."""
+    m = twin.model
+    tab = m.tables
+    n_el = m.n_elements
+    k_rows, n, n_var = dU.shape
+    node = 2 * np.arange(n_el)[:, None] + np.arange(3)[None, :]  # (E, 3)
+    b = m.profile.width_mm
+    Z = tab.section_modulus_samples  # (E, 3) b t^2 / 6
+    t = np.sqrt(6.0 * Z / b)
+    theta0 = tab.theta0 @ tab.gauss_to_samples  # (E, 3)
+    u3 = U.reshape(k_rows, -1, 3)
+    du3 = dU.reshape(k_rows, n // 3, 3, n_var)
+    pos = m.reference_nodes_mm + u3[..., :2]  # (K, n_nodes, 2)
+    dpos = du3[:, :, :2, :]  # (K, n_nodes, 2, n_var)
+    ia, it, ir = n - 3, n - 2, n - 1
+    F = R[:, ia, None] * frame[0] + R[:, it, None] * frame[1]  # (K, 2) N in x, y
+    dF = frame[0][None, :, None] * dr[:, None, ia] + frame[1][None, :, None] * dr[:, None, it]
+    arm = pos[:, -1][:, None, None] - pos[:, node]  # (K, E, 3, 2)
+    darm = dpos[:, -1][:, None, None] - dpos[:, node]  # (K, E, 3, 2, n_var)
+    theta = theta0 + u3[:, node, 2]
+    dtheta = du3[:, node, 2, :]  # (K, E, 3, n_var)
+    dt = np.zeros((n_el, 3, n_var))
+    db = np.zeros(n_var)
+    if coords is not None:
+        cols = [names.index(k) for k in coords.names]
+        darm[..., cols] += coords.d_xref[-1, 2][None, None] - coords.d_xref
+        dtheta[..., cols] += coords.d_theta0
+        dt[..., cols] += coords.d_thickness
+    if "b" in names:
+        db[names.index("b")] = 1.0
+    thick = [k for k, v in enumerate(names) if v.startswith("t[")]
+    if thick:
+        dt[..., thick] += twin.hats()[1]
+    f0, f1 = F[:, 0, None, None], F[:, 1, None, None]  # (K, 1, 1)
+    df0, df1 = dF[:, None, None, 0], dF[:, None, None, 1]  # (K, 1, 1, n_var)
+    M = R[:, ir, None, None] + arm[..., 0] * f1 - arm[..., 1] * f0
+    dM = (
+        dr[:, ir][:, None, None]
+        + darm[..., 0, :] * f1[..., None]
+        + arm[..., 0, None] * df1
+        - darm[..., 1, :] * f0[..., None]
+        - arm[..., 1, None] * df0
+    )
+    cos, sin = np.cos(theta), np.sin(theta)
+    N = f0 * cos + f1 * sin
+    dN = cos[..., None] * df0 + sin[..., None] * df1 + (-f0 * sin + f1 * cos)[..., None] * dtheta
+    a = N / (b * t)
+    c = M / Z
+    da = dN / (b * t)[..., None] - a[..., None] * (db / b + dt / t[..., None])
+    dc = dM / Z[..., None] - c[..., None] * (db / b + 2.0 * dt / t[..., None])
+    return a, c, da, dc
+
+
+def _compiled_statics(
+    twin: _Twin,
+    U: np.ndarray,
+    dU: np.ndarray,
+    R: np.ndarray,
+    dr: np.ndarray,
+    frame: np.ndarray,
+    names: list[str],
+    coords: _CoordinateBatch | None,
+    fibre: np.ndarray,
+    d_fibre: np.ndarray,
+) -> None:
+    """:func:`_statics_terms_rows` compiled (fea/_sensitivity_kernels.py), the fibre values
+    written into ``fibre`` (K, 3 E, 2) and ``d_fibre`` (K, 3 E, 2, n_var): the design's explicit
+    parts here (as the reference forms them), the rows' in the kernel."""
+    from flexopt.fea._sensitivity_kernels import statics_fibres
+
+    m = twin.model
+    tab = m.tables
+    n_el = m.n_elements
+    n_var = dU.shape[2]
+    b = m.profile.width_mm
+    Z = tab.section_modulus_samples
+    t = np.sqrt(6.0 * Z / b)
+    theta0 = tab.theta0 @ tab.gauss_to_samples
+    dt = np.zeros((n_el, 3, n_var))
+    db = np.zeros(n_var)
+    xarm = np.zeros((n_el, 3, 2, n_var))
+    xtheta = np.zeros((n_el, 3, n_var))
+    if coords is not None:
+        cols = [names.index(k) for k in coords.names]
+        xarm[..., cols] = coords.d_xref[-1, 2][None, None] - coords.d_xref
+        xtheta[..., cols] = coords.d_theta0
+        dt[..., cols] += coords.d_thickness
+    if "b" in names:
+        db[names.index("b")] = 1.0
+    thick = [k for k, v in enumerate(names) if v.startswith("t[")]
+    if thick:
+        dt[..., thick] += twin.hats()[1]
+    statics_fibres(
+        U,
+        np.ascontiguousarray(dU),
+        R,
+        np.ascontiguousarray(dr),
+        np.ascontiguousarray(frame),
+        np.ascontiguousarray(m.reference_nodes_mm),
+        np.ascontiguousarray(theta0),
+        float(b),
+        np.ascontiguousarray(t),
+        np.ascontiguousarray(Z),
+        dt,
+        db,
+        xarm,
+        xtheta,
+        fibre,
+        d_fibre,
+    )
+
+
+def _batched_rows(
+    twin: _Twin,
+    drive: EndDrive,
+    response: BeamResponse,
+    done: np.ndarray,
+    starts: np.ndarray,
+    frame: np.ndarray,
+    fixed: np.ndarray,
+    held: tuple,
+    names: list[str],
+    variables: tuple[str, ...],
+    coords: _CoordinateBatch | None,
+    stress: str,
+    rho: float,
+    counts: dict,
+    values: dict,
+    derivs: dict,
+    fibre: np.ndarray,
+    d_fibre: np.ndarray,
+) -> float:
+    """The rows ``done`` of :func:`beam_sensitivities` in one vectorised pass (fills
+    ``values``, ``derivs``, ``fibre``, ``d_fibre`` in place; returns the largest |driven force
+    of the polished state - the solve's|, N). Each row is polished and back-substituted with its
+    own factorised tangent (n_var right-hand sides in one banded solve); the explicit
+    derivatives, the reactions, the fibre stresses and the KS go over every row at once, the
+    formulas of the reference loop with a leading row axis (why: ~30 rows x ~20 small numpy
+    calls each were most of a Jacobian's time)."""
+    m = twin.model
+    prof = m.profile
+    n = m.n_dofs
+    n_el = m.n_elements
+    n_var = len(names)
+    ia, it, ir = n - 3, n - 2, n - 1
+    is_disp = drive.control == "displacement"
+    k_rows = len(done)
+    if k_rows == 0:
+        return 0.0
+    Q = np.empty((k_rows, n))
+    R = np.empty((k_rows, n))
+    abs_ = np.empty((k_rows, 2 * _KD + _KD + 1, n))
+    facs = []
+    mismatch = 0.0
+    for i, row in enumerate(done):
+        f_ext = np.zeros(n)
+        if not is_disp:
+            f_ext[ia] = response.force_N[row]
+        q0 = starts[row]
+        if is_disp:
+            q0[ia] = response.displacement_mm[row]
+        for dof in fixed:  # held DOFs at their prescribed values
+            if dof != ia:
+                q0[dof] = 0.0
+        Q[i], R[i], abs_[i], fac = _polish(twin, q0, frame, fixed, held, f_ext, counts)
+        facs.append(fac)
+        mismatch = max(mismatch, abs(R[i, ia] - response.force_N[row]))
+    U = Q.copy()  # physical DOFs: the end node's translations out of the drive's frame
+    U[:, n - 3 : n - 1] = Q[:, n - 3 : n - 1] @ frame
+
+    #: the compiled kernels (fea/_sensitivity_kernels.py) where the model runs compiled code
+    compiled = twin.solver.kernel == "numba"
+    # explicit derivatives at fixed q (K, n, n_var), and of the fibre stress terms (K, E, 3, n_var)
+    dR = np.zeros((k_rows, n, n_var))
+    da_x = np.zeros((k_rows, n_el, 3, n_var))
+    dc_x = np.zeros((k_rows, n_el, 3, n_var))
+    edofs = m.tables.edofs
+    col = 0
+    if "thickness" in variables:
+        dre, dc_t = _thickness_terms_rows(twin, U)
+        dre[:, -1, 6:8] = frame @ dre[:, -1, 6:8]  # the last element's rows, generalised
+        npt = prof.n_points
+        # element e's DOFs are 6 e .. 6 e + 8: its first six rows are its own, its last three
+        # those of element e + 1's first node (the reference loop's sums in its order: the
+        # next element's entry, then this one's)
+        block = np.empty((k_rows, n, npt))
+        block[:, : 6 * n_el].reshape(k_rows, n_el, 6, npt)[:] = dre[:, :, :6]
+        block[:, 6 * n_el :] = dre[:, -1, 6:]
+        block[:, 6 : 6 * n_el].reshape(k_rows, n_el - 1, 6, npt)[:, :, :3] += dre[:, :-1, 6:]
+        dR[..., col : col + npt] = block
+        dc_x[..., col : col + npt] = dc_t
+        col += npt
+    if "width" in variables:
+        dR[:, :, col] = R / prof.width_mm  # every stiffness is proportional to b
+        col += 1
+    if coords is not None:
+        nc = len(coords.names)
+        dR[..., col : col + nc], da_x[..., col : col + nc], dc_x[..., col : col + nc] = (
+            coords.terms_rows(U, frame, n, compiled)
+        )
+        col += nc
+
+    # one back-substitution per variable with each row's factorised tangent
+    rhs = -dR
+    rhs[:, fixed] = 0.0
+    if compiled:
+        from flexopt.fea._sensitivity_kernels import pbtrs_many
+    dq = rhs  # solved in place, row by row
+    for i, fac in enumerate(facs):
+        if compiled and fac.chol is not None:
+            pbtrs_many(fac.chol, dq[i])
+        else:
+            dq[i] = fac.solve(rhs[i])
+    counts["back_substitutions"] += n_var * k_rows
+    # reactions of the held DOFs: rows ``fixed`` of each full tangent times dq
+    dr = np.zeros((k_rows, n, n_var))
+    for c in fixed:
+        j = np.arange(max(0, c - _KD), min(n, c + _KD + 1))
+        dr[:, c] = dR[:, c] + np.einsum("kj,kjv->kv", abs_[:, 2 * _KD + c - j, j], dq[:, j])
+
+    rows = done
+    for key, vals, ders in (
+        ("displacement_mm", Q[:, ia], dq[:, ia]),
+        ("transverse_displacement_mm", Q[:, it], dq[:, it]),
+        ("end_rotation_rad", Q[:, ir], dq[:, ir]),
+        ("force_N", R[:, ia], dr[:, ia]),
+        ("transverse_force_N", R[:, it], dr[:, it]),
+        ("moment_Nmm", R[:, ir], dr[:, ir]),
+    ):
+        values[key][rows] = vals
+        derivs[key][rows] = ders
+
+    du = dq.copy()  # generalised -> physical end translations
+    du[:, n - 3 : n - 1] = np.einsum("ij,kiv->kjv", frame, dq[:, n - 3 : n - 1])
+    if stress == "statics" and compiled:
+        fib = np.empty((k_rows, 3 * n_el, 2))
+        dfib = np.empty((k_rows, 3 * n_el, 2, n_var))
+        _compiled_statics(twin, U, du, R, dr, frame, names, coords, fib, dfib)
+    else:
+        if stress == "statics":
+            a, c, da, dc = _statics_terms_rows(twin, U, du, R, dr, frame, names, coords)
+        else:  # the sampled stress: the implicit part through du, row by row
+            a = np.empty((k_rows, n_el, 3))
+            c = np.empty_like(a)
+            da, dc = np.empty_like(da_x), np.empty_like(dc_x)
+            for i in range(k_rows):
+                a[i], c[i], da_du, dc_du = twin.fibre_terms(U[i])
+                due = du[i][edofs]  # (E, 9, n_var)
+                da[i] = np.matmul(da_du, due) + da_x[i]
+                dc[i] = np.matmul(dc_du, due) + dc_x[i]
+        fib = np.stack([a + c, a - c], -1).reshape(k_rows, -1, 2)
+        dfib = np.stack([da + dc, da - dc], 3).reshape(k_rows, 3 * n_el, 2, n_var)
+    fibre[rows] = fib
+    d_fibre[rows] = dfib
+    # KS over the four signed fibre values +-(a + c), +-(a - c) of every sampling point, per
+    # row; its gradient as (w+ - w-) . d(fibre), the four values' weights folded onto the two
+    # fibres (no (K, 12 E, n_var) array of the signed derivatives)
+    signed = np.concatenate([fib, -fib], axis=2)  # (K, 3 E, 4)
+    top = signed.reshape(k_rows, -1).max(axis=1)
+    e = np.exp(rho * (signed - top[:, None, None]))
+    total = e.reshape(k_rows, -1).sum(axis=1)
+    w = e / total[:, None, None]
+    values["ks_stress_MPa"][rows] = top + np.log(total) / rho
+    values["peak_stress_MPa"][rows] = top
+    derivs["ks_stress_MPa"][rows] = np.einsum("ksf,ksfv->kv", w[..., :2] - w[..., 2:], dfib)
+    return mismatch
+
+
 def beam_sensitivities(
     model: BeamModel,
     drive: EndDrive,
@@ -645,6 +1150,7 @@ def beam_sensitivities(
     rows: np.ndarray | None = None,
     coordinate_stencil: int = 4,
     stress: str = "sampled",
+    batched: bool = True,
 ) -> BeamSensitivity:
     """Derivatives of every converged row of ``response`` (``model.solve(drive)``).
 
@@ -677,6 +1183,10 @@ def beam_sensitivities(
         strain, :meth:`BeamModel.peak_stress`) or "statics" (the section forces from the end
         load and the deformed centreline, :func:`fea.beam_statics.statics_stress`; only for a
         beam loaded at its ends): which fibre stresses, and their derivatives, are returned.
+    batched : True (default): every row's explicit derivatives, reactions and stresses in one
+        vectorised pass over the rows (:func:`_batched_rows`; each row still polished and
+        back-substituted with its own factorised tangent); False: the reference loop, one row at
+        a time (the same numbers to round-off; kept as the check of the batched pass).
 
     Returns
     -------
@@ -753,7 +1263,28 @@ def beam_sensitivities(
         np.stack([response.force_N[done], response.transverse_force_N[done]], axis=1),
         frame,
     )
-    for row in done:
+    if batched:
+        mismatch = _batched_rows(
+            twin,
+            drive,
+            response,
+            done,
+            starts,
+            frame,
+            fixed,
+            held,
+            names,
+            variables,
+            coords,
+            stress,
+            rho,
+            counts,
+            values,
+            derivs,
+            fibre,
+            d_fibre,
+        )
+    for row in done if not batched else ():
         f_ext = np.zeros(n)
         if not is_disp:
             f_ext[ia] = response.force_N[row]

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignProblem
+from flexopt.pipeline.fork import limit_loaded_pools
 
 __all__ = [
     "FD_BUDGET_S",
@@ -100,7 +101,10 @@ def _compute(
         return f"the best design did not solve ({best.reason})"
     span = np.asarray(space.upper, dtype=float) - np.asarray(space.lower, dtype=float)
     try:
-        jac = problem.jacobian(x)
+        # one BLAS thread, as the gradient stage takes its Jacobians (pipeline/run/runner.py):
+        # the report's figures are then the stage's to the bit
+        with limit_loaded_pools():
+            jac = problem.jacobian(x)
     except Exception as exc:  # the report is never fatal: fall back, and say so
         jac, why = None, f"its Jacobian raised {type(exc).__name__}: {exc}"
     else:

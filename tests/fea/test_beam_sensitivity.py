@@ -390,3 +390,86 @@ def test_vertex_moves_are_the_coordinates_projected():
         np.testing.assert_allclose(
             sens.derivatives[k], expected, rtol=0, atol=1e-8 * np.abs(expected).max()
         )
+
+
+@pytest.mark.parametrize("stress", ["sampled", "statics"])
+@pytest.mark.parametrize("kernel", ["numba", "numpy"])
+def test_batched_rows_are_the_reference_loop(stress, kernel):
+    """The batched pass over the rows (the default; with the compiled statics kernel where the
+    model runs the compiled kernel) gives the reference loop's numbers, one row at a time, to
+    1e-10 of each array's largest entry: every value, derivative and fibre stress, on the
+    constant-force beam (arcs: no; a buckled, unstable-free path) with thicknesses, the width and
+    two vertex moves, differentiating a subset of the rows."""
+    profile = _constant_force_profile()
+    drive = EndDrive("displacement", (-1.0, 0.0), 30.0, 30, "fixed", "fixed")
+    settings = BeamSettings(n_elements=60, kernel=kernel)
+    model = BeamModel(profile, get_material("ABS"), settings=settings)
+    response = model.solve(drive)
+    assert response.ok
+    moves = np.zeros((2, profile.n_points, 2))
+    moves[0, 2] = (1.0, 0.5)
+    moves[1, 4] = (-0.3, 1.0)
+    rows = np.arange(1, len(response.force_N), 3)
+    out = [
+        beam_sensitivities(
+            model,
+            drive,
+            response,
+            ("thickness", "width", "moves"),
+            vertex_moves=moves,
+            rows=rows,
+            stress=stress,
+            batched=batched,
+        )
+        for batched in (True, False)
+    ]
+    fast, ref = out
+    assert fast.variables == ref.variables
+    pairs = [
+        (fast.fibre_stress_MPa, ref.fibre_stress_MPa),
+        (fast.d_fibre_stress, ref.d_fibre_stress),
+    ]
+    pairs += [(fast.values[k], ref.values[k]) for k in ref.values]
+    pairs += [(fast.derivatives[k], ref.derivatives[k]) for k in ref.derivatives]
+    for a, b in pairs:
+        assert np.array_equal(np.isnan(a), np.isnan(b))
+        done = np.isfinite(b)
+        assert done.any()
+        np.testing.assert_allclose(a[done], b[done], rtol=0, atol=1e-10 * np.abs(b[done]).max())
+    assert fast.counts == ref.counts
+
+
+def test_perturbed_tables_are_the_models():
+    """The element tables of a moved profile, computed without building its model
+    (:func:`fea.beam_sensitivity._perturbed_tables`), are bit for bit those of the model
+    built from it: straight and arc segments, on the elements either side of the moved vertex;
+    a move that changes the mesh answers None."""
+    from flexopt.fea.beam_sensitivity import _perturbed_tables, _segment_of_elements
+
+    profile = BeamProfile(
+        [[0.0, 0.0], [40.0, 0.0], [80.0, 10.0], [120.0, 5.0]],
+        [1.2, 1.0, 0.8, 0.9],
+        3.0,
+        curvature_per_mm=[0.01, -0.005, 0.0],
+    )
+    model = BeamModel(profile, MAT, settings=BeamSettings(n_elements=23))
+    seg = _segment_of_elements(model)
+    for vertex, step in ((1, (1e-4, -2e-4)), (2, (-3e-5, 1e-5)), (3, (2e-4, 0.0))):
+        pts = np.array(profile.points_mm)
+        pts[vertex] += step
+        moved = BeamProfile(pts, profile.thickness_mm, 3.0, profile.curvature_per_mm)
+        els = np.flatnonzero(np.isin(seg, (vertex - 1, vertex)))
+        tables = _perturbed_tables(model, moved, els, seg)
+        built = BeamModel(moved, MAT, settings=model.settings)
+        own = built.tables
+        for key in ("dN", "w", "theta0", "cos_theta0", "sin_theta0", "EA", "kGA", "EI"):
+            assert np.array_equal(tables[key], getattr(own, key)[els]), key
+        assert np.array_equal(tables["dN_samples"], own.dN_samples[els])
+        ratio = (own.EI_samples / own.section_modulus_samples)[els]
+        assert np.array_equal(tables["ratio"], ratio)
+        xref = built.reference_nodes_mm[2 * els[:, None] + np.arange(3)]
+        assert np.array_equal(tables["xref"], xref)
+    pts = np.array(profile.points_mm)
+    pts[1, 0] += 6.0  # 40 -> 46 mm: the first segments get another element count
+    moved = BeamProfile(pts, profile.thickness_mm, 3.0, profile.curvature_per_mm)
+    assert _perturbed_tables(model, moved, np.arange(3), seg) is None

@@ -103,3 +103,25 @@ def test_serial_run_solves_with_one_thread_and_restores(seen: dict, tmp_path) ->
     # the report's analysis of the best design (an SEA spring's 3D check: one large sparse
     # factorisation) runs after the optimisation, with the caller's threads
     assert seen["detail"] and _same(seen["detail"][-1], callers)
+
+
+def test_hybrid_gradient_stage_runs_with_one_thread(
+    seen: dict, tmp_path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A hybrid run with a pool: its gradient stage takes the problem's Jacobians in this
+    process, with one thread (the BLAS round-off of more changed a run's path), and the caller's
+    threads come back after the run."""
+    jacobians: list[dict[str, int]] = []
+
+    def jacobian_seen(self, x: np.ndarray):  # noqa: ANN001, ANN202 - the hook's signature
+        jacobians.append(_threads())
+        return None  # forward differences instead
+
+    monkeypatch.setattr(flexopt_toys.FaultProblem, "jacobian", jacobian_seen)
+    study = _study()
+    study["optimiser"] = {**study["optimiser"], "method": "hybrid"}
+    with threadpool_limits(CALLERS):
+        callers = _callers()
+        flexopt.run(study, workers=2, quick=True, out=tmp_path / "run")
+        assert _same(_threads(), callers)
+    assert jacobians and all(_one(t) for t in jacobians)
