@@ -221,7 +221,8 @@ def line(r: dict) -> str:
                 rounds = ", ".join(
                     f"k {c.get('factors', {}).get('0', 1.0):.4f}: "
                     + (
-                        f"{c['checked_peak_stress_MPa']:.2f} MPa {'met' if c['met'] else 'over'}"
+                        f"RMS {c['f']:.5g} N, {c['checked_peak_stress_MPa']:.2f} MPa "
+                        f"{'met' if c['met'] else 'over'}"
                         if "met" in c
                         else c.get("stop", "?")
                     )
