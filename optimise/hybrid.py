@@ -39,6 +39,14 @@ more than ``tolerance`` times it (relative), or ``max_iter`` iterations, or the 
 radius, and rejections end a start only when the radius falls below 1e-6).
 :attr:`HybridResult.report` says which stage found the best design, the
 evaluations of each stage and why each start stopped.
+
+Calibration (Gauss-Newton, where the problem has a ``check_constraints(x)`` hook: a
+:class:`ConstraintCheck` of the figures its verdict judges, from a finer model than
+``evaluate``'s): each start's best design is checked; a row whose judged figure exceeds its bound
+is tightened by the measured ratio and Gauss-Newton goes on from that design, at most
+:data:`CALIBRATION_ROUNDS` times (:func:`_calibrate`); the result is the lowest design whose
+check was met. A check is not an evaluation (nothing stored) and is a deterministic function of
+the design, as the exact Jacobian is, so a resumed run makes the same ones.
 """
 
 from __future__ import annotations
