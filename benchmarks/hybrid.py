@@ -229,6 +229,24 @@ def line(r: dict) -> str:
                 f"{r['jacobian_cpu']:.2f} s CPU), {jac['finite_differences']} by finite "
                 "differences"
             )
+        checks = h.get("checks")
+        if checks:  # the calibration by the verdict's own check (optimise/hybrid.py)
+            text += (
+                f"\n      checks: {checks['count']} ({checks['met']} met, {checks['time_s']:.1f} s "
+                f"wall), best verified: {checks['best_verified']}"
+            )
+            for s in h["starts"]:
+                rounds = ", ".join(
+                    f"k {c.get('factors', {}).get('0', 1.0):.4f}: "
+                    + (
+                        f"RMS {c['f']:.5g} N, {c['checked_peak_stress_MPa']:.2f} MPa "
+                        f"{'met' if c['met'] else 'over'}"
+                        if "met" in c
+                        else c.get("stop", "?")
+                    )
+                    for c in s.get("calibration", [])
+                )
+                text += f"\n        start {s['start']}: {rounds}"
     return text
 
 

@@ -294,6 +294,21 @@ def _load_cases(detail: DesignDetail | None) -> list[str]:
     return lines
 
 
+def _checks_row(record: Mapping[str, Any]) -> list[list[Any]]:
+    """The hybrid's checks of its designs by the verdict's own figures (optimise/hybrid.py,
+    ``run.json`` ``hybrid.checks``): one row where the run made any, else none."""
+    checks = (record.get("hybrid") or {}).get("checks")
+    if not checks:
+        return []
+    return [
+        [
+            "of which checks of the verdict's figures (hybrid)",
+            f"{checks.get('count')} designs ({checks.get('met')} met), "
+            f"{_seconds(checks.get('time_s'))}",
+        ]
+    ]
+
+
 def render_report(data: ReportData) -> str:
     """The Markdown text of report.md (plots linked relative to the run folder)."""
     record, problem, best = data.record, data.problem, data.best
@@ -450,6 +465,7 @@ def render_report(data: ReportData) -> str:
             ["failed (see reasons)", n_failed],
             ["wall time", _seconds(record.get("wall_s"))],
             ["of which optimisation", _seconds(record.get("optimise_wall_s"))],
+            *_checks_row(record),
             ["evaluations per second", _rate(record.get("evaluations_per_s"))],
             ["mean time per evaluation", _seconds(record.get("mean_evaluation_s"))],
             ["machine", f"{record.get('host', {}).get('cpu_count')} CPUs"],

@@ -185,6 +185,13 @@ class ConstantForceProblem(DesignProblem):
 
         return jacobian(self, x, self._beam, self._drive)
 
+    def check_constraints(self, x: np.ndarray) -> Any:
+        """The verdict's peak-stress figure at ``x`` (23,) for the hybrid's calibration:
+        :mod:`._constant_force_calibration` (an :class:`optimise.hybrid.ConstraintCheck`)."""
+        from flexopt.pipeline.studies._constant_force_calibration import check_constraints
+
+        return check_constraints(self, x)
+
     def warm_up_detail(self) -> None:
         """Load what :meth:`detail` needs beyond the beam: the plane-stress check's modules and
         compiled kernels (a run calls this in a thread while its workers solve, so the report
