@@ -87,6 +87,8 @@ __all__ = [
     "BeamModel",
     "BeamTables",
     "ContactTerms",
+    "gauss_rule",
+    "reference_tables",
     "solve_beam",
 ]
 
@@ -307,7 +309,7 @@ _BAND = 8
 
 
 @cache
-def _reference_tables(points: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+def reference_tables(points: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
     """Shape values and d/dxi of the P2 line element at reference points ``xi`` in [0, 1].
 
     Returns ``(N, dN)``, each (n_points, 3), local nodes ordered (start, middle, end) along ``s``.
@@ -327,7 +329,7 @@ def _reference_tables(points: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray
 
 
 @cache
-def _gauss_rule() -> tuple[np.ndarray, np.ndarray]:
+def gauss_rule() -> tuple[np.ndarray, np.ndarray]:
     """2-point Gauss rule on [0, 1], asked for explicitly (intorder 3 -> 2 points).
 
     Made once per process (scikit-fem computes it with numpy's leggauss, ~0.3 ms, which was
@@ -442,8 +444,8 @@ class BeamModel:
         h = np.diff(s_vert)
         self._h = h
 
-        xg, wg = _gauss_rule()
-        ng, dng = _reference_tables(tuple(xg))
+        xg, wg = gauss_rule()
+        ng, dng = reference_tables(tuple(xg))
         self._N = ng  # (Q, 3)
         self._dN = dng[None, :, :] / h[:, None, None]  # (E, Q, 3), 1/mm
         self._w = wg[None, :] * h[:, None]  # (E, Q), mm
@@ -481,7 +483,7 @@ class BeamModel:
         # Stress sampling at both element ends and the middle (the bending moment is largest at
         # supports and kinks, which are element ends; Gauss points alone would miss the peak).
         xs = np.array([0.0, 0.5, 1.0])
-        _, dns = _reference_tables(tuple(xs))
+        _, dns = reference_tables(tuple(xs))
         # linear extrapolation from the two Gauss points to the sampling points, (Q, 3)
         xa, xb = xg
         self._gauss_to_samples = np.array([(xs - xb) / (xa - xb), (xs - xa) / (xb - xa)])

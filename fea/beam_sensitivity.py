@@ -39,8 +39,8 @@ from flexopt.fea.beam import (
     BeamModel,
     BeamResponse,
     EndDrive,
-    _gauss_rule,
-    _reference_tables,
+    gauss_rule,
+    reference_tables,
 )
 from flexopt.fea.errors import FeaError
 from flexopt.geometry.profile import BeamProfile
@@ -491,8 +491,8 @@ def _perturbed_tables(
     ):
         return None
     h = np.diff(s_vert)
-    xg, wg = _gauss_rule()
-    _, dng = _reference_tables(tuple(xg))
+    xg, wg = gauss_rule()
+    _, dng = reference_tables(tuple(xg))
     dN = dng[None, :, :] / h[:, None, None]
     w = wg[None, :] * h[:, None]
     s_gauss = s_vert[:-1, None] + xg[None, :] * h[:, None]
@@ -504,7 +504,7 @@ def _perturbed_tables(
     t_g = np.interp(s_gauss, s_pts, profile.thickness_mm)
     E, G = material.E_MPa, material.G_MPa
     xs = np.array([0.0, 0.5, 1.0])
-    _, dns = _reference_tables(tuple(xs))
+    _, dns = reference_tables(tuple(xs))
     dNs = dns[None, :, :] / h[:, None, None]
     s_samp = s_vert[:-1, None] + xs[None, :] * h[:, None]
     t_s = np.interp(s_samp, s_pts, profile.thickness_mm)

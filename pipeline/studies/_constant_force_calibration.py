@@ -21,6 +21,7 @@ leaves free (:data:`optimise.curve_objectives.BAND_SHARE`).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -34,25 +35,33 @@ __all__ = ["check_constraints"]
 STRESS_ROW = 0
 
 
-def check_constraints(problem: Any, x: np.ndarray) -> ConstraintCheck | None:
+def check_constraints(
+    problem: Any,
+    x: np.ndarray,
+    solve: Callable[[np.ndarray], tuple[Any, Any, str]],
+    metrics: Callable[[Any, Any], Any],
+    fidelity: Callable[..., dict[str, Any]],
+) -> ConstraintCheck | None:
     """The verdict's peak-stress figure at the design ``x`` (23,) and the stress row's factor
     (:class:`optimise.hybrid.ConstraintCheck`: ``factors`` {0: k}, ``met``: the checked peak
     within the allowable; ``info``: ``checked_peak_stress_MPa``, ``beam_row_stress_MPa`` (the
     beam's peak x beam_stress_factor, the row's figure), ``allowable_MPa``); None when the
     objective is not ``rms_error``, the fidelity check is off or skipped, or the design does not
     solve (the verdict then judges as it does)."""
-    from flexopt.pipeline.studies.constant_force import _guarded, fidelity_check
-
+    # solve (x -> design, response, reason) and metrics (design, response -> CurveMetrics) are
+    # the problem's own, fidelity (design, response, lo, hi -> record) the verdict's guarded
+    # fidelity check: passed in by ConstantForceProblem.check_constraints, so that this module
+    # does not import the kind (an import cycle)
     t0 = time.perf_counter()
     study = problem.study
     if study.objective != "rms_error" or not study.fidelity.enabled:
         return None
-    design, response, reason = problem._solve(np.asarray(x, dtype=float))
+    design, response, reason = solve(np.asarray(x, dtype=float))
     if reason or design is None or response is None:
         return None
-    m = problem._metrics(design, response)
+    m = metrics(design, response)
     lo, hi = compared_over(m, study.boundary.stroke_mm)
-    check = _guarded(fidelity_check, problem, design, response, lo, hi)  # the verdict's
+    check = fidelity(design, response, lo, hi)  # the verdict's
     figures = checked_peak_figures(check, response.peak_stress_MPa)
     checked = figures.get(CHECKED_PEAK)
     if checked is None or not np.isfinite(checked):

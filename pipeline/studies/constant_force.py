@@ -190,7 +190,10 @@ class ConstantForceProblem(DesignProblem):
         :mod:`._constant_force_calibration` (an :class:`optimise.hybrid.ConstraintCheck`)."""
         from flexopt.pipeline.studies._constant_force_calibration import check_constraints
 
-        return check_constraints(self, x)
+        def fidelity(*args: Any) -> dict[str, Any]:  # the verdict's check, guarded as there
+            return _guarded(fidelity_check, self, *args)
+
+        return check_constraints(self, x, self._solve, self._metrics, fidelity)
 
     def warm_up_detail(self) -> None:
         """Load what :meth:`detail` needs beyond the beam: the plane-stress check's modules and

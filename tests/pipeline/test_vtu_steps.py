@@ -127,7 +127,7 @@ def test_sea_spring_design_pvd_has_every_row_both_ways_at_its_own_peak() -> None
 @pytest.mark.slow
 def test_flexure_pivot_design_pvd_has_every_plane_stress_row() -> None:
     """flexure-pivot's plane-stress check: a step per row of its nonlinear solve (0 to the
-    range of motion), the last peaking at the check's figure, every loaded row stressed. (Not
+    range of motion), the largest peaking at the check's figure, every loaded row stressed. (Not
     each below the next: the rows are turned about the point that puts the block where a pure
     moment does at the range of motion, so a row before it is not a pure-moment state; on the
     29.79 x 2.235 mm leaf recorded since session 27 the 13.3° row peaks at 25.93 MPa, the 20°
@@ -146,7 +146,8 @@ def test_flexure_pivot_design_pvd_has_every_plane_stress_row() -> None:
     )
     peaks = [_counted_peak(m) for _, m in steps]
     assert peaks[0] == 0.0 and np.all(np.asarray(peaks[1:]) > 0) and peaks[1] < peaks[-1]
-    assert peaks[-1] == result.summary["plane_stress_peak_stress_MPa"]
+    # the verdict judges the largest row's peak (here the 13.3 deg row's, over the last's)
+    assert max(peaks) == result.summary["plane_stress_peak_stress_MPa"]
 
 
 # ------------------------------------------------------------ threshold_spring: steps and 3D
