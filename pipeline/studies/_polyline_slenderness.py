@@ -45,13 +45,19 @@ from typing import Any
 
 from flexopt.optimise.requirements import MinValue, Verdict
 
-__all__ = ["MIN_SLENDERNESS", "SLENDERNESS", "Slenderness", "slenderness_ratio"]
+__all__ = ["MIN_SLENDERNESS", "SLENDERNESS", "SLENDER_ROW", "Slenderness", "slenderness_ratio"]
 
 #: the least L/t the polyline beam's figures are judged at (see the module docstring)
 MIN_SLENDERNESS = 6.0
 
 #: the summary's key: arc length over the largest thickness
 SLENDERNESS = "slenderness_ratio"
+
+#: the row's name (the mechanism kind adds the member's name in brackets)
+SLENDER_ROW = "slender enough for the beam model"
+
+#: what a polyline beam's user can do below the bound
+_POLYLINE_FIX = "(docs/usage.md, polyline_beam); judge the strip in plane stress or lengthen it"
 
 
 def slenderness_ratio(length_mm: float, thickness_mm: Any) -> float:
@@ -62,11 +68,17 @@ def slenderness_ratio(length_mm: float, thickness_mm: Any) -> float:
 
 @dataclass(frozen=True)
 class Slenderness(MinValue):
-    """``slenderness_ratio >= MIN_SLENDERNESS``; NOT MET says why the figures do not hold."""
+    """``slenderness_ratio >= MIN_SLENDERNESS``; NOT MET says why the figures do not hold.
+
+    The one place of the bound and its reason: the ``polyline_beam`` kind judges its strip
+    with the defaults, the ``mechanism`` kind each beam (``quantity`` and ``name`` naming the
+    member, ``fix`` its way out; pipeline/studies/_mechanism_slenderness.py)."""
 
     quantity: str = SLENDERNESS
-    name: str = "slender enough for the beam model"
+    name: str = SLENDER_ROW
     minimum: float = MIN_SLENDERNESS
+    #: the docs to read and what to change, appended to the reason
+    fix: str = _POLYLINE_FIX
 
     def check(self, metrics: Any, curves: Any = None) -> Verdict:
         from dataclasses import replace
@@ -77,7 +89,6 @@ class Slenderness(MinValue):
         why = (
             f"L/t = {verdict.value:.3g} below {MIN_SLENDERNESS:g}: the beam's end zones (about "
             "one thickness each, where the stress is not M c / I) cover most of the strip, so "
-            "its peak stress and stiffness are not the part's (docs/usage.md, polyline_beam); "
-            "judge the strip in plane stress or lengthen it"
+            f"its peak stress and stiffness are not the part's {self.fix}"
         )
         return replace(verdict, detail=why)

@@ -85,6 +85,7 @@ from flexopt.pipeline.studies._mechanism_schema import (
     output_columns,
     outputs_in,
 )
+from flexopt.pipeline.studies._mechanism_slenderness import slenderness_verdicts
 from flexopt.pipeline.studies._mechanism_width import width_key
 from flexopt.pipeline.study import material_record
 from flexopt.pipeline.verdict import envelope_values, with_design_range
@@ -505,7 +506,9 @@ class MechanismProblem(DesignProblem):
         clear = scoring.interference_verdict(solved.metrics, solved.clearance)
         # a drive that holds a bare beam end's rotation: a corner as made (#27)
         held = driven_end_verdicts(self.study)
-        return (*judged, stops.interference_verdict(self.study, clear), *held)
+        # each beam's L/t: below 6 the beam model's figures are not the member's (#22)
+        slender = slenderness_verdicts(solved)
+        return (*judged, stops.interference_verdict(self.study, clear), *held, *slender)
 
     def _evaluation(self, x: np.ndarray, solved: Solved, t0: float) -> Evaluation:
         verdicts = self.verdicts(solved)
