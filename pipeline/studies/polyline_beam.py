@@ -42,6 +42,13 @@ from flexopt.geometry.profile import BeamProfile, first_crossing
 from flexopt.optimise.requirements import Requirement
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import EvaluationResult, StudyKind, _builtin, register
+from flexopt.pipeline.studies._polyline_clamp import (
+    CLAMP_KT_KEY,
+    CLAMP_STRESS,
+    clamp_rows,
+    clamp_stress_MPa,
+    clamped_nodes,
+)
 from flexopt.pipeline.studies._polyline_slenderness import (
     SLENDERNESS,
     Slenderness,
@@ -210,6 +217,7 @@ class BeamBoundary(BaseModel):
         "clamped", description="support of the first point: clamped or pinned"
     )
     end: EndSpec = Field(description="how the last point is driven")
+    clamp_kt: float | None = Field(None, ge=1, description=CLAMP_KT_KEY)
 
 
 class PolylineBeamStudy(Study):
@@ -415,6 +423,12 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
     summary = summarise(table, material, profile)
     # L/t: below its bound the beam's figures are not the strip's (_polyline_slenderness.py)
     summary[SLENDERNESS] = slenderness_ratio(profile.length_mm, study.geometry.thickness_mm)
+    # design.vtu: the centreline per step with its section and fibre stresses
+    field = statics_fibres(beam_field(model, response), model, response, drive.direction, contact)
+    # the beam's stress at its ideal clamps, for the row of the clamp as made (_polyline_clamp.py)
+    nodes = clamped_nodes(study.boundary.start, drive.rotation)
+    if nodes:
+        summary[CLAMP_STRESS] = clamp_stress_MPa(field, nodes)
     files: dict[str, bytes] = {}
     if stops:
         summary.update(contact_summary(response, drive.control))
@@ -472,13 +486,7 @@ def evaluate(study: PolylineBeamStudy, repeat: int = 1) -> EvaluationResult:
             *(_CONTACT_HEADLINE[drive.control] if stops else ()),
         ),
         files=files,
-        # design.vtu: the centreline per step with its section and fibre stresses
-        **{
-            "shapes_mm": response.shapes_mm,
-            "beam_field": statics_fibres(
-                beam_field(model, response), model, response, drive.direction, contact
-            ),
-        },
+        **{"shapes_mm": response.shapes_mm, "beam_field": field},
     )
 
 
@@ -529,6 +537,8 @@ def penetration_tolerance_mm(study: PolylineBeamStudy) -> float:
 def requirements(study: PolylineBeamStudy) -> list[Requirement]:
     """The built-in requirements; with stops also "contact penetration within tolerance"."""
     reqs = [*_builtin.polyline_beam(study), Slenderness()]
+    # an ideal clamp where the part as made has a corner (#22, _polyline_clamp.py)
+    reqs += clamp_rows(study, build_material(study).yield_MPa)
     if study.stops is not None:
         reqs.append(
             PenetrationWithin(
@@ -543,7 +553,7 @@ def requirements(study: PolylineBeamStudy) -> list[Requirement]:
 
 def quantities(study: PolylineBeamStudy) -> tuple[str, ...]:
     """The names a requirement may judge; with stops, each stop's columns and figures too."""
-    names = [*_builtin.POLYLINE_BEAM, SLENDERNESS]
+    names = [*_builtin.POLYLINE_BEAM, SLENDERNESS, CLAMP_STRESS]
     if study.stops is None:
         return tuple(names)
     unit = "displacement_mm" if study.boundary.end.control == "displacement" else "force_N"
