@@ -66,6 +66,7 @@ from flexopt.pipeline.studies._mechanism_check import (
 from flexopt.pipeline.studies._mechanism_driven_end import driven_end_verdicts
 from flexopt.pipeline.studies._mechanism_fidelity import annotate, with_fidelity
 from flexopt.pipeline.studies._mechanism_gradient import mechanism_jacobian
+from flexopt.pipeline.studies._mechanism_joints import joint_verdicts
 from flexopt.pipeline.studies._mechanism_result import (
     Solved,
     case_responses,
@@ -508,7 +509,9 @@ class MechanismProblem(DesignProblem):
         held = driven_end_verdicts(self.study)
         # each beam's L/t: below 6 the beam model's figures are not the member's (#22)
         slender = slenderness_verdicts(solved)
-        return (*judged, stops.interference_verdict(self.study, clear), *held, *slender)
+        # a beam-to-beam joint's sharp corner, a pinned end printed solid (#22)
+        joints = joint_verdicts(solved.geometry)
+        return (*judged, stops.interference_verdict(self.study, clear), *held, *slender, *joints)
 
     def _evaluation(self, x: np.ndarray, solved: Solved, t0: float) -> Evaluation:
         verdicts = self.verdicts(solved)
