@@ -141,12 +141,18 @@ class FidelityTransfer:
             out.append(replace(v, detail=f"{text}; {v.detail}" if v.detail else text))
         return tuple(out)
 
-    def decisive(self, verdicts: Sequence[Verdict], moved: Mapping[str, float]) -> bool:
+    def decisive(
+        self,
+        verdicts: Sequence[Verdict],
+        moved: Mapping[str, float],
+        names: Sequence[str] | None = None,
+    ) -> bool:
         """Whether a verdict judged on a transferred figure lies within ``band_rel`` of its
-        figure from the bound (or has no margin): the ratio's spread could change its side."""
+        figure from the bound (or has no margin): the ratio's spread could change its side.
+        ``names``: only these verdicts decide (a robust requirement's draws: its own row)."""
         for v in verdicts:
             figure = _judged(v)
-            if figure not in moved:
+            if figure not in moved or (names is not None and v.name not in names):
                 continue
             margin = float(v.margin) if v.margin is not None else math.nan
             if not math.isfinite(margin) or abs(margin) <= self.band_rel * moved[figure]:

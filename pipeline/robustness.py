@@ -342,6 +342,7 @@ class SampleProblem(DesignProblem):
         x: np.ndarray | None,
         held: Mapping[str, float] | None = None,
         transfer: FidelityTransfer | None = None,
+        decide: Sequence[str] | None = None,
     ) -> None:
         self.study = study
         self.mode = mode
@@ -349,6 +350,9 @@ class SampleProblem(DesignProblem):
         self.held = dict(held or {})  # solved at the nominal design, held in a sample
         # the nominal design's fidelity ratios: a sample is judged on the verdict's figures
         self.transfer = transfer if transfer else None
+        # the requirements whose closeness to a bound re-solves a sample (None: every one; a
+        # robust requirement's draws: its own rows, the others are not reported from them)
+        self.decide = None if decide is None else tuple(decide)
         self.space = DesignSpace(SAMPLE_COLUMNS, np.array([0.01, -50.0, -50.0]), np.ones(3) * 50)
 
     def _solve(self, study: Study, dt: float, dw: float) -> tuple[Any, str]:
@@ -384,7 +388,7 @@ class SampleProblem(DesignProblem):
         fidelity, deviation = "", {}
         if moved and self.transfer is not None:
             fidelity = "transferred"
-            if self.transfer.decisive(verdicts, moved):
+            if self.transfer.decisive(verdicts, moved, self.decide):
                 # near a bound the ratio's spread could change the side: judged as made, on
                 # its own figures (the same study with the kind's checks on)
                 study = perturb_study(self.study, E_factor, dt, dw, checks=True)[0]
@@ -625,6 +629,9 @@ def fidelity_text(fidelity: Mapping[str, Any]) -> str:
             parts.append(f"{figure} = {r['of']} x {r['ratio_min']:.5g}-{r['ratio_max']:.5g}")
     band = fidelity.get("recheck_band_percent")
     spread = fidelity.get("ratio_spread_percent")
+    if not fidelity.get("samples_transferred") and not fidelity.get("samples_rechecked"):
+        # the kind's checks ran in every sample (the gripper's resolved constant-force study)
+        return "every sample judged on the verdict's figures of its own: nothing transferred"
     text = (
         "samples judged on the nominal verdict's figures: "
         + "; ".join(parts)
@@ -938,7 +945,7 @@ def judge_samples(
             every = replace(transfer, band_rel=math.inf)
             redo = SampleProblem(
                 sample_problem.study, sample_problem.mode, sample_problem.x,
-                sample_problem.held, every,
+                sample_problem.held, every, sample_problem.decide,
             )  # fmt: skip
             for i, ev in zip(again, run_on(redo, rows[again]), strict=True):
                 evaluations[i] = ev
@@ -1409,6 +1416,7 @@ def _robust_record(
         return None
     draws = _verdict_draws(study, items)
     seeds = list(draws)
+    decide = tuple(req.label for req, _ in items)  # what these draws are judged for
     rows = np.vstack([draws[s] for s in seeds])
 
     fidelity: dict[str, Any] = {}
@@ -1429,7 +1437,7 @@ def _robust_record(
     record: dict[str, Any] = {
         "sampling": "uniform within the ± band of robustness:, fresh draws "
         "(default_rng([seed, 1])); the optimiser's were default_rng([seed, 0])",
-        "requirements": judged(SampleProblem(study, mode, x, held, transfer)),
+        "requirements": judged(SampleProblem(study, mode, x, held, transfer, decide)),
     }
     if history is not None:
         run_problem, best, solved = history
@@ -1456,7 +1464,7 @@ def _robust_record(
                 shares = judged(
                     SampleProblem(
                         study, "design", reference.x, held_ref,
-                        nominal_transfer(study, "design", problem, reference.x),
+                        nominal_transfer(study, "design", problem, reference.x), decide,
                     ),
                     "nominal_optimum",
                 )  # fmt: skip

@@ -15,22 +15,29 @@ The constant-force verdict judges the peak stress on plane stress and the beam a
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from flexopt.optimise.problem import DesignResult
 from flexopt.optimise.requirements import Verdict
 from flexopt.optimise.robustness import samples_of
 from flexopt.pipeline.problems import build_base_problem, nominal_design
 from flexopt.pipeline.robust_fidelity import RECHECK_REL, FidelityTransfer
 from flexopt.pipeline.robustness import (
+    SampleProblem,
+    fidelity_text,
+    nominal_transfer,
     perturb_study,
     run_robustness,
     scatter_design,
 )
+from flexopt.pipeline.studies._constant_force_clamp import CHECKED_PEAK_MODEL
 from flexopt.pipeline.study import load_study, validate_study
 
 CHECKED = "checked_peak_stress_MPa"
+EXAMPLES = Path(__file__).resolve().parents[2] / "pipeline" / "examples"
 
 
 def serial(problem, rows):
@@ -127,6 +134,30 @@ def test_a_print_that_passes_by_the_beam_and_fails_as_made_is_not_met():
     assert result.worst_margin[j] == pytest.approx(bound - checked_hi, rel=1e-9)
 
 
+@pytest.mark.slow
+def test_the_gripper_samples_run_their_own_plane_stress_check():
+    """The gripper's resolved constant-force study keeps its plane-stress check in a sample
+    (SAMPLE_SWITCHES do not reach it): each print is judged on its own checked peak, nothing is
+    transferred, and the E x1.1 print's checked peak is 1.1 times the nominal's."""
+    raw = yaml.safe_load((EXAMPLES / "gripper.yaml").read_text("utf-8"))
+    raw["robustness"] = {"E_percent": 10.0}
+    study = validate_study(raw)
+    problem = build_base_problem(study)
+    x = nominal_design(problem, study)
+    transfer = nominal_transfer(study, "design", problem, x)
+    assert transfer is not None  # the nominal has the checked figure
+    samples = SampleProblem(study, "design", x, transfer=transfer)
+    peak = {}
+    for e in (1.0, 1.1):
+        outcome = samples.evaluate(np.array([e, 0.0, 0.0])).metrics["robustness"]
+        assert outcome.fidelity == ""  # its own figures: nothing transferred, nothing re-solved
+        row = next(v for v in outcome.verdicts if v.name == "peak stress")
+        assert row.model == CHECKED_PEAK_MODEL and "transferred" not in row.detail
+        peak[e] = row.value
+    assert peak[1.1] == pytest.approx(1.1 * peak[1.0], rel=1e-6)
+    assert "nothing transferred" in fidelity_text({"samples_transferred": 0})
+
+
 # --------------------------------------------------------------------------------------------
 # The transfer on a toy result
 
@@ -171,5 +202,8 @@ def test_a_verdict_is_decisive_within_the_band_of_its_figure():
     assert not TRANSFER.decisive([_verdict(-1.01 * RECHECK_REL * 40.0)], moved)
     assert TRANSFER.decisive([_verdict(math.nan)], moved)  # no margin: solved as made
     assert not TRANSFER.decisive([_verdict(0.0)], {})  # not judged on a transferred figure
+    # a robust requirement's draws: only its own row decides
+    assert not TRANSFER.decisive([_verdict(0.0)], moved, names=("stress of the prints",))
+    assert TRANSFER.decisive([_verdict(0.0)], moved, names=("peak",))
     noted = TRANSFER.note([_verdict(5.0)], moved)[0]
     assert noted.detail.startswith("plane stress transferred: the sample's peak_stress_MPa x 1.02")
