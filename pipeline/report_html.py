@@ -1494,7 +1494,10 @@ def _robustness_section(
     header = ["requirement", "nominal margin", "share of samples MET",
               f"robust verdict (at {required:g} %)"]  # fmt: skip
     body += _table(header, rows) if rows else "<p>No requirement to judge.</p>"
-    from flexopt.pipeline.robustness import robust_tables  # robust: requirements, their cost
+    from flexopt.pipeline.robustness import fidelity_text, robust_tables
+
+    if record.get("fidelity"):  # how the samples were judged on the verdict's figures (#22)
+        body += f"<p>{_e(fidelity_text(record['fidelity']))}.</p>"
 
     for title, head, cells, note in robust_tables(record):
         body += f"<h3>{_e(title)}</h3>" + _table(head, cells) + f"<p>{_e(note)}</p>"

@@ -14,9 +14,11 @@ a key ending in ``thickness_mm`` plus ``thickness_delta_mm`` and under a key end
 ``width_mm`` plus ``width_delta_mm`` (``geometry.thickness_mm``, ``geometry.width_mm``,
 ``geometry.beams.<b>.thickness_mm``, ``geometry.pad_thickness_mm``, ``design.thickness_mm`` ...),
 except under ``design_space``, ``requirements``, ``optimiser``, ``parallel`` and ``robustness``
-(bounds and limits are not printed). The kind's cross-checks of one design that are reports, not
-requirements (``fidelity``, ``prb``, ``check_3d``), are switched off in a sample: they would
-multiply its cost by ~100 and judge nothing.
+(bounds and limits are not printed). The kind's cross-checks of one design (``fidelity``,
+``prb``, ``check_3d``, ``solid_3d.check``) are switched off in a sample, to keep it cheap; the
+figures the nominal verdict judges on them (the constant-force plane-stress peak and force) are
+given to every sample by the nominal design's measured ratios, and a sample near a bound is
+solved again with its checks on (:mod:`pipeline.robust_fidelity`, :func:`judge_samples`).
 
 The **design vector** of a kind that ``flexopt run`` optimises (:func:`scatter_design`): the
 problem's :meth:`~optimise.problem.DesignProblem.scatter_design` when it gives one (a kind
@@ -87,6 +89,7 @@ from flexopt.optimise.robustness import (
 from flexopt.optimise.space import DesignSpace
 from flexopt.optimise.variables import DesignVariables
 from flexopt.pipeline.errors import StudyError
+from flexopt.pipeline.robust_fidelity import FidelityTransfer, fidelity_transfer, measured_ratios
 from flexopt.pipeline.study import Study, check_robustness, validate_study
 
 __all__ = [
@@ -113,8 +116,9 @@ log = logging.getLogger(__name__)
 #: Top-level blocks a sample leaves alone: bounds, limits and run settings are not printed.
 UNPERTURBED_BLOCKS = ("design_space", "requirements", "optimiser", "parallel", "robustness")
 
-#: Cross-checks of one design that are reports, not requirements: off in a sample (the
-#: constant-force fidelity check is 2.6 s of a 2.6 s detail; the beam itself 0.03 s).
+#: Cross-checks of one design: off in a sample (the constant-force plane-stress check ~0.7 s CPU
+#: against the beam's 0.03 s); the figures they give the verdict reach a sample through
+#: pipeline.robust_fidelity (the nominal's ratios; re-solved with them near a bound).
 SAMPLE_SWITCHES: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("fidelity", "enabled"), False),
     (("check_3d",), False),
@@ -150,9 +154,15 @@ def _is_number(value: Any) -> bool:
 
 
 def perturb_study(
-    study: Study, E_factor: float, thickness_delta_mm: float, width_delta_mm: float
+    study: Study,
+    E_factor: float,
+    thickness_delta_mm: float,
+    width_delta_mm: float,
+    checks: bool = False,
 ) -> tuple[Study, tuple[str, ...]]:
-    """The study of one sample, and the key paths it changed.
+    """The study of one sample, and the key paths it changed; ``checks``: keep the kind's
+    cross-checks as the study sets them (a sample re-checked near a bound,
+    :mod:`pipeline.robust_fidelity`), else they are switched off (SAMPLE_SWITCHES).
 
     Raises
     ------
@@ -161,12 +171,16 @@ def perturb_study(
         outside a variable's bounds): :class:`SampleProblem` makes that sample a failed one,
         which meets nothing and is named in the record, never a refusal of the study.
     """
-    data, changed = _perturbed_data(study, E_factor, thickness_delta_mm, width_delta_mm)
+    data, changed = _perturbed_data(study, E_factor, thickness_delta_mm, width_delta_mm, checks)
     return validate_study(data), changed
 
 
 def _perturbed_data(
-    study: Study, E_factor: float, thickness_delta_mm: float, width_delta_mm: float
+    study: Study,
+    E_factor: float,
+    thickness_delta_mm: float,
+    width_delta_mm: float,
+    checks: bool = False,
 ) -> tuple[dict[str, Any], tuple[str, ...]]:
     """:func:`perturb_study`'s plain data, not validated (what a sample changes, in words)."""
     data = study.model_dump(mode="json", exclude_none=True)
@@ -207,7 +221,7 @@ def _perturbed_data(
         # a print is judged on the plain requirement: the share is over the prints
         if isinstance(item, dict):
             item.pop("robust", None)
-    for keys, value in SAMPLE_SWITCHES:
+    for keys, value in () if checks else SAMPLE_SWITCHES:
         node = data
         for key in keys[:-1]:
             node = node.get(key) if isinstance(node, dict) else None
@@ -276,11 +290,20 @@ def hold_solved(
 
 @dataclass(frozen=True)
 class _Outcome:
-    """What a sample carries back beside its Evaluation (in ``metrics['robustness']``)."""
+    """What a sample carries back beside its Evaluation (in ``metrics['robustness']``).
+
+    ``fidelity``: "" (no figure to transfer), ``transferred`` (judged on the nominal design's
+    ratios, :mod:`pipeline.robust_fidelity`) or ``re-checked`` (solved again with the checks on:
+    near a bound); ``deviation``: a re-checked sample's ``{figure: |ratio / nominal - 1|}``."""
 
     verdicts: tuple[Verdict, ...]
     table: dict[str, np.ndarray]
+    fidelity: str = ""
+    deviation: dict[str, float] = field(default_factory=dict)
 
+
+#: the detail of a row a sample judged on its own checks (its transferred figure was near the bound)
+RECHECKED = "re-solved with the checks on: the transferred figure was near the bound"
 
 #: what a sample whose solve did not reach the end of its stroke says (its reason)
 UNSOLVED_SAMPLE = "not solved through its stroke"
@@ -321,15 +344,33 @@ class SampleProblem(DesignProblem):
         mode: Literal["design", "study"],
         x: np.ndarray | None,
         held: Mapping[str, float] | None = None,
+        transfer: FidelityTransfer | None = None,
+        decide: Sequence[str] | None = None,
     ) -> None:
         self.study = study
         self.mode = mode
         self.x = None if x is None else np.asarray(x, dtype=float)
         self.held = dict(held or {})  # solved at the nominal design, held in a sample
+        # the nominal design's fidelity ratios: a sample is judged on the verdict's figures
+        self.transfer = transfer if transfer else None
+        # the requirements whose closeness to a bound re-solves a sample (None: every one; a
+        # robust requirement's draws: its own rows, the others are not reported from them)
+        self.decide = None if decide is None else tuple(decide)
         self.space = DesignSpace(SAMPLE_COLUMNS, np.array([0.01, -50.0, -50.0]), np.ones(3) * 50)
 
-    def evaluate(self, s: np.ndarray) -> Evaluation:
+    def _solve(self, study: Study, dt: float, dw: float) -> tuple[Any, str]:
+        """One sample's study solved: its result and why it failed ("" when it did not)."""
         from flexopt.pipeline.problems import build_base_problem, study_result
+
+        if self.mode == "design":
+            problem = build_base_problem(study)
+            hold_solved(problem, self.held, dt, dw)
+            result = problem.detail(scatter_design(problem, self.x, dt, dw))
+            return result, result.evaluation.reason if result.evaluation is not None else ""
+        result = study_result(study, 1)
+        return result, "" if result.converged else (result.message or "did not converge")
+
+    def evaluate(self, s: np.ndarray) -> Evaluation:
         from flexopt.pipeline.verdict import judge_result
 
         E_factor, dt, dw = (float(v) for v in np.asarray(s, dtype=float).ravel())
@@ -340,19 +381,32 @@ class SampleProblem(DesignProblem):
             return Evaluation.failed(
                 s, 1, 0, f"the sample cannot be built: {exc.path}: {exc.problem}"
             )
-        reason = ""
-        if self.mode == "design":
-            problem = build_base_problem(study)
-            hold_solved(problem, self.held, dt, dw)
-            result = problem.detail(scatter_design(problem, self.x, dt, dw))
-            reason = result.evaluation.reason if result.evaluation is not None else ""
-        else:
-            result = study_result(study, 1)
-            reason = "" if result.converged else (result.message or "did not converge")
-        table = dict(result.table)
+        result, reason = self._solve(study, dt, dw)
+        moved: dict[str, float] = {}
+        if self.transfer is not None:  # the figures the nominal verdict judges, by its ratios
+            result, moved = self.transfer.apply(result)
         # the sample's own study: its printable minimum moved with the print (THICKNESS_KEYS),
         # every other requirement is the verdict's
         verdicts = judge_result(study, result, requirements=sample_requirements(study))
+        fidelity, deviation = "", {}
+        if moved and self.transfer is not None:
+            fidelity = "transferred"
+            if self.transfer.decisive(verdicts, moved, self.decide):
+                # near a bound the ratio's spread could change the side: judged as made, on
+                # its own figures (the same study with the kind's checks on)
+                study = perturb_study(self.study, E_factor, dt, dw, checks=True)[0]
+                result, reason = self._solve(study, dt, dw)
+                deviation = measured_ratios(self.transfer, result)
+                verdicts = tuple(
+                    replace(v, detail=f"{RECHECKED}; {v.detail}" if v.detail else RECHECKED)
+                    if v.model
+                    else v
+                    for v in judge_result(study, result, requirements=sample_requirements(study))
+                )
+                fidelity = "re-checked"
+            else:
+                verdicts = self.transfer.note(verdicts, moved)
+        table = dict(result.table)
         if getattr(result, "converged", True) is False:
             # a print whose solve stopped part-way is judged on no rows: its figures over the
             # rows it reached under-read the stroke (#27; the nominal's "solved through the
@@ -364,7 +418,7 @@ class SampleProblem(DesignProblem):
             np.asarray(s, dtype=float),
             np.array([float(n_not_met)]),
             np.zeros(0),
-            {"robustness": _Outcome(verdicts, table)},
+            {"robustness": _Outcome(verdicts, table, fidelity, deviation)},
             reason,
         )
 
@@ -421,6 +475,11 @@ class RobustnessResult:
     robust_verdicts: tuple[Verdict, ...] = ()
     #: their record (``robust_requirements`` of :meth:`record`), None without robust requirements
     robust_record: dict[str, Any] | None = None
+    #: how the samples were judged on the verdict's figures (:func:`_fidelity_record`), None
+    #: when the nominal design has no figure above the kind's own model
+    fidelity: dict[str, Any] | None = None
+    #: (n_samples,) how each sample's figures were judged: "", "transferred", "re-checked"
+    judged: tuple[str, ...] = ()
 
     def with_robust_rows(self, verdicts: Sequence[Verdict]) -> tuple[Verdict, ...]:
         """``verdicts`` with each robust requirement's row after its nominal row."""
@@ -478,8 +537,15 @@ class RobustnessResult:
                     "met": int(row.sum()),
                     "of": int(row.size),
                     "reason": reason,
+                    **({"fidelity": how} if how else {}),
                 }
-                for s, row, reason in zip(self.samples, self.met, self.reasons, strict=True)
+                for s, row, reason, how in zip(
+                    self.samples,
+                    self.met,
+                    self.reasons,
+                    self.judged or ("",) * len(self.samples),
+                    strict=True,
+                )
             ],
             "band": {
                 c: {
@@ -488,6 +554,7 @@ class RobustnessResult:
                 }
                 for c in band_cols
             },
+            **({"fidelity": self.fidelity} if self.fidelity else {}),
             **({"robust_requirements": self.robust_record} if self.robust_record else {}),
         }
 
@@ -542,6 +609,8 @@ def robustness_lines(record: Mapping[str, Any] | None) -> list[str]:
         )
     if not reqs:
         out.append("  (no requirement to judge)")
+    if record.get("fidelity"):
+        out.append(f"  {fidelity_text(record['fidelity'])}")
     for r in (record.get("robust_requirements") or {}).get("requirements") or []:
         out.append(
             f"  {r['name']} (robust): {r['met_samples']}/{r['verdict_samples']} fresh samples "
@@ -550,6 +619,35 @@ def robustness_lines(record: Mapping[str, Any] | None) -> list[str]:
             + ("MET" if r["met"] else "NOT MET")
         )
     return out
+
+
+def fidelity_text(fidelity: Mapping[str, Any]) -> str:
+    """One sentence: how the samples were judged on the nominal verdict's figures (the
+    ``fidelity`` of a robustness record, :func:`judge_samples`)."""
+    parts = []
+    for figure, r in (fidelity.get("ratios") or {}).items():
+        if r.get("ratio") is not None:
+            parts.append(f"{r['model']} = {r['of']} x {r['ratio']:.5g}")
+        elif r.get("ratio_min") is not None:
+            parts.append(f"{figure} = {r['of']} x {r['ratio_min']:.5g}-{r['ratio_max']:.5g}")
+    band = fidelity.get("recheck_band_percent")
+    spread = fidelity.get("ratio_spread_percent")
+    if not fidelity.get("samples_transferred") and not fidelity.get("samples_rechecked"):
+        # the kind's checks ran in every sample (the gripper's resolved constant-force study)
+        return "every sample judged on the verdict's figures of its own: nothing transferred"
+    text = (
+        "samples judged on the nominal verdict's figures: "
+        + "; ".join(parts)
+        + " (the nominal design's ratios); "
+        + f"{fidelity.get('samples_rechecked', 0)} sample(s) within "
+        + (f"{band:g} %" if band is not None else "any distance")
+        + " of a bound re-solved with the checks on"
+    )
+    if spread is not None:
+        text += f" (their ratios within {spread:.2g} % of the nominal's)"
+    if fidelity.get("rechecked_all"):
+        text += "; a ratio moved more than the band: every sample re-solved with the checks on"
+    return text
 
 
 def scatter_text(record: Mapping[str, Any]) -> str:
@@ -598,6 +696,13 @@ def robustness_markdown(record: Mapping[str, Any], plot_file: str | None = None)
         )
     if not record.get("requirements"):
         lines.append("| (no requirement to judge) | | | | |")
+    if record.get("fidelity"):
+        lines += [
+            "",
+            fidelity_text(record["fidelity"])[0].upper()
+            + fidelity_text(record["fidelity"])[1:]
+            + ".",
+        ]
     if record.get("n_failed"):
         lines += [
             "",
@@ -776,7 +881,8 @@ def run_robustness(
     held: dict[str, float] = {}
     if mode == "design" and problem is not None and problem.held_scatter:
         held = held_state(problem, problem.evaluate(x))  # one solve: ST for the target
-    sample_problem = SampleProblem(study, mode, x, held)
+    transfer = nominal_transfer(study, mode, problem, x)
+    sample_problem = SampleProblem(study, mode, x, held, transfer)
     settings = settings if settings is not None else parallel_settings(study)
     log.info("robustness: %d samples on %s", len(samples), settings.describe())
 
@@ -787,15 +893,89 @@ def run_robustness(
         with _backend_opener()(settings, batch_problem) as opened:
             return opened(batch_problem, rows)
 
-    evaluations = run_on(sample_problem, samples)
-    robust_record = _robust_record(study, problem, mode, x, run_on, history)
+    evaluations, judged = judge_samples(sample_problem, samples, run_on)
+    robust_record = _robust_record(study, problem, mode, x, run_on, history, transfer)
     result = _collect(spec, samples, perturbed, evaluations, _plot_columns(plot or {}))
     return replace(
         result,
         **_target_of(plot or {}),
         robust_verdicts=robust_verdict_rows(robust_record),
         robust_record=robust_record,
+        fidelity=judged,
     )
+
+
+def nominal_transfer(
+    study: Study, mode: Literal["design", "study"], problem: Any, x: np.ndarray | None
+) -> FidelityTransfer | None:
+    """The nominal design's fidelity ratios (:func:`~pipeline.robust_fidelity.
+    fidelity_transfer`): one solve of the nominal with the study's checks, or None when it has
+    no figure above the kind's own model (its checks off: it is judged on that model too)."""
+    from flexopt.pipeline.problems import study_result
+
+    try:
+        result = problem.detail(x) if mode == "design" else study_result(study, 1)
+    except Exception as exc:  # noqa: BLE001 - the nominal sample names the failure
+        log.warning("robustness: the nominal design's checks could not be solved: %s", exc)
+        return None
+    transfer = fidelity_transfer(study, result)
+    return transfer if transfer else None
+
+
+def judge_samples(
+    sample_problem: SampleProblem, rows: np.ndarray, run_on: Any
+) -> tuple[list[Evaluation], dict[str, Any] | None]:
+    """``sample_problem`` evaluated at ``rows`` (n, 3) through ``run_on(problem, rows)``, and
+    how they were judged on the verdict's figures (None without a transfer): the counts of
+    transferred and re-checked samples and the largest deviation of a re-checked sample's ratio
+    from the nominal's. When that deviation exceeds the re-check band, the band is not earned
+    on this design: every transferred sample is solved again with its checks on."""
+    evaluations = list(run_on(sample_problem, rows))
+    transfer = sample_problem.transfer
+    if transfer is None:
+        return evaluations, None
+    spread = _spread(evaluations)
+    everything = False
+    if spread > transfer.band_rel:
+        again = [i for i, ev in enumerate(evaluations) if _fidelity_of(ev) == "transferred"]
+        if again:
+            log.warning(
+                "robustness: a re-checked sample's fidelity ratio is %.2f %% off the nominal's "
+                "(band %.2f %%): every sample re-checked",
+                100 * spread,
+                100 * transfer.band_rel,
+            )
+            every = replace(transfer, band_rel=math.inf)
+            redo = SampleProblem(
+                sample_problem.study, sample_problem.mode, sample_problem.x,
+                sample_problem.held, every, sample_problem.decide,
+            )  # fmt: skip
+            for i, ev in zip(again, run_on(redo, rows[again]), strict=True):
+                evaluations[i] = ev
+            spread, everything = _spread(evaluations), True
+    kinds = [_fidelity_of(ev) for ev in evaluations]
+    return evaluations, {
+        **transfer.record(),
+        "samples_transferred": kinds.count("transferred"),
+        "samples_rechecked": kinds.count("re-checked"),
+        "ratio_spread_percent": 100.0 * spread if kinds.count("re-checked") else None,
+        "rechecked_all": everything,
+    }
+
+
+def _fidelity_of(ev: Evaluation) -> str:
+    outcome = ev.metrics.get("robustness") if ev.metrics else None
+    return outcome.fidelity if outcome is not None else ""
+
+
+def _spread(evaluations: Sequence[Evaluation]) -> float:
+    """The largest |ratio / nominal ratio - 1| a re-checked sample measured (0 without one)."""
+    out = 0.0
+    for ev in evaluations:
+        outcome = ev.metrics.get("robustness") if ev.metrics else None
+        if outcome is not None and outcome.deviation:
+            out = max(out, *outcome.deviation.values())
+    return out
 
 
 def _target_of(plot: Mapping[str, Any]) -> dict[str, float | None]:
@@ -888,6 +1068,7 @@ def _collect(
         band=response_band([o.table if o else None for o in outcomes]),
         nominal_table=dict(nominal.table) if nominal else {},
         reasons=tuple(ev.reason for ev in evaluations),
+        judged=tuple(o.fidelity if o is not None else "" for o in outcomes),
         x=columns[0],
         y=columns[1],
         units=units,
@@ -1104,11 +1285,17 @@ def _shares(
     for req, rs in items:
         n = rs.n_verdict
         met, margins, failures = 0, [], []
+        models: dict[str, int] = {}
+        fidelity = {"transferred": 0, "re-checked": 0}
         for row, ev in enumerate(evaluations[rs.seed][:n]):
             outcome = ev.metrics.get("robustness") if ev.metrics else None
             verdict = None
             if outcome is not None:
                 verdict = next((v for v in outcome.verdicts if v.name == req.label), None)
+            if verdict is not None and verdict.model:  # judged on one of several figures
+                models[verdict.model] = models.get(verdict.model, 0) + 1
+                if outcome.fidelity in fidelity:
+                    fidelity[outcome.fidelity] += 1
             if verdict is None or ev.reason:  # not built, not solved, or solved part-way
                 why = ev.reason or "the requirement was not judged"
                 failures.append(f"sample {row} ({_sample_words(draws[rs.seed][row])}): {why}")
@@ -1136,6 +1323,10 @@ def _shares(
                 "worst_margin": min(finite) if len(finite) == n else None,
                 "n_failed": len(failures),
                 "failure": failures[0] if failures else "",
+                # the model each sample's figure came from, and how (pipeline.robust_fidelity)
+                "judged_on": models,
+                "transferred_samples": fidelity["transferred"],
+                "rechecked_samples": fidelity["re-checked"],
                 "optimiser": (
                     {
                         "samples": rs.n_optimiser,
@@ -1165,6 +1356,7 @@ def robust_verdict_rows(record: Mapping[str, Any] | None) -> tuple[Verdict, ...]
             detail += f"; the optimiser held {o['required']} of its {o['samples']} samples"
         if r.get("n_failed"):
             detail += f"; {r['n_failed']} sample(s) failed, e.g. {r['failure']}"
+        detail += judged_on_text(r)
         rows.append(
             Verdict(
                 name=f"{r['name']} (robust)",
@@ -1180,6 +1372,19 @@ def robust_verdict_rows(record: Mapping[str, Any] | None) -> tuple[Verdict, ...]
             )
         )
     return tuple(rows)
+
+
+def judged_on_text(r: Mapping[str, Any]) -> str:
+    """ "; judged on <model>: n transferred ..., m re-checked ..." for a robust requirement's
+    record ``r`` whose samples were judged on one of several figures, else ""."""
+    models = r.get("judged_on") or {}
+    if not models:
+        return ""
+    return (
+        f"; judged on {', '.join(models)}: {r.get('transferred_samples', 0)} samples by the "
+        "nominal design's ratio to the kind's own model, "
+        f"{r.get('rechecked_samples', 0)} near the bound re-solved with the checks on"
+    )
 
 
 def with_robust_rows(verdicts: Sequence[Verdict], robust: Sequence[Verdict]) -> tuple[Verdict, ...]:
@@ -1200,6 +1405,7 @@ def _robust_record(
     x: np.ndarray | None,
     run_backend: Any,
     history: tuple[Any, Evaluation, Sequence[Evaluation]] | None,
+    transfer: FidelityTransfer | None = None,
 ) -> dict[str, Any] | None:
     """The ``robust_requirements`` record: each robust requirement of ``study`` judged on fresh
     samples of the design ``x``; with a run's ``history`` (its problem, its chosen evaluation,
@@ -1213,10 +1419,15 @@ def _robust_record(
         return None
     draws = _verdict_draws(study, items)
     seeds = list(draws)
+    decide = tuple(req.label for req, _ in items)  # what these draws are judged for
     rows = np.vstack([draws[s] for s in seeds])
 
-    def judged(sample_problem: SampleProblem) -> list[dict[str, Any]]:
-        evaluations = list(run_backend(sample_problem, rows))
+    fidelity: dict[str, Any] = {}
+
+    def judged(sample_problem: SampleProblem, key: str = "chosen") -> list[dict[str, Any]]:
+        evaluations, how = judge_samples(sample_problem, rows, run_backend)
+        if how is not None:
+            fidelity[key] = how
         by_seed, start = {}, 0
         for s in seeds:
             by_seed[s] = evaluations[start : start + len(draws[s])]
@@ -1229,7 +1440,7 @@ def _robust_record(
     record: dict[str, Any] = {
         "sampling": "uniform within the ± band of robustness:, fresh draws "
         "(default_rng([seed, 1])); the optimiser's were default_rng([seed, 0])",
-        "requirements": judged(SampleProblem(study, mode, x, held)),
+        "requirements": judged(SampleProblem(study, mode, x, held, transfer, decide)),
     }
     if history is not None:
         run_problem, best, solved = history
@@ -1253,7 +1464,13 @@ def _robust_record(
                 held_ref: dict[str, float] = {}
                 if problem.held_scatter:
                     held_ref = held_state(problem, problem.evaluate(reference.x))
-                shares = judged(SampleProblem(study, "design", reference.x, held_ref))
+                shares = judged(
+                    SampleProblem(
+                        study, "design", reference.x, held_ref,
+                        nominal_transfer(study, "design", problem, reference.x), decide,
+                    ),
+                    "nominal_optimum",
+                )  # fmt: skip
                 cost["nominal_optimum"]["robust"] = [
                     {
                         k: s[k]
@@ -1269,6 +1486,8 @@ def _robust_record(
                     for s in shares
                 ]
         record["cost"] = cost
+    if fidelity:
+        record["fidelity"] = fidelity
     return record
 
 

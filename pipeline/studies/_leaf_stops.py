@@ -41,6 +41,7 @@ from flexopt.optimise.requirements import Requirement
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import _builtin
 from flexopt.pipeline.studies._pivot_stops import PENETRATION_ROW, contact_figures
+from flexopt.pipeline.studies._polyline_slenderness import SLENDERNESS, Slenderness
 from flexopt.pipeline.studies._stops import PenetrationWithin
 from pydantic import Field
 
@@ -194,6 +195,9 @@ def requirements(study: Any) -> list[Requirement]:
     from flexopt.pipeline.studies._leaf_support import support_rows
 
     reqs += support_rows(study, study.target.allowable_stress_MPa or study.material.yield_MPa)
+    # the shortest leaf over its thickness: below L/t 6 the beam's figures are not the leaf's
+    # (the bounds allow it: a free length of 10 mm at t 2 mm); polyline_beam's row, measured there
+    reqs.append(Slenderness())
     if study.stops is not None:
         thinnest = min(study.geometry.thickness_mm, study.design_space.thickness_mm[0])
         tolerance = ContactSettings().penetration_tol * thinnest
@@ -203,7 +207,7 @@ def requirements(study: Any) -> list[Requirement]:
 
 def quantities(study: Any) -> tuple[str, ...]:
     """The names a requirement may judge; with stops, the stop figures over all curves too."""
-    names = list(_builtin.LEAF_SPRING_JOINT)
+    names = [*_builtin.LEAF_SPRING_JOINT, SLENDERNESS]
     if study.stops is None:
         return tuple(names)
     names += [f"first_contact_{UNIT}", "max_contact_force_N", "max_penetration_mm"]

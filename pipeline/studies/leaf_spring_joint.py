@@ -56,6 +56,7 @@ from flexopt.optimise.problem import DesignProblem, DesignResult
 from flexopt.optimise.space import DesignSpace
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.studies import StudyKind, register
+from flexopt.pipeline.studies._polyline_slenderness import SLENDERNESS, slenderness_ratio
 from flexopt.pipeline.studies._stops import StopsSpec
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study, material_record
 from pydantic import BaseModel, Field, model_validator
@@ -338,7 +339,10 @@ def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> D
         table.update(leaf_stops.columns(study, name, r))
     table["converged"] = np.all([r.converged for _, r in curves.values()], axis=0)
     peak = max(float(np.nanmax(r.peak_stress_MPa)) for _, r in curves.values())
+    thickness = design.get("thickness_mm", g.thickness_mm)
     summary: dict[str, Any] = {
+        # the shortest free leaf over its thickness (the slenderness row, _leaf_stops.py)
+        SLENDERNESS: slenderness_ratio(min(g.effective_lengths_mm), [thickness]),
         "allowable_stress_MPa": allowable,
         "max_peak_stress_MPa": peak,
         "peak_stress_MPa": peak,  # the name flexopt run reports (and the verdict judges)
@@ -373,7 +377,6 @@ def _analyse(study: LeafSpringJointStudy, repeat: int = 1, **design: float) -> D
             summary[f"{s}_elastic_stiffness_range_Nm_per_rad"] = [min(values), max(values)]
     messages = [f"{n}: {r.message}" for n, (_, r) in curves.items() if not r.ok]
     first = next(iter(curves))
-    thickness = design.get("thickness_mm", g.thickness_mm)
     return DesignResult(
         table=table,
         summary=summary,
@@ -482,7 +485,12 @@ class LeafJointProblem(DesignProblem):
         x = np.asarray(x, dtype=float)
         l_min, l_max = self.lengths(x)
         g_len, g_hub = self._constraints(x)
-        metrics: dict[str, Any] = {"l_min_mm": l_min, "l_max_mm": l_max}
+        metrics: dict[str, Any] = {
+            "l_min_mm": l_min,
+            "l_max_mm": l_max,
+            # the stiff setting's leaf is the shortest: its L/t (the slenderness row)
+            SLENDERNESS: slenderness_ratio(l_min, [x[1]]),
+        }
         if g_hub > 0 or l_min >= x[0]:
             # the support cannot reach the soft end: no solve (its stress would mean nothing)
             f, g = leaf_joint_unreachable(g_len, g_hub)
