@@ -530,9 +530,15 @@ def _flare_along(points: np.ndarray, thickness: np.ndarray, radius_mm: float):
 #: left as drawn (the fillet's Kt covers them).
 MIN_BLEND_MM = 0.1
 
-#: Chords of a kink's blend (:func:`_blend_kinks`): each joint between them turns by 1/8 of the
-#: kink, whose elastic singularity (exponent ~ 2 x turn / pi) is then 8x weaker still.
-BLEND_CHORDS = 8
+#: Chords of a kink's blend (:func:`_blend_kinks`): each joint between them turns by 1/16 of
+#: the kink, whose elastic singularity (exponent ~ 2 x turn / pi) is then 16x weaker still.
+#: Why 16, not 8: with 8 the chords' joints showed under refinement on session 28's hybrid
+#: design (kinks up to 2.6 deg; peak at 30 mm 42.355 / 42.353 / 42.408 / 43.195 MPa at edges
+#: 0.25 / 0.125 / 0.0625 / 0.03125 mm within 1 mm of the peak); with 16 it reads 42.397 /
+#: 42.398 / 42.400 MPa at 0.125 / 0.0625 / 0.03125 (32 chords: 42.390 / 42.390 / 42.390) for
+#: ~25 % more triangles in the check (docs/constant_force.md, "16 chords, not 8";
+#: benchmarks/cf_blend_chords.py).
+BLEND_CHORDS = 16
 
 
 def _blend_kinks(side: np.ndarray, tangent_mm: np.ndarray) -> np.ndarray:

@@ -162,6 +162,7 @@ class ConstantForceProblem(DesignProblem):
             names.append("operative_stroke_shortfall_mm")
         names += band_names(study)  # the force band at every judged row (issue 27)
         self.constraint_names: tuple[str, ...] = tuple(names)
+        self.checks = kinks.CheckMemo()  # the calibration's checks, for detail (copies share it)
 
     # ---- what the run pipeline may ask besides evaluate/detail
 
@@ -190,10 +191,11 @@ class ConstantForceProblem(DesignProblem):
         :mod:`._constant_force_calibration` (an :class:`optimise.hybrid.ConstraintCheck`)."""
         from flexopt.pipeline.studies._constant_force_calibration import check_constraints
 
-        def fidelity(*args: Any) -> dict[str, Any]:  # the verdict's check, guarded as there
-            return _guarded(fidelity_check, self, *args)
+        return check_constraints(self, x, self._solve, self._metrics, lambda *a: self._check(x, *a))
 
-        return check_constraints(self, x, self._solve, self._metrics, fidelity)
+    def _check(self, x: np.ndarray, *args: Any) -> dict[str, Any]:
+        """The verdict's check of ``x`` (args: design, response, lo, hi), kept (CheckMemo)."""
+        return self.checks.record(self, x, args, lambda: _guarded(fidelity_check, self, *args))
 
     def warm_up_detail(self) -> None:
         """Load what :meth:`detail` needs beyond the beam: the plane-stress check's modules and
@@ -418,7 +420,7 @@ class ConstantForceProblem(DesignProblem):
             info["spec_estimate"] = check_spec(study).as_dict()  # type: ignore[union-attr]
         # The checks are reported, never fatal: a report without them beats no report.
         if study.fidelity.enabled:
-            info["fidelity"] = _guarded(fidelity_check, self, design, response, lo, hi)
+            info["fidelity"] = self._check(x, design, response, lo, hi)  # the hybrid's, if made
             info.update(checked_peak_figures(info["fidelity"], response.peak_stress_MPa))
             column = plane_stress_force_column(table, info["fidelity"])
             if column is not None:

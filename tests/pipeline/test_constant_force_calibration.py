@@ -3,11 +3,13 @@ peak-stress figure at a design, the stress row's factor, deterministic in the de
 
 from __future__ import annotations
 
+import pickle
 from pathlib import Path
 
 import numpy as np
 import pytest
 from flexopt.pipeline.run import prepare_run
+from flexopt.pipeline.studies import constant_force as cf
 from flexopt.pipeline.studies._constant_force_clamp import CHECKED_PEAK
 from flexopt.pipeline.study import load_study
 
@@ -33,8 +35,8 @@ def test_the_check_is_the_verdicts_figure_and_the_rows_factor(problem):
     assert check.info["beam_row_stress_MPa"] == pytest.approx(row, rel=1e-12)
     assert check.factors == {0: pytest.approx(judged / row, rel=1e-12)}
     assert check.met == (judged <= problem.allowable_MPa)
-    # a deterministic function of the design: a resumed run makes the same check
-    again = problem.check_constraints(np.array(x))
+    # a deterministic function of the design: a resumed run (a new problem) makes the same check
+    again = prepare_run(problem.study).problem.check_constraints(np.array(x))
     assert again.factors == check.factors and again.info == check.info
 
 
@@ -44,3 +46,40 @@ def test_no_check_without_the_fidelity_check(problem):
     )
     other = prepare_run(study).problem
     assert other.check_constraints(other.nominal_design()) is None
+
+
+def test_the_report_reuses_the_check_the_calibration_made(monkeypatch):
+    """The run's best design was checked by the calibration: detail (the report) serves that
+    record instead of solving it again - the same figure, exactly, as a fresh problem's detail
+    computes, and no second solve. Another design, other strokes or another study solve."""
+    study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
+    problem = prepare_run(study).problem  # the run's (with_residuals' copy of the kind's)
+    x = problem.nominal_design()
+    check = problem.check_constraints(x)
+    solves = []
+    real = cf.kinks.refined_check
+    monkeypatch.setattr(
+        cf.kinks, "refined_check", lambda *a, **k: solves.append(1) or real(*a, **k)
+    )
+    detail = problem.detail(np.array(x))  # a copy of x: the key is the design's value
+    assert solves == []  # served, not solved
+    assert (problem.checks.solved, problem.checks.reused) == (1, 1)
+    assert detail.info[CHECKED_PEAK] == check.info[CHECKED_PEAK]
+    fresh = prepare_run(study).problem.detail(x)  # no calibration before it: solved
+    assert solves == [1]
+    assert fresh.info[CHECKED_PEAK] == detail.info[CHECKED_PEAK]  # exactly the same figure
+    kept, made = detail.info["fidelity"], fresh.info["fidelity"]
+    for name in ("plane_stress_peak_nodal_von_mises_MPa", "plane_stress_force_N", "refined"):
+        assert kept[name] == made[name], name
+    # the served record is a copy: the report adding to it leaves the kept one as made
+    detail.info["fidelity"]["added_by_the_report"] = True
+    assert "added_by_the_report" not in problem.detail(x).info["fidelity"]
+    assert solves == [1]
+    # another design is solved
+    other = np.array(x)
+    other[-1] += 0.01  # B, mm
+    problem.detail(other)
+    assert solves == [1, 1]
+    # a pickled problem (a worker's) carries no records
+    clone = pickle.loads(pickle.dumps(problem))
+    assert clone.checks.records == {} and len(problem.checks.records) == 2

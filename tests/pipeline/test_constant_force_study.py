@@ -248,10 +248,14 @@ def test_the_band_row_holds_every_judged_row():
 
 
 def test_the_ga_alone_has_no_band_row():
-    """The default (no ``optimiser.method``) and ``method: ga``: main's problem, the peak stress
-    row alone, so the GA's runs and every ``flexopt evaluate`` (no ``force_band_excess`` in its
-    summary: the evaluate goldens) are unchanged by the hybrid's band row."""
-    for study in (load_study("constant-force"), study_with(optimiser={"method": "ga"})):
+    """The kind's default (no ``optimiser.method``) and ``method: ga``: main's problem, the peak
+    stress row alone, so the GA's runs and ``flexopt evaluate`` of a study that names no method
+    (no ``force_band_excess`` in its summary) are unchanged by the hybrid's band row. The
+    shipped example names ``method: hybrid`` (the default ``flexopt run constant-force``) and
+    has the band row (test_the_band_row_holds_every_judged_row)."""
+    assert load_study("constant-force").optimiser.method == "hybrid"
+    assert cf.problem(load_study("constant-force")).constraint_names[-1] == "force_band_excess"
+    for study in (study_with(), study_with(optimiser={"method": "ga"})):
         assert study.optimiser.method != "hybrid"
         prob = cf.problem(study)
         assert prob.constraint_names == ("stress_ratio_minus_1",)
