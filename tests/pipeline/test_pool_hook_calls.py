@@ -106,3 +106,20 @@ def test_the_evaluator_sends_calls_to_the_pool_and_caches_only_designs():
         pool.close()
     assert again == first and evaluator.n_backend == 2 and evaluator.n_cache_hits == 2
     same(answers[0].value, call_hook(toy, "check", X[1]).value)
+
+
+def test_a_backend_that_sends_designs_only_answers_calls_in_this_process(caplog):
+    """The Dask backend has no ``run``: the hybrid's Jacobians and checks run in the run's
+    process, as they did before the pool took them, and the log says so once."""
+    toy = problem()
+
+    def designs_only(problem, X, on_result=None):  # what DaskBackend's __call__ offers
+        return SerialBackend()(problem, X, on_result)
+
+    evaluator = Evaluator(toy, designs_only)
+    with caplog.at_level("INFO", logger="flexopt.pipeline.run.evaluator"):
+        _, answers = evaluator.map_calls(X[:1], [("jacobian", X[0])])
+        evaluator.map_calls(X[1:2], [("check", X[1])])
+    same(answers[0].value, call_hook(toy, "jacobian", X[0]).value)
+    said = [r.message for r in caplog.records if "run in this process" in r.message]
+    assert len(said) == 1 and "sent designs only" in said[0]
