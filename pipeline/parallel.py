@@ -576,26 +576,37 @@ class ProcessPool:
             while len(self.workers) < self.n_workers:
                 self._start()
             now = time.perf_counter()
-            broken = []
-            for worker in self.workers:
-                while worker.ready and queue and len(worker.task or ()) <= POOL_QUEUED_DESIGNS:
-                    if worker.task and (worker.task[0][0] >= m or queue[0][0] >= m):
-                        # a hook call only to an idle worker, and nothing queued behind one:
-                        # another worker may be free long before it ends
-                        break
-                    if queue[0][0] >= m:  # a hook call: a message of its own
-                        chunk = [queue.popleft()]
-                    else:
-                        chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
-                    if not worker.task:  # idle: its first design starts now
-                        worker.task = deque()
-                        worker.started = now
-                    worker.task.extend(chunk)
-                    try:
-                        worker.conn.send(chunk)
-                    except OSError:  # it died since the last wait (BrokenPipeError)
-                        broken.append(worker)
-                        break
+            broken: list[_Worker] = []
+            # every idle worker a chunk first, then one more queued behind each busy one: a
+            # batch smaller than the workers' queues (a hybrid round of two trial designs)
+            # would otherwise go to one worker while the other idles
+            for idle_only in (True, False):
+                for worker in self.workers:
+                    while (
+                        worker not in broken
+                        and worker.ready
+                        and queue
+                        and len(worker.task or ()) <= POOL_QUEUED_DESIGNS
+                    ):
+                        if worker.task and (
+                            idle_only or worker.task[0][0] >= m or queue[0][0] >= m
+                        ):
+                            # a hook call only to an idle worker, and nothing queued behind one:
+                            # another worker may be free long before it ends
+                            break
+                        if queue[0][0] >= m:  # a hook call: a message of its own
+                            chunk = [queue.popleft()]
+                        else:
+                            chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
+                        if not worker.task:  # idle: its first design starts now
+                            worker.task = deque()
+                            worker.started = now
+                        worker.task.extend(chunk)
+                        try:
+                            worker.conn.send(chunk)
+                        except OSError:  # it died since the last wait (BrokenPipeError)
+                            broken.append(worker)
+                            break
             for worker in broken:  # its designs, this chunk too, go to the others
                 worker.process.join(1)
                 lost(worker, _exit_text(worker.process.exitcode))

@@ -22,6 +22,7 @@ misbehaves where its geometry block says (every threshold is on ``a``):
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import time
@@ -111,6 +112,11 @@ class HookProblem(FaultProblem):
     themselves): ``jacobian`` the exact derivatives of the objective and the row, misbehaving
     where the geometry's ``jacobian_*`` fields say; ``check_constraints`` a "finer" reading of
     the row, a + b (1 + a) against 1.1."""
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        """FaultProblem's, with the process that solved it (metric ``pid``)."""
+        evaluation = super().evaluate(x)
+        return dataclasses.replace(evaluation, metrics={**evaluation.metrics, "pid": os.getpid()})
 
     def jacobian(self, x: np.ndarray) -> DesignJacobian:
         g = self.geometry

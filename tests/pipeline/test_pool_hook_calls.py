@@ -123,3 +123,17 @@ def test_a_backend_that_sends_designs_only_answers_calls_in_this_process(caplog)
     same(answers[0].value, call_hook(toy, "jacobian", X[0]).value)
     said = [r.message for r in caplog.records if "run in this process" in r.message]
     assert len(said) == 1 and "sent designs only" in said[0]
+
+
+def test_a_batch_of_two_designs_goes_to_two_workers():
+    """A hybrid round of two trial designs is a batch smaller than the workers' queues: each
+    idle worker is given one before any is queued behind a busy one."""
+    toy = problem(sleep_s=0.05)
+    pool = ProcessPool(toy, 2)
+    try:
+        while not all(worker.ready for worker in pool.workers):  # both started
+            pool.run(toy, X[:1])
+        evaluations, _ = pool.run(toy, X[2:])
+    finally:
+        pool.close()
+    assert len({ev.metrics["pid"] for ev in evaluations}) == 2
