@@ -40,6 +40,15 @@ radius, and rejections end a start only when the radius falls below 1e-6).
 :attr:`HybridResult.report` says which stage found the best design, the
 evaluations of each stage and why each start stopped.
 
+The starts run in lockstep (:func:`_drive`): each start is a generator of requests (evaluate
+these designs; the problem's Jacobian or check at a design) and each round sends every live
+start's request as one batch (:meth:`_Stage.serve`; through ``run_hybrid(requests=)`` a pool's
+workers compute the Jacobians and checks beside the designs). A start's requests and answers do
+not depend on the others', so each start asks for the same designs, and the stage ends on the
+same best design, as with the starts one after the other; only the order of the batches differs.
+Starts sharing a ``max_evaluations`` budget, and SLSQP's (SciPy calls back synchronously), run
+one after the other.
+
 Calibration (Gauss-Newton, where the problem has a ``check_constraints(x)`` hook: a
 :class:`ConstraintCheck` of the figures its verdict judges, from a finer model than
 ``evaluate``'s): each start's best design is checked; a row whose judged figure exceeds its bound
