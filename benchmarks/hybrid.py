@@ -23,15 +23,21 @@ its files); the load average at start and end.
     nice python benchmarks/hybrid.py --seeds 1 2 3 4 5 --studies constant-force
     nice python benchmarks/hybrid.py --studies constant-force --methods hybrid hybrid-fd
     nice python benchmarks/hybrid.py --studies sea-spring --seeds 1 2 3  # NSGA-II 24 x 16
+    nice python benchmarks/hybrid.py --studies constant-force --seeds 1 1 1 \\
+        --methods hybrid-seq hybrid                       # A/B, alternating, same seed
     nice python benchmarks/hybrid.py --studies constant-force --methods hybrid ga \\
         --set geometry.pad_fillet_mm=0.5                   # the study with 0.5 mm pad fillets
 
 Methods: ``ga`` (the example's GA), ``hybrid`` (with the problem's exact Jacobian where it has
-one, :meth:`DesignProblem.jacobian`: constant-force, and the mechanism kind: parallel-guide),
+one, :meth:`DesignProblem.jacobian`: constant-force, and the mechanism kind: parallel-guide;
+its starts in lockstep, their Jacobians and checks on the pool's workers beside their designs),
+``hybrid-seq`` (the same hybrid as it ran before session 28: its starts one after the other,
+their Jacobians and checks in this process; ``run_hybrid(lockstep=False)`` without
+``requests``: the same designs, to the bit, tests/optimise/test_hybrid_lockstep.py),
 ``hybrid-fd`` (the same hybrid with
 forward-difference Jacobians, ``HybridConfig.exact_jacobian = False``). A hybrid line also shows
-the Jacobians taken (exact / finite-difference) and the exact ones' wall and CPU time (they run
-in this process).
+the Jacobians taken (exact / finite-difference) and the wall and CPU time of the exact ones that
+ran in this process (``hybrid-seq``, ``--workers 1``; the report's one).
 
 The issue's targets: constant-force MET at RMS <= 0.004 N in <= 5 s wall (the GA: 0.01075 N,
 13.8 s, when the issue was written); parallel-guide <= 19.5 MPa (the GA: 21.65 MPa then), a
@@ -80,6 +86,10 @@ OPTIMISER: dict[str, dict[str, dict[str, Any]]] = {
 RECORDED = {"constant-force": 0.01075, "parallel-guide": 21.65, "sea-spring": 743.37}
 
 
+#: the runs' parallel settings (None: the study's, one worker per core; ``--workers``)
+PARALLEL: Any = None
+
+
 def load() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
@@ -126,7 +136,7 @@ def one_run(
         load_study(ROOT / "pipeline" / "examples" / f"{name}.yaml"), settings or []
     )
     update: dict[str, Any] = {"seed": seed, "method": "ga"}
-    if method in ("hybrid", "hybrid-fd"):
+    if method in ("hybrid", "hybrid-fd", "hybrid-seq"):
         update.update(method="hybrid", hybrid=HybridSpec(**options))
     update.update(OPTIMISER.get(name, {}).get("hybrid" if "hybrid" in method else "ga", {}))
     study = study.model_copy(update={"optimiser": study.optimiser.model_copy(update=update)})
@@ -153,10 +163,21 @@ def one_run(
             timing["cpu"] += time.process_time() - c
 
     cls.jacobian = timed
+    import flexopt.pipeline.run.runner as runner
+
+    stage = runner.run_hybrid
+
+    def one_after_the_other(*args: Any, **kwargs: Any) -> Any:
+        kwargs.pop("requests", None)  # the hooks in this process, as before session 28
+        return stage(*args, **kwargs, lockstep=False)
+
+    if method == "hybrid-seq":
+        runner.run_hybrid = one_after_the_other
     try:
-        outcome = run_study(setup, out=out)
+        outcome = run_study(setup, out=out, parallel=PARALLEL)
     finally:
         cls.jacobian = exact
+        runner.run_hybrid = stage
     wall, cpu = time.perf_counter() - t0, cpu_s() - cpu0
     target = RECORDED.get(name)
     reached = None
@@ -197,6 +218,9 @@ def one_run(
         "rest": wall - t_setup - record["optimise_wall_s"],
         "cpu": cpu,
         "hybrid": record.get("hybrid"),
+        # the gradient stage's batches (each a generation): one per round of its starts
+        "batches": len(outcome.result.generations) - n_ga_gen,
+        "load": load(),
         "jacobian_wall": timing["wall"],
         "jacobian_cpu": timing["cpu"],
     }
@@ -211,7 +235,8 @@ def line(r: dict) -> str:
         f"reach {reached:>5s}  "
         f"{r['verdict']:8s} opt {r['opt_wall']:5.1f} s  wall {r['wall']:5.1f} s  "
         f"CPU {r['cpu']:5.1f} s\n      wall: setup {r['setup']:4.1f} s, GA {r['ga_wall']:5.1f} s, "
-        f"gradient {r['gradient_wall']:5.1f} s, report and the rest {r['rest']:4.1f} s"
+        f"gradient {r['gradient_wall']:5.1f} s ({r['batches']} batches), report and the rest "
+        f"{r['rest']:4.1f} s; load {r['load']}"
     )
     if r["not_met"]:
         text += "\n      not met: " + "; ".join(r["not_met"])
@@ -262,7 +287,15 @@ def main() -> None:
         metavar="KEY=VALUE",
         help="set a study key for every run, e.g. --set geometry.pad_fillet_mm=0.5",
     )
+    parser.add_argument(
+        "--workers", type=int, default=None, help="worker processes (default: one per core)"
+    )
     args = parser.parse_args()
+    global PARALLEL
+    if args.workers is not None:
+        from flexopt.pipeline.parallel import ParallelSettings
+
+        PARALLEL = ParallelSettings("serial" if args.workers == 1 else "processes", args.workers)
     import numpy
     import scipy
 
@@ -282,7 +315,7 @@ def main() -> None:
         for name in args.studies:
             for seed in args.seeds:
                 for method in args.methods:
-                    out = Path(tmp) / f"{name}-{method}-{seed}"
+                    out = Path(tmp) / f"{name}-{method}-{seed}-{len(results)}"  # a seed twice: A/B
                     r = one_run(name, method, seed, HYBRID_OPTIONS.get(name, {}), out, args.set)
                     results.append(r)
                     print(line(r), flush=True)

@@ -40,6 +40,15 @@ radius, and rejections end a start only when the radius falls below 1e-6).
 :attr:`HybridResult.report` says which stage found the best design, the
 evaluations of each stage and why each start stopped.
 
+The starts run in lockstep (:func:`_drive`): each start is a generator of requests (evaluate
+these designs; the problem's Jacobian or check at a design) and each round sends every live
+start's request as one batch (:meth:`_Stage.serve`; through ``run_hybrid(requests=)`` a pool's
+workers compute the Jacobians and checks beside the designs). A start's requests and answers do
+not depend on the others', so each start asks for the same designs, and the stage ends on the
+same best design, as with the starts one after the other; only the order of the batches differs.
+Starts sharing a ``max_evaluations`` budget, and SLSQP's (SciPy calls back synchronously), run
+one after the other.
+
 Calibration (Gauss-Newton, where the problem has a ``check_constraints(x)`` hook: a
 :class:`ConstraintCheck` of the figures its verdict judges, from a finer model than
 ``evaluate``'s): each start's best design is checked; a row whose judged figure exceeds its bound
@@ -52,17 +61,18 @@ the design, as the exact Jacobian is, so a resumed run makes the same ones.
 from __future__ import annotations
 
 import logging
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
 from flexopt.geometry.errors import FlexoptError
+from flexopt.optimise import hybrid_defaults as defaults
 from flexopt.optimise.design_jacobian import DesignJacobian
 from flexopt.optimise.errors import OptimiseError
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAConfig, GAResult, Generation, best_of, run_ga
+from flexopt.optimise.hook_call import HookAnswer, hook_answer
 from flexopt.optimise.space import DesignSpace
 
 __all__ = [
@@ -99,6 +109,9 @@ class HybridConfig:
     min_distance : least max-norm distance of two starts in bound-normalised units.
     tolerance : relative improvement of a start's best objective an iteration must exceed.
     patience : iterations in a row without such an improvement that stop a start.
+
+    The defaults of these and of ``max_iter`` and ``fd_step`` are the study schema's
+    (:mod:`optimise.hybrid_defaults`).
     max_iter : iterations per start at most.
     fd_step : forward-difference step in bound-normalised units.
     max_evaluations : designs the gradient stage may ask for at most (None: no limit).
@@ -110,11 +123,11 @@ class HybridConfig:
     ga_n_gen: int | None = None
     local: Literal["gauss_newton", "slsqp"] = "slsqp"
     starts: int = 3
-    min_distance: float = 0.1
-    tolerance: float = 1e-3
-    patience: int = 3
-    max_iter: int = 40
-    fd_step: float = 1e-4
+    min_distance: float = defaults.MIN_DISTANCE
+    tolerance: float = defaults.TOLERANCE
+    patience: int = defaults.PATIENCE
+    max_iter: int = defaults.MAX_ITER
+    fd_step: float = defaults.FD_STEP
     max_evaluations: int | None = None
     exact_jacobian: bool = True
 
@@ -256,9 +269,35 @@ class _Stop(FlexoptError):
         self.budget = budget
 
 
+@dataclass(frozen=True)
+class _Evaluate:
+    """A start's request: evaluate the (m, n_var) designs ``X`` (one batch of the run)."""
+
+    X: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Call:
+    """A start's request: the problem's hook ``kind`` (:data:`optimise.hook_call.HOOKS`) at the
+    design ``x`` (n_var,)."""
+
+    kind: str
+    x: np.ndarray
+
+
+#: what :func:`run_hybrid`'s ``requests`` is given and returns: (m, n_var) designs and hook calls
+#: (kind, x (n_var,)) to run as one batch -> (m evaluations, one HookAnswer per call)
+Requests = Callable[
+    [np.ndarray, Sequence[tuple[str, np.ndarray]]],
+    tuple[Sequence[Evaluation], Sequence[HookAnswer]],
+]
+
+
 class _Stage:
-    """The gradient stage's access to ``evaluate``: every batch counted, reported as a
-    generation and checked against the budget."""
+    """What the gradient stage's starts share: the run's ``evaluate`` (every batch counted,
+    reported as a generation), the hooks, the checks made and the counts for the report. Each
+    start's own state is a :class:`_Start`; :meth:`serve` answers one round of their requests
+    as one batch."""
 
     def __init__(
         self,
@@ -269,60 +308,28 @@ class _Stage:
         on_generation: Callable[[Generation], None] | None,
         jacobian: Callable[[np.ndarray], DesignJacobian | None] | None = None,
         check: Callable[[np.ndarray], ConstraintCheck | None] | None = None,
+        requests: Requests | None = None,
     ) -> None:
         self.space = space
         self.check = check
-        #: per constraint row, the factor k of the current start's calibration (1: none): the
-        #: stage sees ``k (g + 1) - 1`` (:meth:`view`)
-        self.factors = np.ones(0)
         #: the checks made, by design (a design checked twice is checked once); their count and
-        #: wall time for the report
+        #: time for the report
         self.checked: dict[bytes, ConstraintCheck | None] = {}
         self.check_time_s = 0.0
-        #: the current start's calibration rounds (:func:`_calibrate`), and the designs whose
-        #: check was met (by design key, in the order found)
-        self.rounds: list[dict[str, Any]] = []
-        self.verified: dict[bytes, Evaluation] = {}
         self.jacobian = jacobian if config.exact_jacobian else None
         #: Jacobians taken: "exact" (the problem's), "finite_differences" (a batch of columns);
         #: counts only, so a resumed run's report equals the uninterrupted one's
         self.jacobians = {"exact": 0, "finite_differences": 0}
         self.span = space.upper - space.lower
         self.evaluate = evaluate
+        self.requests = requests
         self.config = config
         self.on_generation = on_generation
         self.everything: list[Evaluation] = [e for g in ga.generations for e in g.evaluations]
+        #: the best evaluation so far in the order the batches ran (what a generation reports)
         self.best = ga.best
         self.generations: list[Generation] = list(ga.generations)
         self.n = 0
-        #: the last exact Jacobian's constraint pieces (:func:`pieces_of`), in normalised units
-        self.pieces: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-
-    def view(self, ev: Evaluation) -> Evaluation:
-        """``ev`` as the current start's calibration sees it: each calibrated row c (factor
-        ``k != 1``) is ``k (g_c + 1) - 1``, so ``feasible`` and ``violation`` follow (the stored
-        evaluation is unchanged)."""
-        k = self.factors
-        if ev.reason or not len(k) or np.all(k == 1.0):
-            return ev
-        g = np.asarray(ev.g, dtype=float)
-        return replace(ev, g=np.where(k != 1.0, k * (g + 1.0) - 1.0, g))
-
-    def verify(self, ev: Evaluation) -> ConstraintCheck | None:
-        """The problem's :class:`ConstraintCheck` at the evaluated design ``ev`` (once per
-        design; a deterministic function of it, so a resumed run makes the same ones), or None
-        when the problem has none or it did not answer."""
-        x = np.asarray(ev.x, dtype=float)
-        key = x.tobytes()
-        if key not in self.checked:
-            t0 = time.perf_counter()
-            try:
-                self.checked[key] = self.check(x) if self.check is not None else None
-            except Exception:  # an aid: its failure must not end the run (the verdict judges)
-                log.exception("hybrid: the problem's constraint check raised")
-                self.checked[key] = None
-            self.check_time_s += time.perf_counter() - t0
-        return self.checked[key]
 
     def x_of(self, u: np.ndarray) -> np.ndarray:
         """(n_var,) the design of normalised ``u``, inside the bounds."""
@@ -331,52 +338,150 @@ class _Stage:
     def u_of(self, x: np.ndarray) -> np.ndarray:
         return (np.asarray(x, dtype=float) - self.space.lower) / self.span
 
-    def batch(self, U: np.ndarray) -> list[Evaluation]:
-        """Evaluate (m, n_var) normalised designs as one batch (one generation of the run)."""
+    def serve(self, asked: Sequence[_Evaluate | _Call]) -> list[Any]:
+        """Answer one round of requests (one per live start) as one batch: every design asked
+        for is one generation of the run; the hook calls run beside them (on the pool's workers
+        where ``requests`` sends them there). Returns per request its evaluations (a list) or
+        its :class:`~optimise.hook_call.HookAnswer`."""
+        blocks = [r.X for r in asked if isinstance(r, _Evaluate)]
+        X = np.vstack(blocks) if blocks else np.zeros((0, self.space.n_var))
+        # one call per design and kind: two starts asking the same are answered once
+        unique: dict[tuple[str, bytes], int] = {}
+        calls: list[tuple[str, np.ndarray]] = []
+        for r in asked:
+            if isinstance(r, _Call) and (r.kind, r.x.tobytes()) not in unique:
+                unique[(r.kind, r.x.tobytes())] = len(calls)
+                calls.append((r.kind, r.x))
+        if self.requests is not None and calls:
+            evaluations, answers = self.requests(X, calls)
+            evaluations, answers = list(evaluations), list(answers)
+        else:  # in this process: the designs as one batch, then the hooks one after another
+            evaluations = list(self.evaluate(X)) if len(X) else []
+            answers = [self._call_here(kind, x) for kind, x in calls]
+        if len(evaluations) != len(X) or len(answers) != len(calls):
+            raise OptimiseError(
+                f"evaluate returned {len(evaluations)} results for {len(X)} designs and "
+                f"{len(answers)} for {len(calls)} calls"
+            )
+        if len(X):
+            self.n += len(X)
+            self.everything.extend(evaluations)
+            self.best = best_of((self.best, *evaluations))
+            gen = GradientStep(
+                len(self.generations), tuple(evaluations), self.best, len(self.everything), X
+            )
+            self.generations.append(gen)
+            if self.on_generation is not None:
+                self.on_generation(gen)
+        out: list[Any] = []
+        row = 0
+        for r in asked:
+            if isinstance(r, _Evaluate):
+                out.append(evaluations[row : row + len(r.X)])
+                row += len(r.X)
+            else:
+                out.append(answers[unique[(r.kind, r.x.tobytes())]])
+        return out
+
+    def _call_here(self, kind: str, x: np.ndarray) -> HookAnswer:
+        hook = self.jacobian if kind == "jacobian" else self.check
+        return hook_answer(hook, x) if hook is not None else HookAnswer()
+
+
+class _Start:
+    """One start of the gradient stage: its calibration, its evaluations, and the requests it
+    makes of the stage (generators: ``yield`` a request, receive its answer; a start is run
+    alone or in lockstep with the others by :func:`_drive`, with the same answers)."""
+
+    def __init__(self, stage: _Stage, n_con: int) -> None:
+        self.stage = stage
+        self.config = stage.config
+        self.space = stage.space
+        #: per constraint row, the factor k of this start's calibration (1: none): the start
+        #: sees ``k (g + 1) - 1`` (:meth:`view`)
+        self.factors = np.ones(n_con)
+        #: the calibration rounds (:func:`_calibrate`), and the designs whose check was met (by
+        #: design key, in the order found)
+        self.rounds: list[dict[str, Any]] = []
+        self.verified: dict[bytes, Evaluation] = {}
+        #: every evaluation this start asked for, in order, and how many
+        self.mine: list[Evaluation] = []
+        #: the last exact Jacobian's constraint pieces (:func:`pieces_of`), in normalised units
+        self.pieces: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def x_of(self, u: np.ndarray) -> np.ndarray:
+        return self.stage.x_of(u)
+
+    def u_of(self, x: np.ndarray) -> np.ndarray:
+        return self.stage.u_of(x)
+
+    def view(self, ev: Evaluation) -> Evaluation:
+        """``ev`` as this start's calibration sees it: each calibrated row c (factor ``k !=
+        1``) is ``k (g_c + 1) - 1``, so ``feasible`` and ``violation`` follow (the stored
+        evaluation is unchanged)."""
+        k = self.factors
+        if ev.reason or not len(k) or np.all(k == 1.0):
+            return ev
+        g = np.asarray(ev.g, dtype=float)
+        return replace(ev, g=np.where(k != 1.0, k * (g + 1.0) - 1.0, g))
+
+    def batch(self, U: np.ndarray) -> Any:
+        """(generator) Evaluate (m, n_var) normalised designs as one request; returns their
+        evaluations. Raises :class:`_Stop` (budget) when the stage's ``max_evaluations`` would
+        be passed."""
         X = np.array([self.x_of(u) for u in np.atleast_2d(U)])
         limit = self.config.max_evaluations
-        if limit is not None and self.n + len(X) > limit:
+        if limit is not None and self.stage.n + len(X) > limit:
             raise _Stop(f"the gradient stage's max_evaluations ({limit})", budget=True)
-        evaluations = list(self.evaluate(X))
-        if len(evaluations) != len(X):
-            raise OptimiseError(f"evaluate returned {len(evaluations)} results for {len(X)}")
-        self.n += len(X)
-        self.everything.extend(evaluations)
-        self.best = best_of((self.best, *evaluations))
-        gen = GradientStep(
-            len(self.generations), tuple(evaluations), self.best, len(self.everything), X
-        )
-        self.generations.append(gen)
-        if self.on_generation is not None:
-            self.on_generation(gen)
+        evaluations = yield _Evaluate(X)
+        self.mine.extend(evaluations)
         return evaluations
 
-    def exact(
-        self, ev: Evaluation, n_res: int | None, n_con: int
-    ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray] | None:
-        """The problem's exact derivatives at the evaluated design ``ev`` in normalised units
-        (d/du = d/dx (upper - lower)): residuals (n_res, n_var) (None when ``n_res`` is None),
-        constraints (n_con, n_var), objective (n_var,); None when there is no hook, it answers
-        None or its shapes do not fit (the caller then takes finite differences). Not a new
-        design: nothing is evaluated, stored or counted as an evaluation."""
-        if self.jacobian is None:
+    def verify(self, ev: Evaluation) -> Any:
+        """(generator) The problem's :class:`ConstraintCheck` at the evaluated design ``ev``
+        (once per design for the whole stage; a deterministic function of it, so a resumed run
+        makes the same ones), or None when the problem has none or it did not answer."""
+        stage = self.stage
+        x = np.asarray(ev.x, dtype=float)
+        key = x.tobytes()
+        if key not in stage.checked:
+            answer: HookAnswer = yield _Call("check", x)
+            if key not in stage.checked:  # another start may have asked in the same round
+                if answer.error:  # an aid: its failure must not end the run (the verdict judges)
+                    log.warning("hybrid: the problem's constraint check raised: %s", answer.error)
+                stage.checked[key] = answer.value
+                stage.check_time_s += answer.time_s
+        return stage.checked[key]
+
+    def exact(self, ev: Evaluation, n_res: int | None, n_con: int) -> Any:
+        """(generator) The problem's exact derivatives at the evaluated design ``ev`` in
+        normalised units (d/du = d/dx (upper - lower)): residuals (n_res, n_var) (None when
+        ``n_res`` is None), constraints (n_con, n_var), objective (n_var,); None when there is
+        no hook, it answers None or its shapes do not fit (the caller then takes finite
+        differences). Not a new design: nothing is evaluated, stored or counted as an
+        evaluation."""
+        stage = self.stage
+        if stage.jacobian is None:
             return None
-        try:
-            jac = self.jacobian(np.asarray(ev.x, dtype=float))
-        except Exception:  # an aid, not a requirement: forward differences instead
-            log.exception("hybrid: the problem's Jacobian raised; forward differences instead")
+        answer: HookAnswer = yield _Call("jacobian", np.asarray(ev.x, dtype=float))
+        if answer.error:  # an aid, not a requirement: forward differences instead
+            log.warning(
+                "hybrid: the problem's Jacobian raised (%s); forward differences instead",
+                answer.error,
+            )
             return None
-        n_var = len(self.span)
+        jac = answer.value
+        n_var = len(stage.span)
         if jac is None or np.shape(jac.g) != (n_con, n_var) or np.shape(jac.f)[1:] != (n_var,):
             return None
         J = None
         if n_res is not None:
             if jac.residuals is None or np.shape(jac.residuals) != (n_res, n_var):
                 return None
-            J = np.asarray(jac.residuals, dtype=float) * self.span
-        self.jacobians["exact"] += 1
-        self.pieces = pieces_of(jac, n_con, self.span)
-        Jg = np.asarray(jac.g, dtype=float) * self.span
+            J = np.asarray(jac.residuals, dtype=float) * stage.span
+        stage.jacobians["exact"] += 1
+        self.pieces = pieces_of(jac, n_con, stage.span)
+        Jg = np.asarray(jac.g, dtype=float) * stage.span
         k = self.factors
         if len(k) == n_con and np.any(k != 1.0):  # a calibrated row: k (g + 1) - 1, k g' its slope
             Jg = Jg * k[:, None]
@@ -384,15 +489,77 @@ class _Stage:
                 c: (k[c] * (h + 1.0) - 1.0, k[c] * H) if k[c] != 1.0 else (h, H)
                 for c, (h, H) in self.pieces.items()
             }
-        return J, Jg, np.asarray(jac.f[0]) * self.span
+        return J, Jg, np.asarray(jac.f[0]) * stage.span
 
     def jacobian_designs(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(n_var, n_var) the forward-difference designs around ``u`` and (n_var,) their signed
         steps (backward where the forward step would leave [0, 1])."""
         h = self.config.fd_step
-        self.jacobians["finite_differences"] += 1
+        self.stage.jacobians["finite_differences"] += 1
         steps = np.where(u + h <= 1.0, h, -h)
         return u[None, :] + np.diag(steps), steps
+
+    def alone(self, request: Any) -> Any:
+        """Run the request generator ``request`` to its end with this start alone (SLSQP's
+        callbacks, which SciPy calls synchronously); returns its value."""
+        try:
+            asked = next(request)
+            while True:
+                (answer,) = self.stage.serve([asked])
+                asked = request.send(answer)
+        except StopIteration as done:
+            return done.value
+
+
+def _drive(
+    stage: _Stage, runs: Sequence[Any], lockstep: bool
+) -> list[tuple[Any, BaseException | None]]:
+    """Run the starts' request generators ``runs`` to their ends; returns per start (its
+    value, or None and the :class:`_Stop` that ended it).
+
+    ``lockstep``: every live start's next request goes into one round (:meth:`_Stage.serve`:
+    the designs one batch, the hook calls beside them), so the starts' Jacobians and checks run
+    at the same time on a pool's workers; otherwise one start after the other, as a shared
+    budget needs (it would split differently between starts in lockstep). A start's requests
+    and answers are the same either way (each is a deterministic function of its design, and
+    a start reads nothing another writes but the checks' cache, whose answers are the same), so
+    each start's designs are too; only the order of the batches in the run differs. A
+    :class:`_Stop` of the budget ends the stage: the starts not yet run do not run."""
+    out: list[tuple[Any, _Stop | None]] = [(None, None)] * len(runs)
+    pending: dict[int, Any] = {}  # start -> its request waiting for an answer
+    following = iter(range(len(runs)))
+    stopped = False
+
+    def step(i: int, answer: Any, first: bool) -> None:
+        nonlocal stopped
+        try:
+            pending[i] = next(runs[i]) if first else runs[i].send(answer)
+        except StopIteration as done:
+            pending.pop(i, None)
+            out[i] = (done.value, None)
+        except _Stop as stop:
+            pending.pop(i, None)
+            out[i] = (None, stop)
+            stopped = stopped or stop.budget
+
+    def admit() -> None:  # the next start(s): all in lockstep, else the next that asks
+        for i in following:
+            step(i, None, True)
+            if stopped or (pending and not lockstep):
+                return
+
+    admit()
+    while pending and not stopped:
+        live = sorted(pending) if lockstep else [min(pending)]
+        answers = stage.serve([pending[i] for i in live])
+        for i, answer in zip(live, answers, strict=True):
+            step(i, answer, False)
+        if not pending and not stopped:
+            admit()
+    for i in list(pending):  # the budget ended the stage under these starts too
+        runs[i].close()
+        out[i] = (None, next(stop for _, stop in out if stop is not None and stop.budget))
+    return out
 
 
 class StallRule:
@@ -539,8 +706,9 @@ ELASTIC_WEIGHT = 1.0e3
 STATIONARY = "the trust region shrank below 1e-6 (a stationary point)"
 
 
-def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
-    """A trust-region Gauss-Newton run from ``start``; returns (iterations, why it stopped).
+def _gauss_newton(run: _Start, start: Evaluation, n_con: int) -> Any:
+    """(generator of requests, :class:`_Start`) A trust-region Gauss-Newton run from ``start``;
+    returns (iterations, why it stopped).
 
     From a feasible design a step is taken when the trial is feasible and lowers ``||r||``
     (ratio of actual to predicted decrease > 1e-4); from an infeasible one when it lowers the
@@ -556,9 +724,9 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     design with the same Jacobian. Rejections end a start only when the radius falls below
     1e-6 (:data:`STATIONARY`), or at ``max_iter`` or the stage's budget.
     """
-    config = stage.config
-    u = stage.u_of(start.x)
-    current = stage.view(start)  # as the start's calibration sees it (the evaluation unchanged)
+    config = run.config
+    u = run.u_of(start.x)
+    current = run.view(start)  # as the start's calibration sees it (the evaluation unchanged)
     r = residuals_of(current)
     if r is None:
         return 0, "the start carries no residuals"
@@ -569,19 +737,19 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     pieces: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     frozen = np.zeros(len(u), dtype=bool)
     for iteration in range(1, config.max_iter + 1):
-        exact = stage.exact(current, len(r), n_con) if J is None else None
+        exact = (yield from run.exact(current, len(r), n_con)) if J is None else None
         if exact is not None:  # the problem's derivatives: no perturbed designs
             J, Jg, _ = exact
-            pieces = stage.pieces
+            pieces = run.pieces
             frozen[:] = False
         if J is None:  # a Jacobian at every accepted point (a rejected step reuses it)
             pieces = {}
-            U, steps = stage.jacobian_designs(u)
-            columns = stage.batch(U)
+            U, steps = run.jacobian_designs(u)
+            columns = yield from run.batch(U)
             J = np.zeros((len(r), len(u)))
             Jg = np.zeros((n_con, len(u)))
             frozen[:] = False
-            for i, ev in enumerate(map(stage.view, columns)):
+            for i, ev in enumerate(map(run.view, columns)):
                 ri = residuals_of(ev)
                 if ri is None or ri.shape != r.shape:
                     frozen[i] = True  # a perturbed design failed: this variable stays put
@@ -601,8 +769,8 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
             if reason:
                 return iteration, reason
             continue
-        (trial,) = stage.batch((u + d)[None, :])
-        trial = stage.view(trial)
+        (trial,) = yield from run.batch((u + d)[None, :])
+        trial = run.view(trial)
         rt = residuals_of(trial)
         linear = _predicted(current.g, Jg, d, pieces) if n_con else np.zeros(0)
         if rt is not None and n_con:
@@ -624,7 +792,7 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
             accept = rt is not None and (trial.feasible or trial.violation < current.violation)
         if accept:
             restored = trial.feasible and not current.feasible
-            u, current, r, J = stage.u_of(trial.x), trial, rt, None
+            u, current, r, J = run.u_of(trial.x), trial, rt, None
             if ratio > 0.75 and size >= 0.99 * radius:
                 radius = min(2.0 * radius, 0.5)
             elif ratio < 0.25:
@@ -648,19 +816,21 @@ def _gauss_newton(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, st
     return config.max_iter, f"max_iter ({config.max_iter}) iterations"
 
 
-def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
-    """SciPy's SLSQP from ``start``, gradients by forward differences in one batch each; returns
-    (iterations, why it stopped)."""
+def _slsqp(run: _Start, start: Evaluation, n_con: int) -> Any:
+    """(generator, :class:`_Start`; it yields nothing: SciPy calls back synchronously, so its
+    requests are served with this start alone, :meth:`_Start.alone`) SciPy's SLSQP from
+    ``start``, gradients by forward differences in one batch each; returns (iterations, why it
+    stopped)."""
     from scipy.optimize import minimize
 
-    config = stage.config
+    config = run.config
     f0 = max(abs(float(start.f[0])), 1e-12)
-    known: dict[bytes, Evaluation] = {stage.u_of(start.x).tobytes(): start}
+    known: dict[bytes, Evaluation] = {run.u_of(start.x).tobytes(): start}
 
     def value(u: np.ndarray) -> Evaluation:
         key = np.asarray(u, dtype=float).tobytes()
         if key not in known:
-            (known[key],) = stage.batch(np.asarray(u, dtype=float)[None, :])
+            (known[key],) = run.alone(run.batch(np.asarray(u, dtype=float)[None, :]))
         return known[key]
 
     def scaled(ev: Evaluation) -> tuple[float, np.ndarray]:
@@ -673,15 +843,15 @@ def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
     def gradient(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         key = np.asarray(u, dtype=float).tobytes()
         if key not in gradients and not value(u).reason:
-            exact = stage.exact(value(u), None, n_con)
+            exact = run.alone(run.exact(value(u), None, n_con))
             if exact is not None:  # the problem's derivatives, at the objective's scale
                 gradients[key] = (exact[2] / f0, exact[1])
         if key not in gradients:
             fu, gu = scaled(value(u))
-            U, steps = stage.jacobian_designs(np.asarray(u, dtype=float))
+            U, steps = run.jacobian_designs(np.asarray(u, dtype=float))
             df = np.zeros(len(u))
             dg = np.zeros((n_con, len(u)))
-            for i, ev in enumerate(stage.batch(U)):
+            for i, ev in enumerate(run.alone(run.batch(U))):
                 if ev.reason:
                     continue  # a perturbed design failed: no slope along this variable
                 fi, gi = scaled(ev)
@@ -715,9 +885,9 @@ def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
     try:
         result = minimize(
             lambda u: scaled(value(u))[0],
-            stage.u_of(start.x),
+            run.u_of(start.x),
             jac=lambda u: gradient(u)[0],
-            bounds=[(0.0, 1.0)] * stage.space.n_var,
+            bounds=[(0.0, 1.0)] * run.space.n_var,
             constraints=constraints,
             method="SLSQP",
             callback=callback,
@@ -728,6 +898,7 @@ def _slsqp(stage: _Stage, start: Evaluation, n_con: int) -> tuple[int, str]:
             raise
         return state["iterations"], stop.reason
     return state["iterations"], f"SLSQP: {result.message}"
+    yield  # a generator like _gauss_newton (unreached)
 
 
 class _GADone(FlexoptError):
@@ -783,6 +954,8 @@ def run_hybrid(
     initial: np.ndarray | None = None,
     jacobian: Callable[[np.ndarray], DesignJacobian | None] | None = None,
     check: Callable[[np.ndarray], ConstraintCheck | None] | None = None,
+    requests: Requests | None = None,
+    lockstep: bool | None = None,
 ) -> HybridResult:
     """Minimise one objective subject to ``n_con`` constraints g <= 0 over ``space``: the GA
     (``config.ga``), then the gradient method from ``config.starts`` distinct good GA designs.
@@ -801,6 +974,19 @@ def run_hybrid(
     (:func:`_calibrate`). The result's best is then the lowest design whose check was met
     (the stage's best when none was); ``report["checks"]``: how many designs were checked, how
     many met, the checks' wall time; each start's ``calibration``: its rounds' figures.
+
+    ``requests(X, calls)`` (optional; the run's evaluator on a process pool): evaluates the
+    (m, n_var) designs ``X`` as ``evaluate`` does and answers the hook ``calls`` ((kind, x):
+    ``"jacobian"`` / ``"check"``, the problem's own hooks, :mod:`optimise.hook_call`) beside
+    them as one batch, one :class:`~optimise.hook_call.HookAnswer` each. Without it the hooks
+    run here, one after another (``jacobian`` and ``check``).
+
+    ``lockstep`` (default: True for Gauss-Newton without ``max_evaluations``): the starts run
+    at the same time, each round one batch of every live start's request (:func:`_drive`), so
+    their Jacobians and checks run in parallel where ``requests`` sends them to workers. Each
+    start's designs and the result are the same as one start after the other (False); only the
+    order of the batches (generations) in the run differs. SLSQP's starts run one after the
+    other (SciPy drives them); so do starts sharing a ``max_evaluations`` budget.
     """
     if n_obj != 1:
         raise OptimiseError(f"the hybrid optimiser needs one objective, got {n_obj}")
@@ -812,9 +998,21 @@ def run_hybrid(
         check = getattr(owner, "check_constraints", None)
     ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial, not exact)
     n_ga = ga.generations[-1].n_evaluations if ga.generations else 0
-    stage = _Stage(space, evaluate, config, ga, on_generation, jacobian, check)
+    stage = _Stage(space, evaluate, config, ga, on_generation, jacobian, check, requests)
+    calibrated = stage.check is not None and config.local == "gauss_newton"
     method = _gauss_newton if config.local == "gauss_newton" else _slsqp
     starts = pick_starts(space, stage.everything, config.starts, config.min_distance)
+    if lockstep is None:
+        lockstep = config.local == "gauss_newton" and config.max_evaluations is None
+    runs = [_Start(stage, n_con) for _ in starts]
+    ended = _drive(
+        stage,
+        [
+            _one_start(run, s, n_con, method, calibrated)
+            for run, s in zip(runs, starts, strict=True)
+        ],
+        lockstep,
+    )
     report: dict[str, Any] = {
         "method": "hybrid",
         "local": config.local,
@@ -826,19 +1024,22 @@ def run_hybrid(
         "starts": [],
     }
     stop = f"every start stopped ({len(starts)} of {config.starts} distinct GA designs)"
-    for number, start in enumerate(starts, 1):
-        n_before, best_before = stage.n, stage.best
-        stage.factors = np.ones(n_con)  # each start calibrates anew
-        stage.rounds = []
-        try:
-            iterations, reason = method(stage, start, n_con)
-            if stage.check is not None and config.local == "gauss_newton":
-                iterations, reason = _calibrate(stage, start, n_before, n_con, iterations, reason)
-        except _Stop as exc:  # the budget: the stage ends here
-            iterations, reason = -1, exc.reason
-            stop = f"reached {exc.reason}"
-        mine = stage.everything[len(stage.everything) - (stage.n - n_before) :]
-        found = best_of((start, *mine))
+    # the stage's best as one start after the other finds it (a batch's best is its first
+    # lowest, so folding the starts in their order gives it whatever order the batches ran in)
+    best = ga.best
+    for number, (start, run, (value, stopped)) in enumerate(
+        zip(starts, runs, ended, strict=True), 1
+    ):
+        if value is None and stopped is None:
+            break  # never run: an earlier start's budget ended the stage
+        best_before = best
+        best = best_of((best, *run.mine))
+        if stopped is not None:  # the budget: the stage ends here
+            iterations, reason = -1, stopped.reason
+            stop = f"reached {stopped.reason}"
+        else:
+            iterations, reason = value
+        found = best_of((start, *run.mine))
         entry: dict[str, Any] = {
             "start": number,
             "x": [float(v) for v in start.x],
@@ -846,17 +1047,17 @@ def run_hybrid(
             "f_end": float(found.f[0]),
             "feasible_end": found.feasible,
             "iterations": iterations,
-            "n_evaluations": stage.n - n_before,
-            "improved_best": stage.best is not best_before,
+            "n_evaluations": len(run.mine),
+            "improved_best": best is not best_before,
             "stop": reason,
         }
-        if stage.check is not None and config.local == "gauss_newton":
-            entry["calibration"] = stage.rounds
+        if calibrated:
+            entry["calibration"] = run.rounds
         report["starts"].append(entry)
         if iterations < 0:
             break
-    best = stage.best
-    verified = list(stage.verified.values())  # designs whose check found every figure met
+    # designs whose check found every figure met, in the order of the starts
+    verified = [e for run in runs for e in run.verified.values()]
     if verified:  # the best design the check found meeting every judged figure
         best = min(verified, key=lambda e: float(e.f[0]))
     ga_keys = {e.x.tobytes() for g in ga.generations for e in g.evaluations}
@@ -867,7 +1068,7 @@ def run_hybrid(
         jacobians=dict(stage.jacobians),
         stop=stop,
     )
-    if stage.check is not None and config.local == "gauss_newton":
+    if calibrated:
         report["checks"] = {
             "count": len(stage.checked),
             "met": sum(1 for c in stage.checked.values() if c is not None and c.met),
@@ -877,15 +1078,22 @@ def run_hybrid(
     return HybridResult(best, (best,), tuple(stage.generations), report)
 
 
-def _calibrate(
-    stage: _Stage, start: Evaluation, n_before: int, n_con: int, iterations: int, reason: str
-) -> tuple[int, str]:
-    """Check the start's best design by the problem's check (its verdict's figures); where a
-    judged figure exceeds its bound, tighten that row by the measured factor (``k (g + 1) - 1
-    <= 0``, never loosened: the largest factor seen this start) and Gauss-Newton again from
-    that design, at most :data:`CALIBRATION_ROUNDS` times. Each round's figures go to
-    ``stage.rounds``; a design whose check is met to ``stage.verified``. Returns the start's
-    (iterations, why it stopped) summed over the rounds.
+def _one_start(run: _Start, start: Evaluation, n_con: int, method: Any, calibrated: bool) -> Any:
+    """(generator of requests) One start: the gradient method from ``start``, then its
+    calibration (``calibrated``); returns (iterations, why it stopped)."""
+    iterations, reason = yield from method(run, start, n_con)
+    if calibrated:
+        iterations, reason = yield from _calibrate(run, start, n_con, iterations, reason)
+    return iterations, reason
+
+
+def _calibrate(run: _Start, start: Evaluation, n_con: int, iterations: int, reason: str) -> Any:
+    """(generator of requests) Check the start's best design by the problem's check (its
+    verdict's figures); where a judged figure exceeds its bound, tighten that row by the
+    measured factor (``k (g + 1) - 1 <= 0``, never loosened: the largest factor seen this
+    start) and Gauss-Newton again from that design, at most :data:`CALIBRATION_ROUNDS` times.
+    Each round's figures go to ``run.rounds``; a design whose check is met to
+    ``run.verified``. Returns the start's (iterations, why it stopped) summed over the rounds.
 
     Why: the beam model under-reads the verdict's plane-stress peak by a few % near a taper
     kink (the ratio depends on the design), so a design held at the beam's bound x a fixed
@@ -893,37 +1101,36 @@ def _calibrate(
     bound's honest correction there, and re-measuring after each re-converge follows it as the
     design moves."""
     for round_ in range(CALIBRATION_ROUNDS + 1):
-        mine = stage.everything[len(stage.everything) - (stage.n - n_before) :]
-        pairs = [(stage.view(e), e) for e in (start, *mine) if not e.reason]
+        pairs = [(run.view(e), e) for e in (start, *run.mine) if not e.reason]
         feasible = [(v, e) for v, e in pairs if v.feasible]
         if not feasible:
-            stage.rounds.append({"round": round_, "stop": "no design feasible as calibrated"})
+            run.rounds.append({"round": round_, "stop": "no design feasible as calibrated"})
             break
         _, candidate = min(feasible, key=lambda p: float(p[0].f[0]))
-        found = stage.verify(candidate)
+        found = yield from run.verify(candidate)
         record: dict[str, Any] = {
             "round": round_,
             "f": float(candidate.f[0]),
-            "factors": {str(c): float(k) for c, k in enumerate(stage.factors) if k != 1.0},
+            "factors": {str(c): float(k) for c, k in enumerate(run.factors) if k != 1.0},
         }
         if found is None:
-            stage.rounds.append({**record, "stop": "the check did not answer"})
+            run.rounds.append({**record, "stop": "the check did not answer"})
             break
         record.update(met=found.met, **found.info)
-        stage.rounds.append(record)
+        run.rounds.append(record)
         if found.met:
-            stage.verified[candidate.x.tobytes()] = candidate
+            run.verified[candidate.x.tobytes()] = candidate
             break
         if round_ == CALIBRATION_ROUNDS:
             break
-        k = stage.factors.copy()
+        k = run.factors.copy()
         for c, factor in found.factors.items():
             if 0 <= c < n_con:
                 k[c] = max(k[c], float(factor))  # never loosened within the start
-        if np.all(k == stage.factors):
-            stage.rounds[-1]["stop"] = "the check is not met but names no row to tighten"
+        if np.all(k == run.factors):
+            run.rounds[-1]["stop"] = "the check is not met but names no row to tighten"
             break
-        stage.factors = k
-        more, reason = _gauss_newton(stage, candidate, n_con)
+        run.factors = k
+        more, reason = yield from _gauss_newton(run, candidate, n_con)
         iterations += more
     return iterations, reason

@@ -33,13 +33,14 @@ import signal
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection, wait
 from typing import Any, Literal, Protocol
 
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.hook_call import HookAnswer, call_hook
 from flexopt.optimise.problem import DesignProblem
 from flexopt.pipeline.errors import FlexoptError, one_line
 from flexopt.pipeline.fork import limit_loaded_pools, pool_context, quiet_child
@@ -380,8 +381,12 @@ def _worker_main(conn: Connection, payload: bytes) -> None:
             if os.getppid() != parent:
                 return
             # No timer here: the parent's watchdog owns the time limit (it also stops a worker
-            # stuck in C code, which a signal cannot interrupt).
-            conn.send(("done", row, evaluate_one(problem, x)))
+            # stuck in C code, which a signal cannot interrupt). A hook call (kind, x) is the
+            # problem's Jacobian or check at x (ProcessPool.run).
+            if isinstance(x, tuple):
+                conn.send(("done", row, call_hook(problem, x[0], x[1])))
+            else:
+                conn.send(("done", row, evaluate_one(problem, x)))
 
 
 @dataclass
@@ -389,7 +394,7 @@ class _Worker:
     process: multiprocessing.process.BaseProcess
     conn: Connection
     ready: bool = False
-    task: deque[tuple[int, np.ndarray]] | None = None  # designs sent and not yet reported
+    task: deque[tuple[int, Any]] | None = None  # designs (and hook calls) sent, not reported
     started: float = 0.0  # when the design at the head of ``task`` started (perf_counter)
 
 
@@ -491,21 +496,56 @@ class ProcessPool:
         on_result: Callable[[int, Evaluation], None] | None = None,
     ) -> list[Evaluation]:
         """Evaluate (m, n_var) designs on the pool; returns m Evaluations in order."""
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        n_obj, n_con = len(problem.objective_names), len(problem.constraint_names)
-        results: list[Evaluation | None] = [None] * len(X)
-        size = chunk_rows(len(X), self.n_workers, self.chunk_size)
-        queue: deque[tuple[int, np.ndarray]] = deque((row, X[row]) for row in range(len(X)))
-        attempts = [0] * len(X)
-        n_left = len(X)
+        return self.run(problem, X, (), on_result)[0]
 
-        def finish(row: int, evaluation: Evaluation) -> None:
+    def run(
+        self,
+        problem: DesignProblem,
+        X: np.ndarray,
+        calls: Sequence[tuple[str, np.ndarray]] = (),
+        on_result: Callable[[int, Evaluation], None] | None = None,
+    ) -> tuple[list[Evaluation], list[HookAnswer]]:
+        """Evaluate (m, n_var) designs and answer the problem's hook ``calls`` ((kind, x):
+        :data:`optimise.hook_call.HOOKS`, the hybrid's Jacobians and checks) on the pool, as one
+        batch; returns (m Evaluations, one HookAnswer per call), in order.
+
+        The calls go first, one per message (each costs several designs' time: started first,
+        they do not leave a worker alone with one at the batch's end). They are not under the
+        time limit (a Jacobian costs several evaluations; in the run process they had none): a
+        call whose worker dies is tried :data:`MAX_ATTEMPTS` times, then answers with the error
+        (the hybrid then does without it, as when the hook raises).
+        """
+        X = np.atleast_2d(np.asarray(X, dtype=float)) if len(X) else np.zeros((0, 0))
+        n_obj, n_con = len(problem.objective_names), len(problem.constraint_names)
+        m = len(X)
+        results: list[Any] = [None] * (m + len(calls))
+        size = chunk_rows(m, self.n_workers, self.chunk_size)
+        queue: deque[tuple[int, Any]] = deque(
+            (m + i, (kind, np.asarray(x, dtype=float))) for i, (kind, x) in enumerate(calls)
+        )
+        queue.extend((row, X[row]) for row in range(m))
+        attempts = [0] * len(results)
+        n_left = len(results)
+
+        def finish(row: int, evaluation: Any) -> None:
             nonlocal n_left
             if results[row] is None:
                 results[row] = evaluation
                 n_left -= 1
-                if on_result is not None:
+                if on_result is not None and row < m:
                     on_result(row, evaluation)
+
+        def died(row: int, x: Any, why: str) -> Any:
+            """The answer of a design or call whose worker died under it ``attempts`` times."""
+            times = f"({why}), {attempts[row]} times"
+            if row >= m:  # a hook call: its answer is the error
+                return HookAnswer(None, f"WorkerDied: the worker died calling {x[0]} {times}")
+            return Evaluation.failed(
+                x,
+                n_obj,
+                n_con,
+                f"WorkerDied: the worker process died while evaluating this design {times}",
+            )
 
         def lost(worker: _Worker, why: str) -> None:
             """The worker died: resubmit its designs, the one it was solving up to a limit."""
@@ -524,16 +564,7 @@ class ProcessPool:
                 row, x = pending[0]
                 attempts[row] += 1
                 if attempts[row] >= MAX_ATTEMPTS:
-                    finish(
-                        row,
-                        Evaluation.failed(
-                            x,
-                            n_obj,
-                            n_con,
-                            f"WorkerDied: the worker process died while evaluating this design "
-                            f"({why}), {attempts[row]} times",
-                        ),
-                    )
+                    finish(row, died(row, x, why))
                     pending = pending[1:]
                 log.warning("a worker died (%s); resubmitting %d designs", why, len(pending))
                 queue.extendleft(reversed(pending))
@@ -545,27 +576,45 @@ class ProcessPool:
             while len(self.workers) < self.n_workers:
                 self._start()
             now = time.perf_counter()
-            broken = []
-            for worker in self.workers:
-                while worker.ready and queue and len(worker.task or ()) <= POOL_QUEUED_DESIGNS:
-                    chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
-                    if not worker.task:  # idle: its first design starts now
-                        worker.task = deque()
-                        worker.started = now
-                    worker.task.extend(chunk)
-                    try:
-                        worker.conn.send(chunk)
-                    except OSError:  # it died since the last wait (BrokenPipeError)
-                        broken.append(worker)
-                        break
+            broken: list[_Worker] = []
+            # every idle worker a chunk first, then one more queued behind each busy one: a
+            # batch smaller than the workers' queues (a hybrid round of two trial designs)
+            # would otherwise go to one worker while the other idles
+            for idle_only in (True, False):
+                for worker in self.workers:
+                    while (
+                        worker not in broken
+                        and worker.ready
+                        and queue
+                        and len(worker.task or ()) <= POOL_QUEUED_DESIGNS
+                    ):
+                        if worker.task and (
+                            idle_only or worker.task[0][0] >= m or queue[0][0] >= m
+                        ):
+                            # a hook call only to an idle worker, and nothing queued behind one:
+                            # another worker may be free long before it ends
+                            break
+                        if queue[0][0] >= m:  # a hook call: a message of its own
+                            chunk = [queue.popleft()]
+                        else:
+                            chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
+                        if not worker.task:  # idle: its first design starts now
+                            worker.task = deque()
+                            worker.started = now
+                        worker.task.extend(chunk)
+                        try:
+                            worker.conn.send(chunk)
+                        except OSError:  # it died since the last wait (BrokenPipeError)
+                            broken.append(worker)
+                            break
             for worker in broken:  # its designs, this chunk too, go to the others
                 worker.process.join(1)
                 lost(worker, _exit_text(worker.process.exitcode))
             if broken:
                 continue
             timeout = None
-            if self.timeout_s is not None:
-                busy = [w.started for w in self.workers if w.task]
+            if self.timeout_s is not None:  # hook calls have no time limit (see run)
+                busy = [w.started for w in self.workers if w.task and w.task[0][0] < m]
                 if busy:
                     timeout = max(0.0, min(busy) + self.timeout_s - now) + 0.01
             ready = wait(
@@ -589,7 +638,11 @@ class ProcessPool:
             if self.timeout_s is not None:
                 now = time.perf_counter()
                 for worker in list(self.workers):
-                    if worker.task and now - worker.started > self.timeout_s:
+                    if (
+                        worker.task
+                        and worker.task[0][0] < m
+                        and now - worker.started > self.timeout_s
+                    ):
                         row, x = worker.task.popleft()
                         log.warning(
                             "design %d exceeded %g s: replacing its worker", row, self.timeout_s
@@ -606,7 +659,7 @@ class ProcessPool:
                         self._stop(worker)
                         self.n_replaced += 1
                         self._start()
-        return [r for r in results if r is not None]
+        return results[:m], results[m:]
 
     def _handle(
         self,

@@ -27,6 +27,7 @@ from typing import Any, ClassVar, Literal
 import yaml
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import MATERIALS, Material, get_material
+from flexopt.optimise import hybrid_defaults
 from flexopt.optimise.durability import DutyCycleSpec
 from flexopt.optimise.hold import CreepSpec, HoldSpec
 from flexopt.optimise.requirements import RequirementSpec
@@ -188,17 +189,31 @@ class HybridSpec(BaseModel):
     )
     starts: int = Field(2, ge=1, le=100, description="distinct GA designs to start from")
     min_distance: float = Field(
-        0.1, ge=0.0, le=1.0, description="least distance of two starts, in bound-normalised units"
+        hybrid_defaults.MIN_DISTANCE,
+        ge=0.0,
+        le=1.0,
+        description="least distance of two starts, in bound-normalised units",
     )
     tolerance: float = Field(
-        1e-3, ge=0.0, lt=1.0, description="relative improvement an iteration must beat"
+        hybrid_defaults.TOLERANCE,
+        ge=0.0,
+        lt=1.0,
+        description="relative improvement an iteration must beat",
     )
     patience: int = Field(
-        6, ge=1, le=1000, description="iterations without such an improvement that stop a start"
+        hybrid_defaults.PATIENCE,
+        ge=1,
+        le=1000,
+        description="iterations without such an improvement that stop a start",
     )
-    max_iter: int = Field(40, ge=1, le=10000, description="iterations per start at most")
+    max_iter: int = Field(
+        hybrid_defaults.MAX_ITER, ge=1, le=10000, description="iterations per start at most"
+    )
     fd_step: float = Field(
-        1e-4, gt=0.0, lt=0.1, description="forward-difference step, in bound-normalised units"
+        hybrid_defaults.FD_STEP,
+        gt=0.0,
+        lt=0.1,
+        description="forward-difference step, in bound-normalised units",
     )
     max_evaluations: int | None = Field(
         None, ge=1, description="designs of the gradient stage at most (none: no limit)"

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, MutableMapping
+import logging
+from collections.abc import Callable, Iterable, MutableMapping, Sequence
 
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
+from flexopt.optimise.hook_call import HookAnswer, call_hook
 from flexopt.optimise.problem import DesignProblem
 from flexopt.pipeline.checkpoint import EvaluationStore
 from flexopt.pipeline.parallel import BatchBackend, design_key, evaluate_batch
+
+log = logging.getLogger(__name__)
 
 # --------------------------------------------------------------------------------------------
 # Evaluating designs: one function, one cache
@@ -67,10 +71,31 @@ class Evaluator:
         self.n_cache_hits = 0
         self.n_restored = 0
         self.n_backend = 0
+        self.calls_here = False  # the hook calls' place logged (map_calls)
 
     def map(self, X: np.ndarray) -> list[Evaluation]:
         """Evaluate (m, n_var) designs; returns m Evaluations in order."""
-        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return self.map_calls(X, ())[0]
+
+    def map_calls(
+        self, X: np.ndarray, calls: Sequence[tuple[str, np.ndarray]]
+    ) -> tuple[list[Evaluation], list[HookAnswer]]:
+        """Evaluate (m, n_var) designs as :meth:`map` does and answer the problem's hook
+        ``calls`` ((kind, x (n_var,)): the hybrid's Jacobians and checks,
+        :data:`optimise.hook_call.HOOKS`) as one batch: on a process pool's workers beside the
+        designs (:meth:`pipeline.parallel.ProcessPool.run`), else in this process after them
+        (serial; Dask, whose backend sends designs only). Returns (m Evaluations, one
+        :class:`~optimise.hook_call.HookAnswer` per call), in order. A call is not an
+        evaluation: nothing cached, stored or counted."""
+        X = np.atleast_2d(np.asarray(X, dtype=float)) if len(X) else np.zeros((0, 0))
+        pool = getattr(self.backend, "run", None) if calls else None
+        if calls and pool is None and not self.calls_here:
+            self.calls_here = True
+            log.info(
+                "the hybrid's Jacobians and checks run in this process: the %s backend is sent "
+                "designs only",
+                type(self.backend).__name__,
+            )
         keys = [design_key(x) for x in X]
         new: dict[bytes, int] = {}  # first appearance in this batch -> its row
         for row, key in enumerate(keys):
@@ -95,18 +120,25 @@ class Evaluator:
                 if self.on_result is not None:
                     self.on_result()
 
+        answers: list[HookAnswer] = []
         try:
-            if todo:
-                rows = [new[key] for key in todo]
+            rows = [new[key] for key in todo]
+            if pool is not None:
+                results, answers = pool(self.problem, X[rows], calls, on_result=keep)
+            elif todo:
                 results = self.backend(self.problem, X[rows], on_result=keep)
-                if len(results) != len(todo):
-                    raise RuntimeError(f"backend: {len(results)} results for {len(todo)} designs")
-                for row, evaluation in enumerate(results):
-                    keep(row, evaluation)
+            else:
+                results = []
+            if len(results) != len(todo) or len(answers) != (len(calls) if pool else 0):
+                raise RuntimeError(f"backend: {len(results)} results for {len(todo)} designs")
+            for row, evaluation in enumerate(results):
+                keep(row, evaluation)
         finally:
             # In the order asked, not the order finished: the same tables on every backend. An
             # interrupted batch keeps what did finish.
             self.solved.extend(self.cache[key] for key in new if key in self.cache)
-        return [self.cache[key] for key in keys]
+        if calls and pool is None:
+            answers = [call_hook(self.problem, kind, x) for kind, x in calls]
+        return [self.cache[key] for key in keys], answers
 
     __call__ = map  # run_ga calls the evaluator like a function

@@ -422,6 +422,8 @@ def _run_in(
                         on_generation=run.generation_done,
                         initial=setup.initial,
                         jacobian=setup.problem.jacobian,  # exact derivatives where it has them
+                        # its Jacobians and checks on the pool's workers, beside its designs
+                        requests=run.evaluator.map_calls,
                     )
                     record["hybrid"] = result.report
                     log.info(

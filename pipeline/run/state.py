@@ -306,6 +306,28 @@ class RunState:
             },
         )
 
+    def settle_best(self, best: Evaluation) -> None:
+        """history.csv's last row names the run's ``best`` (rewritten now if it did not).
+
+        A generation's best is the best of the optimiser's rows so far; a calibrated hybrid's
+        best is the lowest design whose check was met (optimise/hybrid.py), which can be above
+        the lowest row (a lower design's check was not met) and is chosen after the last batch.
+        The last row is the run's state when the optimisation ended, so it says the design the
+        run chose: history.csv, best.json, report.md and the console then name one best design.
+        """
+        if not self.history:
+            return
+        row = self.history[-1]
+        chosen = {
+            f"best_{name}": float(v)
+            for name, v in zip(self.columns.objectives, best.f, strict=True)
+        }
+        chosen["best_feasible"] = best.feasible
+        if all(row.get(k) == v for k, v in chosen.items()):
+            return
+        row.update(chosen)
+        self.write_tables()
+
     def write_tables(self) -> None:
         """evaluations.csv and history.csv now, after anything the writer thread still holds."""
         self.drain_writes()
@@ -420,9 +442,10 @@ class RunState:
 
     def finish(self, result: GAResult, early: EarlyStep | None = None) -> DesignDetail | None:
         if self.setup.hybrid is not None and self.last_report is not None:
+            self.settle_best(result.best)
             # the hybrid's gradient stage has ended: the end a GA run's generation n_gen marks
             if self.on_generation is not None:
-                self.on_generation(replace(self.last_report, last=True))
+                self.on_generation(replace(self.last_report, last=True, best=result.best))
         # best.step's child: the one the run started (``early``, it imported build123d at low
         # priority while the workers solved), else forked now: it imports build123d (~3 s)
         # while the best design's detail is solved, once a core is idle (see EarlyStep)

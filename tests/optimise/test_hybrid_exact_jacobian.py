@@ -43,8 +43,9 @@ def test_gauss_newton_with_the_exact_jacobian_evaluates_no_perturbed_design():
     assert result.best.feasible
     np.testing.assert_allclose(result.best.x, [1.0, 1.0], atol=1e-3)
     assert result.best.f[0] < 1e-4
-    # after the GA's two generations of 10, every batch is one trial step
-    assert evaluate.batches[:2] == [10, 10] and set(evaluate.batches[2:]) == {1}
+    # after the GA's two generations of 10, every batch is one trial step of each live start
+    # (the two starts in lockstep: a batch of two while both run)
+    assert evaluate.batches[:2] == [10, 10] and set(evaluate.batches[2:]) == {1, 2}
     jac = result.report["jacobians"]
     assert jac["exact"] == len(calls) > 0 and jac["finite_differences"] == 0
     # each Jacobian is taken at a design the stage evaluated

@@ -22,6 +22,7 @@ misbehaves where its geometry block says (every threshold is on ``a``):
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import time
@@ -31,6 +32,7 @@ from typing import Literal
 
 import numpy as np
 from flexopt.optimise import DesignDetail, DesignProblem, DesignSpace, Evaluation
+from flexopt.optimise.design_jacobian import DesignJacobian
 from flexopt.pipeline.studies import StudyKind, register
 from flexopt.pipeline.study import STUDY_CONFIG, OptimiserSpec, Study
 from pydantic import BaseModel, Field
@@ -50,6 +52,10 @@ class FaultGeometry(BaseModel):
     exit_once_above: float | None = None
     marker_dir: str | None = None
     call_log: str | None = None  # every finished solve appends a line here (counts solves)
+    # HookProblem's Jacobian: exits its process / raises / sleeps above these (on a)
+    jacobian_exit_above: float | None = None
+    jacobian_raise_above: float | None = None
+    jacobian_sleep_s: float = Field(0.0, ge=0)
 
 
 class FaultStudy(Study):
@@ -98,6 +104,38 @@ class FaultProblem(DesignProblem):
         d = np.linspace(0.0, 1.0, 6)
         table = {"displacement_mm": d, "force_N": float(x[0]) * d}
         return DesignDetail(self.evaluate(x), table, {"x": "displacement_mm", "y": "force_N"})
+
+
+@dataclass
+class HookProblem(FaultProblem):
+    """FaultProblem with the hybrid's hooks (not a kind: the pool's hook-call tests build it
+    themselves): ``jacobian`` the exact derivatives of the objective and the row, misbehaving
+    where the geometry's ``jacobian_*`` fields say; ``check_constraints`` a "finer" reading of
+    the row, a + b (1 + a) against 1.1."""
+
+    def evaluate(self, x: np.ndarray) -> Evaluation:
+        """FaultProblem's, with the process that solved it (metric ``pid``)."""
+        evaluation = super().evaluate(x)
+        return dataclasses.replace(evaluation, metrics={**evaluation.metrics, "pid": os.getpid()})
+
+    def jacobian(self, x: np.ndarray) -> DesignJacobian:
+        g = self.geometry
+        a, b, c = (float(v) for v in x)
+        if g.jacobian_sleep_s:
+            time.sleep(g.jacobian_sleep_s)
+        if _above(a, g.jacobian_raise_above):
+            raise RuntimeError(f"no derivatives at a = {a:.3f}")
+        if _above(a, g.jacobian_exit_above):
+            os._exit(5)
+        f = np.array([[2.0 * (a - 0.6), 2.0 * (b - 0.3), 2.0 * c]])
+        return DesignJacobian(np.array(x), f, np.array([[1.0, 1.0, 0.0]]))
+
+    def check_constraints(self, x: np.ndarray) -> object:
+        from flexopt.optimise.hybrid import ConstraintCheck  # pymoo: not in every worker
+
+        a, b = float(x[0]), float(x[1])
+        finer = a + b * (1.0 + a)
+        return ConstraintCheck({0: finer / (a + b)}, finer <= 1.1, {"finer": finer})
 
 
 # Not kinds(): that imports every kind module, which a worker unpickling the problem should not

@@ -131,3 +131,36 @@ def test_the_example_runs_the_hybrid_and_a_study_without_method_the_ga():
     assert setup.hybrid is None
     assert setup.problem.constraint_names == ("stress_ratio_minus_1",)
     assert prepare_run(validate_study(flexopt_toys.study())).hybrid is None
+
+
+def test_history_names_the_design_the_hybrid_chose(tmp_path, monkeypatch):
+    """A calibrated hybrid's best is the lowest design whose check was met, which can be above
+    the lowest row: history.csv's last row, best.json and the report then name that design,
+    not the lowest row's objective (here the stage's best is replaced by the GA's first design,
+    as a check that was not met below it would)."""
+    import dataclasses
+
+    import flexopt.pipeline.run.runner as runner
+
+    stage = runner.run_hybrid
+    chosen = {}
+
+    def a_higher_best(*args, **kwargs):
+        result = stage(*args, **kwargs)
+        higher = max(
+            (e for e in result.generations[0].evaluations if e.feasible), key=lambda e: e.f[0]
+        )
+        assert higher.f[0] > result.best.f[0]
+        chosen["f"] = float(higher.f[0])
+        return dataclasses.replace(result, best=higher, front=(higher,))
+
+    monkeypatch.setattr(runner, "run_hybrid", a_higher_best)
+    run_study(prepare_run(hybrid_study()), out=tmp_path / "run", parallel=SERIAL)
+    history = read_records_csv(tmp_path / "run" / "history.csv")
+    best = json.loads((tmp_path / "run" / "best.json").read_text())
+    assert best["objectives"]["error"] == chosen["f"]
+    # the table's 8 significant digits
+    assert float(history[-1]["best_error"]) == pytest.approx(chosen["f"], rel=1e-7)
+    assert history[-1]["best_feasible"] in ("true", "True", True)
+    # the rows before it keep the lowest of the optimiser's rows so far
+    assert float(history[-2]["best_error"]) < chosen["f"]

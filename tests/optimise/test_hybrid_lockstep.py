@@ -1,0 +1,148 @@
+"""The hybrid's starts in lockstep (run_hybrid(lockstep=True), the default for Gauss-Newton
+without a budget): each round one batch of every live start's request, the Jacobians and checks
+beside the designs (``requests``). Each start's designs, its report entry and the best design
+must be those of one start after the other (lockstep=False, the stage as it ran before), to the
+bit; only the order of the batches differs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from flexopt.optimise import hybrid
+from flexopt.optimise.ga import GAConfig
+from flexopt.optimise.hook_call import HookAnswer, hook_answer
+from flexopt.optimise.hybrid import HybridConfig, run_hybrid
+from test_hybrid import SPACE, Counting, rosenbrock
+from test_hybrid_calibration import Checks
+from test_hybrid_calibration import evaluate as calibration_evaluate
+from test_hybrid_calibration import jacobian as calibration_jacobian
+from test_hybrid_exact_jacobian import rosenbrock_jacobian
+
+
+def config(**options) -> HybridConfig:
+    return HybridConfig(GAConfig("ga", 10, 2, seed=3), local="gauss_newton", **options)
+
+
+@pytest.fixture
+def per_start(monkeypatch):
+    """Every start's designs in the order it asked for them (by start, in start order)."""
+    seen: dict[int, list[bytes]] = {}
+    ask = hybrid._Start.batch
+
+    def batch(self, U):
+        evaluations = yield from ask(self, U)
+        seen.setdefault(id(self), []).extend(e.x.tobytes() for e in evaluations)
+        return evaluations
+
+    monkeypatch.setattr(hybrid._Start, "batch", batch)
+
+    def run(**kwargs):
+        seen.clear()
+        result = run_hybrid(**kwargs)
+        return result, list(seen.values())
+
+    return run
+
+
+def gradient_designs(result) -> list[bytes]:
+    n_ga = result.report["ga"]["generations"]
+    return [e.x.tobytes() for g in result.generations[n_ga:] for e in g.evaluations]
+
+
+def without_time(report: dict) -> dict:
+    out = dict(report)
+    if "checks" in out:
+        out["checks"] = {k: v for k, v in out["checks"].items() if k != "time_s"}
+    return out
+
+
+CASES = {
+    "finite differences": dict(evaluate=rosenbrock, config=config(starts=3, max_iter=100)),
+    "exact Jacobian": dict(
+        evaluate=rosenbrock, config=config(starts=3, max_iter=100), jacobian=rosenbrock_jacobian
+    ),
+    "calibrated": dict(
+        evaluate=calibration_evaluate,
+        config=config(starts=3, max_iter=100),
+        jacobian=calibration_jacobian,
+        check=Checks(),
+    ),
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_lockstep_starts_ask_for_the_designs_one_after_the_other_does(per_start, case):
+    kwargs = dict(space=SPACE, n_obj=1, n_con=1, **CASES[case])
+    one_by_one, alone = per_start(**kwargs, lockstep=False)
+    together, concurrent = per_start(**kwargs)
+    assert len(alone) == len(concurrent) == 3
+    # one after the other: each start's designs are consecutive batches of the stage
+    assert sum(alone, []) == gradient_designs(one_by_one)
+    assert concurrent == alone  # every start's sequence of designs, to the bit
+    assert together.best.x.tobytes() == one_by_one.best.x.tobytes()
+    assert together.best.f.tobytes() == one_by_one.best.f.tobytes()
+    assert without_time(together.report) == without_time(one_by_one.report)
+    # the same designs in fewer batches: the starts did run at the same time
+    assert sorted(gradient_designs(together)) == sorted(gradient_designs(one_by_one))
+    assert len(together.generations) < len(one_by_one.generations)
+
+
+def test_a_budget_runs_the_starts_one_after_the_other():
+    evaluate = Counting(rosenbrock)
+    cfg = config(starts=3, max_iter=100, max_evaluations=25)
+    result = run_hybrid(SPACE, evaluate, 1, 1, cfg, jacobian=rosenbrock_jacobian)
+    alone = run_hybrid(SPACE, rosenbrock, 1, 1, cfg, jacobian=rosenbrock_jacobian, lockstep=False)
+    assert result.report == alone.report and set(evaluate.batches[2:]) == {1}
+    assert result.report["stop"].startswith("reached the gradient stage's max_evaluations")
+    assert result.report["n_evaluations"]["gradient"] <= 25
+
+
+def test_requests_get_the_designs_and_the_hook_calls_of_a_round_as_one_batch():
+    """``requests`` (a pool's evaluator) is given every live start's request of a round at
+    once; answering the calls elsewhere (here: recorded, then called) changes nothing."""
+    rounds: list[tuple[int, list[str]]] = []
+
+    def requests(X, calls):
+        rounds.append((len(X), [kind for kind, _ in calls]))
+        return rosenbrock(X) if len(X) else [], [
+            hook_answer(rosenbrock_jacobian, x) for _, x in calls
+        ]
+
+    cfg = config(starts=2, max_iter=100)
+    result = run_hybrid(
+        SPACE, rosenbrock, 1, 1, cfg, jacobian=rosenbrock_jacobian, requests=requests
+    )
+    here = run_hybrid(SPACE, rosenbrock, 1, 1, cfg, jacobian=rosenbrock_jacobian)
+    assert result.report == here.report and result.best.x.tobytes() == here.best.x.tobytes()
+    assert rounds and all(n + len(kinds) <= 2 for n, kinds in rounds)  # one request per start
+    assert any(n == 1 and kinds == ["jacobian"] for n, kinds in rounds)  # a design beside a call
+    assert any(kinds == ["jacobian", "jacobian"] for _, kinds in rounds)  # two Jacobians at once
+
+
+def test_a_failed_call_is_a_jacobian_or_check_that_did_not_answer():
+    """A hook answer with an error (it raised, or its worker died) is handled as a hook that
+    raised in this process: forward differences instead of the Jacobian, and "the check did not
+    answer" for a check."""
+
+    def requests(X, calls):
+        return calibration_evaluate(X) if len(X) else [], [
+            HookAnswer(None, "WorkerDied: the worker died calling " + kind) for kind, _ in calls
+        ]
+
+    def raising(x):
+        raise RuntimeError("no")
+
+    cfg = config(starts=2, max_iter=30)
+    kwargs = dict(jacobian=calibration_jacobian, check=Checks())
+    failed = run_hybrid(SPACE, calibration_evaluate, 1, 1, cfg, requests=requests, **kwargs)
+    here = run_hybrid(SPACE, calibration_evaluate, 1, 1, cfg, jacobian=raising, check=raising)
+    assert (
+        failed.report["jacobians"]["exact"] == 0
+        and failed.report["jacobians"]["finite_differences"]
+        == here.report["jacobians"]["finite_differences"]
+        > 0
+    )
+    for start in failed.report["starts"]:
+        assert start["calibration"][-1]["stop"] == "the check did not answer"
+    assert without_time(failed.report) == without_time(here.report)
+    np.testing.assert_array_equal(failed.best.x, here.best.x)
