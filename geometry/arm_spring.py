@@ -307,7 +307,9 @@ def _without_cracks(body: BaseGeometry, width_mm: float = 1e-3) -> BaseGeometry:
             break
     if not sharp:
         return body
-    return body.buffer(width_mm, quad_segs=8).buffer(-width_mm, quad_segs=8)
+    # mitred both ways: nothing is rounded (no arcs of width_mm radius, whose vertices would
+    # be edges of a fraction of a micrometre for the mesher), the slits close
+    return body.buffer(width_mm, join_style="mitre").buffer(-width_mm, join_style="mitre")
 
 
 def _arm_zero(p: ArmSpringParams, frame: SpringFrame, curve_step_mm: float | None = None):
@@ -329,7 +331,7 @@ def build_arm_spring(
     p : ArmSpringParams
     frame : SpringFrame — envelope, hub, pads, holes, fillets, manufacturing limits.
     curve_step_mm : float, mm, optional — sample the arm centreline this finely (and simplify
-        the outline only by 1e-5 mm) instead of the optimiser's 0.5 mm, and every fillet (root
+        the outline only by 5e-6 mm) instead of the optimiser's 0.5 mm, and every fillet (root
         and frame) at :data:`FINE_FILLET_STEP_DEG` a facet instead of its quarter circle in 16
         (root) or ``frame.fillet_segments`` segments, slits between the pieces closed first. A
         flank of radius R sampled at step s turns by s / R rad at every vertex, a weak
@@ -419,8 +421,13 @@ def build_arm_spring(
         body = closed
     else:
         body = _without_cracks(body)
-    # 2 um merges the near-collinear vertices of the unions; a fine sampling keeps its own.
-    body = shapely.simplify(body, 2e-3 if curve_step_mm is None else 1e-5, preserve_topology=True)
+    # 2 um merges the near-collinear vertices of the unions; a fine sampling keeps its own. At
+    # 5e-6 mm a fillet of radius > 0.53 mm keeps its 0.25 deg facets (r (1 - cos 0.25 deg) off
+    # the chord of two; 1e-5 mm merged a 1 mm fillet's into 0.5 deg ones), a 0.3 mm frame
+    # fillet's merge into ~0.7 deg ones, and the two vertices 1.6 um apart into which the frame
+    # closing splits each vertex of a concave flank merge back (at 2e-6 mm they stay: 4.7x
+    # the triangles).
+    body = shapely.simplify(body, 2e-3 if curve_step_mm is None else 5e-6, preserve_topology=True)
     if isinstance(body, MultiPolygon) or not isinstance(body, Polygon) or not body.is_valid:
         raise GeometryError(
             f"the arm spring outline is not one valid polygon ({body.geom_type}, "
