@@ -37,7 +37,7 @@ AT_ENVELOPE = [
          "W2": 5.7865, "W3": 5.7708, "W4": 4.9827, "ST": 16.0591}),
     (4, {"sweep": 178.0153, "R_pad": 32.5, "F1": 0.2283, "F2": 0.7869, "W1": 1.6338,
          "W2": 2.4838, "W3": 3.4642, "W4": 5.2473, "ST": 19.5828}),
-    # the hybrid's spring of this session's run (issue 27), pads on the envelope
+    # a hybrid run's spring (an intermediate state of this change, issue 27), pads on the envelope
     (2, {"sweep": 453.9374082160497, "R_pad": 32.49999999448389, "F1": 0.5893750008821836,
          "F2": 0.4316122873356665, "W1": 4.421875000497162, "W2": 4.053925391198083,
          "W3": 4.259247503620234, "W4": 4.0781249995826645, "ST": 19.5}),
