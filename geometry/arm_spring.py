@@ -28,8 +28,11 @@ centreline offset by ``±w/2`` along its normal.
 
 **Junctions**: the arm meets the hub rim and the pad boss in concave corners; they get fillets of
 radius ``root_fillet_mm`` by a closing (``buffer(+r).buffer(-r)``) kept only near the two ends of
-each arm, so the slots between arms elsewhere stay as drawn. Every other concave corner gets the
-frame's ``fillet_mm``.
+each arm, so the slots between arms elsewhere stay as drawn, and trimmed by the envelope. Every
+other concave corner gets the frame's ``fillet_mm``. The optimiser's outline draws a fillet's
+quarter circle in 16 (root) or ``fillet_segments`` (frame) segments; the fine outline of the
+final stress check and the exported part (``curve_step_mm``) at most
+:data:`FINE_FILLET_STEP_DEG` a facet, so that its refined peak stress converges at a root.
 
 :func:`build_arm_spring` returns a :class:`geometry.sea_spring.SpringGeometry` (the same
 outlines, rigid footprints, boundaries and checks as the serpentine, so the FE and the study code
@@ -54,6 +57,7 @@ from shapely.geometry.base import BaseGeometry
 _DEFAULT_FRAME = SpringFrame()
 
 __all__ = [
+    "FINE_FILLET_STEP_DEG",
     "ArmSpringParams",
     "ArmSpringGeometry",
     "arm_centreline",
@@ -253,6 +257,61 @@ def _slot(one: BaseGeometry, p: ArmSpringParams, frame: SpringFrame) -> float:
     return float(mine.distance(others.difference(keep_out)))
 
 
+#: Largest turn (degrees) between two facets of a fillet on the fine outline (``curve_step_mm``
+#: given): a fillet polygon's every vertex is a weak re-entrant corner, on which the refined peak
+#: stress keeps creeping (Williams); the 16 segments per quarter circle of the optimiser's
+#: outline turn by 5.6 deg, and the 0.3 mm frame fillets at 4 segments by 22.5 deg. 0.25 deg is
+#: below the centreline's own turn at 0.1 mm steps (0.3 deg on an 18 mm flank, 0.5 deg on a
+#: 12 mm one), so a fillet is not where the refined peak creeps most (0.5 deg: ~0.3 % a
+#: halving on a root fillet; docs/sea_spring.md, "Root fillets on the fine outline").
+FINE_FILLET_STEP_DEG = 0.25
+
+
+def _fillet_segments(coarse: int, curve_step_mm: float | None) -> int:
+    """Segments per quarter circle of a fillet: ``coarse`` on the optimiser's outline (its
+    designs stay as they were), at most :data:`FINE_FILLET_STEP_DEG` a facet on the fine one."""
+    if curve_step_mm is None:
+        return int(coarse)
+    return max(int(coarse), math.ceil(90.0 / FINE_FILLET_STEP_DEG))
+
+
+@functools.lru_cache(maxsize=4)
+def _envelope_disc(radius_mm: float) -> Polygon:
+    """The envelope as a polygon inscribed in its circle (every point within ``radius_mm``)."""
+    return Point(0.0, 0.0).buffer(radius_mm, quad_segs=256)
+
+
+def _without_cracks(body: BaseGeometry, width_mm: float = 1e-3) -> BaseGeometry:
+    """``body`` with the slits and pinholes the unions leave between pieces that should share an
+    edge closed (a closing by ``width_mm``), when it has any.
+
+    A fillet piece turned to another arm does not meet the hub's or its pad's polygon exactly:
+    a slit ~1e-5 mm wide may stay between them. The frame fillets' mitred closing may grow the
+    slit's mouth, a corner turning by ~180 deg, into a spike up to 20 fillet radii long, which
+    the erosion leaves sticking out of the part: a pad near the envelope then built or was
+    refused depending on the rounding of the design (issue 27's "cliff", 0.1-0.4 mm beyond
+    the envelope). A body without slits or pinholes (no vertex turning by more than 150 deg,
+    no interior ring) is returned as it is.
+    """
+    polys = list(getattr(body, "geoms", [body]))
+    sharp = False
+    for poly in polys:
+        if len(poly.interiors) > 0:
+            sharp = True
+            break
+        xy = np.asarray(poly.exterior.coords)[:-1]
+        a, b = np.roll(xy, -1, axis=0) - xy, xy - np.roll(xy, 1, axis=0)
+        turn = np.arctan2(b[:, 0] * a[:, 1] - b[:, 1] * a[:, 0], np.sum(a * b, axis=1))
+        if np.any(np.abs(turn) > math.radians(150.0)):
+            sharp = True
+            break
+    if not sharp:
+        return body
+    # mitred both ways: nothing is rounded (no arcs of width_mm radius, whose vertices would
+    # be edges of a fraction of a micrometre for the mesher), the slits close
+    return body.buffer(width_mm, join_style="mitre").buffer(-width_mm, join_style="mitre")
+
+
 def _arm_zero(p: ArmSpringParams, frame: SpringFrame, curve_step_mm: float | None = None):
     step = min(0.5, 0.25 * min(p.widths_mm) + 0.1) if curve_step_mm is None else curve_step_mm
     xy, w = arm_centreline(p, max_step_mm=step)
@@ -272,11 +331,14 @@ def build_arm_spring(
     p : ArmSpringParams
     frame : SpringFrame — envelope, hub, pads, holes, fillets, manufacturing limits.
     curve_step_mm : float, mm, optional — sample the arm centreline this finely (and simplify
-        the outline only by 1e-5 mm) instead of the optimiser's 0.5 mm. A flank of radius R
-        sampled at step s turns by s / R rad at every vertex, a weak re-entrant corner on its
-        concave side: 0.43 mm on the default optimum's R = 18 mm flank is 1.4 deg, which keeps
-        the peak stress there from converging (docs/solid3d.md); 0.1 mm gives 0.3 deg. For the
-        final stress check only: finer boundary segments mean more triangles.
+        the outline only by 5e-6 mm) instead of the optimiser's 0.5 mm, and every fillet (root
+        and frame) at :data:`FINE_FILLET_STEP_DEG` a facet instead of its quarter circle in 16
+        (root) or ``frame.fillet_segments`` segments, slits between the pieces closed first. A
+        flank of radius R sampled at step s turns by s / R rad at every vertex, a weak
+        re-entrant corner on its concave side: 0.43 mm on the default optimum's R = 18 mm flank
+        is 1.4 deg, which keeps the peak stress there from converging (docs/solid3d.md); 0.1 mm
+        gives 0.3 deg. For the final stress check and the exported part only: finer boundary
+        segments mean more triangles.
 
     Returns
     -------
@@ -312,23 +374,60 @@ def build_arm_spring(
         # or the pad boss are kept, then turned to every arm.
         rf = p.root_fillet_mm
         own = shapely.union_all([hub, arm0, pad0])
-        closed = own.buffer(rf, join_style="mitre", mitre_limit=20.0).buffer(-rf, quad_segs=16)
+        closed = own.buffer(rf, join_style="mitre", mitre_limit=20.0).buffer(
+            -rf, quad_segs=_fillet_segments(16, curve_step_mm)
+        )
         # keep the pieces that fill a corner at the hub rim or at the pad boss
         near = hub.exterior.buffer(0.01).union(pad0.exterior.buffer(0.01))
         new = closed.difference(own)
         fill = shapely.union_all(
             [g for g in getattr(new, "geoms", [new]) if not g.is_empty and g.intersects(near)]
         )
+        # A fillet in the corner between a pad on the envelope and an arm running close to it
+        # could reach past the envelope (the corner's tangents do; not seen in 374 random
+        # designs with R_pad at its bound, where the refusals "at a junction fillet" were
+        # spikes grown from slits: _without_cracks). It is trimmed by the envelope (a convex
+        # corner there, no stress raiser), so whether a design fits is its arms' and pads'
+        # business alone (arm_clearances); the part built and analysed is the trimmed one.
+        envelope = _envelope_disc(frame.envelope_radius_mm)
+        if not fill.within(envelope):  # (only then: an overlay re-nodes what it returns)
+            fill = fill.intersection(envelope)
         body = body.union(
             shapely.union_all([_rotate(fill, k * p.pitch_deg) for k in range(p.n_arms)])
         )
     if frame.fillet_mm > 0:
         r = frame.fillet_mm
-        body = body.buffer(r, join_style="mitre", mitre_limit=20.0).buffer(
-            -r, quad_segs=frame.fillet_segments
-        )
-    # 2 um merges the near-collinear vertices of the unions; a fine sampling keeps its own.
-    body = shapely.simplify(body, 2e-3 if curve_step_mm is None else 1e-5, preserve_topology=True)
+        segments = _fillet_segments(frame.fillet_segments, curve_step_mm)
+
+        def closing(shape: BaseGeometry) -> BaseGeometry:
+            return shape.buffer(r, join_style="mitre", mitre_limit=20.0).buffer(
+                -r, quad_segs=segments
+            )
+
+        if curve_step_mm is not None:
+            # the fine outline (a new one anyway) is always cleaned of slits first
+            closed = closing(_without_cracks(body))
+        else:
+            closed = closing(body)
+            # A closing adds nothing beyond the envelope when the shape is inside it, and
+            # nothing farther than r from the shape; more is a spike grown from a slit between
+            # the pieces (_without_cracks): close the slits first. Checked after the fact so
+            # that the optimiser's outlines without one stay as they were, vertex for vertex.
+            reach = float(np.hypot(*shapely.get_coordinates(closed).T).max())
+            if reach > frame.envelope_radius_mm or not closed.within(
+                body.buffer(1.5 * r, quad_segs=2)
+            ):
+                closed = closing(_without_cracks(body))
+        body = closed
+    else:
+        body = _without_cracks(body)
+    # 2 um merges the near-collinear vertices of the unions; a fine sampling keeps its own. At
+    # 5e-6 mm a fillet of radius > 0.53 mm keeps its 0.25 deg facets (r (1 - cos 0.25 deg) off
+    # the chord of two; 1e-5 mm merged a 1 mm fillet's into 0.5 deg ones), a 0.3 mm frame
+    # fillet's merge into ~0.7 deg ones, and the two vertices 1.6 um apart into which the frame
+    # closing splits each vertex of a concave flank merge back (at 2e-6 mm they stay: 4.7x
+    # the triangles).
+    body = shapely.simplify(body, 2e-3 if curve_step_mm is None else 5e-6, preserve_topology=True)
     if isinstance(body, MultiPolygon) or not isinstance(body, Polygon) or not body.is_valid:
         raise GeometryError(
             f"the arm spring outline is not one valid polygon ({body.geom_type}, "
@@ -362,10 +461,11 @@ def build_arm_spring(
     exy = np.asarray(outline.exterior.coords)
     outer = float(np.hypot(exy[:, 0], exy[:, 1]).max())
     if outer > frame.envelope_radius_mm + 1e-9:
-        # a junction fillet can reach a little beyond the arm and pad it joins
+        # not expected: the junction fillets are trimmed to the envelope and a closing of a
+        # shape inside the (convex) envelope stays inside it; kept as the outline's own check
         raise GeometryError(
             f"arm spring check envelope_mm fails by {outer - frame.envelope_radius_mm:.3g} mm "
-            "(at a junction fillet); bring the pad radius in or reduce root_fillet_mm"
+            "(at a fillet); bring the pad radius in or reduce root_fillet_mm"
         )
     checks = dict(margins)
     checks["envelope_mm"] = min(margins["envelope_mm"], frame.envelope_radius_mm - outer)
