@@ -912,7 +912,10 @@ def nominal_transfer(
     fidelity_transfer`): one solve of the nominal with the study's checks, or None when it has
     no figure above the kind's own model (its checks off: it is judged on that model too)."""
     from flexopt.pipeline.problems import study_result
+    from flexopt.pipeline.verdict import figures_of
 
+    if not figures_of(study):  # the kind has one model: nothing to transfer, no solve spent
+        return None
     try:
         result = problem.detail(x) if mode == "design" else study_result(study, 1)
     except Exception as exc:  # noqa: BLE001 - the nominal sample names the failure

@@ -22,6 +22,7 @@ import pytest
 import yaml
 from flexopt.optimise.problem import DesignResult
 from flexopt.optimise.requirements import Verdict
+from flexopt.optimise.robust_requirements import VERDICT_STREAM, scatter_draws
 from flexopt.optimise.robustness import samples_of
 from flexopt.pipeline.problems import build_base_problem, nominal_design
 from flexopt.pipeline.robust_fidelity import RECHECK_REL, FidelityTransfer
@@ -132,6 +133,34 @@ def test_a_print_that_passes_by_the_beam_and_fails_as_made_is_not_met():
     # the stiff print was near the bound: solved again with its checks on, its own figure
     assert result.record()["fidelity"]["samples_rechecked"] >= 1
     assert result.worst_margin[j] == pytest.approx(bound - checked_hi, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_a_robust_row_counts_the_prints_that_meet_it_as_made():
+    """A robust: requirement's fresh draws (E within ±1 %): each print's checked peak is E times
+    the nominal's (linear in E, above), so the prints that meet a bound midway between the
+    nominal's beam and checked peaks are exactly those with E <= bound / checked0, counted here
+    from the draws themselves; the beam would have passed those up to bound / beam0."""
+    probe = validate_study(_study(E_percent=1))
+    x = nominal_design(build_base_problem(probe), probe)
+    beam0, checked0 = _checked(probe, 1.0, 0.0, 0.0, x)
+    bound = 0.5 * (beam0 + checked0)
+    data = _study(E_percent=1)
+    robust = {"share_percent": 50, "confidence_percent": 50, "verdict_samples": 8, "seed": 3}
+    data["requirements"] = [
+        {"name": "peak", "quantity": "peak_stress_MPa", "max": bound, "robust": robust}
+    ]
+    result = run_robustness(validate_study(data), backend=serial)
+    draws = scatter_draws(1.0, 0.0, 0.0, 8, 3, VERDICT_STREAM)
+    as_made = int(np.sum(draws[:, 0] * checked0 <= bound))
+    by_beam = int(np.sum(draws[:, 0] * beam0 <= bound))
+    assert as_made < by_beam  # the draws hold prints the beam passes and the part fails
+    row = result.robust_record["requirements"][0]
+    assert row["met_samples"] == as_made
+    assert row["transferred_samples"] + row["rechecked_samples"] == 8
+    assert "judged on plane stress and the beam's nominal stress at the pads" in (
+        result.robust_verdicts[0].detail
+    )
 
 
 @pytest.mark.slow
