@@ -170,12 +170,17 @@ class ConstraintCheck:
     met : every judged figure within its bound at this design.
     info : plain numbers for the report (each name carries its unit).
     time_s : wall time of the check, s.
+    kept : the problem's own record of the check, not reported: where the check ran in a pool's
+        worker, the run's process hands it to its problem's ``adopt_check(x, check)`` (when it
+        has one), so that the report serves the same figure instead of solving it again
+        (:meth:`pipeline.run.evaluator.Evaluator.map_calls`).
     """
 
     factors: dict[int, float]
     met: bool
     info: dict[str, Any] = field(default_factory=dict)
     time_s: float = 0.0
+    kept: Any = field(default=None, compare=False, repr=False)
 
 
 #: re-converges of a start on a calibrated constraint (:func:`run_hybrid`) at most

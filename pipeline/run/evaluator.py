@@ -139,6 +139,21 @@ class Evaluator:
             self.solved.extend(self.cache[key] for key in new if key in self.cache)
         if calls and pool is None:
             answers = [call_hook(self.problem, kind, x) for kind, x in calls]
+        elif calls:
+            self._adopt_checks(calls, answers)
         return [self.cache[key] for key in keys], answers
+
+    def _adopt_checks(
+        self, calls: Sequence[tuple[str, np.ndarray]], answers: Sequence[HookAnswer]
+    ) -> None:
+        """Hand every check a worker made to this process's problem (its ``adopt_check(x,
+        check)``, where it has one): the problem keeps what the check computed, and its
+        report's detail of the same design serves it instead of solving it again."""
+        adopt = getattr(self.problem, "adopt_check", None)
+        if adopt is None:
+            return
+        for (kind, x), answer in zip(calls, answers, strict=True):
+            if kind == "check" and getattr(answer.value, "kept", None) is not None:
+                adopt(np.asarray(x, dtype=float), answer.value)
 
     __call__ = map  # run_ga calls the evaluator like a function

@@ -47,7 +47,8 @@ def check_constraints(
     within the allowable; ``info``: ``checked_peak_stress_MPa``, ``beam_row_stress_MPa`` (the
     beam's peak x beam_stress_factor, the row's figure), ``allowable_MPa``); None when the
     objective is not ``rms_error``, the fidelity check is off or skipped, or the design does not
-    solve (the verdict then judges as it does)."""
+    solve (the verdict then judges as it does). ``kept``: the problem's kept records of ``x``
+    (its ``checks``, a CheckMemo), for the run's process when this ran in a worker."""
     # solve (x -> design, response, reason) and metrics (design, response -> CurveMetrics) are
     # the problem's own, fidelity (design, response, lo, hi -> record) the verdict's guarded
     # fidelity check: passed in by ConstantForceProblem.check_constraints, so that this module
@@ -70,7 +71,7 @@ def check_constraints(
     if not row > 0.0:
         return None
     allowable = float(problem.allowable_MPa)
-    return ConstraintCheck(
+    found = ConstraintCheck(
         factors={STRESS_ROW: float(checked) / row},
         met=bool(checked <= allowable),
         info={
@@ -80,3 +81,7 @@ def check_constraints(
         },
         time_s=time.perf_counter() - t0,
     )
+    # the check's records ride along (ConstraintCheck.kept): where it ran in a pool's worker,
+    # the run's process adopts them (the problem's adopt_check) and the report serves them
+    memo = getattr(problem, "checks", None)
+    return memo.attach(x, found) if memo is not None else found

@@ -25,12 +25,16 @@ from flexopt.fea.fidelity import plane_stress_check
 from flexopt.geometry.constant_force import WORK_DIRECTION
 from flexopt.pipeline.studies._constant_force_clamp import REFINED_PEAK
 from flexopt.pipeline.studies._constant_force_fillet import KINK_BLEND_MM
-from flexopt.pipeline.studies._constant_force_reuse import CheckMemo  # the kind's checks, kept
+from flexopt.pipeline.studies._constant_force_reuse import (  # the kind's checks, kept
+    CheckMemo,
+    adopt_check,
+)
 from shapely.geometry import Point
 
 __all__ = [
     "KINK_BLEND_MM",
     "CheckMemo",
+    "adopt_check",
     "REFINED_PEAK",
     "REFINE_FACTOR",
     "REFINE_RADIUS_MM",

@@ -11,20 +11,24 @@ second would compute. Keyed by all three (the whole study as its JSON); a record
 skipped (a failure) is not kept, so the report retries it.
 
 The memo lives on the problem (a shallow copy such as :meth:`with_residuals`'s shares it) and is
-empty in a pickled copy: a worker process does not ship the records back, and a run whose
-checks ran in another process simply checks again (the same figure, ~2 s).
+empty in a pickled copy. Where the hybrid's checks run in a pool's worker, the worker's
+:class:`~optimise.hybrid.ConstraintCheck` carries its records (``kept``, :meth:`CheckMemo.
+attach`) and the run's process adopts them (:meth:`CheckMemo.adopt`, called through the
+problem's ``adopt_check`` by :meth:`pipeline.run.evaluator.Evaluator.map_calls`): the report
+serves the figure on every backend that runs the checks in a worker or in the run's process.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 from collections import OrderedDict
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-__all__ = ["CheckMemo"]
+__all__ = ["CheckMemo", "adopt_check"]
 
 #: records kept: the hybrid checks each start's best design (2 starts by default, a few
 #: calibration rounds each); the report asks for the run's best, one of the last ones
@@ -72,3 +76,25 @@ class CheckMemo:
             while len(self.records) > KEPT:
                 self.records.popitem(last=False)
         return result
+
+    def attach(self, x: np.ndarray, check: Any) -> Any:
+        """``check`` (a ConstraintCheck or None) carrying, as ``kept``, the records of design
+        ``x`` (23,) this memo holds: what a worker's check sends back to the run's process."""
+        xb = np.asarray(x, dtype=float).tobytes()
+        mine = [(key, rec) for key, rec in self.records.items() if key[0] == xb]
+        if check is None or not mine:
+            return check
+        return dataclasses.replace(check, kept=copy.deepcopy(mine))
+
+    def adopt(self, kept: Any) -> None:
+        """Keep the records a worker's check carried (:meth:`attach`), as if made here."""
+        for key, rec in kept or ():
+            if key not in self.records:
+                self.records[key] = copy.deepcopy(rec)
+        while len(self.records) > KEPT:
+            self.records.popitem(last=False)
+
+
+def adopt_check(problem: Any, x: np.ndarray, check: Any) -> None:
+    """The problem's ``adopt_check`` hook: keep the records a worker's check of ``x`` carried."""
+    problem.checks.adopt(getattr(check, "kept", None))

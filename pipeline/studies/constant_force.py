@@ -168,6 +168,7 @@ class ConstantForceProblem(DesignProblem):
 
     #: evaluations carry Eq. 8's residuals as metrics (set on the copy :meth:`with_residuals`)
     residual_metrics = False
+    adopt_check = kinks.adopt_check  # keep what a worker's check computed, for the report's detail
 
     def with_residuals(self) -> ConstantForceProblem | None:
         """This problem, its evaluations carrying the force residuals F(s_i) - target (N) at

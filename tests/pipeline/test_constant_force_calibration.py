@@ -83,3 +83,37 @@ def test_the_report_reuses_the_check_the_calibration_made(monkeypatch):
     # a pickled problem (a worker's) carries no records
     clone = pickle.loads(pickle.dumps(problem))
     assert clone.checks.records == {} and len(problem.checks.records) == 2
+
+
+def test_a_workers_check_is_adopted_by_the_run_process(monkeypatch):
+    """The hybrid's checks run in a pool's worker (session 28, lockstep): the worker's problem is
+    a pickled copy, so its records would stay there and the report would solve the check again.
+    The ConstraintCheck carries them (``kept``) through a real pickle, the run's problem adopts
+    them through the Evaluator (its ``adopt_check``), and its detail serves the worker's figure
+    without a solve; a check of another design is not served by them."""
+    from flexopt.optimise.hook_call import HookAnswer
+    from flexopt.pipeline.run.evaluator import Evaluator
+
+    study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
+    run_problem = prepare_run(study).problem
+    worker = pickle.loads(pickle.dumps(run_problem))  # what a pool's worker holds
+    x = run_problem.nominal_design()
+    sent = pickle.loads(pickle.dumps(worker.check_constraints(np.array(x))))  # back over a pipe
+    assert sent.kept and run_problem.checks.records == {}
+    solves = []
+    real = cf.kinks.refined_check
+    monkeypatch.setattr(
+        cf.kinks, "refined_check", lambda *a, **k: solves.append(1) or real(*a, **k)
+    )
+    evaluator = Evaluator.__new__(Evaluator)  # only its problem is used by the adoption
+    evaluator.problem = run_problem
+    evaluator._adopt_checks(
+        [("jacobian", np.array(x)), ("check", np.array(x))], [HookAnswer(), HookAnswer(sent)]
+    )
+    detail = run_problem.detail(np.array(x))
+    assert solves == []  # served from the worker's record
+    assert detail.info[CHECKED_PEAK] == sent.info[CHECKED_PEAK]
+    other = np.array(x)
+    other[-1] += 0.01  # B, mm: not the checked design
+    run_problem.detail(other)
+    assert solves == [1]
