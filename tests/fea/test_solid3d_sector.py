@@ -230,12 +230,16 @@ def test_sector_or_reason_says_why_the_whole_is_solved(monkeypatch):
 
 @pytest.mark.slow
 def test_sea_spring_design_sector_equals_whole_on_its_periodic_mesh():
-    """The sea-spring example's recorded design (two spiral arms, the kind's own mesh sizes),
-    one prism layer: the sector against the whole part on the same periodic mesh."""
+    """The sea-spring example's NSGA-II design (recorded until session 29; two spiral arms, the
+    kind's own mesh sizes), one prism layer: the sector against the whole part on the same
+    periodic mesh. (The hybrid's design recorded since is checked whole: its optimiser's
+    outline misses its 180 deg turn by 0.85 mm^2 at one hub root, docs/sea_spring.md.)"""
     from flexopt.pipeline.studies.sea_spring import SeaSpringProblem, design_vector
     from flexopt.pipeline.study import load_study
 
-    study = load_study("sea-spring")
+    nsga2 = {"RP": 2, "sweep": 479.8427, "R_pad": 32.0660, "F1": 0.4630, "F2": 0.5173,
+             "W1": 5.1975, "W2": 3.8465, "W3": 4.4704, "W4": 2.8678, "ST": 19.1911}  # fmt: skip
+    study = load_study("sea-spring").with_values({"design": nsga2})
     prob = SeaSpringProblem(study, stage1={})
     x = np.delete(design_vector(study), prob.names.index("ST"))
     _, geom, _, st_mm = prob.solve(x, 1)
