@@ -37,21 +37,21 @@ REL, ABS = 1e-9, 1e-12
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 
-def _same(expected, actual) -> bool:
+def _same(expected, actual, rel: float = REL) -> bool:
     if isinstance(expected, bool) or isinstance(expected, str) or expected is None:
         return expected == actual
     if isinstance(expected, int | float) and isinstance(actual, int | float):
         if math.isnan(expected):
             return math.isnan(actual)
-        return actual == pytest.approx(expected, rel=REL, abs=ABS)
+        return actual == pytest.approx(expected, rel=rel, abs=ABS)
     return expected == actual
 
 
-def _moved(expected: dict, actual: dict, what: str) -> list[str]:
+def _moved(expected: dict, actual: dict, what: str, rel: float = REL) -> list[str]:
     return [
         f"{what}.{key}: {actual.get(key, '(missing)')!r}, golden {value!r}"
         for key, value in expected.items()
-        if key not in actual or not _same(value, actual[key])
+        if key not in actual or not _same(value, actual[key], rel)
     ]
 
 
@@ -97,6 +97,13 @@ def test_the_example_chooses_its_golden_design(golden, tmp_path, monkeypatch, ca
 #: threshold-spring (a 35 s plane-stress check) and constant-force-robust-ga (590 scatter samples).
 GOLDEN_EVALUATE = sorted((Path(__file__).resolve().parent / "golden" / "evaluate").glob("*.json"))
 
+#: examples whose evaluate golden holds a 3D check's figures: its golden was made with the
+#: ``cholmod`` extra (a direct factorisation; the test extra brings cvxopt, so CI solves it so
+#: too), while an install without cvxopt solves the same model by multigrid-preconditioned CG,
+#: whose answers agree to 6.1e-9 relative (session 29, measured on sea-spring:
+#: docs/sea_spring.md): 1e-9 would fail there on the solver, not on a change
+REL_BY_EXAMPLE = {"sea-spring": 1e-7}
+
 
 def test_there_are_golden_evaluate_files():
     # Guards the test below: an empty folder would make it pass without running anything.
@@ -120,13 +127,14 @@ def test_the_example_evaluates_to_its_golden_answer(golden, tmp_path, monkeypatc
     assert code == 0, err[-2000:]  # evaluate reports NOT MET (cantilever-stop's, by design)
     rows = {row["name"]: row for row in verdict.get("requirements", [])}
     assert set(rows) == {row["name"] for row in expected["requirements"]}
+    rel = REL_BY_EXAMPLE.get(expected["example"], REL)
     moved = []
     for want in expected["requirements"]:
         got = rows[want["name"]]
         moved += [
             f"{want['name']}.{key}: {got.get(key)!r}, golden {want[key]!r}"
             for key in ("quantity", "verdict", "value", "model")
-            if not _same(want[key], got.get(key))
+            if not _same(want[key], got.get(key), rel)
         ]
-    moved += _moved(expected["summary"], record["summary"], "summary")
+    moved += _moved(expected["summary"], record["summary"], "summary", rel)
     assert not moved, f"{golden.stem}: another answer:\n" + "\n".join(moved)
