@@ -263,8 +263,14 @@ def _judged_fibres(
         if flare.root_mm[e] > 0:
             factor[near] = flare.kt[e]
             d_factor[near] = flare.d_kt[e]
-    d_out = d_fibre * factor[None, :, None, None] + fibre[..., None] * d_factor[None, :, None, :]
-    return fibre * factor[None, :, None], d_out
+    # only the flares' points change (elsewhere Kt = 1, dKt = 0): those written over d_fibre, a
+    # new array (k, S, 2, 23), in place of two more of its size
+    at = np.flatnonzero((factor != 1.0) | np.any(d_factor != 0.0, axis=1))
+    d_fibre[:, at] = (
+        d_fibre[:, at] * factor[None, at, None, None]
+        + fibre[:, at, :, None] * d_factor[None, at, None, :]
+    )
+    return fibre * factor[None, :, None], d_fibre
 
 
 #: the stress pieces handed to the gradient stage: (row, element) maxima within this fraction of
