@@ -490,23 +490,25 @@ def _perturbed_tables(
         np.clip(np.searchsorted(s_pts, mid, side="right") - 1, 0, profile.n_points - 2) != seg
     ):
         return None
-    h = np.diff(s_vert)
+    # from here on every formula is element by element: evaluated at ``els`` only (the same
+    # operations on the same numbers as over the whole mesh and then taking ``els``)
+    h = np.diff(s_vert)[els]
+    start = s_vert[els]  # s_vert[:-1][els]
+    seg_el = seg_of_el[els]
     xg, wg = gauss_rule()
     _, dng = reference_tables(tuple(xg))
     dN = dng[None, :, :] / h[:, None, None]
     w = wg[None, :] * h[:, None]
-    s_gauss = s_vert[:-1, None] + xg[None, :] * h[:, None]
+    s_gauss = start[:, None] + xg[None, :] * h[:, None]
     kappa_seg = profile.curvature_per_mm
-    theta0 = theta_seg[seg_of_el, None] + kappa_seg[seg_of_el, None] * (
-        s_gauss - s_pts[seg_of_el, None]
-    )
+    theta0 = theta_seg[seg_el, None] + kappa_seg[seg_el, None] * (s_gauss - s_pts[seg_el, None])
     b = profile.width_mm
     t_g = np.interp(s_gauss, s_pts, profile.thickness_mm)
     E, G = material.E_MPa, material.G_MPa
     xs = np.array([0.0, 0.5, 1.0])
     _, dns = reference_tables(tuple(xs))
     dNs = dns[None, :, :] / h[:, None, None]
-    s_samp = s_vert[:-1, None] + xs[None, :] * h[:, None]
+    s_samp = start[:, None] + xs[None, :] * h[:, None]
     t_s = np.interp(s_samp, s_pts, profile.thickness_mm)
     EI_s = E * b * t_s**3 / 12.0
     Z_s = b * t_s**2 / 6.0
@@ -515,17 +517,17 @@ def _perturbed_tables(
     s_nodes[1::2] = 0.5 * (s_vert[:-1] + s_vert[1:])
     nodes = 2 * els[:, None] + np.arange(3)
     return {
-        "dN": dN[els],
-        "w": w[els],
-        "theta0": theta0[els],
-        "cos_theta0": np.cos(theta0)[els],
-        "sin_theta0": np.sin(theta0)[els],
-        "EA": (E * b * t_g)[els],
-        "kGA": (settings.shear_factor * G * b * t_g)[els],
-        "EI": (E * b * t_g**3 / 12.0)[els],
-        "dN_samples": dNs[els],
-        "ratio": (EI_s / Z_s)[els],
-        "xref": _centreline_at(profile, s_pts, theta_seg, s_nodes)[nodes],
+        "dN": dN,
+        "w": w,
+        "theta0": theta0,
+        "cos_theta0": np.cos(theta0),
+        "sin_theta0": np.sin(theta0),
+        "EA": E * b * t_g,
+        "kGA": settings.shear_factor * G * b * t_g,
+        "EI": E * b * t_g**3 / 12.0,
+        "dN_samples": dNs,
+        "ratio": EI_s / Z_s,
+        "xref": _centreline_at(profile, s_pts, theta_seg, s_nodes[nodes]),
     }
 
 
@@ -1072,8 +1074,10 @@ def _batched_rows(
         )
         col += nc
 
-    # one back-substitution per variable with each row's factorised tangent
-    rhs = -dR
+    # one back-substitution per variable with each row's factorised tangent; dR negated in
+    # place as the right-hand sides (K x n x n_var: a copy is ~1 ms), its held rows kept first
+    dR_held = dR[:, fixed]  # (K, len(fixed), n_var), for the reactions below
+    rhs = np.negative(dR, out=dR)
     rhs[:, fixed] = 0.0
     if compiled:
         from flexopt.fea._sensitivity_kernels import pbtrs_many
@@ -1086,9 +1090,9 @@ def _batched_rows(
     counts["back_substitutions"] += n_var * k_rows
     # reactions of the held DOFs: rows ``fixed`` of each full tangent times dq
     dr = np.zeros((k_rows, n, n_var))
-    for c in fixed:
+    for i, c in enumerate(fixed):
         j = np.arange(max(0, c - _KD), min(n, c + _KD + 1))
-        dr[:, c] = dR[:, c] + np.einsum("kj,kjv->kv", abs_[:, 2 * _KD + c - j, j], dq[:, j])
+        dr[:, c] = dR_held[:, i] + np.einsum("kj,kjv->kv", abs_[:, 2 * _KD + c - j, j], dq[:, j])
 
     rows = done
     for key, vals, ders in (
@@ -1102,7 +1106,7 @@ def _batched_rows(
         values[key][rows] = vals
         derivs[key][rows] = ders
 
-    du = dq.copy()  # generalised -> physical end translations
+    du = dq  # generalised -> physical end translations, in place (dq is not read again)
     du[:, n - 3 : n - 1] = np.einsum("ij,kiv->kjv", frame, dq[:, n - 3 : n - 1])
     if stress == "statics" and compiled:
         fib = np.empty((k_rows, 3 * n_el, 2))

@@ -31,6 +31,7 @@ Units: mm, N, N·mm, rad, MPa.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
@@ -68,6 +69,7 @@ __all__ = [
     "beam_profile",
     "outline",
     "filleted_beam",
+    "flared_ends",
     "min_feature_mm",
     "BLEND_CHORDS",
     "MIN_BLEND_MM",
@@ -372,9 +374,19 @@ def reference_points(
 
     Returns
     -------
-    (6, 2) float, mm
+    (6, 2) float, mm (a new array: the caller may write to it)
     """
-    L = float(flexure_length_mm)
+    return _reference_points(prb_params, float(flexure_length_mm), end_flexures).copy()
+
+
+@functools.lru_cache(maxsize=32)
+def _reference_points(
+    prb_params: PRBParams, flexure_length_mm: float, end_flexures: str
+) -> np.ndarray:
+    """:func:`reference_points`, kept per (frame, length, layout): a study asks for the same six
+    points at every design (each evaluation, and ~50 times per exact Jacobian through the flared
+    profile's map), and they depend on the frame alone. Same formulas, so the same numbers."""
+    L = flexure_length_mm
     if not L > 0:
         raise GeometryError(f"flexure_length_mm = {L:g} must be > 0")
     if end_flexures not in ("centred", "outboard"):
@@ -400,7 +412,9 @@ def reference_points(
     else:
         ground = (o - L * u1, o)
         slider = (c, c + L * u2)
-    return np.array([*ground, a_pin - h * u1, a_pin + h * u2, *slider])
+    out = np.array([*ground, a_pin - h * u1, a_pin + h * u2, *slider])
+    out.setflags(write=False)  # the cached copy: reference_points hands out copies of it
+    return out
 
 
 def design_points(
@@ -595,17 +609,34 @@ def filleted_beam(
     pts = centreline_points(design, prb_params, end_flexures)
     t = design.vertex_thickness_mm.copy()
     length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
-    ends = []
+    ends, radii = [], []
     for t_end in (design.T1, design.T6):  # S1, then S6 with the beam walked backwards
         shoulder = 0.5 * (pad_thickness_mm - t_end)
         r = min(pad_fillet_mm, shoulder, 0.25 * length)
+        radii.append(r)
         if r > 1e-6:
             ends.append(EndJunction(0.0, r, shoulder_kt(t_end + 2.0 * shoulder, t_end, r), r))
-            pts, t = _flare_along(pts, t, r)
         else:
             ends.append(EndJunction())
-        pts, t = pts[::-1], t[::-1]
+    pts, t = flared_ends(pts, t, radii[0], radii[1])
     return AsMadeBeam(BeamShape("beam", pts, t), ends[0], ends[1])
+
+
+def flared_ends(
+    points: np.ndarray, thickness: np.ndarray, start_mm: float, end_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The centreline ``points`` (n, 2) mm with vertex thicknesses ``thickness`` (n,) mm flared
+    into fillets of radius ``start_mm`` at its start and ``end_mm`` at its end (an end with a
+    radius <= 1e-6 mm is left sharp), as :func:`filleted_beam` draws them: (m, 2) points and
+    (m,) thickness, mm, start first. Public so that the flared profile's derivatives
+    (pipeline/studies/_constant_force_flare_map.py) can redraw it at perturbed thicknesses with
+    the radii held, by the same arithmetic."""
+    pts, t = points, thickness
+    for r in (start_mm, end_mm):  # S1, then S6 with the beam walked backwards
+        if r > 1e-6:
+            pts, t = _flare_along(pts, t, r)
+        pts, t = pts[::-1], t[::-1]
+    return pts, t
 
 
 def outline(

@@ -12,7 +12,12 @@ Two links:
   taken by central differences of the map itself, :data:`GEOMETRY_STEP` of each variable's span,
   truncation ~step^2 (1e-14) and round-off ~1e-16 / step (1e-9) relative; where the perturbed
   maps do not have the design's point count (an arc point crossing a vertex's 0.02 mm gap) the
-  answer is None and the optimiser takes finite differences of the study instead.
+  answer is None and the optimiser takes finite differences of the study instead. Only a1..a10,
+  T1 and T6 go through the whole generator (they move points or a radius); t1..t10 are redrawn
+  by :func:`geometry.constant_force.flared_ends` on the design's centreline and radii, and B's
+  columns are zero: the same numbers bit for bit, 20 of the 47 generator calls instead of 47
+  (tests/pipeline/test_constant_force_fillet_gradient.py checks every column against the
+  generator's own central differences).
 * **Kt of each shoulder** (:func:`geometry.mechanism.shoulder_kt`, the Roark / Peterson fit):
   analytic, :func:`shoulder_kt_partials`, with ``D`` the pad thickness, ``d`` the beam's end
   thickness (T1 or T6) and ``r = min(pad_fillet_mm, (D - d) / 2, L / 4)``.
@@ -30,6 +35,7 @@ from flexopt.geometry.constant_force import (
     centreline_points,
     design_from_vector,
     filleted_beam,
+    flared_ends,
 )
 from flexopt.geometry.constant_force_map import profile_derivatives
 from flexopt.geometry.errors import GeometryError
@@ -147,8 +153,26 @@ def flare_derivatives(problem: Any, x: np.ndarray) -> FlareDerivatives | None:
     points = np.zeros((n, n_pts, 2))
     thickness = np.zeros((n, n_pts))
     scale = np.where(np.arange(n) < 10, 1.0, np.abs(x))  # a1..a10 are fractions
+    # t1..t10 move neither a point nor a fillet's radius (r depends on T1, T6 and the length):
+    # their perturbed maps are the design's centreline and radii with one vertex thickness
+    # changed, redrawn by flared_ends alone (the same arithmetic as filleted_beam, so the same
+    # numbers, without building a design and its centreline 20 times); their point columns are
+    # the difference of two identical arrays, zero. B changes nothing here: its columns are zero.
+    centre = centreline_points(design_from_vector(x), problem.frame, g.end_flexures)
+    vertex_t = np.concatenate([[x[20]], x[10:20], [x[21]]])  # T1, t1..t10, T6
+    radii = (made.start.root_mm, made.end.root_mm)
     for k in range(n):
+        if DESIGN_VARIABLE_NAMES[k] == "B":
+            continue
         h = GEOMETRY_STEP * scale[k]
+        if 10 <= k < 20:
+            maps = []
+            for sign in (1.0, -1.0):
+                t_k = vertex_t.copy()
+                t_k[k - 9] = x[k] + sign * h  # x + sign h e_k, as design_from_vector reads it
+                maps.append(flared_ends(centre, t_k, *radii))
+            thickness[k] = (maps[0][1] - maps[1][1]) / (2.0 * h)
+            continue
         try:
             plus, minus = (_flared(problem, x + sign * h * np.eye(n)[k]) for sign in (1.0, -1.0))
         except GeometryError:

@@ -63,6 +63,7 @@ from flexopt.optimise.curve_objectives import (
 )
 from flexopt.optimise.design_jacobian import DesignJacobian
 from flexopt.pipeline.studies import _constant_force_fillet as pads
+from flexopt.pipeline.studies import _constant_force_solved
 from flexopt.pipeline.studies._constant_force_flare_map import flare_derivatives
 
 __all__ = ["interpolation_matrix", "jacobian", "study_sensitivities"]
@@ -110,17 +111,24 @@ def study_sensitivities(
     study = problem.study
     x = np.asarray(x, dtype=float)
     fillet = study.geometry.pad_fillet_mm > 0
+    # the path this process just solved at x (the trial design the stage accepted), when the
+    # builders are the problem's own (_constant_force_solved: the same model and response)
+    own = _builds(problem, beam, "_beam") and _builds(problem, drive, "_drive")
+    kept = _constant_force_solved.kept(problem, x) if own else None
     try:
-        design = design_from_vector(x)
-        model = beam(design)
         path = drive(study.boundary.stroke_mm, study.boundary.rows)
-        solved_path = model.solve(path)
-        # the study's stress: from statics (fea/beam_statics.py), with fillets the larger of it
-        # and Kt x the stress over each flare; the rows are picked by it
-        if fillet:
-            response = pads.with_root_stress(problem, design, model, solved_path)
+        if kept is not None:
+            design, model, response = kept
         else:
-            response = with_statics_stress(model, solved_path, np.asarray(path.direction))
+            design = design_from_vector(x)
+            model = beam(design)
+            solved_path = model.solve(path)
+            # the study's stress: from statics (fea/beam_statics.py), with fillets the larger of
+            # it and Kt x the stress over each flare; the rows are picked by it
+            if fillet:
+                response = pads.with_root_stress(problem, design, model, solved_path)
+            else:
+                response = with_statics_stress(model, solved_path, np.asarray(path.direction))
     except (GeometryError, FeaError):
         return None
     if not response.ok:
@@ -224,6 +232,13 @@ def study_sensitivities(
     }
 
 
+def _builds(problem: Any, builder: Callable[..., Any], name: str) -> bool:
+    """``builder`` is ``problem``'s own method ``name`` (bound to it or to a copy of it): what
+    :meth:`ConstantForceProblem._solve` built the kept solves with."""
+    func = getattr(builder, "__func__", None)
+    return func is not None and func is getattr(type(problem), name, None)
+
+
 def _judged_fibres(
     sens: Any, chain: np.ndarray, rows: np.ndarray, flare: Any, length_mm: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -248,8 +263,14 @@ def _judged_fibres(
         if flare.root_mm[e] > 0:
             factor[near] = flare.kt[e]
             d_factor[near] = flare.d_kt[e]
-    d_out = d_fibre * factor[None, :, None, None] + fibre[..., None] * d_factor[None, :, None, :]
-    return fibre * factor[None, :, None], d_out
+    # only the flares' points change (elsewhere Kt = 1, dKt = 0): those written over d_fibre, a
+    # new array (k, S, 2, 23), in place of two more of its size
+    at = np.flatnonzero((factor != 1.0) | np.any(d_factor != 0.0, axis=1))
+    d_fibre[:, at] = (
+        d_fibre[:, at] * factor[None, at, None, None]
+        + fibre[:, at, :, None] * d_factor[None, at, None, :]
+    )
+    return fibre * factor[None, :, None], d_fibre
 
 
 #: the stress pieces handed to the gradient stage: (row, element) maxima within this fraction of

@@ -65,7 +65,7 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem, DesignResult
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.fields import constant_force_fields
-from flexopt.pipeline.studies import StudyKind, _builtin, register
+from flexopt.pipeline.studies import StudyKind, _builtin, _constant_force_solved, register
 from flexopt.pipeline.studies import _constant_force_fillet as pads  # geometry.pad_fillet_mm
 from flexopt.pipeline.studies import _constant_force_kinks as kinks  # the refined peak
 from flexopt.pipeline.studies._constant_force_band import band_names, band_rows
@@ -283,7 +283,7 @@ class ConstantForceProblem(DesignProblem):
             return design, None, f"cannot build: {exc}"
         if not response.ok:
             return design, response, f"did not converge: {response.message}"
-        return design, response, ""
+        return _constant_force_solved.keep(self, x, design, beam, response)  # for a Jacobian at x
 
     def _metrics(self, design: ConstantForceDesign, response: BeamResponse) -> CurveMetrics:
         t = self.study.target

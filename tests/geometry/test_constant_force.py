@@ -331,3 +331,16 @@ def test_table3_beam_gives_a_flat_post_buckling_force_in_the_beam_solver(steps):
     u = (s[5] - s[0]) / np.linalg.norm(s[5] - s[0])
     side = (r.shapes_mm[1:] - s[0]) @ np.array([-u[1], u[0]])
     assert side.min() > -1e-6  # bows to the side the PRB crank pin moves to
+
+
+def test_reference_points_are_kept_per_frame_and_handed_out_as_copies():
+    from flexopt.geometry.constant_force import TABLE1, reference_points
+
+    first = reference_points(TABLE1)
+    first[:] = 0.0  # the caller's own array: the kept one is untouched
+    again = reference_points(TABLE1)
+    assert again.flags.writeable and np.all(np.isfinite(again)) and np.any(again != 0.0)
+    assert again is not reference_points(TABLE1)
+    np.testing.assert_array_equal(
+        reference_points(TABLE1, end_flexures="outboard")[2:4], again[2:4]
+    )

@@ -181,3 +181,39 @@ def test_kt_x_root_as_the_peak_matches_differences_of_the_stress_constraint():
         1e-4,
         step=5e-4,
     )
+
+
+@pytest.mark.parametrize("fillet_mm", [0.5, 1.4])
+def test_flared_profile_derivatives_are_the_generators_central_differences_bit_for_bit(
+    fillet_mm,
+):
+    """The map's columns for t1..t10 (redrawn by ``flared_ends`` with the design's centreline
+    and radii) and B (zero, not drawn) are exactly what central differences through the whole
+    generator give, as every column was taken before: the Jacobian, and so the designs the
+    gradient stage visits, do not move by a bit. 1.4 mm: the S1 fillet is capped by its
+    shoulder ((4 - T1) / 2), so T1 moves the radius too."""
+    from flexopt.geometry.constant_force import filleted_beam
+    from flexopt.pipeline.studies._constant_force_flare_map import GEOMETRY_STEP
+
+    prob = _problem(pad_fillet_mm=fillet_mm)
+    g = prob.study.geometry
+    x = prob.nominal_design()
+    x[NAMES.index("T1")] = 1.3  # shoulder 1.35 mm: below the 1.4 mm fillet
+    flare = flare_derivatives(prob, x)
+    assert flare is not None
+
+    def made(v):
+        return filleted_beam(
+            design_from_vector(v), prob.frame, g.pad_thickness_mm, g.end_flexures, g.pad_fillet_mm
+        ).shape
+
+    n = len(x)
+    for k in range(n):
+        h = GEOMETRY_STEP * (1.0 if k < 10 else abs(x[k]))
+        plus, minus = made(x + h * np.eye(n)[k]), made(x - h * np.eye(n)[k])
+        pts = (plus.points_mm - minus.points_mm) / (2.0 * h)
+        thick = (plus.thickness_mm - minus.thickness_mm) / (2.0 * h)
+        np.testing.assert_array_equal(flare.points[k], pts, err_msg=NAMES[k])
+        np.testing.assert_array_equal(flare.thickness[k], thick, err_msg=NAMES[k])
+    assert np.any(flare.thickness[NAMES.index("t1")] != 0.0)
+    assert (fillet_mm > 1.0) == (flare.root_mm[0] < fillet_mm)  # the capped case is capped

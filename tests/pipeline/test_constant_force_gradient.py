@@ -449,3 +449,49 @@ def test_a_quick_hybrid_run_takes_exact_jacobians(tmp_path):
     outcome = run_study(setup, out=tmp_path / "run", parallel=ParallelSettings("serial"))
     jacobians = outcome.result.report["jacobians"]
     assert jacobians["exact"] >= 1 and jacobians["finite_differences"] == 0, jacobians
+
+
+def _jacobian_arrays(jac):
+    return [jac.f, jac.g, jac.residuals, *jac.values.values(), jac.info["peak_stress_gradient"]]
+
+
+@pytest.mark.parametrize("fillet_mm", [0.0, 0.5])
+def test_a_jacobian_at_a_design_this_process_just_solved_starts_from_that_solve(fillet_mm):
+    """The hybrid asks for the Jacobian at the design it just evaluated: the path kept by
+    ``_solve`` (pipeline/studies/_constant_force_solved.py) is reused, the same model and
+    response, so the Jacobian is the same bit for bit as with the path solved again; a problem
+    of another class (its own beam) or another study never reads another's kept path."""
+    from flexopt.pipeline.studies import _constant_force_solved as kept
+
+    study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
+    geometry = study.geometry.model_copy(update={"pad_fillet_mm": fillet_mm})
+    prob = ConstantForceProblem(study.model_copy(update={"geometry": geometry}))
+    x = prob.nominal_design()
+    kept.clear()
+    fresh = prob.jacobian(x)
+    assert kept.kept(prob, x) is None  # the Jacobian keeps nothing itself
+    assert np.all(np.isfinite(prob.evaluate(x).f))  # evaluated: its solve is kept
+    design, model, response = kept.kept(prob, x)
+    assert response.ok and np.array_equal(design.a, x[:10])
+    assert kept.kept(prob.with_residuals(), x) is not None  # a copy: the same study and beam
+    assert kept.kept(TightProblem(prob.study), x) is None  # another beam builder
+    other = ConstantForceProblem(prob.study.model_copy())
+    assert kept.kept(other, x) is None  # another study object
+    assert kept.kept(prob, x + 1e-12) is None  # the exact design only
+    reused = prob.jacobian(x)
+    for a, b in zip(_jacobian_arrays(fresh), _jacobian_arrays(reused), strict=True):
+        np.testing.assert_array_equal(a, b)
+    # reused, not solved again: no solve of the beam in the second Jacobian
+    calls = []
+    solve = BeamModel.solve
+    BeamModel.solve = lambda self, *a, **k: calls.append(1) or solve(self, *a, **k)
+    try:
+        prob.jacobian(x)
+        kept.clear()
+        prob.jacobian(x)
+    finally:
+        BeamModel.solve = solve
+    assert len(calls) == 1  # only the Jacobian with nothing kept solved
+    for k in range(1, kept.KEEP + 1):  # KEEP newer solves: x, the oldest, is forgotten
+        assert np.all(np.isfinite(prob.evaluate(x + k * 1e-6).f))
+    assert kept.kept(prob, x) is None
