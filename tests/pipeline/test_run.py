@@ -577,6 +577,53 @@ def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monke
     assert record["status"] == "failed" and "No space left" in record["error"]
 
 
+def test_report_files_are_written_on_their_thread_before_the_run_says_finished(
+    tmp_path, monkeypatch
+):
+    """The report's files (best.json, the plots, the part's files, report.html) are written by
+    their writer thread while the run's thread makes the next ones, each whole (write_atomic);
+    every one is on disk before report.md and the finished run.json are written. A report file
+    that cannot be written (a full disk) fails the run with its reason."""
+    import threading
+
+    from flexopt.pipeline.run import runner, state
+
+    writes: list[tuple[str, str]] = []  # (thread, name) as each write ended; report.md: began
+    real = state.write_atomic
+
+    def recording(path, data):
+        name = Path(path).name
+        if name == "report.md":
+            writes.append((threading.current_thread().name, name))
+        real(path, data)
+        if name != "report.md":
+            writes.append((threading.current_thread().name, name))
+
+    monkeypatch.setattr(state, "write_atomic", recording)
+    monkeypatch.setattr(runner, "write_atomic", recording)
+    outcome = run_toy(tmp_path)
+    report = [name for thread, name in writes if thread.startswith("flexopt-report-writes")]
+    assert {"best.json", "report.html", "convergence.png"} <= set(report)
+    steps = [name for name in report if name.startswith("best_0")]  # best_steps/best_KKK.vtu
+    assert set(report) - set(steps) <= set(outcome.record["files"])
+    assert len(steps) == outcome.record.get("file_counts", {}).get("best_steps/", len(steps))
+    done = writes.index((threading.current_thread().name, "report.md"))
+    assert all(i < done for i, (t, _) in enumerate(writes) if t.startswith("flexopt-report"))
+    assert all((outcome.run_dir / name).is_file() for name in set(report) - set(steps))
+    assert json.loads((outcome.run_dir / "run.json").read_text())["status"] == "finished"
+
+    def failing(path, data):
+        if Path(path).name == "convergence.png":
+            raise OSError(28, "No space left on device")
+        real(path, data)
+
+    monkeypatch.setattr(state, "write_atomic", failing)
+    with pytest.raises(OSError, match="No space left"):
+        run_toy(tmp_path, name="full")
+    record = json.loads((tmp_path / "full" / "run.json").read_text())
+    assert record["status"] == "failed" and "No space left" in record["error"]
+
+
 def test_report_files_are_made_in_a_forked_child_and_its_failures_are_notes(monkeypatch):
     """ForkedMakes: the files come from another process, in order; a failing make is that
     file's note; a child that dies is a note for each of its files, not a crash of the run;
