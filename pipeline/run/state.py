@@ -401,11 +401,12 @@ class RunState:
         """Write one file of the report (atomically, fsynced: :func:`write_atomic`) on the
         writer thread, in the order queued, while this thread goes on.
 
-        A constant-force run's report writes ~75 files (best_steps/ holds one VTU per load
+        A constant-force run's report writes 78 files (best_steps/ holds one VTU per load
         step), each with its fsync (~5 ms a file on the development machine's disk, more where
         other processes write): one after another in this thread they were ~0.4 s of the
-        report's critical path; now they overlap the making of the next files and report.html. :meth:`finish` waits for them
-        (:meth:`drain_report_writes`) before the run's report.md and run.json say it finished.
+        report's critical path; now they overlap the making of the next files and report.html.
+        :meth:`finish` waits for them (:meth:`drain_report_writes`) before the run's report.md
+        and run.json say it finished.
         """
         if self._report_writer is None:
             self._report_writer = ThreadPoolExecutor(1, thread_name_prefix="flexopt-report-writes")
