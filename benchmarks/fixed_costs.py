@@ -2,11 +2,12 @@
 report's files (issue 27 item 4).
 
     nice python benchmarks/fixed_costs.py [--study constant-force] [--repeat 3]
-        [--parts startup evaluate run] [--workers N] [--quick] [--timed-only]
+        [--parts startup evaluate run timeline] [--workers N] [--quick] [--timed-only]
         [--ab OTHER_PYTHON]
 
 Three parts, each repeated ``--repeat`` times in fresh processes (medians printed, with the
-load average before and after each part, since the machine is shared):
+load average before and after each part, since the machine is shared), and a fourth,
+``timeline``, run once:
 
 ``startup``
     ``python -c pass``, ``python -c "import flexopt.pipeline.cli"`` and ``flexopt --version``
@@ -24,6 +25,15 @@ load average before and after each part, since the machine is shared):
     run in a forked child (the plots, best.step) are recorded by that child (their wall overlaps
     the main process's). The numba kernels' first call (cache load) is timed on its own: the
     study's nominal design evaluated twice in a fresh process after ``load_study``.
+
+``timeline``
+    ``flexopt run STUDY`` once in a child with every design and hook call (a Jacobian, a
+    check) timed where it runs (a worker: wall and CPU), each batch the optimiser hands the
+    pool, and the report's preload thread (when it ran, its CPU). Per stage (the GA's
+    generations, the hybrid's gradient batches): the designs' and calls' CPU, the shortest
+    time two workers could solve each batch in (the batch's items dealt largest first to the
+    less loaded worker, its CPU as their time) and the core-seconds that schedule leaves idle:
+    where a thread of the run process can work without taking a core from a worker.
 
 ``--ab OTHER_PYTHON``
     Instead of the breakdown: the plain commands with another install's ``flexopt`` (A, e.g.
@@ -142,6 +152,11 @@ class _Recorder:
         line = json.dumps({"label": label, "wall": wall, "cpu": cpu, "where": where}) + "\n"
         os.write(self.fd, line.encode())
 
+    def add_span(self, label: str, t0: float, t1: float, cpu: float) -> None:
+        """One timed span: from ``t0`` to ``t1`` (perf_counter, s) and its thread's CPU (s)."""
+        row = {"label": label, "t0": t0, "t1": t1, "cpu": cpu, "pid": os.getpid()}
+        os.write(self.fd, (json.dumps(row) + "\n").encode())
+
 
 def _wrap(func: Any, label: str, rec: _Recorder) -> Any:
     import functools
@@ -259,8 +274,100 @@ def _numba_first_call(study_name: str, rec: _Recorder) -> None:
     )
 
 
+def _install_timeline(rec: _Recorder) -> None:
+    """Every design and hook call where it runs (``item``: wall from, wall to, CPU of the
+    thread; a forked worker records its own), every batch the evaluator hands the backend
+    (``batch``) and the report's preload thread (``preload``: when it started and ended, the
+    thread's CPU). Times are ``time.perf_counter`` (CLOCK_MONOTONIC: one clock for every
+    process on the machine)."""
+    import threading
+
+    from flexopt.pipeline import parallel
+    from flexopt.pipeline.run import evaluator, runner
+
+    def spans(func: Any, label: str) -> Any:
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            t0, c0 = time.perf_counter(), time.thread_time()
+            try:
+                return func(*args, **kwargs)
+            finally:
+                rec.add_span(label, t0, time.perf_counter(), time.thread_time() - c0)
+
+        return timed
+
+    parallel.evaluate_one = spans(parallel.evaluate_one, "design")
+    parallel.call_hook = spans(parallel.call_hook, "call")
+    evaluator.Evaluator.map_calls = spans(evaluator.Evaluator.map_calls, "batch")
+    preload_report = getattr(runner, "_preload_report", None)
+    if preload_report is None:
+        return
+
+    def preload(*args: Any, **kwargs: Any) -> Any:
+        made = preload_report(*args, **kwargs)
+        thread = getattr(made, "thread", made)  # a ReportPreload, or (older) the thread
+        if thread is None:
+            return made
+
+        def watch() -> None:  # the thread's CPU clock, read until it ends
+            while thread.ident is None:
+                time.sleep(0.002)
+            t0, cpu = time.perf_counter(), 0.0
+            clock = time.pthread_getcpuclockid(thread.ident)
+            while thread.is_alive():
+                with contextlib.suppress(OSError):
+                    cpu = time.clock_gettime(clock)
+                time.sleep(0.002)
+            rec.add_span("preload", t0, time.perf_counter(), cpu)
+
+        threading.Thread(target=watch, daemon=True).start()
+        return made
+
+    runner._preload_report = preload
+
+
+def _timeline_table(rows: list[dict[str, Any]]) -> None:
+    """Per stage: batches, items, their CPU, the two-worker schedule's time and idle share."""
+    batches = sorted((r for r in rows if r["label"] == "batch"), key=lambda r: r["t0"])
+    items = [r for r in rows if r["label"] in ("design", "call")]
+    t_first = batches[0]["t0"] if batches else 0.0
+    stages: dict[str, list[float]] = {}
+    for batch in batches:
+        inside = [r for r in items if batch["t0"] <= r["t0"] and r["t1"] <= batch["t1"] + 1e-3]
+        n_designs = sum(r["label"] == "design" for r in inside)
+        # the GA's generations are batches of designs only, the first the largest; a gradient
+        # batch asks for a few designs, or hook calls
+        stage = "GA" if n_designs == len(inside) and n_designs >= 8 else "gradient"
+        loads = [0.0, 0.0]
+        for cpu in sorted((r["cpu"] for r in inside), reverse=True):
+            loads[loads.index(min(loads))] += cpu
+        s = stages.setdefault(stage, [0, 0, 0, 0.0, 0.0, 0.0, 0.0])
+        s[0] += 1
+        s[1] += n_designs
+        s[2] += len(inside) - n_designs
+        s[3] += sum(loads)
+        s[4] += max(loads)
+        s[5] += 2 * max(loads) - sum(loads)
+        s[6] += batch["t1"] - batch["t0"]
+    print("  batches by stage (CPU s of the items; 2-worker schedule: items largest first)")
+    print(
+        f"    {'stage':9s} {'batches':>7s} {'designs':>7s} {'calls':>5s} {'CPU s':>7s} "
+        f"{'2-worker s':>10s} {'idle core-s':>11s} {'wall s':>7s}"
+    )
+    for stage, (nb, nd, nc, cpu, span, idle, wall) in stages.items():
+        print(
+            f"    {stage:9s} {nb:7d} {nd:7d} {nc:5d} {cpu:7.3f} {span:10.3f} {idle:11.3f} "
+            f"{wall:7.3f}"
+        )
+    for r in rows:
+        if r["label"] == "preload":
+            print(
+                f"  report preload thread: {r['cpu']:.3f} s CPU, from {r['t0'] - t_first:.2f} s "
+                f"to {r['t1'] - t_first:.2f} s after the first batch began"
+            )
+
+
 def child(argv: list[str]) -> None:
-    """``--child RECORD numba|evaluate|run STUDY OUT [--workers N]``."""
+    """``--child RECORD numba|evaluate|run|timeline STUDY OUT [--workers N]``."""
     record, what, study, out, *more = argv
     rec = _Recorder(record)
     t0, c0 = time.perf_counter(), time.process_time()
@@ -270,6 +377,10 @@ def child(argv: list[str]) -> None:
     if what == "numba":
         _numba_first_call(study, rec)
         return
+    if what == "timeline":
+        _install_timeline(rec)
+        code = cli.main(["run", study, "--out", out, "--quiet", *more])
+        raise SystemExit(code)
     import importlib
 
     import yaml
@@ -425,6 +536,24 @@ def part_command(
     print(f"  load after: {_load()}")
 
 
+def part_timeline(study: str, workers: int | None) -> None:
+    """``flexopt run STUDY`` once with every design, hook call and batch timed (see the module
+    docstring): where the workers idle, stage by stage."""
+    more = ["--workers", str(workers)] if workers is not None else []
+    print(f"timeline: run {study} {' '.join(more)} (load {_load()})")
+    with tempfile.TemporaryDirectory(prefix="fixed-costs-") as tmp:
+        record = Path(tmp) / "record-timeline.jsonl"
+        cmd = [sys.executable, __file__, "--child", str(record), "timeline", study]
+        t0 = time.perf_counter()
+        done = subprocess.run([*cmd, str(Path(tmp) / "run"), *more], capture_output=True, text=True)
+        if done.returncode != 0:
+            raise SystemExit(f"{' '.join(cmd)} failed: {done.stderr[-1500:]}")
+        rows = [json.loads(line) for line in record.read_text().splitlines()]
+    print(f"  the run: {time.perf_counter() - t0:.2f} s wall")
+    _timeline_table([r for r in rows if "t0" in r])
+    print(f"  load after: {_load()}")
+
+
 def part_ab(what: str, study: str, repeat: int, other: str, quick: bool = False) -> None:
     """The plain command with this interpreter's flexopt and another's (e.g. main's venv),
     alternating (the order swapped every round): medians of wall and CPU, s."""
@@ -460,7 +589,7 @@ def main() -> None:
         "--parts",
         nargs="+",
         default=["startup", "evaluate", "run"],
-        choices=["startup", "evaluate", "run"],
+        choices=["startup", "evaluate", "run", "timeline"],
     )
     parser.add_argument("--workers", type=int, default=None, help="flexopt run --workers")
     parser.add_argument("--quick", action="store_true", help="flexopt run --quick")
@@ -491,6 +620,8 @@ def main() -> None:
     for what in ("evaluate", "run"):
         if what in args.parts:
             part_command(what, args.study, args.repeat, args.workers, args.timed_only, args.quick)
+    if "timeline" in args.parts:
+        part_timeline(args.study, args.workers)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAConfig, GAResult, run_ga
-from flexopt.optimise.hybrid import run_hybrid
+from flexopt.optimise.hybrid import GradientStep, run_hybrid
 from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict
 from flexopt.pipeline.backends import open_backend
@@ -335,7 +335,19 @@ def _run_in(
     restored = resume.restored if resume is not None else ()
     run = RunState(setup, run_dir, record, on_generation, on_result, backend, store, restored)
     t_start = time.perf_counter()
-    preload = _preload_report(setup.problem, settings)
+    # The report's imports (~1.2 s CPU for constant-force) in a thread of this process. A GA's
+    # generations keep both workers busy to their barriers, so the thread took a core from
+    # them (benchmarks/fixed_costs.py: the hybrid's GA stage of 200 designs ~0.6 s longer);
+    # the hybrid's gradient stage leaves a core idle most of its batches (one or two
+    # Jacobians and designs a batch; a start that ends leaves one live), so a hybrid run starts
+    # the thread after its first gradient batch (on_generation below), a GA run at once.
+    hybrid = setup.hybrid is not None
+    preload = _preload_report(setup.problem, settings, start=not hybrid)
+
+    def generation_done(gen: Any) -> None:
+        run.generation_done(gen)
+        if preload is not None and isinstance(gen, GradientStep):
+            preload.start()
 
     def close(status: str, error: str = "", write: bool = True) -> None:
         wall = time.perf_counter() - t_start
@@ -419,7 +431,7 @@ def _run_in(
                         len(setup.problem.objective_names),
                         len(setup.problem.constraint_names),
                         setup.hybrid,
-                        on_generation=run.generation_done,
+                        on_generation=generation_done,
                         initial=setup.initial,
                         jacobian=setup.problem.jacobian,  # exact derivatives where it has them
                         # its Jacobians and checks on the pool's workers, beside its designs
@@ -493,16 +505,46 @@ def start_early_step() -> EarlyStep | None:
     return None
 
 
-def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
+class ReportPreload:
+    """The report's preload thread (:func:`_preload_report`): started at once, or later by
+    :meth:`start` (a hybrid run starts it when its gradient stage begins, see ``_run_in``).
+
+    Attributes
+    ----------
+    thread : threading.Thread
+        The thread; it runs ``load`` once, when started.
+    """
+
+    def __init__(self, load: Callable[[], None]) -> None:
+        self.thread = threading.Thread(target=load, name="flexopt-preload", daemon=True)
+
+    def start(self) -> None:
+        """Start the thread unless it was started already."""
+        if self.thread.ident is None:
+            self.thread.start()
+
+    def join(self, timeout: float | None = None) -> None:
+        """Wait for the preload: started here first if nothing started it (it then runs while
+        this thread waits, as the report would have loaded it anyway)."""
+        self.start()
+        self.thread.join(timeout)
+
+    def is_alive(self) -> bool:
+        return self.thread.is_alive()
+
+
+def _preload_report(
+    problem: DesignProblem, settings: ParallelSettings, start: bool = True
+) -> ReportPreload | None:
     """Import and load what the report will need, in a thread, while the workers solve.
 
     The report runs in this process after the optimisation, on the run's critical path; what it
-    first has to import and load (matplotlib for the plots, and the problem's
-    ``warm_up_detail``: e.g. the constant-force study's plane-stress kernels, ~1.5 s from numba's
-    cache) is loaded here instead, while this process mostly waits for its workers. Only with
-    worker processes: a serial run solves in this process, where the thread would compete. A
-    failure is only logged: the report then loads what it needs itself. Returns the thread or
-    None.
+    first has to import and load (matplotlib for the plots, ezdxf, trimesh, plotly's classes and
+    the problem's ``warm_up_detail``: ~1.2 s CPU for the constant-force study) is loaded here
+    instead, while this process mostly waits for its workers. Only with worker processes: a
+    serial run solves in this process, where the thread would compete. A failure is only
+    logged: the report then loads what it needs itself. Returns the preload (started unless
+    ``start`` is False: then :meth:`ReportPreload.start` starts it) or None.
     """
     if settings.backend == "serial":
         return None
@@ -530,9 +572,10 @@ def _preload_report(problem: DesignProblem, settings: ParallelSettings) -> Any:
         except Exception as exc:  # the report loads it again, and says what fails
             log.info("preloading the report failed: %s", _one_line(f"{type(exc).__name__}: {exc}"))
 
-    thread = threading.Thread(target=load, name="flexopt-preload", daemon=True)
-    thread.start()
-    return thread
+    preload = ReportPreload(load)
+    if start:
+        preload.start()
+    return preload
 
 
 def _n_workers(settings: ParallelSettings) -> int:

@@ -231,3 +231,41 @@ def test_an_early_step_child_gets_the_runs_priority_back_when_it_is_sent_the_par
         assert os.getpriority(os.PRIO_PROCESS, pid) == ours
     finally:
         early.abort()
+
+
+def test_the_timeline_deals_each_batch_to_two_workers_largest_first(capsys):
+    """benchmarks/fixed_costs.py --parts timeline: a GA batch of designs (CPU 3, 2, 2 s) is
+    dealt 3 | 2 + 2, so two workers need 4 s and leave 1 core-second idle; a gradient batch of
+    one call (CPU 1 s) and one design (0.5 s) needs 1 s and leaves 0.5 idle; the preload
+    thread's CPU and start are printed against the first batch's start."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "fixed_costs.py"
+    spec = importlib.util.spec_from_file_location("fixed_costs_bench", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+
+    def span(label, t0, t1, cpu):
+        return {"label": label, "t0": t0, "t1": t1, "cpu": cpu}
+
+    designs = [span("design", 10.0 + i, 10.5 + i, 0.0) for i in range(8)]  # 8 designs of 0 s
+    rows = [
+        span("batch", 10.0, 20.0, 0.0),
+        span("design", 10.0, 13.0, 3.0),
+        span("design", 10.0, 12.0, 2.0),
+        span("design", 12.0, 14.0, 2.0),
+        *designs,
+        span("batch", 21.0, 22.0, 0.0),
+        span("call", 21.0, 22.0, 1.0),
+        span("design", 21.0, 21.5, 0.5),
+        span("design", 25.0, 26.0, 9.0),  # outside every batch (the report's detail)
+        span("preload", 12.5, 30.0, 1.25),
+    ]
+    bench._timeline_table(rows)
+    lines = capsys.readouterr().out.splitlines()
+    ga = next(line.split() for line in lines if line.strip().startswith("GA"))
+    gradient = next(line.split() for line in lines if line.strip().startswith("gradient"))
+    assert ga[1:] == ["1", "11", "0", "7.000", "4.000", "1.000", "10.000"]
+    assert gradient[1:] == ["1", "1", "1", "1.500", "1.000", "0.500", "1.000"]
+    assert any("1.250 s CPU, from 2.50 s to 20.00 s" in line for line in lines)

@@ -577,6 +577,53 @@ def test_a_failed_generation_write_fails_the_run_with_its_reason(tmp_path, monke
     assert record["status"] == "failed" and "No space left" in record["error"]
 
 
+def test_report_files_are_written_on_their_thread_before_the_run_says_finished(
+    tmp_path, monkeypatch
+):
+    """The report's files (best.json, the plots, the part's files, report.html) are written by
+    their writer thread while the run's thread makes the next ones, each whole (write_atomic);
+    every one is on disk before report.md and the finished run.json are written. A report file
+    that cannot be written (a full disk) fails the run with its reason."""
+    import threading
+
+    from flexopt.pipeline.run import runner, state
+
+    writes: list[tuple[str, str]] = []  # (thread, name) as each write ended; report.md: began
+    real = state.write_atomic
+
+    def recording(path, data):
+        name = Path(path).name
+        if name == "report.md":
+            writes.append((threading.current_thread().name, name))
+        real(path, data)
+        if name != "report.md":
+            writes.append((threading.current_thread().name, name))
+
+    monkeypatch.setattr(state, "write_atomic", recording)
+    monkeypatch.setattr(runner, "write_atomic", recording)
+    outcome = run_toy(tmp_path)
+    report = [name for thread, name in writes if thread.startswith("flexopt-report-writes")]
+    assert {"best.json", "report.html", "convergence.png"} <= set(report)
+    steps = [name for name in report if name.startswith("best_0")]  # best_steps/best_KKK.vtu
+    assert set(report) - set(steps) <= set(outcome.record["files"])
+    assert len(steps) == outcome.record.get("file_counts", {}).get("best_steps/", len(steps))
+    done = writes.index((threading.current_thread().name, "report.md"))
+    assert all(i < done for i, (t, _) in enumerate(writes) if t.startswith("flexopt-report"))
+    assert all((outcome.run_dir / name).is_file() for name in set(report) - set(steps))
+    assert json.loads((outcome.run_dir / "run.json").read_text())["status"] == "finished"
+
+    def failing(path, data):
+        if Path(path).name == "convergence.png":
+            raise OSError(28, "No space left on device")
+        real(path, data)
+
+    monkeypatch.setattr(state, "write_atomic", failing)
+    with pytest.raises(OSError, match="No space left"):
+        run_toy(tmp_path, name="full")
+    record = json.loads((tmp_path / "full" / "run.json").read_text())
+    assert record["status"] == "failed" and "No space left" in record["error"]
+
+
 def test_report_files_are_made_in_a_forked_child_and_its_failures_are_notes(monkeypatch):
     """ForkedMakes: the files come from another process, in order; a failing make is that
     file's note; a child that dies is a note for each of its files, not a crash of the run;
@@ -728,6 +775,70 @@ def test_the_report_is_preloaded_in_a_thread_only_with_worker_processes():
     failing = _preload_report(Failing(), ParallelSettings(backend="processes", workers=2))
     failing.join(60)
     assert not failing.is_alive()
+    # held back (a hybrid run's GA stage): nothing runs until start(), which starts it once;
+    # join() of a preload nobody started runs it (the report then has what it needs)
+    seen.clear()
+    held = _preload_report(Problem(), ParallelSettings(backend="processes", workers=2), False)
+    assert seen == [] and held.thread.ident is None and not held.is_alive()
+    held.start()
+    held.start()
+    held.join(60)
+    assert seen == ["flexopt-preload"]
+    never = _preload_report(Problem(), ParallelSettings(backend="processes", workers=2), False)
+    never.join(60)
+    assert seen == ["flexopt-preload"] * 2 and not never.is_alive()
+
+
+@pytest.mark.parametrize("hybrid", [False, True], ids=["ga", "hybrid"])
+def test_the_report_preload_starts_after_the_ga_stage_of_a_hybrid_run(
+    tmp_path, monkeypatch, hybrid
+):
+    """A GA's generations keep every worker busy, so a hybrid run starts the report's preload
+    thread after its first gradient batch (a core idles in most of that stage's batches); a GA
+    run starts it with the optimisation, as before. Both runs preload before the report."""
+    import flexopt_toys
+    from flexopt.optimise.hybrid import GradientStep
+    from flexopt.pipeline.parallel import ParallelSettings
+    from flexopt.pipeline.run import runner
+    from flexopt.pipeline.run.state import RunState
+
+    batches: list[str] = []  # every generation_done, in order: "ga" or "gradient"
+    events: list[tuple[str, int]] = []  # (what, batches done then)
+    done = RunState.generation_done
+
+    def generation_done(self, gen):
+        batches.append("gradient" if isinstance(gen, GradientStep) else "ga")
+        return done(self, gen)
+
+    start, join = runner.ReportPreload.start, runner.ReportPreload.join
+
+    def started(self):
+        if self.thread.ident is None:
+            events.append(("start", len(batches)))
+        return start(self)
+
+    def joined(self, timeout=None):
+        events.append(("join", len(batches)))
+        return join(self, timeout)
+
+    monkeypatch.setattr(RunState, "generation_done", generation_done)
+    monkeypatch.setattr(runner.ReportPreload, "start", started)
+    monkeypatch.setattr(runner.ReportPreload, "join", joined)
+    raw = flexopt_toys.study()
+    raw["optimiser"] = {"pop_size": 8, "n_gen": 3, "seed": 5}
+    if hybrid:
+        raw["optimiser"].update(method="hybrid", hybrid={"starts": 2, "max_iter": 20})
+    run_study(
+        prepare_run(validate_study(raw)),
+        out=tmp_path / "run",
+        parallel=ParallelSettings("processes", 2),
+    )
+    n_ga = batches.count("ga")
+    assert n_ga == 3 and (batches.count("gradient") > 1) == hybrid
+    # the GA run's preload starts before its first generation; the hybrid's after the GA
+    # stage and its first gradient batch
+    assert events[0] == ("start", n_ga + 1 if hybrid else 0)
+    assert events[1] == ("join", len(batches))
 
 
 def test_the_early_step_child_is_lowered_only_where_it_can_come_back(monkeypatch):
