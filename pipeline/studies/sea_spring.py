@@ -415,6 +415,8 @@ class SeaSpringProblem(DesignProblem):
     def detail(self, x: np.ndarray) -> DesignResult:
         x = np.asarray(x, dtype=float)
         study = self.study
+        # taguchi.png drawn meanwhile by a process of its own (_sea_spring_peak.py)
+        plots = peak.start_taguchi_png(self.stage1, self.topology) if self.stage1 else None
         # One solve serves the evaluation and the curve (the last row is the design point).
         evaluation, solved = self._evaluate(x, study.mesh.curve_steps, keep_model=True)
         info: dict[str, Any] = {
@@ -435,15 +437,8 @@ class SeaSpringProblem(DesignProblem):
         files: dict[str, bytes] = {}
         if self.stage1:
             info["taguchi"] = stage1_summary(self.stage1)
-            if "main_effects" in self.stage1:
-                from flexopt.pipeline.plots import plot_taguchi
-
-                files["taguchi.png"] = plot_taguchi(
-                    self.stage1["main_effects"],
-                    self.stage1["anova"],
-                    title=f"stage 1: {self.stage1['array']} over the {self.topology}'s factors",
-                )
         if solved is None:
+            peak.taguchi_png(plots, {}, self.topology)  # (its process closed)
             info["problem"] = evaluation.reason or "not buildable (see the constraints)"
             return DesignResult(evaluation, info=info)
         p, geom, r, st = solved
@@ -495,6 +490,8 @@ class SeaSpringProblem(DesignProblem):
                 # every curve_step_mm, not the optimiser's facets (on those the peak is higher)
                 part_outline = peak.fine_geometry_of(self, geom.params).outline
         field_map = self._field_map(r)
+        png = peak.taguchi_png(plots, self.stage1, self.topology) if self.stage1 else None
+        files.update({"taguchi.png": png} if png is not None else {})
         plot = {
             "x": "rotation_deg",
             "y": "torque_Nm",
