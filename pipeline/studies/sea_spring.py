@@ -50,6 +50,7 @@ pipeline/studies/_sea_spring_schema.py.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import time
@@ -443,21 +444,24 @@ class SeaSpringProblem(DesignProblem):
             return DesignResult(evaluation, info=info)
         p, geom, r, st = solved
         info["design"] = dict(zip(self.names, map(float, self.full_vector(x, st)), strict=True))
-        # The 3D checks keep this process busy; a second one takes what needs no 3D answer:
-        # the peak convergence and the two 2D solves below (SideProcess).
-        s3, side = study.solid_3d, None
+        # The 3D checks here, the peak convergence (no 3D answer needed) in a second process; it
+        # is the longer work, so the two 2D solves below run here before the wait for it.
+        s3, side, got = study.solid_3d, None, []
         solves = (geom, self.material, self.theta, study.mesh, self.solve_st)
         if s3.check and s3.converge_peak:
             side = SideProcess.start()
             side.submit("peak", peak.peak_job, self, geom.params, worse_direction(r))
-            side.submit("analyses", detail_solves, *solves)
+
+        def meanwhile() -> None:  # an error is raised below, where they are solved again
+            with contextlib.suppress(FeaError, GeometryError):
+                got.append(detail_solves(*solves))
+
         try:
-            solid = self.solid_3d(geom, r, side) if s3.check else None
-            got = side.get("analyses") if side is not None else None
+            solid = self.solid_3d(geom, r, side, meanwhile) if s3.check else None
         finally:
             if side is not None:
                 side.close()
-        check, small = got if got is not None else detail_solves(*solves)
+        check, small = got[0] if got else detail_solves(*solves)
         if self.solve_st:
             # ST was computed from a solve at the reference thickness; solving again at ST
             # shows the proportionality (the stiffness must be the target to solver precision).
@@ -596,13 +600,15 @@ class SeaSpringProblem(DesignProblem):
 
     @no_numpy_hugepages  # the 3D model's arrays (pipeline/_hugepages.py)
     def solid_3d(
-        self, geom: SpringGeometry, r: SpringResponse, side: SideProcess | None = None
-    ) -> dict[str, Any]:
+        self, geom: SpringGeometry, r: SpringResponse, side: SideProcess | None = None,
+        meanwhile: Any = None,
+    ) -> dict[str, Any]:  # fmt: skip
         """The design as a 3D solid, its thickness corrected for it, its peak stress converged
         (issue 15; docs/solid3d.md; the study's ``solid_3d:`` block): :func:`fea.sea_design.
         correct_3d`. The peak convergence, which needs no 3D answer, runs meanwhile in a second
         process (``side``'s "peak" task when the caller started one, else its own); without
-        one (or if that process could not run it) it runs here.
+        one (or if that process could not run it) it runs here. ``meanwhile()``, if given, is
+        called once the 3D checks are made, before the peak convergence is waited for.
 
         Returns
         -------
@@ -616,6 +622,8 @@ class SeaSpringProblem(DesignProblem):
             side.submit("peak", peak.peak_job, self, geom.params, sign)
 
         def converged_peak() -> tuple[dict[str, Any], bool]:
+            if meanwhile is not None:
+                meanwhile()
             c = side.get("peak") if side is not None else None
             if c is None:
                 return peak.peak_of(self, geom.params, sign), False

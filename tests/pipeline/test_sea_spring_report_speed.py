@@ -229,3 +229,36 @@ def test_detail_files_hold_the_taguchi_png(monkeypatch):
         stage1["main_effects"], stage1["anova"], title=title
     )
     assert detail.info["taguchi"]["chosen"]["RP"] == 4
+
+
+def test_the_2d_solves_run_here_after_the_3d_checks_before_the_peak_wait(monkeypatch):
+    """detail: the peak convergence alone goes to the second process (the longer work); the
+    two extra 2D solves run in this process once the 3D checks are made, before its wait."""
+    import multiprocessing
+
+    import flexopt.pipeline.fork as fork
+
+    monkeypatch.setattr(fork, "pool_context", lambda: multiprocessing.get_context("fork"))
+    monkeypatch.setattr(peak, "peak_of", lambda prob, params, sign: {
+        "converged": True, "status": "converged", "last_two_MPa": [1.0, 2.0],
+        "peaks_MPa": [1.0, 2.0], "local_edge_mm": [1.0, 0.5], "peak_xy_mm": [0.0, 0.0],
+        "corner": None, "time_s": 0.0})  # fmt: skip
+    calls = []
+    solves, get = ss.detail_solves, SideProcess.get
+
+    def solves_here(*args):
+        calls.append(("2D solves", os.getpid()))
+        return solves(*args)
+
+    def wait(self, name):
+        calls.append(("wait", name))
+        return get(self, name)
+
+    monkeypatch.setattr(ss, "detail_solves", solves_here)
+    monkeypatch.setattr(SideProcess, "get", wait)
+    study = {**STUDY, "solid_3d": {"converge_peak": True, "correct": False, "layers": 1}}
+    prob, x = _solved(study)
+    info = prob.detail(x).info
+    assert calls == [("2D solves", os.getpid()), ("wait", "peak")]
+    assert info["solid_3d"]["peak_convergence"]["process"] == "second"
+    assert len(info["solid_3d"]["checks"]) == 1 and "thickness_solved" in info
