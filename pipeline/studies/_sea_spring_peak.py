@@ -89,3 +89,14 @@ def taguchi_png(side: SideProcess | None, stage1: dict[str, Any], topology: str)
     if args is None:
         return None
     return png if png is not None else plot_job(*args)
+
+
+def solves_here(s3: Any) -> bool:
+    """Whether the detail's two extra 2D solves run in the report's process, beside the 3D
+    checks, rather than in the peak convergence's (``s3``: the study's ``solid_3d`` block).
+    With CHOLMOD's factor the checks (~10 s CPU) are shorter than the peak convergence
+    (~14 s): the solves fill the report's process's wait. Without it (a plain install's
+    multigrid, ~35 s) the checks are far the longer: the solves go to the other process."""
+    from flexopt.fea.solid3d import cholmod_available
+
+    return s3.solver == "cholmod" or (s3.solver == "auto" and cholmod_available())

@@ -416,9 +416,9 @@ class SeaSpringProblem(DesignProblem):
     def detail(self, x: np.ndarray) -> DesignResult:
         x = np.asarray(x, dtype=float)
         study = self.study
-        # taguchi.png drawn meanwhile by a process of its own (_sea_spring_peak.py)
         plots = peak.start_taguchi_png(self.stage1, self.topology) if self.stage1 else None
-        # One solve serves the evaluation and the curve (the last row is the design point).
+        # One solve serves the evaluation and the curve (the last row is the design point);
+        # taguchi.png is drawn meanwhile by a process of its own (_sea_spring_peak.py).
         evaluation, solved = self._evaluate(x, study.mesh.curve_steps, keep_model=True)
         info: dict[str, Any] = {
             "thickness": study.thickness,
@@ -444,28 +444,28 @@ class SeaSpringProblem(DesignProblem):
             return DesignResult(evaluation, info=info)
         p, geom, r, st = solved
         info["design"] = dict(zip(self.names, map(float, self.full_vector(x, st)), strict=True))
-        # The 3D checks here, the peak convergence (no 3D answer needed) in a second process; it
-        # is the longer work, so the two 2D solves below run here before the wait for it.
-        s3, side, got = study.solid_3d, None, []
+        # 3D checks here, the peak convergence in a second process; 2D solves: peak.solves_here
+        s3, side, got, here = study.solid_3d, SideProcess(), [], peak.solves_here(study.solid_3d)
         solves = (geom, self.material, self.theta, study.mesh, self.solve_st)
         if s3.check and s3.converge_peak:
             side = SideProcess.start()
             side.submit("peak", peak.peak_job, self, geom.params, worse_direction(r))
+            if not here:
+                side.submit("analyses", detail_solves, *solves)
 
-        def meanwhile() -> None:  # an error is raised below, where they are solved again
-            with contextlib.suppress(FeaError, GeometryError):
-                got.append(detail_solves(*solves))
+        def meanwhile() -> None:  # after the 3D checks, before the wait for the peak
+            with contextlib.suppress(FeaError, GeometryError):  # raised below, solved again
+                got.extend([detail_solves(*solves)] if here else [])
 
         try:
             solid = self.solid_3d(geom, r, side, meanwhile) if s3.check else None
+            got = got or [side.get("analyses")]
         finally:
-            if side is not None:
-                side.close()
-        check, small = got[0] if got else detail_solves(*solves)
+            side.close()  # (a SideProcess() without a process: nothing)
+        check, small = got[0] or detail_solves(*solves)
         if self.solve_st:
-            # ST was computed from a solve at the reference thickness; solving again at ST
-            # shows the proportionality (the stiffness must be the target to solver precision).
-            # (one direction suffices to show it; torques scale with ST in both).
+            # ST was computed from a solve at the reference thickness; solving again at ST shows
+            # the proportionality (the target to solver precision; one direction shows it).
             assert check is not None
             info["thickness_solved"] = {
                 "ST_mm": st,

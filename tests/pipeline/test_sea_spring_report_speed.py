@@ -231,13 +231,17 @@ def test_detail_files_hold_the_taguchi_png(monkeypatch):
     assert detail.info["taguchi"]["chosen"]["RP"] == 4
 
 
-def test_the_2d_solves_run_here_after_the_3d_checks_before_the_peak_wait(monkeypatch):
-    """detail: the peak convergence alone goes to the second process (the longer work); the
-    two extra 2D solves run in this process once the 3D checks are made, before its wait."""
+@pytest.mark.parametrize("here", [True, False])
+def test_the_2d_solves_run_here_after_the_3d_checks_before_the_peak_wait(monkeypatch, here):
+    """detail with CHOLMOD's 3D checks (``solves_here``): the peak convergence alone goes to
+    the second process (the longer work); the two extra 2D solves run in this process once the
+    3D checks are made, before its wait. With multigrid's (much longer) checks both go there."""
     import multiprocessing
 
     import flexopt.pipeline.fork as fork
 
+    assert peak.solves_here(validate_study(STUDY).solid_3d)  # the cholmod extra is installed
+    monkeypatch.setattr(peak, "solves_here", lambda s3: here)
     monkeypatch.setattr(fork, "pool_context", lambda: multiprocessing.get_context("fork"))
     monkeypatch.setattr(peak, "peak_of", lambda prob, params, sign: {
         "converged": True, "status": "converged", "last_two_MPa": [1.0, 2.0],
@@ -254,11 +258,16 @@ def test_the_2d_solves_run_here_after_the_3d_checks_before_the_peak_wait(monkeyp
         calls.append(("wait", name))
         return get(self, name)
 
-    monkeypatch.setattr(ss, "detail_solves", solves_here)
+    if here:  # (a stand-in would not pickle to the second process)
+        monkeypatch.setattr(ss, "detail_solves", solves_here)
     monkeypatch.setattr(SideProcess, "get", wait)
     study = {**STUDY, "solid_3d": {"converge_peak": True, "correct": False, "layers": 1}}
     prob, x = _solved(study)
     info = prob.detail(x).info
-    assert calls == [("2D solves", os.getpid()), ("wait", "peak")]
+    if here:
+        assert calls == [("2D solves", os.getpid()), ("wait", "peak")]
+    else:  # solved in the second process and got from it (else solved again here)
+        assert calls == [("wait", "peak"), ("wait", "analyses")]
+        assert info["thickness_solved"]["ccw_stiffness_resolved_at_ST_Nm_per_rad"] > 0
     assert info["solid_3d"]["peak_convergence"]["process"] == "second"
     assert len(info["solid_3d"]["checks"]) == 1 and "thickness_solved" in info
