@@ -50,6 +50,7 @@ pipeline/studies/_sea_spring_schema.py.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import time
@@ -415,7 +416,9 @@ class SeaSpringProblem(DesignProblem):
     def detail(self, x: np.ndarray) -> DesignResult:
         x = np.asarray(x, dtype=float)
         study = self.study
-        # One solve serves the evaluation and the curve (the last row is the design point).
+        plots = peak.start_taguchi_png(self.stage1, self.topology) if self.stage1 else None
+        # One solve serves the evaluation and the curve (the last row is the design point);
+        # taguchi.png is drawn meanwhile by a process of its own (_sea_spring_peak.py).
         evaluation, solved = self._evaluate(x, study.mesh.curve_steps, keep_model=True)
         info: dict[str, Any] = {
             "thickness": study.thickness,
@@ -435,38 +438,34 @@ class SeaSpringProblem(DesignProblem):
         files: dict[str, bytes] = {}
         if self.stage1:
             info["taguchi"] = stage1_summary(self.stage1)
-            if "main_effects" in self.stage1:
-                from flexopt.pipeline.plots import plot_taguchi
-
-                files["taguchi.png"] = plot_taguchi(
-                    self.stage1["main_effects"],
-                    self.stage1["anova"],
-                    title=f"stage 1: {self.stage1['array']} over the {self.topology}'s factors",
-                )
         if solved is None:
+            peak.taguchi_png(plots, {}, self.topology)  # (its process closed)
             info["problem"] = evaluation.reason or "not buildable (see the constraints)"
             return DesignResult(evaluation, info=info)
         p, geom, r, st = solved
         info["design"] = dict(zip(self.names, map(float, self.full_vector(x, st)), strict=True))
-        # The 3D checks keep this process busy; a second one takes what needs no 3D answer:
-        # the peak convergence and the two 2D solves below (SideProcess).
-        s3, side = study.solid_3d, None
+        # 3D checks here, the peak convergence in a second process; 2D solves: peak.solves_here
+        s3, side, got, here = study.solid_3d, SideProcess(), [], peak.solves_here(study.solid_3d)
         solves = (geom, self.material, self.theta, study.mesh, self.solve_st)
         if s3.check and s3.converge_peak:
             side = SideProcess.start()
             side.submit("peak", peak.peak_job, self, geom.params, worse_direction(r))
-            side.submit("analyses", detail_solves, *solves)
+            if not here:
+                side.submit("analyses", detail_solves, *solves)
+
+        def meanwhile() -> None:  # after the 3D checks, before the wait for the peak
+            with contextlib.suppress(FeaError, GeometryError):  # raised below, solved again
+                got.extend([detail_solves(*solves)] if here else [])
+
         try:
-            solid = self.solid_3d(geom, r, side) if s3.check else None
-            got = side.get("analyses") if side is not None else None
+            solid = self.solid_3d(geom, r, side, meanwhile) if s3.check else None
+            got = got or [side.get("analyses")]
         finally:
-            if side is not None:
-                side.close()
-        check, small = got if got is not None else detail_solves(*solves)
+            side.close()  # (a SideProcess() without a process: nothing)
+        check, small = got[0] or detail_solves(*solves)
         if self.solve_st:
-            # ST was computed from a solve at the reference thickness; solving again at ST
-            # shows the proportionality (the stiffness must be the target to solver precision).
-            # (one direction suffices to show it; torques scale with ST in both).
+            # ST was computed from a solve at the reference thickness; solving again at ST shows
+            # the proportionality (the target to solver precision; one direction shows it).
             assert check is not None
             info["thickness_solved"] = {
                 "ST_mm": st,
@@ -495,6 +494,8 @@ class SeaSpringProblem(DesignProblem):
                 # every curve_step_mm, not the optimiser's facets (on those the peak is higher)
                 part_outline = peak.fine_geometry_of(self, geom.params).outline
         field_map = self._field_map(r)
+        png = peak.taguchi_png(plots, self.stage1, self.topology) if self.stage1 else None
+        files.update({"taguchi.png": png} if png is not None else {})
         plot = {
             "x": "rotation_deg",
             "y": "torque_Nm",
@@ -599,13 +600,15 @@ class SeaSpringProblem(DesignProblem):
 
     @no_numpy_hugepages  # the 3D model's arrays (pipeline/_hugepages.py)
     def solid_3d(
-        self, geom: SpringGeometry, r: SpringResponse, side: SideProcess | None = None
-    ) -> dict[str, Any]:
+        self, geom: SpringGeometry, r: SpringResponse, side: SideProcess | None = None,
+        meanwhile: Any = None,
+    ) -> dict[str, Any]:  # fmt: skip
         """The design as a 3D solid, its thickness corrected for it, its peak stress converged
         (issue 15; docs/solid3d.md; the study's ``solid_3d:`` block): :func:`fea.sea_design.
         correct_3d`. The peak convergence, which needs no 3D answer, runs meanwhile in a second
         process (``side``'s "peak" task when the caller started one, else its own); without
-        one (or if that process could not run it) it runs here.
+        one (or if that process could not run it) it runs here. ``meanwhile()``, if given, is
+        called once the 3D checks are made, before the peak convergence is waited for.
 
         Returns
         -------
@@ -619,6 +622,8 @@ class SeaSpringProblem(DesignProblem):
             side.submit("peak", peak.peak_job, self, geom.params, sign)
 
         def converged_peak() -> tuple[dict[str, Any], bool]:
+            if meanwhile is not None:
+                meanwhile()
             c = side.get("peak") if side is not None else None
             if c is None:
                 return peak.peak_of(self, geom.params, sign), False

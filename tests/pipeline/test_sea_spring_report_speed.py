@@ -7,6 +7,7 @@ this one. A coarse four-arm spiral with one prism layer keeps it to seconds."""
 from __future__ import annotations
 
 import math
+import os
 
 import flexopt.pipeline.studies._sea_spring_peak as peak
 import flexopt.pipeline.studies.sea_spring as ss
@@ -161,3 +162,112 @@ def test_side_process_death_and_errors_come_back(monkeypatch):
     assert side.get("exit") is None
     assert side.get("never submitted") is None
     side.close()
+
+
+def _stage1_stand_in() -> dict:
+    """Stage 1's results as the plot reads them (two factors, five levels each)."""
+    levels = [1.0, 2.0, 3.0, 4.0, 5.0]
+    return {
+        "array": "L25 (5^6)",
+        "chosen": {"RP": 4},
+        "main_effects": {"W1": {"levels": levels, "sn_dB": [1.0, 2.0, 1.5, 0.5, 0.0]},
+                         "sweep": {"levels": levels, "sn_dB": [0.0, -1.0, 0.5, 2.0, 1.0]}},
+        "anova": [{"source": "W1", "percent": 60.0, "pooled": False},
+                  {"source": "sweep", "percent": 30.0, "pooled": False},
+                  {"source": "error", "percent": 10.0, "pooled": False},
+                  {"source": "total", "percent": 100.0, "pooled": False}],
+    }  # fmt: skip
+
+
+def test_taguchi_png_is_drawn_in_its_own_process(monkeypatch):
+    """The detail's taguchi.png is drawn by a process of its own while the detail solves, and
+    is the plot drawn here; where no process starts, or it dies, it is drawn here."""
+    import multiprocessing
+
+    import flexopt.pipeline.fork as fork
+    from flexopt.pipeline.plots import plot_taguchi
+
+    monkeypatch.setattr(fork, "pool_context", lambda: multiprocessing.get_context("fork"))
+    stage1 = _stage1_stand_in()
+    title = "stage 1: L25 (5^6) over the spiral's factors"
+    here = plot_taguchi(stage1["main_effects"], stage1["anova"], title=title)
+    assert here[:8] == b"\x89PNG\r\n\x1a\n"
+    side = peak.start_taguchi_png(stage1, "spiral")
+    assert side is not None and side._process is not None and side._process.pid != os.getpid()
+    assert peak.taguchi_png(side, stage1, "spiral") == here
+    assert side._process is None  # closed
+    # no plot to make: no process
+    assert peak.start_taguchi_png({"chosen": {"RP": 4}}, "spiral") is None
+    assert peak.taguchi_png(None, {"chosen": {"RP": 4}}, "spiral") is None
+    # the process dies under the plot: drawn here
+    side = peak.start_taguchi_png(stage1, "spiral")
+    side._process.kill()
+    assert peak.taguchi_png(side, stage1, "spiral") == here
+
+    def refuse():
+        raise AssertionError("daemonic processes are not allowed to have children")
+
+    monkeypatch.setattr(fork, "pool_context", refuse)
+    assert peak.taguchi_png(peak.start_taguchi_png(stage1, "spiral"), stage1, "spiral") == here
+
+
+def test_detail_files_hold_the_taguchi_png(monkeypatch):
+    """detail (3D check off: seconds) with stage 1's results: taguchi.png is the plot of them."""
+    import multiprocessing
+
+    import flexopt.pipeline.fork as fork
+    from flexopt.pipeline.plots import plot_taguchi
+
+    monkeypatch.setattr(fork, "pool_context", lambda: multiprocessing.get_context("fork"))
+    study = validate_study({**STUDY, "solid_3d": {"check": False}})
+    stage1 = _stage1_stand_in()
+    prob = ss.SeaSpringProblem(study, stage1=stage1)
+    x = np.delete(ss.design_vector(study), prob.names.index("ST"))
+    detail = prob.detail(x)
+    title = "stage 1: L25 (5^6) over the spiral's factors"
+    assert detail.files["taguchi.png"] == plot_taguchi(
+        stage1["main_effects"], stage1["anova"], title=title
+    )
+    assert detail.info["taguchi"]["chosen"]["RP"] == 4
+
+
+@pytest.mark.parametrize("here", [True, False])
+def test_the_2d_solves_run_here_after_the_3d_checks_before_the_peak_wait(monkeypatch, here):
+    """detail with CHOLMOD's 3D checks (``solves_here``): the peak convergence alone goes to
+    the second process (the longer work); the two extra 2D solves run in this process once the
+    3D checks are made, before its wait. With multigrid's (much longer) checks both go there."""
+    import multiprocessing
+
+    import flexopt.pipeline.fork as fork
+
+    assert peak.solves_here(validate_study(STUDY).solid_3d)  # the cholmod extra is installed
+    monkeypatch.setattr(peak, "solves_here", lambda s3: here)
+    monkeypatch.setattr(fork, "pool_context", lambda: multiprocessing.get_context("fork"))
+    monkeypatch.setattr(peak, "peak_of", lambda prob, params, sign: {
+        "converged": True, "status": "converged", "last_two_MPa": [1.0, 2.0],
+        "peaks_MPa": [1.0, 2.0], "local_edge_mm": [1.0, 0.5], "peak_xy_mm": [0.0, 0.0],
+        "corner": None, "time_s": 0.0})  # fmt: skip
+    calls = []
+    solves, get = ss.detail_solves, SideProcess.get
+
+    def solves_here(*args):
+        calls.append(("2D solves", os.getpid()))
+        return solves(*args)
+
+    def wait(self, name):
+        calls.append(("wait", name))
+        return get(self, name)
+
+    if here:  # (a stand-in would not pickle to the second process)
+        monkeypatch.setattr(ss, "detail_solves", solves_here)
+    monkeypatch.setattr(SideProcess, "get", wait)
+    study = {**STUDY, "solid_3d": {"converge_peak": True, "correct": False, "layers": 1}}
+    prob, x = _solved(study)
+    info = prob.detail(x).info
+    if here:
+        assert calls == [("2D solves", os.getpid()), ("wait", "peak")]
+    else:  # solved in the second process and got from it (else solved again here)
+        assert calls == [("wait", "peak"), ("wait", "analyses")]
+        assert info["thickness_solved"]["ccw_stiffness_resolved_at_ST_Nm_per_rad"] > 0
+    assert info["solid_3d"]["peak_convergence"]["process"] == "second"
+    assert len(info["solid_3d"]["checks"]) == 1 and "thickness_solved" in info
