@@ -170,3 +170,47 @@ def test_step_bytes_of_many_edges_is_fast():
     data = step_bytes(part)
     assert time.process_time() - t0 < 5.0
     assert data.count(b"ADVANCED_FACE(") == _n_edges(clean_outline(part.outline)) + 2
+
+
+def _closed_shell_problems(data: bytes) -> list[str]:
+    """What makes the file's shell not a closed 2-manifold: an edge not used exactly twice in
+    opposite senses by the faces' loops, or a loop whose oriented edges do not join head to
+    tail. Parsed from the file alone (OpenCascade's reader is too slow for ten thousand
+    faces)."""
+    ents = dict(re.findall(rb"#(\d+)=([A-Z_]+\(.*?\));", data.replace(b"\n", b"")))
+    edge = {}  # EDGE_CURVE id -> (start vertex, end vertex)
+    oriented = {}  # ORIENTED_EDGE id -> (edge, sense)
+    for i, text in ents.items():
+        if text.startswith(b"EDGE_CURVE("):
+            a, b = re.findall(rb"#(\d+)", text)[:2]
+            edge[i] = (a, b)
+        elif text.startswith(b"ORIENTED_EDGE("):
+            e, sense = re.fullmatch(rb"ORIENTED_EDGE\('',\*,\*,#(\d+),\.(T|F)\.\)", text).groups()
+            oriented[i] = (e, sense == b"T")
+    uses: dict[bytes, list[bool]] = {e: [] for e in edge}
+    problems = []
+    for i, text in ents.items():
+        if not text.startswith(b"EDGE_LOOP("):
+            continue
+        loop = [oriented[j] for j in re.findall(rb"#(\d+)", text)]
+        ends = [(edge[e] if s else edge[e][::-1]) for e, s in loop]
+        for k, (_, head) in enumerate(ends):
+            if head != ends[(k + 1) % len(ends)][0]:
+                problems.append(f"loop #{i.decode()} breaks after its edge {k}")
+        for e, s in loop:
+            uses[e].append(s)
+    problems += [f"edge #{e.decode()} used {u}" for e, u in uses.items() if sorted(u) != [0, 1]]
+    return problems
+
+
+def test_ten_thousand_faces_make_a_closed_shell():
+    # the SEA spring's size: every edge in two faces, once each way, every loop closed
+    poly = orient(clean_outline(wavy_ring_with_holes(9280)), sign=1.0)
+    data = prism_step(_rings(poly), 19.56)
+    assert data.count(b"ADVANCED_FACE(") == _n_edges(poly) + 2
+    assert data.count(b"EDGE_CURVE(") == 3 * _n_edges(poly)
+    assert _closed_shell_problems(data) == []
+    # and the check sees a broken file: one side face's loop reversed in one edge
+    first = re.search(rb"ORIENTED_EDGE\('',\*,\*,#\d+,\.T\.\)", data)
+    broken = data[: first.end() - 3] + b"F" + data[first.end() - 2 :]
+    assert broken != data and len(_closed_shell_problems(broken)) >= 2
