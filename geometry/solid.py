@@ -589,11 +589,20 @@ def _n_edges(ring) -> int:
 
 
 class StepUnavailable(FlexoptError, ImportError):
-    """STEP needs build123d (``pip install 'flexopt[step]'``), which is not installed."""
+    """STEP needs build123d (``pip install 'flexopt[step]'``), which is not installed (the
+    pipeline writes STEP only with it; :func:`step_bytes` needs it for an outline the direct
+    writer refuses)."""
 
 
 def step_bytes(part: FlatPart) -> bytes:
-    """The part as a STEP solid (AP214, mm) via build123d (OpenCascade).
+    """The part as a STEP solid (AP214, mm): written directly (:mod:`geometry.step_writer`),
+    or via build123d (OpenCascade) where the direct writer refuses the outline.
+
+    The direct writer writes the same B-rep OpenCascade makes of the prism (a planar side face
+    per outline edge, top and bottom, line edges, the outline's coordinates exactly), ~30x
+    faster: OpenCascade's STEP transfer took ~17 s of a SEA spring's 9 279 edges
+    (docs/benchmarks.md). It refuses (and OpenCascade writes) an outline with an edge, or a
+    gap between two rings, shorter than :data:`geometry.step_writer.MIN_FEATURE_MM`.
 
     Parameters
     ----------
@@ -608,18 +617,45 @@ def step_bytes(part: FlatPart) -> bytes:
     Raises
     ------
     StepUnavailable
-        When build123d cannot be imported.
+        When the outline needs OpenCascade and build123d cannot be imported.
     GeometryError
-        When OpenCascade does not make one valid solid of the expected volume.
+        When the outline is not a valid polygon, or OpenCascade does not make one valid solid
+        of the expected volume.
     """
+    poly = part.outline
+    if not poly.is_valid:
+        raise GeometryError(
+            f"the outline is not a valid polygon ({shapely.is_valid_reason(poly)}); "
+            "no STEP solid made of it"
+        )
+    # OpenCascade merges the faces of collinear edges (COLLINEAR_TOL_MM): none are left, so the
+    # direct writer's file and OpenCascade's have the same faces
+    poly = orient(clean_outline(poly), sign=1.0)
+    from flexopt.geometry.step_writer import MIN_FEATURE_MM, PrismRefused, prism_step
+
+    rings = [poly.exterior, *poly.interiors]
+    try:
+        gap = min(
+            (float(shapely.distance(a, b)) for i, a in enumerate(rings) for b in rings[i + 1 :]),
+            default=np.inf,
+        )
+        if gap < MIN_FEATURE_MM:  # a hole touching the outside or another hole at a point
+            raise PrismRefused(f"two rings are {gap:.3g} mm apart")
+        coords = [shapely.get_coordinates(r) for r in rings]
+        return prism_step(coords, float(part.thickness_mm))
+    except PrismRefused:
+        return _occ_step_bytes(poly, float(part.thickness_mm))
+
+
+def _occ_step_bytes(poly: Polygon, thickness_mm: float) -> bytes:
+    """:func:`step_bytes` by build123d (OpenCascade), for an outline the direct writer refuses;
+    ``poly`` valid and cleaned."""
     try:
         import build123d as bd
     except ImportError as exc:  # also a broken OCP install
         raise StepUnavailable(str(exc)) from exc
     import os
     import tempfile
-
-    poly = part.outline
 
     def wire(ring) -> object:
         pts = [(float(x), float(y), 0.0) for x, y in np.asarray(ring.coords)[:-1]]
@@ -632,16 +668,9 @@ def step_bytes(part: FlatPart) -> bytes:
     # prism a valid solid by construction; what can still go wrong in OpenCascade (a ring
     # dropped or misoriented, a hole filled, a sliver) shows in the volume, the face count or
     # the number of solids.
-    if not poly.is_valid:
-        raise GeometryError(
-            f"the outline is not a valid polygon ({shapely.is_valid_reason(poly)}); "
-            "no STEP solid made of it"
-        )
-    # OpenCascade merges the faces of collinear edges (COLLINEAR_TOL_MM): none are left
-    poly = clean_outline(poly)
     face = bd.Face(wire(poly.exterior), [wire(r) for r in poly.interiors])
-    solid = bd.extrude(face, amount=float(part.thickness_mm))
-    expected = poly.area * float(part.thickness_mm)
+    solid = bd.extrude(face, amount=thickness_mm)
+    expected = poly.area * thickness_mm
     edges = sum(_n_edges(r) for r in (poly.exterior, *poly.interiors))
     n_faces, n_solids = len(solid.faces()), len(solid.solids())
     if not abs(solid.volume - expected) <= 1e-6 * expected + 1e-9:
