@@ -14,9 +14,9 @@ again in build123d would be a second implementation that can drift from the one 
 solved on. So the script calls :func:`outline_of` (the kind's own geometry: the study's detail,
 without the checks that do not draw the part, :data:`SKIPPED_BLOCKS` and :data:`FAST_CHECKS`;
 ~0.3 s for the constant-force part)
-and makes the solid with build123d exactly as :func:`geometry.solid.step_bytes` makes best.step:
-one planar face bounded by the outline's rings, extruded along z by the part's thickness, in
-the design frame.
+and makes with build123d the solid :func:`geometry.solid.step_bytes` writes as best.step (since
+session 29 directly, geometry/step_writer.py, the same topology): one planar face bounded by the
+outline's rings, extruded along z by the part's thickness, in the design frame.
 
 The outline as exported is kept in the script (``OUTLINE_AS_EXPORTED``) with the dimensions and
 the study it was drawn from (``EXPORTED_DESIGN``, ``EXPORTED_FIXED``, the study text's SHA-256):

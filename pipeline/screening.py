@@ -289,7 +289,8 @@ class SideProcess:
 
     In ``sea_spring`` the 3D checks keep this process busy (assembly, one factorisation,
     triangular solves); the peak convergence (nonlinear plane-stress solves on refined meshes,
-    ~10 s CPU on the default study) and the detail's two extra 2D solves depend only on the
+    ~10 s CPU on the default study) and, where the 3D checks are the longer work (no CHOLMOD:
+    ``_sea_spring_peak.solves_here``), the detail's two extra 2D solves depend only on the
     design, so they run beside them on the second core. A task is a module-level function and
     its arguments (pickled). Where a process cannot be started (a daemonic worker), or dies or
     fails on a task, :meth:`get` gives None and the caller computes it itself; FeaError and

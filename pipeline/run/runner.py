@@ -324,9 +324,9 @@ def _run_in(
     write_atomic(run_dir / "run.json", to_json(record))
     log.info("run folder %s; %s; %s", run_dir, config, settings.describe())
     # best.step's child now, while this process runs no other thread (forked later, a thread
-    # could hold a lock the child needs): it imports build123d (~3 s CPU) at the lowest
-    # priority, in the moments a core idles while the workers solve (generation barriers),
-    # instead of on the report's critical path.
+    # could hold a lock the child needs): it imports the STEP writer (geometry/step_writer.py,
+    # with build123d as its fallback) at the lowest priority, in the moments a core idles while
+    # the workers solve (generation barriers), instead of on the report's critical path.
     early = early_step if early_step is not None else start_early_step()
     if on_start is not None:
         on_start(run_dir, config)
