@@ -520,10 +520,23 @@ class ProcessPool:
         m = len(X)
         results: list[Any] = [None] * (m + len(calls))
         size = chunk_rows(m, self.n_workers, self.chunk_size)
-        queue: deque[tuple[int, Any]] = deque(
-            (m + i, (kind, np.asarray(x, dtype=float))) for i, (kind, x) in enumerate(calls)
-        )
-        queue.extend((row, X[row]) for row in range(m))
+        # a call at a design of this batch goes right behind that design, in its message: the
+        # worker that solved it answers the call from the path it has just solved (the hybrid's
+        # Jacobian taken ahead at a trial design, optimise.hybrid._Stage._ahead_calls)
+        rows_of = {design_key(X[row]): row for row in range(m)}
+        behind: dict[int, tuple[int, Any]] = {}
+        queue: deque[tuple[int, Any]] = deque()
+        for i, (kind, x) in enumerate(calls):
+            item = (m + i, (kind, np.asarray(x, dtype=float)))
+            row = rows_of.get(design_key(item[1][1]))
+            if row is not None and row not in behind:
+                behind[row] = item
+            else:
+                queue.append(item)
+        for row in range(m):
+            queue.append((row, X[row]))
+            if row in behind:
+                queue.append(behind[row])
         attempts = [0] * len(results)
         n_left = len(results)
 
@@ -596,8 +609,13 @@ class ProcessPool:
                             break
                         if queue[0][0] >= m:  # a hook call: a message of its own
                             chunk = [queue.popleft()]
-                        else:
-                            chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
+                        else:  # designs, up to a call queued behind one (it ends the chunk)
+                            chunk = []
+                            while queue and len(chunk) < size and queue[0][0] < m:
+                                chunk.append(queue.popleft())
+                                if queue and queue[0][0] >= m and chunk[-1][0] in behind:
+                                    chunk.append(queue.popleft())
+                                    break
                         if not worker.task:  # idle: its first design starts now
                             worker.task = deque()
                             worker.started = now

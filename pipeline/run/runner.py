@@ -436,6 +436,8 @@ def _run_in(
                         jacobian=setup.problem.jacobian,  # exact derivatives where it has them
                         # its Jacobians and checks on the pool's workers, beside its designs
                         requests=run.evaluator.map_calls,
+                        # a trial's Jacobian in its own round, on a worker that would idle
+                        ahead=run.evaluator.calls_in_parallel,
                     )
                     record["hybrid"] = result.report
                     log.info(
