@@ -203,6 +203,9 @@ class HybridResult(GAResult):
     stopped)."""
 
     report: dict[str, Any] = field(default_factory=dict)
+    #: the problem's exact :class:`~optimise.design_jacobian.DesignJacobian` at ``best.x`` when
+    #: the gradient stage took one there (the report's sensitivities reuse it), else None
+    jacobian: Any = None
 
 
 @dataclass(frozen=True)
@@ -331,6 +334,8 @@ class _Stage:
         self.ahead = ahead and requests is not None
         #: the Jacobians so taken, by design bytes, until a start asks for one (:meth:`taken`)
         self.taken_ahead: dict[bytes, HookAnswer] = {}
+        #: every exact Jacobian the problem answered, by design bytes (the result's at its best)
+        self.found: dict[bytes, DesignJacobian] = {}
         #: the checks made, by design (a design checked twice is checked once); their count and
         #: time for the report
         self.checked: dict[bytes, ConstraintCheck | None] = {}
@@ -394,6 +399,9 @@ class _Stage:
             self.generations.append(gen)
             if self.on_generation is not None:
                 self.on_generation(gen)
+        for (kind, x), answer in zip(calls, answers, strict=True):
+            if kind == "jacobian" and answer.value is not None:
+                self.found[x.tobytes()] = answer.value
         for i, x in enumerate(early):
             self.taken_ahead[x.tobytes()] = answers[len(calls) - len(early) + i]
         while len(self.taken_ahead) > AHEAD_KEPT:  # rejected trials' are never asked for
@@ -411,7 +419,8 @@ class _Stage:
     def _ahead_calls(
         self, asked: Sequence[_Evaluate | _Call], unique: dict[tuple[str, bytes], int]
     ) -> list[np.ndarray]:
-        """The trial designs (n_var,) of this round whose Jacobian is taken in the round itself.
+        """The designs (n_var,) of this round whose Jacobian is taken in the round itself: a
+        start's one trial design, and a design a start has checked (the check's round is long).
 
         Why: in lockstep a round lasts as long as its longest request. When one start asks for
         a Jacobian (~7 designs' time) or a check (~70) and another for one trial design, the
@@ -428,9 +437,19 @@ class _Stage:
         early: list[np.ndarray] = []
         for r in asked:
             if isinstance(r, _Evaluate) and len(r.X) == 1:
-                key = r.X[0].tobytes()
-                if ("jacobian", key) not in unique and key not in self.taken_ahead:
-                    early.append(np.array(r.X[0], dtype=float))
+                x = r.X[0]
+            elif isinstance(r, _Call) and r.kind == "check":
+                # a checked design: a start whose check is not met goes on from it, asking its
+                # Jacobian first (_calibrate), and the report's sensitivities are the best's
+                x = r.x
+                if x.tobytes() in self.found:
+                    continue
+            else:
+                continue
+            key = x.tobytes()
+            if ("jacobian", key) not in unique and key not in self.taken_ahead:
+                if not any(key == e.tobytes() for e in early):
+                    early.append(np.array(x, dtype=float))
         return early
 
     def taken(self, request: _Evaluate | _Call) -> HookAnswer | None:
@@ -1146,7 +1165,9 @@ def run_hybrid(
             "time_s": round(stage.check_time_s, 3),
             "best_verified": bool(verified),
         }
-    return HybridResult(best, (best,), tuple(stage.generations), report)
+    return HybridResult(
+        best, (best,), tuple(stage.generations), report, stage.found.get(best.x.tobytes())
+    )
 
 
 def _one_start(run: _Start, start: Evaluation, n_con: int, method: Any, calibrated: bool) -> Any:

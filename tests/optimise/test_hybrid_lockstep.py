@@ -205,3 +205,22 @@ def test_no_jacobian_is_taken_ahead_without_parallel_calls():
     result = run_hybrid(SPACE, rosenbrock, 1, 1, cfg, ahead=True, **kwargs)
     plain = run_hybrid(SPACE, rosenbrock, 1, 1, cfg, **kwargs)
     assert batches(result) == batches(plain)
+
+
+def test_the_result_carries_the_stages_jacobian_at_its_best():
+    """A checked design's Jacobian is taken in its check's round (ahead): the best, a checked
+    design, comes with the problem's Jacobian there (the report's sensitivities reuse it)."""
+    case = CASES["calibrated"]
+
+    def requests(X, calls):
+        hooks = {"jacobian": case["jacobian"], "check": case["check"]}
+        return case["evaluate"](X) if len(X) else [], [
+            hook_answer(hooks[kind], x) for kind, x in calls
+        ]
+
+    result = run_hybrid(SPACE, n_obj=1, n_con=1, requests=requests, ahead=True, **case)
+    assert result.report["checks"]["best_verified"]
+    assert result.jacobian is not None
+    assert result.jacobian.x.tobytes() == result.best.x.tobytes()
+    here = case["jacobian"](result.best.x)
+    assert result.jacobian.f.tobytes() == here.f.tobytes()
