@@ -3,7 +3,7 @@ report's files (issue 27 item 4).
 
     nice python benchmarks/fixed_costs.py [--study constant-force] [--repeat 3]
         [--parts startup evaluate run timeline] [--workers N] [--quick] [--timed-only]
-        [--ab OTHER_PYTHON]
+        [--ab OTHER_PYTHON] [--record PATH]
 
 Three parts, each repeated ``--repeat`` times in fresh processes (medians printed, with the
 load average before and after each part, since the machine is shared), and a fourth,
@@ -33,7 +33,9 @@ load average before and after each part, since the machine is shared), and a fou
     generations, the hybrid's gradient batches): the designs' and calls' CPU, the shortest
     time two workers could solve each batch in (the batch's items dealt largest first to the
     less loaded worker, its CPU as their time) and the core-seconds that schedule leaves idle:
-    where a thread of the run process can work without taking a core from a worker.
+    where a thread of the run process can work without taking a core from a worker. A hook
+    call is labelled by its kind (``call:jacobian``, ``call:check``); ``--record PATH`` keeps
+    the timed rows (JSON lines: label, t0, t1 in perf_counter s, cpu s, pid) for a closer look.
 
 ``--ab OTHER_PYTHON``
     Instead of the breakdown: the plain commands with another install's ``flexopt`` (A, e.g.

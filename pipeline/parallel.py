@@ -601,7 +601,7 @@ class ProcessPool:
             broken: list[_Worker] = []
             # a call at a design an idle worker solved goes to that worker first (one queued
             # behind its design of this batch stays there)
-            for item in [item for item in queue if item[0] >= m and item[0] not in follows]:
+            for item in [q for q in queue if q[0] >= m and q[0] not in follows] if calls else ():
                 worker = self.solved_by.get(design_key(item[1][1]))
                 if worker in self.workers and worker.ready and not worker.task:
                     queue.remove(item)
