@@ -3,7 +3,7 @@ report's files (issue 27 item 4).
 
     nice python benchmarks/fixed_costs.py [--study constant-force] [--repeat 3]
         [--parts startup evaluate run timeline] [--workers N] [--quick] [--timed-only]
-        [--ab OTHER_PYTHON]
+        [--ab OTHER_PYTHON] [--record PATH]
 
 Three parts, each repeated ``--repeat`` times in fresh processes (medians printed, with the
 load average before and after each part, since the machine is shared), and a fourth,
@@ -33,7 +33,9 @@ load average before and after each part, since the machine is shared), and a fou
     generations, the hybrid's gradient batches): the designs' and calls' CPU, the shortest
     time two workers could solve each batch in (the batch's items dealt largest first to the
     less loaded worker, its CPU as their time) and the core-seconds that schedule leaves idle:
-    where a thread of the run process can work without taking a core from a worker.
+    where a thread of the run process can work without taking a core from a worker. A hook
+    call is labelled by its kind (``call:jacobian``, ``call:check``); ``--record PATH`` keeps
+    the timed rows (JSON lines: label, t0, t1 in perf_counter s, cpu s, pid) for a closer look.
 
 ``--ab OTHER_PYTHON``
     Instead of the breakdown: the plain commands with another install's ``flexopt`` (A, e.g.
@@ -296,7 +298,12 @@ def _install_timeline(rec: _Recorder) -> None:
         return timed
 
     parallel.evaluate_one = spans(parallel.evaluate_one, "design")
-    parallel.call_hook = spans(parallel.call_hook, "call")
+    call_hook = parallel.call_hook
+
+    def hook(problem: Any, kind: str, x: Any) -> Any:  # the kind in the label: call:jacobian
+        return spans(call_hook, f"call:{kind}")(problem, kind, x)
+
+    parallel.call_hook = hook
     evaluator.Evaluator.map_calls = spans(evaluator.Evaluator.map_calls, "batch")
     preload_report = getattr(runner, "_preload_report", None)
     if preload_report is None:
@@ -328,7 +335,7 @@ def _install_timeline(rec: _Recorder) -> None:
 def _timeline_table(rows: list[dict[str, Any]]) -> None:
     """Per stage: batches, items, their CPU, the two-worker schedule's time and idle share."""
     batches = sorted((r for r in rows if r["label"] == "batch"), key=lambda r: r["t0"])
-    items = [r for r in rows if r["label"] in ("design", "call")]
+    items = [r for r in rows if r["label"] == "design" or r["label"].startswith("call")]
     t_first = batches[0]["t0"] if batches else 0.0
     stages: dict[str, list[float]] = {}
     for batch in batches:
@@ -536,9 +543,10 @@ def part_command(
     print(f"  load after: {_load()}")
 
 
-def part_timeline(study: str, workers: int | None) -> None:
+def part_timeline(study: str, workers: int | None, keep: str | None = None) -> None:
     """``flexopt run STUDY`` once with every design, hook call and batch timed (see the module
-    docstring): where the workers idle, stage by stage."""
+    docstring): where the workers idle, stage by stage. ``keep``: a path to copy the timed rows
+    to (JSON lines: label, t0, t1 perf_counter s, cpu s, pid)."""
     more = ["--workers", str(workers)] if workers is not None else []
     print(f"timeline: run {study} {' '.join(more)} (load {_load()})")
     with tempfile.TemporaryDirectory(prefix="fixed-costs-") as tmp:
@@ -549,6 +557,8 @@ def part_timeline(study: str, workers: int | None) -> None:
         if done.returncode != 0:
             raise SystemExit(f"{' '.join(cmd)} failed: {done.stderr[-1500:]}")
         rows = [json.loads(line) for line in record.read_text().splitlines()]
+        if keep:
+            shutil.copyfile(record, keep)
     print(f"  the run: {time.perf_counter() - t0:.2f} s wall")
     _timeline_table([r for r in rows if "t0" in r])
     print(f"  load after: {_load()}")
@@ -604,6 +614,9 @@ def main() -> None:
         help="instead of the breakdown: the plain commands of --parts evaluate/run with this "
         "interpreter's flexopt (A) against ours (B), alternating",
     )
+    parser.add_argument(
+        "--record", metavar="PATH", help="timeline: keep its timed rows (JSON lines) at PATH"
+    )
     args = parser.parse_args()
     if args.repeat < 1:
         parser.exit(2, "fixed_costs.py: error: --repeat must be at least 1\n")
@@ -621,7 +634,7 @@ def main() -> None:
         if what in args.parts:
             part_command(what, args.study, args.repeat, args.workers, args.timed_only, args.quick)
     if "timeline" in args.parts:
-        part_timeline(args.study, args.workers)
+        part_timeline(args.study, args.workers, args.record)
 
 
 if __name__ == "__main__":

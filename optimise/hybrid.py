@@ -47,7 +47,11 @@ workers compute the Jacobians and checks beside the designs). A start's requests
 not depend on the others', so each start asks for the same designs, and the stage ends on the
 same best design, as with the starts one after the other; only the order of the batches differs.
 Starts sharing a ``max_evaluations`` budget, and SLSQP's (SciPy calls back synchronously), run
-one after the other.
+one after the other. On a pool of two or more workers (``run_hybrid(ahead=True)``), a round in
+which one start asks for a Jacobian or a check and another for one trial design takes the
+trial's Jacobian too, on the worker that solved the trial: a start that accepts its trial is
+answered from it without waiting a round (:meth:`_Stage._ahead_calls`); its designs and answers
+are the same.
 
 Calibration (Gauss-Newton, where the problem has a ``check_constraints(x)`` hook: a
 :class:`ConstraintCheck` of the figures its verdict judges, from a finer model than
@@ -88,6 +92,9 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+#: Jacobians taken ahead of a request and not yet asked for, kept (a rejected trial's never is)
+AHEAD_KEPT = 8
 
 #: a failed design's objective and constraint in the scaled SLSQP problem: finite (SLSQP's line
 #: search backs off from it) and far above any evaluated design's
@@ -196,6 +203,9 @@ class HybridResult(GAResult):
     stopped)."""
 
     report: dict[str, Any] = field(default_factory=dict)
+    #: the problem's exact :class:`~optimise.design_jacobian.DesignJacobian` at ``best.x`` when
+    #: the gradient stage took one there (the report's sensitivities reuse it), else None
+    jacobian: Any = None
 
 
 @dataclass(frozen=True)
@@ -314,9 +324,18 @@ class _Stage:
         jacobian: Callable[[np.ndarray], DesignJacobian | None] | None = None,
         check: Callable[[np.ndarray], ConstraintCheck | None] | None = None,
         requests: Requests | None = None,
+        ahead: bool = False,
     ) -> None:
         self.space = space
         self.check = check
+        #: take the Jacobian at a start's trial design in the trial's own round when that round
+        #: holds another start's Jacobian or check (:meth:`serve`): only where ``requests`` runs
+        #: the calls in parallel (a pool of two or more workers)
+        self.ahead = ahead and requests is not None
+        #: the Jacobians so taken, by design bytes, until a start asks for one (:meth:`taken`)
+        self.taken_ahead: dict[bytes, HookAnswer] = {}
+        #: every exact Jacobian the problem answered, by design bytes (the result's at its best)
+        self.found: dict[bytes, DesignJacobian] = {}
         #: the checks made, by design (a design checked twice is checked once); their count and
         #: time for the report
         self.checked: dict[bytes, ConstraintCheck | None] = {}
@@ -357,6 +376,8 @@ class _Stage:
             if isinstance(r, _Call) and (r.kind, r.x.tobytes()) not in unique:
                 unique[(r.kind, r.x.tobytes())] = len(calls)
                 calls.append((r.kind, r.x))
+        early = self._ahead_calls(asked, unique)
+        calls.extend(("jacobian", x) for x in early)
         if self.requests is not None and calls:
             evaluations, answers = self.requests(X, calls)
             evaluations, answers = list(evaluations), list(answers)
@@ -378,6 +399,13 @@ class _Stage:
             self.generations.append(gen)
             if self.on_generation is not None:
                 self.on_generation(gen)
+        for (kind, x), answer in zip(calls, answers, strict=True):
+            if kind == "jacobian" and answer.value is not None:
+                self.found[x.tobytes()] = answer.value
+        for i, x in enumerate(early):
+            self.taken_ahead[x.tobytes()] = answers[len(calls) - len(early) + i]
+        while len(self.taken_ahead) > AHEAD_KEPT:  # rejected trials' are never asked for
+            del self.taken_ahead[next(iter(self.taken_ahead))]
         out: list[Any] = []
         row = 0
         for r in asked:
@@ -387,6 +415,49 @@ class _Stage:
             else:
                 out.append(answers[unique[(r.kind, r.x.tobytes())]])
         return out
+
+    def _ahead_calls(
+        self, asked: Sequence[_Evaluate | _Call], unique: dict[tuple[str, bytes], int]
+    ) -> list[np.ndarray]:
+        """The designs (n_var,) of this round whose Jacobian is taken in the round itself: a
+        start's one trial design, and a design a start has checked (the check's round is long).
+
+        Why: in lockstep a round lasts as long as its longest request. When one start asks for
+        a Jacobian (~7 designs' time) or a check (~70) and another for one trial design, the
+        second start's worker idles after the trial; a Gauss-Newton start that accepts its trial
+        asks for the Jacobian there next (:func:`_gauss_newton`), so taking it now, on the
+        worker that solved the trial (:meth:`pipeline.parallel.ProcessPool.run` queues it right
+        behind that design, whose solved path the Jacobian reuses), saves that start a round.
+        A rejected trial's Jacobian is never used (its worker's time only). The Jacobian is a
+        deterministic function of the design, so a start's answers, and its designs, are the
+        same with or without this; the rounds (generations) are fewer and ordered otherwise,
+        the same on every run (it depends on the requests only, never on timing)."""
+        if not self.ahead or self.jacobian is None or not unique:
+            return []
+        early: list[np.ndarray] = []
+        for r in asked:
+            if isinstance(r, _Evaluate) and len(r.X) == 1:
+                x = r.X[0]
+            elif isinstance(r, _Call) and r.kind == "check":
+                # a checked design: a start whose check is not met goes on from it, asking its
+                # Jacobian first (_calibrate), and the report's sensitivities are the best's
+                x = r.x
+                if x.tobytes() in self.found:
+                    continue
+            else:
+                continue
+            key = x.tobytes()
+            if ("jacobian", key) not in unique and key not in self.taken_ahead:
+                if not any(key == e.tobytes() for e in early):
+                    early.append(np.array(x, dtype=float))
+        return early
+
+    def taken(self, request: _Evaluate | _Call) -> HookAnswer | None:
+        """The Jacobian taken ahead (:meth:`_ahead_calls`) that answers ``request``, or None;
+        it is handed out once."""
+        if not isinstance(request, _Call) or request.kind != "jacobian":
+            return None
+        return self.taken_ahead.pop(request.x.tobytes(), None)
 
     def _call_here(self, kind: str, x: np.ndarray) -> HookAnswer:
         hook = self.jacobian if kind == "jacobian" else self.check
@@ -556,9 +627,16 @@ def _drive(
     admit()
     while pending and not stopped:
         live = sorted(pending) if lockstep else [min(pending)]
-        answers = stage.serve([pending[i] for i in live])
-        for i, answer in zip(live, answers, strict=True):
-            step(i, answer, False)
+        # a Jacobian taken ahead answers its start at once: it asks again in this same round
+        ready = [(i, stage.taken(pending[i])) for i in live]
+        ready = [(i, answer) for i, answer in ready if answer is not None]
+        if ready:
+            for i, answer in ready:
+                step(i, answer, False)
+        else:
+            answers = stage.serve([pending[i] for i in live])
+            for i, answer in zip(live, answers, strict=True):
+                step(i, answer, False)
         if not pending and not stopped:
             admit()
     for i in list(pending):  # the budget ended the stage under these starts too
@@ -961,6 +1039,7 @@ def run_hybrid(
     check: Callable[[np.ndarray], ConstraintCheck | None] | None = None,
     requests: Requests | None = None,
     lockstep: bool | None = None,
+    ahead: bool = False,
 ) -> HybridResult:
     """Minimise one objective subject to ``n_con`` constraints g <= 0 over ``space``: the GA
     (``config.ga``), then the gradient method from ``config.starts`` distinct good GA designs.
@@ -992,6 +1071,12 @@ def run_hybrid(
     start's designs and the result are the same as one start after the other (False); only the
     order of the batches (generations) in the run differs. SLSQP's starts run one after the
     other (SciPy drives them); so do starts sharing a ``max_evaluations`` budget.
+
+    ``ahead`` (with ``requests`` on two or more parallel workers, and exact Jacobians): in a
+    lockstep round where one start asks for a Jacobian or a check and another for one trial
+    design, the trial's Jacobian is taken in the same round (:meth:`_Stage._ahead_calls`), so a
+    start that accepts its trial does not wait a round for it. The starts' designs, answers
+    and result are the same; the rounds are fewer and ordered otherwise (deterministically).
     """
     if n_obj != 1:
         raise OptimiseError(f"the hybrid optimiser needs one objective, got {n_obj}")
@@ -1003,7 +1088,7 @@ def run_hybrid(
         check = getattr(owner, "check_constraints", None)
     ga = _ga_stage(space, evaluate, n_obj, n_con, config, on_generation, initial, not exact)
     n_ga = ga.generations[-1].n_evaluations if ga.generations else 0
-    stage = _Stage(space, evaluate, config, ga, on_generation, jacobian, check, requests)
+    stage = _Stage(space, evaluate, config, ga, on_generation, jacobian, check, requests, ahead)
     calibrated = stage.check is not None and config.local == "gauss_newton"
     method = _gauss_newton if config.local == "gauss_newton" else _slsqp
     starts = pick_starts(space, stage.everything, config.starts, config.min_distance)
@@ -1080,7 +1165,9 @@ def run_hybrid(
             "time_s": round(stage.check_time_s, 3),
             "best_verified": bool(verified),
         }
-    return HybridResult(best, (best,), tuple(stage.generations), report)
+    return HybridResult(
+        best, (best,), tuple(stage.generations), report, stage.found.get(best.x.tobytes())
+    )
 
 
 def _one_start(run: _Start, start: Evaluation, n_con: int, method: Any, calibrated: bool) -> Any:

@@ -32,7 +32,7 @@ import pickle
 import signal
 import threading
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection, wait
@@ -99,6 +99,10 @@ DASK_CHUNKS_PER_WORKER = 4
 #: 2) found no design waiting 449 times within the batches, 1.1 s of their time; with one queued,
 #: 29 times (0.6 s: when this process itself was held up, e.g. by its report preload thread).
 POOL_QUEUED_DESIGNS = 1
+
+#: designs whose worker the pool remembers (:attr:`ProcessPool.solved_by`): a few per worker, as
+#: many as a constant-force problem keeps solved paths (``_constant_force_solved.KEEP``, 4)
+SOLVED_BY_KEPT = 8
 
 
 class BatchBackend(Protocol):
@@ -442,6 +446,10 @@ class ProcessPool:
         self.timeout_s = timeout_s
         self.chunk_size = chunk_size
         self.workers: list[_Worker] = []
+        #: the worker that solved each of the last designs (design_key): a hook call at one of
+        #: them goes to it when it is idle (its problem kept the solved path: a constant-force
+        #: Jacobian starts from it, pipeline/studies/_constant_force_solved.py)
+        self.solved_by: OrderedDict[bytes, _Worker] = OrderedDict()
         self.n_replaced = 0
         self._failed_starts = 0
         for _ in range(self.n_workers):  # now, while this process may still fork safely
@@ -520,10 +528,24 @@ class ProcessPool:
         m = len(X)
         results: list[Any] = [None] * (m + len(calls))
         size = chunk_rows(m, self.n_workers, self.chunk_size)
-        queue: deque[tuple[int, Any]] = deque(
-            (m + i, (kind, np.asarray(x, dtype=float))) for i, (kind, x) in enumerate(calls)
-        )
-        queue.extend((row, X[row]) for row in range(m))
+        # a call at a design of this batch goes right behind that design, in its message: the
+        # worker that solved it answers the call from the path it has just solved (the hybrid's
+        # Jacobian taken ahead at a trial design, optimise.hybrid._Stage._ahead_calls)
+        rows_of = {design_key(X[row]): row for row in range(m)}
+        behind: dict[int, tuple[int, Any]] = {}
+        queue: deque[tuple[int, Any]] = deque()
+        for i, (kind, x) in enumerate(calls):
+            item = (m + i, (kind, np.asarray(x, dtype=float)))
+            row = rows_of.get(design_key(item[1][1]))
+            if row is not None and row not in behind:
+                behind[row] = item
+            else:
+                queue.append(item)
+        for row in range(m):
+            queue.append((row, X[row]))
+            if row in behind:
+                queue.append(behind[row])
+        follows = {item[0] for item in behind.values()}
         attempts = [0] * len(results)
         n_left = len(results)
 
@@ -577,6 +599,17 @@ class ProcessPool:
                 self._start()
             now = time.perf_counter()
             broken: list[_Worker] = []
+            # a call at a design an idle worker solved goes to that worker first (one queued
+            # behind its design of this batch stays there)
+            for item in [q for q in queue if q[0] >= m and q[0] not in follows] if calls else ():
+                worker = self.solved_by.get(design_key(item[1][1]))
+                if worker in self.workers and worker.ready and not worker.task:
+                    queue.remove(item)
+                    worker.task, worker.started = deque([item]), now
+                    try:
+                        worker.conn.send([item])
+                    except OSError:  # it died since the last wait (BrokenPipeError)
+                        broken.append(worker)
             # every idle worker a chunk first, then one more queued behind each busy one: a
             # batch smaller than the workers' queues (a hybrid round of two trial designs)
             # would otherwise go to one worker while the other idles
@@ -596,8 +629,13 @@ class ProcessPool:
                             break
                         if queue[0][0] >= m:  # a hook call: a message of its own
                             chunk = [queue.popleft()]
-                        else:
-                            chunk = [queue.popleft() for _ in range(min(size, len(queue)))]
+                        else:  # designs, up to a call queued behind one (it ends the chunk)
+                            chunk = []
+                            while queue and len(chunk) < size and queue[0][0] < m:
+                                chunk.append(queue.popleft())
+                                if queue and queue[0][0] >= m and chunk[-1][0] in behind:
+                                    chunk.append(queue.popleft())
+                                    break
                         if not worker.task:  # idle: its first design starts now
                             worker.task = deque()
                             worker.started = now
@@ -674,7 +712,12 @@ class ProcessPool:
         elif kind == "done":
             _, row, evaluation = message
             if worker.task and worker.task[0][0] == row:
-                worker.task.popleft()
+                _, x = worker.task.popleft()
+                if not isinstance(x, tuple):  # a design, not a hook call
+                    self.solved_by[design_key(x)] = worker
+                    self.solved_by.move_to_end(design_key(x))
+                    while len(self.solved_by) > SOLVED_BY_KEPT:
+                        self.solved_by.popitem(last=False)
             worker.started = time.perf_counter()  # the next design of the chunk starts now
             finish(row, evaluation)
         elif kind == "fatal":

@@ -156,4 +156,10 @@ class Evaluator:
             if kind == "check" and getattr(answer.value, "kept", None) is not None:
                 adopt(np.asarray(x, dtype=float), answer.value)
 
+    @property
+    def calls_in_parallel(self) -> bool:
+        """True when :meth:`map_calls` runs hook calls on two or more pool workers at once
+        (the hybrid may then take a Jacobian ahead: ``optimise.hybrid.run_hybrid(ahead=)``)."""
+        return hasattr(self.backend, "run") and getattr(self.backend, "n_workers", 1) >= 2
+
     __call__ = map  # run_ga calls the evaluator like a function

@@ -50,6 +50,7 @@ from flexopt.pipeline.runfolder import (
     to_json,
     write_atomic,
 )
+from flexopt.pipeline.sensitivity_report import known_jacobian
 from flexopt.pipeline.study import study_to_yaml
 
 log = logging.getLogger(__name__)
@@ -436,8 +437,12 @@ def _run_in(
                         jacobian=setup.problem.jacobian,  # exact derivatives where it has them
                         # its Jacobians and checks on the pool's workers, beside its designs
                         requests=run.evaluator.map_calls,
+                        # a trial's Jacobian in its own round, on a worker that would idle
+                        ahead=run.evaluator.calls_in_parallel,
                     )
                     record["hybrid"] = result.report
+                    if result.jacobian is not None:  # the report's sensitivities reuse it
+                        known_jacobian(setup.problem, result.jacobian)
                     log.info(
                         "hybrid: best from the %s stage, %s evaluations, %s",
                         result.report["best_stage"],

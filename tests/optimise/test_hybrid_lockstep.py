@@ -49,6 +49,11 @@ def gradient_designs(result) -> list[bytes]:
     return [e.x.tobytes() for g in result.generations[n_ga:] for e in g.evaluations]
 
 
+def batches(result) -> list[list[bytes]]:
+    """Every generation's designs, in order."""
+    return [[e.x.tobytes() for e in g.evaluations] for g in result.generations]
+
+
 def without_time(report: dict) -> dict:
     out = dict(report)
     if "checks" in out:
@@ -146,3 +151,76 @@ def test_a_failed_call_is_a_jacobian_or_check_that_did_not_answer():
         assert start["calibration"][-1]["stop"] == "the check did not answer"
     assert without_time(failed.report) == without_time(here.report)
     np.testing.assert_array_equal(failed.best.x, here.best.x)
+
+
+@pytest.mark.parametrize("case", ["exact Jacobian", "calibrated"])
+def test_a_trials_jacobian_taken_ahead_changes_no_start_and_saves_rounds(per_start, case):
+    """``ahead``: in a round where one start asks for a Jacobian or a check and another for one
+    trial design, the trial's Jacobian is asked in that round too; a start that accepts its
+    trial is answered from it without a round. Each start's designs, the report and the best
+    are those of one start after the other, to the bit; the rounds are fewer than in lockstep
+    without it, and the same on a second run (they depend on the requests only)."""
+    rounds: list[tuple[int, list[str]]] = []
+    used: list[bytes] = []
+    taken = hybrid._Stage.taken
+
+    def spy(self, request):
+        answer = taken(self, request)
+        if answer is not None:
+            used.append(request.x.tobytes())
+        return answer
+
+    def requests(X, calls):
+        rounds.append((len(X), [kind for kind, _ in calls]))
+        evaluate = CASES[case]["evaluate"]
+        hooks = {"jacobian": CASES[case]["jacobian"], "check": CASES[case].get("check")}
+        return evaluate(X) if len(X) else [], [hook_answer(hooks[kind], x) for kind, x in calls]
+
+    kwargs = dict(space=SPACE, n_obj=1, n_con=1, **CASES[case])
+    one_by_one, alone = per_start(**kwargs, lockstep=False)
+    plain, _ = per_start(**kwargs, requests=requests)
+    n_plain = len(rounds)
+    rounds.clear()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(hybrid._Stage, "taken", spy)
+        early, concurrent = per_start(**kwargs, requests=requests, ahead=True)
+        first = batches(early)
+        again, _ = per_start(**kwargs, requests=requests, ahead=True)
+    assert concurrent == alone  # every start's sequence of designs, to the bit
+    assert early.best.x.tobytes() == one_by_one.best.x.tobytes()
+    assert without_time(early.report) == without_time(one_by_one.report)
+    assert used  # a trial's Jacobian taken ahead answered its start
+    # a Jacobian is taken ahead only beside another start's call, at a design of the round
+    assert any(n >= 1 and len(kinds) >= 2 for n, kinds in rounds)
+    assert len(rounds) // 2 < n_plain  # (two runs recorded) fewer rounds than without it
+    assert batches(again) == first
+    assert batches(plain) != first  # the same designs, in other rounds
+
+
+def test_no_jacobian_is_taken_ahead_without_parallel_calls():
+    """Without ``requests`` (the hooks then run in this process, one after another) a
+    Jacobian taken ahead would only cost time: ``ahead`` is ignored."""
+    cfg = config(starts=2, max_iter=100)
+    kwargs = dict(jacobian=rosenbrock_jacobian)
+    result = run_hybrid(SPACE, rosenbrock, 1, 1, cfg, ahead=True, **kwargs)
+    plain = run_hybrid(SPACE, rosenbrock, 1, 1, cfg, **kwargs)
+    assert batches(result) == batches(plain)
+
+
+def test_the_result_carries_the_stages_jacobian_at_its_best():
+    """A checked design's Jacobian is taken in its check's round (ahead): the best, a checked
+    design, comes with the problem's Jacobian there (the report's sensitivities reuse it)."""
+    case = CASES["calibrated"]
+
+    def requests(X, calls):
+        hooks = {"jacobian": case["jacobian"], "check": case["check"]}
+        return case["evaluate"](X) if len(X) else [], [
+            hook_answer(hooks[kind], x) for kind, x in calls
+        ]
+
+    result = run_hybrid(SPACE, n_obj=1, n_con=1, requests=requests, ahead=True, **case)
+    assert result.report["checks"]["best_verified"]
+    assert result.jacobian is not None
+    assert result.jacobian.x.tobytes() == result.best.x.tobytes()
+    here = case["jacobian"](result.best.x)
+    assert result.jacobian.f.tobytes() == here.f.tobytes()

@@ -128,7 +128,10 @@ class HookProblem(FaultProblem):
         if _above(a, g.jacobian_exit_above):
             os._exit(5)
         f = np.array([[2.0 * (a - 0.6), 2.0 * (b - 0.3), 2.0 * c]])
-        return DesignJacobian(np.array(x), f, np.array([[1.0, 1.0, 0.0]]))
+        # the process that answered (the pool's tests of where a call runs)
+        return DesignJacobian(
+            np.array(x), f, np.array([[1.0, 1.0, 0.0]]), info={"pid": os.getpid()}
+        )
 
     def check_constraints(self, x: np.ndarray) -> object:
         from flexopt.optimise.hybrid import ConstraintCheck  # pymoo: not in every worker

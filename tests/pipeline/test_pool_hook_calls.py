@@ -137,3 +137,46 @@ def test_a_batch_of_two_designs_goes_to_two_workers():
     finally:
         pool.close()
     assert len({ev.metrics["pid"] for ev in evaluations}) == 2
+
+
+def test_a_call_at_a_design_of_the_batch_runs_behind_it_in_its_worker():
+    """The hybrid's Jacobian taken ahead at a trial design (optimise.hybrid._Stage._ahead_calls)
+    is queued right behind that design, in its message: the worker that solved the design
+    answers it (a constant-force Jacobian then starts from the path that worker kept), while a
+    call at another design goes to the other worker at once."""
+    toy = problem(jacobian_sleep_s=0.03)
+    pool = ProcessPool(toy, 2)
+    try:
+        while not all(worker.ready for worker in pool.workers):  # both started
+            pool.run(toy, X[:1])
+        # six rounds: calls sent first, as before, would meet their design's worker by chance
+        for trial, other in [(X[i], X[j]) for i in range(4) for j in range(4) if i != j][:6]:
+            evaluations, answers = pool.run(
+                toy, trial[None, :], [("jacobian", other), ("jacobian", trial)]
+            )
+            solved_by = evaluations[0].metrics["pid"]
+            assert answers[1].value.info["pid"] == solved_by
+            assert answers[0].value.info["pid"] != solved_by
+            same(answers[1].value, call_hook(toy, "jacobian", trial).value)
+    finally:
+        pool.close()
+
+
+def test_a_call_goes_to_the_idle_worker_that_solved_its_design():
+    """A Jacobian asked in a later batch at a design the pool solved goes to the worker that
+    solved it when that worker is idle (a constant-force Jacobian then starts from the path it
+    kept), whatever the order of the calls."""
+    toy = problem(sleep_s=0.05)
+    pool = ProcessPool(toy, 2)
+    try:
+        while not all(worker.ready for worker in pool.workers):  # both started
+            pool.run(toy, X[:1])
+        for pair in (X[2:4], X[0:2]):
+            evaluations, _ = pool.run(toy, pair)
+            assert len({ev.metrics["pid"] for ev in evaluations}) == 2
+            for order in ((1, 0), (0, 1)):
+                _, answers = pool.run(toy, X[:0], [("jacobian", pair[i]) for i in order])
+                for i, answer in zip(order, answers, strict=True):
+                    assert answer.value.info["pid"] == evaluations[i].metrics["pid"]
+    finally:
+        pool.close()

@@ -113,3 +113,40 @@ def test_central_differences_when_asked_and_cheap():
     assert at_bound.gradient[0, 1] == pytest.approx(6 * 2.0 - 1.5 - 3.0 * h, rel=1e-9)
     slow = Evaluation(x, np.array([0.0]), np.zeros(0), time_s=1.0)
     assert "cost more" in design_sensitivity(Bowl(), slow, central_differences=True)
+
+
+class ExactBowl(Bowl):
+    """Bowl with its exact gradient as a Jacobian hook, counting the calls."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def jacobian(self, x):
+        from flexopt.optimise.design_jacobian import DesignJacobian
+
+        self.calls += 1
+        a, b, _ = x
+        return DesignJacobian(
+            np.array(x), np.array([[2 * (a - 0.2), 6 * b - 1.5, 1.0]]), np.zeros((0, 3))
+        )
+
+
+def test_a_jacobian_the_run_took_at_the_best_is_not_taken_again():
+    """The hybrid's Jacobian at its best (HybridResult.jacobian, kept by the runner with
+    known_jacobian) is the report's: the hook is not called again at that design; at another
+    design, or for another problem, it is."""
+    from flexopt.pipeline import sensitivity_report
+
+    bowl, other = ExactBowl(), ExactBowl()
+    x = np.array([0.7, 1.0, 0.0])
+    sensitivity_report.known_jacobian(bowl, bowl.jacobian(x))
+    assert bowl.calls == 1
+    s = design_sensitivity(bowl, bowl.evaluate(x))
+    assert bowl.calls == 1 and s.method == "exact"
+    np.testing.assert_allclose(
+        s.gradient[0], [1.0, 4.5, 1.0], rtol=1e-15
+    )  # 2 (a - 0.2), 6 b - 1.5, 1
+    design_sensitivity(bowl, bowl.evaluate(np.array([0.5, 1.0, 0.0])))
+    assert bowl.calls == 2
+    design_sensitivity(other, other.evaluate(x))
+    assert other.calls == 1
