@@ -91,7 +91,7 @@ def test_the_example_chooses_its_golden_design(golden, tmp_path, monkeypatch, ca
 #: tests/golden/evaluate/<example>.json (tests/golden/make_golden_evaluate.py): the verdict and
 #: scalar summary ``flexopt evaluate <example>`` gave on main da29f6e (an example added since:
 #: when it was added), for every example whose evaluate takes seconds, and sea-spring since its
-#: hybrid design (session 29: ~1 min idle, 2.6 GB, its 3D check of the whole part). Not here:
+#: hybrid design (session 29: ~1 min idle; since session 30 one sector, 1.54 GB). Not here:
 #: sea-spring-serpentine and sea-spring-life (their 3D check needs ~2-4.6 GB and a minute;
 #: docs/sea_spring.md, docs/durability.md and the SEA tests of tests/pipeline hold their figures),
 #: threshold-spring (a 35 s plane-stress check) and constant-force-robust-ga (590 scatter samples).

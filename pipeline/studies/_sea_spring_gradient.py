@@ -23,8 +23,8 @@ design's at ``x`` exactly and near it up to the discretisation error (falling wi
 tests/pipeline/test_sea_spring_gradient.py). The geometric margins' rows are central differences
 of the generator's margins (distances between polygons, not smooth to better than the polygon's
 resolution); the loaded-slot row (``deformed_slot_mm``) is the narrowest deformed distance of
-the slot's node pairs (:func:`fea.spring_analysis.slot_pairs`) over both directions, its
-derivative the closest pair's by the adjoint (:func:`fea.plane_stress_sensitivity.
+the slot's node pairs (:func:`fea.spring_analysis.slot_pairs`, those within 3 mm unloaded or
+loaded) over both directions, its derivative the closest pair's by the adjoint (:func:`fea.plane_stress_sensitivity.
 gap_sensitivity`; a min: not differentiable where two pairs tie). Not differentiated at all
 (the hook answers None): the serpentine topology (no morph), ``thickness: search``, a design
 that cannot be built, meshed, morphed or solved.
@@ -179,7 +179,8 @@ def morphed_responses(
     ):
         raise FeaError("the morphed mesh's clamp, drive or stress search is not the design's")
     solved = _solve_both(model, problem.theta, problem.study.target.directions == "both")
-    pairs = slot_pairs(same, s.geom.fe_outline)  # x0's pairs: the topology is fixed
+    # x0's pairs (the topology is fixed) and those that come within reach loaded at x
+    pairs = slot_pairs(same, s.geom.fe_outline, _last_states(solved))
     gap, _ = _loaded_gap(model, solved, problem.theta, pairs)
     torques = {d: np.asarray(r.torque_Nmm[1:]) for d, r in solved.items()}
     rho = ks_rho(problem.material.yield_MPa)
@@ -211,6 +212,12 @@ def _loaded_gap(
             best = (gap, grad)
     model.drive = replace(model.drive, max_rad=theta)
     return best
+
+
+def _last_states(solved: dict[str, Any]) -> list[np.ndarray]:
+    """The displacements (N,) mm at each solved direction's last row: the states whose slots
+    :func:`fea.spring_analysis.slot_pairs` also watches (as analyse_spring's slot gaps do)."""
+    return [np.asarray(r.row_dofs[-1]) for r in solved.values()]
 
 
 def _drive(model: PlaneStressModel, direction: str, theta: float) -> PlaneStressModel:
@@ -247,7 +254,7 @@ def spring_sensitivities(
     model.drive = replace(model.drive, max_rad=problem.theta)
     gap, d_gap_X = 1e3, None
     if problem.min_gap is not None:
-        pairs = slot_pairs(model, s.geom.fe_outline)
+        pairs = slot_pairs(model, s.geom.fe_outline, _last_states(solved))
         gap, d_gap_X = _loaded_gap(model, solved, problem.theta, pairs)
     _, d_area = _area_gradient(s.mesh.points, s.mesh.triangles)
     area = s.geom.area_mm2

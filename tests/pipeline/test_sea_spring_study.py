@@ -319,6 +319,50 @@ def test_slot_gap_of_a_u_shape_closes_by_what_the_prong_moves():
     assert g["tip"] == pytest.approx(0.7, abs=0.01)
 
 
+def test_a_slot_wider_than_the_reach_unloaded_is_watched_when_it_closes():
+    # A U with a 4.0 mm slot (wider than slot_pairs' 3 mm reach) whose upper prong's tip moves
+    # down by 3.6 mm (the prong bent as a cantilever, v = d (x/L)^2 (3 - x/L) / 2): the loaded
+    # slot is the tip's 0.4 mm, which the pairs of the unloaded part alone did not see
+    # (session 30: sea-spring's windings passed into each other across a 3.26 mm slot).
+    from flexopt.fea.materials import get_material
+    from flexopt.fea.mesh import mesh_polygon
+    from flexopt.fea.plane_stress import Clamp, PlaneStressModel, Translate
+    from flexopt.fea.spring_analysis import slot_pairs
+    from shapely.geometry import LineString, box
+
+    u_shape = box(-3.0, 0.0, 20.0, 8.0).difference(box(0.0, 2.0, 21.0, 6.0))
+    mesh = mesh_polygon(u_shape, 0.5)
+    model = PlaneStressModel(
+        mesh, get_material("PLA"), 1.0, Clamp(LineString([(-3, 0), (-3, 8)])),
+        Translate(LineString([(20, 6), (20, 8)]), (0.0, 1.0), 0.1, 1),
+    )  # fmt: skip
+    bend = np.zeros(model.n_dofs)
+    upper = model.xy[:, 1] > 4.0
+    r = np.clip(model.xy[upper, 0] / 20.0, 0.0, 1.0)
+    bend[model.iy[upper]] = -3.6 * r**2 * (3.0 - r) / 2.0
+    # the pairs within 3 mm unloaded (across the 2 mm prongs, around the corners) miss it
+    base = slot_pairs(model, u_shape)
+    moved = model.xy + np.column_stack([bend[model.ix], bend[model.iy]])
+    assert np.hypot(*(moved[base[:, 0]] - moved[base[:, 1]]).T).min() > 1.5
+    g = slot_gaps_mm(model, {"bent": bend, "zero": np.zeros(model.n_dofs)}, u_shape)
+    # the bottom corners of the tip (y = 6 - 3.6) against the lower prong's top (y = 2)
+    assert g["bent"] == pytest.approx(0.4, abs=1e-9)
+    assert g["undeformed"] == g["zero"]  # unloaded: the prongs' 2 mm, as before
+    # the unloaded pairs come first and in their order: a slot within reach is measured as it was
+    narrow = box(-3.0, 0.0, 20.0, 5.0).difference(box(0.0, 2.0, 21.0, 3.0))
+    m2 = PlaneStressModel(
+        mesh_polygon(narrow, 0.5), get_material("PLA"), 1.0,
+        Clamp(LineString([(-3, 0), (-3, 5)])),
+        Translate(LineString([(20, 3), (20, 5)]), (0.0, 1.0), 0.1, 1),
+    )  # fmt: skip
+    base = slot_pairs(m2, narrow)
+    down = np.zeros(m2.n_dofs)
+    down[m2.iy[m2.xy[:, 1] > 2.5]] = -2.5  # the upper prong's top within 3 mm of the bottom
+    more = slot_pairs(m2, narrow, [down])
+    assert len(more) > len(base)
+    np.testing.assert_array_equal(more[: len(base)], base)
+
+
 def test_slot_gaps_from_the_segment_tree_equal_the_whole_ring_measurement():
     # A serpentine with round bends (a ring of ~100 vertices, slots 1.2 mm wide) under random
     # displacements: the nodes found on the outline through the ring's segment tree, and their
