@@ -1552,6 +1552,11 @@ class Solid3DModel:
             self._lower = None
         A = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
         diagonal = A.diagonal()
+        # where each row's diagonal sits: the pre-smoothing's sweep from zero reads the
+        # strictly lower part only (smooth_from_zero)
+        dpos = kern.diagonal_positions(indptr, indices)
+        if n and (dpos.min() < 0 or diagonal.min() <= 0.0):
+            raise SparseSolver._not_definite("a diagonal entry <= 0")
         Pc = self._coarse_prolongation()
         # P^T A P by slices of rows: the product A P of the whole (~15 M entries on the SEA
         # spring) is never formed at once
@@ -1563,8 +1568,8 @@ class Solid3DModel:
         self._coarse_name = coarse.name
 
         def cycle(r: np.ndarray) -> np.ndarray:
-            x = np.zeros_like(r)
-            kern.symmetric_gauss_seidel(indptr, indices, data, diagonal, r, x)
+            x = np.empty_like(r)
+            kern.smooth_from_zero(indptr, indices, data, dpos, diagonal, r, x)
             x += Pc @ coarse.solve(Pc.T @ (r - A @ x))
             kern.symmetric_gauss_seidel(indptr, indices, data, diagonal, r, x)
             return x
