@@ -166,6 +166,13 @@ class Solid3DSettings:
     # direct solver is named), not a silent answer: the SEA spring needs ~60 (~30 from the
     # previous thickness's answer).
     multigrid_max_iterations: int = 400
+    # solver = "multigrid": a later thickness within this fraction of the thickness whose P1
+    # coarse grid was factorised keeps that factor as its cycle's coarse solve (the coarse
+    # product and factorisation, ~1.5 s CPU a check on the SEA spring, not made again; the
+    # cycle stays symmetric positive definite and CG still stops at multigrid_rtol, so only
+    # the iterations can change: the SEA spring's re-check 2 % thinner takes 32 with either,
+    # docs/solid3d.md). 0: factorised at every thickness.
+    multigrid_coarse_reuse: float = 0.05
     # "compiled": the P2 tables from the vertex coordinates, the node-block pattern and the
     # stiffness parts row by row, and the reduced lower triangle in compressed-column order,
     # in numba kernels (fea/_solid3d_kernels.py): the SEA spring's 405k-DOF build and first
@@ -1227,6 +1234,8 @@ class Solid3DModel:
         )
         self._coarse_P: sp.csr_matrix | None = None
         self._coarse_name = ""  # the coarse grid's direct solver
+        # (thickness mm, factor) of the P1 coarse grid last factorised (_solve_multigrid)
+        self._coarse: tuple[float, SparseSolver] | None = None
         # the linear plane-stress answer of the first compared thickness (_plane_linear):
         # a later thickness scales it (compare_with_plane_stress)
         self._plane: dict | None = None
@@ -1340,7 +1349,7 @@ class Solid3DModel:
                 self._parts = self._indices = self._indptr = None
             try:
                 x0 = self._start(thickness_mm) if self._q is not None else None
-                q, iterations = self._solve_multigrid(lower, b, lean, x0)
+                q, iterations = self._solve_multigrid(lower, b, lean, x0, float(thickness_mm))
             finally:  # also after an error: the model stays usable (e.g. with another solver)
                 if lean:
                     self._assemble_compiled()
@@ -1526,14 +1535,17 @@ class Solid3DModel:
         return Pc
 
     def _solve_multigrid(self, lower: list, b: np.ndarray, lean: bool,
-                         x0: np.ndarray | None = None) -> tuple[np.ndarray, int]:  # fmt: skip
+                         x0: np.ndarray | None = None,
+                         thickness_mm: float = math.nan) -> tuple[np.ndarray, int]:  # fmt: skip
         """q (nfree,) mm with K q = b (nfree,) N by conjugate gradients preconditioned with a
         two-grid cycle; ``lower``: a one-element list holding the reduced lower triangle,
         (values (nnz,) N/mm, rows (nnz,), column pointers (nfree + 1,) int64) in compressed
         columns (``self._lower``'s pattern, or a sector's :meth:`_tied_lower`; emptied, so
         that it goes once the whole matrix is made); ``lean``: the lower triangle's pattern
         is dropped too (the caller makes it again); ``x0`` (nfree,) mm: where CG starts
-        (zeros when None). Returns (q, iterations).
+        (zeros when None); ``thickness_mm``: the model's thickness, mm (the coarse factor is kept
+        for a later thickness within ``multigrid_coarse_reuse`` of it; NaN: never kept).
+        Returns (q, iterations).
 
         The cycle: a symmetric Gauss-Seidel sweep (forward, then backward) on the P2 unknowns,
         the residual's P1 part solved directly (:meth:`_coarse_prolongation`; ~56k unknowns
@@ -1552,19 +1564,30 @@ class Solid3DModel:
             self._lower = None
         A = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
         diagonal = A.diagonal()
+        # where each row's diagonal sits: the pre-smoothing's sweep from zero reads the
+        # strictly lower part only (smooth_from_zero)
+        dpos = kern.diagonal_positions(indptr, indices)
+        if n and (dpos.min() < 0 or diagonal.min() <= 0.0):
+            raise SparseSolver._not_definite("a diagonal entry <= 0")
         Pc = self._coarse_prolongation()
-        # P^T A P by slices of rows: the product A P of the whole (~15 M entries on the SEA
-        # spring) is never formed at once
-        Ac = sp.csr_matrix((Pc.shape[1], Pc.shape[1]))
-        for s in range(0, n, 32_768):
-            Ac = Ac + Pc[s : s + 32_768].T @ (A[s : s + 32_768] @ Pc)
-        coarse = SparseSolver(Ac.tocsc(), "auto")
-        del Ac
+        t = thickness_mm
+        if self._coarse is not None and abs(t / self._coarse[0] - 1.0) <= st.multigrid_coarse_reuse:
+            coarse = self._coarse[1]  # a thickness near the factorised one's: kept
+        else:
+            self._coarse = None  # the old factor goes before the new one is made
+            # P^T A P by slices of rows: the product A P of the whole (~15 M entries on the
+            # SEA spring) is never formed at once
+            Ac = sp.csr_matrix((Pc.shape[1], Pc.shape[1]))
+            for s in range(0, n, 32_768):
+                Ac = Ac + Pc[s : s + 32_768].T @ (A[s : s + 32_768] @ Pc)
+            coarse = SparseSolver(Ac.tocsc(), "auto")
+            del Ac
+            self._coarse = (t, coarse)
         self._coarse_name = coarse.name
 
         def cycle(r: np.ndarray) -> np.ndarray:
-            x = np.zeros_like(r)
-            kern.symmetric_gauss_seidel(indptr, indices, data, diagonal, r, x)
+            x = np.empty_like(r)
+            kern.smooth_from_zero(indptr, indices, data, dpos, diagonal, r, x)
             x += Pc @ coarse.solve(Pc.T @ (r - A @ x))
             kern.symmetric_gauss_seidel(indptr, indices, data, diagonal, r, x)
             return x
