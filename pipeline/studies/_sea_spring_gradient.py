@@ -24,8 +24,8 @@ tests/pipeline/test_sea_spring_gradient.py). The geometric margins' rows are cen
 of the generator's margins (distances between polygons, not smooth to better than the polygon's
 resolution); the loaded-slot row (``deformed_slot_mm``) is the narrowest deformed distance of
 the slot's node pairs (:func:`fea.spring_analysis.slot_pairs`, those within 3 mm unloaded or
-loaded) over both directions, its derivative the closest pair's by the adjoint (:func:`fea.plane_stress_sensitivity.
-gap_sensitivity`; a min: not differentiable where two pairs tie). Not differentiated at all
+loaded) over both directions, its derivative the closest pair's by the adjoint
+(:func:`fea.plane_stress_sensitivity.gap_sensitivity`; a min: not differentiable where two pairs tie). Not differentiated at all
 (the hook answers None): the serpentine topology (no morph), ``thickness: search``, a design
 that cannot be built, meshed, morphed or solved.
 """
