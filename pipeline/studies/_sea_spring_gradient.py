@@ -25,8 +25,8 @@ of the generator's margins (distances between polygons, not smooth to better tha
 resolution); the loaded-slot row (``deformed_slot_mm``) is the narrowest deformed distance of
 the slot's node pairs (:func:`fea.spring_analysis.slot_pairs`, those within 3 mm unloaded or
 loaded) over both directions, its derivative the closest pair's by the adjoint
-(:func:`fea.plane_stress_sensitivity.gap_sensitivity`; a min: not differentiable where two pairs tie). Not differentiated at all
-(the hook answers None): the serpentine topology (no morph), ``thickness: search``, a design
+(:func:`fea.plane_stress_sensitivity.gap_sensitivity`; a min: not differentiable where two
+pairs tie). Not differentiated at all (the hook answers None): the serpentine topology (no morph), ``thickness: search``, a design
 that cannot be built, meshed, morphed or solved.
 """
 
