@@ -26,8 +26,8 @@ resolution); the loaded-slot row (``deformed_slot_mm``) is the narrowest deforme
 the slot's node pairs (:func:`fea.spring_analysis.slot_pairs`, those within 3 mm unloaded or
 loaded) over both directions, its derivative the closest pair's by the adjoint
 (:func:`fea.plane_stress_sensitivity.gap_sensitivity`; a min: not differentiable where two
-pairs tie). Not differentiated at all (the hook answers None): the serpentine topology (no morph), ``thickness: search``, a design
-that cannot be built, meshed, morphed or solved.
+pairs tie). Not differentiated at all (the hook answers None): the serpentine topology (no
+morph), ``thickness: search``, a design that cannot be built, meshed, morphed or solved.
 """
 
 from __future__ import annotations
