@@ -64,6 +64,7 @@ __all__ = [
     "KINEMATICS",
     "ELEMENTS",
     "plane_stress_lame",
+    "interpolate_displacement",
     "solve_plane_stress",
 ]
 
@@ -1657,6 +1658,63 @@ KINEMATICS: dict[str, Callable[[PlaneStressModel, np.ndarray], _State]] = {
     "nonlinear": PlaneStressModel._state_nonlinear,
 }
 """Internal force and tangent by kinematics name (the YAML string)."""
+
+
+def interpolate_displacement(
+    source: PlaneStressModel, u: np.ndarray, target: PlaneStressModel, candidates: int = 8
+) -> np.ndarray:
+    """A displacement of ``source``'s mesh, ``u``, interpolated onto ``target``'s nodes.
+
+    Each node of ``target`` (vertices and, for P2, edge midpoints) takes the value of
+    ``source``'s finite-element field at its location: the source triangle that holds it is
+    found among the ``candidates`` nearest by centroid (the one whose smallest barycentric
+    coordinate is largest, so a node on the common boundary, outside every triangle by
+    round-off, takes the nearest one's, extended by that round-off), and its shape functions
+    are evaluated there. Exact for a field of the source element's degree (a test checks a
+    quadratic on P2). Meant as Newton's starting point on a refined mesh of the same outline
+    (:meth:`PlaneStressModel.solve`'s ``guess``): a node outside the source mesh by more than
+    round-off still gets the nearest triangle's extension, and Newton corrects it.
+
+    Parameters
+    ----------
+    source : PlaneStressModel
+    u : (source.n_dofs,) mm
+    target : PlaneStressModel — the same element (P1 or P2), another mesh.
+    candidates : int — nearest source triangles tried per node.
+
+    Returns
+    -------
+    (target.n_dofs,) mm
+    """
+    from scipy.spatial import cKDTree
+
+    u = np.asarray(u, dtype=float)
+    if u.shape != (source.n_dofs,):
+        raise FeaError(f"u must be a ({source.n_dofs},) displacement vector, mm; got {u.shape}")
+    p, t = source.skmesh.p, source.skmesh.t  # (2, n_vertices) mm, (3, n_triangles)
+    x = target.xy.T  # (2, n) mm: the target's nodes
+    k = min(int(candidates), t.shape[1])
+    _, cand = cKDTree(p[:, t].mean(axis=1).T).query(x.T, k=k)
+    cand = cand.reshape(x.shape[1], k)  # (n, k)
+    a, b, c = (p[:, t[i, cand]] for i in range(3))  # (2, n, k) each: the candidates' corners
+    xx = x[:, :, None]
+
+    def cross(e: np.ndarray, f: np.ndarray) -> np.ndarray:
+        return e[0] * f[1] - e[1] * f[0]
+
+    area = cross(b - a, c - a)  # (n, k), twice the signed area
+    bary = np.stack([cross(b - xx, c - xx), cross(c - xx, a - xx), cross(a - xx, b - xx)]) / area
+    best = np.argmax(bary.min(axis=0), axis=1)  # (n,)
+    cells = cand[np.arange(x.shape[1]), best]
+    basis = source.basis
+    ref = basis.mapping.invF(x[:, :, None], tind=cells)  # (2, n, 1) reference coordinates
+    field = np.zeros(x.shape)
+    for i in range(basis.Nbfun):  # the vector element's shape functions: (2, n, 1) values each
+        phi = np.asarray(basis.elem.gbasis(basis.mapping, ref, i, tind=cells)[0])
+        field += phi[:, :, 0] * u[basis.element_dofs[i, cells]]
+    out = np.zeros(target.n_dofs)
+    out[target.ix], out[target.iy] = field[0], field[1]
+    return out
 
 
 def solve_plane_stress(
