@@ -14,6 +14,10 @@ ST after, 3D peak; printed with every digit, to compare installs). ``--ab OTHER_
 same with another install's interpreter (A, e.g. main's venv) and this one's (B), alternating,
 the order swapped every round; medians and the load average printed. ``--no-cvxopt``: cvxopt
 made unimportable first (a plain install's path: the 3D check by multigrid, QDLDL's 2D solves).
+``--peak``: the peak convergence alone (``_sea_spring_peak.peak_of`` of the design at its
+solved ST, the worse direction: what the detail's second process runs), its CPU and wall, the
+peaks of every round with every digit and, where the install reports them, the Newton
+iterations and guesses per round.
 """
 
 from __future__ import annotations
@@ -66,8 +70,44 @@ def child(study_name: str) -> None:
     print(json.dumps(out))
 
 
-def _round(python: str, study: str, no_cvxopt: bool) -> dict:
-    cmd = [python, os.path.abspath(__file__), "--child", study]
+def peak_child(study_name: str) -> None:
+    """The peak convergence of the study's design in this process; prints one JSON line."""
+    import numpy as np
+    from flexopt.fea.sea_design import worse_direction
+    from flexopt.pipeline.studies import _sea_spring_peak as peak
+    from flexopt.pipeline.studies.sea_spring import SeaSpringProblem
+    from flexopt.pipeline.study import load_study, resolve_study_path
+
+    study = load_study(resolve_study_path(study_name))
+    prob = SeaSpringProblem(study)
+    x = np.asarray(prob.nominal_design(), dtype=float)
+    prob.warm_up()
+    _, solved = prob._evaluate(x, study.mesh.curve_steps, keep_model=True)
+    _, geom, r, _ = solved
+    c0, t0 = time.process_time(), time.perf_counter()
+    c = peak.peak_of(prob, geom.params, worse_direction(r))
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    out = {
+        "wall_s": wall,
+        "cpu_s": cpu,
+        "children_cpu_s": 0.0,
+        "rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
+        "children_rss_gb": 0.0,
+        "figures": {
+            "peaks_MPa": c["peaks_MPa"],
+            "triangles": c["triangles"],
+            "newton_iterations": c.get("newton_iterations"),
+            "cholesky_failures": c.get("cholesky_failures"),
+            "guess": c.get("guess"),
+        },
+        "checks": [],
+        "peak_wait_s": None,
+    }
+    print(json.dumps(out))
+
+
+def _round(python: str, study: str, no_cvxopt: bool, peak: bool = False) -> dict:
+    cmd = [python, os.path.abspath(__file__), "--peak-child" if peak else "--child", study]
     cmd += ["--no-cvxopt"] if no_cvxopt else []
     done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:
@@ -86,16 +126,21 @@ def main() -> None:
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
         child(sys.argv[2])
         return
+    if len(sys.argv) > 2 and sys.argv[1] == "--peak-child":
+        peak_child(sys.argv[2])
+        return
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--study", default="sea-spring")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--ab", metavar="OTHER_PYTHON")
     ap.add_argument("--no-cvxopt", action="store_true")
+    ap.add_argument("--peak", action="store_true", help="the peak convergence alone")
     args = ap.parse_args()
     if args.repeat < 1:
         ap.exit(2, "sea_detail.py: error: --repeat must be at least 1\n")
     print(f"date {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; cores {os.cpu_count()}")
-    print(f"study {args.study}; no cvxopt: {args.no_cvxopt}; load {_load()}")
+    what = "the peak convergence" if args.peak else "the detail"
+    print(f"study {args.study}; {what}; no cvxopt: {args.no_cvxopt}; load {_load()}")
     pythons = {"B": sys.executable}
     if args.ab:
         pythons = {"A": args.ab, "B": sys.executable}
@@ -103,10 +148,10 @@ def main() -> None:
     for i in range(args.repeat):
         order = list(pythons) if i % 2 == 0 else list(pythons)[::-1]
         for name in order:
-            r = _round(pythons[name], args.study, args.no_cvxopt)
+            r = _round(pythons[name], args.study, args.no_cvxopt, args.peak)
             runs[name].append(r)
             print(
-                f"  round {i + 1} {name}: detail {r['wall_s']:.2f} s wall, {r['cpu_s']:.2f} s CPU "
+                f"  round {i + 1} {name}: {r['wall_s']:.2f} s wall, {r['cpu_s']:.2f} s CPU "
                 f"+ children {r['children_cpu_s']:.2f} s, RSS {r['rss_gb']:.2f} / "
                 f"{r['children_rss_gb']:.2f} GB, peak wait {r['peak_wait_s']}, "
                 f"checks {r['checks']}; load {_load()}"

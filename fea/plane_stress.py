@@ -65,6 +65,7 @@ __all__ = [
     "ELEMENTS",
     "plane_stress_lame",
     "interpolate_displacement",
+    "MeshNumbering",
     "solve_plane_stress",
 ]
 
@@ -1660,8 +1661,33 @@ KINEMATICS: dict[str, Callable[[PlaneStressModel, np.ndarray], _State]] = {
 """Internal force and tangent by kinematics name (the YAML string)."""
 
 
+@dataclass(frozen=True)
+class MeshNumbering:
+    """What :func:`interpolate_displacement` reads of a model: its mesh, element and DOF
+    numbering, without its quadrature tables, matrices and factor (hundreds of MB on a
+    100k-DOF P2 mesh), so a caller can free the model and keep this.
+
+    skmesh : skfem MeshTri — vertices (2, n) mm, triangles (3, m)
+    element : skfem ElementVector of the model's scalar element
+    element_dofs : (n_local, m) int — the DOFs of each triangle, in the element's local order
+    n_dofs : int
+    """
+
+    skmesh: Any
+    element: Any
+    element_dofs: np.ndarray
+    n_dofs: int
+
+    @classmethod
+    def of(cls, model: PlaneStressModel) -> MeshNumbering:
+        return cls(model.skmesh, model.basis.elem, model.basis.element_dofs, model.n_dofs)
+
+
 def interpolate_displacement(
-    source: PlaneStressModel, u: np.ndarray, target: PlaneStressModel, candidates: int = 8
+    source: PlaneStressModel | MeshNumbering,
+    u: np.ndarray,
+    target: PlaneStressModel,
+    candidates: int = 8,
 ) -> np.ndarray:
     """A displacement of ``source``'s mesh, ``u``, interpolated onto ``target``'s nodes.
 
@@ -1677,7 +1703,7 @@ def interpolate_displacement(
 
     Parameters
     ----------
-    source : PlaneStressModel
+    source : PlaneStressModel, or its :class:`MeshNumbering`
     u : (source.n_dofs,) mm
     target : PlaneStressModel — the same element (P1 or P2), another mesh.
     candidates : int — nearest source triangles tried per node.
@@ -1687,7 +1713,10 @@ def interpolate_displacement(
     (target.n_dofs,) mm
     """
     from scipy.spatial import cKDTree
+    from skfem import MappingAffine
 
+    if isinstance(source, PlaneStressModel):
+        source = MeshNumbering.of(source)
     u = np.asarray(u, dtype=float)
     if u.shape != (source.n_dofs,):
         raise FeaError(f"u must be a ({source.n_dofs},) displacement vector, mm; got {u.shape}")
@@ -1706,12 +1735,12 @@ def interpolate_displacement(
     bary = np.stack([cross(b - xx, c - xx), cross(c - xx, a - xx), cross(a - xx, b - xx)]) / area
     best = np.argmax(bary.min(axis=0), axis=1)  # (n,)
     cells = cand[np.arange(x.shape[1]), best]
-    basis = source.basis
-    ref = basis.mapping.invF(x[:, :, None], tind=cells)  # (2, n, 1) reference coordinates
+    mapping = MappingAffine(source.skmesh)  # straight-sided triangles (the models' own)
+    ref = mapping.invF(x[:, :, None], tind=cells)  # (2, n, 1) reference coordinates
     field = np.zeros(x.shape)
-    for i in range(basis.Nbfun):  # the vector element's shape functions: (2, n, 1) values each
-        phi = np.asarray(basis.elem.gbasis(basis.mapping, ref, i, tind=cells)[0])
-        field += phi[:, :, 0] * u[basis.element_dofs[i, cells]]
+    for i in range(source.element_dofs.shape[0]):  # the shape functions: (2, n, 1) values
+        phi = np.asarray(source.element.gbasis(mapping, ref, i, tind=cells)[0])
+        field += phi[:, :, 0] * u[source.element_dofs[i, cells]]
     out = np.zeros(target.n_dofs)
     out[target.ix], out[target.iy] = field[0], field[1]
     return out

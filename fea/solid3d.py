@@ -1944,9 +1944,14 @@ def converge_peak_stress(
         [previous, last], ``peaks_MPa`` and ``local_edge_mm`` per round, ``peak_xy_mm``
         (last), ``corner`` (the re-entrant vertex near the peak, or None), ``triangles`` per
         round, ``newton_iterations`` per round (all rows), ``guess`` per round ("none",
-        "used" or "failed: <why>"), ``time_s``.
+        "used" or "failed: <why>"), ``cholesky_failures`` per round (tangents Cholesky
+        refused: 0 on a stable path), ``time_s``.
     """
-    from flexopt.fea.plane_stress import PlaneStressModel, interpolate_displacement
+    from flexopt.fea.plane_stress import (
+        MeshNumbering,
+        PlaneStressModel,
+        interpolate_displacement,
+    )
 
     t0 = time.perf_counter()
     regions = list(refine or [])
@@ -1954,11 +1959,13 @@ def converge_peak_stress(
     # prepared (GEOS's indexed form, made once here, in place) the same exact predicate takes
     # about half the time (~0.6 s CPU of a refined SEA mesh's ~1.2 s); the meshes are the same.
     shapely.prepare([g for g, _ in regions if isinstance(g, BaseGeometry)])
-    peaks, sizes, tris, iterations, guesses = [], [], [], [], []
+    peaks, sizes, tris, iterations, guesses, refused = [], [], [], [], [], []
     xy = np.zeros(2)
     converged = False
     warm = warm_start and kinematics == "nonlinear"
-    last = None  # (model, its first converged row (N,) mm): the next round's starting point
+    # (the last model's numbering, its first converged row (N,) mm): the next round's start;
+    # the model itself (tables, matrices, factor: ~0.4 GB on the SEA spring's meshes) is freed
+    last = None
     for _ in range(max(3, int(min_rounds), int(max_rounds))):
         mesh = mesh_polygon(outline, max_edge_mm, refine=regions or None)
         model = PlaneStressModel(mesh, material, thickness_mm, clamp, drive,
@@ -1969,15 +1976,16 @@ def converge_peak_stress(
         elif warm:  # the first round: the second-order perturbation solution of the first row
             odd, even = model.series_predictor(_first_row_value(drive))
             guess = odd + even
-        last = None  # (the last round's model and factor freed before this one factorises)
+        last = None
         res = model.solve(kinematics, guess=guess, keep_states=warm)
         if not res.ok:
             raise FeaError(f"peak-stress convergence: the solve failed ({res.message})")
         if warm and res.row_dofs is not None:
-            last = (model, res.row_dofs[1])
+            last = (MeshNumbering.of(model), res.row_dofs[1])
         del model
         iterations.append(int(res.iterations.sum()))
         guesses.append(str(res.extra.get("guess", "none")))
+        refused.append(int(res.extra.get("cholesky_failures", 0)))
         peaks.append(float(res.peak_nodal_stress_MPa[-1]))
         xy = np.asarray(res.peak_nodal_stress_xy_mm[-1], dtype=float)
         tris.append(mesh.n_triangles)
@@ -2051,6 +2059,7 @@ def converge_peak_stress(
         "triangles": tris,
         "newton_iterations": iterations,
         "guess": guesses,
+        "cholesky_failures": refused,
         "peak_xy_mm": [float(v) for v in xy],
         "corner": corner,
         "time_s": time.perf_counter() - t0,

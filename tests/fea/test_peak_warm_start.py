@@ -68,6 +68,8 @@ def test_warm_started_peak_convergence_is_the_cold_one_to_the_newton_tolerance()
     assert cold["guess"] == ["none"] * 3
     assert warm["guess"] == ["used"] * 3
     assert warm["triangles"] == cold["triangles"]
+    # a stable path: every tangent positive definite, cold and warm (no branch to jump to)
+    assert cold["cholesky_failures"] == warm["cholesky_failures"] == [0, 0, 0]
     assert warm["peak_xy_mm"] == pytest.approx(cold["peak_xy_mm"], abs=1e-12)
     assert warm["peaks_MPa"] == pytest.approx(cold["peaks_MPa"], rel=1e-9)
     # the refinement is real (the peaks move by more than the tolerance between rounds)
