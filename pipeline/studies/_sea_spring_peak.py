@@ -94,9 +94,11 @@ def taguchi_png(side: SideProcess | None, stage1: dict[str, Any], topology: str)
 def solves_here(s3: Any) -> bool:
     """Whether the detail's two extra 2D solves run in the report's process, beside the 3D
     checks, rather than in the peak convergence's (``s3``: the study's ``solid_3d`` block).
-    With CHOLMOD's factor the checks (~10 s CPU) are shorter than the peak convergence
-    (~14 s): the solves fill the report's process's wait. Without it (a plain install's
-    multigrid, ~35 s) the checks are far the longer: the solves go to the other process."""
+    With CHOLMOD's factor the checks (~10 s CPU) were shorter than the peak convergence
+    (~14 s; ~10.3 s since its warm start, session 31: the two processes now about even,
+    either place costs the same): the solves fill the report's process's wait. Without it (a
+    plain install's multigrid, ~35 s) the checks are far the longer: the solves go to the
+    other process."""
     from flexopt.fea.solid3d import cholmod_available
 
     return s3.solver == "cholmod" or (s3.solver == "auto" and cholmod_available())
