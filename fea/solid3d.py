@@ -59,6 +59,7 @@ Units: mm, N, MPa, N·mm, rad. See docs/solid3d.md.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -187,6 +188,14 @@ class Solid3DSettings:
     # arrays bit for bit): the factorisation is the check's peak of memory (docs/solid3d.md,
     # "Memory"). False keeps them (the reference for the tests and the benchmark).
     lean_factorisation: bool = True
+    # solver = "multigrid" on a sector (a tie: P^T K P formed, fea/solid3d_sector.py): keep
+    # the stiffness parts and the block pattern through the CG solve instead of dropping
+    # them (lean_factorisation) and making them again after: ~0.4 s CPU a check (the kernel
+    # and the P2 gradients), the answers the same bit for bit. They are 0.19 GB on the SEA
+    # spring's sector, whose check by multigrid peaks when P^T K P is formed (the parts held
+    # there anyway), not in the CG (docs/solid3d.md, "Memory"); a whole model by multigrid
+    # (the threshold spring's 544k DOFs) still drops them. False: dropped as there.
+    multigrid_sector_keeps_parts: bool = True
 
 
 @dataclass(frozen=True)
@@ -408,6 +417,23 @@ def _gathered(vals) -> np.ndarray:
     return vals[0][vals[1]] if isinstance(vals, tuple) else vals
 
 
+def _trim_heap() -> None:
+    """Give the C heap's free pages back to the system (glibc's ``malloc_trim``; nothing
+    elsewhere). Arrays under glibc's mmap threshold (up to 32 MB once larger ones were freed)
+    come from the heap, and what they leave when freed stays resident; the P^T K P product's
+    pieces and the plane comparison leave ~0.1 GB there on the SEA spring's check, which
+    would otherwise sit under CHOLMOD's factorisation, the check's peak (docs/solid3d.md,
+    "Memory"). No number changes."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc (e.g. musl): nothing to trim this way
+        pass
+
+
 class SparseSolver:
     """Factorise a symmetric positive definite matrix once and solve with it.
 
@@ -426,7 +452,8 @@ class SparseSolver:
         """``K`` (n, n) symmetric; or ``lower`` = (values, rows, cols, n): its lower triangle
         as triplets (rows >= cols, no duplicates); or ``columns`` = (values, rows, colptr, n):
         its lower triangle in compressed columns (rows sorted within each), the values
-        possibly as a pair (data, flat) for ``data[flat]``."""
+        possibly as a pair (data, flat) for ``data[flat]``; the values and the rows possibly
+        in one-element lists that are emptied (:func:`_gathered`)."""
         if which not in ("auto", "cholmod", "qdldl", "superlu"):
             raise FeaError(f"solver '{which}' unknown; use 'auto', 'cholmod', 'qdldl' or 'superlu'")
         if lower is None and columns is None:
@@ -443,6 +470,9 @@ class SparseSolver:
         # the caller's tuples go: a list in them (see _gathered) then holds the values alone
         del lower, columns
         vals = _gathered(vals)
+        # the rows may come in a one-element list too (emptied: freed once CHOLMOD's copy is
+        # made, not held through its factorisation: 4 bytes an entry, 42 MB on the SEA sector)
+        rows = rows.pop() if isinstance(rows, list) else rows
         if which in ("auto", "cholmod"):
             try:
                 from cvxopt import cholmod, matrix, spmatrix
@@ -457,12 +487,14 @@ class SparseSolver:
                 xv = matrix(np.asarray(vals, dtype=float))
                 vals = None
                 xr = matrix(np.asarray(rows, dtype=np.int64))
+                rows = None
                 if cols is None:
                     cols = np.repeat(np.arange(self.n, dtype=np.int64), np.diff(colptr))
                 xc = matrix(np.asarray(cols, dtype=np.int64))
                 cols = None
                 A = spmatrix(xv, xr, xc, (self.n, self.n))
                 del xv, xr, xc
+                _trim_heap()  # the factorisation is the check's peak
                 self._cholmod, self._matrix = cholmod, matrix
                 self._F = cholmod.symbolic(A, uplo="L")
                 try:
@@ -975,6 +1007,10 @@ def _p2_gradients(tmesh, kernels) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return G, dx, Gc
 
 
+# Columns of P^T K P made at a time for a sector's tie (Solid3DModel._tied_lower): each
+# slice's K P and P^T K P are ~1/4 of the whole's on the SEA spring's 219k unknowns.
+_TIED_COLUMNS = 65_536
+
 # Components (c, d) of a 3x3 node block that each part of the stiffness fills: the in-plane
 # part (both gradients in-plane) has the in-plane block and, from mu delta_cd g_a.g_b, the
 # (z, z) entry; the mixed part the four entries with one z; the out-of-plane part the
@@ -1322,17 +1358,23 @@ class Solid3DModel:
         direct = "auto" if st.solver == "multigrid" else st.solver
         # the build's times go with the first solve (multigrid keeps no factor: by the answer)
         times = dict(self._build_times) if self._q is None else {"mesh": 0.0}
-        K = self.stiffness_matrix(thickness_mm)
+        # K(t)'s blocks are formed only for what reads them (a factorisation, the multigrid
+        # solver's matrix; the numpy path's products): the compiled path's products come
+        # from the parts (_matvec, the same figures bit for bit), so that a PCG re-check
+        # holds no K beside CHOLMOD's factor (docs/solid3d.md, "Memory")
+        compiled = self._kernels is not None
+        pcg_next = not first and st.later_solves == "pcg" and not self._multigrid
+        K = None if compiled and pcg_next else self.stiffness_matrix(thickness_mm)
         t1 = time.perf_counter()
         times["assemble"] = times.get("assemble", 0.0) + (t1 - t0)
         sup = self._sup
         P = sup.P
-        b = -(P.T @ (K @ sup.ubar))
+        b = -(P.T @ (K @ sup.ubar if K is not None else self._matvec(thickness_mm, sup.ubar)))
         iterations = 0
         q = None
         if self._multigrid:
-            # K's blocks (245 MB on the SEA spring) are not held beside the solver's matrix:
-            # formed again for the reactions, as on the direct path
+            # K's blocks (245 MB on the SEA spring) are not held beside the solver's matrix
+            # (the reactions' product comes from the parts, _matvec, as on the direct path)
             # the lower triangle handed over in a one-element list (see _gathered)
             if sup.selection:
                 lower = [(K.data.ravel()[self._lower[0]], self._lower[1], self._lower[2])]
@@ -1344,7 +1386,7 @@ class Solid3DModel:
                 lower = [(vals.pop(), rows, colptr.astype(np.int64))]
                 del rows, colptr
             K = None
-            lean = st.lean_factorisation
+            lean = st.lean_factorisation and (sup.selection or not st.multigrid_sector_keeps_parts)
             if lean:  # made again below, bit for bit, from the mesh
                 self._parts = self._indices = self._indptr = None
             try:
@@ -1353,15 +1395,19 @@ class Solid3DModel:
             finally:  # also after an error: the model stays usable (e.g. with another solver)
                 if lean:
                     self._assemble_compiled()
-            K = self.stiffness_matrix(thickness_mm)
-        elif not first and st.later_solves == "pcg":
+        elif pcg_next:
             assert self._factor is not None and self._q is not None
+            Kq = K
             q, iterations, ok = _pcg(
-                lambda x: P.T @ (K @ (P @ x)), b, self._factor.solve, self._start(thickness_mm),
+                lambda x: P.T @ (Kq @ (P @ x) if Kq is not None
+                                 else self._matvec(thickness_mm, P @ x)),
+                b, self._factor.solve, self._start(thickness_mm),
                 st.pcg_rtol, st.pcg_max_iterations,
             )  # fmt: skip
             if not ok:
                 q = None  # too far from the factorised thickness: factorise this one
+                if K is None:
+                    K = self.stiffness_matrix(thickness_mm)
         if q is None:
             iterations = 0
             self._factor = None  # release the old factor before the new one is built
@@ -1376,21 +1422,26 @@ class Solid3DModel:
                 lean = self._kernels is not None and st.lean_factorisation
                 if lean:  # made again below, bit for bit, from the mesh
                     self._parts = self._lower = self._indices = self._indptr = None
+                held_rows = [rows]  # handed over like the values (SparseSolver)
+                rows = None
                 if self._kernels is not None:  # compressed columns
                     self._factor = SparseSolver(
-                        None, direct, columns=(vals, rows, third, P.shape[1])
+                        None, direct, columns=(vals, held_rows, third, P.shape[1])
                     )
                 else:  # triplets
-                    self._factor = SparseSolver(None, direct, (vals, rows, third, P.shape[1]))
-                del rows, third
+                    self._factor = SparseSolver(None, direct,
+                                                (vals, held_rows, third, P.shape[1]))  # fmt: skip
+                del held_rows, third
                 if lean:
                     self._assemble_compiled()
-                K = self.stiffness_matrix(thickness_mm)
+                if not compiled:
+                    K = self.stiffness_matrix(thickness_mm)
             elif not sup.selection:  # a sector's tie: P^T K P formed lean (_factor_tied)
                 held = [K]
                 K = None
                 self._factor = self._factor_tied(held, direct)
-                K = self.stiffness_matrix(thickness_mm)
+                if not compiled:
+                    K = self.stiffness_matrix(thickness_mm)
             else:
                 self._factor = SparseSolver((P.T @ K.tocsr() @ P).tocsr(), direct)
             q = self._factor.solve(b)
@@ -1399,7 +1450,8 @@ class Solid3DModel:
         self._q, self._t_q = q, float(thickness_mm)
         u = sup.ubar + P @ q
         times["factorise_solve"] = time.perf_counter() - t1
-        rx = _reactions(K @ u, sup, st)  # internal force = force applied by the supports
+        # internal force = force applied by the supports
+        rx = _reactions(K @ u if K is not None else self._matvec(thickness_mm, u), sup, st)
         K = None  # not held beside the stress gradients
         t2 = time.perf_counter()
         peaks = self.peak_stresses(u, float(thickness_mm))
@@ -1411,6 +1463,16 @@ class Solid3DModel:
             solver = self._factor.name if iterations == 0 else f"pcg ({self._factor.name})"
         return _result(sup, rx, peaks, self.n_dofs, self._t.shape[0], self._n_layers, st,
                        solver, times, iterations)  # fmt: skip
+
+    def _matvec(self, thickness_mm: float, x: np.ndarray) -> np.ndarray:
+        """K(t) @ x, (ndof,) N for x (ndof,) mm: from the parts without K(t)'s blocks on the
+        compiled path (``parts_matvec``: ``stiffness_matrix(t) @ x`` bit for bit), else by
+        forming K(t)."""
+        if self._kernels is None:
+            return self.stiffness_matrix(thickness_mm) @ x
+        s = float(thickness_mm) / self.reference_thickness_mm
+        return self._kernels.parts_matvec(self._indptr, self._indices, self._parts, s,
+                                          np.asarray(x, dtype=float))  # fmt: skip
 
     def _factor_tied(self, held: list, which: str) -> SparseSolver:
         """The factor of P^T K P when P ties DOFs (a sector: cut B = R cut A), K (ndof, ndof)
@@ -1425,10 +1487,12 @@ class Solid3DModel:
         lean = self._kernels is not None and self.settings.lean_factorisation
         if lean:  # made again below, bit for bit, from the mesh
             self._parts = self._lower = self._indices = self._indptr = None
+        held_rows = [rows]  # handed over like the values: freed once CHOLMOD copied them
+        del rows
         try:
-            return SparseSolver(None, which, columns=(vals, rows, colptr, P.shape[1]))
+            return SparseSolver(None, which, columns=(vals, held_rows, colptr, P.shape[1]))
         finally:
-            del rows, colptr
+            del held_rows, colptr
             if lean:
                 self._assemble_compiled()
 
@@ -1450,14 +1514,33 @@ class Solid3DModel:
         """The lower triangle of P^T K P (nq, nq) N/mm in compressed columns, rows sorted in
         each column, for a P that ties DOFs (a sector), K (ndof, ndof) handed over in the
         one-element list ``held`` (emptied, so that each intermediate goes once the next is
-        made). Returns ([values (nnz,)], rows (nnz,) int32, column pointers (nq + 1,))."""
+        made). Returns ([values (nnz,)], rows (nnz,) int32, column pointers (nq + 1,)).
+
+        Made by slices of ``_TIED_COLUMNS`` columns, each slice's lower part kept: the whole
+        product P^T K P (both triangles, in two formats) and K P were each held at once
+        before (0.4 GB above the model on the SEA spring's sector, the check's peak on a
+        plain install). Each entry is the same sum in the same order as the whole product's
+        (a column of K P and of P^T (K P) reads only that column of P), so the values are
+        the same bit for bit (tests/fea/test_solid3d_sector.py)."""
         P = self._sup.P
+        nq = P.shape[1]
         A = held.pop().tocsr()
-        A = A @ P  # (ndof, nq)
-        A = (P.T.tocsr() @ A).tocsc()  # (nq, nq)
-        A = sp.tril(A, format="csc")
-        A.sort_indices()
-        vals, rows, colptr = [A.data], A.indices, A.indptr
+        Pc, PT = P.tocsc(), P.T.tocsr()
+        data, index, counts = [], [], [np.zeros(1, dtype=np.int64)]
+        for c0 in range(0, nq, _TIED_COLUMNS):
+            c1 = min(nq, c0 + _TIED_COLUMNS)
+            B = (PT @ (A @ Pc[:, c0:c1])).tocsc()  # columns c0..c1 of P^T K P
+            B = sp.tril(B, k=-c0, format="csc")  # rows >= the global column
+            B.sort_indices()
+            data.append(B.data)
+            index.append(B.indices)
+            counts.append(np.diff(B.indptr).astype(np.int64))
+            del B
+        del A, Pc, PT
+        colptr = np.cumsum(np.concatenate(counts))
+        vals = [np.concatenate(data)]
+        del data
+        rows = np.concatenate(index).astype(np.int32, copy=False)
         return vals, rows, colptr
 
     def _coarse_prolongation(self) -> sp.csr_matrix:
@@ -1693,13 +1776,15 @@ class Solid3DModel:
         thickness scales that (the same figures as a solve at t to its round-off, ~1e-10;
         tests/fea/test_solid3d_model.py). ``time_2d_s`` is 0 then (no solve made).
         """
-        r3 = self.solve(thickness_mm)
         plane = self._plane
         fresh = plane is None
         if plane is None:
+            # before the 3D solve: its memory (the plane model and its factor) is then not
+            # on top of the 3D factor's (the SEA check's peak; docs/solid3d.md, "Memory")
             plane = self._plane = _plane_linear(self.comparison_mesh, self.material,
                                                 thickness_mm, self.clamp, self.drive,
                                                 self.stress_ignore)  # fmt: skip
+        r3 = self.solve(thickness_mm)
         return _ratios(plane, float(thickness_mm), r3, fresh)
 
 

@@ -272,3 +272,86 @@ def test_sector_with_the_numpy_assembly_equals_the_compiled_one():
     assert out[0].stiffness == pytest.approx(out[1].stiffness, rel=SAME)
     assert out[0].peak_nodal_stress_MPa == pytest.approx(out[1].peak_nodal_stress_MPa, rel=SAME)
     assert out[0].peak_stress_MPa == pytest.approx(out[1].peak_stress_MPa, rel=SAME)
+
+
+def test_tied_lower_by_column_slices_equals_the_whole_product(monkeypatch):
+    """Solid3DModel._tied_lower makes P^T K P's lower triangle by slices of columns (the
+    memory of one slice instead of the whole product's): every entry is the whole product's,
+    bit for bit, whatever the slice (here 7 columns: many slices, one unaligned end)."""
+    import flexopt.fea.solid3d as s3d
+    import scipy.sparse as sp
+
+    outline, clamp, drive, ignore = _arms(3, True)
+    pm = periodic_mesh(outline, 3, 1.5)
+    m = Solid3DModel(pm.sector, STEEL, clamp, drive, Solid3DSettings(layers=1), ignore,
+                     periodic=pm)  # fmt: skip
+    P = m._sup.P
+    K = m.stiffness_matrix(3.0)
+    whole = sp.tril((P.T.tocsr() @ (K.tocsr() @ P)).tocsc(), format="csc")
+    whole.sort_indices()
+    for cols in (7, s3d._TIED_COLUMNS):
+        monkeypatch.setattr(s3d, "_TIED_COLUMNS", cols)
+        vals, rows, colptr = m._tied_lower([m.stiffness_matrix(3.0)])
+        np.testing.assert_array_equal(colptr, whole.indptr)
+        np.testing.assert_array_equal(rows, whole.indices)
+        np.testing.assert_array_equal(vals[0], whole.data)
+    assert P.shape[1] > 7 * 20
+
+
+def test_products_from_the_parts_equal_k_and_no_k_is_held(monkeypatch):
+    """The compiled path's K(t) x from the parts (parts_matvec) is the formed K(t)'s product
+    bit for bit, and a PCG re-check forms no K(t) (what the re-check's memory relies on:
+    CHOLMOD's factor held without K's blocks beside it); its answer is that of a model that
+    forms K for it (the numpy assembly's path) to solver round-off."""
+    outline, clamp, drive, ignore = _arms(2, False)
+    pm = periodic_mesh(outline, 2, 1.0)
+    m = Solid3DModel(pm.sector, STEEL, clamp, drive, Solid3DSettings(layers=2), ignore,
+                     periodic=pm)  # fmt: skip
+    x = np.random.default_rng(3).standard_normal(m.n_dofs)
+    for t in (1.0, 3.0, 0.41):
+        np.testing.assert_array_equal(m._matvec(t, x), m.stiffness_matrix(t) @ x)
+    first = m.solve(3.0)
+    formed = []
+    real = Solid3DModel.stiffness_matrix
+
+    def counted(self, thickness_mm):
+        formed.append(thickness_mm)
+        return real(self, thickness_mm)
+
+    monkeypatch.setattr(Solid3DModel, "stiffness_matrix", counted)
+    again = m.solve(3.3)
+    assert formed == [] and again.iterations > 0 and first.iterations == 0
+    numpy_path = Solid3DSettings(layers=2, assembly="numpy")
+    ref = Solid3DModel(pm.sector, STEEL, clamp, drive, numpy_path, ignore, periodic=pm)
+    ref.solve(3.0)
+    r = ref.solve(3.3)
+    assert formed  # the numpy path forms K(t)
+    assert again.stiffness == pytest.approx(r.stiffness, rel=SAME)
+    assert again.peak_nodal_stress_MPa == pytest.approx(r.peak_nodal_stress_MPa, rel=SAME)
+
+
+def test_sector_by_multigrid_keeping_the_parts_equals_dropping_them(monkeypatch):
+    """Solid3DSettings.multigrid_sector_keeps_parts (the default): the sector's multigrid
+    solve keeps the stiffness parts through CG instead of dropping and making them again;
+    the answers at three thicknesses are the lean path's bit for bit, and the kept path
+    makes no parts again (block_pattern_parts runs once, in the build)."""
+    pytest.importorskip("numba")
+    outline, clamp, drive, ignore = _arms(3, True)
+    pm = periodic_mesh(outline, 3, 1.5)
+    out = {}
+    for keep in (True, False):
+        st = Solid3DSettings(layers=1, solver="multigrid", multigrid_sector_keeps_parts=keep)
+        m = Solid3DModel(pm.sector, STEEL, clamp, drive, st, ignore, periodic=pm)
+        made = []
+        real = Solid3DModel._assemble_compiled
+
+        def counted(self, real=real, made=made):
+            made.append(1)
+            return real(self)
+
+        monkeypatch.setattr(Solid3DModel, "_assemble_compiled", counted)
+        out[keep] = [(r.stiffness, r.peak_stress_MPa, r.peak_nodal_stress_MPa, r.iterations)
+                     for r in (m.solve(t) for t in (3.0, 3.3, 3.2))]  # fmt: skip
+        monkeypatch.undo()
+        assert len(made) == (0 if keep else 3)
+    assert out[True] == out[False]
