@@ -34,7 +34,10 @@ load average before and after each part, since the machine is shared), and a fou
     time two workers could solve each batch in (the batch's items dealt largest first to the
     less loaded worker, its CPU as their time) and the core-seconds that schedule leaves idle:
     where a thread of the run process can work without taking a core from a worker. A hook
-    call is labelled by its kind (``call:jacobian``, ``call:check``); ``--record PATH`` keeps
+    call is labelled by its kind (``call:jacobian``, ``call:check``, a check's parts
+    ``call:check:0`` / ``call:check:1``), counted by kind with its mean CPU, and the gradient
+    rounds that hold a check are summed apart (their 2-worker s: the checks' share of the
+    stage's critical path); ``--record PATH`` keeps
     the timed rows (JSON lines: label, t0, t1 in perf_counter s, cpu s, pid) for a closer look.
 
 ``--ab OTHER_PYTHON``
@@ -338,6 +341,8 @@ def _timeline_table(rows: list[dict[str, Any]]) -> None:
     items = [r for r in rows if r["label"] == "design" or r["label"].startswith("call")]
     t_first = batches[0]["t0"] if batches else 0.0
     stages: dict[str, list[float]] = {}
+    checks = [0, 0.0]  # gradient rounds holding a check (or a part of one), their 2-worker s
+    calls: dict[str, list[float]] = {}  # hook calls by kind: CPU s of each
     for batch in batches:
         inside = [r for r in items if batch["t0"] <= r["t0"] and r["t1"] <= batch["t1"] + 1e-3]
         n_designs = sum(r["label"] == "design" for r in inside)
@@ -355,6 +360,12 @@ def _timeline_table(rows: list[dict[str, Any]]) -> None:
         s[4] += max(loads)
         s[5] += 2 * max(loads) - sum(loads)
         s[6] += batch["t1"] - batch["t0"]
+        if stage == "gradient" and any(r["label"].startswith("call:check") for r in inside):
+            checks[0] += 1
+            checks[1] += max(loads)
+        for r in inside:
+            if r["label"].startswith("call"):
+                calls.setdefault(r["label"].removeprefix("call:"), []).append(r["cpu"])
     print("  batches by stage (CPU s of the items; 2-worker schedule: items largest first)")
     print(
         f"    {'stage':9s} {'batches':>7s} {'designs':>7s} {'calls':>5s} {'CPU s':>7s} "
@@ -364,6 +375,16 @@ def _timeline_table(rows: list[dict[str, Any]]) -> None:
         print(
             f"    {stage:9s} {nb:7d} {nd:7d} {nc:5d} {cpu:7.3f} {span:10.3f} {idle:11.3f} "
             f"{wall:7.3f}"
+        )
+    if calls:
+        kinds = ", ".join(
+            f"{kind} {len(cpu)} (mean {1e3 * sum(cpu) / len(cpu):.1f} ms)"
+            for kind, cpu in sorted(calls.items())
+        )
+        print(f"  hook calls (CPU): {kinds}")
+        print(
+            f"  gradient rounds holding a check: {checks[0]}, their 2-worker s {checks[1]:.3f} "
+            "(the checks' share of the stage's critical path)"
         )
     for r in rows:
         if r["label"] == "preload":

@@ -6,6 +6,7 @@ Light on purpose: every worker process imports it (no SciPy, no pymoo).
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from dataclasses import dataclass
@@ -54,8 +55,13 @@ def hook_answer(hook: Any, x: np.ndarray) -> HookAnswer:
 
 def call_hook(problem: Any, kind: str, x: np.ndarray) -> HookAnswer:
     """The problem's hook of request ``kind`` (:data:`HOOKS`) at the design ``x`` (n_var,);
-    a problem without it answers None."""
-    hook = getattr(problem, HOOKS[kind], None)
+    a problem without it answers None. ``"check:p"`` is part ``p`` (an int) of the check:
+    ``check_constraints(x, part=p)`` (a problem whose ``check_parts`` is 2 or more splits its
+    check over the pool's workers, :meth:`optimise.hybrid._Stage.serve`)."""
+    name, _, part = kind.partition(":")
+    hook = getattr(problem, HOOKS[name], None)
     if hook is None:
         return HookAnswer()
+    if part:
+        return hook_answer(functools.partial(hook, part=int(part)), x)
     return hook_answer(hook, x)

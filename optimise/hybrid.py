@@ -51,7 +51,10 @@ one after the other. On a pool of two or more workers (``run_hybrid(ahead=True)`
 which one start asks for a Jacobian or a check and another for one trial design takes the
 trial's Jacobian too, on the worker that solved the trial: a start that accepts its trial is
 answered from it without waiting a round (:meth:`_Stage._ahead_calls`); its designs and answers
-are the same.
+are the same. There too, a check whose problem splits it (``check_parts``: the constant-force
+study's plane-stress rows and its refined re-solve) is sent as its parts, each to a worker, and
+merged in the run's process into the whole check's answer (:meth:`_Stage._split`): the check's
+round is shorter, its rounds, designs and answers the same.
 
 Calibration (Gauss-Newton, where the problem has a ``check_constraints(x)`` hook: a
 :class:`ConstraintCheck` of the figures its verdict judges, from a finer model than
@@ -64,6 +67,7 @@ the design, as the exact Jacobian is, so a resumed run makes the same ones.
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -328,6 +332,12 @@ class _Stage:
     ) -> None:
         self.space = space
         self.check = check
+        #: the parts a check splits into over the pool's workers (the problem's ``check_parts``:
+        #: ``check(x, part=p)`` computes part p, ``check(x, part=(answers...))`` merges them;
+        #: :meth:`serve`); 1: whole, where ``requests`` does not run calls in parallel
+        owner = getattr(check, "__self__", None)
+        parts = int(getattr(owner, "check_parts", 1) or 1)
+        self.check_parts = parts if ahead and requests is not None else 1
         #: take the Jacobian at a start's trial design in the trial's own round when that round
         #: holds another start's Jacobian or check (:meth:`serve`): only where ``requests`` runs
         #: the calls in parallel (a pool of two or more workers)
@@ -379,8 +389,12 @@ class _Stage:
         early = self._ahead_calls(asked, unique)
         calls.extend(("jacobian", x) for x in early)
         if self.requests is not None and calls:
-            evaluations, answers = self.requests(X, calls)
-            evaluations, answers = list(evaluations), list(answers)
+            sent, spans = self._split(calls)
+            evaluations, got = self.requests(X, sent)
+            evaluations, got = list(evaluations), list(got)
+            if len(got) != len(sent):
+                raise OptimiseError(f"{len(got)} answers for {len(sent)} calls")
+            answers = [self._joined(c, got[a:b]) for c, (a, b) in zip(calls, spans, strict=True)]
         else:  # in this process: the designs as one batch, then the hooks one after another
             evaluations = list(self.evaluate(X)) if len(X) else []
             answers = [self._call_here(kind, x) for kind, x in calls]
@@ -451,6 +465,45 @@ class _Stage:
                 if not any(key == e.tobytes() for e in early):
                     early.append(np.array(x, dtype=float))
         return early
+
+    def _split(
+        self, calls: Sequence[tuple[str, np.ndarray]]
+    ) -> tuple[list[tuple[str, np.ndarray]], list[tuple[int, int]]]:
+        """The calls sent to the pool for ``calls``: a check whose problem splits it
+        (:attr:`check_parts` > 1) as its parts ``"check:p"``, the last part first (the one that
+        also re-solves the peak: the longer), each on its own worker; returns them and, per
+        call, the slice of them that answers it.
+
+        Why: a check (~0.8-1 s CPU on the constant-force study) held its round, and the other
+        start in it, on one worker while the other idled; its parts are independent solves
+        (pipeline/studies/_constant_force_split.py). Its answer, merged in this process
+        (:meth:`_joined`), is the whole check's, so the rounds and designs are unchanged."""
+        sent: list[tuple[str, np.ndarray]] = []
+        spans: list[tuple[int, int]] = []
+        for kind, x in calls:
+            start = len(sent)
+            if kind == "check" and self.check_parts > 1:
+                sent.extend((f"check:{p}", x) for p in reversed(range(self.check_parts)))
+            else:
+                sent.append((kind, x))
+            spans.append((start, len(sent)))
+        return sent, spans
+
+    def _joined(self, call: tuple[str, np.ndarray], got: Sequence[HookAnswer]) -> HookAnswer:
+        """The answer to ``call`` from its parts' answers ``got`` (last part first, as
+        :meth:`_split` sent them): one answer as it is; a check's parts merged by the problem's
+        ``check(x, part=(part 0's, part 1's, ...))`` here (a part that failed is passed as None:
+        the problem then makes the whole check here). ``time_s``: the longest part's and the
+        merge's."""
+        if len(got) == 1:
+            return got[0]
+        kind, x = call
+        for answer in got:
+            if answer.error:
+                log.warning("hybrid: a part of the problem's check raised: %s", answer.error)
+        values = tuple(answer.value for answer in reversed(got))
+        merged = hook_answer(functools.partial(self.check, part=values), x)
+        return replace(merged, time_s=merged.time_s + max(a.time_s for a in got))
 
     def taken(self, request: _Evaluate | _Call) -> HookAnswer | None:
         """The Jacobian taken ahead (:meth:`_ahead_calls`) that answers ``request``, or None;

@@ -28,8 +28,9 @@ import numpy as np
 from flexopt.optimise.curve_objectives import compared_over
 from flexopt.optimise.hybrid import ConstraintCheck
 from flexopt.pipeline.studies._constant_force_clamp import CHECKED_PEAK, checked_peak_figures
+from flexopt.pipeline.studies._constant_force_split import CHECK_PART, CHECK_PARTS, CheckPart
 
-__all__ = ["check_constraints"]
+__all__ = ["CHECK_PARTS", "check_constraints"]
 
 #: the constraint row calibrated: ``stress_ratio_minus_1`` is the problem's first
 STRESS_ROW = 0
@@ -41,14 +42,21 @@ def check_constraints(
     solve: Callable[[np.ndarray], tuple[Any, Any, str]],
     metrics: Callable[[Any, Any], Any],
     fidelity: Callable[..., dict[str, Any]],
-) -> ConstraintCheck | None:
+    part: Any = None,
+) -> ConstraintCheck | CheckPart | None:
     """The verdict's peak-stress figure at the design ``x`` (23,) and the stress row's factor
     (:class:`optimise.hybrid.ConstraintCheck`: ``factors`` {0: k}, ``met``: the checked peak
     within the allowable; ``info``: ``checked_peak_stress_MPa``, ``beam_row_stress_MPa`` (the
     beam's peak x beam_stress_factor, the row's figure), ``allowable_MPa``); None when the
     objective is not ``rms_error``, the fidelity check is off or skipped, or the design does not
     solve (the verdict then judges as it does). ``kept``: the problem's kept records of ``x``
-    (its ``checks``, a CheckMemo), for the run's process when this ran in a worker."""
+    (its ``checks``, a CheckMemo), for the run's process when this ran in a worker.
+
+    ``part`` (:mod:`._constant_force_split`): 0 or 1, that part of the check only, as a
+    :class:`~._constant_force_split.CheckPart` (None where the whole check would be None); a
+    sequence of the two parts' answers (CheckPart or None, in part order): the whole check
+    from them, as without ``part`` (any part missing or not of this design: the whole check
+    is made here)."""
     # solve (x -> design, response, reason) and metrics (design, response -> CurveMetrics) are
     # the problem's own, fidelity (design, response, lo, hi -> record) the verdict's guarded
     # fidelity check: passed in by ConstantForceProblem.check_constraints, so that this module
@@ -62,7 +70,22 @@ def check_constraints(
         return None
     m = metrics(design, response)
     lo, hi = compared_over(m, study.boundary.stroke_mm)
-    check = fidelity(design, response, lo, hi)  # the verdict's
+    if isinstance(part, int):  # one part, in a pool's worker: its record goes back as it is
+        token = CHECK_PART.set(part)
+        try:
+            record = fidelity(design, response, lo, hi)
+        finally:
+            CHECK_PART.reset(token)
+        rows = tuple(int(r) for r in record.get("rows", ()))
+        return CheckPart(part, rows, record, time.perf_counter() - t0)
+    merge = None
+    if part is not None:  # the parts' records (None where a part did not answer)
+        merge = tuple(getattr(p, "record", None) for p in part)
+    token = CHECK_PART.set(merge)
+    try:
+        check = fidelity(design, response, lo, hi)  # the verdict's
+    finally:
+        CHECK_PART.reset(token)
     figures = checked_peak_figures(check, response.peak_stress_MPa)
     checked = figures.get(CHECKED_PEAK)
     if checked is None or not np.isfinite(checked):
@@ -84,4 +107,6 @@ def check_constraints(
     # the check's records ride along (ConstraintCheck.kept): where it ran in a pool's worker,
     # the run's process adopts them (the problem's adopt_check) and the report serves them
     memo = getattr(problem, "checks", None)
-    return memo.attach(x, found) if memo is not None else found
+    if memo is None or part is not None:  # merged here: the record is in this process's memo
+        return found
+    return memo.attach(x, found)

@@ -29,9 +29,16 @@ from flexopt.pipeline.studies._constant_force_reuse import (  # the kind's check
     CheckMemo,
     adopt_check,
 )
+from flexopt.pipeline.studies._constant_force_split import (
+    CHECK_PART,
+    CHECK_PARTS,
+    merge_records,
+    part_rows,
+)
 from shapely.geometry import Point
 
 __all__ = [
+    "CHECK_PARTS",
     "KINK_BLEND_MM",
     "CheckMemo",
     "adopt_check",
@@ -70,9 +77,70 @@ def refined_check(
     g = problem.study.geometry
     edge = problem.study.fidelity.max_edge_mm
     args = (beam, shape, problem.material, design.B, g.pad_length_mm, g.pad_thickness_mm)
+    mode = CHECK_PART.get()  # the whole check, one part of it, or its parts to merge
+    if isinstance(mode, int):  # one part, in a pool's worker (._constant_force_split)
+        mine = part_rows(response, rows, mode)
+        if not len(mine):
+            return {"rows": []}
+        result = plane_stress_check(*args, WORK_DIRECTION, response, mine, hi, edge)
+        if mode == 1 and "skipped" not in result:
+            result = _refine_peak(args, edge, response, mine, hi, result)
+        return {"rows": [int(r) for r in mine], **result}
+    if isinstance(mode, tuple):  # the parts' records, in the run's process
+        merged = _merged(args, edge, response, rows, hi, *mode)
+        if merged is not None:
+            return merged
     result = plane_stress_check(*args, WORK_DIRECTION, response, rows, hi, edge)
     if "skipped" in result:
         return result
+    return _refine_peak(args, edge, response, rows, hi, result)
+
+
+def _merged(
+    args: tuple[Any, ...],
+    edge: float,
+    response: Any,
+    rows: np.ndarray,
+    hi: float,
+    first: dict[str, Any] | None,
+    second: dict[str, Any] | None,
+) -> dict[str, Any] | None:
+    """The whole check's record from its two parts' records (part 0's ``first``, part 1's
+    ``second``: :mod:`._constant_force_split`); None when they are not the parts of this check
+    (other rows, a part missing: the caller then makes the whole check)."""
+    if second is None or first is None:
+        return None
+    mine = [int(r) for r in part_rows(response, rows, 1)]
+    others = [int(r) for r in part_rows(response, rows, 0)]
+    if second.get("rows") != mine or first.get("rows") != others:
+        return None
+    if "skipped" in second:  # the same mesh failed in both (the whole check's reason)
+        return {k: v for k, v in second.items() if k != "rows"}
+    if "skipped" in first:
+        return {k: v for k, v in first.items() if k != "rows"}
+    result = merge_records(first if others else None, second, rows)
+    if not all(result["converged"]):
+        result["refined"] = {"skipped": "a checked stroke did not converge"}
+        return result
+    j = int(np.argmax(result["plane_stress_peak_nodal_von_mises_MPa"]))
+    if int(np.asarray(rows)[j]) != mine[0]:  # the peak is elsewhere: its re-solve here
+        return _refine_peak(args, edge, response, rows, hi, result)
+    if REFINED_PEAK in second:  # part 1 re-solved the peak's row (keys in the whole's order)
+        result[REFINED_PEAK] = second[REFINED_PEAK]
+    result["refined"] = second["refined"]
+    return result
+
+
+def _refine_peak(
+    args: tuple[Any, ...],
+    edge: float,
+    response: Any,
+    rows: np.ndarray,
+    hi: float,
+    result: dict[str, Any],
+) -> dict[str, Any]:
+    """``result`` (plane_stress_check's record of ``rows``) with the row of its largest peak
+    re-solved on the mesh refined around that peak (see :func:`refined_check`)."""
     peaks = result["plane_stress_peak_nodal_von_mises_MPa"]
     if not all(result["converged"]):
         result["refined"] = {"skipped": "a checked stroke did not converge"}

@@ -168,7 +168,7 @@ class ConstantForceProblem(DesignProblem):
 
     #: evaluations carry Eq. 8's residuals as metrics (set on the copy :meth:`with_residuals`)
     residual_metrics = False
-    adopt_check = kinks.adopt_check  # keep what a worker's check computed, for the report's detail
+    adopt_check, check_parts = kinks.adopt_check, kinks.CHECK_PARTS  # a worker's check kept; split
 
     def with_residuals(self) -> ConstantForceProblem | None:
         """This problem, its evaluations carrying the force residuals F(s_i) - target (N) at
@@ -187,12 +187,12 @@ class ConstantForceProblem(DesignProblem):
 
         return jacobian(self, x, self._beam, self._drive)
 
-    def check_constraints(self, x: np.ndarray) -> Any:
-        """The verdict's peak-stress figure at ``x`` (23,) for the hybrid's calibration:
-        :mod:`._constant_force_calibration` (an :class:`optimise.hybrid.ConstraintCheck`)."""
-        from flexopt.pipeline.studies._constant_force_calibration import check_constraints
+    def check_constraints(self, x: np.ndarray, part: Any = None) -> Any:
+        """The verdict's peak-stress figure at ``x`` (23,) for the hybrid's calibration, or a
+        ``part`` of it (check_parts): :mod:`._constant_force_calibration`'s ConstraintCheck."""
+        from flexopt.pipeline.studies._constant_force_calibration import check_constraints as c
 
-        return check_constraints(self, x, self._solve, self._metrics, lambda *a: self._check(x, *a))
+        return c(self, x, self._solve, self._metrics, lambda *a: self._check(x, *a), part)
 
     def _check(self, x: np.ndarray, *args: Any) -> dict[str, Any]:
         """The verdict's check of ``x`` (args: design, response, lo, hi), kept (CheckMemo)."""

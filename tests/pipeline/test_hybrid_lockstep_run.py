@@ -1,6 +1,7 @@
 """The constant-force study's hybrid run with its starts in lockstep, their exact Jacobians and
 plane-stress checks on the pool's two workers, against the same run with the starts one after
-the other and every hook in the run's process (the stage as it ran before session 28): every
+the other and every hook in the run's process (the stage as it ran before session 28; each check
+on the pool split into its two parts, session 31): every
 start asks for the same designs, to the bit, and the run ends on the same best design, report
 and verdict (issue 27: the gradient stage on both cores). A run killed in its gradient stage
 resumes on the pool to the same tables and end."""
@@ -46,6 +47,15 @@ def test_lockstep_on_the_pool_asks_for_the_designs_the_sequential_stage_does(tmp
         return evaluations
 
     monkeypatch.setattr(hybrid._Start, "batch", batch)
+    sent: list[str] = []  # the calls the pool was sent
+    split = hybrid._Stage._split
+
+    def spy(self, calls):
+        out = split(self, calls)
+        sent.extend(kind for kind, _ in out[0])
+        return out
+
+    monkeypatch.setattr(hybrid._Stage, "_split", spy)
     import flexopt.pipeline.run.runner as runner
 
     stage = runner.run_hybrid
@@ -67,6 +77,8 @@ def test_lockstep_on_the_pool_asks_for_the_designs_the_sequential_stage_does(tmp
     a, b = pool.record["hybrid"], alone.record["hybrid"]
     assert a["jacobians"]["exact"] > 2 and a["checks"]["count"] >= 2  # the hooks did run
     assert len(concurrent) == 2 and concurrent == sequential
+    # each check went to the workers as its two parts (pipeline/studies/_constant_force_split.py)
+    assert "check" not in sent and sent.count("check:0") == sent.count("check:1") >= 2
     assert pool.result.best.x.tobytes() == alone.result.best.x.tobytes()
     assert pool.result.best.f.tobytes() == alone.result.best.f.tobytes()
     a["checks"].pop("time_s"), b["checks"].pop("time_s")
