@@ -192,8 +192,9 @@ def _check_polygon(polygon: Polygon, max_edge_mm: float) -> Polygon:
     return orient(polygon, sign=1.0)
 
 
-def _planar_graph(polygon: Polygon, max_edge_mm: float) -> dict:
-    """Vertices, segments and hole points of the polygon as Triangle's input."""
+def _planar_graph(polygon: Polygon, max_edge_mm: float, lines: Sequence = ()) -> dict:
+    """Vertices, segments and hole points of the polygon (and of the closed ``lines`` inside it,
+    as constrained segments) as Triangle's input."""
     # Splitting long boundary edges to the target size before meshing gives Triangle a boundary
     # already at resolution, so element size along straight edges does not depend on how the
     # generator happened to sample them.
@@ -210,6 +211,13 @@ def _planar_graph(polygon: Polygon, max_edge_mm: float) -> dict:
         if k > 0:
             # Any point strictly inside the hole tells Triangle which region to eat.
             holes.append(np.asarray(Polygon(ring).representative_point().coords[0]))
+    for line in lines:
+        xy = np.asarray(shapely.segmentize(line, max_edge_mm).coords, dtype=float)[:-1]
+        n = xy.shape[0]
+        vertices.append(xy)
+        idx = np.arange(n)
+        segments.append(offset + np.column_stack([idx, (idx + 1) % n]))
+        offset += n
     graph = {"vertices": np.vstack(vertices), "segments": np.vstack(segments)}
     if holes:
         graph["holes"] = np.vstack(holes)
@@ -267,6 +275,7 @@ def mesh_polygon(
     max_edge_mm: float,
     refine: Refinement | None = None,
     settings: MeshSettings = MeshSettings(),
+    lines: Sequence | None = None,
 ) -> TriMesh:
     """Mesh a polygon with quality triangles, optionally refined locally.
 
@@ -281,6 +290,12 @@ def mesh_polygon(
         xy (k, 2) mm, or ``(shapely geometry, edge length)`` regions: every triangle touching a
         region is refined to that size. The smaller of this and ``max_edge_mm`` applies.
     settings : MeshSettings
+    lines : sequence of closed shapely rings (LinearRing), mm, optional
+        Curves strictly inside the polygon meshed as constrained edges (split to at most
+        ``max_edge_mm``): every one lies on element edges. A region selected by its nodes (a
+        clamp's or a drive's footprint) whose boundary is such a line is the region itself in
+        every mesh; otherwise its node set is a jagged approximation that changes with the mesh
+        at the scale of its elements (docs/sea_spring.md, "The morph's refinement test").
 
     Returns
     -------
@@ -301,7 +316,14 @@ def mesh_polygon(
             "(units are mm)"
         )
     opts = f"pq{settings.min_angle_deg:g}"
-    graph = _planar_graph(poly, max_edge_mm)
+    lines = [] if lines is None else list(lines)
+    for line in lines:
+        if not (line.is_closed and poly.contains(line) and poly.boundary.distance(line) > 1e-6):
+            raise FeaError(
+                "mesh_polygon's lines must be closed rings strictly inside the polygon "
+                f"(one comes {poly.boundary.distance(line):.3g} mm from its outline)"
+            )
+    graph = _planar_graph(poly, max_edge_mm, lines)
     out = triangle.triangulate(graph, f"{opts}a{_EQUILATERAL_AREA * max_edge_mm**2:.17g}")
     if refine is not None and not callable(refine):
         refine = list(refine)  # read twice below: an iterator would be spent by the first

@@ -177,8 +177,11 @@ def analyse_spring(
     t0 = time.perf_counter()
     rev_torque = rev_stress = rev_u = rev_rows = None
     mesh = mesh or SpringMesh()
+    # the clamp's and the drive's discs on element edges where the geometry names them
+    # (geometry.arm_spring.ArmSpringGeometry.mesh_lines): the held nodes are those discs
+    lines = geom.mesh_lines() if hasattr(geom, "mesh_lines") else None
     m = mesh_polygon(geom.fe_outline, mesh.max_edge_mm, refine=geom.mesh_regions(
-        mesh.elements_through, mesh.max_edge_mm))  # fmt: skip
+        mesh.elements_through, mesh.max_edge_mm), lines=lines)  # fmt: skip
     # The nonlinear solve needs only the torque to ~1e-5; 1e-7 of the force saves an iteration.
     cfg = settings or PlaneStressSettings(rtol_residual=1e-7)
     ignore = geom.hub_region.union(geom.pad_region).buffer(0.05)

@@ -214,6 +214,23 @@ class ArmSpringGeometry(SpringGeometry):
         """Every arm piece at its width / ``elements_through`` (list of (geometry, size mm))."""
         return [(g, min(max_mm, w / elements_through)) for g, w in self.arm_pieces]
 
+    def mesh_lines(self) -> list:
+        """The rigid regions' boundaries (the hub's drive disc, every pad's clamp disc) as
+        closed rings, mm, for :func:`fea.mesh.mesh_polygon`'s ``lines``: the FE model holds or
+        turns the nodes on or inside them, so a mesh with them on its edges holds exactly these
+        discs. Otherwise the held set is jagged at the scale of the elements there and changes
+        from one re-mesh to the next: ST moved by up to 3.5e-3 mm for a 1e-4 relative change
+        of W4 (the quick study's spring, 4 mm mesh), which kept the morphed mesh's answer from
+        approaching the re-meshed one's under refinement (docs/sea_spring.md, "The morph's
+        refinement test"). Rings not strictly inside ``fe_outline`` are left out."""
+        rings = [self.hub_region.exterior]
+        rings += [g.exterior for g in getattr(self.pad_region, "geoms", [self.pad_region])]
+        return [
+            r
+            for r in rings
+            if self.fe_outline.contains(r) and self.fe_outline.boundary.distance(r) > 1e-6
+        ]
+
 
 def arm_clearances(p: ArmSpringParams, frame: SpringFrame = _DEFAULT_FRAME) -> dict[str, float]:
     """Signed margins (mm, >= 0 when met) of an arm spring, from its drawn arms.

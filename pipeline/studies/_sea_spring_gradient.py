@@ -19,8 +19,11 @@ The chain, at a design ``x`` (n_var,) of a spiral spring with ``thickness: solve
    :data:`fea.plane_stress_sensitivity.KS_RHO_YIELD`), an upper bound of the judged peak.
 
 What is differentiated is the response of the **morphed** mesh, which equals the re-meshed
-design's at ``x`` exactly and near it up to the discretisation error (falling with refinement:
-tests/pipeline/test_sea_spring_gradient.py). The geometric margins' rows are central differences
+design's at ``x`` exactly and near it up to the discretisation error and the morph's outline
+against the rebuilt polygon (um at the fillets): 0.03 % of a 3 % change of W4 at 4, 2, 1 and
+0.5 mm edges (tests/pipeline/test_sea_spring_gradient.py). Both meshes have the hub's drive disc
+and the pads' clamp discs on element edges (``ArmSpringGeometry.mesh_lines``), so the nodes held
+are the same discs in both. The geometric margins' rows are central differences
 of the generator's margins (distances between polygons, not smooth to better than the polygon's
 resolution); the loaded-slot row (``deformed_slot_mm``) is the narrowest deformed distance of
 the slot's node pairs (:func:`fea.spring_analysis.slot_pairs`, those within 3 mm unloaded or
@@ -75,6 +78,7 @@ class _Spring:
             self.geom.fe_outline,
             mesh.max_edge_mm,
             refine=self.geom.mesh_regions(mesh.elements_through, mesh.max_edge_mm),
+            lines=self.geom.mesh_lines(),
         )
         self.settings = settings
 

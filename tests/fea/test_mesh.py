@@ -144,3 +144,30 @@ def test_trimesh_fixes_orientation_and_is_read_only():
 def test_bad_input_raises(poly, size, match):
     with pytest.raises(FeaError, match=match):
         mesh_polygon(poly, size)
+
+
+def test_lines_lie_on_element_edges_so_a_selected_disc_is_exact():
+    """A ring meshed as ``lines``: the triangles whose three nodes lie on or inside it tile
+    exactly the ring's polygon (its area to round-off, computed here from the ring); without it
+    the node set inside the disc covers a jagged patch that is not the disc."""
+    disc = Point(7.3, 4.1).buffer(2.75, quad_segs=16)
+    outline = box(0.0, 0.0, 20.0, 10.0)
+
+    def held_area(mesh: TriMesh) -> float:
+        inside = select_nodes(mesh, disc)
+        mask = np.zeros(mesh.n_points, dtype=bool)
+        mask[inside] = True
+        return float(mesh.areas_mm2[mask[mesh.triangles].all(axis=1)].sum())
+
+    with_line = mesh_polygon(outline, 1.0, lines=[disc.exterior])
+    assert held_area(with_line) == pytest.approx(disc.area, rel=1e-12)
+    assert with_line.min_angle_deg >= MeshSettings().min_angle_deg - 1e-6
+    assert with_line.area_mm2 == pytest.approx(outline.area, rel=1e-12)
+    without = mesh_polygon(outline, 1.0)
+    assert abs(held_area(without) - disc.area) > 0.05 * disc.area
+
+
+def test_lines_must_lie_strictly_inside():
+    outline = box(0.0, 0.0, 20.0, 10.0)
+    with pytest.raises(FeaError, match="strictly inside"):
+        mesh_polygon(outline, 1.0, lines=[Point(1.0, 5.0).buffer(2.0).exterior])

@@ -98,8 +98,9 @@ def test_both_directions_equal_a_fresh_model_per_direction(problem, spring):
     geom, r = spring
     ignore = geom.hub_region.union(geom.pad_region).buffer(0.05)
     mesh_spec = problem.study.mesh
+    # analyse_spring's mesh: the clamp and drive discs on element edges
     mesh = mesh_polygon(geom.fe_outline, mesh_spec.max_edge_mm, refine=geom.mesh_regions(
-        mesh_spec.elements_through, mesh_spec.max_edge_mm))  # fmt: skip
+        mesh_spec.elements_through, mesh_spec.max_edge_mm), lines=geom.mesh_lines())  # fmt: skip
 
     def fresh(theta: float, kinematics: str, guess=None):
         model = PlaneStressModel(
