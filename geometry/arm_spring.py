@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 from flexopt.geometry.errors import GeometryError
-from flexopt.geometry.sea_spring import SpringFrame, SpringGeometry, mounting_holes
+from flexopt.geometry.sea_spring import SpringFrame, SpringGeometry
 from scipy.interpolate import PchipInterpolator
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Point, Polygon
@@ -388,6 +388,80 @@ def _hub_disc(radius_mm: float, quad_segs: int, n: int) -> Polygon:
     return Polygon(np.column_stack([radius_mm * np.cos(a), radius_mm * np.sin(a)]))
 
 
+def _hub_hole_count(frame: SpringFrame, n: int) -> int:
+    """The hub bolt holes an arm spring of ``n`` arms gets: ``frame.hub_holes`` rounded up to
+    a multiple of ``n`` (0 when there are none), so the bolt pattern repeats under the pitch."""
+    if frame.hub_holes <= 0 or frame.hub_hole_diameter_mm <= 0:
+        return 0
+    return n * math.ceil(frame.hub_holes / n)
+
+
+def _arm_spring_holes(frame: SpringFrame, pad0_xy: np.ndarray, n: int) -> BaseGeometry:
+    """The bore, the hub bolt holes and a bolt hole in every pad of an ``n``-arm spring whose
+    arm 0 has its pad centre at ``pad0_xy`` (2,) mm, as one geometry (empty when none), built
+    to repeat every 360 / ``n`` deg about the origin: one sector's holes turned ``n`` times.
+
+    :func:`geometry.sea_spring.mounting_holes` (the serpentine's) buffers every hole about its
+    own centre (a polygon whose vertices do not turn with the arms unless the pitch is a
+    multiple of their spacing) and places ``frame.hub_holes`` bolt holes whatever the arm
+    count: for 3, 5, 6, 7 or 8 arms the exported part did not repeat under the pitch (45.7
+    mm^2 off for 4 hub holes). Here the bore is a :func:`_hub_disc`, the hub holes are
+    :func:`_hub_hole_count` (``hub_holes`` rounded up to a multiple of ``n``: 6 for 6 arms and
+    4 asked), half a hole pitch off arm 0's direction as before, and the pad holes are arm
+    0's turned.
+
+    The FE models (plane stress and 3D) mesh the outline without the holes (``fe_outline``):
+    that is the exported part only while every hole lies inside a rigid footprint (the hub's
+    flange footprint ``hub_clamp_radius_mm``, the pads' washers ``pad_clamp_radius_mm``),
+    where a hole changes nothing; a hole reaching past one is refused (GeometryError), as are
+    hub holes closer than ``min_feature_mm`` to each other.
+    """
+    step = 360.0 / n
+    holes: list[BaseGeometry] = []
+    if frame.bore_diameter_mm > 0:
+        if 0.5 * frame.bore_diameter_mm > frame.hub_clamp_radius_mm + 1e-9:
+            raise GeometryError(
+                f"the bore (diameter {frame.bore_diameter_mm:g} mm) reaches past the hub's "
+                f"flange footprint (radius {frame.hub_clamp_radius_mm:g} mm), which the models "
+                "hold rigid in its place; make the bore smaller"
+            )
+        holes.append(_hub_disc(0.5 * frame.bore_diameter_mm, 16, n))
+    k = _hub_hole_count(frame, n)
+    if k > 0:
+        rc, rh = 0.5 * frame.hub_hole_circle_diameter_mm, 0.5 * frame.hub_hole_diameter_mm
+        if rc + rh > frame.hub_clamp_radius_mm + 1e-9:
+            raise GeometryError(
+                f"the hub bolt holes reach {rc + rh:g} mm from the axis, past the hub's flange "
+                f"footprint (radius {frame.hub_clamp_radius_mm:g} mm), which the models hold "
+                "rigid in their place; bring the bolt circle in or make the holes smaller"
+            )
+        wall = 2.0 * rc * math.sin(math.pi / k) - 2.0 * rh
+        if wall < frame.min_feature_mm - 1e-9:
+            raise GeometryError(
+                f"the hub's {k} bolt holes (hub_holes = {frame.hub_holes} rounded up to a "
+                f"multiple of {n} arms) leave {wall:.3g} mm between neighbours, under "
+                f"min_feature_mm = {frame.min_feature_mm:g}; fewer or smaller holes or a "
+                "larger bolt circle"
+            )
+        sector = []
+        for j in range(k // n):
+            # half a hole pitch off the arms, as mounting_holes places them
+            t = 2.0 * math.pi * (j + 0.5) / k
+            c = Point(rc * math.cos(t), rc * math.sin(t))
+            sector.append(c.buffer(rh, quad_segs=12))
+        holes += [_rotate(h, m * step) for m in range(n) for h in sector]
+    if frame.pad_hole_diameter_mm > 0:
+        if 0.5 * frame.pad_hole_diameter_mm > frame.pad_clamp_radius_mm + 1e-9:
+            raise GeometryError(
+                f"the pad bolt hole (diameter {frame.pad_hole_diameter_mm:g} mm) reaches past "
+                f"the washer footprint (radius {frame.pad_clamp_radius_mm:g} mm), which the "
+                "models hold fixed in its place; make the hole smaller"
+            )
+        hole0 = Point(*pad0_xy).buffer(0.5 * frame.pad_hole_diameter_mm, quad_segs=12)
+        holes += [_rotate(hole0, m * step) for m in range(n)]
+    return shapely.union_all(holes) if holes else Polygon()
+
+
 def _arm_zero(p: ArmSpringParams, frame: SpringFrame, curve_step_mm: float | None = None):
     step = min(0.5, 0.25 * min(p.widths_mm) + 0.1) if curve_step_mm is None else curve_step_mm
     xy, w = arm_centreline(p, max_step_mm=step)
@@ -503,7 +577,7 @@ def build_arm_spring(
     if curve_step_mm is None:
         body = _simplified_by_sector(body, p.n_arms, 2e-3)
     else:
-        body = shapely.simplify(body, 5e-6, preserve_topology=True)
+        body = _simplified_by_sector(body, p.n_arms, 5e-6)
     if isinstance(body, MultiPolygon) or not isinstance(body, Polygon) or not body.is_valid:
         raise GeometryError(
             f"the arm spring outline is not one valid polygon ({body.geom_type}, "
@@ -515,7 +589,7 @@ def build_arm_spring(
             "slots or reduce root_fillet_mm"
         )
     centres = [_rotate(Point(*xy[-1]), k * p.pitch_deg) for k in range(p.n_arms)]
-    holes = mounting_holes(frame, centres)
+    holes = _arm_spring_holes(frame, xy[-1], p.n_arms)
     outline = body.difference(holes) if not holes.is_empty else body
     if not isinstance(outline, Polygon) or not outline.is_valid:
         raise GeometryError("the mounting holes cut the spring apart; make them smaller")

@@ -619,15 +619,30 @@ def threshold_solid_3d(
     dict — N m/rad, MPa, mm, s; ``problem`` alone when the check cannot be made.
     """
     from flexopt.fea.mesh import mesh_polygon
+    from flexopt.fea.solid3d_sector import sector_or_reason
 
     if "torque_Nm" not in ps or "peak_stress_max_MPa" not in ps:
         return {"problem": "3D check not made: the plane-stress check has no curve"}
     t0 = time.perf_counter()
     try:
-        m = mesh_polygon(geom.fe_outline, spec.max_edge_mm, refine=geom.mesh_regions(
-            spec.elements_through, spec.max_edge_mm))  # fmt: skip
+        regions = geom.mesh_regions(spec.elements_through, spec.max_edge_mm)
+        # one sector of the n arms where the part repeats (fea/solid3d_sector.py; the load is
+        # the hub's rigid turn about the axis, the pads held: symmetric), as the SEA check
+        # solves it: 1/n of the whole model's unknowns, the same answer on its periodic mesh.
+        # The cuts are kept off the plane-stress peaks (their line of nodes changes the mesh
+        # there most: fea/solid3d_sector.choose_cut_angle)
+        ignore = geom.hub_region.union(geom.pad_region).buffer(0.05)
+        repeat = {"hub": geom.hub_region, "pads": geom.pad_region, "stress-ignore": ignore}
+        avoid = ps.get("peak_stress_xy_mm")
+        pm, model_3d = sector_or_reason(
+            geom.fe_outline, geom.params.n_arms, spec.max_edge_mm, regions, repeat, spec.solver,
+            avoid_mm=None if avoid is None else np.asarray(avoid, dtype=float),
+        )  # fmt: skip
+        m = mesh_polygon(geom.fe_outline, spec.max_edge_mm, refine=regions) if pm is None else (
+            pm.sector
+        )  # fmt: skip
         st0 = float(geom.thickness_mm)
-        checks = [threshold_check_3d(spec, geom, m, ps, st0, st0)]
+        checks = [threshold_check_3d(spec, geom, m, ps, st0, st0, periodic=pm)]
         first = checks[0]
         err_key = f"{spec.error_name}_3d"
         corrected = bool(
@@ -636,7 +651,9 @@ def threshold_solid_3d(
             and math.isfinite(first["ST_fit_3d_mm"])
         )
         if corrected:
-            checks.append(threshold_check_3d(spec, geom, m, ps, st0, first["ST_fit_3d_mm"]))
+            checks.append(
+                threshold_check_3d(spec, geom, m, ps, st0, first["ST_fit_3d_mm"], periodic=pm)
+            )
     except FeaError as exc:
         return {"problem": f"3D check not made: {exc}"}
     # the last check's 3D state (the part's ST): best_3d.vtu's arrays, out of the records
@@ -673,6 +690,7 @@ def threshold_solid_3d(
         **last,
         "allowable_stress_MPa": spec.allowable_MPa,
         "layers": spec.layers,
+        "model_3d": model_3d,  # one sector of n_arms (its DOFs in "dofs") or the whole and why
         "checks": checks,
         **({"peak_convergence": conv} if spec.converge_peak else {}),
         "time_s": time.perf_counter() - t0,
@@ -688,10 +706,14 @@ def threshold_check_3d(
     ps: Mapping[str, Any],
     st_ps_mm: float,
     st_mm: float,
+    periodic: Any = None,
 ) -> dict[str, Any]:
     """One 3D check of the drawn spring extruded to ``st_mm`` (mm) on the plane ``mesh``;
-    ``ps`` is the plane-stress record at ``st_ps_mm``. Its ``field`` is the 3D state
-    (:meth:`fea.solid3d.Solid3DModel.last_field`, for best_3d.vtu). Raises FeaError."""
+    ``ps`` is the plane-stress record at ``st_ps_mm``. ``periodic``: the
+    :class:`fea.solid3d_sector.PeriodicMesh` whose sector ``mesh`` is (one sector solved, the
+    whole part's answer) or None (``mesh`` is the whole). Its ``field`` is the 3D state of the
+    whole part (:meth:`fea.solid3d.Solid3DModel.last_field`, for best_3d.vtu). Raises
+    FeaError."""
     from flexopt.fea.plane_stress import Clamp, Rotate
     from flexopt.fea.solid3d import Solid3DModel, Solid3DSettings
 
@@ -705,7 +727,7 @@ def threshold_check_3d(
         Rotate(geom.hub_region, (0.0, 0.0), spec.range_rad, 1),
         Solid3DSettings(layers=spec.layers, solver=spec.solver),
         stress_ignore=geom.hub_region.union(geom.pad_region).buffer(0.05),
-        reference_thickness_mm=float(st_mm),
+        reference_thickness_mm=float(st_mm), periodic=periodic,
     )  # fmt: skip
     c = model.compare_with_plane_stress(st_mm)
     field = model.last_field(st_mm)

@@ -388,6 +388,9 @@ class ThresholdSpringProblem(DesignProblem):
             "rotation_deg": ps.rotation_deg.tolist(),
             "torque_Nm": np.asarray(ps.torque_Nm).tolist(),
             "peak_stress_MPa": np.asarray(ps.peak_stress_MPa).tolist(),
+            # where, in undeformed coordinates (rows, 2) mm: the 3D check's sector cuts keep
+            # off them (optimise.curve_objectives.threshold_solid_3d)
+            "peak_stress_xy_mm": np.asarray(ps.peak_stress_xy_mm).tolist(),
             "n_dofs": ps.n_dofs,
             "solve_time_s": ps.solve_time_s,
         }
