@@ -388,12 +388,15 @@ def _hub_disc(radius_mm: float, quad_segs: int, n: int) -> Polygon:
     return Polygon(np.column_stack([radius_mm * np.cos(a), radius_mm * np.sin(a)]))
 
 
-def _hub_hole_count(frame: SpringFrame, n: int) -> int:
-    """The hub bolt holes an arm spring of ``n`` arms gets: ``frame.hub_holes`` rounded up to
-    a multiple of ``n`` (0 when there are none), so the bolt pattern repeats under the pitch."""
+def _hub_hole_count(frame: SpringFrame) -> int:
+    """The hub bolt holes an arm spring gets: ``frame.hub_holes`` as asked (0 when there are
+    none). Not rounded to a multiple of the arm count: the holes must match the user's flange
+    (4 bolts on a 3-arm spring are 4 holes); they lie in the flange's rigid footprint (checked
+    in :func:`_arm_spring_holes`), so the models, which hold that footprint rigid, see the
+    same part whether or not the pattern repeats under the arms' pitch."""
     if frame.hub_holes <= 0 or frame.hub_hole_diameter_mm <= 0:
         return 0
-    return n * math.ceil(frame.hub_holes / n)
+    return int(frame.hub_holes)
 
 
 def _arm_spring_holes(frame: SpringFrame, pad0_xy: np.ndarray, n: int) -> BaseGeometry:
@@ -405,10 +408,12 @@ def _arm_spring_holes(frame: SpringFrame, pad0_xy: np.ndarray, n: int) -> BaseGe
     own centre (a polygon whose vertices do not turn with the arms unless the pitch is a
     multiple of their spacing) and places ``frame.hub_holes`` bolt holes whatever the arm
     count: for 3, 5, 6, 7 or 8 arms the exported part did not repeat under the pitch (45.7
-    mm^2 off for 4 hub holes). Here the bore is a :func:`_hub_disc`, the hub holes are
-    :func:`_hub_hole_count` (``hub_holes`` rounded up to a multiple of ``n``: 6 for 6 arms and
-    4 asked), half a hole pitch off arm 0's direction as before, and the pad holes are arm
-    0's turned.
+    mm^2 off for 4 hub holes). Here the bore is a :func:`_hub_disc`, the pad holes are arm 0's
+    turned, and the hub holes (:func:`_hub_hole_count`: ``hub_holes`` as asked) are half a
+    hole pitch off arm 0's direction as before, one hole turned by the hole pitch: when
+    ``hub_holes`` is a multiple of ``n`` the whole exported outline repeats under the arms'
+    pitch; otherwise only the hub holes' pattern does not (e.g. 4 bolts on 3 arms), which the
+    models cannot see: the holes lie in the flange's rigid footprint (below).
 
     The FE models (plane stress and 3D) mesh the outline without the holes (``fe_outline``):
     that is the exported part only while every hole lies inside a rigid footprint (the hub's
@@ -426,7 +431,7 @@ def _arm_spring_holes(frame: SpringFrame, pad0_xy: np.ndarray, n: int) -> BaseGe
                 "hold rigid in its place; make the bore smaller"
             )
         holes.append(_hub_disc(0.5 * frame.bore_diameter_mm, 16, n))
-    k = _hub_hole_count(frame, n)
+    k = _hub_hole_count(frame)
     if k > 0:
         rc, rh = 0.5 * frame.hub_hole_circle_diameter_mm, 0.5 * frame.hub_hole_diameter_mm
         if rc + rh > frame.hub_clamp_radius_mm + 1e-9:
@@ -438,18 +443,16 @@ def _arm_spring_holes(frame: SpringFrame, pad0_xy: np.ndarray, n: int) -> BaseGe
         wall = 2.0 * rc * math.sin(math.pi / k) - 2.0 * rh
         if wall < frame.min_feature_mm - 1e-9:
             raise GeometryError(
-                f"the hub's {k} bolt holes (hub_holes = {frame.hub_holes} rounded up to a "
-                f"multiple of {n} arms) leave {wall:.3g} mm between neighbours, under "
+                f"the hub's {k} bolt holes leave {wall:.3g} mm between neighbours, under "
                 f"min_feature_mm = {frame.min_feature_mm:g}; fewer or smaller holes or a "
                 "larger bolt circle"
             )
-        sector = []
-        for j in range(k // n):
-            # half a hole pitch off the arms, as mounting_holes places them
-            t = 2.0 * math.pi * (j + 0.5) / k
-            c = Point(rc * math.cos(t), rc * math.sin(t))
-            sector.append(c.buffer(rh, quad_segs=12))
-        holes += [_rotate(h, m * step) for m in range(n) for h in sector]
+        # half a hole pitch off the arms, as mounting_holes places them; every hole is hole
+        # 0 turned by the hole pitch, so a pattern of a multiple of n holes repeats under the
+        # arms' pitch to round-off
+        t = math.pi / k
+        hole0 = Point(rc * math.cos(t), rc * math.sin(t)).buffer(rh, quad_segs=12)
+        holes += [_rotate(hole0, j * 360.0 / k) for j in range(k)]
     if frame.pad_hole_diameter_mm > 0:
         if 0.5 * frame.pad_hole_diameter_mm > frame.pad_clamp_radius_mm + 1e-9:
             raise GeometryError(
