@@ -48,7 +48,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 from flexopt.geometry.errors import GeometryError
-from flexopt.geometry.sea_spring import SpringFrame, SpringGeometry
+from flexopt.geometry.sea_spring import (
+    SpringFrame,
+    SpringGeometry,
+    refuse_holes_outside_footprints,
+)
 from scipy.interpolate import PchipInterpolator
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Point, Polygon
@@ -419,34 +423,17 @@ def _arm_spring_holes(frame: SpringFrame, pad0_xy: np.ndarray, n: int) -> BaseGe
     that is the exported part only while every hole lies inside a rigid footprint (the hub's
     flange footprint ``hub_clamp_radius_mm``, the pads' washers ``pad_clamp_radius_mm``),
     where a hole changes nothing; a hole reaching past one is refused (GeometryError), as are
-    hub holes closer than ``min_feature_mm`` to each other.
+    hub holes closer than ``min_feature_mm`` to each other
+    (:func:`geometry.sea_spring.refuse_holes_outside_footprints`, the serpentine's too).
     """
     step = 360.0 / n
     holes: list[BaseGeometry] = []
+    refuse_holes_outside_footprints(frame)
     if frame.bore_diameter_mm > 0:
-        if 0.5 * frame.bore_diameter_mm > frame.hub_clamp_radius_mm + 1e-9:
-            raise GeometryError(
-                f"the bore (diameter {frame.bore_diameter_mm:g} mm) reaches past the hub's "
-                f"flange footprint (radius {frame.hub_clamp_radius_mm:g} mm), which the models "
-                "hold rigid in its place; make the bore smaller"
-            )
         holes.append(_hub_disc(0.5 * frame.bore_diameter_mm, 16, n))
     k = _hub_hole_count(frame)
     if k > 0:
         rc, rh = 0.5 * frame.hub_hole_circle_diameter_mm, 0.5 * frame.hub_hole_diameter_mm
-        if rc + rh > frame.hub_clamp_radius_mm + 1e-9:
-            raise GeometryError(
-                f"the hub bolt holes reach {rc + rh:g} mm from the axis, past the hub's flange "
-                f"footprint (radius {frame.hub_clamp_radius_mm:g} mm), which the models hold "
-                "rigid in their place; bring the bolt circle in or make the holes smaller"
-            )
-        wall = 2.0 * rc * math.sin(math.pi / k) - 2.0 * rh
-        if wall < frame.min_feature_mm - 1e-9:
-            raise GeometryError(
-                f"the hub's {k} bolt holes leave {wall:.3g} mm between neighbours, under "
-                f"min_feature_mm = {frame.min_feature_mm:g}; fewer or smaller holes or a "
-                "larger bolt circle"
-            )
         # half a hole pitch off the arms, as mounting_holes places them; every hole is hole
         # 0 turned by the hole pitch, so a pattern of a multiple of n holes repeats under the
         # arms' pitch to round-off
@@ -454,12 +441,6 @@ def _arm_spring_holes(frame: SpringFrame, pad0_xy: np.ndarray, n: int) -> BaseGe
         hole0 = Point(rc * math.cos(t), rc * math.sin(t)).buffer(rh, quad_segs=12)
         holes += [_rotate(hole0, j * 360.0 / k) for j in range(k)]
     if frame.pad_hole_diameter_mm > 0:
-        if 0.5 * frame.pad_hole_diameter_mm > frame.pad_clamp_radius_mm + 1e-9:
-            raise GeometryError(
-                f"the pad bolt hole (diameter {frame.pad_hole_diameter_mm:g} mm) reaches past "
-                f"the washer footprint (radius {frame.pad_clamp_radius_mm:g} mm), which the "
-                "models hold fixed in its place; make the hole smaller"
-            )
         hole0 = Point(*pad0_xy).buffer(0.5 * frame.pad_hole_diameter_mm, quad_segs=12)
         holes += [_rotate(hole0, m * step) for m in range(n)]
     return shapely.union_all(holes) if holes else Polygon()

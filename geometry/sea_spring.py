@@ -73,6 +73,7 @@ __all__ = [
     "build_spring",
     "clearances",
     "mounting_holes",
+    "refuse_holes_outside_footprints",
     "ga_bounds",
     "ga_variables",
     "params_from_vector",
@@ -649,9 +650,55 @@ def _hub(p: SpringParams, frame: SpringFrame) -> Polygon:
     return Point(0.0, 0.0).buffer(frame.hub_radius_mm, quad_segs=32)
 
 
+def refuse_holes_outside_footprints(frame: SpringFrame) -> None:
+    """Raise GeometryError when a mounting hole of ``frame`` reaches past the rigid footprint
+    it sits in, or the hub's bolt holes are closer than ``min_feature_mm`` to each other.
+
+    The FE models (plane stress, 3D, the peak convergence) mesh the outline *without* its
+    holes and hold the hub's flange footprint (radius ``hub_clamp_radius_mm``) rigid and the
+    pads' washers (``pad_clamp_radius_mm``) fixed: that is the exported part only while every
+    hole lies inside one of those footprints, where a hole changes nothing. A hole reaching
+    past one would let the models count material the part lacks, so it is refused with the
+    fix (the footprints are polygons of 128 and 64 sides: the holes are judged against their
+    inscribed radii)."""
+    hub_r = frame.hub_clamp_radius_mm * math.cos(math.pi / 128)
+    pad_r = frame.pad_clamp_radius_mm * math.cos(math.pi / 64)
+    if frame.bore_diameter_mm > 0 and 0.5 * frame.bore_diameter_mm > hub_r + 1e-9:
+        raise GeometryError(
+            f"the bore (diameter {frame.bore_diameter_mm:g} mm) reaches past the hub's "
+            f"flange footprint (radius {frame.hub_clamp_radius_mm:g} mm), which the models "
+            "hold rigid in its place; make the bore smaller"
+        )
+    k = frame.hub_holes if frame.hub_hole_diameter_mm > 0 else 0
+    if k > 0:
+        rc, rh = 0.5 * frame.hub_hole_circle_diameter_mm, 0.5 * frame.hub_hole_diameter_mm
+        if rc + rh > hub_r + 1e-9:
+            raise GeometryError(
+                f"the hub bolt holes reach {rc + rh:g} mm from the axis, past the hub's flange "
+                f"footprint (radius {frame.hub_clamp_radius_mm:g} mm), which the models hold "
+                "rigid in their place; bring the bolt circle in or make the holes smaller"
+            )
+        wall = 2.0 * rc * math.sin(math.pi / k) - 2.0 * rh if k > 1 else math.inf
+        if wall < frame.min_feature_mm - 1e-9:
+            raise GeometryError(
+                f"the hub's {k} bolt holes leave {wall:.3g} mm between neighbours, under "
+                f"min_feature_mm = {frame.min_feature_mm:g}; fewer or smaller holes or a "
+                "larger bolt circle"
+            )
+    if frame.pad_hole_diameter_mm > 0 and 0.5 * frame.pad_hole_diameter_mm > pad_r + 1e-9:
+        raise GeometryError(
+            f"the pad bolt hole (diameter {frame.pad_hole_diameter_mm:g} mm) reaches past "
+            f"the washer footprint (radius {frame.pad_clamp_radius_mm:g} mm), which the "
+            "models hold fixed in its place; make the hole smaller"
+        )
+
+
 def mounting_holes(frame: SpringFrame, pads: list[Point]) -> BaseGeometry:
     """The bore, the hub bolt holes (half a pitch off the first set or arm) and a bolt hole in
-    every pad centre (``pads``: shapely points, mm), as one geometry (empty when none)."""
+    every pad centre (``pads``: shapely points, mm), as one geometry (empty when none).
+    Raises GeometryError for a hole outside its rigid footprint
+    (:func:`refuse_holes_outside_footprints`)."""
+    refuse_holes_outside_footprints(frame)
     holes = []
     if frame.bore_diameter_mm > 0:
         holes.append(Point(0.0, 0.0).buffer(0.5 * frame.bore_diameter_mm, quad_segs=16))

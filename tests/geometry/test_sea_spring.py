@@ -132,3 +132,25 @@ def test_other_arc_counts_have_variables_and_bounds():
     np.testing.assert_allclose(params_to_vector(g.params), mid)
     with pytest.raises(GeometryError, match="odd"):
         ga_variables(6)
+
+
+@pytest.mark.parametrize(
+    ("change", "words"),
+    [
+        ({"hub_hole_circle_diameter_mm": 14.0}, "hub bolt holes reach 8.35 mm"),
+        ({"bore_diameter_mm": 16.5}, "the bore"),
+        ({"pad_hole_diameter_mm": 5.6, "pad_radius_mm": 3.5}, "pad bolt hole"),
+        ({"hub_holes": 12, "hub_hole_diameter_mm": 2.7}, "hub's 12 bolt holes"),
+    ],
+)
+def test_serpentine_holes_the_models_would_not_see_are_refused(change, words):
+    # the models mesh the outline without its holes and hold the hub's flange footprint (8 mm)
+    # rigid and the washers (2.75 mm) fixed: a hole past them would be material the models
+    # count and the part lacks (session 31; the arm springs' test is in
+    # test_arm_spring_symmetry.py)
+    from dataclasses import replace
+
+    p = params_from_vector(MID, 4)
+    build_spring(p)  # the default frame's holes lie inside: it builds
+    with pytest.raises(GeometryError, match=words):
+        build_spring(p, replace(SpringFrame(), **change))
