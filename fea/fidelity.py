@@ -95,14 +95,18 @@ def _eigenvalue_nearest_zero(model: PlaneStressModel, K: sp.csr_matrix) -> float
     ``K + 1e-9 I`` that ``eigsh`` makes by itself, which still runs for the other solvers.
     """
     reduced = model.reduced(K)
+    # ARPACK's own start vector comes from a generator whose state runs on through a process:
+    # the same tangent gave another last digit in another call or worker. A fixed start
+    # vector makes the eigenvalue a function of K alone (the same bits in every process).
+    v0 = np.random.default_rng(0).standard_normal(reduced.shape[0])
     factor = model.cholesky_factor(K)  # factorises K (or keeps it)
     if factor is not None:
         inverse = spla.LinearOperator(reduced.shape, matvec=factor.solve, dtype=float)
         values = spla.eigsh(
-            reduced, k=1, sigma=0.0, OPinv=inverse, which="LM", return_eigenvectors=False
+            reduced, k=1, sigma=0.0, OPinv=inverse, which="LM", return_eigenvectors=False, v0=v0
         )
     else:
-        values = spla.eigsh(reduced, k=1, sigma=-1e-9, which="LM", return_eigenvectors=False)
+        values = spla.eigsh(reduced, k=1, sigma=-1e-9, which="LM", return_eigenvectors=False, v0=v0)
     return float(values[0])
 
 
