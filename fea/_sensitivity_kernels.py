@@ -216,3 +216,121 @@ def coordinate_terms(
                 kap = dNs[v, m, 0] * qe[0, 2] + dNs[v, m, 1] * qe[1, 2] + dNs[v, m, 2] * qe[2, 2]
                 da[k, e, m, cv] += e_mpa * g1s * wv
                 dc[k, e, m, cv] += ratio[v, m] * kap * wv
+
+
+@_jit
+def thickness_terms(
+    U: np.ndarray,
+    edofs3: np.ndarray,
+    edofs: np.ndarray,
+    dN: np.ndarray,
+    Nq: np.ndarray,
+    theta0: np.ndarray,
+    cos0: np.ndarray,
+    sin0: np.ndarray,
+    rmap: np.ndarray,
+    psi_g: np.ndarray,
+    t_g: np.ndarray,
+    e_b: float,
+    kg_b: float,
+    dNs: np.ndarray,
+    psi_s: np.ndarray,
+    e_mpa: float,
+    frame: np.ndarray,
+    col: int,
+    dR: np.ndarray,
+    dc: np.ndarray,
+) -> None:
+    """:func:`fea.beam_sensitivity._thickness_terms_rows` compiled and assembled: dR/dt_i at
+    fixed DOFs and the bending term's explicit derivative, added into columns ``col`` ..
+    ``col + n_pts - 1`` of ``dR`` (K, n, n_var) (generalised DOFs: the end node's force rows in
+    ``frame``'s axes, as the reference turns them) and of ``dc`` (K, E, 3, n_var) MPa/mm.
+
+    Why compiled: the reference forms (K, E, Q, 4, n_pts) products with the vertices' hat
+    functions, of which each Gauss point has at most two nonzero (~24 MB of temporaries on the
+    constant-force beam, 12 ms of a Jacobian); here each element touches only the vertices
+    whose hats are nonzero on it, one pass, no temporaries. The same formulas: the element
+    scalars' derivatives by (EA, kGA, EI) times ``e_b`` (E b), ``kg_b`` (k G b) and
+    ``E b t^2 / 4``, times the hat, mapped by ``rmap`` (E, Q * 4, 9) (the model's residual
+    map); sums in another order than the reference's matmul (round-off apart; the tests
+    compare them).
+
+    ``U`` (K, n) physical DOFs; ``edofs3`` (E, 3, 3) and ``edofs`` (E, 9) the element DOFs;
+    ``dN`` (E, Q, 3), ``Nq`` (Q, 3), ``theta0``, ``cos0``, ``sin0``, ``t_g`` (E, Q) the model's
+    tables (t_g mm); ``psi_g`` (E, Q, n_pts) and ``psi_s`` (E, 3, n_pts) the hats at the Gauss
+    and sampling points; ``dNs`` (E, 3, 3); ``e_mpa`` Young's modulus; ``frame`` (2, 2).
+    """
+    n_rows = U.shape[0]
+    n_el, n_q = theta0.shape
+    n_pts = psi_g.shape[2]
+    # the vertices whose hats are nonzero on each element (a contiguous range: hats in s)
+    jlo = np.empty(n_el, np.int64)
+    jhi = np.empty(n_el, np.int64)
+    for e in range(n_el):
+        lo, hi = n_pts, -1
+        for j in range(n_pts):
+            nz = False
+            for q in range(n_q):
+                if psi_g[e, q, j] != 0.0:
+                    nz = True
+            for m in range(3):
+                if psi_s[e, m, j] != 0.0:
+                    nz = True
+            if nz:
+                lo = min(lo, j)
+                hi = max(hi, j)
+        jlo[e] = lo
+        jhi[e] = hi
+    qe = np.empty((3, 3))
+    re = np.empty((9, n_pts))
+    base = np.empty(4)
+    for k in range(n_rows):
+        for e in range(n_el):
+            lo, hi = jlo[e], jhi[e] + 1
+            for a in range(3):
+                for f in range(3):
+                    qe[a, f] = U[k, edofs3[e, a, f]]
+            for i in range(9):
+                for j in range(lo, hi):
+                    re[i, j] = 0.0
+            for q in range(n_q):
+                g0 = dN[e, q, 0] * qe[0, 0] + dN[e, q, 1] * qe[1, 0] + dN[e, q, 2] * qe[2, 0]
+                g1_ = dN[e, q, 0] * qe[0, 1] + dN[e, q, 1] * qe[1, 1] + dN[e, q, 2] * qe[2, 1]
+                kap = dN[e, q, 0] * qe[0, 2] + dN[e, q, 1] * qe[1, 2] + dN[e, q, 2] * qe[2, 2]
+                theta = theta0[e, q] + (
+                    qe[0, 2] * Nq[q, 0] + qe[1, 2] * Nq[q, 1] + qe[2, 2] * Nq[q, 2]
+                )
+                c, s = math.cos(theta), math.sin(theta)
+                x1 = cos0[e, q] + g0
+                x2 = sin0[e, q] + g1_
+                h1 = c * x1 + s * x2
+                g2 = c * x2 - s * x1
+                gam1 = h1 - 1.0
+                ei = e_b * t_g[e, q] ** 2 / 4.0
+                base[0] = gam1 * c * e_b + (-g2 * s) * kg_b
+                base[1] = gam1 * s * e_b + g2 * c * kg_b
+                base[2] = kap * ei
+                base[3] = gam1 * g2 * e_b + (-g2 * h1) * kg_b
+                for cc in range(4):
+                    row = 4 * q + cc
+                    for j in range(lo, hi):
+                        p = psi_g[e, q, j]
+                        if p == 0.0:
+                            continue
+                        v = base[cc] * p
+                        for i in range(9):
+                            re[i, j] += rmap[e, row, i] * v
+            if e == n_el - 1:  # the end node's force rows in the drive's axes
+                for j in range(lo, hi):
+                    r6, r7 = re[6, j], re[7, j]
+                    re[6, j] = frame[0, 0] * r6 + frame[0, 1] * r7
+                    re[7, j] = frame[1, 0] * r6 + frame[1, 1] * r7
+            for i in range(9):
+                d = edofs[e, i]
+                for j in range(lo, hi):
+                    dR[k, d, col + j] += re[i, j]
+            for m in range(3):
+                kap_s = dNs[e, m, 0] * qe[0, 2] + dNs[e, m, 1] * qe[1, 2] + dNs[e, m, 2] * qe[2, 2]
+                b = 0.5 * e_mpa * kap_s
+                for j in range(lo, hi):
+                    dc[k, e, m, col + j] += b * psi_s[e, m, j]

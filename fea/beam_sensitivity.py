@@ -860,6 +860,65 @@ def _thickness_terms_rows(twin: _Twin, U: np.ndarray) -> tuple[np.ndarray, np.nd
     return dre, dbend
 
 
+def _thickness_columns(
+    twin: _Twin, U: np.ndarray, frame: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The numpy reference of :func:`_compiled_thickness`: :func:`_thickness_terms_rows`
+    assembled, dR/dt_i (K, n, n_pts) in generalised DOFs and the bending term's (K, E, 3,
+    n_pts)."""
+    k_rows, n = U.shape
+    n_el = twin.model.n_elements
+    dre, dc_t = _thickness_terms_rows(twin, U)
+    npt = dre.shape[-1]
+    dre[:, -1, 6:8] = frame @ dre[:, -1, 6:8]  # the last element's rows, generalised
+    # element e's DOFs are 6 e .. 6 e + 8: its first six rows are its own, its last three
+    # those of element e + 1's first node (the reference loop's sums in its order: the
+    # next element's entry, then this one's)
+    block = np.empty((k_rows, n, npt))
+    block[:, : 6 * n_el].reshape(k_rows, n_el, 6, npt)[:] = dre[:, :, :6]
+    block[:, 6 * n_el :] = dre[:, -1, 6:]
+    block[:, 6 : 6 * n_el].reshape(k_rows, n_el - 1, 6, npt)[:, :, :3] += dre[:, :-1, 6:]
+    return block, dc_t
+
+
+def _compiled_thickness(
+    twin: _Twin, U: np.ndarray, frame: np.ndarray, col: int, dR: np.ndarray, dc: np.ndarray
+) -> None:
+    """:func:`_thickness_terms_rows` compiled (fea/_sensitivity_kernels.py), assembled straight
+    into columns ``col`` .. of ``dR`` (K, n, n_var) and ``dc`` (K, E, 3, n_var), as
+    :func:`_batched_rows` assembles the reference's element vectors."""
+    from flexopt.fea._sensitivity_kernels import thickness_terms
+
+    m = twin.model
+    tab = m.tables
+    psi_g, psi_s, t_g = twin.hats()
+    b = m.profile.width_mm
+    E, G = m.material.E_MPa, m.material.G_MPa
+    c = np.ascontiguousarray
+    thickness_terms(
+        c(U),
+        c(tab.edofs3),
+        c(tab.edofs),
+        c(tab.dN),
+        c(tab.N),
+        c(tab.theta0),
+        c(tab.cos_theta0),
+        c(tab.sin_theta0),
+        c(m.residual_map),
+        c(psi_g),
+        c(t_g),
+        float(E * b),
+        float(m.settings.shear_factor * G * b),
+        c(tab.dN_samples),
+        c(psi_s),
+        float(E),
+        c(frame),
+        int(col),
+        dR,
+        dc,
+    )
+
+
 def _statics_terms_rows(
     twin: _Twin,
     U: np.ndarray,
@@ -1050,19 +1109,12 @@ def _batched_rows(
     dc_x = np.zeros((k_rows, n_el, 3, n_var))
     edofs = m.tables.edofs
     col = 0
-    if "thickness" in variables:
-        dre, dc_t = _thickness_terms_rows(twin, U)
-        dre[:, -1, 6:8] = frame @ dre[:, -1, 6:8]  # the last element's rows, generalised
+    if "thickness" in variables and compiled:
+        _compiled_thickness(twin, U, frame, col, dR, dc_x)
+        col += prof.n_points
+    elif "thickness" in variables:
         npt = prof.n_points
-        # element e's DOFs are 6 e .. 6 e + 8: its first six rows are its own, its last three
-        # those of element e + 1's first node (the reference loop's sums in its order: the
-        # next element's entry, then this one's)
-        block = np.empty((k_rows, n, npt))
-        block[:, : 6 * n_el].reshape(k_rows, n_el, 6, npt)[:] = dre[:, :, :6]
-        block[:, 6 * n_el :] = dre[:, -1, 6:]
-        block[:, 6 : 6 * n_el].reshape(k_rows, n_el - 1, 6, npt)[:, :, :3] += dre[:, :-1, 6:]
-        dR[..., col : col + npt] = block
-        dc_x[..., col : col + npt] = dc_t
+        dR[..., col : col + npt], dc_x[..., col : col + npt] = _thickness_columns(twin, U, frame)
         col += npt
     if "width" in variables:
         dR[:, :, col] = R / prof.width_mm  # every stiffness is proportional to b

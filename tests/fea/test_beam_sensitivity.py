@@ -473,3 +473,46 @@ def test_perturbed_tables_are_the_models():
     pts[1, 0] += 6.0  # 40 -> 46 mm: the first segments get another element count
     moved = BeamProfile(pts, profile.thickness_mm, 3.0, profile.curvature_per_mm)
     assert _perturbed_tables(model, moved, np.arange(3), seg) is None
+
+
+def test_compiled_thickness_terms_are_the_reference():
+    """The compiled thickness terms (fea/_sensitivity_kernels.py ``thickness_terms``, which
+    visits only the vertices whose hats are nonzero on each element and assembles in place)
+    equal the numpy reference (:func:`_thickness_terms_rows` assembled) to round-off, on an
+    arc-and-kink profile turned through large rotations, with the end node's rows in an oblique
+    drive's axes, added into a column block of a wider array."""
+    from flexopt.fea.beam_sensitivity import (
+        _compiled_thickness,
+        _frame,
+        _thickness_columns,
+        _Twin,
+    )
+
+    profile = BeamProfile(
+        [[0.0, 0.0], [40.0, 0.0], [80.0, 10.0], [120.0, 5.0]],
+        [1.2, 1.0, 0.8, 0.9],
+        3.0,
+        curvature_per_mm=[0.01, -0.005, 0.0],
+    )
+    drive = EndDrive("displacement", (0.6, 0.8), 30.0, 6, "free", "free")
+    model = BeamModel(profile, MAT, settings=BeamSettings(n_elements=23))
+    response = model.solve(drive)
+    assert response.ok
+    twin = _Twin(model)
+    frame = _frame(drive)
+    rng = np.random.default_rng(5)
+    U = 0.3 * rng.standard_normal((4, model.n_dofs))  # any states: the terms are explicit
+    ref_dR, ref_dc = _thickness_columns(twin, U, frame)
+    n_pts = profile.n_points
+    dR = np.zeros((4, model.n_dofs, n_pts + 3))
+    dc = np.zeros((4, model.n_elements, 3, n_pts + 3))
+    _compiled_thickness(twin, U, frame, 2, dR, dc)
+    assert np.abs(ref_dR).max() > 0 and np.abs(ref_dc).max() > 0
+    np.testing.assert_allclose(
+        dR[..., 2 : 2 + n_pts], ref_dR, rtol=0, atol=1e-13 * np.abs(ref_dR).max()
+    )
+    np.testing.assert_allclose(
+        dc[..., 2 : 2 + n_pts], ref_dc, rtol=0, atol=1e-13 * np.abs(ref_dc).max()
+    )
+    for other in (dR[..., :2], dR[..., 2 + n_pts :], dc[..., :2], dc[..., 2 + n_pts :]):
+        assert not other.any()
