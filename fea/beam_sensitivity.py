@@ -531,6 +531,124 @@ def _perturbed_tables(
     }
 
 
+def _perturbed_tables_many(
+    model: BeamModel,
+    profile: BeamProfile,
+    points: np.ndarray,
+    els_of: list[np.ndarray],
+    seg: np.ndarray,
+) -> tuple[dict | None, int]:
+    """:func:`_perturbed_tables` for P moved copies of ``profile`` at once: ``points`` (P, n, 2)
+    mm their centreline vertices (thicknesses, width and curvatures are ``profile``'s),
+    ``els_of`` (P,) the elements of each. Returns the tables of every copy's elements
+    concatenated in that order (copy by copy, ``els_of[p]`` within), and -1; or ``(None, p)``
+    with p the first copy that does not mesh like ``model``.
+
+    Why: :class:`_CoordinateBatch` needs 4 copies per vertex move (40 on the constant-force
+    beam), and one call per copy was ~0.4 ms of numpy overhead on arrays of a few dozen
+    entries, 16 ms of a Jacobian. The same formulas in the same order, each element-wise
+    operation on a leading copy axis (the same operations on the same numbers: bit for bit,
+    tests/fea/test_beam_sensitivity.py checks it against :func:`_perturbed_tables`); the
+    segment-length sums, ``np.interp`` and the mesh check copy by copy. Where a copy's element
+    counts per segment are not the model's, each copy goes through :func:`_perturbed_tables`.
+    """
+    settings, material = model.settings, model.material
+    kappa_seg = profile.curvature_per_mm
+    n_copies = len(points)
+    # profile.segment_lengths_mm of each copy
+    chord = np.linalg.norm(np.diff(points, axis=1), axis=2)  # (P, n - 1)
+    half = np.abs(kappa_seg) * chord / 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        seg_len = np.where(half > 1e-12, 2 * np.arcsin(half) / np.abs(kappa_seg), chord)
+    chord_angle = np.diff(points, axis=1)
+    theta_seg = np.arctan2(chord_angle[..., 1], chord_angle[..., 0]) - kappa_seg * seg_len / 2
+    s_pts = np.concatenate([np.zeros((n_copies, 1)), np.cumsum(seg_len, axis=1)], axis=1)
+    totals = np.array([row.sum() for row in seg_len])  # each copy's sum, as the 1-D one
+    n_seg = np.maximum(1, np.rint(settings.n_elements * seg_len / totals[:, None])).astype(int)
+    if np.any(n_seg != n_seg[:1]):  # copies mesh differently: one at a time, as the reference
+        out: dict[str, list[np.ndarray]] = {}
+        for p in range(n_copies):
+            moved = BeamProfile(
+                points[p], profile.thickness_mm, profile.width_mm, profile.curvature_per_mm
+            )
+            own = _perturbed_tables(model, moved, els_of[p], seg)
+            if own is None:
+                return None, p
+            for key, value in own.items():
+                out.setdefault(key, []).append(value)
+        return {k: np.concatenate(v) for k, v in out.items()}, -1
+    n_seg = n_seg[0]
+    if int(n_seg.sum()) != model.n_elements:
+        return None, 0
+    seg_of_el = np.repeat(np.arange(seg_len.shape[1]), n_seg)
+    k = np.arange(model.n_elements) - np.repeat(np.cumsum(n_seg) - n_seg, n_seg)
+    step = (s_pts[:, 1:] - s_pts[:, :-1]) / n_seg
+    s_vert = np.concatenate(
+        [k * step[:, seg_of_el] + s_pts[:, seg_of_el], s_pts[:, -1:]], axis=1
+    )  # (P, E + 1)
+    mid = 0.5 * (s_vert[:, :-1] + s_vert[:, 1:])
+    # searchsorted(s_pts[p], mid[p], "right") is the count of s_pts[p] <= mid (sorted)
+    found = (s_pts[:, None, :] <= mid[:, :, None]).sum(axis=2) - 1
+    bad = np.flatnonzero(np.any(np.clip(found, 0, profile.n_points - 2) != seg, axis=1))
+    if bad.size:
+        return None, int(bad[0])
+    pv = np.concatenate([np.full(len(els), p) for p, els in enumerate(els_of)])  # copy
+    els = np.concatenate(els_of)  # element
+    h = np.diff(s_vert, axis=1)[pv, els]
+    start = s_vert[pv, els]
+    seg_el = seg_of_el[els]
+    xg, wg = gauss_rule()
+    _, dng = reference_tables(tuple(xg))
+    dN = dng[None, :, :] / h[:, None, None]
+    w = wg[None, :] * h[:, None]
+    s_gauss = start[:, None] + xg[None, :] * h[:, None]
+    s_seg = s_pts[pv, seg_el]
+    theta0 = theta_seg[pv, seg_el][:, None] + kappa_seg[seg_el, None] * (s_gauss - s_seg[:, None])
+    b = profile.width_mm
+    E, G = material.E_MPa, material.G_MPa
+    xs = np.array([0.0, 0.5, 1.0])
+    _, dns = reference_tables(tuple(xs))
+    dNs = dns[None, :, :] / h[:, None, None]
+    s_samp = start[:, None] + xs[None, :] * h[:, None]
+    t_g = np.empty_like(s_gauss)
+    t_s = np.empty_like(s_samp)
+    bounds = np.concatenate([[0], np.cumsum([len(e) for e in els_of])])
+    for p in range(n_copies):
+        sl = slice(bounds[p], bounds[p + 1])
+        t_g[sl] = np.interp(s_gauss[sl], s_pts[p], profile.thickness_mm)
+        t_s[sl] = np.interp(s_samp[sl], s_pts[p], profile.thickness_mm)
+    EI_s = E * b * t_s**3 / 12.0
+    Z_s = b * t_s**2 / 6.0
+    s_nodes = np.empty((n_copies, 2 * model.n_elements + 1))
+    s_nodes[:, 0::2] = s_vert
+    s_nodes[:, 1::2] = 0.5 * (s_vert[:, :-1] + s_vert[:, 1:])
+    s = s_nodes[pv[:, None], 2 * els[:, None] + np.arange(3)]  # (V, 3)
+    # _centreline_at(copy, s_pts, theta_seg, s), its formulas on every copy's nodes at once
+    at = np.clip((s_pts[pv][:, None, :] <= s[..., None]).sum(axis=2) - 1, 0, profile.n_points - 2)
+    pv3 = np.broadcast_to(pv[:, None], at.shape)
+    sigma = s - s_pts[pv3, at]
+    th = theta_seg[pv3, at]
+    kap = kappa_seg[at]
+    p0 = points[pv3, at]
+    straight = np.abs(kap) < 1e-14
+    safe = np.where(straight, 1.0, kap)
+    dx = np.where(straight, sigma * np.cos(th), (np.sin(th + kap * sigma) - np.sin(th)) / safe)
+    dy = np.where(straight, sigma * np.sin(th), (np.cos(th) - np.cos(th + kap * sigma)) / safe)
+    return {
+        "dN": dN,
+        "w": w,
+        "theta0": theta0,
+        "cos_theta0": np.cos(theta0),
+        "sin_theta0": np.sin(theta0),
+        "EA": E * b * t_g,
+        "kGA": settings.shear_factor * G * b * t_g,
+        "EI": E * b * t_g**3 / 12.0,
+        "dN_samples": dNs,
+        "ratio": EI_s / Z_s,
+        "xref": p0 + np.stack([dx, dy], axis=-1),
+    }, -1
+
+
 #: central-difference stencils of dR/dx|_q: (offset in steps, weight per step) pairs. The residual
 #: is far more curved in a vertex coordinate than the response (the axial term EA (l/l0 - 1) of
 #: a stiff, short element): on paper 003's beam the second-order stencil at 1.3e-4 mm was 1.4e-4
@@ -572,6 +690,7 @@ class _CoordinateBatch:
                 moves[2 * i, i, 0] = moves[2 * i + 1, i, 1] = 1.0
             names = tuple(f"{axis}[{i}]" for i in range(prof.n_points) for axis in "xy")
         self.names: list[str] = list(names or ())
+        copies, els_of = [], []
         for m, move in enumerate(moves):
             # the vertices the move carries, and the elements on the segments either side of them
             moved = np.flatnonzero(np.any(move != 0.0, axis=1))
@@ -579,21 +698,23 @@ class _CoordinateBatch:
             # the parameter's step, so that the largest vertex moves by ``step`` mm
             h = step / max(float(np.abs(move).max()), 1e-300)
             for sgn, weight in _STENCILS[stencil]:
-                pts = np.array(prof.points_mm) + sgn * h * move
-                p2 = BeamProfile(pts, prof.thickness_mm, prof.width_mm, prof.curvature_per_mm)
-                own = _perturbed_tables(model, p2, els, seg)
+                copies.append(np.array(prof.points_mm) + sgn * h * move)
+                els_of.append(els)
                 counts["model_builds"] += 1
-                if own is None:
-                    raise FeaError(
-                        f"coordinate step {step:g} mm changes the mesh (move {self.names[m]}); "
-                        "pass a smaller coordinate_step_mm"
-                    )
-                for key in tables:
-                    tables[key].append(own[key])
                 e_idx.append(els)
                 col.append(np.full(els.size, m))
                 sign.append(np.full(els.size, weight / h))
-        self.t = {k: np.concatenate(v) for k, v in tables.items()}
+        # every copy's tables in one pass (the copies in the order above)
+        if copies:
+            self.t, bad = _perturbed_tables_many(model, prof, np.array(copies), els_of, seg)
+        else:
+            self.t, bad = {k: np.zeros((0,)) for k in tables}, -1
+        if self.t is None:
+            raise FeaError(
+                f"coordinate step {step:g} mm changes the mesh "
+                f"(move {self.names[bad // len(_STENCILS[stencil])]}); "
+                "pass a smaller coordinate_step_mm"
+            )
         self.e = np.concatenate(e_idx)
         self.col = np.concatenate(col)
         self.weight = np.concatenate(sign)

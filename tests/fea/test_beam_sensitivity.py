@@ -516,3 +516,44 @@ def test_compiled_thickness_terms_are_the_reference():
     )
     for other in (dR[..., :2], dR[..., 2 + n_pts :], dc[..., :2], dc[..., 2 + n_pts :]):
         assert not other.any()
+
+
+def test_perturbed_tables_of_many_copies_are_each_copys():
+    """The tables of many moved copies at once (:func:`_perturbed_tables_many`, what
+    :class:`_CoordinateBatch` builds its virtual elements from) are bit for bit those of each
+    copy on its own (:func:`_perturbed_tables`), copy by copy in order, on straight and arc
+    segments; a copy that changes the mesh is named."""
+    from flexopt.fea.beam_sensitivity import (
+        _perturbed_tables,
+        _perturbed_tables_many,
+        _segment_of_elements,
+    )
+
+    profile = BeamProfile(
+        [[0.0, 0.0], [40.0, 0.0], [80.0, 10.0], [120.0, 5.0]],
+        [1.2, 1.0, 0.8, 0.9],
+        3.0,
+        curvature_per_mm=[0.01, -0.005, 0.0],
+    )
+    model = BeamModel(profile, MAT, settings=BeamSettings(n_elements=23))
+    seg = _segment_of_elements(model)
+    copies, els_of = [], []
+    for vertex, step in ((1, (1e-4, -2e-4)), (2, (-3e-5, 1e-5)), (3, (2e-4, 0.0)), (0, (0, 1e-4))):
+        for sign in (1.0, -1.0, 2.0):
+            pts = np.array(profile.points_mm)
+            pts[vertex] += sign * np.array(step)
+            copies.append(pts)
+            els_of.append(np.flatnonzero(np.isin(seg, (vertex - 1, vertex))))
+    many, bad = _perturbed_tables_many(model, profile, np.array(copies), els_of, seg)
+    assert bad == -1
+    one = [
+        _perturbed_tables(
+            model, BeamProfile(p, profile.thickness_mm, 3.0, profile.curvature_per_mm), e, seg
+        )
+        for p, e in zip(copies, els_of, strict=True)
+    ]
+    for key in many:
+        assert np.array_equal(many[key], np.concatenate([o[key] for o in one])), key
+    far = np.array(copies)
+    far[2, 1, 0] += 6.0  # 40 -> 46 mm: the first segments get another element count
+    assert _perturbed_tables_many(model, profile, far, els_of, seg) == (None, 2)
