@@ -519,6 +519,17 @@ def _flare_along(points: np.ndarray, thickness: np.ndarray, radius_mm: float):
     with ``s <= r`` thickened by ``2 r (1 - sin psi)``. Unlike the mechanism kind's flare the
     arc may run past a vertex (this beam's end segments are ~1.4 mm, its kinks a few mrad), so
     the centreline is kept exactly. Returns (m, 2) points and (m,) thickness, mm."""
+    xy, s, s_vertex, inside, bump = _flare_plan(points, radius_mm)
+    t = np.interp(s, s_vertex, thickness)
+    t[inside] += bump
+    return xy, t
+
+
+def _flare_plan(points: np.ndarray, radius_mm: float):
+    """What :func:`_flare_along` draws that does not depend on the thickness: the flared points
+    (m, 2) mm, their arc lengths ``s`` (m,) and the vertices' (n,) mm, the mask (m,) of the
+    points within the radius and their thickening (k,) mm. Apart so that many thickness
+    vectors can be flared on one centreline by the same arithmetic (:func:`flared_thickness`)."""
     seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
     s_vertex = np.concatenate([[0.0], np.cumsum(seg)])
     psi = np.linspace(0.0, 0.5 * np.pi, FILLET_CHORDS + 1)
@@ -533,11 +544,10 @@ def _flare_along(points: np.ndarray, thickness: np.ndarray, radius_mm: float):
     far = (np.min(gap, axis=1) > _MIN_CHORD_MM) & (s_arc > 1e-9)
     s = np.union1d(s_vertex, s_arc[far])
     xy = np.column_stack([np.interp(s, s_vertex, points[:, k]) for k in range(2)])
-    t = np.interp(s, s_vertex, thickness)
     inside = s < radius_mm
     # cos psi = 1 - s / r on the arc; psi = 90 deg (no thickening) at the toe and beyond
-    t[inside] += 2.0 * radius_mm * (1.0 - np.sin(np.arccos(1.0 - s[inside] / radius_mm)))
-    return xy, t
+    bump = 2.0 * radius_mm * (1.0 - np.sin(np.arccos(1.0 - s[inside] / radius_mm)))
+    return xy, s, s_vertex, inside, bump
 
 
 #: mm: the shortest blend drawn at a kink; shorter ones (a fillet's chords, 0.02-0.13 mm) are
@@ -636,6 +646,24 @@ def flared_ends(
         if r > 1e-6:
             pts, t = _flare_along(pts, t, r)
         pts, t = pts[::-1], t[::-1]
+    return pts, t
+
+
+def flared_thickness(
+    points: np.ndarray, thickness: np.ndarray, start_mm: float, end_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`flared_ends` for many thickness vectors on one centreline: ``thickness`` (B, n) mm,
+    returns the flared points (m, 2) mm and thicknesses (B, m) mm, row b bit for bit
+    ``flared_ends(points, thickness[b], start_mm, end_mm)`` (the same arithmetic; the points
+    and the thickening do not depend on the thickness, so they are drawn once). Why: the
+    flared profile's derivatives by t1..t10 redraw it 20 times."""
+    pts, t = points, np.array(thickness, dtype=float, ndmin=2)
+    for r in (start_mm, end_mm):  # S1, then S6 with the beam walked backwards
+        if r > 1e-6:
+            pts, s, s_vertex, inside, bump = _flare_plan(pts, r)
+            t = np.stack([np.interp(s, s_vertex, row) for row in t])
+            t[:, inside] += bump
+        pts, t = pts[::-1], t[:, ::-1]
     return pts, t
 
 

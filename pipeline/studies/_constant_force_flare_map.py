@@ -14,7 +14,8 @@ Two links:
   maps do not have the design's point count (an arc point crossing a vertex's 0.02 mm gap) the
   answer is None and the optimiser takes finite differences of the study instead. Only a1..a10,
   T1 and T6 go through the whole generator (they move points or a radius); t1..t10 are redrawn
-  by :func:`geometry.constant_force.flared_ends` on the design's centreline and radii, and B's
+  by :func:`geometry.constant_force.flared_thickness` (all 20 at once) on the design's centreline
+  and radii, and B's
   columns are zero: the same numbers bit for bit, 20 of the 47 generator calls instead of 47
   (tests/pipeline/test_constant_force_fillet_gradient.py checks every column against the
   generator's own central differences).
@@ -35,7 +36,7 @@ from flexopt.geometry.constant_force import (
     centreline_points,
     design_from_vector,
     filleted_beam,
-    flared_ends,
+    flared_thickness,
 )
 from flexopt.geometry.constant_force_map import profile_derivatives
 from flexopt.geometry.errors import GeometryError
@@ -161,17 +162,22 @@ def flare_derivatives(problem: Any, x: np.ndarray) -> FlareDerivatives | None:
     centre = centreline_points(design_from_vector(x), problem.frame, g.end_flexures)
     vertex_t = np.concatenate([[x[20]], x[10:20], [x[21]]])  # T1, t1..t10, T6
     radii = (made.start.root_mm, made.end.root_mm)
+    # t1..t10's perturbed vertex thicknesses (x + sign h e_k, as design_from_vector reads it),
+    # + then - for each, flared on the one centreline at once (flared_thickness: row by row
+    # flared_ends' numbers, the points and the thickening drawn once instead of 20 times)
+    vertex_ts = []
+    for k in range(10, 20):
+        for sign in (1.0, -1.0):
+            t_k = vertex_t.copy()
+            t_k[k - 9] = x[k] + sign * GEOMETRY_STEP * scale[k]
+            vertex_ts.append(t_k)
+    t_maps = flared_thickness(centre, np.array(vertex_ts), *radii)[1]
     for k in range(n):
         if DESIGN_VARIABLE_NAMES[k] == "B":
             continue
         h = GEOMETRY_STEP * scale[k]
         if 10 <= k < 20:
-            maps = []
-            for sign in (1.0, -1.0):
-                t_k = vertex_t.copy()
-                t_k[k - 9] = x[k] + sign * h  # x + sign h e_k, as design_from_vector reads it
-                maps.append(flared_ends(centre, t_k, *radii))
-            thickness[k] = (maps[0][1] - maps[1][1]) / (2.0 * h)
+            thickness[k] = (t_maps[2 * (k - 10)] - t_maps[2 * (k - 10) + 1]) / (2.0 * h)
             continue
         try:
             plus, minus = (_flared(problem, x + sign * h * np.eye(n)[k]) for sign in (1.0, -1.0))

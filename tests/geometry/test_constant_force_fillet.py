@@ -15,6 +15,8 @@ from flexopt.geometry.constant_force import (
     beam_profile,
     centreline_points,
     filleted_beam,
+    flared_ends,
+    flared_thickness,
     outline,
 )
 from flexopt.geometry.errors import GeometryError
@@ -120,3 +122,19 @@ def test_no_micro_edge_where_a_toe_meets_a_vertex():
     assert np.min(np.linalg.norm(np.diff(ring, axis=0), axis=1)) > 0.01
     seg = np.linalg.norm(np.diff(made.shape.points_mm, axis=0), axis=1)
     assert seg.min() > 0.01
+
+
+@pytest.mark.parametrize("radii", [(0.5, 0.5), (1.361, 0.3), (0.0, 0.7), (0.4, 0.0)])
+def test_many_thicknesses_flared_at_once_are_each_flared_alone(radii):
+    """flared_thickness (the flared profile's derivatives by t1..t10 redraw it with 20 thickness
+    vectors on one centreline) gives, row by row, flared_ends' points and thicknesses bit for
+    bit, with one end sharp or both flared."""
+    pts = centreline_points(TABLE3_OPTIMUM)
+    rng = np.random.default_rng(2)
+    many = TABLE3_OPTIMUM.vertex_thickness_mm + 0.1 * rng.random((5, 12))
+    points, thick = flared_thickness(pts, many, *radii)
+    assert thick.shape[0] == 5
+    for row, t in zip(thick, many, strict=True):
+        one_pts, one_t = flared_ends(pts, t, *radii)
+        assert np.array_equal(points, one_pts)
+        assert np.array_equal(row, one_t)
