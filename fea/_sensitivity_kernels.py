@@ -147,6 +147,7 @@ def coordinate_terms(
     dR: np.ndarray,
     da: np.ndarray,
     dc: np.ndarray,
+    fibres: bool = True,
 ) -> None:
     """:meth:`fea.beam_sensitivity._CoordinateBatch.terms_rows` compiled: the residual and the
     fibre terms of every virtual element (a perturbed model's element, V of them) at each row's
@@ -159,7 +160,8 @@ def coordinate_terms(
     perturbed model's tables, ``dNs`` (V, 3, 3), ``ratio`` (V, 3), ``weight`` (V,) the stencil's
     weight / step, ``col`` (V,) its variable, ``elem`` (V,) the element it stands for, ``last``
     (V,) whether that is the end element (its end node's rows in ``frame``'s axes). ``N`` (Q, 3),
-    ``g2s`` (Q, 3): the reference tables; ``e_mpa``: Young's modulus.
+    ``g2s`` (Q, 3): the reference tables; ``e_mpa``: Young's modulus. ``fibres`` False: ``da``
+    and ``dc`` are not touched (the stress from statics does not read them).
     """
     n_rows = U.shape[0]
     n_v, n_q = w.shape
@@ -208,6 +210,8 @@ def coordinate_terms(
             for a in range(3):
                 for f in range(3):
                     dR[k, vdofs[v, 3 * a + f], cv] += re[a, f] * wv
+            if not fibres:
+                continue
             e = elem[v]
             for m in range(3):
                 g1s = 0.0
@@ -240,6 +244,7 @@ def thickness_terms(
     col: int,
     dR: np.ndarray,
     dc: np.ndarray,
+    fibres: bool = True,
 ) -> None:
     """:func:`fea.beam_sensitivity._thickness_terms_rows` compiled and assembled: dR/dt_i at
     fixed DOFs and the bending term's explicit derivative, added into columns ``col`` ..
@@ -259,6 +264,7 @@ def thickness_terms(
     ``dN`` (E, Q, 3), ``Nq`` (Q, 3), ``theta0``, ``cos0``, ``sin0``, ``t_g`` (E, Q) the model's
     tables (t_g mm); ``psi_g`` (E, Q, n_pts) and ``psi_s`` (E, 3, n_pts) the hats at the Gauss
     and sampling points; ``dNs`` (E, 3, 3); ``e_mpa`` Young's modulus; ``frame`` (2, 2).
+    ``fibres`` False: ``dc`` is not touched (the stress from statics does not read it).
     """
     n_rows = U.shape[0]
     n_el, n_q = theta0.shape
@@ -329,7 +335,7 @@ def thickness_terms(
                 d = edofs[e, i]
                 for j in range(lo, hi):
                     dR[k, d, col + j] += re[i, j]
-            for m in range(3):
+            for m in range(3 if fibres else 0):
                 kap_s = dNs[e, m, 0] * qe[0, 2] + dNs[e, m, 1] * qe[1, 2] + dNs[e, m, 2] * qe[2, 2]
                 b = 0.5 * e_mpa * kap_s
                 for j in range(lo, hi):

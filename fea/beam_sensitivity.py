@@ -787,20 +787,34 @@ class _CoordinateBatch:
         return dR.reshape(n, nc), da.reshape(shape), dc.reshape(shape)
 
     def terms_rows(
-        self, U: np.ndarray, frame: np.ndarray, n: int, compiled: bool = False
+        self,
+        U: np.ndarray,
+        frame: np.ndarray,
+        n: int,
+        compiled: bool = False,
+        out: tuple[np.ndarray, np.ndarray, np.ndarray, int] | None = None,
+        fibres: bool = True,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`terms` for K rows at once: ``U`` (K, n) physical DOFs; returns dR/dx
         (K, n, n_coord) and the fibre terms' explicit derivatives (K, E, 3, n_coord) each (each
         row's sums in the same order as :meth:`terms`). ``compiled``: by the numba kernel
-        (fea/_sensitivity_kernels.py), the same formulas element by element."""
+        (fea/_sensitivity_kernels.py), the same formulas element by element; with ``out`` =
+        (dR (K, n, m), da, dc (K, E, 3, m), col) C-contiguous, zero in columns col .. col +
+        n_coord - 1, it adds into those columns and returns them (the same numbers; why: three
+        arrays of ~1.3 MB fewer to fault in and copy per call). ``fibres`` False (compiled): the
+        fibre terms are not formed (zero)."""
         t, nc = self.t, len(self.names)
         k_rows = len(U)
         if compiled:
             from flexopt.fea._sensitivity_kernels import coordinate_terms
 
-            dR = np.zeros((k_rows, n, nc))
-            da = np.zeros((k_rows, self.n_el, 3, nc))
-            dc = np.zeros((k_rows, self.n_el, 3, nc))
+            if out is None:
+                dR = np.zeros((k_rows, n, nc))
+                da = np.zeros((k_rows, self.n_el, 3, nc))
+                dc = np.zeros((k_rows, self.n_el, 3, nc))
+                col0 = 0
+            else:
+                dR, da, dc, col0 = out
             c = np.ascontiguousarray
             coordinate_terms(
                 c(U),
@@ -820,14 +834,16 @@ class _CoordinateBatch:
                 c(t["ratio"]),
                 float(self.E),
                 c(self.weight),
-                c(self.col),
+                c(self.col + col0),
                 c(self.e),
                 c(self.last),
                 dR,
                 da,
                 dc,
+                fibres,
             )
-            return dR, da, dc
+            cols = slice(col0, col0 + nc)
+            return dR[..., cols], da[..., cols], dc[..., cols]
         qe = U[:, self.edofs[self.e].reshape(-1, 3, 3)]  # (K, V, node, field)
         grad = t["dN"] @ qe  # (K, V, Q, field)
         theta = t["theta0"] + qe[..., 2] @ self.N.T
@@ -1010,11 +1026,18 @@ def _thickness_columns(
 
 
 def _compiled_thickness(
-    twin: _Twin, U: np.ndarray, frame: np.ndarray, col: int, dR: np.ndarray, dc: np.ndarray
+    twin: _Twin,
+    U: np.ndarray,
+    frame: np.ndarray,
+    col: int,
+    dR: np.ndarray,
+    dc: np.ndarray,
+    fibres: bool = True,
 ) -> None:
     """:func:`_thickness_terms_rows` compiled (fea/_sensitivity_kernels.py), assembled straight
     into columns ``col`` .. of ``dR`` (K, n, n_var) and ``dc`` (K, E, 3, n_var), as
-    :func:`_batched_rows` assembles the reference's element vectors."""
+    :func:`_batched_rows` assembles the reference's element vectors (``fibres`` False: ``dc``
+    left alone)."""
     from flexopt.fea._sensitivity_kernels import thickness_terms
 
     m = twin.model
@@ -1044,6 +1067,7 @@ def _compiled_thickness(
         int(col),
         dR,
         dc,
+        bool(fibres),
     )
 
 
@@ -1233,12 +1257,15 @@ def _batched_rows(
     compiled = twin.solver.kernel == "numba"
     # explicit derivatives at fixed q (K, n, n_var), and of the fibre stress terms (K, E, 3, n_var)
     dR = np.zeros((k_rows, n, n_var))
+    # the sampled stress's explicit terms: the stress from statics forms its own, and the
+    # compiled kernels then leave these (lazily zeroed, so never faulted in) alone
+    fibres = not (compiled and stress == "statics")
     da_x = np.zeros((k_rows, n_el, 3, n_var))
     dc_x = np.zeros((k_rows, n_el, 3, n_var))
     edofs = m.tables.edofs
     col = 0
     if "thickness" in variables and compiled:
-        _compiled_thickness(twin, U, frame, col, dR, dc_x)
+        _compiled_thickness(twin, U, frame, col, dR, dc_x, fibres)
         col += prof.n_points
     elif "thickness" in variables:
         npt = prof.n_points
@@ -1249,9 +1276,12 @@ def _batched_rows(
         col += 1
     if coords is not None:
         nc = len(coords.names)
-        dR[..., col : col + nc], da_x[..., col : col + nc], dc_x[..., col : col + nc] = (
-            coords.terms_rows(U, frame, n, compiled)
-        )
+        if compiled:  # straight into their columns
+            coords.terms_rows(U, frame, n, compiled, out=(dR, da_x, dc_x, col), fibres=fibres)
+        else:
+            dR[..., col : col + nc], da_x[..., col : col + nc], dc_x[..., col : col + nc] = (
+                coords.terms_rows(U, frame, n, compiled)
+            )
         col += nc
 
     # one back-substitution per variable with each row's factorised tangent; dR negated in
