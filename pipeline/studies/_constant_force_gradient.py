@@ -251,7 +251,10 @@ def _judged_fibres(
     them) carry Kt x the beam's, ``d(Kt sigma) = sigma dKt + Kt d sigma`` (the larger of the
     two, since Kt >= 1 and the signs agree)."""
     fibre = sens.fibre_stress_MPa[rows]
-    d_fibre = sens.d_fibre_stress[rows] @ chain
+    # one (k S 2, n_var) @ (n_var, 23) product: the stacked 4-D matmul ran one small product
+    # per (row, point), ~3x slower
+    picked = sens.d_fibre_stress[rows]
+    d_fibre = (picked.reshape(-1, chain.shape[0]) @ chain).reshape(*picked.shape[:-1], -1)
     if flare is None:
         return fibre, d_fibre
     s = np.asarray(sens.stress_s_mm, dtype=float)
