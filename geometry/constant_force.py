@@ -70,6 +70,7 @@ __all__ = [
     "outline",
     "filleted_beam",
     "flared_ends",
+    "flared_thickness",
     "min_feature_mm",
     "BLEND_CHORDS",
     "MIN_BLEND_MM",

@@ -14,9 +14,9 @@ Two links:
   maps do not have the design's point count (an arc point crossing a vertex's 0.02 mm gap) the
   answer is None and the optimiser takes finite differences of the study instead. Only a1..a10,
   T1 and T6 go through the whole generator (they move points or a radius); t1..t10 are redrawn
-  by :func:`geometry.constant_force.flared_thickness` (all 20 at once) on the design's centreline
-  and radii, and B's
-  columns are zero: the same numbers bit for bit, 20 of the 47 generator calls instead of 47
+  by :func:`geometry.constant_force.flared_thickness` on the design's centreline and radii (their
+  20 perturbed flares at once: the points and the thickening drawn once), and B's columns are
+  zero: the same numbers bit for bit, 24 whole-generator calls instead of 47
   (tests/pipeline/test_constant_force_fillet_gradient.py checks every column against the
   generator's own central differences).
 * **Kt of each shoulder** (:func:`geometry.mechanism.shoulder_kt`, the Roark / Peterson fit):
@@ -156,7 +156,7 @@ def flare_derivatives(problem: Any, x: np.ndarray) -> FlareDerivatives | None:
     scale = np.where(np.arange(n) < 10, 1.0, np.abs(x))  # a1..a10 are fractions
     # t1..t10 move neither a point nor a fillet's radius (r depends on T1, T6 and the length):
     # their perturbed maps are the design's centreline and radii with one vertex thickness
-    # changed, redrawn by flared_ends alone (the same arithmetic as filleted_beam, so the same
+    # changed, redrawn by the flare alone (the same arithmetic as filleted_beam, so the same
     # numbers, without building a design and its centreline 20 times); their point columns are
     # the difference of two identical arrays, zero. B changes nothing here: its columns are zero.
     centre = centreline_points(design_from_vector(x), problem.frame, g.end_flexures)
