@@ -40,9 +40,11 @@ def statics_fibres(
     xtheta: np.ndarray,
     fibre: np.ndarray,
     d_fibre: np.ndarray,
+    at: np.ndarray,
 ) -> None:
     """Signed fibre stresses ``a + c``, ``a - c`` from statics and their derivatives, written
-    into ``fibre`` (K, 3 E, 2) MPa and ``d_fibre`` (K, 3 E, 2, n_var) MPa per unit.
+    into rows ``at`` (K,) of ``fibre`` (n_rows, 3 E, 2) MPa and ``d_fibre`` (n_rows, 3 E, 2,
+    n_var) MPa per unit (row k's into row ``at[k]``: straight into the returned arrays).
 
     ``a = N / (b t)``, ``c = M / Z`` at the sampling points (element e, point j: node 2 e + j),
     ``M = M_end + (r_end - r) x F``, ``N = F . (cos theta, sin theta)``. Per row k: ``U`` (K, n)
@@ -60,6 +62,7 @@ def statics_fibres(
     ia, it, ir = n - 3, n - 2, n - 1
     f00, f01, f10, f11 = frame[0, 0], frame[0, 1], frame[1, 0], frame[1, 1]
     for k in range(n_rows):
+        out = at[k]
         F0 = R[k, ia] * f00 + R[k, it] * f10
         F1 = R[k, ia] * f01 + R[k, it] * f11
         pe0 = ref[end, 0] + U[k, 3 * end]
@@ -77,8 +80,8 @@ def statics_fibres(
                 bt = b * t[e, j]
                 a = N / bt
                 c = M / Z[e, j]
-                fibre[k, s, 0] = a + c
-                fibre[k, s, 1] = a - c
+                fibre[out, s, 0] = a + c
+                fibre[out, s, 1] = a - c
                 rot = -F0 * sin + F1 * cos
                 for v in range(n_var):
                     dF0 = f00 * dr[k, ia, v] + f10 * dr[k, it, v]
@@ -90,8 +93,8 @@ def statics_fibres(
                     dN = cos * dF0 + sin * dF1 + rot * dtheta
                     da = dN / bt - a * (db[v] / b + dt[e, j, v] / t[e, j])
                     dc = dM / Z[e, j] - c * (db[v] / b + 2.0 * dt[e, j, v] / t[e, j])
-                    d_fibre[k, s, 0, v] = da + dc
-                    d_fibre[k, s, 1, v] = da - dc
+                    d_fibre[out, s, 0, v] = da + dc
+                    d_fibre[out, s, 1, v] = da - dc
 
 
 @_jit

@@ -1147,10 +1147,12 @@ def _compiled_statics(
     coords: _CoordinateBatch | None,
     fibre: np.ndarray,
     d_fibre: np.ndarray,
+    at: np.ndarray | None = None,
 ) -> None:
     """:func:`_statics_terms_rows` compiled (fea/_sensitivity_kernels.py), the fibre values
-    written into ``fibre`` (K, 3 E, 2) and ``d_fibre`` (K, 3 E, 2, n_var): the design's explicit
-    parts here (as the reference forms them), the rows' in the kernel."""
+    written into rows ``at`` (K,) (default 0 .. K - 1) of ``fibre`` (n_rows, 3 E, 2) and
+    ``d_fibre`` (n_rows, 3 E, 2, n_var): the design's explicit parts here (as the reference
+    forms them), the rows' in the kernel."""
     from flexopt.fea._sensitivity_kernels import statics_fibres
 
     m = twin.model
@@ -1192,6 +1194,7 @@ def _compiled_statics(
         xtheta,
         fibre,
         d_fibre,
+        np.arange(len(U)) if at is None else np.asarray(at, dtype=np.int64),
     )
 
 
@@ -1319,9 +1322,10 @@ def _batched_rows(
     du = dq  # generalised -> physical end translations, in place (dq is not read again)
     du[:, n - 3 : n - 1] = np.einsum("ij,kiv->kjv", frame, dq[:, n - 3 : n - 1])
     if stress == "statics" and compiled:
-        fib = np.empty((k_rows, 3 * n_el, 2))
-        dfib = np.empty((k_rows, 3 * n_el, 2, n_var))
-        _compiled_statics(twin, U, du, R, dr, frame, names, coords, fib, dfib)
+        # straight into the rows of the returned arrays: no (K, 3 E, 2, n_var) array of its own
+        # to fault in and copy (~4.5 MB on the constant-force beam)
+        _compiled_statics(twin, U, du, R, dr, frame, names, coords, fibre, d_fibre, rows)
+        fib, dfib = fibre[rows], None
     else:
         if stress == "statics":
             a, c, da, dc = _statics_terms_rows(twin, U, du, R, dr, frame, names, coords)
@@ -1336,8 +1340,8 @@ def _batched_rows(
                 dc[i] = np.matmul(dc_du, due) + dc_x[i]
         fib = np.stack([a + c, a - c], -1).reshape(k_rows, -1, 2)
         dfib = np.stack([da + dc, da - dc], 3).reshape(k_rows, 3 * n_el, 2, n_var)
-    fibre[rows] = fib
-    d_fibre[rows] = dfib
+        fibre[rows] = fib
+        d_fibre[rows] = dfib
     # KS over the four signed fibre values +-(a + c), +-(a - c) of every sampling point, per
     # row; its gradient as (w+ - w-) . d(fibre), the four values' weights folded onto the two
     # fibres (no (K, 12 E, n_var) array of the signed derivatives)
@@ -1348,7 +1352,13 @@ def _batched_rows(
     w = e / total[:, None, None]
     values["ks_stress_MPa"][rows] = top + np.log(total) / rho
     values["peak_stress_MPa"][rows] = top
-    derivs["ks_stress_MPa"][rows] = np.einsum("ksf,ksfv->kv", w[..., :2] - w[..., 2:], dfib)
+    if dfib is not None:
+        derivs["ks_stress_MPa"][rows] = np.einsum("ksf,ksfv->kv", w[..., :2] - w[..., 2:], dfib)
+    else:  # row by row on the returned array's rows (views, no copy of them)
+        for i, row in enumerate(rows):
+            derivs["ks_stress_MPa"][row] = np.einsum(
+                "sf,sfv->v", w[i, :, :2] - w[i, :, 2:], d_fibre[row]
+            )
     return mismatch
 
 
