@@ -34,7 +34,10 @@ from flexopt.fea.plane_stress_fields import mesh_arrays, state_field
 from flexopt.geometry.errors import GeometryError
 from shapely.geometry import Polygon
 
-__all__ = ["beam_to_mesh", "plane_stress_check"]
+__all__ = ["EIGEN_NCV", "beam_to_mesh", "plane_stress_check"]
+
+#: Lanczos vectors of the stability eigenvalue's shift-invert ARPACK (see _eigenvalue_nearest_zero)
+EIGEN_NCV = 6
 
 
 def beam_to_mesh(beam: BeamModel, shape_mm: np.ndarray, points_mm: np.ndarray) -> np.ndarray:
@@ -97,6 +100,12 @@ def _eigenvalue_nearest_zero(model: PlaneStressModel, K: sp.csr_matrix) -> float
     ``K + 1e-9 I`` that ``eigsh`` makes by itself, which still runs for the other solvers.
     """
     reduced = model.reduced(K)
+    # ncv: ARPACK's Lanczos basis. Its default for k = 1 (20 vectors) costs 21 solves with the
+    # factor however fast the eigenvalue converges; here 1/lambda_min dominates the inverse's
+    # spectrum (lambda_min ~2e-4 N/mm on the constant-force check, a post-buckled strip) and 6
+    # vectors converge to the same tolerance (machine precision: tol=0) in 10-13 solves, the
+    # eigenvalue within 4 ulp of the 20-vector one (session 32: docs/benchmarks.md, "The
+    # constant-force check's cost").
     # ARPACK's own start vector comes from a generator whose state runs on through a process:
     # the same tangent gave another last digit in another call or worker. A fixed start
     # vector makes the eigenvalue a function of K alone (the same bits in every process).
@@ -105,10 +114,25 @@ def _eigenvalue_nearest_zero(model: PlaneStressModel, K: sp.csr_matrix) -> float
     if factor is not None:
         inverse = spla.LinearOperator(reduced.shape, matvec=factor.solve, dtype=float)
         values = spla.eigsh(
-            reduced, k=1, sigma=0.0, OPinv=inverse, which="LM", return_eigenvectors=False, v0=v0
+            reduced,
+            k=1,
+            sigma=0.0,
+            OPinv=inverse,
+            which="LM",
+            return_eigenvectors=False,
+            v0=v0,
+            ncv=min(EIGEN_NCV, reduced.shape[0]),
         )
     else:
-        values = spla.eigsh(reduced, k=1, sigma=-1e-9, which="LM", return_eigenvectors=False, v0=v0)
+        values = spla.eigsh(
+            reduced,
+            k=1,
+            sigma=-1e-9,
+            which="LM",
+            return_eigenvectors=False,
+            v0=v0,
+            ncv=min(EIGEN_NCV, reduced.shape[0]),
+        )
     return float(values[0])
 
 
