@@ -149,6 +149,7 @@ def plane_stress_check(
     hi: float,
     max_edge_mm: float,
     refine: Any = None,
+    eigenvalue: bool = True,
 ) -> dict[str, Any]:
     """Check the beam model against a plane-stress, geometrically nonlinear FEA of the outline.
 
@@ -192,6 +193,10 @@ def plane_stress_check(
     max_edge_mm : float, mm — the largest triangle edge.
     refine : optional local sizes for :func:`fea.mesh.mesh_polygon` (``(geometry, edge mm)``
         regions or a size field); None: ``max_edge_mm`` everywhere.
+    eigenvalue : False: no stability eigenvalue (``stable`` and
+        ``min_tangent_eigenvalue_N_per_mm`` None at every row), for a caller that reads none of
+        them (the constant-force peak's refined re-solve: its factorisation and ~10 solves, ~20
+        ms a row, session 32); every other figure is the same computation either way.
 
     Returns
     -------
@@ -263,7 +268,7 @@ def plane_stress_check(
             u = u + model.P @ model.reduced_solve(state.K, -residual)
         reaction = np.array([state.f[model.drive_dofs_x].sum(), state.f[model.drive_dofs_y].sum()])
         # The eigenvalue nearest to zero: negative means an unstable equilibrium.
-        eig = _eigenvalue_nearest_zero(model, state.K)
+        eig = _eigenvalue_nearest_zero(model, state.K) if eigenvalue else None
         moved = np.hypot(*(u - u_start)[np.stack([model.ix, model.iy])]).max()
         out["force"].append(float(reaction @ direction))
         out["transverse"].append(float(reaction @ normal))
@@ -271,7 +276,7 @@ def plane_stress_check(
         out["iterations"].append(iterations)
         out["converged"].append(bool(converged))
         out["eig"].append(eig)
-        out["stable"].append(bool(eig > 0))
+        out["stable"].append(bool(eig > 0) if eig is not None else None)
         out["moved"].append(float(moved))
         states.append(state_field(model, u, "nonlinear") | {"drive_value": float(stroke_rows[k])})
     beam_f = np.asarray(response.force_N)[rows]

@@ -166,3 +166,23 @@ def test_eigenvalue_with_few_lanczos_vectors_is_the_default_basis_one(solver, sh
     assert fidelity.EIGEN_NCV < 20
     assert eig == pytest.approx(default, rel=1e-12, abs=1e-12 * np.abs(dense).max())
     assert eig == pytest.approx(dense[np.argmin(np.abs(dense))], rel=1e-8)
+
+
+def test_check_without_the_eigenvalue_has_the_same_figures(fixed_guided):
+    # eigenvalue=False (the constant-force peak's refined re-solve, session 32) leaves out the
+    # stability eigenvalue only: every other figure the same bits, stable / eigenvalue None
+    beam, shape, response = fixed_guided
+    args = (beam, shape, MATERIAL, WIDTH_MM, PAD_LENGTH_MM, PAD_THICK_MM, (0.0, 1.0), response)
+    rows = np.array([1, 3])
+    full = fidelity.plane_stress_check(*args, rows, 3.0, 0.6)
+    bare = fidelity.plane_stress_check(*args, rows, 3.0, 0.6, eigenvalue=False)
+    assert full["stable"] == [True, True]
+    assert bare["stable"] == [None, None]
+    assert bare["min_tangent_eigenvalue_N_per_mm"] == [None, None]
+    for key, value in full.items():
+        if key in ("stable", "min_tangent_eigenvalue_N_per_mm", "time_s", "field"):
+            continue
+        assert bare[key] == value, key
+    for a, b in zip(full["field"]["steps"], bare["field"]["steps"], strict=True):
+        for key in a:
+            assert np.array_equal(a[key], b[key]), key
