@@ -65,8 +65,8 @@ def _locate(beam: BeamModel, points_mm: np.ndarray) -> tuple[np.ndarray, np.ndar
 
     The shape-independent half of :func:`beam_to_mesh`, done once per mesh instead of once per
     checked stroke. ``s`` is the compiled projection of :mod:`fea._polyline_kernels`: the same
-    bits as shapely's ``line_locate_point`` (GEOS's), ~2 ms on the constant-force check's ~9k
-    nodes where shapely's took 50-90 ms CPU (session 32; not ~30 ms as this said before).
+    bits as shapely's ``line_locate_point`` (GEOS's), ~8 ms CPU on the constant-force check's
+    ~9k nodes where shapely's took 64-93 ms (session 32; not ~30 ms as this said before).
     """
     from flexopt.fea._polyline_kernels import polyline_arc_length
 
