@@ -34,7 +34,10 @@ from flexopt.fea.plane_stress_fields import mesh_arrays, state_field
 from flexopt.geometry.errors import GeometryError
 from shapely.geometry import Polygon
 
-__all__ = ["beam_to_mesh", "plane_stress_check"]
+__all__ = ["EIGEN_NCV", "beam_to_mesh", "plane_stress_check"]
+
+#: Lanczos vectors of the stability eigenvalue's shift-invert ARPACK (see _eigenvalue_nearest_zero)
+EIGEN_NCV = 6
 
 
 def beam_to_mesh(beam: BeamModel, shape_mm: np.ndarray, points_mm: np.ndarray) -> np.ndarray:
@@ -60,14 +63,16 @@ def _frame(s_nodes: np.ndarray, xy: np.ndarray, s: np.ndarray) -> tuple[np.ndarr
 def _locate(beam: BeamModel, points_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Arc length s (k,) mm and normal offset eta (k,) mm of points (k, 2) on the reference.
 
-    The shape-independent half of :func:`beam_to_mesh` (shapely's projection, ~30 ms on the
-    check's 5k nodes), done once per mesh instead of once per checked stroke.
+    The shape-independent half of :func:`beam_to_mesh`, done once per mesh instead of once per
+    checked stroke. ``s`` is the compiled projection of :mod:`fea._polyline_kernels`: the same
+    bits as shapely's ``line_locate_point`` (GEOS's), ~8 ms CPU on the constant-force check's
+    ~9k nodes where shapely's took 64-93 ms (session 32; not ~30 ms as this said before).
     """
-    import shapely
-    from shapely.geometry import LineString
+    from flexopt.fea._polyline_kernels import polyline_arc_length
 
-    ref = beam.reference_nodes_mm
-    s = shapely.line_locate_point(LineString(ref), shapely.points(points_mm))
+    ref = np.ascontiguousarray(beam.reference_nodes_mm, dtype=float)
+    points_mm = np.ascontiguousarray(points_mm, dtype=float)
+    s = polyline_arc_length(ref, points_mm)
     base0, n0 = _frame(beam.s_nodes, ref, s)
     return s, np.einsum("ij,ij->i", points_mm - base0, n0)
 
@@ -95,6 +100,12 @@ def _eigenvalue_nearest_zero(model: PlaneStressModel, K: sp.csr_matrix) -> float
     ``K + 1e-9 I`` that ``eigsh`` makes by itself, which still runs for the other solvers.
     """
     reduced = model.reduced(K)
+    # ncv: ARPACK's Lanczos basis. Its default for k = 1 (20 vectors) costs 21 solves with the
+    # factor however fast the eigenvalue converges; here 1/lambda_min dominates the inverse's
+    # spectrum (lambda_min ~2e-4 N/mm on the constant-force check, a post-buckled strip) and 6
+    # vectors converge to the same tolerance (machine precision: tol=0) in 10-13 solves, the
+    # eigenvalue within 4 ulp of the 20-vector one (session 32: docs/benchmarks.md, "The
+    # constant-force check's cost").
     # ARPACK's own start vector comes from a generator whose state runs on through a process:
     # the same tangent gave another last digit in another call or worker. A fixed start
     # vector makes the eigenvalue a function of K alone (the same bits in every process).
@@ -103,10 +114,25 @@ def _eigenvalue_nearest_zero(model: PlaneStressModel, K: sp.csr_matrix) -> float
     if factor is not None:
         inverse = spla.LinearOperator(reduced.shape, matvec=factor.solve, dtype=float)
         values = spla.eigsh(
-            reduced, k=1, sigma=0.0, OPinv=inverse, which="LM", return_eigenvectors=False, v0=v0
+            reduced,
+            k=1,
+            sigma=0.0,
+            OPinv=inverse,
+            which="LM",
+            return_eigenvectors=False,
+            v0=v0,
+            ncv=min(EIGEN_NCV, reduced.shape[0]),
         )
     else:
-        values = spla.eigsh(reduced, k=1, sigma=-1e-9, which="LM", return_eigenvectors=False, v0=v0)
+        values = spla.eigsh(
+            reduced,
+            k=1,
+            sigma=-1e-9,
+            which="LM",
+            return_eigenvectors=False,
+            v0=v0,
+            ncv=min(EIGEN_NCV, reduced.shape[0]),
+        )
     return float(values[0])
 
 
@@ -123,6 +149,7 @@ def plane_stress_check(
     hi: float,
     max_edge_mm: float,
     refine: Any = None,
+    eigenvalue: bool = True,
 ) -> dict[str, Any]:
     """Check the beam model against a plane-stress, geometrically nonlinear FEA of the outline.
 
@@ -166,6 +193,10 @@ def plane_stress_check(
     max_edge_mm : float, mm — the largest triangle edge.
     refine : optional local sizes for :func:`fea.mesh.mesh_polygon` (``(geometry, edge mm)``
         regions or a size field); None: ``max_edge_mm`` everywhere.
+    eigenvalue : False: no stability eigenvalue (``stable`` and
+        ``min_tangent_eigenvalue_N_per_mm`` None at every row), for a caller that reads none of
+        them (the constant-force peak's refined re-solve: its factorisation and ~10 solves, ~20
+        ms a row, session 32); every other figure is the same computation either way.
 
     Returns
     -------
@@ -237,7 +268,7 @@ def plane_stress_check(
             u = u + model.P @ model.reduced_solve(state.K, -residual)
         reaction = np.array([state.f[model.drive_dofs_x].sum(), state.f[model.drive_dofs_y].sum()])
         # The eigenvalue nearest to zero: negative means an unstable equilibrium.
-        eig = _eigenvalue_nearest_zero(model, state.K)
+        eig = _eigenvalue_nearest_zero(model, state.K) if eigenvalue else None
         moved = np.hypot(*(u - u_start)[np.stack([model.ix, model.iy])]).max()
         out["force"].append(float(reaction @ direction))
         out["transverse"].append(float(reaction @ normal))
@@ -245,7 +276,7 @@ def plane_stress_check(
         out["iterations"].append(iterations)
         out["converged"].append(bool(converged))
         out["eig"].append(eig)
-        out["stable"].append(bool(eig > 0))
+        out["stable"].append(bool(eig > 0) if eig is not None else None)
         out["moved"].append(float(moved))
         states.append(state_field(model, u, "nonlinear") | {"drive_value": float(stroke_rows[k])})
     beam_f = np.asarray(response.force_N)[rows]

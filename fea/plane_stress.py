@@ -1546,7 +1546,14 @@ class PlaneStressModel:
         converged = np.zeros(n_rows, dtype=bool)
 
         u = np.zeros(self.n_dofs)
-        st = self.state(u, kinematics)
+        if guess is not None and kinematics == "nonlinear":
+            # The first row starts from the guess, not from a step linearised at rest: the rest
+            # state's force is read (zero) but its tangent only if the guess fails, and then
+            # _increment assembles it (the same matrix). ~one tangent assembly less a warm solve
+            # (the compiled assembly; session 32, the peak re-solves' note of session 31).
+            st = self._state_nonlinear(u, tangent=False)
+        else:
+            st = self.state(u, kinematics)
         # At u = 0 every kinematics has F = I, zero stress and zero force exactly, so the first
         # row depends only on the nodes and the reference point: measured once per model (it
         # took ~4 ms of every solve; a spring solves three times on one model).

@@ -133,3 +133,56 @@ def test_check_is_the_same_through_cholmod_and_superlu(fixed_guided, monkeypatch
     )
     # and the check does its job: the plane-stress force is the beam's within a few %
     assert chol["max_abs_relative_difference"] < 0.05, chol["relative_difference"]
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("share", [0.0, 0.9, 3.0])
+def test_eigenvalue_with_few_lanczos_vectors_is_the_default_basis_one(solver, share):
+    # fidelity.EIGEN_NCV Lanczos vectors (session 32) against ARPACK's default basis (20
+    # vectors for k = 1) on the same shift-invert operator: the same eigenvalue to round-off,
+    # from a tangent far from buckling (share 0), near it (0.9 of the Euler strain: the
+    # constant-force check's case, lambda_min small and dominant) and past it (3x, indefinite).
+    import scipy.sparse.linalg as spla
+
+    model = _strip_model(solver)
+    euler = np.pi**2 * (1.0 / 20.0) ** 2 / 3.0
+    u = np.zeros(model.n_dofs)
+    u[model.ix] = -share * euler * model.xy[:, 0]
+    K = model.state(u, "nonlinear").K
+    eig = fidelity._eigenvalue_nearest_zero(model, K)
+    reduced = model._reduced(K)
+    v0 = np.random.default_rng(0).standard_normal(reduced.shape[0])
+    factor = model.cholesky_factor(K)
+    inverse = (
+        spla.LinearOperator(reduced.shape, matvec=factor.solve, dtype=float)
+        if factor is not None
+        else None
+    )
+    sigma = 0.0 if factor is not None else -1e-9
+    default = spla.eigsh(
+        reduced, k=1, sigma=sigma, OPinv=inverse, which="LM", return_eigenvectors=False, v0=v0
+    )[0]
+    dense = np.linalg.eigvalsh(reduced.toarray())
+    assert fidelity.EIGEN_NCV < 20
+    assert eig == pytest.approx(default, rel=1e-12, abs=1e-12 * np.abs(dense).max())
+    assert eig == pytest.approx(dense[np.argmin(np.abs(dense))], rel=1e-8)
+
+
+def test_check_without_the_eigenvalue_has_the_same_figures(fixed_guided):
+    # eigenvalue=False (the constant-force peak's refined re-solve, session 32) leaves out the
+    # stability eigenvalue only: every other figure the same bits, stable / eigenvalue None
+    beam, shape, response = fixed_guided
+    args = (beam, shape, MATERIAL, WIDTH_MM, PAD_LENGTH_MM, PAD_THICK_MM, (0.0, 1.0), response)
+    rows = np.array([1, 3])
+    full = fidelity.plane_stress_check(*args, rows, 3.0, 0.6)
+    bare = fidelity.plane_stress_check(*args, rows, 3.0, 0.6, eigenvalue=False)
+    assert full["stable"] == [True, True]
+    assert bare["stable"] == [None, None]
+    assert bare["min_tangent_eigenvalue_N_per_mm"] == [None, None]
+    for key, value in full.items():
+        if key in ("stable", "min_tangent_eigenvalue_N_per_mm", "time_s", "field"):
+            continue
+        assert bare[key] == value, key
+    for a, b in zip(full["field"]["steps"], bare["field"]["steps"], strict=True):
+        for key in a:
+            assert np.array_equal(a[key], b[key]), key

@@ -179,3 +179,23 @@ def test_bad_guess_or_value_is_refused(ring):
         m.solve("nonlinear", guess=bad)
     with pytest.raises(FeaError, match="must be finite"):
         m.series_predictor(float("inf"))
+
+
+def test_a_guessed_solve_assembles_no_tangent_at_rest():
+    # session 32: with a guess, the rest state's tangent (unused unless the guess fails) is not
+    # assembled: one tangent fewer than Newton's iterates, and the same answer to the bit as
+    # the same guessed solve on a model whose rest tangent was already assembled (and so free).
+    v, cfg = 0.2, PlaneStressSettings(rtol_residual=1e-9, assembly="compiled")
+    m = two_arm_spring(v, cfg)
+    u_odd, u_even = m.series_predictor(v)
+    fresh = two_arm_spring(v, cfg)
+    res = fresh.solve("nonlinear", guess=u_odd + u_even)
+    assert res.ok and res.extra["guess"] == "used"
+    # a tangent at each Newton iterate but the converged one (force only: the likely-converged
+    # rule of _increment), and none at rest (before: 5 tangents for these 5 iterations)
+    assert fresh.counters["tangents"] == int(res.iterations.sum()) - 1
+    warm = two_arm_spring(v, cfg)
+    warm.linear_stiffness()  # the rest tangent kept: solve's rest state is then free
+    again = warm.solve("nonlinear", guess=u_odd + u_even)
+    assert np.array_equal(again.dofs, res.dofs)
+    assert np.array_equal(again.torque_Nmm, res.torque_Nmm)

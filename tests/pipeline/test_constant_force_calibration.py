@@ -117,3 +117,45 @@ def test_a_workers_check_is_adopted_by_the_run_process(monkeypatch):
     other[-1] += 0.01  # B, mm: not the checked design
     run_problem.detail(other)
     assert solves == [1]
+
+
+def test_a_check_at_a_design_this_process_solved_reuses_that_solve(monkeypatch):
+    """Session 32: the check's beam path at x is the one the process kept when it evaluated x
+    (``_constant_force_solved``, as the exact Jacobian's), not solved again; the same check to
+    the bit as from a fresh solve, whole and in parts."""
+    from flexopt.pipeline.studies import _constant_force_solved as solved
+    from flexopt.pipeline.studies._constant_force_reuse import CheckMemo
+
+    study = load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")
+    problem = prepare_run(study).problem
+    x = problem.nominal_design()
+    solved.clear()
+    fresh = {p: problem.check_constraints(np.array(x), part=p) for p in (0, 1)}
+    problem.checks = CheckMemo()
+    fresh[None] = problem.check_constraints(np.array(x))
+    problem.checks = CheckMemo()
+    problem.evaluate(np.array(x))  # keeps its solve in this process
+    assert solved.kept(problem, x) is not None
+    calls = []
+    real = problem._solve
+    monkeypatch.setattr(problem, "_solve", lambda z: calls.append(1) or real(z))
+    reused = {p: problem.check_constraints(np.array(x), part=p) for p in (0, 1)}
+    reused[None] = problem.check_constraints(np.array(x))
+    assert calls == []  # every check served by the kept solve
+    for p in (0, 1):
+        assert reused[p].rows == fresh[p].rows
+        assert _same(reused[p].record, fresh[p].record, ("time_s",))
+    assert reused[None].factors == fresh[None].factors
+    assert reused[None].info == fresh[None].info and reused[None].met == fresh[None].met
+    solved.clear()
+
+
+def _same(a, b, skip) -> bool:
+    """Records a and b equal to the bit (dicts, lists, arrays, numbers), keys in ``skip`` aside."""
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k], skip) for k in a if k not in skip)
+    if isinstance(a, list | tuple):
+        return len(a) == len(b) and all(_same(u, v, skip) for u, v in zip(a, b, strict=True))
+    if isinstance(a, np.ndarray):
+        return np.array_equal(a, b)
+    return a == b
