@@ -42,7 +42,7 @@ from flexopt.pipeline.run.export import (
 from flexopt.pipeline.run.figures import convergence_png, curve_png, float_or_none, spec_label
 from flexopt.pipeline.run.folder import RUN_FILES, Columns, write_files
 from flexopt.pipeline.run.setup import RunSetup
-from flexopt.pipeline.run.split_makes import SPLIT_GROUP_AT, SplitMakes
+from flexopt.pipeline.run.split_makes import SplitMakes, WithEarly, forked
 from flexopt.pipeline.run.step_child import EarlyStep
 from flexopt.pipeline.runfolder import records_to_csv, table_to_csv, to_json, write_atomic
 from flexopt.pipeline.verdict import judge_detail
@@ -138,7 +138,9 @@ class RunState:
         self._report_writes: list[Future] = []
         # files made in forked children at the end of the run (see artefact)
         self._groups: dict[str, list[tuple[str, Callable[[], str | bytes | None]]]] = {}
-        self._started: list[ForkedMakes | SplitMakes | EarlyStep] = []
+        self._started: list[ForkedMakes | SplitMakes | WithEarly | EarlyStep] = []
+        # files of a group started before the best design's detail (see start_early)
+        self._early_made: dict[str, ForkedMakes] = {}
         self._early: EarlyStep | None = None  # best.step's child, once it has the part
         self._csv_header: list[str] | None = None
         self._csv_body: list[str] = []
@@ -444,11 +446,25 @@ class RunState:
         """
         if self._groups and self._report_writes:
             self.drain_report_writes()
-        self._started += [
-            SplitMakes(items) if len(items) >= SPLIT_GROUP_AT else ForkedMakes(items)
-            for items in self._groups.values()
-        ]
+        for items in self._groups.values():
+            early = {n: self._early_made.pop(n) for n, _ in items if n in self._early_made}
+            self._started.append(WithEarly(items, early) if early else forked(items))
         self._groups = {}
+
+    def start_early(self, name: str, make: Callable[[], str | bytes | None]) -> None:
+        """Start making ``name`` in a forked child now (:class:`ForkedMakes`), before the
+        best design's detail: its :meth:`artefact` call later (with a group) takes the child's
+        file instead of making it again, and writes it in its place among the group's.
+
+        Called before any writer thread runs (no thread holds a lock the child needs).
+        """
+        self._early_made[name] = ForkedMakes([(name, make)])
+
+    def reap_early(self) -> None:
+        """Wait for early children whose file was never queued (the report ended first)."""
+        early, self._early_made = self._early_made, {}
+        for job in early.values():
+            job.results()
 
     def collect_groups(self) -> None:
         """Write the files the children made, in the order they were queued."""
@@ -505,6 +521,7 @@ class RunState:
         finally:
             if early is not None:
                 early.close()
+            self.reap_early()
         self.drain_report_writes()  # every file on disk before the run says it finished
         return detail
 
@@ -513,6 +530,12 @@ class RunState:
         best = result.best
         title = f"{study.name}: best design"
         best_json = self.best_record(best)
+        # The plots that need only the run's history and designs start now, in a child, on the
+        # core that idles while this process solves the best design's detail (one process); the
+        # others need the detail. They are written in their place among the plots.
+        self.start_early("convergence.png", lambda: convergence_png(self.history, self.columns))
+        if len(result.front) > 1 and len(problem.objective_names) >= 2:
+            self.start_early("front.png", lambda: self._front_png(result, title))
         detail: DesignDetail | None = None
         try:
             detail = problem.detail(np.array(best.x, dtype=float))
