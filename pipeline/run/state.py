@@ -16,19 +16,16 @@ from flexopt.optimise.ga import GAResult, Generation
 from flexopt.optimise.hybrid import GradientStep
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import Verdict, verdict_record
-from flexopt.pipeline import plots
 from flexopt.pipeline.checkpoint import (
     CHECKPOINT_FILE,
     STORE_FILE,
     EvaluationStore,
     checkpoint_text,
 )
-from flexopt.pipeline.durability_report import durability_record
 from flexopt.pipeline.fork import ForkedMakes
 from flexopt.pipeline.parallel import BatchBackend, ParallelSettings, design_key, evaluate_batch
 from flexopt.pipeline.parallel import one_line as _one_line
 from flexopt.pipeline.plot_targets import plot_spec
-from flexopt.pipeline.report_html import HtmlData, render_html
 from flexopt.pipeline.responses import case_responses, stacked_table, stress_allowable
 from flexopt.pipeline.run.evaluator import Evaluator
 from flexopt.pipeline.run.export import (
@@ -39,17 +36,21 @@ from flexopt.pipeline.run.export import (
     part_of,
     step_available,
 )
-from flexopt.pipeline.run.figures import convergence_png, curve_png, float_or_none, spec_label
 from flexopt.pipeline.run.folder import RUN_FILES, Columns, write_files
 from flexopt.pipeline.run.setup import RunSetup
 from flexopt.pipeline.run.split_makes import SplitMakes, WithEarly, forked
 from flexopt.pipeline.run.step_child import EarlyStep
 from flexopt.pipeline.runfolder import records_to_csv, table_to_csv, to_json, write_atomic
 from flexopt.pipeline.verdict import judge_detail
-from flexopt.pipeline.vtu import has_mesh, vtu_makers
 
 if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
     from flexopt.geometry.solid import FlatPart
+
+# The report's modules (report.html, the plots, the VTU files, the durability record: ~0.06 s
+# CPU to import) are imported where the report is made, not with this module: a run imports
+# this module before its pool forks, where every import is on the start's critical path while
+# the other core idles; the run's preload thread imports them while the workers solve
+# (pipeline/run/runner.py).
 
 log = logging.getLogger(__name__)
 
@@ -526,6 +527,17 @@ class RunState:
         return detail
 
     def _finish(self, result: GAResult, early: EarlyStep | None) -> DesignDetail | None:
+        from flexopt.pipeline import plots
+        from flexopt.pipeline.durability_report import durability_record
+        from flexopt.pipeline.report_html import HtmlData, render_html
+        from flexopt.pipeline.run.figures import (
+            convergence_png,
+            curve_png,
+            float_or_none,
+            spec_label,
+        )
+        from flexopt.pipeline.vtu import has_mesh, vtu_makers
+
         study, problem = self.setup.study, self.problem
         best = result.best
         title = f"{study.name}: best design"
@@ -724,6 +736,8 @@ class RunState:
     ) -> None:
         """force_displacement.png, stress.png and outputs.png of a kind with load cases: one
         column per case (the kind's own outputs.png is replaced by the pipeline's)."""
+        from flexopt.pipeline import plots
+
         files = [("force_displacement.png", ("curve",)), ("stress.png", ("stress",))]
         if any(c.outputs for c in cases.values()):
             files.append(("outputs.png", ("outputs",)))
@@ -759,6 +773,8 @@ class RunState:
 
     def _front_png(self, result: GAResult, title: str) -> bytes:
         """First two objectives of every feasible evaluation, the front and the chosen one."""
+        from flexopt.pipeline import plots
+
         feasible = [ev.f[:2] for ev in self.evaluator.solved if ev.feasible]
         names = self.problem.objective_names
         return plots.plot_front(
