@@ -10,7 +10,6 @@ from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.ga import GAResult, best_of, pareto_front
 from flexopt.pipeline.errors import StudyError
 from flexopt.pipeline.parallel import design_key
-from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.run.folder import (
     RUN_FILES,
     Columns,
@@ -111,6 +110,8 @@ def _rebuild_report(run_dir: Path, lock: RunDirLock) -> ReportOutcome:
     result = GAResult(best, front, ())
     detail = run.finish(result)
     files = list(run.files)
+    from flexopt.pipeline.report import ReportData, render_report  # not at a run's start
+
     report = ReportData(
         record=record,
         study=setup.study,

@@ -32,7 +32,6 @@ from flexopt.pipeline.fork import limit_loaded_pools
 from flexopt.pipeline.parallel import BackendError, BatchBackend, ParallelSettings, design_key
 from flexopt.pipeline.parallel import one_line as _one_line
 from flexopt.pipeline.problems import parallel_settings
-from flexopt.pipeline.report import ReportData, render_report
 from flexopt.pipeline.run.export import step_available
 from flexopt.pipeline.run.setup import RunSetup
 from flexopt.pipeline.run.state import GenerationReport, RunState
@@ -457,6 +456,8 @@ def _run_in(
                 run.finish_writes(raise_errors=optimised)
         record["optimise_wall_s"] = time.perf_counter() - t_start
         run.files += ["evaluations.csv", "history.csv"]
+        from flexopt.pipeline.report import ReportData, render_report  # see _preload_report
+
         if preload is not None:
             preload.join()
         early, handed = None, early
@@ -566,6 +567,14 @@ def _preload_report(
             # without the ~1 s of interpreter teardown OpenCascade adds to a process.
             import flexopt.geometry.dxf  # noqa: F401
             import flexopt.geometry.solid  # noqa: F401
+
+            # the report's modules (not imported before the pool forks: run/state.py) and the
+            # part's solid libraries
+            import flexopt.pipeline.durability_report  # noqa: F401
+            import flexopt.pipeline.report  # noqa: F401
+            import flexopt.pipeline.report_html  # noqa: F401
+            import flexopt.pipeline.run.figures  # noqa: F401
+            import flexopt.pipeline.vtu  # noqa: F401
             import manifold3d  # noqa: F401  (geometry.solid imports them where a solid is made)
             import scipy.optimize  # noqa: F401  (e.g. the constant-force detail's PRB synthesis)
             import trimesh  # noqa: F401

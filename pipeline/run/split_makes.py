@@ -35,3 +35,32 @@ class SplitMakes:
         ):  # back in the queued order: 0, 1, 2, ... from 0, 2, 4 | 1, 3
             merged.append(first[i // 2] if i % 2 == 0 else second[i // 2])
         return merged
+
+
+Result = tuple[str, str | bytes | None, str | None]
+
+
+def forked(items: list[tuple[str, Make]]) -> ForkedMakes | SplitMakes:
+    """The children for a group: two (:class:`SplitMakes`) from :data:`SPLIT_GROUP_AT` files,
+    else one (:class:`pipeline.fork.ForkedMakes`)."""
+    return SplitMakes(items) if len(items) >= SPLIT_GROUP_AT else ForkedMakes(items)
+
+
+class WithEarly:
+    """A group of files of which some were started earlier in children of their own (``early``:
+    name -> the job making it, e.g. convergence.png, started before the best design's detail
+    because it needs only the run's history); the rest are started now (:func:`forked`).
+    :meth:`results` gives every file in the group's queued order, as one job would have."""
+
+    def __init__(self, items: list[tuple[str, Make]], early: dict[str, ForkedMakes]) -> None:
+        self.names = [name for name, _ in items]
+        rest = [(name, make) for name, make in items if name not in early]
+        self.early = early
+        self.rest = forked(rest) if rest else None
+
+    def results(self) -> list[Result]:
+        made: dict[str, Result] = {}
+        for job in [*self.early.values(), *([self.rest] if self.rest is not None else [])]:
+            for row in job.results():
+                made[row[0]] = row
+        return [made[name] for name in self.names]

@@ -16,19 +16,16 @@ from flexopt.optimise.ga import GAResult, Generation
 from flexopt.optimise.hybrid import GradientStep
 from flexopt.optimise.problem import DesignDetail
 from flexopt.optimise.requirements import Verdict, verdict_record
-from flexopt.pipeline import plots
 from flexopt.pipeline.checkpoint import (
     CHECKPOINT_FILE,
     STORE_FILE,
     EvaluationStore,
     checkpoint_text,
 )
-from flexopt.pipeline.durability_report import durability_record
 from flexopt.pipeline.fork import ForkedMakes
 from flexopt.pipeline.parallel import BatchBackend, ParallelSettings, design_key, evaluate_batch
 from flexopt.pipeline.parallel import one_line as _one_line
 from flexopt.pipeline.plot_targets import plot_spec
-from flexopt.pipeline.report_html import HtmlData, render_html
 from flexopt.pipeline.responses import case_responses, stacked_table, stress_allowable
 from flexopt.pipeline.run.evaluator import Evaluator
 from flexopt.pipeline.run.export import (
@@ -39,17 +36,21 @@ from flexopt.pipeline.run.export import (
     part_of,
     step_available,
 )
-from flexopt.pipeline.run.figures import convergence_png, curve_png, float_or_none, spec_label
 from flexopt.pipeline.run.folder import RUN_FILES, Columns, write_files
 from flexopt.pipeline.run.setup import RunSetup
-from flexopt.pipeline.run.split_makes import SPLIT_GROUP_AT, SplitMakes
+from flexopt.pipeline.run.split_makes import SplitMakes, WithEarly, forked
 from flexopt.pipeline.run.step_child import EarlyStep
 from flexopt.pipeline.runfolder import records_to_csv, table_to_csv, to_json, write_atomic
 from flexopt.pipeline.verdict import judge_detail
-from flexopt.pipeline.vtu import has_mesh, vtu_makers
 
 if TYPE_CHECKING:  # geometry.solid (manifold3d, trimesh) is imported when a part is made
     from flexopt.geometry.solid import FlatPart
+
+# The report's modules (report.html, the plots, the VTU files, the durability record: ~0.06 s
+# CPU to import) are imported where the report is made, not with this module: a run imports
+# this module before its pool forks, where every import is on the start's critical path while
+# the other core idles; the run's preload thread imports them while the workers solve
+# (pipeline/run/runner.py).
 
 log = logging.getLogger(__name__)
 
@@ -138,7 +139,9 @@ class RunState:
         self._report_writes: list[Future] = []
         # files made in forked children at the end of the run (see artefact)
         self._groups: dict[str, list[tuple[str, Callable[[], str | bytes | None]]]] = {}
-        self._started: list[ForkedMakes | SplitMakes | EarlyStep] = []
+        self._started: list[ForkedMakes | SplitMakes | WithEarly | EarlyStep] = []
+        # files of a group started before the best design's detail (see start_early)
+        self._early_made: dict[str, ForkedMakes] = {}
         self._early: EarlyStep | None = None  # best.step's child, once it has the part
         self._csv_header: list[str] | None = None
         self._csv_body: list[str] = []
@@ -444,11 +447,25 @@ class RunState:
         """
         if self._groups and self._report_writes:
             self.drain_report_writes()
-        self._started += [
-            SplitMakes(items) if len(items) >= SPLIT_GROUP_AT else ForkedMakes(items)
-            for items in self._groups.values()
-        ]
+        for items in self._groups.values():
+            early = {n: self._early_made.pop(n) for n, _ in items if n in self._early_made}
+            self._started.append(WithEarly(items, early) if early else forked(items))
         self._groups = {}
+
+    def start_early(self, name: str, make: Callable[[], str | bytes | None]) -> None:
+        """Start making ``name`` in a forked child now (:class:`ForkedMakes`), before the
+        best design's detail: its :meth:`artefact` call later (with a group) takes the child's
+        file instead of making it again, and writes it in its place among the group's.
+
+        Called before any writer thread runs (no thread holds a lock the child needs).
+        """
+        self._early_made[name] = ForkedMakes([(name, make)])
+
+    def reap_early(self) -> None:
+        """Wait for early children whose file was never queued (the report ended first)."""
+        early, self._early_made = self._early_made, {}
+        for job in early.values():
+            job.results()
 
     def collect_groups(self) -> None:
         """Write the files the children made, in the order they were queued."""
@@ -505,14 +522,32 @@ class RunState:
         finally:
             if early is not None:
                 early.close()
+            self.reap_early()
         self.drain_report_writes()  # every file on disk before the run says it finished
         return detail
 
     def _finish(self, result: GAResult, early: EarlyStep | None) -> DesignDetail | None:
+        from flexopt.pipeline import plots
+        from flexopt.pipeline.durability_report import durability_record
+        from flexopt.pipeline.report_html import HtmlData, render_html
+        from flexopt.pipeline.run.figures import (
+            convergence_png,
+            curve_png,
+            float_or_none,
+            spec_label,
+        )
+        from flexopt.pipeline.vtu import has_mesh, vtu_makers
+
         study, problem = self.setup.study, self.problem
         best = result.best
         title = f"{study.name}: best design"
         best_json = self.best_record(best)
+        # The plots that need only the run's history and designs start now, in a child, on the
+        # core that idles while this process solves the best design's detail (one process); the
+        # others need the detail. They are written in their place among the plots.
+        self.start_early("convergence.png", lambda: convergence_png(self.history, self.columns))
+        if len(result.front) > 1 and len(problem.objective_names) >= 2:
+            self.start_early("front.png", lambda: self._front_png(result, title))
         detail: DesignDetail | None = None
         try:
             detail = problem.detail(np.array(best.x, dtype=float))
@@ -701,6 +736,8 @@ class RunState:
     ) -> None:
         """force_displacement.png, stress.png and outputs.png of a kind with load cases: one
         column per case (the kind's own outputs.png is replaced by the pipeline's)."""
+        from flexopt.pipeline import plots
+
         files = [("force_displacement.png", ("curve",)), ("stress.png", ("stress",))]
         if any(c.outputs for c in cases.values()):
             files.append(("outputs.png", ("outputs",)))
@@ -736,6 +773,8 @@ class RunState:
 
     def _front_png(self, result: GAResult, title: str) -> bytes:
         """First two objectives of every feasible evaluation, the front and the chosen one."""
+        from flexopt.pipeline import plots
+
         feasible = [ev.f[:2] for ev in self.evaluator.solved if ev.feasible]
         names = self.problem.objective_names
         return plots.plot_front(

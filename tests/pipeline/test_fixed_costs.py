@@ -269,3 +269,39 @@ def test_the_timeline_deals_each_batch_to_two_workers_largest_first(capsys):
     assert ga[1:] == ["1", "11", "0", "7.000", "4.000", "1.000", "10.000"]
     assert gradient[1:] == ["1", "1", "1", "1.500", "1.000", "0.500", "1.000"]
     assert any("1.250 s CPU, from 2.50 s to 20.00 s" in line for line in lines)
+
+
+def test_long_arrays_put_in_at_embed_give_the_same_figure_json():
+    """report.html's mesh figures with their long arrays as placeholders (``_Figures.later``)
+    embed to the same text as the figures built with the arrays, NaN (a gap: null) included."""
+    pytest.importorskip("plotly.graph_objects")
+    import numpy as np
+    from flexopt.pipeline import report_html as rh
+    from flexopt.pipeline.html_templates import templates_at_embed
+
+    rng = np.random.default_rng(3)
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [2.0, 0.5]])
+    fmap = {
+        "points_mm": points,
+        "triangles": np.array([[0, 1, 2], [0, 2, 3], [1, 4, 2]]),
+        "values": np.array([1.23456, float("nan"), 30.5, 7.0, 12.0]),
+        "displacement_mm": rng.normal(size=(5, 2)) * 0.1,
+        "label": "von Mises stress (MPa)",
+        "limit": 42.5,
+    }
+    vertices = rng.normal(size=(6, 3))
+    faces = np.array([[0, 1, 2], [2, 3, 4], [4, 5, 0]])
+    with templates_at_embed():
+        whole = rh._Figures()
+        want = [
+            whole.embed(rh._stress_fig(fmap), "s"),
+            whole.embed(rh._part_fig(vertices, faces), "p"),
+        ]
+        deferred = rh._Figures()
+        got = [
+            deferred.embed(rh._stress_fig(fmap, later=deferred.later), "s"),
+            deferred.embed(rh._part_fig(vertices, faces, later=deferred.later), "p"),
+        ]
+    assert got == want
+    assert "null" in got[0] and rh._DEFERRED.strip("\x00") not in got[0] + got[1]
+    assert deferred.deferred == []

@@ -864,3 +864,50 @@ def test_the_early_step_child_is_lowered_only_where_it_can_come_back(monkeypatch
         resource, "getrlimit", lambda what: (resource.RLIM_INFINITY, resource.RLIM_INFINITY)
     )
     assert run_mod.can_restore_priority()
+
+
+def test_convergence_png_is_forked_before_the_detail_and_written_in_its_place(
+    tmp_path, monkeypatch
+):
+    """convergence.png needs only the run's history: its child is forked before the best
+    design's detail is solved (the core idles then), it is not made again with the other
+    plots, and it is written in its queued place among them (after stress.png, before
+    shapes.png), as when one child made the whole group."""
+    from flexopt.pipeline.run import split_makes, state
+
+    events: list[Any] = []
+    written: list[str] = []
+
+    class Recorded(state.ForkedMakes):
+        def __init__(self, items):
+            events.append(tuple(name for name, _ in items))
+            super().__init__(items)
+
+    real_detail, real_write = ToyProblem.detail, state.write_atomic
+
+    def detail(self, x):
+        events.append("detail")
+        return real_detail(self, x)
+
+    def write(path, data):
+        written.append(Path(path).name)
+        real_write(path, data)
+
+    monkeypatch.setattr(state, "ForkedMakes", Recorded)
+    monkeypatch.setattr(split_makes, "ForkedMakes", Recorded)
+    monkeypatch.setattr(ToyProblem, "detail", detail)
+    monkeypatch.setattr(state, "write_atomic", write)
+    outcome = run_toy(tmp_path)
+    assert events[0] == ("convergence.png",) and events[1] == "detail"
+    later = [names for names in events[2:] if isinstance(names, tuple)]
+    assert later and not any("convergence.png" in names for names in later)  # not made twice
+    assert "convergence.png" in outcome.record["files"]
+    assert (outcome.run_dir / "convergence.png").read_bytes()[:4] == b"\x89PNG"
+    pngs = [name for name in written if name.endswith(".png")]
+    assert pngs == [
+        "force_displacement.png",
+        "stress.png",
+        "convergence.png",
+        "shapes.png",
+        "stress_map.png",
+    ]
