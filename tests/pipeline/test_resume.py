@@ -112,7 +112,10 @@ def test_sigkill_mid_run_then_resume_ends_as_an_uninterrupted_run(tmp_path, caps
     assert killed.status == "stopped" and killed.n_evaluations == len(stored)
     assert 2 <= killed.generation < 10
     checkpoint = json.loads((out / "checkpoint.json").read_text())
-    assert checkpoint["generation"] == record["generations_done"] >= 2
+    # the writer writes checkpoint.json, then run.json: a kill between the two leaves the
+    # checkpoint one generation ahead (resume reads the checkpoint), never behind
+    assert record["generations_done"] >= 2
+    assert checkpoint["generation"] - record["generations_done"] in (0, 1)
     assert len(checkpoint["population"]) == 10 and checkpoint["rng"]["seed"] == 7
     assert checkpoint["study_sha256"] == record["study_sha256"]
 
