@@ -299,24 +299,29 @@ def _stress_pieces(
     """The peak stress as pieces for an active-set step (:mod:`optimise.hybrid`): the path's
     peak is the max of them, and each is a smooth function of the design. Why: the peak switches
     between the clamp and mid-beam, and one linearised row (the active point's, or the KS's
-    blend) cannot see the other place rise. A piece is one (row, element): the largest of its
-    3 points x 4 signed fibre values (k rows, S = 3 E points); kept where within
-    :data:`PIECE_WINDOW` of the peak (relative), at most :data:`MAX_PIECES`, highest first.
+    blend) cannot see the other place rise. A piece is one (row, sampling point): the largest of
+    its 4 signed fibre values (k rows, S = 3 E points); kept where within :data:`PIECE_WINDOW` of
+    the peak (relative), at most :data:`MAX_PIECES`, highest first.
+
+    Why each sampling point, not each element (session 33): an element's 3 points tie as the
+    optimiser walks the design onto a ridge of the max, and a piece that is the element's largest
+    point hides its neighbour rising. Measured on constant-force seed 1: the step held the
+    element's active point (s = 7.43 mm, row 60) flat while the point beside it (6.41 mm, 1e-6 MPa
+    lower) rose, so every trial of the last 14 iterations broke the stress row by up to 0.15 %
+    and was rejected, whatever the radius; a point's 4 values (the two fibres, each signed) tie
+    only where the stress is ~0, far below the peak.
 
     ``d_fibre`` (k, S, 2, 23): the two fibres' derivatives (a signed value's is one of them or its
     negation). Returns (p,) values MPa, (p, 23) derivatives MPa per unit, (p, 2) (row, arc
     length mm)."""
     k, n_s = signed.shape[:2]
-    per_el = signed.reshape(k, n_s // 3, 12)  # (rows, elements, 3 points x 4 values)
-    best = np.argmax(per_el, axis=2)  # (rows, elements)
-    value = np.take_along_axis(per_el, best[..., None], axis=2)[..., 0]
+    best = np.argmax(signed, axis=2)  # (rows, points): which of the 4 signed values
+    value = np.take_along_axis(signed, best[..., None], axis=2)[..., 0]
     peak = float(value.max())
     cand = np.flatnonzero(value.ravel() >= peak - PIECE_WINDOW * abs(peak))
     cand = cand[np.argsort(-value.ravel()[cand], kind="stable")][:MAX_PIECES]
-    row_i, el = np.unravel_index(cand, value.shape)
-    flat = best[row_i, el]  # index into the element's 12
-    point = 3 * el + flat // 4
-    value_idx = flat % 4
+    row_i, point = np.unravel_index(cand, value.shape)
+    value_idx = best[row_i, point]
     d = _signed_derivative(d_fibre, row_i, point, value_idx)
     where = np.column_stack([rows[row_i], s_mm[point]])
     return value.ravel()[cand], d, where

@@ -217,3 +217,21 @@ def test_flared_profile_derivatives_are_the_generators_central_differences_bit_f
         np.testing.assert_array_equal(flare.thickness[k], thick, err_msg=NAMES[k])
     assert np.any(flare.thickness[NAMES.index("t1")] != 0.0)
     assert (fillet_mm > 1.0) == (flare.root_mm[0] < fillet_mm)  # the capped case is capped
+
+
+def test_stress_pieces_are_each_sampling_points_so_a_neighbour_rising_in_the_element_is_seen():
+    """Two sampling points of one element tie (the ridge the optimiser walks onto): each is its
+    own piece, with its own derivative (session 33: as one piece per element, the step held the
+    active point flat while its neighbour rose, and every trial broke the stress row)."""
+    # 1 row, 2 elements (6 points) x 4 signed values (+(a+c), +(a-c), -(a+c), -(a-c))
+    fibre = np.array([[[40.0, 1.0], [40.0 - 1e-6, 2.0], [37.0, 0.5], [10, 0], [9, 0], [8, 0]]])
+    signed = np.concatenate([fibre, -fibre], axis=2)
+    d_fibre = np.zeros((1, 6, 2, 23))
+    d_fibre[0, 0, 0, 0] = 0.0  # the active point is flat along variable 0 ...
+    d_fibre[0, 1, 0, 0] = 5.0  # ... its neighbour in the element rises along it
+    d_fibre[0, 2, 0, 1] = -3.0
+    s_mm = np.arange(6.0)
+    values, d, where = gradient._stress_pieces(signed, d_fibre, s_mm, np.array([60]))
+    np.testing.assert_array_equal(values, [40.0, 40.0 - 1e-6, 37.0])  # within 10 %, highest first
+    np.testing.assert_array_equal(where, [[60, 0.0], [60, 1.0], [60, 2.0]])
+    assert d[0, 0] == 0.0 and d[1, 0] == 5.0 and d[2, 1] == -3.0
