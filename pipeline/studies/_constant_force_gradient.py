@@ -299,32 +299,44 @@ def _stress_pieces(
     """The peak stress as pieces for an active-set step (:mod:`optimise.hybrid`): the path's
     peak is the max of them, and each is a smooth function of the design. Why: the peak switches
     between the clamp and mid-beam, and one linearised row (the active point's, or the KS's
-    blend) cannot see the other place rise. A piece is one (row, sampling point): the largest of
-    its 4 signed fibre values (k rows, S = 3 E points); kept where within :data:`PIECE_WINDOW` of
-    the peak (relative), at most :data:`MAX_PIECES`, highest first.
+    blend) cannot see the other place rise. The (row, element) pairs whose largest value (of
+    their 3 points x 4 signed fibre values; k rows, S = 3 E points) is within
+    :data:`PIECE_WINDOW` of the peak (relative), at most :data:`MAX_PIECES` of them, highest
+    first, give the pieces: each of their sampling points within the window is one, its value
+    the largest of its 4 signed values.
 
-    Why each sampling point, not each element (session 33): an element's 3 points tie as the
-    optimiser walks the design onto a ridge of the max, and a piece that is the element's largest
-    point hides its neighbour rising. Measured on constant-force seed 1: the step held the
-    element's active point (s = 7.43 mm, row 60) flat while the point beside it (6.41 mm, 1e-6 MPa
-    lower) rose, so every trial of the last 14 iterations broke the stress row by up to 0.15 %
-    and was rejected, whatever the radius; a point's 4 values (the two fibres, each signed) tie
-    only where the stress is ~0, far below the peak.
+    Why each sampling point, not only the element's largest (session 33): an element's points
+    tie as the optimiser walks the design onto a ridge of the max, and a piece that is the
+    element's largest point hides its neighbour rising. Measured on constant-force seed 1: the
+    step held the element's active point (s = 7.43 mm, row 60) flat while the point beside it
+    (6.41 mm, 1e-6 MPa lower) rose, so every trial of the last 14 iterations broke the stress
+    row by up to 0.15 % and was rejected, whatever the radius. The elements are still chosen
+    as before (at most 48): 48 points instead would cover a third of the beam's places, and a
+    restoring start's step then missed a far place rising (a test's 16 x 2 GA start stayed
+    infeasible). A point's 4 values (the two fibres, each signed) tie only where the stress is
+    ~0, far below the peak.
 
     ``d_fibre`` (k, S, 2, 23): the two fibres' derivatives (a signed value's is one of them or its
-    negation). Returns (p,) values MPa, (p, 23) derivatives MPa per unit, (p, 2) (row, arc
-    length mm)."""
+    negation). Returns (p,) values MPa (p <= 3 MAX_PIECES; the elements' order, each element's
+    points in order), (p, 23) derivatives MPa per unit, (p, 2) (row, arc length mm)."""
     k, n_s = signed.shape[:2]
     best = np.argmax(signed, axis=2)  # (rows, points): which of the 4 signed values
-    value = np.take_along_axis(signed, best[..., None], axis=2)[..., 0]
+    point_value = np.take_along_axis(signed, best[..., None], axis=2)[..., 0]  # (rows, points)
+    per_el = point_value.reshape(k, n_s // 3, 3)
+    value = per_el.max(axis=2)  # (rows, elements)
     peak = float(value.max())
-    cand = np.flatnonzero(value.ravel() >= peak - PIECE_WINDOW * abs(peak))
+    floor = peak - PIECE_WINDOW * abs(peak)
+    cand = np.flatnonzero(value.ravel() >= floor)
     cand = cand[np.argsort(-value.ravel()[cand], kind="stable")][:MAX_PIECES]
-    row_i, point = np.unravel_index(cand, value.shape)
-    value_idx = best[row_i, point]
-    d = _signed_derivative(d_fibre, row_i, point, value_idx)
+    row_i, el = np.unravel_index(cand, value.shape)
+    # every point of the chosen elements within the window (the element's largest always)
+    row_i = np.repeat(row_i, 3)
+    point = (3 * np.repeat(el, 3) + np.tile(np.arange(3), len(el))).astype(int)
+    keep = point_value[row_i, point] >= floor
+    row_i, point = row_i[keep], point[keep]
+    d = _signed_derivative(d_fibre, row_i, point, best[row_i, point])
     where = np.column_stack([rows[row_i], s_mm[point]])
-    return value.ravel()[cand], d, where
+    return point_value[row_i, point], d, where
 
 
 def _band_row(study: Any, response: Any) -> int:

@@ -28,7 +28,8 @@ def small_study():
     optimiser = study.optimiser.model_copy(
         update={
             "method": "hybrid",
-            "hybrid": HybridSpec(ga_n_gen=2, starts=2, max_iter=5),
+            # 6 iterations: both starts restored and checked (session 33: start 1 needs its 6th)
+            "hybrid": HybridSpec(ga_n_gen=2, starts=2, max_iter=6),
             "pop_size": 16,
             "seed": 1,
         }

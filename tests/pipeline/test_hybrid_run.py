@@ -111,17 +111,20 @@ def test_a_ga_study_dumps_without_the_new_keys():
 def test_the_example_runs_the_hybrid_and_a_study_without_method_the_ga():
     """The shipped constant-force example names ``method: hybrid`` (issue 27: the default
     ``flexopt run constant-force`` is the calibrated hybrid, docs/constant_force.md): the GA then
-    Gauss-Newton (the defaults ga_n_gen 5, starts 2, patience 6) with the band row
+    Gauss-Newton (the defaults ga_n_gen 5, starts 2, patience 6; max_iter 30, the example's
+    own since session 33) with the band row
     ``force_band_excess``. A constant_force study that names no ``method`` keeps the GA alone
     with main's problem (no band row): the kind's schema default is unchanged, so a study
     written before the hybrid, and its run folder's hash, optimise as they did."""
     from flexopt.pipeline.study import load_study
 
     study = load_study("constant-force")
-    assert study.optimiser.method == "hybrid" and study.optimiser.hybrid is None
+    assert study.optimiser.method == "hybrid"
+    assert study.optimiser.hybrid is not None and study.optimiser.hybrid.max_iter == 30
     setup = prepare_run(study)
     assert setup.hybrid is not None and setup.hybrid.local == "gauss_newton"
     assert (setup.hybrid.ga_n_gen, setup.hybrid.starts, setup.hybrid.patience) == (5, 2, 6)
+    assert setup.hybrid.max_iter == 30
     assert setup.config.n_gen == study.optimiser.n_gen  # the GA stage's most generations
     assert setup.problem.constraint_names == ("stress_ratio_minus_1", "force_band_excess")
     unset = study.model_copy(
