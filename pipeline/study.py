@@ -218,6 +218,11 @@ class HybridSpec(BaseModel):
     max_evaluations: int | None = Field(
         None, ge=1, description="designs of the gradient stage at most (none: no limit)"
     )
+    retry_inside: bool | None = Field(
+        None,
+        description="Gauss-Newton: after a trial breaks a constraint row, the retry from the "
+        "same design aims inside it by the error seen (none: off)",
+    )
 
 
 class OptimiserSpec(BaseModel):

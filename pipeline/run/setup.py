@@ -166,6 +166,7 @@ def _hybrid_setup(
             min(options.max_iter, QUICK_HYBRID_ITERATIONS) if quick else options.max_iter,
             options.fd_step,
             options.max_evaluations,
+            retry_inside=bool(options.retry_inside),
         )
     except OptimiseError as exc:
         raise StudyError("optimiser", str(exc)) from None
