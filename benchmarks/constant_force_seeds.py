@@ -2,16 +2,17 @@
 (session 33, docs/constant_force.md "The Gauss-Newton stage on the stress ridge").
 
     python benchmarks/constant_force_seeds.py [--seeds 1 2 3 4 5] [--hybrid '{"max_iter": 40}']
-        [--flexopt PATH] [--reference]
+        [--study '{"fidelity": {"beam_stress_factor": 1.04}}'] [--flexopt PATH] [--reference]
 
 Each seed is one ``flexopt run`` of pipeline/examples/constant-force.yaml (with the
-``optimiser.hybrid`` keys of ``--hybrid`` laid over the example's) into a temporary folder that
-is removed; printed per seed: the rounds (the run's generations: GA generations plus gradient
-batches), the designs solved, the best RMS error (N), the verdict's requirements met, the wall
-time (s, of the whole command; the machine is shared, so read it beside the load average), and
-each start's iterations and why it stopped. ``--reference`` runs on the recorded results'
-numerics (tests/reference_numerics.py), so seed 1 reproduces tests/golden/constant-force.json.
-The rounds, designs and RMS are deterministic on given numerics; the wall is not.
+``optimiser.hybrid`` keys of ``--hybrid``, and any keys of ``--study``, laid over the example's)
+into a temporary folder that is removed; printed per seed: the rounds (the run's generations: GA
+generations plus gradient batches), the designs solved, the best RMS error (N), the verdict's
+requirements met, the wall time (s, of the whole command; the machine is shared, so read it
+beside the load average), and each start's iterations and why it stopped. ``--reference`` runs
+on the recorded results' numerics (tests/reference_numerics.py), so seed 1 reproduces
+tests/golden/constant-force.json. The rounds, designs and RMS are deterministic on given
+numerics; the wall is not.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
     parser.add_argument("--hybrid", default="{}", help="optimiser.hybrid keys, as JSON")
+    parser.add_argument("--study", default="{}", help="other study keys, as JSON (merged)")
     parser.add_argument("--flexopt", default=str(Path(sys.executable).with_name("flexopt")))
     parser.add_argument("--reference", action="store_true", help="the reference numerics")
     args = parser.parse_args()
@@ -48,7 +50,13 @@ def main() -> None:
         reference_numerics.apply(env)
     study = yaml.safe_load(EXAMPLE.read_text(encoding="utf-8"))
     study["optimiser"].setdefault("hybrid", {}).update(json.loads(args.hybrid))
-    print(f"optimiser.hybrid: {study['optimiser']['hybrid']}; load {os.getloadavg()[0]:.2f}")
+    overlay = json.loads(args.study)
+    _merge(study, overlay)
+    print(
+        f"optimiser.hybrid: {study['optimiser']['hybrid']}"
+        + (f"; {overlay}" if overlay else "")
+        + f"; load {os.getloadavg()[0]:.2f}"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "constant-force.yaml"
         path.write_text(yaml.safe_dump(study), encoding="utf-8")
@@ -73,6 +81,15 @@ def main() -> None:
                 flush=True,
             )
             shutil.rmtree(out, ignore_errors=True)
+
+
+def _merge(into: dict, keys: dict) -> None:
+    """Lay ``keys`` over ``into`` (nested mappings merged, other values replaced)."""
+    for key, value in keys.items():
+        if isinstance(value, dict) and isinstance(into.get(key), dict):
+            _merge(into[key], value)
+        else:
+            into[key] = value
 
 
 if __name__ == "__main__":

@@ -134,6 +134,15 @@ class HybridConfig:
         helps a start walking a curved row's boundary (constant-force: fewer rounds, lower RMS
         over seeds 1-5), but on sea-spring it ran 50 designs instead of 43 (a lower stress,
         613.6 against 638.0 MPa, in 49 s against 35 s), past that study's time target.
+    step_solver : Gauss-Newton: how each step's QP is solved. ``"slsqp"`` (the default):
+        SciPy's SLSQP on the elastic problem. ``"exact"``: exactly, by Lawson and Hanson's
+        least squares with inequalities (:func:`least_squares_inequalities`), SLSQP only where
+        the linearised rows cannot be met (session 34). SLSQP's BFGS model of ``J^T J`` stops
+        short of the QP's optimum (model objectives up to 5x the optimum's on constant-force)
+        and meets the rows to ~4e-8; the exact solve is ~10x faster and meets them to ~1e-10.
+        Not the default: the path changes, and on sea-spring the exact steps ran 61 designs
+        instead of 47 (637.3 against 639.7 MPa) in 49.9 s against 44.0 s, past its 45 s target
+        (docs/benchmarks.md, "Session 34").
     """
 
     ga: GAConfig = GAConfig()
@@ -148,10 +157,13 @@ class HybridConfig:
     max_evaluations: int | None = None
     exact_jacobian: bool = True
     retry_inside: bool = False
+    step_solver: Literal["slsqp", "exact"] = "slsqp"
 
     def __post_init__(self) -> None:
         if self.local not in ("gauss_newton", "slsqp"):
             raise OptimiseError(f"local = {self.local!r}; use 'gauss_newton' or 'slsqp'")
+        if self.step_solver not in ("slsqp", "exact"):
+            raise OptimiseError(f"step_solver = {self.step_solver!r}; use 'slsqp' or 'exact'")
         if self.ga.algorithm != "ga":
             raise OptimiseError("the hybrid optimiser optimises one objective: algorithm 'ga'")
         if self.starts < 1 or self.patience < 1 or self.max_iter < 1:
@@ -173,6 +185,7 @@ class HybridConfig:
             "max_evaluations": self.max_evaluations,
             # only when on: the run.json of a study without it is what it was
             **({"retry_inside": True} if self.retry_inside else {}),
+            **({"step_solver": self.step_solver} if self.step_solver != "slsqp" else {}),
         }
 
 
@@ -784,10 +797,26 @@ def _gauss_newton_step(
     backoff: np.ndarray,
     pieces: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
     broken: np.ndarray | None = None,
+    exact: bool = False,
 ) -> np.ndarray:
     """(n_var,) the step d minimising ``||r + J d||**2`` subject to ``g + Jg d <= -backoff``
-    (elastic: what cannot be met is paid for at :data:`ELASTIC_WEIGHT`) and ``lower <= d <=
-    upper`` (the trust region within the bounds), by SciPy's SLSQP.
+    and ``lower <= d <= upper`` (the trust region within the bounds).
+
+    ``exact`` (``HybridConfig.step_solver == "exact"``): solved exactly where the linearised
+    constraints can be met inside the trust region: a
+    least-squares problem with linear inequalities (:func:`least_squares_inequalities`, Lawson
+    and Hanson's LSI -> LDP -> NNLS, a direct active-set method), with ``STEP_DAMPING * ||d||**2``
+    added to the scaled objective. Why the damping: ``J`` has fewer rows than columns (the
+    constant-force study: 10 residuals, 23 variables), so the objective is flat along J's null
+    space and the constraints alone do not fix the step; the damping picks the shortest of the
+    equally good steps (it changes the scaled objective by <= 1.25e-7 inside the largest
+    radius, 0.5). Otherwise, and where the constraints cannot be met, SciPy's SLSQP solves the
+    elastic problem (what cannot be met is paid for at :data:`ELASTIC_WEIGHT`). SLSQP takes
+    ~12 ms a step in the run's process while the workers idle (~1 s of a constant-force run),
+    and it often stops short of the QP's optimum (its BFGS model of ``J^T J`` after 15-45
+    iterations: on constant-force, steps whose model objective was up to 5x the optimum's) or
+    outside a linearised row by up to 4e-8, more than :data:`FEASIBILITY_MARGIN`; the exact
+    solve takes ~1.4 ms and meets the rows to ~1e-10 (docs/benchmarks.md, "Session 34").
 
     r (n_res,), J (n_res, n_var), g (n_con,), Jg (n_con, n_var), lower, upper (n_var,), backoff
     (n_con,) >= 0: how far inside each linearised constraint to aim (its linearisation error
@@ -828,6 +857,9 @@ def _gauss_newton_step(
     clamp = g <= 0.0 if broken is None else (g <= 0.0) & ~broken
     limit = np.where(clamp, np.maximum(limit, g), limit)
     aim = limit[owner] - values
+    d = _exact_step(r, J, grads, aim, lower, upper) if exact else None
+    if d is not None:
+        return d
     start = np.zeros(m)
     np.maximum.at(start, owner, np.maximum(-aim, 0.0))
     constraints = [{"type": "ineq", "fun": lambda z: aim + A @ z, "jac": lambda z: A}] if m else []
@@ -842,6 +874,76 @@ def _gauss_newton_step(
     )
     return np.clip(np.asarray(qp.x[:n], dtype=float), lower, upper)
 
+
+def _exact_step(
+    r: np.ndarray,
+    J: np.ndarray,
+    grads: np.ndarray,
+    aim: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> np.ndarray | None:
+    """(n_var,) the step of :func:`_gauss_newton_step` with every linearised row held (``aim +
+    (-grads) d >= 0``, grads (k, n_var), aim (k,)) and ``lower <= d <= upper``: the minimiser of
+    ``||r + J d||**2 / ||r||**2 + STEP_DAMPING ||d||**2``; None where no step meets them all
+    (the caller then solves the elastic problem)."""
+    n = len(lower)
+    root = np.sqrt(max(float(r @ r), 1e-300))
+    E = np.vstack([J / root, np.sqrt(STEP_DAMPING) * np.eye(n)])
+    f = np.concatenate([-r / root, np.zeros(n)])
+    eye = np.eye(n)
+    G = np.vstack([-grads, eye, -eye])
+    h = np.concatenate([-aim, lower, -upper])
+    d = least_squares_inequalities(E, f, G, h)
+    if d is None:
+        return None
+    return np.clip(d, lower, upper)
+
+
+def least_squares_inequalities(
+    E: np.ndarray, f: np.ndarray, G: np.ndarray, h: np.ndarray
+) -> np.ndarray | None:
+    """(n,) the x minimising ``||E x - f||`` subject to ``G x >= h``, or None when no x meets
+    the constraints (to round-off). E (m, n) of full column rank n, f (m,), G (k, n), h (k,).
+
+    Lawson and Hanson, *Solving Least Squares Problems* (1974), ch. 23: with ``E = Q R``
+    (economic QR) and ``y = R x - Q^T f``, the problem is the least-distance problem ``min
+    ||y|| s.t. (G R^-1) y >= h - G R^-1 Q^T f`` (LDP), whose solution comes from one
+    non-negative least-squares problem (SciPy's ``nnls``): ``min ||[G~^T; h~^T] u - e_{n+1}||``
+    over ``u >= 0``; its residual ``rho`` is zero when the constraints are inconsistent, else
+    ``y = -rho[:n] / rho[n]``. The same reduction SLSQP makes inside each of its iterations;
+    here it is made once, on the exact objective.
+    """
+    from scipy.linalg import qr, solve_triangular
+    from scipy.optimize import nnls
+
+    n = E.shape[1]
+    Q, R = qr(E, mode="economic")
+    ft = Q.T @ f
+    Gt = solve_triangular(R, np.asarray(G, dtype=float).T, trans="T").T  # G R^-1 (k, n)
+    ht = h - Gt @ ft
+    A = np.vstack([Gt.T, ht[None, :]])
+    e = np.zeros(n + 1)
+    e[n] = 1.0
+    try:
+        u, _ = nnls(A, e, maxiter=50 * A.shape[1])
+    except RuntimeError:  # NNLS did not converge: let the caller solve it otherwise
+        return None
+    rho = A @ u - e
+    # rho[n] = u . h~ - 1 = -||rho||^2 <= 0: zero (to round-off) when the rows are inconsistent
+    if -rho[n] <= 1e-12:
+        return None
+    y = -rho[:n] / rho[n]
+    x = solve_triangular(R, y + ft)
+    if len(h) and float(np.max(h - G @ x)) > 1e-9 * max(1.0, float(np.max(np.abs(h)))):
+        return None  # round-off lost the constraints: the elastic solve decides
+    return x
+
+
+#: the damping of the exact Gauss-Newton step (:func:`_exact_step`), against the objective
+#: scaled to 1 at the current design, in bound-normalised units: ties between equally good steps
+#: (J's null space) go to the shortest
+STEP_DAMPING = 1.0e-6
 
 #: how far inside every linearised constraint row a step aims besides its backoff: SLSQP meets
 #: its constraints to ~1e-10, and a trial on a linear constraint's boundary by that much is
@@ -889,6 +991,7 @@ def _gauss_newton(run: _Start, start: Evaluation, n_con: int) -> Any:
     J = Jg = None
     pieces: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     frozen = np.zeros(len(u), dtype=bool)
+    exact_qp = config.step_solver == "exact"
     for iteration in range(1, config.max_iter + 1):
         exact = (yield from run.exact(current, len(r), n_con)) if J is None else None
         if exact is not None:  # the problem's derivatives: no perturbed designs
@@ -911,13 +1014,15 @@ def _gauss_newton(run: _Start, start: Evaluation, n_con: int) -> Any:
                 Jg[:, i] = (ev.g - current.g) / steps[i]
         lower = np.where(frozen, 0.0, np.maximum(-u, -radius))
         upper = np.where(frozen, 0.0, np.minimum(1.0 - u, radius))
-        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff, pieces, broken)
+        d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff, pieces, broken, exact_qp)
         predicted = 0.5 * float(r @ r) - 0.5 * float((r + J @ d) @ (r + J @ d))
         if current.feasible and predicted <= 0.0 and broken.any():
             # aiming inside the broken rows costs more than the step gains (a kink's error, not
             # a curvature's: it does not shrink with the step): aim at the boundary as before
             broken[:] = False
-            d = _gauss_newton_step(r, J, current.g, Jg, lower, upper, backoff, pieces, broken)
+            d = _gauss_newton_step(
+                r, J, current.g, Jg, lower, upper, backoff, pieces, broken, exact_qp
+            )
             predicted = 0.5 * float(r @ r) - 0.5 * float((r + J @ d) @ (r + J @ d))
         size = float(np.max(np.abs(d))) if len(d) else 0.0
         if size < 1e-12 or (current.feasible and predicted <= 0.0):

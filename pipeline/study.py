@@ -223,6 +223,11 @@ class HybridSpec(BaseModel):
         description="Gauss-Newton: after a trial breaks a constraint row, the retry from the "
         "same design aims inside it by the error seen (none: off)",
     )
+    step_solver: Literal["slsqp", "exact"] | None = Field(
+        None,
+        description="Gauss-Newton: each step's QP by SLSQP, or exactly (least squares with "
+        "inequalities; SLSQP where the rows cannot be met) (none: slsqp)",
+    )
 
 
 class OptimiserSpec(BaseModel):

@@ -167,6 +167,7 @@ def _hybrid_setup(
             options.fd_step,
             options.max_evaluations,
             retry_inside=bool(options.retry_inside),
+            step_solver=options.step_solver or "slsqp",
         )
     except OptimiseError as exc:
         raise StudyError("optimiser", str(exc)) from None

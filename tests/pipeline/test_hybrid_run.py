@@ -112,7 +112,8 @@ def test_the_example_runs_the_hybrid_and_a_study_without_method_the_ga():
     """The shipped constant-force example names ``method: hybrid`` (issue 27: the default
     ``flexopt run constant-force`` is the calibrated hybrid, docs/constant_force.md): the GA then
     Gauss-Newton (the defaults ga_n_gen 5, starts 2, patience 6; max_iter 30, the example's
-    own since session 33, with ``retry_inside``) with the band row
+    own since session 33, with ``retry_inside``; each step's QP solved exactly, ``step_solver:
+    exact``, since session 34) with the band row
     ``force_band_excess``. A constant_force study that names no ``method`` keeps the GA alone
     with main's problem (no band row): the kind's schema default is unchanged, so a study
     written before the hybrid, and its run folder's hash, optimise as they did."""
@@ -126,6 +127,8 @@ def test_the_example_runs_the_hybrid_and_a_study_without_method_the_ga():
     assert (setup.hybrid.ga_n_gen, setup.hybrid.starts, setup.hybrid.patience) == (5, 2, 6)
     assert setup.hybrid.max_iter == 30 and setup.hybrid.retry_inside
     assert setup.hybrid.record()["retry_inside"] is True
+    assert setup.hybrid.step_solver == "exact"
+    assert setup.hybrid.record()["step_solver"] == "exact"
     assert setup.config.n_gen == study.optimiser.n_gen  # the GA stage's most generations
     assert setup.problem.constraint_names == ("stress_ratio_minus_1", "force_band_excess")
     unset = study.model_copy(
@@ -133,6 +136,9 @@ def test_the_example_runs_the_hybrid_and_a_study_without_method_the_ga():
     )
     setup = prepare_run(unset)
     assert setup.hybrid is None
+    # a hybrid study that names no step_solver keeps SLSQP (its run.json as it was)
+    plain = prepare_run(hybrid_study())
+    assert plain.hybrid.step_solver == "slsqp" and "step_solver" not in plain.hybrid.record()
     assert setup.problem.constraint_names == ("stress_ratio_minus_1",)
     assert prepare_run(validate_study(flexopt_toys.study())).hybrid is None
 
