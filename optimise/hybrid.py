@@ -138,8 +138,8 @@ class HybridConfig:
         SciPy's SLSQP on the elastic problem. ``"exact"``: exactly, by Lawson and Hanson's
         least squares with inequalities (:func:`least_squares_inequalities`), SLSQP only where
         the linearised rows cannot be met (session 34). SLSQP's BFGS model of ``J^T J`` stops
-        short of the QP's optimum (model objectives up to 5x the optimum's on constant-force)
-        and meets the rows to ~4e-8; the exact solve is ~10x faster and meets them to ~1e-10.
+        short of the QP's optimum (model objectives up to 24x the optimum's on constant-force)
+        and meets the rows to ~1e-7; the exact solve is ~12x faster and meets them to ~1e-10.
         Not the default: the path changes, and on sea-spring the exact steps ran 61 designs
         instead of 47 (637.3 against 639.7 MPa) in 49.9 s against 44.0 s, past its 45 s target
         (docs/benchmarks.md, "Session 34").
@@ -814,9 +814,10 @@ def _gauss_newton_step(
     elastic problem (what cannot be met is paid for at :data:`ELASTIC_WEIGHT`). SLSQP takes
     ~12 ms a step in the run's process while the workers idle (~1 s of a constant-force run),
     and it often stops short of the QP's optimum (its BFGS model of ``J^T J`` after 15-45
-    iterations: on constant-force, steps whose model objective was up to 5x the optimum's) or
-    outside a linearised row by up to 4e-8, more than :data:`FEASIBILITY_MARGIN`; the exact
-    solve takes ~1.4 ms and meets the rows to ~1e-10 (docs/benchmarks.md, "Session 34").
+    iterations: on constant-force, steps whose model objective was up to 24x the optimum's) or
+    past a linearised row's aim by up to 1e-7, more than :data:`FEASIBILITY_MARGIN`; the exact
+    solve takes ~1 ms and meets the rows to ~1e-10 (``benchmarks/gauss_newton_step.py``;
+    docs/benchmarks.md, "Session 34").
 
     r (n_res,), J (n_res, n_var), g (n_con,), Jg (n_con, n_var), lower, upper (n_var,), backoff
     (n_con,) >= 0: how far inside each linearised constraint to aim (its linearisation error
