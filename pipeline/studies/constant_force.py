@@ -181,11 +181,11 @@ class ConstantForceProblem(DesignProblem):
         return other
 
     def jacobian(self, x: np.ndarray) -> Any:
-        """Exact derivatives at ``x`` (23,): :mod:`._constant_force_gradient` (imported here:
-        ~0.1 s that a run without a gradient stage or report does not pay at start-up)."""
+        """Exact derivatives at ``x`` (23,): :mod:`._constant_force_gradient` (imported here,
+        ~0.1 s); the Gauss-Newton copy (:meth:`with_residuals`) with ``window`` (session 34)."""
         from flexopt.pipeline.studies._constant_force_gradient import jacobian  # fillets too
 
-        return jacobian(self, x, self._beam, self._drive)
+        return jacobian(self, x, self._beam, self._drive, window=self.residual_metrics)
 
     def check_constraints(self, x: np.ndarray, part: Any = None) -> Any:
         """The verdict's peak-stress figure at ``x`` (23,) for the hybrid's calibration, or a

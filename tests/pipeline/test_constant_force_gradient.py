@@ -495,3 +495,41 @@ def test_a_jacobian_at_a_design_this_process_just_solved_starts_from_that_solve(
     for k in range(1, kept.KEEP + 1):  # KEEP newer solves: x, the oldest, is forgotten
         assert np.all(np.isfinite(prob.evaluate(x + k * 1e-6).f))
     assert kept.kept(prob, x) is None
+
+
+@pytest.mark.parametrize("seed", [None, 0, 1, 2])
+def test_the_gauss_newton_copys_jacobian_is_the_full_ones_but_for_the_ks_row(seed):
+    """The ``with_residuals`` copy (the hybrid's Gauss-Newton problem) differentiates only the
+    stress rows near the peak (``window``, session 34): its residuals, objective, stress pieces,
+    peak's and band row's derivatives are the full Jacobian's to the bit (the step reads those),
+    and its KS row (which the step does not read) is the KS over fewer rows: within 1e-5 of the
+    full one's size on these designs (the example's recorded one and random ones, with the
+    example's 0.5 mm pad fillets)."""
+    from flexopt.pipeline.run.setup import prepare_run
+
+    gn = prepare_run(load_study(ROOT / "pipeline" / "examples" / "constant-force.yaml")).problem
+    assert gn.residual_metrics  # the run's problem is the Gauss-Newton copy
+    space = gn.space
+    if seed is None:
+        x = gn.nominal_design()
+    else:
+        rng = np.random.default_rng(seed)
+        x = space.lower + rng.random(space.n_var) * (space.upper - space.lower)
+    full = gradient.jacobian(gn, x, gn._beam, gn._drive, window=False)
+    lean = gn.jacobian(x)
+    assert full is not None and lean is not None
+    assert lean.info["stress_aggregate"] == "KS near the peak"
+    assert full.info["stress_aggregate"] == "KS"
+    np.testing.assert_array_equal(lean.residuals, full.residuals)
+    np.testing.assert_array_equal(lean.f, full.f)
+    np.testing.assert_array_equal(lean.g[1:], full.g[1:])
+    np.testing.assert_array_equal(lean.values["g"], full.values["g"])
+    np.testing.assert_array_equal(
+        lean.info["peak_stress_gradient"], full.info["peak_stress_gradient"]
+    )
+    assert lean.info["g_pieces"].keys() == full.info["g_pieces"].keys()
+    for c, piece in full.info["g_pieces"].items():
+        for key in ("values", "gradients"):
+            np.testing.assert_array_equal(lean.info["g_pieces"][c][key], piece[key])
+    scale = np.abs(full.g[0]).max()
+    assert np.abs(lean.g[0] - full.g[0]).max() <= 1e-5 * scale
