@@ -39,7 +39,7 @@ import numpy as np
 from flexopt.fea.beam import BeamModel, BeamResponse, EndDrive
 from flexopt.fea.errors import FeaError
 from flexopt.fea.materials import Material
-from flexopt.fea.prb import prb_frame_comparison, prb_report
+from flexopt.fea.prb import prb_frame_comparison, prb_report, prb_report_once
 from flexopt.geometry.constant_force import (
     DESIGN_VARIABLE_NAMES,
     TABLE3_OPTIMUM,
@@ -206,6 +206,8 @@ class ConstantForceProblem(DesignProblem):
             from flexopt.fea.plane_stress import warm_up
 
             warm_up()
+        if self.study.prb is not None:  # the detail's PRB synthesis (~0.2 s CPU), kept
+            _guarded(prb_synthesis, self.study)
 
     def nominal_design(self) -> np.ndarray:
         """(23,) the design the study file describes (what ``flexopt evaluate`` solves)."""
@@ -661,15 +663,11 @@ def prb_synthesis(study: ConstantForceStudy) -> dict[str, Any]:
     """:func:`prb_report` for the study's ``prb:`` block (defaults: the study's target force and
     drive stroke, its material, allowable stress and printable minimum thickness)."""
     spec = study.prb or PRBSpec()
-    return prb_report(
-        spec.target_force_N or study.target.force_N,
-        spec.stroke_mm or study.boundary.stroke_mm,
-        study.material.E_MPa,
-        study.allowable_MPa,
-        study.geometry.min_feature_mm,
-        spec.x_in_mm,
-        spec.e_mm,
-    )
+    return prb_report_once(  # once per process: warm_up_detail makes it while workers solve
+        spec.target_force_N or study.target.force_N, spec.stroke_mm or study.boundary.stroke_mm,
+        study.material.E_MPa, study.allowable_MPa, study.geometry.min_feature_mm,
+        spec.x_in_mm, spec.e_mm,
+    )  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------------
