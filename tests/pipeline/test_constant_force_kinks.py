@@ -148,17 +148,23 @@ def test_the_blended_peak_converges_under_refinement_where_the_mitred_one_rises(
 
 @pytest.mark.timeout(900)
 def test_the_examples_blended_peak_converges_under_refinement():
-    """The example's design (the hybrid's, session 28: its peak at 30 mm on the blend of a 2.4
-    deg kink) at 30 mm, the mesh halved four times within 1 mm of the peak: under 0.1 % per
-    halving and 0.2 % in all, down to 0.03125 mm - so the verdict's figure (0.125 mm there) is
-    converged. With 8 chords per blend it was not: 42.353 -> 42.408 -> 43.195 MPa at 0.125 /
-    0.0625 / 0.03125 mm, the chords' joints resolved (geometry.constant_force.BLEND_CHORDS)."""
+    """The example's design at 30 mm, the mesh halved four times within 1 mm of the peak, down
+    to 0.03125 mm: the increments shrink (each at most half the one before, or under 1e-4),
+    the last is under 1e-4 (converged), and the verdict's figure (the larger of the 0.5 mm mesh
+    and the 0.125 mm re-solve) is not under the converged peak by more than 0.1 %. Session 28's
+    design (its peak on the blend of a 2.4 deg kink) moved by under 0.01 % per halving; session
+    35's converges from above, 41.814 -> 41.736 -> 41.715 -> 41.712 -> 41.712 MPa (the verdict
+    reads 41.81, 0.25 % on the safe side). With 8 chords per blend it did not converge:
+    42.353 -> 42.408 -> 43.195 MPa at 0.125 / 0.0625 / 0.03125 mm, the chords' joints resolved
+    (geometry.constant_force.BLEND_CHORDS)."""
     prob = cf.problem(load_study(EXAMPLE))
     design = prob._design(prob.nominal_design())
     blended = _peaks(prob, cf.pads.study_outline(prob, design), [0.25, 0.125, 0.0625, 0.03125])
-    steps = np.diff(blended) / blended[:-1]
-    assert np.all(np.abs(steps) < 1e-3), blended
-    assert abs(blended[-1] / blended[0] - 1) < 2e-3, blended
+    steps = np.abs(np.diff(blended) / blended[:-1])
+    assert np.all((steps[1:] <= 0.5 * steps[:-1]) | (steps[1:] < 1e-4)), blended
+    assert steps[-1] < 1e-4, blended
+    verdict = max(blended[0], blended[2])  # the study mesh, and the 0.125 mm re-solve
+    assert verdict >= blended[-1] * (1 - 1e-3), blended
 
 
 def test_the_verdict_judges_the_larger_of_the_study_mesh_and_the_refined_peak():
@@ -188,7 +194,9 @@ def test_the_study_check_re_solves_its_peak_row_refined():
     assert refined["coarse_peak_MPa"] == max(peaks)
     assert refined["max_edge_mm"] == prob.study.fidelity.max_edge_mm / 4
     assert check[REFINED_PEAK] == refined["peak_MPa"]
-    assert abs(refined["peak_MPa"] / max(peaks) - 1) < 2e-3  # converged (previous test)
+    # the two figures close (the previous test: the peak converges within 0.25 % of the study
+    # mesh's on the recorded design)
+    assert abs(refined["peak_MPa"] / max(peaks) - 1) < 5e-3
     figures = checked_peak_figures(check, response.peak_stress_MPa)
     assert figures[CHECKED_PEAK] == max(
         max(peaks), refined["peak_MPa"], np.nanmax(response.peak_stress_MPa)
