@@ -111,9 +111,10 @@ def test_a_ga_study_dumps_without_the_new_keys():
 def test_the_example_runs_the_hybrid_and_a_study_without_method_the_ga():
     """The shipped constant-force example names ``method: hybrid`` (issue 27: the default
     ``flexopt run constant-force`` is the calibrated hybrid, docs/constant_force.md): the GA then
-    Gauss-Newton (the defaults ga_n_gen 5, starts 2, patience 6; max_iter 30, the example's
-    own since session 33, with ``retry_inside``; each step's QP solved exactly, ``step_solver:
-    exact``, since session 34) with the band row
+    Gauss-Newton (the defaults starts 2, patience 6; max_iter 30, the example's own since
+    session 33, with ``retry_inside``; each step's QP solved exactly, ``step_solver: exact``,
+    since session 34; the GA stage its first population, ``ga_n_gen`` 1, since session 35)
+    with the band row
     ``force_band_excess``. A constant_force study that names no ``method`` keeps the GA alone
     with main's problem (no band row): the kind's schema default is unchanged, so a study
     written before the hybrid, and its run folder's hash, optimise as they did."""
@@ -124,7 +125,7 @@ def test_the_example_runs_the_hybrid_and_a_study_without_method_the_ga():
     assert study.optimiser.hybrid is not None and study.optimiser.hybrid.max_iter == 30
     setup = prepare_run(study)
     assert setup.hybrid is not None and setup.hybrid.local == "gauss_newton"
-    assert (setup.hybrid.ga_n_gen, setup.hybrid.starts, setup.hybrid.patience) == (5, 2, 6)
+    assert (setup.hybrid.ga_n_gen, setup.hybrid.starts, setup.hybrid.patience) == (1, 2, 6)
     assert setup.hybrid.max_iter == 30 and setup.hybrid.retry_inside
     assert setup.hybrid.record()["retry_inside"] is True
     assert setup.hybrid.step_solver == "exact"
