@@ -51,6 +51,7 @@ docs/print_to_part.md says what each holds and how to open them.
 
 from __future__ import annotations
 
+import os
 import re
 import tempfile
 from pathlib import Path
@@ -326,11 +327,37 @@ def vtu_bytes(result: Any) -> bytes | None:
 
 def _mesh_bytes(mesh: Any) -> bytes:
     """A meshio mesh as VTU bytes (zlib-compressed binary arrays, field data in ASCII)."""
-    with tempfile.TemporaryDirectory() as tmp:  # meshio's VTU writer wants a file name
-        path = Path(tmp) / "design.vtu"
-        mesh.write(path, file_format="vtu", compression="zlib")
-        data = path.read_bytes()
+    data = _in_memory_vtu(mesh)
+    if data is None:
+        with tempfile.TemporaryDirectory() as tmp:  # meshio's VTU writer wants a file name
+            path = Path(tmp) / "design.vtu"
+            mesh.write(path, file_format="vtu", compression="zlib")
+            data = path.read_bytes()
     return _with_field_data(data, mesh.field_data)
+
+
+def _in_memory_vtu(mesh: Any) -> bytes | None:
+    """meshio's VTU of ``mesh`` written to an anonymous in-memory file (Linux's
+    ``memfd_create``, opened by name through ``/proc/self/fd``); None where there is none.
+
+    Why: meshio's writer wants a file name, and a temporary folder per file costs a mkdir and
+    an rmdir on the disk. While the run's writer thread fsyncs the report's files, ext4 makes
+    each rmdir wait for the journal: 62 of them (one per load step) took ~0.17 s of the
+    report's critical path, against ~4 ms for the same files in memory.
+    """
+    create = getattr(os, "memfd_create", None)
+    if create is None or not os.path.isdir("/proc/self/fd"):
+        return None
+    try:
+        fd = create("flexopt-vtu", getattr(os, "MFD_CLOEXEC", 0))
+    except OSError:
+        return None
+    try:
+        mesh.write(f"/proc/self/fd/{fd}", file_format="vtu", compression="zlib")
+        size = os.fstat(fd).st_size
+        return os.pread(fd, size, 0) if size else b""
+    finally:
+        os.close(fd)
 
 
 def _with_field_data(data: bytes, field_data: dict[str, np.ndarray]) -> bytes:

@@ -190,6 +190,24 @@ def test_vtu_of_beam_shapes_and_a_field_reads_back(tmp_path: Path) -> None:
     assert peak and peak[0][0] == 3 * a
 
 
+def test_the_in_memory_vtu_is_the_files_byte_for_byte(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The VTU made in an anonymous in-memory file (Linux) is the one meshio writes to a real
+    file in a temporary folder (the fallback elsewhere), byte for byte."""
+    import os
+
+    from flexopt.pipeline import vtu
+
+    detail = VtuProblem(_study()).detail(np.array([20.0]))
+    in_memory = vtu_bytes(detail)
+    if getattr(os, "memfd_create", None) is None:
+        pytest.skip("no memfd_create here: the temporary folder is the only way")
+    assert vtu._in_memory_vtu(vtu.vtu_mesh(detail)) is not None  # the in-memory path ran
+    monkeypatch.delattr(os, "memfd_create")
+    assert vtu._in_memory_vtu(vtu.vtu_mesh(detail)) is None
+    on_disk = vtu_bytes(detail)
+    assert in_memory == on_disk and len(on_disk) > 1000
+
+
 def test_nothing_to_write_is_none() -> None:
     detail = VtuProblem(_study(shapes=False, field=False)).detail(np.array([20.0]))
     assert vtu_bytes(detail) is None
