@@ -33,8 +33,9 @@ import numpy as np
 from flexopt.optimise.evaluation import Evaluation
 from flexopt.optimise.problem import DesignDetail, DesignProblem
 from flexopt.optimise.requirements import Verdict, overall, verdict_rows
+from flexopt.pipeline import figure_json as fj
 from flexopt.pipeline import labels
-from flexopt.pipeline.html_templates import WHITE, finish_template, templates_at_embed
+from flexopt.pipeline.html_templates import WHITE, finish_template
 from flexopt.pipeline.plot_targets import plot_spec
 from flexopt.pipeline.sensitivity_report import sensitivity_html
 
@@ -208,7 +209,6 @@ def _feasibility_colours(rows: Sequence[Evaluation]) -> list[int]:
 
 
 def _parcoords(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
-    import plotly.graph_objects as go
 
     p = data.problem
     dims = [
@@ -228,8 +228,8 @@ def _parcoords(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
         for k, n in enumerate(p.constraint_names)
     ]
     colour = _feasibility_colours(rows)
-    fig = go.Figure(
-        go.Parcoords(
+    fig = fj.Figure(
+        fj.Parcoords(
             dimensions=dims,
             line={
                 "color": colour,
@@ -245,7 +245,7 @@ def _parcoords(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
             },
         )
     )
-    fig.data[0].labelangle = -35  # long labels in words would overlap when level
+    fig.data[0]["labelangle"] = -35  # long labels in words would overlap when level
     fig.update_layout(
         _layout(
             "All solved designs: variables, objectives and constraints (blue feasible, red not)",
@@ -257,7 +257,6 @@ def _parcoords(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
 
 
 def _splom(data: HtmlData, rows: Sequence[Evaluation], rho: np.ndarray) -> Any:
-    import plotly.graph_objects as go
 
     p = data.problem
     names = list(p.space.names)
@@ -272,7 +271,7 @@ def _splom(data: HtmlData, rows: Sequence[Evaluation], rho: np.ndarray) -> Any:
         {"label": labels.label(n), "values": np.array([ev.f[i] for ev in rows], dtype=float)}
         for i, n in enumerate(p.objective_names)
     ]
-    fig = go.Figure()
+    fig = fj.Figure()
     if len(dims) <= 2:
         # One panel: plotly's splom with two dimensions and no upper half or diagonal throws
         # ("reading 'makeCalcdata'") and draws nothing; a plain scatter is the same panel.
@@ -283,7 +282,7 @@ def _splom(data: HtmlData, rows: Sequence[Evaluation], rho: np.ndarray) -> Any:
     ):
         subset = [k for k, ev in enumerate(rows) if ev.feasible is feasible]
         fig.add_trace(
-            go.Splom(
+            fj.Splom(
                 dimensions=[{**d, "values": [d["values"][k] for k in subset]} for d in dims],
                 name=f"{word} ({len(subset)})",
                 marker={"color": colour, "size": 4, "opacity": 0.7},
@@ -307,7 +306,6 @@ def _splom(data: HtmlData, rows: Sequence[Evaluation], rho: np.ndarray) -> Any:
 def _scatter_panel(dims: Sequence[Mapping[str, Any]], rows: Sequence[Evaluation]) -> Any:
     """The scatter matrix of one variable and one objective: its one panel, as a scatter
     (x the first dimension, y the second; one dimension alone against the design's number)."""
-    import plotly.graph_objects as go
 
     if len(dims) == 2:
         x_dim, y_dim = dims
@@ -315,14 +313,14 @@ def _scatter_panel(dims: Sequence[Mapping[str, Any]], rows: Sequence[Evaluation]
     else:
         x_dim = {"label": "design (order solved)", "values": list(range(len(rows)))}
         y_dim, x_title = dims[0], "design (order solved)"
-    fig = go.Figure()
+    fig = fj.Figure()
     for feasible, colour, word in (
         (False, _INFEASIBLE, "infeasible"),
         (True, _FEASIBLE, "feasible"),
     ):
         subset = [k for k, ev in enumerate(rows) if ev.feasible is feasible]
         fig.add_trace(
-            go.Scatter(
+            fj.Scatter(
                 x=[float(x_dim["values"][k]) for k in subset],
                 y=_plain([y_dim["values"][k] for k in subset]),
                 mode="markers",
@@ -343,12 +341,11 @@ def _scatter_panel(dims: Sequence[Mapping[str, Any]], rows: Sequence[Evaluation]
 
 
 def _sensitivity_fig(data: HtmlData, rho: np.ndarray, basis: str) -> Any:
-    import plotly.graph_objects as go
 
     p = data.problem
     text = [["–" if not math.isfinite(v) else f"{v:+.2f}" for v in row] for row in rho]
-    fig = go.Figure(
-        go.Heatmap(
+    fig = fj.Figure(
+        fj.Heatmap(
             z=np.where(np.isfinite(rho), rho, None).tolist(),
             x=[labels.label(n) for n in p.space.names],
             y=[labels.label(n) for n in p.objective_names],
@@ -356,7 +353,7 @@ def _sensitivity_fig(data: HtmlData, rho: np.ndarray, basis: str) -> Any:
             texttemplate="%{text}",
             zmin=-1,
             zmax=1,
-            colorscale="RdBu",
+            colorscale=fj.RDBU,
             reversescale=True,
             colorbar={"title": {"text": "Spearman ρ (–)"}},
             hovertemplate="variable: %{x}<br>objective: %{y}<br>ρ = %{z:.3f}<extra></extra>",
@@ -376,15 +373,14 @@ def _sensitivity_fig(data: HtmlData, rho: np.ndarray, basis: str) -> Any:
 
 
 def _front_fig(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
-    import plotly.graph_objects as go
 
     names = data.problem.objective_names
     feasible = [ev for ev in rows if ev.feasible]
     front = list(data.front)
     if len(names) == 2:
-        fig = go.Figure()
+        fig = fj.Figure()
         fig.add_trace(
-            go.Scatter(
+            fj.Scatter(
                 x=[float(ev.f[0]) for ev in feasible],
                 y=[float(ev.f[1]) for ev in feasible],
                 mode="markers",
@@ -393,7 +389,7 @@ def _front_fig(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
             )
         )
         fig.add_trace(
-            go.Scatter(
+            fj.Scatter(
                 x=[float(ev.f[0]) for ev in front],
                 y=[float(ev.f[1]) for ev in front],
                 mode="lines+markers",
@@ -402,7 +398,7 @@ def _front_fig(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
             )
         )
         fig.add_trace(
-            go.Scatter(
+            fj.Scatter(
                 x=[float(data.best.f[0])],
                 y=[float(data.best.f[1])],
                 mode="markers",
@@ -421,13 +417,13 @@ def _front_fig(data: HtmlData, rows: Sequence[Evaluation]) -> Any:
         return fig
     # three or more objectives: the front among the feasible designs, pairwise
     dims = [{"label": labels.label(n)} for n in names]
-    fig = go.Figure()
+    fig = fj.Figure()
     for subset, word, colour in (
         (feasible, "feasible designs", "#999999"),
         (front, f"Pareto front ({len(front)})", _FEASIBLE),
     ):
         fig.add_trace(
-            go.Splom(
+            fj.Splom(
                 dimensions=[
                     {**d, "values": [float(ev.f[i]) for ev in subset]} for i, d in enumerate(dims)
                 ],
@@ -466,14 +462,13 @@ def _response_fig(
     with the target and its band (:func:`pipeline.plot_targets.target_overlay`: a constant, a
     target curve or a range), or the allowable line for stress. Returns the figure and a
     sentence on what is drawn as target."""
-    import plotly.graph_objects as go
     from flexopt.pipeline.plot_targets import target_overlay
 
     spec = plot_spec(spec)
     x = spec["x"]
     xs = np.asarray(table[x], dtype=float)
     converged = np.asarray(table.get("converged", np.ones(len(xs), bool)), dtype=bool)
-    fig = go.Figure()
+    fig = fj.Figure()
     curves = labels.siblings(table, y)
     for column in curves:
         ys = np.asarray(table[column], dtype=float)
@@ -484,7 +479,7 @@ def _response_fig(
         if kind != "stress" and given and len(curves) == 1:  # the kind's words name it too
             name = labels.strip_unit(given)
         fig.add_trace(
-            go.Scatter(
+            fj.Scatter(
                 x=xs.tolist(),
                 y=_plain(ys),
                 mode="markers" if sparse else "lines+markers",
@@ -508,7 +503,7 @@ def _response_fig(
                 name = f"{word} {value:.4g} MPa"
                 said = f"{word} stress {value:.4g} MPa (no stress requirement) "
             fig.add_trace(
-                go.Scatter(
+                fj.Scatter(
                     x=[lo, hi],
                     y=[value, value],
                     mode="lines",
@@ -528,7 +523,7 @@ def _response_fig(
                 band_x = [*overlay.x.tolist(), *overlay.x[::-1].tolist()]
                 band_y = [*_plain(overlay.lower), *_plain(overlay.upper[::-1])]
                 fig.add_trace(
-                    go.Scatter(
+                    fj.Scatter(
                         x=band_x,
                         y=band_y,
                         fill="toself",
@@ -540,7 +535,7 @@ def _response_fig(
                 )
             if overlay.y is not None:
                 fig.add_trace(
-                    go.Scatter(
+                    fj.Scatter(
                         x=overlay.x.tolist(),
                         y=_plain(overlay.y),
                         mode="lines",
@@ -581,24 +576,18 @@ def _part_mesh(detail: DesignDetail) -> tuple[np.ndarray, np.ndarray] | None:
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=int)
 
 
-def _part_fig(
-    vertices: np.ndarray, faces: np.ndarray, whose: str = "best", later: Any = None
-) -> Any:
-    """The printable part as a plotly mesh. ``later`` (:meth:`_Figures.later`, optional)
-    stands in for its long arrays until the figure is embedded (the same JSON, faster)."""
-    import plotly.graph_objects as go
-
+def _part_fig(vertices: np.ndarray, faces: np.ndarray, whose: str = "best") -> fj.Figure:
+    """The printable part as a plotly mesh."""
     v, f = vertices, faces
-    arr = later or (lambda values: values)
     size = np.maximum(v.max(axis=0) - v.min(axis=0), 1e-9)
-    fig = go.Figure(
-        go.Mesh3d(
-            x=arr(v[:, 0].round(4).tolist()),
-            y=arr(v[:, 1].round(4).tolist()),
-            z=arr(v[:, 2].round(4).tolist()),
-            i=arr(f[:, 0].tolist()),
-            j=arr(f[:, 1].tolist()),
-            k=arr(f[:, 2].tolist()),
+    fig = fj.Figure(
+        fj.Mesh3d(
+            x=v[:, 0].round(4).tolist(),
+            y=v[:, 1].round(4).tolist(),
+            z=v[:, 2].round(4).tolist(),
+            i=f[:, 0].tolist(),
+            j=f[:, 1].tolist(),
+            k=f[:, 2].tolist(),
             color="#8fb3d9",
             flatshading=True,
             name=f"{whose} design",
@@ -624,13 +613,11 @@ def _part_fig(
     return fig
 
 
-def _stress_fig(fmap: Mapping[str, Any], whose: str = "best", later: Any = None) -> Any:
+def _stress_fig(fmap: Mapping[str, Any], whose: str = "best") -> fj.Figure:
     """The von Mises field of ``fmap`` (a DesignDetail's ``field_map`` with
     ``displacement_mm``) on the deformed part, as a plotly mesh seen from above, the undeformed
     outline in grey; the scale as stress_deformed.png draws it
-    (:func:`pipeline.plots.deformation_scale`). ``later`` (:meth:`_Figures.later`, optional)
-    stands in for its long arrays until the figure is embedded (the same JSON, faster)."""
-    import plotly.graph_objects as go
+    (:func:`pipeline.plots.deformation_scale`)."""
     from flexopt.pipeline.plots import boundary_edges, deformation_scale
 
     p = np.asarray(fmap["points_mm"], dtype=float).reshape(-1, 2)
@@ -646,27 +633,26 @@ def _stress_fig(fmap: Mapping[str, Any], whose: str = "best", later: Any = None)
     ex = np.column_stack([p[edges[:, 0], 0], p[edges[:, 1], 0], np.full(len(edges), np.nan)])
     ey = np.column_stack([p[edges[:, 0], 1], p[edges[:, 1], 1], np.full(len(edges), np.nan)])
     bar = label if limit is None else f"{label}<br>allowable {limit:g} MPa"
-    arr = later or (lambda values: values)
-    fig = go.Figure(
+    fig = fj.Figure(
         [
-            go.Scatter3d(
-                x=arr(_plain(ex.ravel().round(4))),
-                y=arr(_plain(ey.ravel().round(4))),
-                z=arr([0.0] * ex.size),
+            fj.Scatter3d(
+                x=_plain(ex.ravel().round(4)),
+                y=_plain(ey.ravel().round(4)),
+                z=[0.0] * ex.size,
                 mode="lines",
                 line={"color": "#9e9e9e", "width": 2},
                 name="undeformed",
                 hoverinfo="skip",
             ),
-            go.Mesh3d(
-                x=arr(q[:, 0].round(4).tolist()),
-                y=arr(q[:, 1].round(4).tolist()),
-                z=arr([0.0] * len(q)),
-                i=arr(t[:, 0].tolist()),
-                j=arr(t[:, 1].tolist()),
-                k=arr(t[:, 2].tolist()),
-                intensity=arr(v.round(3).tolist()),
-                colorscale="Viridis",
+            fj.Mesh3d(
+                x=q[:, 0].round(4).tolist(),
+                y=q[:, 1].round(4).tolist(),
+                z=[0.0] * len(q),
+                i=t[:, 0].tolist(),
+                j=t[:, 1].tolist(),
+                k=t[:, 2].tolist(),
+                intensity=v.round(3).tolist(),
+                colorscale=fj.VIRIDIS,
                 cmin=0.0,
                 cmax=max(float(np.nanmax(v)), limit or 0.0),
                 colorbar={"title": {"text": bar}},
@@ -710,7 +696,7 @@ def _stress_block(fmap: Mapping[str, Any] | None, figures: _Figures, whose: str)
     if fmap.get("displacement_mm") is None:
         return ""
     try:
-        fig = _stress_fig(fmap, whose, later=figures.later)
+        fig = _stress_fig(fmap, whose)
     except Exception as exc:  # a field that cannot be drawn must not cost the page
         return f"<p>No stress view: {_e(type(exc).__name__)}: {_e(exc)}.</p>"
     return (
@@ -747,52 +733,19 @@ class _Figures:
 
     def __init__(self) -> None:
         self.count = 0
-        self.deferred: list[list[Any]] = []  # long data arrays, by their placeholder's number
 
-    def later(self, values: list[Any]) -> list[str]:
-        """A placeholder for the long data array ``values`` (a list of Python floats, ints or
-        None) of the next figure to :meth:`embed`, which puts ``values`` in its place.
-
-        plotly checks a list element by element when the trace is made and walks it again in
-        ``to_json``: ~0.1 s CPU for a plane-stress mesh of ~4 000 triangles, on the report's
-        critical path. A one-element list goes through both instead; ``values`` is then the JSON
-        plotly would have written (floats round-trip through JSON, NaN and ±inf become null as
-        plotly's encoder makes them). Only for data-array properties (any list is valid there).
-        """
-        self.deferred.append(values)
-        return [f"{_DEFERRED}{len(self.deferred) - 1}"]
-
-    def embed(self, fig: Any, name: str) -> str:
+    def embed(self, fig: fj.Figure, name: str) -> str:
+        """The figure's element: its JSON (pipeline/figure_json.py) with its template put in
+        (pipeline/html_templates.py) in a script element, and the div plotly.js draws it in."""
         self.count += 1
-        spec = json.loads(fig.to_json())  # plotly's encoder turns numpy into lists
-        if self.deferred:
-            spec = _put_deferred(spec, self.deferred)
-            self.deferred = []
-        finish_template(spec)  # its template's JSON, built once (pipeline/html_templates.py)
-        text = json.dumps(spec, separators=(",", ":"), allow_nan=False)
-        text = script_json(text)
+        spec = fig.to_plotly_json()
+        finish_template(spec)
+        text = script_json(fj.dumps(spec))
         return (
             f'<div class="figure" id="plot-{name}"></div>'
             f'<script type="application/json" class="plotly-figure" id="fig-{name}" '
             f'data-target="plot-{name}">{text}</script>'
         )
-
-
-#: The text of :meth:`_Figures.later`'s placeholders, followed by the array's number.
-_DEFERRED = "\x00flexopt-deferred-array:"
-
-
-def _put_deferred(node: Any, deferred: list[list[Any]]) -> Any:
-    """``node`` (a figure's JSON value) with each placeholder list of :meth:`_Figures.later`
-    replaced by its array (non-finite floats as None, as plotly writes them)."""
-    if isinstance(node, dict):
-        return {key: _put_deferred(value, deferred) for key, value in node.items()}
-    if isinstance(node, list):
-        if len(node) == 1 and isinstance(node[0], str) and node[0].startswith(_DEFERRED):
-            values = deferred[int(node[0][len(_DEFERRED) :])]
-            return [None if isinstance(v, float) and not math.isfinite(v) else v for v in values]
-        return [_put_deferred(value, deferred) for value in node]
-    return node
 
 
 def script_json(text: str) -> str:
@@ -854,11 +807,6 @@ nav a { margin-right: .8em; }
 
 def render_html(data: HtmlData) -> str:
     """The text of report.html (one file, plotly.js inline, no link to the network)."""
-    with templates_at_embed():  # each figure's template is put in once built: ~20 ms less each
-        return _render_html(data)
-
-
-def _render_html(data: HtmlData) -> str:
 
     p = data.problem
     figures = _Figures()
@@ -1093,11 +1041,6 @@ class EvaluateHtmlData:
 def render_evaluate_html(data: EvaluateHtmlData) -> str:
     """The text of an evaluate folder's report.html: the verdict, the summary, the response with
     its target and the part in 3D (one file, plotly.js inline, no link to the network)."""
-    with templates_at_embed():  # each figure's template is put in once built: ~20 ms less each
-        return _render_evaluate_html(data)
-
-
-def _render_evaluate_html(data: EvaluateHtmlData) -> str:
     figures = _Figures()
     record = data.record
     verdicts = list(data.verdicts)
@@ -1278,7 +1221,7 @@ def _part_section(
             else " mm (the extruded outline; <code>flexopt export</code> of this folder writes "
             "it as STL, DXF or STEP).</p>"
         )
-        + figures.embed(_part_fig(*mesh, whose, later=figures.later), "part-3d")
+        + figures.embed(_part_fig(*mesh, whose), "part-3d")
         + stress
     )
 
@@ -1382,18 +1325,17 @@ def _outputs_fig(
     xlabel: str,
 ) -> Any:  # fmt: skip
     """Outputs of one unit against x: one curve each (converged rows; unstable rows open)."""
-    import plotly.graph_objects as go
 
     xs = np.asarray(table[x], dtype=float)
     n = len(xs)
     converged = np.asarray(table.get("converged", np.ones(n, bool)), dtype=bool)
     stable = np.asarray(table.get("stable", np.ones(n, bool)), dtype=bool)
-    fig = go.Figure()
+    fig = fj.Figure()
     for column in columns:
         ys = np.asarray(table[column], dtype=float)
         ys = np.where(converged & np.isfinite(ys), ys, np.nan)
         fig.add_trace(
-            go.Scatter(
+            fj.Scatter(
                 x=xs.tolist(),
                 y=_plain(ys),
                 mode="lines+markers",
@@ -1507,7 +1449,6 @@ def _robustness_section(
 ) -> str:
     """The response's band (min-max over the samples, shaded) around the nominal curve, and
     per requirement its nominal margin, share of samples MET and robust verdict."""
-    import plotly.graph_objects as go
     from flexopt.pipeline.robustness import scatter_text
 
     required = float(record.get("share_percent_required", 100.0))
@@ -1559,9 +1500,9 @@ def _robustness_section(
     if xs is None or len(xs) != len(low):
         xs = np.array([np.nan if v is None else v for v in band[x]["low"]], dtype=float)
     ok = np.isfinite(xs) & np.isfinite(low) & np.isfinite(high)
-    fig = go.Figure()
+    fig = fj.Figure()
     fig.add_trace(
-        go.Scatter(
+        fj.Scatter(
             x=[*xs[ok].tolist(), *xs[ok][::-1].tolist()],
             y=[*low[ok].tolist(), *high[ok][::-1].tolist()],
             fill="toself",
@@ -1573,7 +1514,7 @@ def _robustness_section(
     )
     if y in table and len(table[y]) == len(xs):
         fig.add_trace(
-            go.Scatter(
+            fj.Scatter(
                 x=xs.tolist(),
                 y=_plain(np.asarray(table[y], dtype=float)),
                 mode="lines+markers",

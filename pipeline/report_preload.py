@@ -1,8 +1,8 @@
 """Load what an evaluate's or a run's report files first need, in a thread, while the design
 is solved (issue 27 item 4).
 
-matplotlib (the PNG plots) and plotly's figure classes (report.html) take ~0.3 s CPU each to
-import and set up on their first use; the compiled kernels release the GIL while they solve
+matplotlib (the PNG plots) takes ~0.3 s CPU to import and set up on its first use, trimesh and
+manifold3d (the part's solid) more; the compiled kernels release the GIL while they solve
 (``nogil=True``), so on a machine with a core free that work overlaps the solve instead of
 following it. Nothing here changes a file: the same modules are imported either way.
 """

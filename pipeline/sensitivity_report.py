@@ -230,22 +230,24 @@ def sensitivity_markdown(problem: DesignProblem, best: Evaluation) -> list[str]:
 
 def sensitivity_figure(s: DesignSensitivity) -> Any:
     """report.html's plotly bar chart of the normalised derivatives (one trace per objective)."""
-    import plotly.graph_objects as go
+    from flexopt.pipeline import figure_json as fj
 
     order = _order(s)
-    fig = go.Figure()
+    fig = fj.Figure()
     for j, name in enumerate(s.objectives):
         fig.add_trace(
-            go.Bar(
+            fj.Bar(
                 x=[s.variables[i] for i in order],
                 y=[None if np.isnan(v) else float(v) for v in s.normalised[j, order]],
                 name=name,
             )
         )
     fig.update_layout(
-        title=f"d(objective)/d(variable) × (upper − lower) at the best design ({s.method})",
-        xaxis={"title": "design variable"},
-        yaxis={"title": "change of the objective across the range (first order)"},
+        title={
+            "text": f"d(objective)/d(variable) × (upper − lower) at the best design ({s.method})"
+        },
+        xaxis={"title": {"text": "design variable"}},
+        yaxis={"title": {"text": "change of the objective across the range (first order)"}},
         barmode="group",
         height=420,
     )

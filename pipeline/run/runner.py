@@ -545,8 +545,9 @@ def _preload_report(
     """Import and load what the report will need, in a thread, while the workers solve.
 
     The report runs in this process after the optimisation, on the run's critical path; what it
-    first has to import and load (matplotlib for the plots, ezdxf, trimesh, plotly's classes and
-    the problem's ``warm_up_detail``: ~1.2 s CPU for the constant-force study) is loaded here
+    first has to import and load (matplotlib for the plots, ezdxf, trimesh, the module reading
+    plotly.js and the problem's ``warm_up_detail``: ~0.9 s CPU for the constant-force study) is
+    loaded here
     instead, while this process mostly waits for its workers. Only with worker processes: a
     serial run solves in this process, where the thread would compete. A failure is only
     logged: the report then loads what it needs itself. Returns the preload (started unless
@@ -579,7 +580,8 @@ def _preload_report(
             import scipy.optimize  # noqa: F401  (e.g. the constant-force detail's PRB synthesis)
             import trimesh  # noqa: F401
 
-            # report.html's plotly classes, validators and template JSON (~0.3 s CPU)
+            # what reads plotly.js, and the templates' JSON (report.html's figures are plain
+            # JSON: no plotly classes to load, pipeline/figure_json.py)
             from flexopt.pipeline.html_templates import warm_up as warm_up_html
 
             warm_up_html()

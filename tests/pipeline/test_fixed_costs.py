@@ -30,36 +30,80 @@ def test_split_makes_returns_every_file_in_queued_order():
         assert made["a"][1] == made["e"][1] != made["b"][1] == made["d"][1]
 
 
-def test_templates_put_in_after_building_give_the_same_figure_json():
-    """A figure built inside templates_at_embed with the WHITE marker, finished by
-    finish_template, is the JSON plotly gives the figure built with the template named, and a
-    figure naming none gets the default in force outside the block, as plotly applies it."""
+def test_templates_put_in_at_embed_are_what_plotly_writes():
+    """A figure built as JSON (pipeline/figure_json.py) naming WHITE, finished by
+    finish_template, is the figure plotly's classes write with "plotly_white" named, and one
+    naming no template gets plotly's default, as plotly applies it to a new figure (the
+    templates read from plotly's files, not made by its classes)."""
     go = pytest.importorskip("plotly.graph_objects")
+    from flexopt.pipeline import figure_json as fj
+    from flexopt.pipeline import html_templates
+    from flexopt.pipeline.html_templates import WHITE, finish_template
+
+    html_templates._json_text.cache_clear()
+
+    def build(module, template):
+        fig = module.Figure(module.Scatter(x=[0.0, 1.5], y=[2.0, -1.0], name="a"))
+        layout = {"title": {"text": "t"}, "height": 300}
+        fig.update_layout({**layout, "template": template} if template else layout)
+        return fig
+
+    for template in ("plotly_white", None):
+        want = json.loads(build(go, template).to_json())
+        spec = build(fj, WHITE if template else None).to_plotly_json()
+        finish_template(spec)
+        assert json.loads(fj.dumps(spec)) == want
+        assert list(spec["layout"])[0] == "template"  # first, where plotly writes it
     import plotly.io as pio
-    from flexopt.pipeline.html_templates import WHITE, finish_template, templates_at_embed
 
-    def white(template):
-        fig = go.Figure(go.Scatter(x=[0.0, 1.5], y=[2.0, -1.0], name="a"))
-        fig.update_layout({"title": {"text": "t"}, "template": template, "height": 300})
-        return fig
-
-    def plain():
-        fig = go.Figure(go.Bar(x=["u", "v"], y=[1.0, 2.0]))
-        fig.update_layout(title="b", barmode="group")
-        return fig
-
-    expected = [white("plotly_white").to_json(), plain().to_json()]
     default = pio.templates.default
-    with templates_at_embed():
-        assert pio.templates.default is None
-        specs = [json.loads(white(WHITE).to_json()), json.loads(plain().to_json())]
-        for spec in specs:
-            finish_template(spec)
-    assert pio.templates.default == default  # restored
-    for spec, want in zip(specs, expected, strict=True):
-        assert json.dumps(spec, separators=(",", ":")) == json.dumps(
-            json.loads(want), separators=(",", ":")
+    try:  # a default a program set is the one a figure naming none gets
+        pio.templates.default = "plotly_dark"
+        spec = build(fj, None).to_plotly_json()
+        finish_template(spec)
+        assert (
+            spec["layout"]["template"]
+            == json.loads(build(go, None).to_json())["layout"]["template"]
         )
+        pio.templates.default = None
+        spec = build(fj, None).to_plotly_json()
+        finish_template(spec)
+        assert "template" not in spec["layout"]
+    finally:
+        pio.templates.default = default
+
+
+def test_figure_json_writes_numpy_and_gaps_as_plotly_does():
+    """pipeline/figure_json.py's JSON of numpy arrays (typed arrays, int64 narrowed), numpy
+    scalars and NaN / ±inf (null) is the JSON plotly's classes write for the same figure."""
+    go = pytest.importorskip("plotly.graph_objects")
+    import numpy as np
+    from flexopt.pipeline import figure_json as fj
+
+    def build(module):
+        fig = module.Figure()
+        fig.add_trace(
+            module.Scatter(
+                x=np.array([0.0, 1.5, np.nan, 4.0]),
+                y=[1.0, float("nan"), float("inf"), np.float64(2.5)],
+                marker={"color": np.array([1, 2, 300, 4]), "size": np.int64(4)},
+                customdata=np.array([[1, -70000], [2, 3], [4, 5], [6, 7]]),
+                name="a",
+            )
+        )
+        fig.add_trace(module.Mesh3d(x=[0, 1, 0], y=[0, 0, 1], z=[0, 0, 0],
+                                    i=np.array([0]), j=np.array([1]), k=np.array([2], np.uint64),
+                                    intensity=np.array([1.0, 2.0, 3.0], np.float32)))  # fmt: skip
+        fig.update_layout({"height": 300, "xaxis": {"title": {"text": "x"}}})
+        fig.update_layout(xaxis={"range": [0, 2]}, margin={"l": 10})  # merged, as plotly does
+        return fig
+
+    want = build(go)
+    want.layout.template = None
+    got = build(fj).to_plotly_json()
+    text = fj.dumps(got)
+    assert "NaN" not in text and "Infinity" not in text
+    assert json.loads(text) == json.loads(want.to_json())
 
 
 def test_loading_a_constant_force_study_leaves_the_solid_and_scipy_solvers_unimported():
@@ -274,39 +318,3 @@ def test_the_timeline_deals_each_batch_to_two_workers_largest_first(capsys):
     assert ga[1:] == ["1", "11", "0", "7.000", "4.000", "1.000", "10.000"]
     assert gradient[1:] == ["1", "1", "1", "1.500", "1.000", "0.500", "1.000"]
     assert any("1.250 s CPU, from 2.50 s to 20.00 s" in line for line in lines)
-
-
-def test_long_arrays_put_in_at_embed_give_the_same_figure_json():
-    """report.html's mesh figures with their long arrays as placeholders (``_Figures.later``)
-    embed to the same text as the figures built with the arrays, NaN (a gap: null) included."""
-    pytest.importorskip("plotly.graph_objects")
-    import numpy as np
-    from flexopt.pipeline import report_html as rh
-    from flexopt.pipeline.html_templates import templates_at_embed
-
-    rng = np.random.default_rng(3)
-    points = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [2.0, 0.5]])
-    fmap = {
-        "points_mm": points,
-        "triangles": np.array([[0, 1, 2], [0, 2, 3], [1, 4, 2]]),
-        "values": np.array([1.23456, float("nan"), 30.5, 7.0, 12.0]),
-        "displacement_mm": rng.normal(size=(5, 2)) * 0.1,
-        "label": "von Mises stress (MPa)",
-        "limit": 42.5,
-    }
-    vertices = rng.normal(size=(6, 3))
-    faces = np.array([[0, 1, 2], [2, 3, 4], [4, 5, 0]])
-    with templates_at_embed():
-        whole = rh._Figures()
-        want = [
-            whole.embed(rh._stress_fig(fmap), "s"),
-            whole.embed(rh._part_fig(vertices, faces), "p"),
-        ]
-        deferred = rh._Figures()
-        got = [
-            deferred.embed(rh._stress_fig(fmap, later=deferred.later), "s"),
-            deferred.embed(rh._part_fig(vertices, faces, later=deferred.later), "p"),
-        ]
-    assert got == want
-    assert "null" in got[0] and rh._DEFERRED.strip("\x00") not in got[0] + got[1]
-    assert deferred.deferred == []

@@ -15,6 +15,7 @@ import pytest
 import yaml
 from flexopt.pipeline.run import prepare_run
 from flexopt.pipeline.study import load_study, validate_study
+from flexopt_figure_check import assert_plotly_reads_unchanged
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "pipeline" / "examples"
 
@@ -84,7 +85,9 @@ def _figure(report_html: str, name: str) -> dict:
         re.S,
     )
     assert m, f"no figure {name} in report.html"
-    return json.loads(m.group(1))
+    spec = json.loads(m.group(1))
+    assert_plotly_reads_unchanged(spec)  # tests/pipeline/flexopt_figure_check.py
+    return spec
 
 
 def test_a_default_run_reports_the_gradient_of_its_best_design(tmp_path):

@@ -49,6 +49,7 @@ from flexopt.pipeline.study import (
     load_study,
     validate_study,
 )
+from flexopt_figure_check import assert_plotly_reads_unchanged
 from pydantic import BaseModel
 from shapely.geometry import box
 
@@ -186,12 +187,20 @@ class _Page(HTMLParser):
 def _page(run_dir: Path) -> tuple[_Page, dict[str, dict]]:
     page = _Page()
     page.feed((run_dir / "report.html").read_text(encoding="utf-8"))
+    return page, _figures(page)
+
+
+def _figures(page: _Page) -> dict[str, dict]:
+    """The page's figures' JSON by element id, each checked as plotly's classes checked it
+    when they built the figures (tests/pipeline/flexopt_figure_check.py)."""
     figures = {
         attrs["id"]: json.loads(text)
         for attrs, text in page.scripts
         if attrs.get("type") == "application/json"
     }
-    return page, figures
+    for spec in figures.values():
+        assert_plotly_reads_unchanged(spec)
+    return figures
 
 
 def _axis_title(axis: dict) -> str:
@@ -473,11 +482,7 @@ def test_leaf_joint_png_and_html_show_all_six_curves(leaf_result):
     assert torque.get_legend() is not None
 
     page = render_evaluate_html(EvaluateHtmlData(study.name, study.kind, result.table, result.plot))
-    figures = {
-        attrs["id"]: json.loads(text)
-        for attrs, text in _feed(page).scripts
-        if attrs.get("type") == "application/json"
-    }
+    figures = _figures(_feed(page))
     traces = [t for t in figures["fig-response"]["data"] if t["mode"] == "lines+markers"]
     assert sorted(t["name"] for t in traces) == sorted(words(c) for c in curves)
 
@@ -520,11 +525,7 @@ def test_flexure_pivot_and_cam_plots_draw_their_targets(tmp_path):
     wanted = np.array([float(r["target_torque_Nm"]) for r in rows])
     page = _feed((out / "report.html").read_text(encoding="utf-8"))
     assert page.sections == list(EVALUATE_SECTIONS)
-    figures = {
-        attrs["id"]: json.loads(text)
-        for attrs, text in page.scripts
-        if attrs.get("type") == "application/json"
-    }
+    figures = _figures(page)
     (line,) = [t for t in figures["fig-response"]["data"] if t["name"] == "target"]
     np.testing.assert_allclose(line["y"], wanted, rtol=1e-9)
     assert {"fig-response", "fig-response-stress", "fig-part-3d"} <= set(figures)
@@ -628,11 +629,7 @@ def test_evaluate_report_html_draws_the_robustness_band_and_shares(tmp_path):
     text = (out / "report.html").read_text(encoding="utf-8")
     page = _feed(text)
     assert page.sections == ["verdict", "summary", "response", "robustness", "part-3d"]
-    figures = {
-        attrs["id"]: json.loads(body)
-        for attrs, body in page.scripts
-        if attrs.get("type") == "application/json"
-    }
+    figures = _figures(page)
     band, nominal = figures["fig-robustness"]["data"]
     assert band["fill"] == "toself" and nominal["name"] == "nominal"
     n = len(nominal["x"])

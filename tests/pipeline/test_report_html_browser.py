@@ -284,6 +284,14 @@ def test_every_load_case_and_output_is_drawn(browser, tmp_path):
 
 def test_the_stress_field_on_the_deformed_part_is_drawn(browser, tmp_path):
     """A best design whose field carries its displacement: the stress view under the part."""
+    detail = _stress_detail()
+    figures, problems, _ = _open(browser, render_html(_data(["a_mm"], detail=detail)), tmp_path)
+    _all_drawn(figures, problems)
+    assert "plot-stress-deformed" in {f["id"] for f in figures}
+
+
+def _stress_detail() -> DesignDetail:
+    """A best design whose plane-stress field carries its displacement (the stress view)."""
     d = np.linspace(0.0, 5.0, 11)
     xs, ys = np.meshgrid(np.linspace(0, 30, 7), np.linspace(0, 5, 3))
     points = np.column_stack([xs.ravel(), ys.ravel()])
@@ -291,7 +299,7 @@ def test_the_stress_field_on_the_deformed_part_is_drawn(browser, tmp_path):
         [[j * 7 + i, j * 7 + i + 1, (j + 1) * 7 + i + 1] for j in range(2) for i in range(6)]
         + [[j * 7 + i, (j + 1) * 7 + i + 1, (j + 1) * 7 + i] for j in range(2) for i in range(6)]
     )
-    detail = DesignDetail(
+    return DesignDetail(
         Evaluation(np.zeros(1), np.zeros(1), np.zeros(1)),
         {"displacement_mm": d, "force_N": 0.5 * d, "peak_stress_MPa": 4.0 * d},
         {"x": "displacement_mm", "y": "force_N"},
@@ -306,6 +314,3 @@ def test_the_stress_field_on_the_deformed_part_is_drawn(browser, tmp_path):
             "limit": 25.0,
         },
     )
-    figures, problems, _ = _open(browser, render_html(_data(["a_mm"], detail=detail)), tmp_path)
-    _all_drawn(figures, problems)
-    assert "plot-stress-deformed" in {f["id"] for f in figures}

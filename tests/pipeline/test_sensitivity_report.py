@@ -10,6 +10,7 @@ import re
 import numpy as np
 import pytest
 from flexopt.optimise import DesignProblem, DesignSpace, Evaluation
+from flexopt.pipeline.figure_json import dumps
 from flexopt.pipeline.sensitivity_report import (
     FD_STEP,
     design_sensitivity,
@@ -63,7 +64,7 @@ def test_constant_force_chart_is_the_objective_s_central_difference(problem):  #
     figures = []
 
     def embed(fig, name):
-        figures.append(json.loads(fig.to_json()))
+        figures.append(json.loads(dumps(fig.to_plotly_json())))
         return f"<div id='plot-{name}'></div>"
 
     html = sensitivity_html(problem, best, embed)
