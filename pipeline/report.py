@@ -300,13 +300,13 @@ def _checks_row(record: Mapping[str, Any]) -> list[list[Any]]:
     checks = (record.get("hybrid") or {}).get("checks")
     if not checks:
         return []
-    return [
-        [
-            "of which checks of the verdict's figures (hybrid)",
-            f"{checks.get('count')} designs ({checks.get('met')} met), "
-            f"{_seconds(checks.get('time_s'))}",
-        ]
-    ]
+    count = checks.get("count")
+    spared = checks.get("spared") or 0
+    text = f"{count} design{'' if count == 1 else 's'} ({checks.get('met')} met), "
+    text += _seconds(checks.get("time_s"))
+    if spared:  # a start whose best was above a design already checked and met
+        text += f"; {spared} start{'' if spared == 1 else 's'} not checked (a lower design was met)"
+    return [["of which checks of the verdict's figures (hybrid)", text]]
 
 
 def render_report(data: ReportData) -> str:

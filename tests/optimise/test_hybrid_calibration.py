@@ -140,3 +140,48 @@ def test_a_check_that_answers_none_leaves_the_stage_best():
     assert result.best.x.tobytes() == plain.best.x.tobytes()
     assert result.report["checks"]["best_verified"] is False
     assert result.report["starts"][0]["calibration"][0]["stop"] == "the check did not answer"
+
+
+class Passing(Checks):
+    """A check every design meets (its figure recorded as the toy's judged one)."""
+
+    def __call__(self, x: np.ndarray) -> ConstraintCheck:
+        self.designs.append(np.array(x, dtype=float))
+        return ConstraintCheck({}, True, {"judged": judged(x)})
+
+
+@pytest.mark.parametrize("lockstep", [True, False])
+def test_a_start_whose_best_is_not_below_a_met_check_is_not_checked(lockstep):
+    """Two starts stopped early (2 iterations: their ends differ). The lower one's design is
+    checked first and met; the other start's best cannot become the result (the lowest design
+    whose check was met), so it is not checked: one check, one spared, in lockstep or not."""
+    cfg = HybridConfig(GAConfig("ga", 10, 2, seed=3), local="gauss_newton", starts=2, max_iter=2)
+    checks = Passing()
+    result = run_hybrid(
+        SPACE, evaluate, 1, 1, cfg, jacobian=jacobian, check=checks, lockstep=lockstep
+    )
+    report = result.report
+    ends = [s["f_end"] for s in report["starts"]]
+    assert len(ends) == 2 and ends[0] != ends[1]
+    low, high = int(np.argmin(ends)), int(np.argmax(ends))
+    assert len(checks.designs) == 1
+    np.testing.assert_array_equal(checks.designs[0], result.best.x)
+    assert float(result.best.f[0]) == min(ends)
+    assert {k: v for k, v in report["checks"].items() if k != "time_s"} == {
+        "count": 1, "met": 1, "best_verified": True, "spared": 1
+    }  # fmt: skip
+    assert report["starts"][low]["calibration"][0]["met"] is True
+    (spared,) = report["starts"][high]["calibration"]
+    assert spared["f"] == ends[high] and spared["stop"].startswith("not checked")
+
+
+def test_where_the_lowest_start_fails_its_check_every_start_is_checked():
+    """The lowest start's first check is not met: nothing is spared, every start calibrates
+    (the toy's check fails at the row's bound x = 0.8, where both starts end)."""
+    checks = Checks()
+    result = run_hybrid(SPACE, evaluate, 1, 1, config(), jacobian=jacobian, check=checks)
+    report = result.report
+    assert report["checks"]["spared"] == 0
+    for start in report["starts"]:
+        assert start["calibration"][0]["met"] is False
+        assert start["calibration"][-1]["met"] is True

@@ -81,8 +81,9 @@ def test_lockstep_starts_ask_for_the_designs_one_after_the_other_does(per_start,
     one_by_one, alone = per_start(**kwargs, lockstep=False)
     together, concurrent = per_start(**kwargs)
     assert len(alone) == len(concurrent) == 3
-    # one after the other: each start's designs are consecutive batches of the stage
-    assert sum(alone, []) == gradient_designs(one_by_one)
+    # one after the other: the stage's designs are the starts' (each start's gradient method
+    # in consecutive batches; the calibrations after every start's method, the lowest first)
+    assert sorted(sum(alone, [])) == sorted(gradient_designs(one_by_one))
     assert concurrent == alone  # every start's sequence of designs, to the bit
     assert together.best.x.tobytes() == one_by_one.best.x.tobytes()
     assert together.best.f.tobytes() == one_by_one.best.f.tobytes()
@@ -194,7 +195,11 @@ def test_a_trials_jacobian_taken_ahead_changes_no_start_and_saves_rounds(per_sta
     assert any(n >= 1 and len(kinds) >= 2 for n, kinds in rounds)
     assert len(rounds) // 2 < n_plain  # (two runs recorded) fewer rounds than without it
     assert batches(again) == first
-    assert batches(plain) != first  # the same designs, in other rounds
+    if case == "exact Jacobian":  # the same designs, in other rounds
+        # (calibrated: the checks come after every start's method, the lowest start's
+        # first and alone, so there the batches of designs may coincide; the rounds are
+        # fewer all the same, above)
+        assert batches(plain) != first
 
 
 def test_no_jacobian_is_taken_ahead_without_parallel_calls():

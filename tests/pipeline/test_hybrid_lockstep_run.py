@@ -28,7 +28,7 @@ def small_study():
     optimiser = study.optimiser.model_copy(
         update={
             "method": "hybrid",
-            # 6 iterations: both starts restored and checked (session 33: start 1 needs its 6th)
+            # 6 iterations: both starts restored (session 33: start 1 needs its 6th)
             "hybrid": HybridSpec(ga_n_gen=2, starts=2, max_iter=6),
             "pop_size": 16,
             "seed": 1,
@@ -76,10 +76,13 @@ def test_lockstep_on_the_pool_asks_for_the_designs_the_sequential_stage_does(tmp
     )
     sequential = list(seen.values())
     a, b = pool.record["hybrid"], alone.record["hybrid"]
-    assert a["jacobians"]["exact"] > 2 and a["checks"]["count"] >= 2  # the hooks did run
+    assert a["jacobians"]["exact"] > 2 and a["checks"]["count"] >= 1  # the hooks did run
+    # every start checked, or spared its check by the lower start's met one (optimise/hybrid.py)
+    assert a["checks"]["count"] + a["checks"]["spared"] == 2
     assert len(concurrent) == 2 and concurrent == sequential
     # each check went to the workers as its two parts (pipeline/studies/_constant_force_split.py)
-    assert "check" not in sent and sent.count("check:0") == sent.count("check:1") >= 2
+    assert "check" not in sent
+    assert sent.count("check:0") == sent.count("check:1") == a["checks"]["count"]
     assert pool.result.best.x.tobytes() == alone.result.best.x.tobytes()
     assert pool.result.best.f.tobytes() == alone.result.best.f.tobytes()
     a["checks"].pop("time_s"), b["checks"].pop("time_s")

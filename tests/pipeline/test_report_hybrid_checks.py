@@ -11,6 +11,9 @@ def test_a_hybrid_run_with_checks_gets_a_row():
     ((label, value),) = _checks_row(record)
     assert "checks" in label
     assert value == "3 designs (2 met), 7.5 s"
+    record["hybrid"]["checks"].update(count=1, met=1, spared=1)
+    ((_, value),) = _checks_row(record)
+    assert value == "1 design (1 met), 7.5 s; 1 start not checked (a lower design was met)"
 
 
 def test_no_row_without_checks():
