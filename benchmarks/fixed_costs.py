@@ -94,7 +94,7 @@ TIMED: tuple[tuple[str, str, str], ...] = (
     ("flexopt.pipeline.report_html", "render_html", "report.html (render_html)"),
     ("flexopt.pipeline.report_html", "evaluate_html", "report.html (evaluate_html)"),
     ("flexopt.pipeline.report_html", "evaluate_part", "  evaluate_part (re-solve)"),
-    ("flexopt.pipeline.report_html", "_Figures.embed", "  plotly to_json + dumps"),
+    ("flexopt.pipeline.report_html", "_Figures.embed", "  figure JSON + template"),
     ("plotly.offline", "get_plotlyjs", "  plotly.js text"),
     ("flexopt.pipeline.evaluate", "solve_study", "evaluate: solve_study"),
     ("flexopt.pipeline.evaluate", "_design_vtu", "evaluate: VTU files"),

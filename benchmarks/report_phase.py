@@ -7,7 +7,7 @@ imports a run's preload thread makes while its workers solve.
 Each round copies RUN_DIR (a finished ``flexopt run`` folder) to a temporary folder and, in a
 fresh process of this interpreter (and of OTHER_PYTHON, alternating, A first), imports what the
 run's report preload imports (matplotlib, trimesh, manifold3d, ezdxf, scipy.optimize, the
-report's modules, report.html's plotly warm-up, the kind's ``warm_up`` and ``warm_up_detail``),
+report's modules, report.html's template and plotly.js warm-up, the kind's ``warm_up`` and ``warm_up_detail``),
 then times ``rebuild_report`` with ``RunState.finish`` inside it: wall (``time.perf_counter``),
 the CPU of the process (``time.process_time``) and of the children it waited for (the plot
 children, best.step's; ``RUSAGE_CHILDREN``), s. Medians are printed with the load average, since
